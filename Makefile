@@ -1,0 +1,47 @@
+# reachirl: `make run` and `make test` do all the set-up themselves.
+PYTHON ?= python3.11
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+export MUJOCO_GL ?= osmesa
+export PYOPENGL_PLATFORM ?= osmesa
+export OMP_NUM_THREADS ?= 1
+
+.PHONY: install run test test-slow bench lint clean system-deps
+
+install: $(STAMP)
+
+# OSMesa for MuJoCo's offscreen rendering on CPU (Debian: libosmesa6). Installed when we are root and it is missing.
+system-deps:
+	@if ! ldconfig -p 2>/dev/null | grep -q libOSMesa; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null; then \
+	    echo "installing libosmesa6 for offscreen rendering"; \
+	    (apt-get install -y -qq libosmesa6 >/dev/null 2>&1 || (apt-get update -qq >/dev/null && apt-get install -y -qq libosmesa6 >/dev/null)); \
+	  else echo "note: libOSMesa not found; MuJoCo rendering will be unavailable (apt-get install libosmesa6)"; fi; \
+	fi
+
+$(STAMP): requirements.lock pyproject.toml
+	@$(MAKE) --no-print-directory system-deps
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -r requirements.lock
+	$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	@touch $(STAMP)
+
+run: install
+	$(VENV)/bin/reachirl reproduce --out results
+
+test: install
+	$(PY) -m pytest -q
+
+test-slow: install
+	$(PY) -m pytest -q -m slow
+
+bench: install
+	$(VENV)/bin/reachirl bench --out bench.json
+
+lint: install
+	$(VENV)/bin/ruff check src tests benchmarks examples
+
+clean:
+	rm -rf $(VENV) results bench.json .pytest_cache

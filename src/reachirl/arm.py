@@ -1,0 +1,259 @@
+"""The planar two-link arm: shoulder q1, elbow q2, in the sagittal plane.
+
+Convention (SI units, radians):
+
+* x forward, y up, shoulder at the origin, gravity along -y.
+* q1 is the upper arm's angle from +x, counter-clockwise positive (-pi/2 hangs down).
+* q2 is the elbow angle relative to the upper arm, 0 straight, positive in flexion.
+* Segment 2 is the forearm with the hand lumped on (the wrist is frozen); its tip, the
+  fingertip, is ``l2`` from the elbow.
+
+Dynamics are the textbook closed form ``tau = M(q) qdd + b(q, qd) + g(q)``; :meth:`ArmModel.pinocchio_model`
+builds the same arm in Pinocchio, and the tests check the two agree to 1e-9.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+__all__ = ["DUMAS_2007", "ArmModel"]
+
+# Dumas, Cheze & Verriest 2007, J Biomech 40:543-553: (mass % of body mass, CoM % of length from the proximal
+# joint, radius of gyration about the CoM r_zz % of length) and mean segment length (m).
+DUMAS_2007 = {
+    "M": {
+        "upper_arm": (2.4, 45.2, 32.0, 0.271),
+        "forearm": (1.7, 41.7, 27.0, 0.268),  # sources give 253-283 mm; the midpoint
+        "hand": (0.6, 35.7, 24.0, 0.189),  # wrist centre to fingertip
+    },
+    "F": {
+        "upper_arm": (2.2, 45.4, 33.0, 0.243),
+        "forearm": (1.3, 41.1, 25.0, 0.247),
+        "hand": (0.5, 32.7, 25.0, 0.167),
+    },
+}
+# Stature the mean lengths above belong to; default lengths are scaled by height / this.
+_REFERENCE_HEIGHT_M = {"M": 1.77, "F": 1.64}
+
+
+@dataclass(frozen=True)
+class ArmModel:
+    """A planar two-link arm in SI units.
+
+    ``c1``/``c2`` are the CoM distances from each segment's proximal joint and ``i1``/``i2`` the inertias about
+    the CoM (about the axis normal to the plane).
+    """
+
+    l1: float
+    l2: float
+    m1: float
+    m2: float
+    c1: float
+    c2: float
+    i1: float
+    i2: float
+    gravity: float = 9.81
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise ValueError(f"ArmModel.{f.name} must be a number, got {v!r}") from None
+            if not np.isfinite(v):
+                raise ValueError(f"ArmModel.{f.name} must be finite, got {v}")
+            object.__setattr__(self, f.name, v)
+        for name in ("l1", "l2", "m1", "m2", "i1", "i2"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"ArmModel.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 <= self.c1 <= self.l1 or not 0 <= self.c2 <= self.l2:
+            raise ValueError(f"ArmModel CoM must lie on its segment: c1={self.c1}, c2={self.c2}")
+        if self.gravity < 0:
+            raise ValueError(f"ArmModel.gravity must be >= 0, got {self.gravity}")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_anthropometrics(
+        cls,
+        height_m: float,
+        mass_kg: float,
+        sex: str,
+        upper_arm_m: float | None = None,
+        forearm_m: float | None = None,
+        hand_m: float | None = None,
+    ) -> ArmModel:
+        """Build the arm from Dumas 2007 tables.
+
+        Missing segment lengths default to Dumas' mean lengths scaled by ``height_m`` over the reference stature.
+        The hand (wrist centre to fingertip) is lumped onto the forearm with the parallel-axis theorem, so
+        ``l2 = forearm_m + hand_m`` and the fingertip is the end-effector.
+        """
+        key = str(sex).strip().upper()[:1]
+        if key not in DUMAS_2007:
+            raise ValueError(f"sex must be 'M' or 'F', got {sex!r}")
+        if not (0.5 < float(height_m) < 2.6):
+            raise ValueError(f"height_m must be a plausible stature in metres, got {height_m}")
+        if not (10.0 < float(mass_kg) < 300.0):
+            raise ValueError(f"mass_kg must be a plausible body mass in kg, got {mass_kg}")
+        table = DUMAS_2007[key]
+        scale = float(height_m) / _REFERENCE_HEIGHT_M[key]
+
+        def segment(name: str, length: float | None) -> tuple[float, float, float, float]:
+            mass_pct, com_pct, r_pct, mean_len = table[name]
+            length = mean_len * scale if length is None else float(length)
+            if not (0.02 < length < 1.0):
+                raise ValueError(f"{name} length must be in metres (0.02-1.0), got {length}")
+            m = mass_pct / 100.0 * mass_kg
+            return length, m, com_pct / 100.0 * length, m * (r_pct / 100.0 * length) ** 2
+
+        l1, m1, c1, i1 = segment("upper_arm", upper_arm_m)
+        lf, mf, cf, i_f = segment("forearm", forearm_m)
+        lh, mh, ch, i_h = segment("hand", hand_m)
+        ch += lf  # hand CoM measured from the elbow
+        m2 = mf + mh
+        c2 = (mf * cf + mh * ch) / m2
+        i2 = i_f + mf * (cf - c2) ** 2 + i_h + mh * (ch - c2) ** 2
+        return cls(l1=l1, l2=lf + lh, m1=m1, m2=m2, c1=c1, c2=c2, i1=i1, i2=i2)
+
+    @property
+    def length(self) -> float:
+        """Total arm length ``l1 + l2`` (shoulder to fingertip, arm straight)."""
+        return self.l1 + self.l2
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ArmModel:
+        return cls(**{f.name: d[f.name] for f in fields(cls) if f.name in d})
+
+    # ------------------------------------------------------------------ kinematics
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """Fingertip position, ``(..., 2)`` from ``q`` of shape ``(..., 2)``."""
+        q = np.asarray(q, dtype=float)
+        q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
+        return np.stack(
+            [self.l1 * np.cos(q1) + self.l2 * np.cos(q12), self.l1 * np.sin(q1) + self.l2 * np.sin(q12)], axis=-1
+        )
+
+    def elbow(self, q: np.ndarray) -> np.ndarray:
+        """Elbow position ``(..., 2)``."""
+        q = np.asarray(q, dtype=float)
+        return self.l1 * np.stack([np.cos(q[..., 0]), np.sin(q[..., 0])], axis=-1)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Fingertip Jacobian ``dP/dq``, shape ``(..., 2, 2)``."""
+        q = np.asarray(q, dtype=float)
+        q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
+        s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q12), np.cos(q12)
+        J = np.empty(q.shape[:-1] + (2, 2))
+        J[..., 0, 0] = -self.l1 * s1 - self.l2 * s12
+        J[..., 0, 1] = -self.l2 * s12
+        J[..., 1, 0] = self.l1 * c1 + self.l2 * c12
+        J[..., 1, 1] = self.l2 * c12
+        return J
+
+    def fingertip_velocity(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Fingertip velocity ``J(q) qd``, shape ``(..., 2)``."""
+        return np.einsum("...ij,...j->...i", self.jacobian(q), np.asarray(qd, dtype=float))
+
+    def ik(self, p: np.ndarray, elbow_up: bool = False) -> np.ndarray:
+        """Two-link inverse kinematics of the fingertip, ``(..., 2)`` -> ``(..., 2)``.
+
+        The default branch has the elbow flexed (``q2 >= 0``), the human one. Berret 2011's equation:
+        ``q1 = atan2(y, x) - acos((x²+y²+l1²-l2²) / (2 l1 r))``, ``q2 = pi - acos((l1²+l2²-r²) / (2 l1 l2))``.
+        Raises ``ValueError`` when a point is out of reach.
+        """
+        p = np.asarray(p, dtype=float)
+        r2 = p[..., 0] ** 2 + p[..., 1] ** 2
+        r = np.sqrt(r2)
+        tol = 1e-9
+        if np.any(r > self.l1 + self.l2 + tol) or np.any(r < abs(self.l1 - self.l2) - tol):
+            bad = np.flatnonzero(np.ravel((r > self.l1 + self.l2 + tol) | (r < abs(self.l1 - self.l2) - tol)))
+            raise ValueError(
+                f"fingertip out of reach of an arm of lengths {self.l1:.3f}+{self.l2:.3f} m at sample(s) "
+                f"{bad[:5].tolist()} (distance {np.ravel(r)[bad[0]]:.3f} m)"
+            )
+        cos_inner = np.clip((self.l1**2 + self.l2**2 - r2) / (2 * self.l1 * self.l2), -1.0, 1.0)
+        q2 = np.pi - np.arccos(cos_inner)
+        cos_a = np.clip((r2 + self.l1**2 - self.l2**2) / (2 * self.l1 * np.maximum(r, 1e-12)), -1.0, 1.0)
+        q1 = np.arctan2(p[..., 1], p[..., 0]) - np.arccos(cos_a)
+        if elbow_up:
+            q1, q2 = q1 + 2 * np.arccos(cos_a), -q2
+        return np.stack([q1, q2], axis=-1)
+
+    # ------------------------------------------------------------------ dynamics (closed form)
+    def mass_matrix(self, q: np.ndarray) -> np.ndarray:
+        """Joint-space inertia ``M(q)``, shape ``(..., 2, 2)``."""
+        q = np.asarray(q, dtype=float)
+        cq2 = np.cos(q[..., 1])
+        a = self.i1 + self.i2 + self.m1 * self.c1**2 + self.m2 * (self.l1**2 + self.c2**2)
+        b = self.m2 * self.l1 * self.c2
+        d = self.i2 + self.m2 * self.c2**2
+        M = np.empty(q.shape[:-1] + (2, 2))
+        M[..., 0, 0] = a + 2 * b * cq2
+        M[..., 0, 1] = M[..., 1, 0] = d + b * cq2
+        M[..., 1, 1] = d
+        return M
+
+    def coriolis(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Coriolis and centrifugal torques ``C(q, qd) qd``, shape ``(..., 2)``."""
+        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        h = self.m2 * self.l1 * self.c2 * np.sin(q[..., 1])
+        return np.stack([-h * (2 * qd[..., 0] * qd[..., 1] + qd[..., 1] ** 2), h * qd[..., 0] ** 2], axis=-1)
+
+    def gravity_torque(self, q: np.ndarray) -> np.ndarray:
+        """Gravity torques ``g(q)`` (the torque needed to hold still), shape ``(..., 2)``."""
+        q = np.asarray(q, dtype=float)
+        c1, c12 = np.cos(q[..., 0]), np.cos(q[..., 0] + q[..., 1])
+        g2 = self.gravity * self.m2 * self.c2 * c12
+        g1 = self.gravity * (self.m1 * self.c1 + self.m2 * self.l1) * c1 + g2
+        return np.stack([g1, g2], axis=-1)
+
+    def bias(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Non-linear effects ``b = C(q, qd) qd + g(q)`` (Pinocchio's ``nle``)."""
+        return self.coriolis(q, qd) + self.gravity_torque(q)
+
+    def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+        """``tau = M(q) qdd + b(q, qd)``, vectorised over leading axes."""
+        M = self.mass_matrix(q)
+        return np.einsum("...ij,...j->...i", M, np.asarray(qdd, dtype=float)) + self.bias(q, qd)
+
+    def forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """``qdd = M(q)^-1 (tau - b(q, qd))``, vectorised over leading axes."""
+        rhs = np.asarray(tau, dtype=float) - self.bias(q, qd)
+        return np.linalg.solve(self.mass_matrix(q), rhs[..., None])[..., 0]
+
+    # ------------------------------------------------------------------ Pinocchio
+    def pinocchio_model(self):
+        """The same arm as a Pinocchio model: two revolute-Z joints, a ``fingertip`` frame, gravity along -y."""
+        import pinocchio as pin  # noqa: PLC0415  (heavy import, only where needed)
+
+        model = pin.Model()
+        model.name = "reachirl_arm"
+        model.gravity.linear = np.array([0.0, -self.gravity, 0.0])
+        j1 = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "shoulder")
+        model.appendBodyToJoint(j1, _planar_inertia(self.m1, self.c1, self.i1), pin.SE3.Identity())
+        j2 = model.addJoint(j1, pin.JointModelRZ(), pin.SE3(np.eye(3), np.array([self.l1, 0.0, 0.0])), "elbow")
+        model.appendBodyToJoint(j2, _planar_inertia(self.m2, self.c2, self.i2), pin.SE3.Identity())
+        model.addFrame(pin.Frame("upper_arm", j1, 0, pin.SE3.Identity(), pin.FrameType.OP_FRAME))
+        model.addFrame(
+            pin.Frame("fingertip", j2, 0, pin.SE3(np.eye(3), np.array([self.l2, 0.0, 0.0])), pin.FrameType.OP_FRAME)
+        )
+        for i in range(2):  # the limits do not enter the dynamics; keep them wide
+            model.lowerPositionLimit[i], model.upperPositionLimit[i] = -2 * np.pi, 2 * np.pi
+        return model
+
+
+def _planar_inertia(mass: float, com_x: float, izz: float):
+    """A body whose CoM lies on its x axis with inertia ``izz`` about z through the CoM.
+
+    The x/y inertias are set to ``izz`` as well: they never act in planar motion about z, but keep the tensor
+    physically valid (triangle inequality).
+    """
+    import pinocchio as pin  # noqa: PLC0415
+
+    return pin.Inertia(mass, np.array([com_x, 0.0, 0.0]), np.diag([izz * 0.5, izz * 0.5, izz]))

@@ -1,0 +1,63 @@
+"""The ``reachirl`` command line: parse, call the library, print.
+
+Each subcommand lives in its own module of this package with ``add_parser(subparsers)`` and ``run(args) -> int``.
+Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import os
+import sys
+
+from ..errors import InputError
+
+COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "simulate", "bench")
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, exit 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details to stderr")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for name in COMMANDS:
+        try:
+            module = importlib.import_module(f"{__name__}.{name}")
+        except ModuleNotFoundError as e:
+            if e.name == f"{__name__}.{name}":
+                continue  # a command not built yet
+            raise
+        p = module.add_parser(sub)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    try:
+        return int(args._run(args) or 0)
+    except InputError as e:
+        print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"reachirl {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as e:  # an internal error: say so in one line; -v for the traceback
+        if args.verbose:
+            raise
+        print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+              file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,201 @@
+"""A trial (one reach, from onset to offset, on the subject's planar arm) and the trials file format.
+
+The trials file is one NPZ: the arrays of every trial under ``"<index>/<field>"`` and a ``meta.json`` entry with
+the scalar fields and each trial's :class:`~reachirl.arm.ArmModel`. It never holds a pickle.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ..arm import ArmModel
+from ..errors import InputError
+from ..io import atomic_write_bytes, npz_bytes
+
+__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials"]
+
+TRIALS_FORMAT = "reachirl-trials/1"
+_ARRAYS = ("t", "q", "qd", "qdd", "tau")
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One reach. Time ``t (n,)`` starts at 0 (the onset) and ends at ``duration`` (the offset).
+
+    ``q``, ``qd``, ``qdd``, ``tau`` have shape ``(n, 2)`` (rad, rad/s, rad/s², N·m; ``tau`` from inverse
+    dynamics on ``arm``). ``x0 = (q1, q2, q̇1, q̇2)`` is the state at onset and ``target_x`` the fingertip's x at
+    offset (m). ``side`` is the arm that moved (``"right"``/``"left"``); left arms are already mirrored into the
+    right-arm convention.
+    """
+
+    subject: str
+    posture: str
+    trial_id: str
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    target_x: float
+    arm: ArmModel
+    side: str = "right"
+    source: str = ""
+    x0: np.ndarray = field(default=None)  # type: ignore[assignment]  # defaults to (q[0], qd[0])
+
+    def __post_init__(self) -> None:
+        where = self.source or f"trial {self.subject}/{self.posture}/{self.trial_id}"
+        t = np.asarray(self.t, dtype=float).reshape(-1)
+        n = t.shape[0]
+        if n < 4:
+            raise InputError(f"a trial needs at least 4 samples, got {n}", where)
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise InputError("time must be finite and strictly increasing", where)
+        object.__setattr__(self, "t", t - t[0])
+        for name in ("q", "qd", "qdd", "tau"):
+            a = np.asarray(getattr(self, name), dtype=float)
+            if a.shape != (n, 2):
+                raise InputError(f"{name} has shape {a.shape}, expected ({n}, 2)", where)
+            if not np.all(np.isfinite(a)):
+                raise InputError(f"{name} contains NaN or infinite values", where)
+            a = a.copy()
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else np.asarray(self.x0, dtype=float).reshape(-1)
+        if x0.shape != (4,) or not np.all(np.isfinite(x0)):
+            raise InputError(f"x0 must be 4 finite numbers (q1, q2, qd1, qd2), got shape {x0.shape}", where)
+        object.__setattr__(self, "x0", x0)
+        if not isinstance(self.arm, ArmModel):
+            raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)
+        if not np.isfinite(self.target_x) or abs(self.target_x) > self.arm.length:
+            raise InputError(
+                f"target_x {self.target_x} m is unreachable by an arm {self.arm.length:.3f} m long", where
+            )
+        object.__setattr__(self, "target_x", float(self.target_x))
+        if self.side not in ("right", "left"):
+            raise InputError(f"side must be 'right' or 'left', got {self.side!r}", where)
+        for name in ("subject", "posture", "trial_id", "source"):
+            object.__setattr__(self, name, str(getattr(self, name)))
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    @property
+    def id(self) -> str:
+        return f"{self.subject}/{self.posture}/{self.side}/{self.trial_id}"
+
+    @property
+    def state(self) -> np.ndarray:
+        """``(n, 4)`` state ``(q1, q2, q̇1, q̇2)``."""
+        return np.hstack([self.q, self.qd])
+
+    def to_task(self, n_nodes: int = 100, **bounds):
+        """The DOC task of this reach: its own arm, initial posture, target and duration."""
+        from ..doc.task import ReachingTask
+
+        return ReachingTask(self.arm, self.x0[:2], self.target_x, self.duration, n_nodes=n_nodes, **bounds)
+
+    def resample(self, n_points: int) -> Trial:
+        """The same reach on ``n_points`` equally spaced samples (cubic spline; torques re-derived)."""
+        t_new = np.linspace(0.0, self.duration, n_points)
+        q = CubicSpline(self.t, self.q, axis=0)(t_new)
+        qd = CubicSpline(self.t, self.qd, axis=0)(t_new)
+        qdd = CubicSpline(self.t, self.qdd, axis=0)(t_new)
+        tau = self.arm.inverse_dynamics(q, qd, qdd)
+        return replace(self, t=t_new, q=q, qd=qd, qdd=qdd, tau=tau)
+
+    def knots(self, n_nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(q (N+1,2), qd (N+1,2), tau (N,2))`` on the DOC's ``N = n_nodes`` intervals, for the features."""
+        r = self.resample(n_nodes + 1)
+        return r.q, r.qd, r.tau[:-1]
+
+    def features(self, n_nodes: int, n_windows: int) -> np.ndarray:
+        """Φ of this demonstration per window, ``(n_windows, 7)``, on the DOC's discretisation."""
+        from ..features import windowed_features
+
+        q, qd, tau = self.knots(n_nodes)
+        return windowed_features(self.arm, q, qd, tau, self.duration / n_nodes, n_windows)
+
+
+# ---------------------------------------------------------------------- file format
+def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
+    """Write trials to ``path`` exactly (one NPZ), atomically."""
+    trials = list(trials)
+    if not trials:
+        raise ValueError("no trials to save")
+    arrays: dict[str, np.ndarray] = {}
+    meta = []
+    for i, tr in enumerate(trials):
+        for name in _ARRAYS:
+            arrays[f"{i}/{name}"] = getattr(tr, name)
+        arrays[f"{i}/x0"] = tr.x0
+        meta.append(
+            {
+                "subject": tr.subject,
+                "posture": tr.posture,
+                "trial_id": tr.trial_id,
+                "side": tr.side,
+                "source": tr.source,
+                "target_x": tr.target_x,
+                "arm": tr.arm.to_dict(),
+            }
+        )
+    header = {"format": TRIALS_FORMAT, "n_trials": len(trials), "trials": meta}
+    arrays["meta.json"] = np.frombuffer(json.dumps(header, sort_keys=True).encode("utf-8"), dtype=np.uint8)
+    path = Path(path)
+    atomic_write_bytes(path, npz_bytes(arrays))
+    return path
+
+
+def load_trials(path: str | Path) -> list[Trial]:
+    """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError("file not found", path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            files = set(z.files)
+            if "meta.json" not in files:
+                raise InputError("not a reachirl trials file (no meta.json entry)", path)
+            header = json.loads(bytes(z["meta.json"]).decode("utf-8"))
+            if header.get("format") != TRIALS_FORMAT:
+                raise InputError(f"unsupported format {header.get('format')!r}, expected {TRIALS_FORMAT!r}", path)
+            out = []
+            for i, m in enumerate(header["trials"]):
+                missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
+                if missing:
+                    raise InputError(f"trial {i} lacks arrays {missing}", path)
+                out.append(
+                    Trial(
+                        subject=m["subject"],
+                        posture=m["posture"],
+                        trial_id=m["trial_id"],
+                        side=m.get("side", "right"),
+                        source=m.get("source", ""),
+                        target_x=m["target_x"],
+                        arm=ArmModel.from_dict(m["arm"]),
+                        x0=z[f"{i}/x0"],
+                        **{n: z[f"{i}/{n}"] for n in _ARRAYS},
+                    )
+                )
+    except InputError:
+        raise
+    except (zipfile.BadZipFile, OSError, EOFError) as e:
+        raise InputError(f"not a readable NPZ trials file ({e})", path) from None
+    except (KeyError, TypeError, ValueError, json.JSONDecodeError) as e:
+        raise InputError(f"malformed trials file ({e})", path) from None
+    if not out:
+        raise InputError("the file holds no trials", path)
+    return out
+
+
+def trial_fields() -> tuple[str, ...]:
+    return tuple(f.name for f in fields(Trial))

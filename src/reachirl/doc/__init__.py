@@ -1,0 +1,59 @@
+"""Direct optimal control of a reach: :class:`ReachingTask` in, :class:`DocSolution` out, through a backend.
+
+Backends: ``"casadi"`` (CasADi + IPOPT, the default) and ``"crocoddyl"`` (Pinocchio + Crocoddyl +
+mim_solvers CSQP, the seed paper's own stack). Both solve the same problem; see :mod:`reachirl.doc.task`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..features import N_FEATURES
+from .task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, DocSolution, ReachingTask
+
+__all__ = [
+    "BACKENDS",
+    "DEFAULT_QD_MAX",
+    "DEFAULT_Q_LOWER",
+    "DEFAULT_Q_UPPER",
+    "DocSolution",
+    "ReachingTask",
+    "check_weights",
+    "solve_doc",
+]
+
+BACKENDS = ("casadi", "crocoddyl")
+
+
+def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
+    """Validate DOC weights: shape ``(n_windows, 7)``, finite, ``>= 0``. Returns a float copy."""
+    w = np.array(weights, dtype=float)
+    if w.ndim == 1 and w.shape[0] == N_FEATURES:
+        w = w[None, :]
+    if w.ndim != 2 or w.shape[1] != N_FEATURES or w.shape[0] < 1:
+        raise ValueError(f"weights must have shape (n_windows, {N_FEATURES}), got {np.shape(weights)}")
+    if not np.all(np.isfinite(w)):
+        raise ValueError("weights must be finite")
+    if np.any(w < 0):
+        raise ValueError(f"weights must be >= 0, got a minimum of {w.min():.3g}")
+    if n_nodes is not None and w.shape[0] > n_nodes:
+        raise ValueError(f"{w.shape[0]} windows do not fit in {n_nodes} intervals")
+    return w
+
+
+def solve_doc(task: ReachingTask, weights, backend: str = "casadi", warm_start: DocSolution | None = None) -> DocSolution:
+    """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
+
+    ``warm_start`` is a previous :class:`DocSolution` of a problem of the same shape; the CasADi backend then also
+    reuses its multipliers. A solution that did not converge is returned with ``converged=False``, never raised.
+    """
+    if not isinstance(task, ReachingTask):
+        raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")
+    w = check_weights(weights, task.n_nodes)
+    if backend == "casadi":
+        from . import casadi as impl
+    elif backend == "crocoddyl":
+        from . import crocoddyl as impl
+    else:
+        raise ValueError(f"unknown DOC backend {backend!r}; choose one of {BACKENDS}")
+    return impl.solve(task, w, warm_start=warm_start)

@@ -1,0 +1,119 @@
+"""The reaching DOC problem (seed Eq. 1) and its solution, independent of any solver.
+
+The problem, on ``N = n_nodes`` Euler intervals of ``dt = duration / N``::
+
+    min_τ   Σ_s Σ_j ω_{s,j} Φ_{s,j}(q, q̇, τ)                      (features.py)
+    s.t.    q̇_{k+1} = q̇_k + dt · M(q_k)⁻¹ (τ_k − b(q_k, q̇_k))    semi-implicit Euler, as Crocoddyl's
+            q_{k+1} = q_k + dt · q̇_{k+1}                          IntegratedActionModelEuler
+            q_0 = q0,   q̇_0 = 0,   q̇_N = 0
+            P_x(q_N) = target_x                                   fingertip on the vertical bar
+            q_lower ≤ q_k ≤ q_upper,   |q̇_k| ≤ qd_max (per joint)
+
+Default bounds (documented choices; the seed gives none): the shoulder ``q1 ∈ [-150°, 120°]`` (full extension
+behind the body to well overhead), the elbow ``q2 ∈ [-5°, 160°]`` (slight hyper-extension to full flexion), and a
+joint speed of at most 10 rad/s (about 570 °/s, above human reaching peaks of 3-6 rad/s, so it binds only on
+outlandish weights). The speed bound is per joint (the seed writes ``‖q̇‖ ≤ q̇⁺`` with a vector ``q̇⁺``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..arm import ArmModel
+
+__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask"]
+
+DEFAULT_Q_LOWER = (np.deg2rad(-150.0), np.deg2rad(-5.0))
+DEFAULT_Q_UPPER = (np.deg2rad(120.0), np.deg2rad(160.0))
+DEFAULT_QD_MAX = (10.0, 10.0)
+
+
+def _vec2(name: str, v) -> np.ndarray:
+    a = np.asarray(v, dtype=float).reshape(-1)
+    if a.shape != (2,):
+        raise ValueError(f"{name} must have shape (2,), got {np.shape(v)}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {a}")
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class ReachingTask:
+    """One reach to plan: the arm, where it starts (rad), where the bar is (m) and how long it takes (s)."""
+
+    arm: ArmModel
+    q0: np.ndarray
+    target_x: float
+    duration: float
+    n_nodes: int = 100
+    q_lower: np.ndarray = field(default_factory=lambda: np.array(DEFAULT_Q_LOWER))
+    q_upper: np.ndarray = field(default_factory=lambda: np.array(DEFAULT_Q_UPPER))
+    qd_max: np.ndarray = field(default_factory=lambda: np.array(DEFAULT_QD_MAX))
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.arm, ArmModel):
+            raise TypeError(f"arm must be an ArmModel, got {type(self.arm).__name__}")
+        for name in ("q0", "q_lower", "q_upper", "qd_max"):
+            object.__setattr__(self, name, _vec2(name, getattr(self, name)))
+        object.__setattr__(self, "target_x", float(self.target_x))
+        object.__setattr__(self, "duration", float(self.duration))
+        if not np.isfinite(self.target_x):
+            raise ValueError(f"target_x must be finite, got {self.target_x}")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise ValueError(f"duration must be a positive number of seconds, got {self.duration}")
+        if int(self.n_nodes) != self.n_nodes or self.n_nodes < 4:
+            raise ValueError(f"n_nodes must be an integer >= 4, got {self.n_nodes}")
+        object.__setattr__(self, "n_nodes", int(self.n_nodes))
+        if np.any(self.q_lower >= self.q_upper):
+            raise ValueError(f"q_lower {self.q_lower} must be below q_upper {self.q_upper}")
+        if np.any(self.qd_max <= 0):
+            raise ValueError(f"qd_max must be > 0, got {self.qd_max}")
+        if np.any(self.q0 < self.q_lower - 1e-9) or np.any(self.q0 > self.q_upper + 1e-9):
+            raise ValueError(
+                f"q0 {np.rad2deg(self.q0).round(1)} deg lies outside the joint limits "
+                f"[{np.rad2deg(self.q_lower).round(1)}, {np.rad2deg(self.q_upper).round(1)}] deg"
+            )
+        if abs(self.target_x) > self.arm.length:
+            raise ValueError(
+                f"target_x {self.target_x:.3f} m is out of reach of an arm {self.arm.length:.3f} m long"
+            )
+
+    @property
+    def dt(self) -> float:
+        return self.duration / self.n_nodes
+
+    @property
+    def t(self) -> np.ndarray:
+        return np.linspace(0.0, self.duration, self.n_nodes + 1)
+
+
+@dataclass(frozen=True)
+class DocSolution:
+    """An optimal (or best-effort) reach: knots ``t (N+1,)``, ``q``/``qd (N+1, 2)``, torques ``tau (N, 2)``."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray
+    cost: float
+    converged: bool
+    iterations: int
+    solve_time: float
+    status: str = ""
+    backend: str = ""
+    # Solver state for warm starts (primal/dual vectors); opaque, not part of the public result.
+    warm: dict | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.t)[0] - 1
+        for name, shape in (("q", (n + 1, 2)), ("qd", (n + 1, 2)), ("tau", (n, 2))):
+            if np.shape(getattr(self, name)) != shape:
+                raise ValueError(f"DocSolution.{name} must have shape {shape}, got {np.shape(getattr(self, name))}")
+
+    @property
+    def state(self) -> np.ndarray:
+        """Full state ``x = (q1, q2, q̇1, q̇2)`` at the knots, shape ``(N+1, 4)``."""
+        return np.hstack([self.q, self.qd])
