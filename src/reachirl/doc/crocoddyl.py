@@ -1,0 +1,415 @@
+"""Pinocchio + Crocoddyl + mim_solvers CSQP backend of the reaching DOC (the seed paper's own solver stack).
+
+It solves the problem of :mod:`reachirl.doc.task` on the same discretisation as :mod:`reachirl.features`:
+``N = task.n_nodes`` intervals of ``dt = duration / N``, semi-implicit Euler (Crocoddyl's
+``IntegratedActionModelEuler``), control ``u = τ`` and ``x_0 = (q0, 0)``.
+
+Layers, Crocoddyl's vocabulary from the bottom up:
+
+* **State.** ``StateMultibody`` of :meth:`ArmModel.pinocchio_model` (with two extra frames at the segments'
+  centres of mass) for the arm; the knots of the shooting problem carry the *augmented* state
+  ``x = (q, q̇, τ_prev)`` (``StateVector(6)``) because the torque change ``τ̇_k = (τ_k − τ_{k−1}) / dt`` couples
+  consecutive knots.
+* **Costs** (Crocoddyl built-ins, C++), one ``CostModelSum`` per knot, items named by :data:`FEATURES`, Crocoddyl
+  weight ``2 ω`` because its quadratic activation is ``½‖r‖²``:
+
+  - ``cartesian_velocity``: ``ResidualModelFrameVelocity`` of ``fingertip`` (LOCAL_WORLD_ALIGNED), linear part.
+  - ``geodesic``: ``q̇ᵀM(q)q̇ = Σ_i m_i‖v_{c,i}‖² + I_i ω_i²`` (twice the kinetic energy), as two
+    ``ResidualModelFrameVelocity`` of the CoM frames with weighted activations ``(m, m, m, 0, 0, I)``; the
+    forearm's item is ``geodesic/forearm`` and always carries the same weight as ``geodesic``.
+  - ``joint_acceleration``: ``ResidualModelJointAcceleration`` (the forward dynamics ``q̈_k``, which is exactly
+    the Euler acceleration ``(q̇_{k+1} − q̇_k) / dt`` of features.py).
+  - ``joint_velocity``: ``ResidualModelState`` with activation on ``q̇``.
+  - ``joint_torque``: ``ResidualModelControl``.
+* **Action model per knot** (:class:`KnotModel`, Python): wraps the knot's ``IntegratedActionModelEuler`` (C++,
+  dynamics and the costs above) and adds the two terms that need the augmented state or are non-smooth, with
+  analytic derivatives (Gauss-Newton Hessians, like Crocoddyl's residual costs):
+
+  - ``torque_change``: ``(ω/dt) ‖τ_k − τ_{k−1}‖²`` for ``k ≥ 1`` and nothing on interval 0.
+  - ``energy``: ``ω dt (√(r² + ε²) − ε)``, ``r = q̇_kᵀτ_k``. This smooth absolute value differs from ``|r|`` by
+    at most ``ε`` (default 1e-3 W), so ``Φ2`` by at most ``ε · duration``; the reported ``cost`` is always
+    :func:`reachirl.features.trajectory_cost` of the solution (the exact, non-smoothed objective).
+
+* **Constraints** (``ConstraintModelManager`` of ``ConstraintModelResidual`` per knot, bounds owned by the knot
+  model so a new task only rewrites numbers): ``q_lower ≤ q ≤ q_upper`` and ``|q̇| ≤ qd_max`` on knots
+  ``1..N−1``; on the terminal knot the joint bounds, ``q̇_N = 0`` and the fingertip ``x = target_x`` (equalities
+  as ``lb = ub``, which is how CSQP takes them).
+
+One shooting problem is built per ``(arm, N, n_windows)`` and cached; ``q0``, ``dt``, the target, the bounds and
+the weights are updated in place before each solve (weights through ``costs.costs[name].weight``).
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin  # noqa: I001  (pinocchio and crocoddyl must be imported before mim_solvers)
+import crocoddyl
+import mim_solvers
+
+from ..arm import ArmModel
+from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
+from .task import DocSolution, ReachingTask
+
+__all__ = ["CROCODDYL_COST_ITEMS", "CsqpOptions", "KnotModel", "ReachingProblem", "build_problem", "solve"]
+
+log = logging.getLogger(__name__)
+
+# Feature -> the Crocoddyl cost items that carry it (built-in, inside each knot's CostModelSum).
+CROCODDYL_COST_ITEMS: dict[str, tuple[str, ...]] = {
+    "cartesian_velocity": ("cartesian_velocity",),
+    "geodesic": ("geodesic", "geodesic/forearm"),
+    "joint_acceleration": ("joint_acceleration",),
+    "joint_velocity": ("joint_velocity",),
+    "joint_torque": ("joint_torque",),
+}
+_J_ENERGY = FEATURES.index("energy")
+_J_TORQUE_CHANGE = FEATURES.index("torque_change")
+_NX, _NU = 6, 2  # augmented state (q, q̇, τ_prev) and control τ
+
+
+@dataclass(frozen=True)
+class CsqpOptions:
+    """CSQP settings (tuned on the benchmark problems, see ``benchmarks/bench_backends.py``).
+
+    ``termination_tolerance`` is on CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics gaps
+    and the constraint violation), scaled here by the cost's magnitude so that it is a relative tolerance.
+    """
+
+    max_iter: int = 200
+    termination_tolerance: float = 1e-5
+    relative_tolerance: bool = True
+    max_qp_iters: int = 1000
+    eps_abs: float = 1e-6
+    eps_rel: float = 0.0
+    energy_smoothing: float = 1e-3  # ε of the smooth |q̇ᵀτ|, in W
+    use_filter_line_search: bool = True
+
+
+DEFAULT_OPTIONS = CsqpOptions()
+
+
+# ---------------------------------------------------------------------- the knot model
+class KnotData(crocoddyl.ActionDataAbstract):
+    def __init__(self, model: KnotModel):
+        crocoddyl.ActionDataAbstract.__init__(self, model)
+        self.inner = model.inner.createData()
+        self.Fu[4:, :] = np.eye(_NU)  # τ_prev at the next knot is this knot's τ
+
+
+class KnotModel(crocoddyl.ActionModelAbstract):
+    """One knot of the reach with the augmented state ``x = (q, q̇, τ_prev)`` and control ``u = τ``.
+
+    ``inner`` is the knot's ``IntegratedActionModelEuler`` on ``(q, q̇)``; it holds the built-in costs (its
+    differential model's ``costs``) and constraints. This model adds ``energy`` and ``torque_change`` and owns
+    the constraint bounds ``g_lb``/``g_ub``. Set the knot's weights with :meth:`set_weights`.
+    """
+
+    def __init__(self, inner, first: bool, terminal: bool, energy_smoothing: float):
+        self.inner = inner
+        self.dam = inner.differential
+        self.costs = self.dam.costs
+        ng = int(self.dam.constraints.ng) if self.dam.constraints is not None else 0
+        crocoddyl.ActionModelAbstract.__init__(self, crocoddyl.StateVector(_NX), _NU, 1, ng, 0)
+        self.first, self.terminal = first, terminal
+        self.eps = float(energy_smoothing)
+        self.dt = float(inner.dt)
+        self.w_energy = 0.0
+        self.w_torque_change = 0.0
+        # keep the cost items (shared with the C++ sum) to change their weights without a map lookup
+        self._items = {
+            name: self.costs.costs[name] for names in CROCODDYL_COST_ITEMS.values() for name in names
+        } if not terminal else {}
+
+    def createData(self):  # noqa: N802  (Crocoddyl's API)
+        return KnotData(self)
+
+    def set_dt(self, dt: float) -> None:
+        self.dt = float(dt)
+        if not self.terminal:
+            self.inner.dt = self.dt
+
+    def set_weights(self, w: np.ndarray) -> None:
+        """This knot's row of ω (7 numbers in FEATURES order)."""
+        for feature, names in CROCODDYL_COST_ITEMS.items():
+            weight = 2.0 * float(w[FEATURES.index(feature)])
+            for name in names:
+                self._items[name].weight = weight
+        self.w_energy = float(w[_J_ENERGY])
+        self.w_torque_change = 0.0 if self.first else float(w[_J_TORQUE_CHANGE])
+
+    # Crocoddyl calls calc(data, x) on the terminal knot and calc(data, x, u) on the others.
+    def calc(self, data, x, u=None):
+        xi = x[:4]
+        di = data.inner
+        if u is None or self.terminal:
+            self.inner.calc(di, xi)
+            data.cost = di.cost
+            data.xnext[:] = x
+            if self.ng:
+                data.g[:] = di.g
+            return
+        self.inner.calc(di, xi, u)
+        cost = di.cost
+        if self.w_energy > 0.0:
+            r = x[2] * u[0] + x[3] * u[1]
+            cost += self.w_energy * self.dt * (np.sqrt(r * r + self.eps * self.eps) - self.eps)
+        if self.w_torque_change > 0.0:
+            du = u - x[4:]
+            cost += self.w_torque_change / self.dt * (du @ du)
+        data.cost = cost
+        xn = data.xnext
+        xn[:4] = di.xnext
+        xn[4:] = u
+        if self.ng:
+            data.g[:] = di.g
+
+    def calcDiff(self, data, x, u=None):  # noqa: N802  (Crocoddyl's API)
+        xi = x[:4]
+        di = data.inner
+        if u is None or self.terminal:
+            self.inner.calcDiff(di, xi)
+            data.Lx[:4] = di.Lx
+            data.Lxx[:4, :4] = di.Lxx
+            if self.ng:
+                data.Gx[:, :4] = di.Gx
+            return
+        self.inner.calcDiff(di, xi, u)
+        data.Fx[:4, :4] = di.Fx
+        data.Fu[:4] = di.Fu
+        Lx = np.zeros(_NX)
+        Lx[:4] = di.Lx
+        Lu = di.Lu.copy()
+        Lxx = np.zeros((_NX, _NX))
+        Lxx[:4, :4] = di.Lxx
+        Lxu = np.zeros((_NX, _NU))
+        Lxu[:4] = di.Lxu
+        Luu = di.Luu.copy()
+        if self.w_energy > 0.0:
+            qd = x[2:4]
+            r = qd @ u
+            s = np.sqrt(r * r + self.eps * self.eps)
+            c = self.w_energy * self.dt
+            d1, d2 = c * r / s, c * self.eps**2 / s**3  # first and second derivative of the smooth |r|
+            Lx[2:4] += d1 * u
+            Lu += d1 * qd
+            Lxx[2:4, 2:4] += d2 * np.outer(u, u)  # Gauss-Newton: ∂²r/∂q̇∂τ = I is left out
+            Lxu[2:4] += d2 * np.outer(u, qd)
+            Luu += d2 * np.outer(qd, qd)
+        if self.w_torque_change > 0.0:
+            c = 2.0 * self.w_torque_change / self.dt
+            du = u - x[4:]
+            Lu += c * du
+            Lx[4:] = -c * du
+            Luu[0, 0] += c
+            Luu[1, 1] += c
+            Lxx[4, 4] = Lxx[5, 5] = c
+            Lxu[4, 0] = Lxu[5, 1] = -c
+        data.Lx[:] = Lx
+        data.Lu[:] = Lu
+        data.Lxx[:, :] = Lxx
+        data.Lxu[:, :] = Lxu
+        data.Luu[:, :] = Luu
+        if self.ng:
+            data.Gx[:, :4] = di.Gx
+            data.Gu[:, :] = di.Gu
+
+
+# ---------------------------------------------------------------------- the problem
+def _com_frames(model, arm: ArmModel) -> tuple[int, int]:
+    """Add a frame at each segment's centre of mass; return their ids."""
+    ids = []
+    for name, joint, c in (("upper_arm_com", 1, arm.c1), ("forearm_com", 2, arm.c2)):
+        ids.append(
+            model.addFrame(pin.Frame(name, joint, 0, pin.SE3(np.eye(3), np.array([c, 0.0, 0.0])), pin.FrameType.OP_FRAME))
+        )
+    return ids[0], ids[1]
+
+
+class ReachingProblem:
+    """The Crocoddyl shooting problem of one ``(arm, N, n_windows)`` shape; tasks and weights go in in place."""
+
+    def __init__(self, arm: ArmModel, n: int, n_windows: int, options: CsqpOptions = DEFAULT_OPTIONS):
+        self.arm, self.n, self.n_windows, self.options = arm, n, n_windows, options
+        self.window = window_index(n, n_windows)
+        model = arm.pinocchio_model()
+        com1, com2 = _com_frames(model, arm)
+        self.pin_model = model
+        state = crocoddyl.StateMultibody(model)
+        actuation = crocoddyl.ActuationModelFull(state)
+        nu = actuation.nu
+        tip = model.getFrameId("fingertip")
+        zero_motion = pin.Motion.Zero()
+        lwa, local = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
+
+        def cost(residual, activation=None):
+            if activation is None:
+                return crocoddyl.CostModelResidual(state, residual)
+            return crocoddyl.CostModelResidual(state, activation, residual)
+
+        # Cost models are stateless; the knots share them and keep their own weights in their sums.
+        cost_models = {
+            "cartesian_velocity": cost(
+                crocoddyl.ResidualModelFrameVelocity(state, tip, zero_motion, lwa, nu),
+                crocoddyl.ActivationModelWeightedQuad(np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])),
+            ),
+            "geodesic": cost(
+                crocoddyl.ResidualModelFrameVelocity(state, com1, zero_motion, local, nu),
+                crocoddyl.ActivationModelWeightedQuad(np.array([arm.m1] * 3 + [0.0, 0.0, arm.i1])),
+            ),
+            "geodesic/forearm": cost(
+                crocoddyl.ResidualModelFrameVelocity(state, com2, zero_motion, local, nu),
+                crocoddyl.ActivationModelWeightedQuad(np.array([arm.m2] * 3 + [0.0, 0.0, arm.i2])),
+            ),
+            "joint_acceleration": cost(crocoddyl.ResidualModelJointAcceleration(state, nu)),
+            "joint_velocity": cost(
+                crocoddyl.ResidualModelState(state, np.zeros(4), nu),
+                crocoddyl.ActivationModelWeightedQuad(np.array([0.0, 0.0, 1.0, 1.0])),
+            ),
+            "joint_torque": cost(crocoddyl.ResidualModelControl(state, nu)),
+        }
+        inf = np.full(4, np.inf)
+        bounds_residual = crocoddyl.ResidualModelState(state, np.zeros(4), nu)
+        tip_residual = crocoddyl.ResidualModelFrameTranslation(state, tip, np.zeros(3), nu)
+
+        dt = 1.0 / n
+        running = []
+        for k in range(n):
+            costs = crocoddyl.CostModelSum(state, nu)
+            for name, c in cost_models.items():
+                costs.addCost(name, c, 0.0)
+            constraints = crocoddyl.ConstraintModelManager(state, nu)
+            if k > 0:  # x_0 is fixed
+                constraints.addConstraint("state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf))
+            dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
+            running.append(
+                KnotModel(crocoddyl.IntegratedActionModelEuler(dam, dt), first=(k == 0), terminal=False,
+                          energy_smoothing=options.energy_smoothing)
+            )
+        costs = crocoddyl.CostModelSum(state, nu)
+        constraints = crocoddyl.ConstraintModelManager(state, nu)
+        constraints.addConstraint("state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf))
+        constraints.addConstraint(
+            "fingertip", crocoddyl.ConstraintModelResidual(state, tip_residual, np.full(3, -np.inf), np.full(3, np.inf))
+        )
+        dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
+        terminal = KnotModel(crocoddyl.IntegratedActionModelEuler(dam, 0.0), first=False, terminal=True,
+                             energy_smoothing=options.energy_smoothing)
+        self.running, self.terminal = running, terminal
+        self.problem = crocoddyl.ShootingProblem(np.zeros(_NX), running, terminal)
+        self.lock = threading.Lock()
+
+    def update(self, task: ReachingTask, weights: np.ndarray) -> None:
+        """Write the task's numbers and the weights into the problem (no rebuild)."""
+        if task.arm != self.arm or task.n_nodes != self.n or weights.shape != (self.n_windows, N_FEATURES):
+            raise ValueError("task or weights do not match this problem's shape")
+        self.problem.x0 = np.r_[task.q0, 0.0, 0.0, 0.0, 0.0]
+        lb = np.r_[task.q_lower, -task.qd_max]
+        ub = np.r_[task.q_upper, task.qd_max]
+        for k, m in enumerate(self.running):
+            m.set_dt(task.dt)
+            m.set_weights(weights[self.window[k]])
+            if m.ng:
+                m.g_lb, m.g_ub = lb, ub
+        # the manager stacks its constraints in the order of their names: "fingertip", then "state_bounds"
+        t = self.terminal
+        t.g_lb = np.r_[task.target_x, -np.inf, -np.inf, task.q_lower, 0.0, 0.0]
+        t.g_ub = np.r_[task.target_x, np.inf, np.inf, task.q_upper, 0.0, 0.0]
+
+    def make_solver(self):
+        o = self.options
+        solver = mim_solvers.SolverCSQP(self.problem)
+        solver.max_qp_iters = o.max_qp_iters
+        solver.eps_abs = o.eps_abs
+        solver.eps_rel = o.eps_rel
+        solver.use_filter_line_search = o.use_filter_line_search
+        solver.with_callbacks = False
+        return solver
+
+
+@functools.lru_cache(maxsize=8)
+def build_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions = DEFAULT_OPTIONS) -> ReachingProblem:
+    """The cached problem of one ``(arm, N, n_windows)`` shape."""
+    t0 = time.perf_counter()
+    p = ReachingProblem(arm, n, n_windows, options)
+    log.debug("built the Crocoddyl problem N=%d, %d windows in %.3f s", n, n_windows, time.perf_counter() - t0)
+    return p
+
+
+# ---------------------------------------------------------------------- initial guess and solve
+def _min_jerk(s: np.ndarray) -> np.ndarray:
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
+
+
+def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A dynamically consistent cold start ``(q, q̇, τ)``: a minimum-jerk joint path from ``q0`` to the posture
+    with the fingertip on the bar at (at most) its starting height, q̇ by Euler differences, τ by inverse
+    dynamics."""
+    arm, n, dt = task.arm, task.n_nodes, task.dt
+    y0 = float(arm.fk(task.q0)[1])
+    y_max = np.sqrt(max((0.98 * arm.length) ** 2 - task.target_x**2, 0.0))
+    qf = np.clip(arm.ik(np.array([task.target_x, np.clip(y0, -y_max, y_max)])), task.q_lower + 1e-3, task.q_upper - 1e-3)
+    q = task.q0 + _min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None] * (qf - task.q0)
+    q[-1] = q[-2]
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
+    tau = arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
+    return q, qd, tau
+
+
+def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    tau_prev = np.vstack([np.zeros(2), tau])
+    xs = np.hstack([q, qd, tau_prev])
+    xs[0] = np.r_[task.q0, 0.0, 0.0, 0.0, 0.0]
+    return list(xs), list(np.asarray(tau, dtype=float))
+
+
+def solve(
+    task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None, options: CsqpOptions | None = None
+) -> DocSolution:
+    """Solve the reaching DOC with CSQP; ``warm_start`` (a previous solution of the same ``N``) seeds the primal
+    trajectory ``(q, q̇, τ)``."""
+    options = options or DEFAULT_OPTIONS
+    weights = np.asarray(weights, dtype=float)
+    n = task.n_nodes
+    prob = build_problem(task.arm, n, weights.shape[0], options)
+    if warm_start is not None and np.shape(warm_start.q) == (n + 1, 2) and np.shape(warm_start.tau) == (n, 2):
+        guess = (np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau))
+    else:
+        guess = initial_guess(task)
+    xs, us = _to_shooting(task, *guess)
+    with prob.lock:  # one problem's data is not re-entrant
+        prob.update(task, weights)
+        solver = prob.make_solver()
+        tol = options.termination_tolerance
+        if options.relative_tolerance:
+            tol *= max(1.0, abs(prob.problem.calc(xs, us)) / max(task.duration, 1e-9))
+        solver.termination_tolerance = tol
+        t0 = time.perf_counter()
+        ok = bool(solver.solve(xs, us, options.max_iter, False))
+        elapsed = time.perf_counter() - t0
+        X = np.array(solver.xs)
+        U = np.array(solver.us)
+        iterations = int(solver.iter)
+        kkt, gap, cons = float(solver.KKT), float(solver.gap_norm), float(solver.constraint_norm)
+    q, qd, tau = X[:, :2], X[:, 2:4], U
+    finite = bool(np.all(np.isfinite(X)) and np.all(np.isfinite(U)))
+    cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights) if finite else float("nan")
+    status = f"{'converged' if ok else 'not converged'} (KKT {kkt:.2e}, gaps {gap:.1e}, constraints {cons:.1e})"
+    return DocSolution(
+        t=task.t,
+        q=q.copy(),
+        qd=qd.copy(),
+        tau=tau.copy(),
+        cost=cost,
+        converged=ok and finite,
+        iterations=iterations,
+        solve_time=elapsed,
+        status=status,
+        backend="crocoddyl",
+        warm={"backend": "crocoddyl", "n": n},
+    )

@@ -1,0 +1,135 @@
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from reachirl import ArmModel
+from reachirl.arm import DUMAS_2007
+
+
+def random_states(rng, n=20):
+    q = rng.uniform(-np.pi, np.pi, size=(n, 2))
+    qd = rng.normal(0, 3, size=(n, 2))
+    qdd = rng.normal(0, 20, size=(n, 2))
+    return q, qd, qdd
+
+
+def test_pinocchio_dynamics_match_closed_form(arm, rng):
+    model = arm.pinocchio_model()
+    data = model.createData()
+    for q, qd, qdd in zip(*random_states(rng)):
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        np.testing.assert_allclose(M, arm.mass_matrix(q), atol=1e-9)
+        np.testing.assert_allclose(pin.nonLinearEffects(model, data, q, qd), arm.bias(q, qd), atol=1e-9)
+        np.testing.assert_allclose(pin.computeGeneralizedGravity(model, data, q), arm.gravity_torque(q), atol=1e-9)
+        tau = pin.rnea(model, data, q, qd, qdd)
+        np.testing.assert_allclose(tau, arm.inverse_dynamics(q, qd, qdd), atol=1e-9)
+        np.testing.assert_allclose(pin.aba(model, data, q, qd, tau), qdd, atol=1e-9)
+        np.testing.assert_allclose(arm.forward_dynamics(q, qd, tau), qdd, atol=1e-9)
+
+
+def test_pinocchio_fingertip_frame_matches_fk(arm, rng):
+    model = arm.pinocchio_model()
+    data = model.createData()
+    fid = model.getFrameId("fingertip")
+    for q in rng.uniform(-np.pi, np.pi, size=(10, 2)):
+        pin.framesForwardKinematics(model, data, q)
+        np.testing.assert_allclose(data.oMf[fid].translation[:2], arm.fk(q), atol=1e-12)
+        J = pin.computeFrameJacobian(model, data, q, fid, pin.LOCAL_WORLD_ALIGNED)
+        np.testing.assert_allclose(J[:2], arm.jacobian(q), atol=1e-12)
+
+
+def test_fk_convention():
+    arm = ArmModel(l1=0.3, l2=0.4, m1=2, m2=1.5, c1=0.15, c2=0.2, i1=0.01, i2=0.02)
+    np.testing.assert_allclose(arm.fk([0.0, 0.0]), [0.7, 0.0], atol=1e-15)
+    np.testing.assert_allclose(arm.fk([-np.pi / 2, 0.0]), [0.0, -0.7], atol=1e-15)  # hangs down
+    np.testing.assert_allclose(arm.fk([0.0, np.pi / 2]), [0.3, 0.4], atol=1e-15)  # elbow flexed up
+    np.testing.assert_allclose(arm.elbow([np.pi / 2, 1.0]), [0.0, 0.3], atol=1e-15)
+
+
+def test_jacobian_matches_finite_differences(arm, rng):
+    for q in rng.uniform(-np.pi, np.pi, size=(10, 2)):
+        h = 1e-6
+        fd = np.column_stack([(arm.fk(q + h * e) - arm.fk(q - h * e)) / (2 * h) for e in np.eye(2)])
+        np.testing.assert_allclose(arm.jacobian(q), fd, atol=1e-8)
+
+
+def test_ik_round_trip_elbow_flexed(arm, rng):
+    q = np.column_stack([rng.uniform(-2.0, 1.5, 50), rng.uniform(0.05, 2.6, 50)])
+    np.testing.assert_allclose(arm.ik(arm.fk(q)), q, atol=1e-9)
+    q_up = arm.ik(arm.fk(q), elbow_up=True)
+    np.testing.assert_allclose(arm.fk(q_up), arm.fk(q), atol=1e-9)
+    assert np.all(q_up[:, 1] <= 0)
+
+
+def test_ik_out_of_reach_raises(arm):
+    with pytest.raises(ValueError, match="out of reach"):
+        arm.ik(np.array([arm.length * 1.1, 0.0]))
+
+
+def test_energy_is_conserved_without_torque(arm):
+    """Passive dynamics (τ = 0) conserve kinetic + potential energy: checks M, C and g together."""
+    from scipy.integrate import solve_ivp
+
+    def energy(x):
+        q, qd = x[:2], x[2:]
+        m1, m2, c1, c2, l1 = arm.m1, arm.m2, arm.c1, arm.c2, arm.l1
+        pot = arm.gravity * (m1 * c1 * np.sin(q[0]) + m2 * (l1 * np.sin(q[0]) + c2 * np.sin(q[0] + q[1])))
+        return 0.5 * qd @ arm.mass_matrix(q) @ qd + pot
+
+    x0 = np.array([0.3, 0.8, 1.0, -2.0])
+    sol = solve_ivp(lambda t, x: np.r_[x[2:], arm.forward_dynamics(x[:2], x[2:], np.zeros(2))], (0, 1.0), x0,
+                    rtol=1e-11, atol=1e-11)
+    assert abs(energy(sol.y[:, -1]) - energy(x0)) < 1e-7
+
+
+def test_from_anthropometrics_lumps_hand_by_parallel_axis():
+    arm = ArmModel.from_anthropometrics(1.77, 80.0, "M", upper_arm_m=0.30, forearm_m=0.27, hand_m=0.19)
+    mf, cf_pct, rf_pct, _ = DUMAS_2007["M"]["forearm"]
+    mh, ch_pct, rh_pct, _ = DUMAS_2007["M"]["hand"]
+    mf, mh = mf / 100 * 80, mh / 100 * 80
+    cf, ch = cf_pct / 100 * 0.27, 0.27 + ch_pct / 100 * 0.19
+    c2 = (mf * cf + mh * ch) / (mf + mh)
+    i2 = mf * (rf_pct / 100 * 0.27) ** 2 + mf * (cf - c2) ** 2 + mh * (rh_pct / 100 * 0.19) ** 2 + mh * (ch - c2) ** 2
+    assert arm.l1 == pytest.approx(0.30)
+    assert arm.l2 == pytest.approx(0.46)
+    assert arm.m1 == pytest.approx(0.024 * 80)
+    assert arm.m2 == pytest.approx(mf + mh)
+    assert arm.c1 == pytest.approx(0.452 * 0.30)
+    assert arm.c2 == pytest.approx(c2)
+    assert arm.i1 == pytest.approx(0.024 * 80 * (0.32 * 0.30) ** 2)
+    assert arm.i2 == pytest.approx(i2)
+
+
+def test_from_anthropometrics_defaults_scale_with_height():
+    short = ArmModel.from_anthropometrics(1.60, 60, "F")
+    tall = ArmModel.from_anthropometrics(1.80, 60, "F")
+    assert tall.l1 / short.l1 == pytest.approx(1.80 / 1.60)
+    assert 0.2 < short.l1 < 0.3 and 0.3 < short.l2 < 0.5
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"height_m": 1.7, "mass_kg": 70, "sex": "X"}, "sex must be"),
+        ({"height_m": 170, "mass_kg": 70, "sex": "M"}, "height_m must be"),
+        ({"height_m": 1.7, "mass_kg": 0.07, "sex": "M"}, "mass_kg must be"),
+        ({"height_m": 1.7, "mass_kg": 70, "sex": "M", "forearm_m": 270}, "forearm length must be in metres"),
+    ],
+)
+def test_from_anthropometrics_rejects_bad_input(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ArmModel.from_anthropometrics(**kwargs)
+
+
+def test_arm_model_validates_fields():
+    with pytest.raises(ValueError, match="l1 must be > 0"):
+        ArmModel(l1=0, l2=0.4, m1=2, m2=1.5, c1=0.0, c2=0.2, i1=0.01, i2=0.02)
+    with pytest.raises(ValueError, match="CoM must lie on its segment"):
+        ArmModel(l1=0.3, l2=0.4, m1=2, m2=1.5, c1=0.5, c2=0.2, i1=0.01, i2=0.02)
+    with pytest.raises(ValueError, match="must be finite"):
+        ArmModel(l1=0.3, l2=float("nan"), m1=2, m2=1.5, c1=0.1, c2=0.2, i1=0.01, i2=0.02)
+
+
+def test_arm_dict_round_trip(arm):
+    assert ArmModel.from_dict(arm.to_dict()) == arm

@@ -1,0 +1,160 @@
+"""The CasADi DOC: constraints, cost, local optimality, warm starts, a convergence sweep, errors."""
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import TEST_POSTURES_DEG
+
+from reachirl import FEATURES, ReachingTask, solve_doc
+from reachirl.features import trajectory_cost
+
+# Typical size of each Φ over a whole reach (from a uniform-weight solve); weights are drawn relative to it.
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+
+
+def random_weights(rng, n_windows, normalised=True):
+    w = np.exp(rng.uniform(np.log(1e-2), np.log(1.0), size=(n_windows, len(FEATURES))))
+    return w / FEATURE_SCALE if normalised else w * 0.1
+
+
+def make_task(arm, posture_deg, duration=0.7, frac=0.9, n_nodes=100):
+    return ReachingTask(arm, np.deg2rad(posture_deg), frac * arm.length, duration, n_nodes=n_nodes)
+
+
+@pytest.fixture(scope="module")
+def solved(arm):
+    rng = np.random.default_rng(7)
+    task = make_task(arm, TEST_POSTURES_DEG[1])
+    w = random_weights(rng, 8)
+    return task, w, solve_doc(task, w)
+
+
+def test_solution_shapes_and_fields(solved):
+    task, _, sol = solved
+    n = task.n_nodes
+    assert sol.converged and sol.iterations > 0 and sol.solve_time > 0
+    assert sol.t.shape == (n + 1,) and sol.q.shape == (n + 1, 2) and sol.qd.shape == (n + 1, 2)
+    assert sol.tau.shape == (n, 2)
+    assert sol.t[-1] == pytest.approx(task.duration)
+
+
+def test_constraints_hold_at_solution(solved):
+    task, _, sol = solved
+    arm, dt = task.arm, task.dt
+    np.testing.assert_allclose(sol.q[0], task.q0, atol=1e-12)
+    np.testing.assert_allclose(sol.qd[0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(sol.qd[-1], 0.0, atol=1e-9)
+    assert arm.fk(sol.q[-1])[0] == pytest.approx(task.target_x, abs=1e-8)
+    assert np.all(sol.q >= task.q_lower - 1e-8) and np.all(sol.q <= task.q_upper + 1e-8)
+    assert np.all(np.abs(sol.qd) <= task.qd_max + 1e-8)
+    # semi-implicit Euler with Pinocchio's ABA (an independent implementation of the dynamics)
+    model = arm.pinocchio_model()
+    data = model.createData()
+    for k in range(task.n_nodes):
+        qdd = pin.aba(model, data, sol.q[k], sol.qd[k], sol.tau[k])
+        np.testing.assert_allclose(sol.qd[k + 1], sol.qd[k] + dt * qdd, atol=1e-8)
+        np.testing.assert_allclose(sol.q[k + 1], sol.q[k] + dt * sol.qd[k + 1], atol=1e-12)
+
+
+def test_reported_cost_equals_features_cost(solved):
+    task, w, sol = solved
+    expected = trajectory_cost(task.arm, sol.q, sol.qd, sol.tau, task.dt, w)
+    assert sol.cost == pytest.approx(expected, rel=1e-8)
+
+
+def _perturbed(task, q, rng, amplitude):
+    """A feasible variation: a smooth bump in the interior, zero at the start and on the last knots."""
+    n = task.n_nodes
+    s = np.linspace(0, 1, n + 1)
+    lo, hi = sorted(rng.uniform(0.05, 0.85, 2))
+    hi = max(hi, lo + 0.1)
+    bump = np.where((s > lo) & (s < hi), np.sin(np.pi * (s - lo) / (hi - lo)) ** 2, 0.0)
+    q_new = q + amplitude * bump[:, None] * rng.normal(size=2)
+    dt = task.dt
+    qd = np.vstack([np.zeros(2), np.diff(q_new, axis=0) / dt])
+    tau = task.arm.inverse_dynamics(q_new[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
+    return q_new, qd, tau
+
+
+def test_feasible_perturbations_never_lower_the_cost(solved, rng):
+    task, w, sol = solved
+    for amplitude in (1e-2, 3e-2):
+        for _ in range(20):
+            q, qd, tau = _perturbed(task, sol.q, rng, amplitude)
+            assert task.arm.fk(q[-1])[0] == pytest.approx(task.target_x, abs=1e-12)
+            assert trajectory_cost(task.arm, q, qd, tau, task.dt, w) >= sol.cost * (1 - 1e-7)
+
+
+def test_warm_start_reaches_the_same_optimum_in_fewer_iterations(solved, rng):
+    task, w, sol = solved
+    w2 = w * np.exp(0.1 * rng.normal(size=w.shape))
+    cold = solve_doc(task, w2)
+    warm = solve_doc(task, w2, warm_start=sol)
+    assert cold.converged and warm.converged
+    assert warm.iterations < cold.iterations
+    assert np.rad2deg(np.abs(warm.q - cold.q).max()) < 0.05
+    assert warm.cost == pytest.approx(cold.cost, rel=1e-4)
+
+
+def test_warm_start_from_another_task_shape_falls_back_to_cold(arm, solved):
+    _, w, sol = solved
+    other = make_task(arm, TEST_POSTURES_DEG[1], n_nodes=60)
+    out = solve_doc(other, w, warm_start=sol)
+    assert out.converged and out.q.shape == (61, 2)
+
+
+def test_weights_change_the_optimum(arm):
+    task = make_task(arm, TEST_POSTURES_DEG[3])
+    acc = np.zeros((1, 7))
+    acc[0, 3] = 1.0
+    trq = np.zeros((1, 7))
+    trq[0, 6] = 1.0
+    a, t = solve_doc(task, acc), solve_doc(task, trq)
+    assert a.converged and t.converged
+    # each optimum is best under its own cost
+    assert trajectory_cost(arm, a.q, a.qd, a.tau, task.dt, acc) < trajectory_cost(arm, t.q, t.qd, t.tau, task.dt, acc)
+    assert trajectory_cost(arm, t.q, t.qd, t.tau, task.dt, trq) < trajectory_cost(arm, a.q, a.qd, a.tau, task.dt, trq)
+
+
+def test_convergence_sweep(arm):
+    """At least 100 problems: 5 postures × 3 durations × 1/6/8 windows × 3 weight draws; ≥ 99 % converge."""
+    rng = np.random.default_rng(2024)
+    results = []
+    for posture in TEST_POSTURES_DEG:
+        for duration in (0.6, 0.72, 0.85):
+            for n_windows in (1, 6, 8):
+                for draw in range(3):
+                    w = random_weights(rng, n_windows, normalised=draw != 2)
+                    sol = solve_doc(make_task(arm, posture, duration), w)
+                    results.append(sol.converged)
+    assert len(results) == 135
+    assert np.mean(results) >= 0.99, f"converged {sum(results)}/{len(results)}"
+
+
+@pytest.mark.parametrize(
+    ("weights", "match"),
+    [
+        (-np.ones((8, 7)), "weights must be >= 0"),
+        (np.ones((8, 6)), r"weights must have shape \(n_windows, 7\)"),
+        (np.full((2, 7), np.nan), "weights must be finite"),
+        (np.ones((200, 7)), "200 windows do not fit in 100 intervals"),
+    ],
+)
+def test_bad_weights_raise(solved, weights, match):
+    task, _, _ = solved
+    with pytest.raises(ValueError, match=match):
+        solve_doc(task, weights)
+
+
+def test_bad_backend_and_task(arm, solved):
+    task, w, _ = solved
+    with pytest.raises(ValueError, match="unknown DOC backend 'ipopt'"):
+        solve_doc(task, w, backend="ipopt")
+    with pytest.raises(ValueError, match="out of reach"):
+        ReachingTask(arm, [0.0, 1.0], 2 * arm.length, 0.7)
+    with pytest.raises(ValueError, match="outside the joint limits"):
+        ReachingTask(arm, [0.0, -1.0], 0.5, 0.7)
+    with pytest.raises(ValueError, match="duration must be a positive"):
+        ReachingTask(arm, [0.0, 1.0], 0.5, -1)
+    with pytest.raises(ValueError, match=r"q0 must have shape \(2,\)"):
+        ReachingTask(arm, [0.0, 1.0, 2.0], 0.5, 0.7)
