@@ -19,7 +19,7 @@ from ..arm import ArmModel
 from ..errors import InputError
 from ..io import atomic_write_bytes, npz_bytes
 
-__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials"]
+__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "trial_from_solution"]
 
 TRIALS_FORMAT = "reachirl-trials/1"
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
@@ -199,3 +199,16 @@ def load_trials(path: str | Path) -> list[Trial]:
 
 def trial_fields() -> tuple[str, ...]:
     return tuple(f.name for f in fields(Trial))
+
+
+def trial_from_solution(sol, arm: ArmModel, target_x: float, subject: str = "virtual", posture: str = "",
+                        trial_id: str = "0", side: str = "right", source: str = "") -> Trial:
+    """A trial holding a DOC solution's trajectory (for virtual subjects and tests).
+
+    Accelerations are the solution's own Euler ones, so ``tau`` on every interval is ``sol.tau`` exactly.
+    """
+    dt = np.diff(sol.t)
+    qdd = np.diff(sol.qd, axis=0) / dt[:, None]
+    qdd = np.vstack([qdd, qdd[-1:]])
+    return Trial(subject=subject, posture=posture, trial_id=trial_id, t=sol.t, q=sol.q, qd=sol.qd, qdd=qdd,
+                 tau=arm.inverse_dynamics(sol.q, sol.qd, qdd), target_x=target_x, arm=arm, side=side, source=source)

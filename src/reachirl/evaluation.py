@@ -1,0 +1,74 @@
+"""Prediction error of learned weights on trials: joint-angle RMSE in degrees, as in the seed's Table II.
+
+Each trial is predicted by the DOC from its own arm, initial posture, target and duration; the trial is
+resampled onto the DOC's knots (normalised time) and compared there.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data.trial import Trial
+from .doc import DocSolution, solve_doc
+
+__all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
+
+
+@dataclass(frozen=True)
+class TrialError:
+    trial_id: str
+    rmse_q1: float
+    rmse_q2: float
+    rmse_q: float
+    converged: bool
+    prediction: DocSolution
+
+    def to_dict(self) -> dict:
+        return {"id": self.trial_id, "rmse_deg": {"q1": self.rmse_q1, "q2": self.rmse_q2, "q": self.rmse_q},
+                "converged": self.converged}
+
+
+def rmse_deg(q_pred: np.ndarray, q_true: np.ndarray) -> tuple[float, float, float]:
+    """RMSE (degrees) of q1, q2 and of q = [q1, q2] (all samples of both joints)."""
+    err = np.rad2deg(np.asarray(q_pred) - np.asarray(q_true))
+    per_joint = np.sqrt(np.mean(err**2, axis=0))
+    return float(per_joint[0]), float(per_joint[1]), float(np.sqrt(np.mean(err**2)))
+
+
+def evaluate_trials(
+    weights: np.ndarray,
+    trials: Sequence[Trial],
+    n_nodes: int = 100,
+    backend: str = "casadi",
+    on_trial: Callable[[TrialError], None] | None = None,
+) -> list[TrialError]:
+    """Predict every trial from its own initial state and measure the RMSE against it."""
+    out = []
+    warm = None
+    for trial in trials:
+        sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend, warm_start=warm)
+        if not sol.converged:  # retry cold: a warm start from a distant reach can mislead IPOPT
+            sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend)
+        warm = sol if sol.converged else None
+        ref = trial.resample(n_nodes + 1)
+        e = TrialError(trial.id, *rmse_deg(sol.q, ref.q), converged=sol.converged, prediction=sol)
+        out.append(e)
+        if on_trial is not None:
+            on_trial(e)
+    return out
+
+
+def summarise(errors: Sequence[TrialError]) -> dict:
+    """``{"n_trials", "rmse_deg": {"q1"|"q2"|"q": {"mean", "std"}}, "doc_failures"}`` (population SD)."""
+    def stats(key: str) -> dict:
+        v = np.array([getattr(e, f"rmse_{key}") for e in errors])
+        return {"mean": float(np.mean(v)), "std": float(np.std(v))}
+
+    return {
+        "n_trials": len(errors),
+        "rmse_deg": {k: stats(k) for k in ("q1", "q2", "q")},
+        "doc_failures": int(sum(not e.converged for e in errors)),
+    }
