@@ -9,10 +9,6 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 
 from reachirl import ArmModel  # noqa: E402
 
-# Start postures (q1, q2) in degrees used across tests: a spread of the workspace with the fingertip short of a
-# bar at 90 % of arm length.
-TEST_POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
-
 
 @pytest.fixture(scope="session")
 def arm() -> ArmModel:

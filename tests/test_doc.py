@@ -3,11 +3,12 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import TEST_POSTURES_DEG
 
 from reachirl import FEATURES, ReachingTask, solve_doc
 from reachirl.features import trajectory_cost
 
+# Start postures (q1, q2) in degrees: a spread of the workspace, fingertip short of a bar at 90 % of arm length.
+TEST_POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
 # Typical size of each Φ over a whole reach (from a uniform-weight solve); weights are drawn relative to it.
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
 
@@ -158,3 +159,22 @@ def test_bad_backend_and_task(arm, solved):
         ReachingTask(arm, [0.0, 1.0], 0.5, -1)
     with pytest.raises(ValueError, match=r"q0 must have shape \(2,\)"):
         ReachingTask(arm, [0.0, 1.0, 2.0], 0.5, 0.7)
+
+
+def test_agrees_with_a_plain_multiple_shooting_formulation(arm):
+    """An independent formulation (states and torques as variables, forward dynamics, IPOPT defaults)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_doc import PlainDoc
+
+    rng = np.random.default_rng(3)
+    task = make_task(arm, TEST_POSTURES_DEG[4], n_nodes=50)
+    w = random_weights(rng, 6)
+    ours = solve_doc(task, w)
+    plain = PlainDoc(task, 6).solve(w)
+    assert ours.converged and plain["converged"]
+    assert np.rad2deg(np.sqrt(np.mean((ours.q - plain["q"]) ** 2))) < 0.01
+    np.testing.assert_allclose(plain["tau"], ours.tau, atol=1e-3 * np.abs(ours.tau).max())
+    assert trajectory_cost(arm, plain["q"], plain["qd"], plain["tau"], task.dt, w) == pytest.approx(ours.cost, rel=1e-5)

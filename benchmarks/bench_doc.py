@@ -1,0 +1,193 @@
+"""DOC benchmark: reachirl's CasADi backend against a plain formulation of the same problem, in the same run.
+
+The plain baseline is the problem as one would first write it: multiple shooting in CasADi SX with states
+``(q, q̇)`` and torques ``τ`` as decision variables, forward dynamics ``M⁻¹(τ − b)`` in the Euler step, the same
+seven features, the same slack form of the energy term, the same constraints, and IPOPT with its default options.
+
+Figures (N = 100 knots, 8 windows, all seven features): median cold and warm solve times over 20 problems
+(5 postures × 4 weight draws), iteration counts, the convergence rate over a 135-problem sweep, and the ratios.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from reachirl import ArmModel, ReachingTask, solve_doc
+from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, initial_guess
+from reachirl.features import N_FEATURES, trajectory_cost, window_index
+
+POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+
+
+def random_weights(rng: np.random.Generator, n_windows: int) -> np.ndarray:
+    return np.exp(rng.uniform(np.log(1e-2), np.log(1.0), size=(n_windows, N_FEATURES))) / FEATURE_SCALE
+
+
+class PlainDoc:
+    """The straightforward formulation, IPOPT defaults (printing off)."""
+
+    def __init__(self, task: ReachingTask, n_windows: int):
+        n, arm = task.n_nodes, task.arm
+        a = [arm.l1, arm.l2, arm.m1, arm.m2, arm.c1, arm.c2, arm.i1, arm.i2, arm.gravity]
+        dt = task.dt
+        w = ca.SX.sym("w", n_windows * N_FEATURES)
+        X = ca.SX.sym("X", 4, n + 1)
+        U = ca.SX.sym("U", 2, n)
+        Sp, Sm = ca.SX.sym("Sp", n), ca.SX.sym("Sm", n)
+        win = window_index(n, n_windows)
+        g, obj = [X[:, 0] - ca.vertcat(task.q0, 0, 0)], 0
+        for k in range(n):
+            q, qd, tau = X[:2, k], X[2:, k], U[:, k]
+            M = _mass_matrix(a, q)
+            bias = _inverse_dynamics(a, q, qd, ca.SX.zeros(2))
+            qdd = ca.solve(M, tau - bias)
+            qd_next = qd + dt * qdd
+            g.append(X[2:, k + 1] - qd_next)
+            g.append(X[:2, k + 1] - (q + dt * qd_next))
+            l1, l2 = a[0], a[1]
+            jac = ca.jacobian(_fingertip(a, q), q)
+            wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
+            rates = [
+                ca.sumsqr(jac @ qd),
+                Sp[k] + Sm[k],
+                ca.bilin(M, qd, qd),
+                ca.sumsqr(qdd),
+                ca.sumsqr((tau - U[:, k - 1]) / dt) if k > 0 else 0,
+                ca.sumsqr(qd),
+                ca.sumsqr(tau),
+            ]
+            obj += dt * sum(wk[j] * rates[j] for j in range(N_FEATURES))
+            g.append(ca.dot(qd, tau) - Sp[k] + Sm[k])
+            del l1, l2
+        g.append(X[2:, n])
+        g.append(_fingertip(a, X[:2, n])[0] - task.target_x)
+        self.n_eq = int(ca.vertcat(*g).numel())
+        z = ca.vertcat(ca.vec(X), ca.vec(U), Sp, Sm)
+        self.solver = ca.nlpsol("plain", "ipopt", {"x": z, "p": w, "f": obj, "g": ca.vertcat(*g)},
+                                {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"})
+        inf = np.inf
+        lbx_X = np.tile(np.r_[task.q_lower, -task.qd_max][:, None], (1, n + 1)).T.reshape(-1)
+        ubx_X = np.tile(np.r_[task.q_upper, task.qd_max][:, None], (1, n + 1)).T.reshape(-1)
+        self.lbx = np.r_[lbx_X, np.full(2 * n, -inf), np.zeros(2 * n)]
+        self.ubx = np.r_[ubx_X, np.full(2 * n, inf), np.full(2 * n, inf)]
+        self.task, self.n = task, n
+
+    def x0(self) -> np.ndarray:
+        """Linear interpolation of the cold guess's end posture, zero velocities and torques."""
+        n, task = self.n, self.task
+        q_end = initial_guess(task).reshape(n - 1, 4)[-1, :2]
+        s = np.linspace(0, 1, n + 1)[:, None]
+        q = task.q0 + s * (q_end - task.q0)
+        X = np.hstack([q, np.zeros((n + 1, 2))])
+        return np.r_[X.reshape(-1), np.zeros(2 * n), np.zeros(2 * n)]
+
+    def solve(self, weights: np.ndarray, x0: np.ndarray | None = None) -> dict:
+        t0 = time.perf_counter()
+        out = self.solver(x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx, ubx=self.ubx,
+                          lbg=0, ubg=0)
+        elapsed = time.perf_counter() - t0
+        st = self.solver.stats()
+        z = np.asarray(out["x"]).reshape(-1)
+        n = self.n
+        X = z[: 4 * (n + 1)].reshape(n + 1, 4)
+        tau = z[4 * (n + 1) : 4 * (n + 1) + 2 * n].reshape(n, 2)
+        return {"time": elapsed, "iterations": int(st["iter_count"]), "converged": bool(st["success"]),
+                "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
+
+
+def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
+    """Time both formulations on the same problems; returns the figures and their ratios."""
+    arm = ArmModel.from_anthropometrics(1.76, 70.0, "M")
+    rng = np.random.default_rng(seed)
+    n_windows, n_nodes = 8, 100
+    problems = []
+    for i in range(n_repeats):
+        task = ReachingTask(arm, np.deg2rad(POSTURES_DEG[i % 5]), 0.9 * arm.length, rng.uniform(0.65, 0.8),
+                            n_nodes=n_nodes)
+        w = random_weights(rng, n_windows)
+        problems.append((task, w, w * np.exp(0.1 * rng.normal(size=w.shape))))  # warm: a 10 % weight change
+
+    solve_doc(problems[0][0], problems[0][1])  # build (and cache) the NLP outside the timings
+    ours = {"cold": [], "warm": [], "cold_it": [], "warm_it": [], "ok": 0, "n": 0}
+    plain = {"cold": [], "warm": [], "cold_it": [], "warm_it": [], "ok": 0, "n": 0}
+    agree_deg, agree_cost = [], []
+    for task, w, w2 in problems:
+        cold = solve_doc(task, w)
+        warm = solve_doc(task, w2, warm_start=cold)
+        ours["cold"].append(cold.solve_time)
+        ours["warm"].append(warm.solve_time)
+        ours["cold_it"].append(cold.iterations)
+        ours["warm_it"].append(warm.iterations)
+        ours["ok"] += cold.converged + warm.converged
+        ours["n"] += 2
+        pd = PlainDoc(task, n_windows)
+        pc = pd.solve(w)
+        pw = pd.solve(w2, x0=pc["x"])  # plain warm start: the previous primal solution
+        plain["cold"].append(pc["time"])
+        plain["warm"].append(pw["time"])
+        plain["cold_it"].append(pc["iterations"])
+        plain["warm_it"].append(pw["iterations"])
+        plain["ok"] += pc["converged"] + pw["converged"]
+        plain["n"] += 2
+        if pc["converged"]:
+            agree_deg.append(float(np.rad2deg(np.sqrt(np.mean((pc["q"] - cold.q) ** 2)))))
+            c_plain = trajectory_cost(arm, pc["q"], pc["qd"], pc["tau"], task.dt, w)
+            agree_cost.append(abs(c_plain - cold.cost) / cold.cost)
+
+    def med(v):
+        return float(np.median(v))
+
+    out = {
+        "problem": {"n_nodes": n_nodes, "n_windows": n_windows, "features": 7, "n_problems": n_repeats},
+        "reachirl": {
+            "cold_median_s": med(ours["cold"]), "warm_median_s": med(ours["warm"]),
+            "cold_iterations_median": med(ours["cold_it"]), "warm_iterations_median": med(ours["warm_it"]),
+            "converged": f"{ours['ok']}/{ours['n']}",
+        },
+        "plain_baseline": {
+            "cold_median_s": med(plain["cold"]), "warm_median_s": med(plain["warm"]),
+            "cold_iterations_median": med(plain["cold_it"]), "warm_iterations_median": med(plain["warm_it"]),
+            "converged": f"{plain['ok']}/{plain['n']}",
+        },
+        "agreement": {
+            "q_rmse_deg_max": max(agree_deg) if agree_deg else None,
+            "cost_rel_diff_max": max(agree_cost) if agree_cost else None,
+        },
+    }
+    out["ratios"] = {
+        "warm_vs_plain_cold": out["reachirl"]["warm_median_s"] / out["plain_baseline"]["cold_median_s"],
+        "warm_vs_plain_warm": out["reachirl"]["warm_median_s"] / out["plain_baseline"]["warm_median_s"],
+        "cold_vs_plain_cold": out["reachirl"]["cold_median_s"] / out["plain_baseline"]["cold_median_s"],
+    }
+    if sweep:
+        out["convergence_sweep"] = convergence_sweep(arm, seed)
+    return out
+
+
+def convergence_sweep(arm: ArmModel, seed: int = 0) -> dict:
+    """5 postures × 3 durations × 1/6/8 windows × 3 weight draws = 135 cold solves."""
+    rng = np.random.default_rng(seed + 1)
+    ok, its, times = 0, [], []
+    n = 0
+    for posture in POSTURES_DEG:
+        for duration in (0.6, 0.72, 0.85):
+            for n_windows in (1, 6, 8):
+                for _ in range(3):
+                    task = ReachingTask(arm, np.deg2rad(posture), 0.9 * arm.length, duration)
+                    sol = solve_doc(task, random_weights(rng, n_windows))
+                    ok += sol.converged
+                    its.append(sol.iterations)
+                    times.append(sol.solve_time)
+                    n += 1
+    return {"n_problems": n, "converged": ok, "rate": ok / n, "iterations_median": float(np.median(its)),
+            "iterations_max": int(max(its)), "solve_time_median_s": float(np.median(times))}
+
+
+if __name__ == "__main__":
+    import json
+
+    print(json.dumps(run(), indent=2))

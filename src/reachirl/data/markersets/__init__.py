@@ -1,0 +1,171 @@
+"""Marker sets: which markers give the shoulder, elbow, wrist and fingertip.
+
+A joint is either
+
+* ``markers``: the midpoint of markers recorded in the trial itself (one marker: the marker), or
+* ``landmarks`` + ``cluster``: the midpoint of anatomical landmarks recorded only in a **static** trial,
+  carried into each frame of the reach by a least-squares rigid fit of a marker cluster (the calibrated
+  anatomical system technique, see :func:`reachirl.data.preprocess.cast_reconstruct`).
+
+Presets are the JSON files of this folder (``default``, ``ue-adl``); ``{S}`` in a name is the side prefix
+(``R``/``L`` for UE-ADL). :func:`parse_marker_map` builds a set from
+``shoulder=A,elbow=B,wrist=C,fingertip=D`` (``B+C`` for a midpoint).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+from ...errors import InputError
+
+__all__ = [
+    "JOINTS",
+    "JointSpec",
+    "MarkerSet",
+    "available",
+    "load_markerset",
+    "parse_marker_map",
+    "resolve_name",
+]
+
+JOINTS = ("shoulder", "elbow", "wrist", "fingertip")
+_REQUIRED = ("shoulder", "fingertip")
+
+
+@dataclass(frozen=True)
+class JointSpec:
+    markers: tuple[str, ...] = ()
+    landmarks: tuple[str, ...] = ()
+    cluster: tuple[str, ...] = ()
+    optional: bool = False
+
+    @property
+    def needs_static(self) -> bool:
+        return bool(self.landmarks)
+
+
+@dataclass(frozen=True)
+class MarkerSet:
+    """``joints`` maps some of :data:`JOINTS` to a :class:`JointSpec`; names may contain ``{S}``."""
+
+    name: str
+    joints: Mapping[str, JointSpec]
+    side_prefix: Mapping[str, str] = field(default_factory=lambda: {"right": "", "left": ""})
+    static: str | None = (
+        None  # file name pattern of the static trial beside a reach, e.g. "{subject}_static.csv"
+    )
+    up: str | None = None
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        for j in self.joints:
+            if j not in JOINTS:
+                raise InputError(f"marker set {self.name!r}: unknown joint {j!r}, expected one of {JOINTS}")
+        for j in _REQUIRED:
+            if j not in self.joints:
+                raise InputError(f"marker set {self.name!r} lacks the {j} (required: shoulder and fingertip)")
+        for j, s in self.joints.items():
+            if bool(s.markers) == bool(s.landmarks):
+                raise InputError(f"marker set {self.name!r}: {j} needs either markers or landmarks+cluster")
+            if s.landmarks and len(s.cluster) < 3:
+                raise InputError(f"marker set {self.name!r}: {j}'s cluster needs at least 3 markers")
+
+    @property
+    def needs_static(self) -> bool:
+        return any(s.needs_static for s in self.joints.values())
+
+    def for_side(self, side: str) -> MarkerSet:
+        """The set with ``{S}`` replaced by the side's prefix."""
+        pre = self.side_prefix.get(side, "")
+
+        def sub(names: Iterable[str]) -> tuple[str, ...]:
+            return tuple(n.replace("{S}", pre) for n in names)
+
+        joints = {
+            j: JointSpec(sub(s.markers), sub(s.landmarks), sub(s.cluster), s.optional)
+            for j, s in self.joints.items()
+        }
+        return MarkerSet(
+            self.name, joints, {"right": pre, "left": pre}, self.static, self.up, self.description
+        )
+
+    def trial_markers(self) -> tuple[str, ...]:
+        """The markers a reach trial must hold (clusters and direct markers)."""
+        out: list[str] = []
+        for s in self.joints.values():
+            out += [*s.markers, *s.cluster]
+        return tuple(dict.fromkeys(out))
+
+
+def resolve_name(name: str, available_names: Iterable[str]) -> str | None:
+    """``name`` if present, else its unique case-insensitive match, else ``None``."""
+    names = list(available_names)
+    if name in names:
+        return name
+    low = [n for n in names if n.lower() == name.lower()]
+    return low[0] if len(low) == 1 else None
+
+
+def _from_dict(d: Mapping, origin: str) -> MarkerSet:
+    try:
+        joints = {}
+        for j, s in d["joints"].items():
+            joints[j] = JointSpec(
+                markers=tuple(s.get("markers", ())),
+                landmarks=tuple(s.get("landmarks", ())),
+                cluster=tuple(s.get("cluster", ())),
+                optional=bool(s.get("optional", False)),
+            )
+        return MarkerSet(
+            name=str(d.get("name", origin)),
+            joints=joints,
+            side_prefix=dict(d.get("side_prefix", {"right": "", "left": ""})),
+            static=d.get("static"),
+            up=d.get("up"),
+            description=str(d.get("description", "")),
+        )
+    except (KeyError, AttributeError, TypeError) as e:
+        raise InputError(f"malformed marker set ({type(e).__name__}: {e})", origin) from None
+
+
+def available() -> tuple[str, ...]:
+    """Names of the built-in presets."""
+    return tuple(sorted(p.name[:-5] for p in resources.files(__name__).iterdir() if p.name.endswith(".json")))
+
+
+def load_markerset(name_or_file: str | Path) -> MarkerSet:
+    """A built-in preset by name (``ue-adl``, ``default``) or a JSON file of the same layout."""
+    s = str(name_or_file)
+    if s in available():
+        text = resources.files(__name__).joinpath(f"{s}.json").read_text(encoding="utf-8")
+        return _from_dict(json.loads(text), s)
+    path = Path(s)
+    if not path.exists():
+        raise InputError(f"no such marker set (presets: {', '.join(available())}; or give a JSON file)", s)
+    from ...io import read_json
+
+    return _from_dict(read_json(path), str(path))
+
+
+def parse_marker_map(text: str) -> MarkerSet:
+    """``"shoulder=A,elbow=B,wrist=C,fingertip=D"`` → a :class:`MarkerSet` (``B1+B2`` for a midpoint)."""
+    joints = {}
+    for part in text.split(","):
+        if not part.strip():
+            continue
+        if "=" not in part:
+            raise InputError(
+                f"--markers: {part.strip()!r} should be joint=MARKER (joints: {', '.join(JOINTS)})"
+            )
+        j, names = (x.strip() for x in part.split("=", 1))
+        if j not in JOINTS:
+            raise InputError(f"--markers: unknown joint {j!r}, expected one of {', '.join(JOINTS)}")
+        ms = tuple(n.strip() for n in names.split("+") if n.strip())
+        if not ms:
+            raise InputError(f"--markers: no marker named for {j}")
+        joints[j] = JointSpec(markers=ms)
+    return MarkerSet(name="custom", joints=joints)

@@ -1,0 +1,700 @@
+"""From marker trajectories (or joint angles) to a validated :class:`~reachirl.data.trial.Trial`.
+
+The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Berret et al. 2011):
+
+1. **Joint centres** from the marker set: a marker, a midpoint of markers, or an anatomical landmark
+   calibrated in a static trial and carried by its segment's cluster (:func:`calibrate_static`,
+   :func:`cast_reconstruct`: a least-squares rigid fit of the cluster per frame, Kabsch/SVD).
+2. **Mirror** a left arm into the right-arm convention (reflect the lab's lateral axis). The planar angles do
+   not depend on it, since the plane's axes come from the movement and from gravity, but the 3-D data then
+   look like a right arm everywhere.
+3. **Gap filling** (:func:`fill_gaps`): a run of at most ``max_gap_frames`` missing frames by a cubic spline
+   through the seen frames (the nearest value at the ends of the record); a longer run is an
+   :class:`InputError` naming the marker and the frames.
+4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
+   (``segment_range_m``); metres declared as mm give absurdly small ones.
+5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
+   so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
+6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
+   (5 %) of its peak, the first crossings before and after the main peak.
+7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
+   joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
+   gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
+   moves. When that plane is ill-defined (a flat point cloud: 3rd singular value > ``pca_max_flatness`` × the
+   2nd, or more than ``pca_max_tilt_deg`` from vertical: an arm that stays near-horizontal, as in some UE-ADL
+   reaches) it falls back, with a log note, to ``"vertical"``: the vertical plane through the fingertip's main
+   horizontal direction of travel. ``"axes"`` takes given lab axes. The shoulder, frame by frame, is the
+   origin.
+8. **Planar IK**: ``"segments"`` (default): q1 from the shoulder→elbow direction and q2 from the
+   elbow→``distal`` direction (fingertip by default: segment 2 of the model is forearm + hand; ``"wrist"`` for
+   the anatomical elbow); ``"fingertip"``: Berret's 2-link IK of the fingertip alone (:meth:`ArmModel.ik`).
+9. **Segment lengths** (:func:`estimate_lengths`): medians over frames of the 3-D joint-centre distances. l2
+   is the elbow→fingertip distance (the hand is lumped with a frozen wrist). Lengths in the subject-info file,
+   when given, win; the arm is :meth:`ArmModel.from_anthropometrics` with the subject's sex, height and mass.
+10. **Derivatives and torques**: a cubic spline through the filtered angles over the whole record gives q̇ and
+    q̈; τ by inverse dynamics on the subject's arm. The trial is then cut to onset→offset (and resampled to
+    ``n_samples`` points if asked). ``target_x`` is the measured fingertip x (shoulder frame, sagittal plane)
+    at offset.
+
+Nothing here prints; problems are :class:`InputError` with the file and frame, notes go to ``logging``.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.signal import butter, sosfiltfilt
+
+from ..arm import DUMAS_2007, ArmModel
+from ..errors import InputError
+from .markersets import MarkerSet, resolve_name
+from .readers import AngleData, MarkerData, SubjectInfo
+from .trial import Trial
+
+__all__ = [
+    "DEFAULT_SUBJECT",
+    "MarkerReconstruction",
+    "PreprocessOptions",
+    "angles_to_trial",
+    "calibrate_static",
+    "cast_reconstruct",
+    "detect_onset_offset",
+    "estimate_lengths",
+    "fill_gaps",
+    "joint_centres",
+    "kabsch",
+    "lowpass",
+    "markers_to_trial",
+    "mirror",
+    "planar_ik_segments",
+    "reconstruct_markers",
+    "sagittal_basis",
+]
+
+log = logging.getLogger(__name__)
+
+#: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
+DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
+
+
+@dataclass(frozen=True)
+class PreprocessOptions:
+    """Every preprocessing choice; see the module docstring for what each step does."""
+
+    max_gap_frames: int = 10
+    cutoff_hz: float | None = 10.0  # None: no filtering
+    filter_order: int = 5
+    onset_threshold: float = 0.05  # fraction of the peak fingertip speed
+    min_peak_speed: float = 0.05  # m/s; below it there is no movement
+    plane: str = "pca"  # "pca" | "vertical" | "axes"
+    up_axis: str | None = None  # lab axis opposite gravity, e.g. "+z"; None: the file format's convention
+    forward_axis: str | None = (
+        None  # for plane="axes"; None: the horizontal lab axis the fingertip moves along
+    )
+    lateral_axis: str | None = None  # for mirroring; None: the horizontal lab axis normal to the movement
+    ik: str = "segments"  # "segments" | "fingertip"
+    distal: str = "fingertip"  # q2 from elbow→"fingertip" or elbow→"wrist" (ik="segments")
+    n_samples: int | None = None  # resample onset→offset to this many points (Berret: 200); None keeps frames
+    segment_range_m: tuple[float, float] = (
+        0.08,
+        0.9,
+    )  # plausible median joint-centre distances (units check)
+    pca_max_tilt_deg: float = 30.0  # a principal plane further than this from vertical is not trusted ...
+    pca_max_flatness: float = (
+        0.5  # ... nor one whose 3rd singular value exceeds this × the 2nd; then "vertical"
+    )
+
+    def __post_init__(self) -> None:
+        if self.plane not in ("pca", "vertical", "axes"):
+            raise ValueError(f"plane must be 'pca', 'vertical' or 'axes', got {self.plane!r}")
+        if self.ik not in ("segments", "fingertip"):
+            raise ValueError(f"ik must be 'segments' or 'fingertip', got {self.ik!r}")
+        if self.distal not in ("fingertip", "wrist"):
+            raise ValueError(f"distal must be 'fingertip' or 'wrist', got {self.distal!r}")
+        if not 0 < self.onset_threshold < 1:
+            raise ValueError(f"onset_threshold must be in (0, 1), got {self.onset_threshold}")
+        if self.max_gap_frames < 0:
+            raise ValueError("max_gap_frames must be >= 0")
+        if self.cutoff_hz is not None and self.cutoff_hz <= 0:
+            raise ValueError("cutoff_hz must be > 0 or None")
+        if self.n_samples is not None and self.n_samples < 4:
+            raise ValueError("n_samples must be >= 4")
+
+
+# ---------------------------------------------------------------------- small steps
+def _axis(spec: str) -> np.ndarray:
+    s = spec.strip().lower()
+    sign = -1.0 if s.startswith("-") else 1.0
+    key = s.lstrip("+-")
+    if key not in ("x", "y", "z"):
+        raise InputError(f"axis must be one of ±x, ±y, ±z, got {spec!r}")
+    v = np.zeros(3)
+    v["xyz".index(key)] = sign
+    return v
+
+
+def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object | None = None) -> np.ndarray:
+    """Fill runs of NaN frames of ``x`` (``(n,)`` or ``(n, d)``) no longer than ``max_gap``.
+
+    Interior runs by a cubic spline through the seen frames, runs at the ends by the nearest seen value. A
+    longer run, or a marker never seen, raises :class:`InputError` naming ``name`` and the frames (1-based).
+    """
+    x = np.array(x, dtype=float)
+    flat = x.reshape(x.shape[0], -1)
+    missing = ~np.all(np.isfinite(flat), axis=1)
+    if not missing.any():
+        return x
+    n = missing.shape[0]
+    if missing.all():
+        raise InputError(f"marker {name} is never seen", source)
+    d = np.diff(np.r_[0, missing.astype(int), 0])
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)  # [start, end)
+    for s, e in zip(starts, ends, strict=True):
+        if e - s > max_gap:
+            raise InputError(
+                f"marker {name} is missing for {e - s} frames ({s + 1}-{e}), longer than the {max_gap} "
+                "frames gap filling allows",
+                source,
+            )
+    seen = np.flatnonzero(~missing)
+    out = flat.copy()
+    if seen.size >= 2:
+        cs = CubicSpline(seen, flat[seen], axis=0)
+        interior = missing & (np.arange(n) > seen[0]) & (np.arange(n) < seen[-1])
+        out[interior] = cs(np.flatnonzero(interior))
+    out[: seen[0]] = flat[seen[0]]
+    out[seen[-1] + 1 :] = flat[seen[-1]]
+    return out.reshape(x.shape)
+
+
+def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source: object | None = None):
+    """Zero-lag Butterworth low-pass along axis 0 (``butter(order, cutoff)`` applied forward and backward)."""
+    x = np.asarray(x, dtype=float)
+    nyq = rate / 2.0
+    if cutoff_hz >= nyq:
+        raise InputError(
+            f"the {cutoff_hz:g} Hz low-pass needs a sampling rate above {2 * cutoff_hz:g} Hz, "
+            f"got {rate:g} Hz",
+            source,
+        )
+    sos = butter(order, cutoff_hz / nyq, btype="low", output="sos")
+    padlen = 3 * (2 * sos.shape[0] + 1)
+    if x.shape[0] <= padlen:
+        raise InputError(f"too short to filter: {x.shape[0]} frames, need more than {padlen}", source)
+    return sosfiltfilt(sos, x, axis=0)
+
+
+def kabsch(ref: np.ndarray, cur: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rigid transform with ``cur ≈ ref @ R.T + t``; ``ref``, ``cur`` are ``(..., k, 3)``.
+
+    Returns ``R (..., 3, 3)`` (a proper rotation) and ``t (..., 3)``.
+    """
+    ref = np.asarray(ref, dtype=float)
+    cur = np.asarray(cur, dtype=float)
+    rc, cc = ref.mean(axis=-2, keepdims=True), cur.mean(axis=-2, keepdims=True)
+    H = np.swapaxes(ref - rc, -1, -2) @ (cur - cc)  # (..., 3, 3)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))
+    D = np.zeros(H.shape)
+    D[..., 0, 0] = 1.0
+    D[..., 1, 1] = 1.0
+    D[..., 2, 2] = d
+    R = np.swapaxes(Vt, -1, -2) @ D @ np.swapaxes(U, -1, -2)
+    t = cc[..., 0, :] - np.einsum("...ij,...j->...i", R, rc[..., 0, :])
+    return R, t
+
+
+def cast_reconstruct(cluster: np.ndarray, ref_cluster: np.ndarray, ref_point: np.ndarray) -> np.ndarray:
+    """Carry ``ref_point`` (static) into each frame by the rigid fit of ``cluster (n, k, 3)`` to ``ref_cluster
+    (k, 3)``. Frames with fewer than 3 seen cluster markers give NaN."""
+    cluster = np.asarray(cluster, dtype=float)
+    n, k, _ = cluster.shape
+    seen = np.all(np.isfinite(cluster), axis=2)
+    out = np.full((n, 3), np.nan)
+    full = seen.all(axis=1)
+    if full.any():
+        R, t = kabsch(np.broadcast_to(ref_cluster, (int(full.sum()), k, 3)), cluster[full])
+        out[full] = np.einsum("nij,j->ni", R, ref_point) + t
+    for i in np.flatnonzero(~full & (seen.sum(axis=1) >= 3)):
+        R, t = kabsch(ref_cluster[seen[i]], cluster[i, seen[i]])
+        out[i] = R @ ref_point + t
+    return out
+
+
+def _marker(md: MarkerData, name: str, role: str) -> np.ndarray:
+    found = resolve_name(name, md.names)
+    if found is None:
+        shown = ", ".join(md.names[:12]) + (" …" if len(md.names) > 12 else "")
+        raise InputError(f"marker {name!r} ({role}) not found (markers: {shown})", md.source)
+    return md[found]
+
+
+def calibrate_static(static: MarkerData, mset: MarkerSet) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """For each joint given by landmarks: ``(ref_cluster (k, 3), ref_point (3,))`` from the static trial, the
+    mean
+    over the frames where the cluster and the landmarks are all seen."""
+    out = {}
+    for joint, spec in mset.joints.items():
+        if not spec.needs_static:
+            continue
+        cl = np.stack([_marker(static, m, f"{joint} cluster") for m in spec.cluster], axis=1)
+        lm = np.stack([_marker(static, m, f"{joint} landmark") for m in spec.landmarks], axis=1)
+        ok = np.all(np.isfinite(cl), axis=(1, 2)) & np.all(np.isfinite(lm), axis=(1, 2))
+        if not ok.any():
+            raise InputError(
+                f"no frame sees the {joint}'s cluster {list(spec.cluster)} and landmarks "
+                f"{list(spec.landmarks)} together",
+                static.source,
+            )
+        out[joint] = (cl[ok].mean(axis=0), lm[ok].mean(axis=(0, 1)))
+    return out
+
+
+def joint_centres(
+    md: MarkerData, mset: MarkerSet, static: MarkerData | None = None, max_gap: int = 10
+) -> dict[str, np.ndarray]:
+    """``{joint: (n, 3)}`` in metres, gap-filled, for every joint of the (side-resolved) marker set."""
+    calib = {}
+    if mset.needs_static:
+        if static is None:
+            raise InputError(
+                f"marker set {mset.name!r} needs a static trial (--static) to place the joint centres",
+                md.source,
+            )
+        calib = calibrate_static(static, mset)
+    out = {}
+    for joint, spec in mset.joints.items():
+        if spec.markers:
+            if spec.optional and any(resolve_name(m, md.names) is None for m in spec.markers):
+                continue
+            arrs = [_marker(md, m, joint) for m in spec.markers]
+            for m, a in zip(spec.markers, arrs, strict=True):
+                if np.isnan(a).all():
+                    raise InputError(f"marker {m!r} ({joint}) is empty in every frame", md.source)
+            p = np.mean(arrs, axis=0)
+            label = "+".join(spec.markers)
+        else:
+            cl = np.stack([_marker(md, m, f"{joint} cluster") for m in spec.cluster], axis=1)
+            p = cast_reconstruct(cl, *calib[joint])
+            label = f"{joint} (cluster {spec.cluster[0]}..)"
+        out[joint] = fill_gaps(p, max_gap, label, md.source)
+    return out
+
+
+def mirror(points: Mapping[str, np.ndarray], lateral: np.ndarray) -> dict[str, np.ndarray]:
+    """Reflect 3-D points across the plane normal to the unit vector ``lateral`` (left arm → right arm)."""
+    lateral = np.asarray(lateral, dtype=float)
+    P = np.eye(3) - 2 * np.outer(lateral, lateral)
+    return {k: np.asarray(v) @ P.T for k, v in points.items()}
+
+
+def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05) -> tuple[int, int]:
+    """Onset and offset frames (inclusive) of the main movement: around the speed peak, the first frames
+    where the
+    speed falls below ``threshold`` × peak bound the movement. Without rest before (after), the record's first
+    (last) frame is used."""
+    speed = np.asarray(speed, dtype=float)
+    p = int(np.argmax(speed))
+    thr = threshold * speed[p]
+    below_before = np.flatnonzero(speed[:p] < thr)
+    below_after = np.flatnonzero(speed[p:] < thr)
+    onset = int(below_before[-1]) + 1 if below_before.size else 0
+    offset = p + int(below_after[0]) - 1 if below_after.size else speed.shape[0] - 1
+    return onset, offset
+
+
+def sagittal_basis(
+    rel: Mapping[str, np.ndarray],
+    up: np.ndarray,
+    displacement: np.ndarray,
+    options: PreprocessOptions,
+    forward: np.ndarray | None = None,
+    source: object | None = None,
+) -> np.ndarray:
+    """``(3, 3)`` rows ``forward, up, normal`` of the sagittal plane.
+
+    ``rel`` are the joint centres relative to the shoulder over the movement; ``up`` the lab's up;
+    ``displacement`` the fingertip's onset→offset displacement (gives the forward sign).
+    """
+    up = up / np.linalg.norm(up)
+    plane = options.plane
+    if plane == "pca":
+        pts = np.concatenate([np.asarray(v) for v in rel.values()], axis=0)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        _, s, Vt = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
+        normal = Vt[2]
+        up_p = up - (up @ normal) * normal
+        tilt = np.degrees(np.arccos(min(1.0, np.linalg.norm(up_p))))
+        if s[2] > options.pca_max_flatness * s[1] or tilt > options.pca_max_tilt_deg:
+            log.info(
+                "%s: principal plane ill-defined (singular values %s, %.0f° from vertical); using the "
+                "vertical plane of the fingertip's path",
+                source,
+                np.round(s, 3),
+                tilt,
+            )
+            plane = "vertical"
+        else:
+            up_p /= np.linalg.norm(up_p)
+            fwd = np.cross(up_p, normal)
+    if plane == "vertical":
+        up_p = up
+        fpath = np.asarray(rel["fingertip"])
+        h = fpath - np.outer(fpath @ up, up)
+        h = h[np.all(np.isfinite(h), axis=1)]
+        _, _, Vt = np.linalg.svd(h - h.mean(axis=0), full_matrices=False)
+        fwd = Vt[0] - (Vt[0] @ up) * up
+        fwd /= np.linalg.norm(fwd)
+    elif plane == "axes":
+        up_p = up
+        if forward is None:
+            h = displacement - (displacement @ up) * up
+            k = int(np.argmax(np.abs(h)))
+            fwd = np.zeros(3)
+            fwd[k] = 1.0
+        else:
+            fwd = forward - (forward @ up) * up
+        fwd /= np.linalg.norm(fwd)
+    if fwd @ displacement < 0:
+        fwd = -fwd
+    normal = np.cross(fwd, up_p)
+    return np.stack([fwd, up_p, normal])
+
+
+def planar_ik_segments(elbow: np.ndarray, distal: np.ndarray) -> np.ndarray:
+    """``q (n, 2)`` from planar shoulder→elbow and elbow→distal vectors (shoulder at the origin).
+
+    q1 = atan2 of the upper arm, q2 = the distal segment's angle minus q1 (both unwrapped over time, q2
+    wrapped to (-π, π] at the first frame).
+    """
+    a1 = np.unwrap(np.arctan2(elbow[:, 1], elbow[:, 0]))
+    seg = distal - elbow
+    a2 = np.unwrap(np.arctan2(seg[:, 1], seg[:, 0]))
+    q2 = a2 - a1
+    q2 -= 2 * np.pi * np.round(q2[0] / (2 * np.pi))
+    return np.stack([a1, q2], axis=1)
+
+
+def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Median 3-D distances: ``upper_arm`` (shoulder→elbow), ``forearm`` (elbow→wrist), ``elbow_fingertip``,
+    ``hand`` (wrist→fingertip), ``reach`` (shoulder→fingertip), with their SDs under ``<name>_sd``."""
+    pairs = {
+        "upper_arm": ("shoulder", "elbow"),
+        "forearm": ("elbow", "wrist"),
+        "elbow_fingertip": ("elbow", "fingertip"),
+        "hand": ("wrist", "fingertip"),
+        "reach": ("shoulder", "fingertip"),
+    }
+    out = {}
+    for name, (a, b) in pairs.items():
+        if a in joints and b in joints:
+            d = np.linalg.norm(joints[b] - joints[a], axis=1)
+            out[name] = float(np.median(d))
+            out[f"{name}_sd"] = float(np.std(d))
+    return out
+
+
+def _check_units(lengths: Mapping[str, float], options: PreprocessOptions, source: object) -> None:
+    lo, hi = options.segment_range_m
+    for name in ("upper_arm", "forearm", "reach", "elbow_fingertip"):
+        if name not in lengths:
+            continue
+        v = lengths[name]
+        if v < lo:
+            raise InputError(
+                f"units look wrong: the median {name.replace('_', ' ')} distance is {v * 1000:.3g} mm, "
+                f"absurdly small for an arm (metres declared as mm?)",
+                source,
+            )
+        if v > hi:
+            raise InputError(
+                f"units look wrong: the median {name.replace('_', ' ')} distance is {v:.3g} m, "
+                f"absurdly large for an arm (mm declared as metres?)",
+                source,
+            )
+
+
+def build_arm(info: SubjectInfo, side: str, measured: Mapping[str, float] | None = None) -> ArmModel:
+    """The subject's arm: sex, height, mass from ``info``; lengths from ``info`` when given, else ``measured``
+    (``upper_arm``, ``forearm``, ``elbow_fingertip``), else Dumas' means scaled by height."""
+    measured = measured or {}
+    ua, fa, hand = info.lengths(side)
+    ua = ua if ua is not None else measured.get("upper_arm")
+    if fa is None and hand is None and "elbow_fingertip" in measured:
+        l2 = measured["elbow_fingertip"]
+        if "forearm" in measured and measured["forearm"] < l2 - 0.02:
+            fa = measured["forearm"]
+        else:  # split elbow→fingertip by Dumas' forearm:hand ratio
+            t = DUMAS_2007[info.sex]
+            fa = l2 * t["forearm"][3] / (t["forearm"][3] + t["hand"][3])
+        hand = l2 - fa
+    elif fa is None:
+        fa = measured.get("forearm")
+    try:
+        return ArmModel.from_anthropometrics(
+            info.height_m, info.mass_kg, info.sex, upper_arm_m=ua, forearm_m=fa, hand_m=hand
+        )
+    except ValueError as e:
+        raise InputError(f"cannot build subject {info.subject}'s arm: {e}") from None
+
+
+def _derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    cs = CubicSpline(t, q, axis=0)
+    return cs(t, 1), cs(t, 2)
+
+
+# ---------------------------------------------------------------------- markers → trial
+@dataclass(frozen=True)
+class MarkerReconstruction:
+    """Everything computed from one marker file, on every frame of the record (``onset``/``offset``
+    inclusive)."""
+
+    t: np.ndarray  # (n,) s
+    q: np.ndarray  # (n, 2) rad
+    qd: np.ndarray
+    qdd: np.ndarray
+    fingertip: np.ndarray  # (n, 2) planar fingertip, shoulder frame (m)
+    speed: np.ndarray  # (n,) 3-D fingertip speed (m/s)
+    onset: int
+    offset: int
+    arm: ArmModel
+    lengths: Mapping[str, float]
+    basis: np.ndarray  # rows forward, up, normal (lab frame, after mirroring)
+    joints: Mapping[str, np.ndarray] = field(repr=False)  # filtered 3-D joint centres (lab frame, mirrored)
+    side: str = "right"
+    source: str = ""
+
+
+def reconstruct_markers(
+    md: MarkerData,
+    mset: MarkerSet,
+    *,
+    side: str = "right",
+    static: MarkerData | None = None,
+    subject_info: SubjectInfo | None = None,
+    options: PreprocessOptions | None = None,
+) -> MarkerReconstruction:
+    """Run steps 1–10 on a marker file; see the module docstring."""
+    options = options or PreprocessOptions()
+    info = subject_info or DEFAULT_SUBJECT
+    src = md.source
+    if side not in ("right", "left"):
+        raise InputError(f"side must be 'right' or 'left', got {side!r}", src)
+    ms = mset.for_side(side)
+    needed = ("shoulder", "elbow", "fingertip") if options.ik == "segments" else ("shoulder", "fingertip")
+    if options.ik == "segments" and options.distal == "wrist":
+        needed = (*needed, "wrist")
+    for j in needed:
+        if j not in ms.joints:
+            raise InputError(f"marker set {ms.name!r} gives no {j}, needed for ik={options.ik!r}", src)
+    if md.n_frames < 10:
+        raise InputError(f"only {md.n_frames} frames, too few for a reach", src)
+    joints = joint_centres(md, ms, static, options.max_gap_frames)
+    lengths = estimate_lengths(joints)
+    _check_units(lengths, options, src)
+
+    up = _axis(options.up_axis or ms.up or md.up)
+    if side == "left":
+        if options.lateral_axis:
+            lateral = _axis(options.lateral_axis)
+        else:  # the horizontal lab axis along which the fingertip ranges least
+            rng = np.ptp(joints["fingertip"], axis=0)
+            cand = [k for k in range(3) if abs(up[k]) < 0.5]
+            lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
+        joints = mirror(joints, lateral)
+
+    if options.cutoff_hz is not None:
+        joints = {
+            k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()
+        }
+    t = md.t
+    vel = np.gradient(joints["fingertip"], t, axis=0)
+    speed = np.linalg.norm(vel, axis=1)
+    if not np.isfinite(speed).all() or speed.max() < options.min_peak_speed:
+        raise InputError(
+            f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
+            f"(< {options.min_peak_speed:g} m/s)",
+            src,
+        )
+    onset, offset = detect_onset_offset(speed, options.onset_threshold)
+    if offset - onset + 1 < 4:
+        raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
+    if onset == 0 or offset == md.n_frames - 1:
+        log.warning(
+            "%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after"
+        )
+    rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
+    disp = joints["fingertip"][offset] - joints["fingertip"][onset]
+    fwd = _axis(options.forward_axis) if options.forward_axis else None
+    basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
+    planar = {k: v @ basis[:2].T for k, v in rel.items()}
+
+    arm = build_arm(info, side, lengths)
+    if options.ik == "segments":
+        q = planar_ik_segments(planar["elbow"], planar[options.distal])
+    else:
+        try:
+            q = arm.ik(planar["fingertip"])
+        except ValueError as e:
+            raise InputError(f"fingertip IK failed: {e}; the arm is too short for the markers", src) from None
+    qd, qdd = _derivatives(t, q)
+    return MarkerReconstruction(
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        fingertip=planar["fingertip"],
+        speed=speed,
+        onset=onset,
+        offset=offset,
+        arm=arm,
+        lengths=lengths,
+        basis=basis,
+        joints=joints,
+        side=side,
+        source=src,
+    )
+
+
+def _to_trial(
+    t,
+    q,
+    qd,
+    qdd,
+    arm: ArmModel,
+    target_x: float,
+    onset: int,
+    offset: int,
+    *,
+    subject: str,
+    posture: str,
+    trial_id: str,
+    side: str,
+    source: str,
+    options: PreprocessOptions,
+) -> Trial:
+    sl = slice(onset, offset + 1)
+    if not abs(target_x) < arm.length:
+        raise InputError(
+            f"the target (fingertip x {target_x:.3f} m at offset) is unreachable by the arm "
+            f"({arm.l1:.3f} + {arm.l2:.3f} = {arm.length:.3f} m); check the segment lengths",
+            source,
+        )
+    tau = arm.inverse_dynamics(q[sl], qd[sl], qdd[sl])
+    trial = Trial(
+        subject=subject,
+        posture=posture,
+        trial_id=trial_id,
+        t=t[sl] - t[onset],
+        q=q[sl],
+        qd=qd[sl],
+        qdd=qdd[sl],
+        tau=tau,
+        target_x=target_x,
+        arm=arm,
+        side=side,
+        source=source,
+    )
+    return trial.resample(options.n_samples) if options.n_samples else trial
+
+
+def markers_to_trial(
+    md: MarkerData,
+    mset: MarkerSet,
+    *,
+    subject: str,
+    posture: str,
+    trial_id: str,
+    side: str = "right",
+    static: MarkerData | None = None,
+    subject_info: SubjectInfo | None = None,
+    options: PreprocessOptions | None = None,
+) -> Trial:
+    """A marker file → one :class:`Trial` (onset→offset)."""
+    options = options or PreprocessOptions()
+    rec = reconstruct_markers(md, mset, side=side, static=static, subject_info=subject_info, options=options)
+    return _to_trial(
+        rec.t,
+        rec.q,
+        rec.qd,
+        rec.qdd,
+        rec.arm,
+        float(rec.fingertip[rec.offset, 0]),
+        rec.onset,
+        rec.offset,
+        subject=subject,
+        posture=posture,
+        trial_id=trial_id,
+        side=side,
+        source=md.source,
+        options=options,
+    )
+
+
+# ---------------------------------------------------------------------- angles → trial
+def angles_to_trial(
+    ad: AngleData,
+    *,
+    subject: str,
+    posture: str,
+    trial_id: str,
+    side: str = "right",
+    subject_info: SubjectInfo | None = None,
+    options: PreprocessOptions | None = None,
+) -> Trial:
+    """Joint angles (model convention) → one :class:`Trial`.
+
+    The arm comes from the subject info (lengths or Dumas' means scaled by height). Non-uniform samples are
+    first interpolated onto a uniform grid at the median rate; then the angles are low-passed (skipped, with a
+    log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
+    onset and offset, and q̇, q̈, τ follow as for markers. Left arms' angles are taken as already in the model
+    convention.
+    """
+    options = options or PreprocessOptions()
+    info = subject_info or DEFAULT_SUBJECT
+    src = ad.source
+    arm = build_arm(info, side)
+    t, q = ad.t, ad.q
+    dt = np.diff(t)
+    if np.ptp(dt) > 0.01 * np.median(dt):
+        t_u = np.arange(t[0], t[-1] + 1e-12, np.median(dt))
+        q = CubicSpline(t, q, axis=0)(t_u)
+        t = t_u
+    rate = 1.0 / float(np.median(np.diff(t)))
+    if options.cutoff_hz is not None:
+        if options.cutoff_hz < rate / 2 and t.shape[0] > 3 * (2 * ((options.filter_order + 1) // 2) + 1):
+            q = lowpass(q, rate, options.cutoff_hz, options.filter_order, src)
+        else:
+            log.info("%s: %d samples at %.3g Hz, not filtered", src, t.shape[0], rate)
+    qd, qdd = _derivatives(t, q)
+    speed = np.linalg.norm(arm.fingertip_velocity(q, qd), axis=1)
+    if speed.max() < options.min_peak_speed:
+        raise InputError(
+            f"no movement detected: the fingertip's peak speed is {speed.max():.3g} m/s "
+            f"(< {options.min_peak_speed:g} m/s)",
+            src,
+        )
+    onset, offset = detect_onset_offset(speed, options.onset_threshold)
+    if offset - onset + 1 < 4:
+        raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} samples", src)
+    target_x = float(arm.fk(q[offset])[0])
+    return _to_trial(
+        t,
+        q,
+        qd,
+        qdd,
+        arm,
+        target_x,
+        onset,
+        offset,
+        subject=subject,
+        posture=posture,
+        trial_id=trial_id,
+        side=side,
+        source=src,
+        options=options,
+    )

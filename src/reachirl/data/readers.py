@@ -1,0 +1,672 @@
+"""Readers for motion-capture files. Each one validates what it reads and raises :class:`InputError` naming
+the file, the line (or frame) and the problem.
+
+Marker files (TRC, C3D, Vicon Nexus "Trajectories" CSV) give a :class:`MarkerData`: positions in **metres**,
+in the lab frame of the file. Joint-angle files (OpenSim MOT, plain CSV) give an :class:`AngleData`: ``q (n,
+2)`` in **radians** in the model convention (q1 the upper arm from +x forward, CCW positive; q2 the elbow
+flexion, 0 straight).
+
+Units, per format:
+
+* TRC: the header's ``Units`` field (``mm``, ``cm`` or ``m``).
+* C3D: the ``POINT:UNITS`` parameter (``mm`` when absent, as in the standard).
+* Vicon CSV: line 5 (``mm`` for every coordinate in a Nexus export; ``m``/``cm`` also accepted).
+* MOT: ``inDegrees=yes|no`` in the header (``yes`` when absent, OpenSim's default).
+* CSV angles: columns ``time,q1,q2``. The units are **radians** unless the header says otherwise, either by
+  column suffixes (``q1_deg,q2_deg`` or ``q1_rad,q2_rad``) or by a comment line ``# units: deg`` (or ``rad``)
+  before the header. ``time`` is in seconds.
+
+:func:`read_subject_info` reads the subject-info CSV (``subject,sex,height_m,mass_kg`` and optionally
+``upper_arm_m,forearm_m,hand_m``) and also accepts the UE-ADL ``subjects.csv`` directly
+(``subject,age,sex,height_m,mass_kg,...,right_upper_arm_mm,...``); see its docstring.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "FORMATS",
+    "AngleData",
+    "MarkerData",
+    "SubjectInfo",
+    "detect_format",
+    "read_angles_csv",
+    "read_c3d",
+    "read_file",
+    "read_manifest",
+    "read_markers",
+    "read_mot",
+    "read_subject_info",
+    "read_trc",
+    "read_vicon_csv",
+]
+
+FORMATS = ("trc", "c3d", "vicon-csv", "mot", "csv")
+_UNIT_SCALE = {
+    "mm": 1e-3,
+    "millimeters": 1e-3,
+    "millimetres": 1e-3,
+    "cm": 1e-2,
+    "m": 1.0,
+    "meters": 1.0,
+    "metres": 1.0,
+}
+
+
+# ---------------------------------------------------------------------- data
+@dataclass(frozen=True)
+class MarkerData:
+    """Marker trajectories: ``markers[name]`` is ``(n, 3)`` in metres (NaN where unseen), sampled at ``rate``
+    Hz.
+
+    ``t`` is the time of each frame in seconds; ``up`` is the lab axis opposite gravity in the file's
+    convention (``"+z"`` for Vicon and C3D, ``"+y"`` for OpenSim TRC), used when the caller does not say.
+    """
+
+    rate: float
+    markers: Mapping[str, np.ndarray]
+    source: str = ""
+    t: np.ndarray = field(default=None)  # type: ignore[assignment]
+    up: str = "+z"
+
+    def __post_init__(self) -> None:
+        where = self.source or None
+        if not (np.isfinite(self.rate) and self.rate > 0):
+            raise InputError(f"sampling rate must be a positive number, got {self.rate}", where)
+        if not self.markers:
+            raise InputError("no markers", where)
+        n = None
+        clean: dict[str, np.ndarray] = {}
+        for name, a in self.markers.items():
+            a = np.array(a, dtype=float)
+            if a.ndim != 2 or a.shape[1] != 3:
+                raise InputError(f"marker {name!r} has shape {a.shape}, expected (n, 3)", where)
+            if n is None:
+                n = a.shape[0]
+            elif a.shape[0] != n:
+                raise InputError(f"marker {name!r} has {a.shape[0]} frames, others have {n}", where)
+            a.setflags(write=False)
+            clean[str(name)] = a
+        object.__setattr__(self, "markers", clean)
+        t = np.arange(n) / float(self.rate) if self.t is None else np.asarray(self.t, dtype=float).reshape(-1)
+        if t.shape != (n,):
+            raise InputError(f"time has {t.shape[0]} samples, markers have {n}", where)
+        if n >= 2 and (not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0)):
+            k = int(np.flatnonzero(~(np.diff(t) > 0))[0]) + 1 if np.any(~(np.diff(t) > 0)) else 0
+            raise InputError("time is not strictly increasing", where, f"frame {k + 1}")
+        t = t.copy()
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "rate", float(self.rate))
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.markers)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.markers[name]
+
+
+@dataclass(frozen=True)
+class AngleData:
+    """Joint angles ``q (n, 2)`` in radians (model convention) at times ``t (n,)`` in seconds."""
+
+    t: np.ndarray
+    q: np.ndarray
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        where = self.source or None
+        t = np.asarray(self.t, dtype=float).reshape(-1)
+        q = np.asarray(self.q, dtype=float)
+        if q.shape != (t.shape[0], 2):
+            raise InputError(f"q has shape {q.shape}, expected ({t.shape[0]}, 2)", where)
+        if t.shape[0] < 2:
+            raise InputError(f"need at least 2 samples, got {t.shape[0]}", where)
+        bad = np.flatnonzero(~(np.diff(t) > 0))
+        if bad.size:
+            raise InputError(
+                f"time is not strictly increasing ({t[bad[0]]} then {t[bad[0] + 1]})",
+                where,
+                f"sample {bad[0] + 2}",
+            )
+        if not np.all(np.isfinite(q)):
+            k = int(np.flatnonzero(~np.all(np.isfinite(q), axis=1))[0])
+            raise InputError("angles contain NaN or infinite values", where, f"sample {k + 1}")
+        if np.any(np.abs(q) > 2 * np.pi + 1e-9):
+            raise InputError(
+                f"angles reach {np.degrees(np.abs(q).max()):.0f}° after unit conversion, beyond one turn: "
+                "are degrees declared as radians?",
+                where,
+            )
+        for a in (t, q):
+            a.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "q", q)
+
+    @property
+    def rate(self) -> float:
+        return float(1.0 / np.median(np.diff(self.t)))
+
+
+# ---------------------------------------------------------------------- helpers
+def _read_text(path: Path) -> str:
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("file not found", path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", path) from None
+    except OSError as e:
+        raise InputError(f"cannot read ({e.strerror})", path) from None
+    if not raw.strip():
+        raise InputError("file is empty", path)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        try:
+            return raw.decode("latin-1")
+        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes any bytes
+            raise InputError("not a text file", path) from None
+
+
+def _float(cell: str, path: Path, line: int, col: str, allow_empty: bool = False) -> float:
+    cell = cell.strip()
+    if cell == "" and allow_empty:
+        return math.nan
+    try:
+        v = float(cell)
+    except ValueError:
+        raise InputError(f"non-numeric cell {cell!r} in column {col}", path, f"line {line}") from None
+    if not math.isfinite(v) and not allow_empty:
+        raise InputError(f"non-finite value {cell!r} in column {col}", path, f"line {line}")
+    return v
+
+
+def _unit_scale(unit: str, path: Path, where: str) -> float:
+    key = unit.strip().lower()
+    if key not in _UNIT_SCALE:
+        raise InputError(f"unknown length unit {unit!r}, expected mm, cm or m", path, where)
+    return _UNIT_SCALE[key]
+
+
+# ---------------------------------------------------------------------- TRC
+def read_trc(path: str | Path) -> MarkerData:
+    """Read an OpenSim TRC marker file (tab-separated; ``Units`` from the header line; Y up by convention)."""
+    path = Path(path)
+    lines = _read_text(path).splitlines()
+    if not lines[0].startswith("PathFileType"):
+        raise InputError("not a TRC file (line 1 should start with 'PathFileType')", path, "line 1")
+    if len(lines) < 5:
+        raise InputError("truncated header: a TRC file needs 5 header lines", path)
+    keys = lines[1].split("\t")
+    vals = lines[2].split("\t")
+    if len(vals) < len(keys):
+        raise InputError(f"header line 3 has {len(vals)} fields, line 2 names {len(keys)}", path, "line 3")
+    hdr = {k.strip(): v.strip() for k, v in zip(keys, vals, strict=False)}
+    for k in ("DataRate", "NumMarkers", "Units"):
+        if k not in hdr:
+            raise InputError(f"header lacks the {k!r} field", path, "line 2")
+    rate = _float(hdr["DataRate"], path, 3, "DataRate")
+    scale = _unit_scale(hdr["Units"], path, "line 3")
+    name_cells = lines[3].split("\t")
+    if len(name_cells) < 2 or name_cells[0].strip() not in ("Frame#", "Frame"):
+        raise InputError("line 4 should start with 'Frame#\\tTime'", path, "line 4")
+    names = [c.strip() for c in name_cells[2::3]]
+    names = [n for n in names if n]
+    n_markers = int(_float(hdr["NumMarkers"], path, 3, "NumMarkers"))
+    if len(names) != n_markers:
+        raise InputError(
+            f"line 4 names {len(names)} markers, the header says NumMarkers={n_markers}", path, "line 4"
+        )
+    if len(set(names)) != len(names):
+        raise InputError("duplicate marker names", path, "line 4")
+    n_cols = 2 + 3 * n_markers
+    rows, times = [], []
+    for i, line in enumerate(lines[5:], start=6):
+        if not line.strip():
+            continue
+        cells = line.split("\t")
+        if len(cells) < n_cols:
+            # trailing markers unseen may be written as empty cells or left off; OpenSim writes them empty
+            raise InputError(f"truncated row: {len(cells)} fields, expected {n_cols}", path, f"line {i}")
+        times.append(_float(cells[1], path, i, "Time"))
+        rows.append(
+            [
+                _float(c, path, i, names[(j - 2) // 3], allow_empty=True)
+                for j, c in enumerate(cells[2:n_cols], start=2)
+            ]
+        )
+    if not rows:
+        raise InputError("no data rows after the header", path)
+    a = np.asarray(rows) * scale
+    markers = {n: a[:, 3 * k : 3 * k + 3] for k, n in enumerate(names)}
+    return MarkerData(rate=rate, markers=markers, source=str(path), t=np.asarray(times), up="+y")
+
+
+# ---------------------------------------------------------------------- C3D
+def read_c3d(path: str | Path) -> MarkerData:
+    """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
+    up)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("file not found", path)
+    if path.stat().st_size == 0:
+        raise InputError("file is empty", path)
+    import ezc3d
+
+    try:
+        c = ezc3d.c3d(str(path))
+    except Exception as e:  # ezc3d raises RuntimeError/IOError with C++ messages
+        raise InputError(f"not a readable C3D file ({str(e).strip() or type(e).__name__})", path) from None
+    try:
+        point = c["parameters"]["POINT"]
+        labels = [str(s).strip() for s in point["LABELS"]["value"]]
+        rate = float(np.ravel(point["RATE"]["value"])[0])
+        units = point["UNITS"]["value"] if "UNITS" in point else ["mm"]
+        unit = str(units[0]).strip() if len(units) else "mm"
+        pts = np.asarray(c["data"]["points"], dtype=float)  # (4, n_markers, n_frames)
+        resid = c["data"]["meta_points"]["residuals"] if "meta_points" in c["data"] else None
+    except (KeyError, IndexError, TypeError, ValueError) as e:
+        raise InputError(f"C3D file lacks POINT parameters ({e})", path) from None
+    if pts.ndim != 3 or pts.shape[1] == 0:
+        raise InputError("C3D file holds no 3-D points", path)
+    if pts.shape[2] == 0:
+        raise InputError("C3D file holds no frames", path)
+    if len(labels) < pts.shape[1]:
+        labels += [f"M{k + 1:03d}" for k in range(len(labels), pts.shape[1])]
+    if len(set(labels[: pts.shape[1]])) != pts.shape[1]:
+        raise InputError("duplicate point labels", path)
+    scale = _unit_scale(unit, path, "POINT:UNITS")
+    xyz = pts[:3].transpose(2, 1, 0) * scale  # (n_frames, n_markers, 3)
+    if resid is not None:
+        r = np.asarray(resid, dtype=float).reshape(-1, pts.shape[1], pts.shape[2])[0].T
+        xyz[r < 0] = np.nan
+    markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
+    return MarkerData(rate=rate, markers=markers, source=str(path), up="+z")
+
+
+# ---------------------------------------------------------------------- Vicon Nexus CSV
+def read_vicon_csv(path: str | Path) -> MarkerData:
+    """Read a Vicon Nexus "Trajectories" CSV export (UE-ADL's format).
+
+    Line 1 ``Trajectories``, line 2 the rate, line 3 the marker names (``Subject:Marker``, one per X/Y/Z
+    triplet), line 4 ``Frame,Sub Frame,X,Y,Z,...``, line 5 the units, data from line 6 until a blank line
+    (another block may follow). Empty cells are unseen markers (NaN). The ``Subject:`` prefix is dropped from
+    the names.
+    """
+    path = Path(path)
+    text = _read_text(path)
+    lines = text.splitlines()
+    if lines[0].split(",")[0].strip() != "Trajectories":
+        raise InputError("not a Vicon 'Trajectories' CSV (line 1 should be 'Trajectories')", path, "line 1")
+    if len(lines) < 5:
+        raise InputError(
+            "truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path
+        )
+    rate = _float(lines[1].split(",")[0], path, 2, "rate")
+    names_row = next(csv.reader([lines[2]]))
+    axes_row = next(csv.reader([lines[3]]))
+    units_row = next(csv.reader([lines[4]]))
+    if len(axes_row) < 2 or axes_row[0].strip() != "Frame":
+        raise InputError("line 4 should start with 'Frame,Sub Frame'", path, "line 4")
+    cols: dict[str, int] = {}
+    for j, cell in enumerate(names_row):
+        name = cell.strip()
+        if not name:
+            continue
+        name = name.split(":", 1)[-1]
+        if name in cols:
+            raise InputError(f"duplicate marker name {name!r}", path, "line 3")
+        if j + 2 >= len(axes_row) or [a.strip() for a in axes_row[j : j + 3]] != ["X", "Y", "Z"]:
+            raise InputError(f"marker {name!r} is not followed by X,Y,Z columns", path, "line 4")
+        cols[name] = j
+    if not cols:
+        raise InputError("no marker names", path, "line 3")
+    n_cols = max(cols.values()) + 3
+    unit = None
+    for j in cols.values():
+        for u in units_row[j : j + 3]:
+            u = u.strip()
+            if unit is None:
+                unit = u
+            elif u != unit:
+                raise InputError(f"mixed units {unit!r} and {u!r}", path, "line 5")
+    scale = _unit_scale(unit or "", path, "line 5")
+    rows, frames = [], []
+    for i, line in enumerate(lines[5:], start=6):
+        if not line.strip(", \t"):
+            break  # end of the Trajectories block
+        cells = line.split(",")
+        if len(cells) < n_cols:
+            raise InputError(f"truncated row: {len(cells)} fields, expected {n_cols}", path, f"line {i}")
+        frames.append(_float(cells[0], path, i, "Frame"))
+        rows.append(
+            [_float(c, path, i, _col_name(cols, j), allow_empty=True) for j, c in enumerate(cells[:n_cols])]
+        )
+    if not rows:
+        raise InputError("no data rows after the header", path)
+    frames_a = np.asarray(frames)
+    bad = np.flatnonzero(~(np.diff(frames_a) > 0))
+    if bad.size:
+        raise InputError(
+            f"frame numbers not increasing ({frames_a[bad[0]]:g} then {frames_a[bad[0] + 1]:g})",
+            path,
+            f"line {bad[0] + 7}",
+        )
+    a = np.asarray(rows) * scale
+    markers = {n: a[:, j : j + 3] for n, j in cols.items()}
+    t = (frames_a - frames_a[0]) / rate
+    return MarkerData(rate=rate, markers=markers, source=str(path), t=t, up="+z")
+
+
+def _col_name(cols: dict[str, int], j: int) -> str:
+    if j == 0:
+        return "Frame"
+    if j == 1:
+        return "Sub Frame"
+    for n, k in cols.items():
+        if k <= j < k + 3:
+            return f"{n}.{'XYZ'[j - k]}"
+    return str(j + 1)
+
+
+# ---------------------------------------------------------------------- angles: MOT, CSV
+_Q_ALIASES = {
+    "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder"),
+    "q2": ("q2", "elbow", "elbow_flex", "q_elbow"),
+}
+
+
+def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int, int]:
+    low = [h.strip().lower() for h in header]
+    if "time" not in low:
+        raise InputError(f"no 'time' column (columns: {', '.join(header)})", path, f"line {line}")
+    idx = []
+    for q in ("q1", "q2"):
+        found = [k for k, h in enumerate(low) if re.sub(r"_(deg|rad)$", "", h) in _Q_ALIASES[q]]
+        if not found:
+            raise InputError(f"no '{q}' column (columns: {', '.join(header)})", path, f"line {line}")
+        idx.append(found[0])
+    return low.index("time"), idx[0], idx[1]
+
+
+def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path: Path, names: list[str]):
+    rows = []
+    for i, line in enumerate(lines[start:], start=start + 1):
+        if not line.strip():
+            continue
+        cells = line.split(sep) if sep else line.split()
+        if len(cells) < n_min:
+            raise InputError(f"truncated row: {len(cells)} fields, expected {n_min}", path, f"line {i}")
+        rows.append(
+            [
+                _float(c, path, i, names[j] if j < len(names) else str(j + 1))
+                for j, c in enumerate(cells[:n_min])
+            ]
+        )
+    if not rows:
+        raise InputError("no data rows after the header", path)
+    return np.asarray(rows)
+
+
+def read_mot(path: str | Path) -> AngleData:
+    """Read an OpenSim MOT/STO motion file: ``inDegrees=yes|no`` in the header, then ``endheader``, then a
+    ``time q1 q2 ...`` header row (tab- or space-separated). Column names: ``q1``/``q2`` (or
+    ``shoulder``/``elbow``)
+    in the model convention."""
+    path = Path(path)
+    lines = _read_text(path).splitlines()
+    end = next((k for k, ln in enumerate(lines) if ln.strip().lower() == "endheader"), None)
+    if end is None:
+        raise InputError("not a MOT file (no 'endheader' line)", path)
+    in_degrees = True
+    for k, ln in enumerate(lines[:end]):
+        if ln.strip().lower().startswith("indegrees"):
+            val = ln.split("=", 1)[-1].strip().lower()
+            if val not in ("yes", "no"):
+                raise InputError(f"inDegrees must be yes or no, got {val!r}", path, f"line {k + 1}")
+            in_degrees = val == "yes"
+    hdr_k = next((k for k in range(end + 1, len(lines)) if lines[k].strip()), None)
+    if hdr_k is None:
+        raise InputError("no column header after 'endheader'", path)
+    sep = "\t" if "\t" in lines[hdr_k] else None
+    header = lines[hdr_k].split(sep) if sep else lines[hdr_k].split()
+    it, i1, i2 = _find_q_columns(header, path, hdr_k + 1)
+    a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
+    q = a[:, [i1, i2]]
+    return AngleData(t=a[:, it], q=np.radians(q) if in_degrees else q, source=str(path))
+
+
+def read_angles_csv(path: str | Path) -> AngleData:
+    """Read a ``time,q1,q2`` CSV (radians unless ``_deg`` suffixes or a ``# units: deg`` line say degrees)."""
+    path = Path(path)
+    lines = _read_text(path).splitlines()
+    units = None
+    k = 0
+    while k < len(lines) and (lines[k].lstrip().startswith("#") or not lines[k].strip()):
+        m = re.match(r"#\s*units?\s*[:=]\s*(\w+)", lines[k].strip(), re.IGNORECASE)
+        if m:
+            u = m.group(1).lower()
+            if u not in ("deg", "degree", "degrees", "rad", "radian", "radians"):
+                raise InputError(
+                    f"unknown angle unit {m.group(1)!r}, expected deg or rad", path, f"line {k + 1}"
+                )
+            units = "deg" if u.startswith("deg") else "rad"
+        k += 1
+    if k >= len(lines):
+        raise InputError("no header row", path)
+    header = next(csv.reader([lines[k]]))
+    it, i1, i2 = _find_q_columns(header, path, k + 1)
+    suffixes = {re.search(r"_(deg|rad)$", header[i].strip().lower()) for i in (i1, i2)}
+    sfx = {m.group(1) for m in suffixes if m}
+    if len(sfx) > 1:
+        raise InputError("q1 and q2 columns declare different units", path, f"line {k + 1}")
+    if sfx:
+        col_unit = sfx.pop()
+        if units is not None and units != col_unit:
+            raise InputError(
+                f"'# units: {units}' contradicts the column suffix _{col_unit}", path, f"line {k + 1}"
+            )
+        units = col_unit
+    a = _angle_rows(lines, k + 1, ",", max(it, i1, i2) + 1, path, header)
+    q = a[:, [i1, i2]]
+    return AngleData(t=a[:, it], q=np.radians(q) if units == "deg" else q, source=str(path))
+
+
+# ---------------------------------------------------------------------- dispatch
+def detect_format(path: str | Path) -> str:
+    """The format of ``path`` from its extension, and for ``.csv`` from its first line."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext == ".trc":
+        return "trc"
+    if ext == ".c3d":
+        return "c3d"
+    if ext in (".mot", ".sto"):
+        return "mot"
+    if ext in (".csv", ".txt"):
+        first = _read_text(path).lstrip().split("\n", 1)[0]
+        return "vicon-csv" if first.split(",")[0].strip() == "Trajectories" else "csv"
+    raise InputError(
+        f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path
+    )
+
+
+def read_file(path: str | Path, fmt: str = "auto") -> MarkerData | AngleData:
+    """Read any supported file: markers (:class:`MarkerData`) or joint angles (:class:`AngleData`)."""
+    fmt = detect_format(path) if fmt in ("auto", None) else fmt
+    readers = {
+        "trc": read_trc,
+        "c3d": read_c3d,
+        "vicon-csv": read_vicon_csv,
+        "mot": read_mot,
+        "csv": read_angles_csv,
+    }
+    if fmt not in readers:
+        raise InputError(f"unknown format {fmt!r}, expected one of auto, {', '.join(FORMATS)}", path)
+    return readers[fmt](path)
+
+
+def read_markers(path: str | Path, fmt: str = "auto") -> MarkerData:
+    """Read a marker file; joint-angle files are refused with a clear message."""
+    data = read_file(path, fmt)
+    if not isinstance(data, MarkerData):
+        raise InputError("holds joint angles, expected marker trajectories", path)
+    return data
+
+
+# ---------------------------------------------------------------------- subject info and manifest
+@dataclass(frozen=True)
+class SubjectInfo:
+    """One subject's anthropometrics. Lengths in metres; ``None`` means "estimate from the markers".
+
+    ``left_*`` lengths, when given, apply to the left arm instead of the plain ones.
+    """
+
+    subject: str
+    sex: str
+    height_m: float
+    mass_kg: float
+    upper_arm_m: float | None = None
+    forearm_m: float | None = None
+    hand_m: float | None = None
+    left_upper_arm_m: float | None = None
+    left_forearm_m: float | None = None
+
+    def lengths(self, side: str) -> tuple[float | None, float | None, float | None]:
+        """``(upper_arm_m, forearm_m, hand_m)`` for the ``side`` arm."""
+        if side == "left":
+            return (
+                self.left_upper_arm_m or self.upper_arm_m,
+                self.left_forearm_m or self.forearm_m,
+                self.hand_m,
+            )
+        return self.upper_arm_m, self.forearm_m, self.hand_m
+
+
+def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
+    text = _read_text(path)
+    reader = csv.DictReader(io.StringIO(text))
+    fields_ = [f.strip() for f in (reader.fieldnames or [])]
+    reader.fieldnames = fields_
+    missing = [c for c in required if c not in fields_]
+    if missing:
+        raise InputError(
+            f"missing column(s) {', '.join(missing)} (has: {', '.join(fields_)})", path, "line 1"
+        )
+    rows = []
+    for row in reader:
+        if None in row:
+            raise InputError(
+                f"row has more fields than the header ({len(fields_)})", path, f"line {reader.line_num}"
+            )
+        if all(not (v or "").strip() for v in row.values()):
+            continue
+        if any(row.get(c) is None for c in required):
+            raise InputError(
+                f"truncated row: fewer fields than the header's {len(fields_)}",
+                path,
+                f"line {reader.line_num}",
+            )
+        rows.append((reader.line_num, {k: (v or "").strip() for k, v in row.items()}))
+    if not rows:
+        raise InputError("no data rows after the header", path)
+    return rows
+
+
+def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
+    """Read subject anthropometrics, keyed by subject id.
+
+    Two layouts are accepted:
+
+    * reachirl's: ``subject,sex,height_m,mass_kg`` and optional ``upper_arm_m,forearm_m,hand_m`` (metres; an
+      empty cell means "estimate from the markers");
+    * UE-ADL's ``subjects.csv`` as shipped (``subject,age,sex,height_m,mass_kg,handedness_score,
+      left_upper_arm_mm,left_lower_arm_mm,right_upper_arm_mm,right_lower_arm_mm,...``). Only sex, height and
+      mass are taken: the examiners' tape lengths (acromion to olecranon, etc.) are not the joint-centre
+      distances the planar model needs, so segment lengths come from the markers (on ADL001 the tape says 325
+      mm for the upper arm, the joint centres 284 mm). :func:`reachirl.data.ue_adl.convert_subjects` writes
+      them in reachirl's layout if you want to keep them.
+    """
+    path = Path(path)
+    rows = _csv_dicts(path, ("subject", "sex", "height_m", "mass_kg"))
+    out: dict[str, SubjectInfo] = {}
+    for line, r in rows:
+        where = f"line {line}"
+        sid = r["subject"]
+        if not sid:
+            raise InputError("empty subject id", path, where)
+        sex = r["sex"].upper()[:1]
+        if sex not in ("M", "F"):
+            raise InputError(f"sex must be M or F, got {r['sex']!r}", path, where)
+        h = _float(r["height_m"], path, line, "height_m")
+        m = _float(r["mass_kg"], path, line, "mass_kg")
+        if not 0.5 < h < 2.6:
+            raise InputError(f"height_m {h} is not a stature in metres", path, where)
+        if not 10 < m < 300:
+            raise InputError(f"mass_kg {m} is not a body mass in kg", path, where)
+        lengths = {}
+        for c in ("upper_arm_m", "forearm_m", "hand_m"):
+            v = r.get(c, "")
+            if v:
+                x = _float(v, path, line, c)
+                if not 0.02 < x < 1.0:
+                    raise InputError(f"{c} {x} is not a segment length in metres (0.02-1.0)", path, where)
+                lengths[c] = x
+        if sid in out:
+            raise InputError(f"subject {sid!r} appears twice", path, where)
+        out[sid] = SubjectInfo(subject=sid, sex=sex, height_m=h, mass_kg=m, **lengths)
+    return out
+
+
+@dataclass(frozen=True)
+class ManifestEntry:
+    file: Path
+    subject: str
+    posture: str
+    side: str | None = None
+    static: Path | None = None
+
+
+def read_manifest(path: str | Path) -> list[ManifestEntry]:
+    """Read a manifest CSV ``file,subject,posture`` (+ optional ``side``, ``static``); paths are relative to
+    the
+    manifest's folder."""
+    path = Path(path)
+    rows = _csv_dicts(path, ("file", "subject", "posture"))
+    out = []
+    for line, r in rows:
+        if not r["file"]:
+            raise InputError("empty file name", path, f"line {line}")
+        side = r.get("side", "").lower() or None
+        if side is not None and side not in ("right", "left", "r", "l"):
+            raise InputError(f"side must be right or left, got {r['side']!r}", path, f"line {line}")
+        if side in ("r", "l"):
+            side = {"r": "right", "l": "left"}[side]
+        static = r.get("static", "")
+        out.append(
+            ManifestEntry(
+                file=path.parent / r["file"],
+                subject=r["subject"] or Path(r["file"]).stem,
+                posture=r["posture"] or "default",
+                side=side,
+                static=(path.parent / static) if static else None,
+            )
+        )
+    return out

@@ -1,0 +1,230 @@
+"""`reachirl preprocess` end to end: the shipped UE-ADL sample, synthetic files, and every bad-input case
+(exit code 2, one line naming the file and the problem, no traceback, nothing written)."""
+
+from __future__ import annotations
+
+import re
+import shutil
+
+import numpy as np
+import pytest
+
+from reachirl.cli import main
+from reachirl.data.trial import load_trials
+
+
+def _run(argv, capsys):
+    code = main(["preprocess", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_ue_adl_sample_folder(tmp_path, synth, capsys):
+    out = tmp_path / "adl.npz"
+    code, stdout, err = _run(
+        [synth.SAMPLE / "ADL001", "--subject-info", synth.SAMPLE / "subjects.csv", "--out", out], capsys
+    )
+    assert code == 0, err
+    trials = load_trials(out)
+    assert [t.id for t in trials] == [
+        "ADL001/forward/left/FL1",
+        "ADL001/forward/left/FL2",
+        "ADL001/forward/right/FR1",
+        "ADL001/forward/right/FR2",
+    ]
+    for tr in trials:
+        assert 0.8 < tr.duration < 1.5 and 0.4 < tr.target_x < 0.7
+        assert tr.arm.m1 == pytest.approx(0.022 * 96.0)  # female, 96 kg (Dumas: 2.2 % of body mass)
+    assert re.search(
+        r"ADL001/forward/right/FR1: 1\.\d\d s, peak fingertip speed 0\.\d\d m/s, q1 -9\d\.\.-4\d°", stdout
+    )
+    assert "wrote 4 trial(s)" in stdout
+
+
+def test_manifest_with_static_column(tmp_path, synth, capsys):
+    for f in ("ADL001FR1.csv", "ADL001_static.csv"):
+        shutil.copy(synth.SAMPLE / "ADL001" / f, tmp_path / ("reach.csv" if "FR1" in f else "calib.csv"))
+    (tmp_path / "info.csv").write_text("subject,sex,height_m,mass_kg\nP01,F,1.70,60\n")
+    (tmp_path / "m.csv").write_text(
+        "file,subject,posture,side,static\nreach.csv,P01,seated,right,calib.csv\n"
+    )
+    code, _, err = _run(
+        [
+            "--manifest",
+            tmp_path / "m.csv",
+            "--markerset",
+            "ue-adl",
+            "--subject-info",
+            tmp_path / "info.csv",
+            "--out",
+            tmp_path / "o.npz",
+            "--n-samples",
+            "200",
+        ],
+        capsys,
+    )
+    assert code == 0, err
+    (tr,) = load_trials(tmp_path / "o.npz")
+    assert tr.id == "P01/seated/right/reach" and tr.q.shape == (200, 2)
+
+
+def test_trc_with_marker_map_and_default_subject(tmp_path, reach, synth, capsys):
+    (tmp_path / "r.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    code, _stdout, err = _run(
+        [
+            tmp_path / "r.trc",
+            "--markers",
+            synth.MAP,
+            "--subject",
+            "S9",
+            "--posture",
+            "P3",
+            "--out",
+            tmp_path / "o.npz",
+        ],
+        capsys,
+    )
+    assert code == 0, err
+    assert "Berret 2011's mean subject" in err
+    (tr,) = load_trials(tmp_path / "o.npz")
+    # TRC is Y-up: the plane and angles must still come out right
+    k = int(np.argmin(np.abs(reach.q[:, 0] - tr.q[0, 0])))
+    np.testing.assert_allclose(
+        np.degrees(tr.q[: len(tr.t) : 10]), np.degrees(reach.q[k : k + len(tr.t) : 10]), atol=0.1
+    )
+
+
+def test_mot_angles(tmp_path, reach, capsys):
+    rows = "".join(
+        f"{t:.3f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, np.degrees(reach.q), strict=True)
+    )
+    (tmp_path / "r.mot").write_text(f"r\nversion=1\ninDegrees=yes\nendheader\ntime\tq1\tq2\n{rows}")
+    (tmp_path / "info.csv").write_text(
+        "subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m\nr,M,1.76,70,0.3,0.26,0.18\n"
+    )
+    code, _, err = _run(
+        [tmp_path / "r.mot", "--subject-info", tmp_path / "info.csv", "--out", tmp_path / "o.npz"], capsys
+    )
+    assert code == 0, err
+    (tr,) = load_trials(tmp_path / "o.npz")
+    assert tr.arm == reach.arm and tr.subject == "r"
+
+
+# ---------------------------------------------------------------------- bad input → exit 2, one line
+_VHEAD = (
+    "Trajectories\n100\n,,S:SH,,,S:EL,,,S:FT,,\n"
+    "Frame,Sub Frame,X,Y,Z,X,Y,Z,X,Y,Z\n,,mm,mm,mm,mm,mm,mm,mm,mm,mm\n"
+)
+
+
+def _bad_files(tmp_path, reach, synth):
+    """name → (file contents or a writer, extra args, regex of the message after the file name)."""
+    good = reach.markers
+    gap = {k: v.copy() for k, v in good.items()}
+    gap["EL"][40:60] = np.nan
+    still = {k: np.repeat(v[:1], len(v), axis=0) for k, v in good.items()}
+    tiny = {k: v / 1000 for k, v in good.items()}
+    rows = synth.vicon_text(good).splitlines()
+    return {
+        "empty": ("", [], r"file is empty"),
+        "header_only": (_VHEAD, [], r"no data rows after the header"),
+        "truncated_row": ("\n".join([*rows[:10], rows[10][:25]]) + "\n", [], r"line 11: truncated row"),
+        "non_numeric": (
+            "\n".join([*rows[:10], rows[10].replace(".", "x", 1)]) + "\n",
+            [],
+            r"line 11: non-numeric cell",
+        ),
+        "time_not_increasing": (
+            "\n".join([*rows[:10], "3" + rows[10][rows[10].index(",") :]]) + "\n",
+            [],
+            r"line 11: frame numbers not increasing",
+        ),
+        "missing_marker": (
+            synth.vicon_text(good),
+            ["--markers", "shoulder=SH,elbow=ELB,fingertip=FT"],
+            r"marker 'ELB' \(elbow\) not found",
+        ),
+        "bad_marker_map": (
+            synth.vicon_text(good),
+            ["--markers", "hip=SH"],
+            r"--markers: unknown joint 'hip'",
+        ),
+        "gap_too_long": (synth.vicon_text(gap), [], r"marker EL is missing for 20 frames \(41-60\)"),
+        "no_movement": (synth.vicon_text(still), [], r"no movement detected"),
+        "units_wrong": (synth.vicon_text(tiny), [], r"units look wrong: .* absurdly small"),
+        "unreachable": (synth.vicon_text(good), ["--subject-info", "SHORT"], r"unreachable by the arm"),
+        "unknown_subject": (
+            synth.vicon_text(good),
+            ["--subject-info", "OTHER"],
+            r"subject 'bad' is not in the subject-info file",
+        ),
+    }
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "empty",
+        "header_only",
+        "truncated_row",
+        "non_numeric",
+        "time_not_increasing",
+        "missing_marker",
+        "bad_marker_map",
+        "gap_too_long",
+        "no_movement",
+        "units_wrong",
+        "unreachable",
+        "unknown_subject",
+    ],
+)
+def test_bad_input_exit_2(tmp_path, reach, synth, capsys, case):
+    text, extra, pattern = _bad_files(tmp_path, reach, synth)[case]
+    f = tmp_path / "bad.csv"
+    f.write_text(text)
+    (tmp_path / "short.csv").write_text(
+        "subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m\nbad,M,1.76,70,0.15,0.12,0.08\n"
+    )
+    (tmp_path / "other.csv").write_text("subject,sex,height_m,mass_kg\nsomeone,M,1.76,70\n")
+    extra = [{"SHORT": tmp_path / "short.csv", "OTHER": tmp_path / "other.csv"}.get(a, a) for a in extra]
+    if "--markers" not in extra:
+        extra += ["--markers", synth.MAP.replace(",wrist=WR", "")]
+    out = tmp_path / "out.npz"
+    code, _, err = _run([f, "--format", "vicon-csv", "--out", out, *extra], capsys)
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    if case != "bad_marker_map":  # option errors have no file to name
+        assert re.search(r"^reachirl preprocess: error: \S*bad\.csv: ", err), err
+    assert re.search(pattern, err), err
+    assert not out.exists() and not list(tmp_path.glob(".out.npz*"))
+
+
+def test_missing_static_and_bad_out(tmp_path, synth, capsys):
+    shutil.copy(synth.SAMPLE / "ADL001" / "ADL001FR1.csv", tmp_path)
+    code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)
+    assert code == 2 and re.search(r"ADL001FR1\.csv: marker set 'ue-adl' needs a static trial", err)
+    code, _, err = _run([tmp_path / "nope.trc", "--out", tmp_path / "o.npz"], capsys)
+    assert code == 2 and re.search(r"nope\.trc: file not found", err)
+    assert not (tmp_path / "o.npz").exists()
+
+
+def test_one_bad_file_writes_nothing(tmp_path, synth, reach, capsys):
+    (tmp_path / "good.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    (tmp_path / "bad.trc").write_text("PathFileType\t4\n")
+    out = tmp_path / "o.npz"
+    code, _, err = _run(
+        [tmp_path / "good.trc", tmp_path / "bad.trc", "--markers", synth.MAP, "--out", out], capsys
+    )
+    assert code == 2 and "bad.trc" in err and not out.exists()
+
+
+def test_inputs_with_manifest(tmp_path, reach, synth, capsys):
+    (tmp_path / "a.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    (tmp_path / "b.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    (tmp_path / "m.csv").write_text("file,subject,posture,side\na.trc,S1,P4,left\n")
+    args = ["--manifest", tmp_path / "m.csv", "--markers", synth.MAP, "--out", tmp_path / "o.npz"]
+    code, _, err = _run([tmp_path / "a.trc", *args], capsys)
+    assert code == 0, err
+    assert [t.id for t in load_trials(tmp_path / "o.npz")] == ["S1/P4/left/a"]
+    code, _, err = _run([tmp_path / "b.trc", *args], capsys)
+    assert code == 2 and re.search(r"b\.trc: not listed in the manifest", err)

@@ -1,0 +1,255 @@
+"""Preprocessing on known geometry: markers made from a known q trajectory must give q back."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reachirl.data.markersets import load_markerset, parse_marker_map
+from reachirl.data.preprocess import (
+    PreprocessOptions,
+    angles_to_trial,
+    cast_reconstruct,
+    detect_onset_offset,
+    fill_gaps,
+    kabsch,
+    lowpass,
+    markers_to_trial,
+    reconstruct_markers,
+)
+from reachirl.data.readers import AngleData, MarkerData, SubjectInfo, read_vicon_csv
+from reachirl.data.trial import load_trials, save_trials
+from reachirl.errors import InputError
+
+
+def _rec(reach, synth, side="right", options=None, markers=None, **kw):
+    md = MarkerData(100.0, markers or reach.markers, source="synthetic.trc")
+    return reconstruct_markers(md, parse_marker_map(synth.MAP), side=side, options=options, **kw)
+
+
+# ---------------------------------------------------------------------- small steps
+def test_fill_gaps_short_by_spline_long_refused():
+    t = np.linspace(0, 1, 101)
+    x = np.stack([np.sin(2 * np.pi * t), np.cos(2 * np.pi * t), t], axis=1)
+    g = x.copy()
+    g[40:46] = np.nan
+    g[:2] = np.nan
+    filled = fill_gaps(g, max_gap=10, name="EL")
+    np.testing.assert_allclose(filled[40:46], x[40:46], atol=2e-4)
+    np.testing.assert_allclose(filled[:2], np.repeat(x[2:3], 2, axis=0))
+    g[60:75] = np.nan
+    with pytest.raises(
+        InputError, match=r"f\.trc: marker EL is missing for 15 frames \(61-75\), longer than the 10"
+    ):
+        fill_gaps(g, max_gap=10, name="EL", source="f.trc")
+
+
+def test_lowpass_zero_lag_removes_noise():
+    rate = 100.0
+    t = np.arange(400) / rate
+    clean = np.sin(2 * np.pi * 1.5 * t)
+    noisy = clean + 0.2 * np.sin(2 * np.pi * 35 * t)
+    out = lowpass(noisy, rate, 10.0, 5)
+    inner = slice(50, -50)
+    assert np.abs(out - clean)[inner].max() < 5e-3  # no lag: a shift would leave ~0.1 error at 1.5 Hz
+    assert np.abs(noisy - clean)[inner].max() > 0.15
+    with pytest.raises(InputError, match=r"10 Hz low-pass needs a sampling rate above 20 Hz"):
+        lowpass(noisy, 15.0, 10.0)
+
+
+def test_kabsch_and_cast_recover_a_rigid_landmark():
+    rng = np.random.default_rng(1)
+    ref = rng.normal(size=(4, 3)) * 0.05
+    point = np.array([0.02, -0.1, 0.03])
+    angles = np.linspace(0, 1.2, 30)
+    R = np.stack([[[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]] for a in angles])
+    t = np.stack([angles, 2 * angles, np.ones_like(angles)], axis=1)
+    cluster = np.einsum("nij,kj->nki", R, ref) + t[:, None, :]
+    R_est, _ = kabsch(np.broadcast_to(ref, cluster.shape), cluster)
+    np.testing.assert_allclose(R_est, R, atol=1e-10)
+    cluster[5, 2] = np.nan  # 3 markers still seen
+    out = cast_reconstruct(cluster, ref, point)
+    np.testing.assert_allclose(out, np.einsum("nij,j->ni", R, point) + t, atol=1e-10)
+
+
+def test_onset_offset_on_min_jerk(synth):
+    # Cartesian min-jerk speed ∝ τ²(1-τ)²: 5 % of the peak is crossed at τ = 0.0593 and 0.9407
+    rate, rest, T = 1000.0, 0.3, 0.7
+    t = np.arange(round((2 * rest + T) * rate) + 1) / rate
+    tau = np.clip((t - rest) / T, 0, 1)
+    speed = 30 * tau**2 * (1 - tau) ** 2 / T
+    on, off = detect_onset_offset(speed, 0.05)
+    tau_c = 0.5 - np.sqrt(0.25 - np.sqrt(0.05 * 1.875 / 30))
+    assert abs(t[on] - (rest + tau_c * T)) < 1.5 / rate
+    assert abs(t[off] - (rest + (1 - tau_c) * T)) < 1.5 / rate
+
+
+# ---------------------------------------------------------------------- known geometry
+@pytest.mark.parametrize(
+    "options",
+    [
+        PreprocessOptions(),
+        PreprocessOptions(ik="fingertip"),
+        PreprocessOptions(distal="wrist"),
+        PreprocessOptions(plane="vertical"),
+    ],
+    ids=["segments", "berret-ik", "wrist", "vertical"],
+)
+def test_known_q_recovered_within_0_1_deg(reach, synth, options):
+    rec = _rec(reach, synth, options=options)
+    sl = slice(rec.onset, rec.offset + 1)
+    assert np.degrees(np.abs(rec.q[sl] - reach.q[sl])).max() < 0.1
+    assert rec.lengths["upper_arm"] == pytest.approx(reach.arm.l1, abs=1e-6)
+    assert rec.arm.l2 == pytest.approx(reach.arm.l2, abs=1e-6)
+    # the fingertip moved forward (+x) and the basis' up is the lab's Z
+    assert rec.fingertip[rec.offset, 0] > rec.fingertip[rec.onset, 0]
+    assert rec.basis[1] @ [0, 0, 1] > 0.99
+
+
+def test_left_arm_mirrors_onto_the_right(reach, synth):
+    left = synth.lab_markers(reach.arm, reach.q, side="left")
+    right = _rec(reach, synth)
+    rec = _rec(reach, synth, side="left", markers=left)
+    np.testing.assert_allclose(rec.q, right.q, atol=1e-9)
+    assert (rec.onset, rec.offset) == (right.onset, right.offset)
+    # once mirrored, the left arm's 3-D joints coincide with the right arm's
+    np.testing.assert_allclose(rec.joints["elbow"][:, 0], right.joints["elbow"][:, 0], atol=1e-9)
+
+
+def test_trial_fields_and_dynamics(reach, synth):
+    md = MarkerData(100.0, reach.markers, source="s.trc")
+    tr = markers_to_trial(md, parse_marker_map(synth.MAP), subject="S1", posture="P2", trial_id="7")
+    assert tr.t[0] == 0 and tr.duration == pytest.approx(0.68, abs=0.03)
+    np.testing.assert_allclose(tr.tau, tr.arm.inverse_dynamics(tr.q, tr.qd, tr.qdd))
+    # the velocities come from the same angles: integrating qd gives q back
+    dq = np.cumsum((tr.qd[1:] + tr.qd[:-1]) / 2 * np.diff(tr.t)[:, None], axis=0)
+    np.testing.assert_allclose(tr.q[1:] - tr.q[0], dq, atol=2e-3)
+    assert tr.target_x == pytest.approx(reach.arm.fk(reach.q[-1])[0], abs=1e-3)
+    np.testing.assert_allclose(tr.x0[:2], tr.q[0])
+    r200 = markers_to_trial(
+        md,
+        parse_marker_map(synth.MAP),
+        subject="S1",
+        posture="P2",
+        trial_id="7",
+        options=PreprocessOptions(n_samples=200),
+    )
+    assert r200.q.shape == (200, 2) and r200.duration == pytest.approx(tr.duration)
+
+
+def test_torques_agree_with_pinocchio_rnea(reach, synth):
+    pin = pytest.importorskip("pinocchio")
+    md = MarkerData(100.0, reach.markers, source="s.trc")
+    tr = markers_to_trial(md, parse_marker_map(synth.MAP), subject="S1", posture="P", trial_id="1")
+    model = tr.arm.pinocchio_model()
+    data = model.createData()
+    for k in range(0, len(tr.t), 10):
+        tau = pin.rnea(model, data, tr.q[k], tr.qd[k], tr.qdd[k])
+        np.testing.assert_allclose(tau, tr.tau[k], atol=1e-9)
+
+
+def test_round_trip_save_load(tmp_path, reach, synth):
+    md = MarkerData(100.0, reach.markers, source="s.trc")
+    trials = [
+        markers_to_trial(
+            md, parse_marker_map(synth.MAP), subject="S1", posture="P1", trial_id=str(i), side=side
+        )
+        for i, side in enumerate(("right", "left"))
+    ]
+    back = load_trials(save_trials(tmp_path / "t.npz", trials))
+    for a, b in zip(trials, back, strict=True):
+        assert (a.id, a.source, a.target_x, a.arm) == (b.id, b.source, b.target_x, b.arm)
+        for name in ("t", "q", "qd", "qdd", "tau", "x0"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_angles_to_trial(reach):
+    info = SubjectInfo("S1", "M", 1.76, 70.0, upper_arm_m=0.30, forearm_m=0.26, hand_m=0.18)
+    tr = angles_to_trial(
+        AngleData(reach.t, reach.q, "a.mot"),
+        subject="S1",
+        posture="P",
+        trial_id="1",
+        subject_info=info,
+        options=PreprocessOptions(cutoff_hz=None),
+    )
+    assert tr.arm == reach.arm
+    n = len(tr.t)
+    k0 = min(
+        range(50, 61), key=lambda k: np.abs(reach.q[k : k + n] - tr.q).max()
+    )  # onset just after the rest
+    np.testing.assert_allclose(tr.q, reach.q[k0 : k0 + n], atol=1e-12)
+    assert tr.target_x == pytest.approx(reach.arm.fk(tr.q[-1])[0])
+    np.testing.assert_allclose(tr.tau, reach.arm.inverse_dynamics(tr.q, tr.qd, tr.qdd))
+
+
+# ---------------------------------------------------------------------- refusals
+def test_no_movement(reach, synth):
+    still = {k: np.repeat(v[:1], len(v), axis=0) for k, v in reach.markers.items()}
+    with pytest.raises(InputError, match=r"synthetic\.trc: no movement detected: the fingertip's peak speed"):
+        _rec(reach, synth, markers=still)
+
+
+def test_units_look_wrong(reach, synth):
+    tiny = {k: v / 1000 for k, v in reach.markers.items()}  # metres read as mm
+    with pytest.raises(InputError, match=r"units look wrong: the median upper arm distance is 0\.3 mm"):
+        _rec(reach, synth, markers=tiny)
+
+
+def test_unreachable_target(reach, synth):
+    short = SubjectInfo("S1", "M", 1.76, 70.0, upper_arm_m=0.15, forearm_m=0.12, hand_m=0.08)
+    md = MarkerData(100.0, reach.markers, source="s.trc")
+    with pytest.raises(
+        InputError, match=r"s\.trc: the target .* is unreachable by the arm \(0\.150 \+ 0\.200"
+    ):
+        markers_to_trial(
+            md, parse_marker_map(synth.MAP), subject="S1", posture="P", trial_id="1", subject_info=short
+        )
+    with pytest.raises(InputError, match=r"fingertip IK failed: fingertip out of reach"):
+        markers_to_trial(
+            md,
+            parse_marker_map(synth.MAP),
+            subject="S1",
+            posture="P",
+            trial_id="1",
+            subject_info=short,
+            options=PreprocessOptions(ik="fingertip"),
+        )
+
+
+def test_missing_marker_and_long_gap(reach, synth):
+    mk = dict(reach.markers)
+    del mk["EL"]
+    with pytest.raises(InputError, match=r"marker 'EL' \(elbow\) not found \(markers: SH, WR, FT\)"):
+        _rec(reach, synth, markers=mk)
+    mk = {k: v.copy() for k, v in reach.markers.items()}
+    mk["FT"][30:50] = np.nan
+    with pytest.raises(InputError, match=r"marker FT is missing for 20 frames \(31-50\)"):
+        _rec(reach, synth, markers=mk)
+    mk["FT"][30:50] = reach.markers["FT"][30:50]
+    mk["FT"][30:36] = np.nan  # short: filled
+    rec = _rec(reach, synth, markers=mk)
+    assert np.isfinite(rec.q).all()
+
+
+# ---------------------------------------------------------------------- real data (the shipped sample)
+def test_ue_adl_cast_forearm_length(synth):
+    d = synth.SAMPLE / "ADL001"
+    static = read_vicon_csv(d / "ADL001_static.csv")
+    rec = reconstruct_markers(read_vicon_csv(d / "ADL001FR1.csv"), load_markerset("ue-adl"), static=static)
+    assert rec.lengths["forearm"] == pytest.approx(0.247, abs=0.003)
+    assert rec.lengths["forearm_sd"] < 0.005
+    assert rec.lengths["upper_arm"] == pytest.approx(0.284, abs=0.005)
+    q0, q1 = np.degrees(rec.q[rec.onset]), np.degrees(rec.q[rec.offset])
+    assert -100 < q0[0] < -80 and q1[0] > q0[0] + 30  # upper arm from hanging to raised forward
+    assert q0[1] > q1[1] + 40  # the elbow extends
+    with pytest.raises(InputError, match=r"needs a static trial"):
+        reconstruct_markers(read_vicon_csv(d / "ADL001FR1.csv"), load_markerset("ue-adl"))
+
+
+def test_options_are_validated():
+    with pytest.raises(ValueError, match="plane must be"):
+        PreprocessOptions(plane="diagonal")
+    assert replace(PreprocessOptions(), n_samples=200).n_samples == 200

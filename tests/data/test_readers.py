@@ -1,0 +1,184 @@
+"""Readers: each format round-trips, units are applied, and every malformed file is refused naming the
+problem."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reachirl.data.readers import (
+    AngleData,
+    MarkerData,
+    detect_format,
+    read_angles_csv,
+    read_c3d,
+    read_file,
+    read_manifest,
+    read_mot,
+    read_subject_info,
+    read_trc,
+    read_vicon_csv,
+)
+from reachirl.errors import InputError
+
+
+def _markers(n=20, seed=0):
+    rng = np.random.default_rng(seed)
+    return {m: rng.uniform(-0.5, 1.5, (n, 3)) for m in ("SH", "EL", "FT")}
+
+
+@pytest.mark.parametrize("units", ["mm", "m", "cm"])
+def test_trc_round_trip_in_metres(tmp_path, synth, units):
+    mk = _markers()
+    mk["EL"][3] = np.nan  # an unseen frame
+    p = tmp_path / "a.trc"
+    p.write_text(synth.trc_text(mk, rate=120.0, units=units))
+    md = read_trc(p)
+    assert md.rate == 120.0 and md.names == ("SH", "EL", "FT") and md.up == "+y"
+    np.testing.assert_allclose(md.t, np.arange(20) / 120.0, atol=1e-5)
+    np.testing.assert_allclose(md["SH"], mk["SH"], atol=1e-6)
+    assert np.isnan(md["EL"][3]).all() and np.isfinite(md["EL"][4]).all()
+
+
+def test_vicon_csv_bom_prefix_and_gaps(tmp_path, synth):
+    mk = _markers()
+    mk["FT"][5:8] = np.nan
+    p = tmp_path / "v.csv"
+    p.write_text(synth.vicon_text(mk, subject="ADL999"), encoding="utf-8")
+    assert detect_format(p) == "vicon-csv"
+    md = read_file(p)
+    assert isinstance(md, MarkerData) and md.names == ("SH", "EL", "FT") and md.rate == 100.0
+    np.testing.assert_allclose(md["EL"], mk["EL"], atol=1e-8)
+    assert np.isnan(md["FT"][5:8]).all() and np.isfinite(md["FT"][8]).all()
+
+
+def test_vicon_csv_real_sample(synth):
+    md = read_vicon_csv(synth.SAMPLE / "ADL001" / "ADL001FR1.csv")
+    assert md.n_frames == 339 and len(md.names) == 49 and md.rate == 100.0
+    assert "RFTP" in md.names and np.isnan(md["RGTH"]).all()  # landmarks only in the static trial
+    assert 0.05 < np.nanmax(np.abs(md["RFTP"])) < 2.0  # mm → m
+
+
+def test_c3d_round_trip(tmp_path):
+    ezc3d = pytest.importorskip("ezc3d")
+    mk = _markers(n=12)
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [200.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = list(mk)
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    pts = np.ones((4, 3, 12))
+    pts[:3] = np.stack([mk[m] * 1000 for m in mk], axis=1).transpose(2, 1, 0)
+    pts[:3, 1, 4] = np.nan
+    c["data"]["points"] = pts
+    c.write(str(tmp_path / "a.c3d"))
+    md = read_c3d(tmp_path / "a.c3d")
+    assert md.rate == 200.0 and md.names == tuple(mk)
+    np.testing.assert_allclose(md["FT"], mk["FT"], atol=1e-6)
+    assert np.isnan(md["EL"][4]).all()
+
+
+def test_mot_degrees_and_radians(tmp_path):
+    q = np.array([[-90.0, 90.0], [-80.0, 70.0], [-60.0, 40.0]])
+    body = "time\tq1\tq2\n" + "".join(f"{0.01 * i}\t{a}\t{b}\n" for i, (a, b) in enumerate(q))
+    (tmp_path / "d.mot").write_text(
+        f"reach\nversion=1\nnRows=3\nnColumns=3\ninDegrees=yes\nendheader\n{body}"
+    )
+    ad = read_mot(tmp_path / "d.mot")
+    np.testing.assert_allclose(ad.q, np.radians(q))
+    rad = "time\tq1\tq2\n" + "".join(f"{0.01 * i}\t{a}\t{b}\n" for i, (a, b) in enumerate(np.radians(q)))
+    (tmp_path / "r.mot").write_text(f"reach\ninDegrees=no\nendheader\n{rad}")
+    np.testing.assert_allclose(read_file(tmp_path / "r.mot").q, np.radians(q))
+
+
+@pytest.mark.parametrize(
+    ("header", "scale"),
+    [("time,q1,q2", 1.0), ("time,q1_deg,q2_deg", np.pi / 180), ("# units: deg\ntime,q1,q2", np.pi / 180)],
+)
+def test_csv_angle_units(tmp_path, header, scale):
+    vals = np.array([[-1.2, 1.5], [-1.0, 1.0], [-0.8, 0.7]]) * (1 / scale if scale != 1 else 1)
+    p = tmp_path / "a.csv"
+    p.write_text(header + "\n" + "".join(f"{0.01 * i},{a},{b}\n" for i, (a, b) in enumerate(vals)))
+    ad = read_file(p)
+    assert isinstance(ad, AngleData)
+    np.testing.assert_allclose(ad.q, vals * scale)
+
+
+def test_degrees_declared_as_radians_refused(tmp_path):
+    p = tmp_path / "a.csv"
+    p.write_text("time,q1,q2\n0,-90,90\n0.01,-80,70\n")
+    with pytest.raises(InputError, match=r"a\.csv: angles reach 5157°.*degrees declared as radians"):
+        read_angles_csv(p)
+
+
+@pytest.mark.parametrize(
+    ("text", "pattern"),
+    [
+        ("", r"file is empty"),
+        ("\ufeffTrajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n", r"no data rows"),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2\n",
+            r"line 7: truncated row: 4 fields, expected 5",
+        ),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,abc,3\n",
+            r"line 7: non-numeric cell 'abc' in column A\.Y",
+        ),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n1,0,1,2,3\n",
+            r"frame numbers not increasing",
+        ),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,ft,ft,ft\n1,0,1,2,3\n",
+            r"unknown length unit 'ft'",
+        ),
+    ],
+)
+def test_vicon_csv_errors(tmp_path, text, pattern):
+    p = tmp_path / "bad.csv"
+    p.write_text(text)
+    with pytest.raises(InputError, match=r"bad\.csv: .*" + pattern if text else pattern):
+        read_vicon_csv(p)
+
+
+def test_trc_time_not_increasing(tmp_path, synth):
+    text = synth.trc_text(_markers(n=5)).replace("\t0.02000\t", "\t0.00500\t")
+    (tmp_path / "t.trc").write_text(text)
+    with pytest.raises(InputError, match=r"t\.trc: frame 3: time is not strictly increasing"):
+        read_trc(tmp_path / "t.trc")
+
+
+def test_angle_csv_errors(tmp_path):
+    p = tmp_path / "a.csv"
+    p.write_text("time,q1\n0,1\n")
+    with pytest.raises(InputError, match=r"a\.csv: line 1: no 'q2' column"):
+        read_angles_csv(p)
+    p.write_text("time,q1,q2\n0,1,1\n0,1.1,1\n")
+    with pytest.raises(InputError, match=r"sample 2: time is not strictly increasing"):
+        read_angles_csv(p)
+    p.write_text("# units: furlongs\ntime,q1,q2\n0,1,1\n")
+    with pytest.raises(InputError, match=r"unknown angle unit 'furlongs'"):
+        read_angles_csv(p)
+
+
+def test_subject_info_both_layouts(tmp_path, synth):
+    ue = read_subject_info(synth.SAMPLE / "subjects.csv")
+    s = ue["ADL001"]
+    assert (s.sex, s.height_m, s.mass_kg, s.upper_arm_m) == ("F", 1.702, 96.0, None)
+    p = tmp_path / "info.csv"
+    p.write_text("subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m\nS1,male,1.8,75,0.3,,0.19\n")
+    s1 = read_subject_info(p)["S1"]
+    assert (s1.sex, s1.upper_arm_m, s1.forearm_m, s1.hand_m) == ("M", 0.3, None, 0.19)
+    p.write_text("subject,sex,height_m,mass_kg\nS1,X,1.8,75\n")
+    with pytest.raises(InputError, match=r"info\.csv: line 2: sex must be M or F"):
+        read_subject_info(p)
+    p.write_text("subject,sex,height_m,mass_kg\nS1,M,180,75\n")
+    with pytest.raises(InputError, match=r"height_m 180.0 is not a stature in metres"):
+        read_subject_info(p)
+
+
+def test_manifest_paths_relative_to_it(tmp_path):
+    (tmp_path / "sub").mkdir()
+    m = tmp_path / "sub" / "manifest.csv"
+    m.write_text("file,subject,posture,side\nr1.trc,S1,P2,L\n")
+    (e,) = read_manifest(m)
+    assert e.file == tmp_path / "sub" / "r1.trc" and (e.subject, e.posture, e.side) == ("S1", "P2", "left")
