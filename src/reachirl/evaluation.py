@@ -47,12 +47,8 @@ def evaluate_trials(
 ) -> list[TrialError]:
     """Predict every trial from its own initial state and measure the RMSE against it."""
     out = []
-    warm = None
-    for trial in trials:
-        sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend, warm_start=warm)
-        if not sol.converged:  # retry cold: a warm start from a distant reach can mislead IPOPT
-            sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend)
-        warm = sol if sol.converged else None
+    for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
+        sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend)
         ref = trial.resample(n_nodes + 1)
         e = TrialError(trial.id, *rmse_deg(sol.q, ref.q), converged=sol.converged, prediction=sol)
         out.append(e)

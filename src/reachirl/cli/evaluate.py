@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rich.console import Console
 from rich.progress import Progress
 
 from ..data.trial import load_trials
@@ -25,7 +26,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     trials = load_trials(args.trials)
-    with Progress(transient=True) as progress:
+    with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = evaluate_trials(model.weights, trials, n_nodes=model.n_nodes, backend=args.backend,
                                  on_trial=lambda e: progress.advance(task))

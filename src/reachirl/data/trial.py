@@ -160,6 +160,8 @@ def load_trials(path: str | Path) -> list[Trial]:
     path = Path(path)
     if not path.exists():
         raise InputError("file not found", path)
+    if path.is_dir() or not zipfile.is_zipfile(path):
+        raise InputError("not a trials file (expected the NPZ written by `reachirl preprocess` or `synth`)", path)
     try:
         with np.load(path, allow_pickle=False) as z:
             files = set(z.files)

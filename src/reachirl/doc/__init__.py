@@ -44,8 +44,9 @@ def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
 def solve_doc(task: ReachingTask, weights, backend: str = "casadi", warm_start: DocSolution | None = None) -> DocSolution:
     """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
 
-    ``warm_start`` is a previous :class:`DocSolution` of a problem of the same shape; the CasADi backend then also
-    reuses its multipliers. A solution that did not converge is returned with ``converged=False``, never raised.
+    ``warm_start`` is a previous :class:`DocSolution` of the same task (other weights, as in MO-IRL's line
+    search); the CasADi backend then reuses its primal and dual variables. A solution of another task is ignored:
+    its multipliers mislead the solver, so the solve starts cold. A solution that did not converge is returned with ``converged=False``, never raised.
     """
     if not isinstance(task, ReachingTask):
         raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")

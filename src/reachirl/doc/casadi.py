@@ -235,6 +235,12 @@ def _unpack(task: ReachingTask, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return q, qd, tau
 
 
+def _task_key(task: ReachingTask) -> tuple:
+    """What must match for a warm start: everything in the task but the weights."""
+    return (task.n_nodes, task.arm, tuple(task.q0), task.target_x, task.duration, tuple(task.q_lower),
+            tuple(task.q_upper), tuple(task.qd_max))
+
+
 def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> float:
     """``1 / cost`` of the starting point, so that IPOPT sees an objective of order one."""
     q, qd, tau = _unpack(task, z)
@@ -247,17 +253,16 @@ def solve(task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | Non
     lbx, ubx, lbg, ubg = nlp.bounds(task)
     args = {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
     warm = warm_start.warm if warm_start is not None else None
-    if warm is not None and warm.get("n_z") == nlp.n_z and warm.get("backend") == "casadi":
+    key = _task_key(task)
+    if warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key:
+        # the same reach under new weights (MO-IRL's line search): reuse primal and dual variables and the scale
         solver = nlp.warm
-        # keep the previous scale so that the previous multipliers stay meaningful
         args.update(x0=warm["x"], lam_x0=warm["lam_x"], lam_g0=warm["lam_g"])
         fscale = warm["fscale"]
     else:
+        # another reach: its multipliers mislead IPOPT (10x more iterations measured), so start cold
         solver = nlp.cold
-        if warm_start is not None and np.shape(warm_start.q) == (task.n_nodes + 1, 2):
-            args["x0"] = _pack(task, np.vstack([task.q0, np.asarray(warm_start.q)[1:]]))
-        else:
-            args["x0"] = initial_guess(task)
+        args["x0"] = initial_guess(task)
         fscale = _objective_scale(task, weights, args["x0"])
     args["x0"] = np.clip(args["x0"], lbx, ubx)
     args["p"] = nlp.params(task, weights, fscale)
@@ -284,7 +289,7 @@ def solve(task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | Non
         backend="casadi",
         warm={
             "backend": "casadi",
-            "n_z": nlp.n_z,
+            "task": key,
             "fscale": fscale,
             "x": z,
             "lam_x": np.asarray(out["lam_x"]).reshape(-1),

@@ -13,7 +13,10 @@ Layers, Crocoddyl's vocabulary from the bottom up:
 * **Costs** (Crocoddyl built-ins, C++), one ``CostModelSum`` per knot, items named by :data:`FEATURES`, Crocoddyl
   weight ``2 ω`` because its quadratic activation is ``½‖r‖²``:
 
-  - ``cartesian_velocity``: ``ResidualModelFrameVelocity`` of ``fingertip`` (LOCAL_WORLD_ALIGNED), linear part.
+  - ``cartesian_velocity``: ``ResidualModelFrameVelocity`` of ``fingertip``, linear part. Its norm is the same in
+    every orientation, so the LOCAL frame is used: with pin 4.0.0 + crocoddyl 3.2.1 the LOCAL_WORLD_ALIGNED
+    variant's ``∂r/∂q`` is wrong (off by the frame-rotation term; the finite-difference test catches it), which
+    made CSQP stall at non-stationary points.
   - ``geodesic``: ``q̇ᵀM(q)q̇ = Σ_i m_i‖v_{c,i}‖² + I_i ω_i²`` (twice the kinetic energy), as two
     ``ResidualModelFrameVelocity`` of the CoM frames with weighted activations ``(m, m, m, 0, 0, I)``; the
     forearm's item is ``geodesic/forearm`` and always carries the same weight as ``geodesic``.
@@ -245,7 +248,7 @@ class ReachingProblem:
         nu = actuation.nu
         tip = model.getFrameId("fingertip")
         zero_motion = pin.Motion.Zero()
-        lwa, local = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED, pin.ReferenceFrame.LOCAL
+        local = pin.ReferenceFrame.LOCAL  # not LOCAL_WORLD_ALIGNED: see the module docstring
 
         def cost(residual, activation=None):
             if activation is None:
@@ -255,7 +258,7 @@ class ReachingProblem:
         # Cost models are stateless; the knots share them and keep their own weights in their sums.
         cost_models = {
             "cartesian_velocity": cost(
-                crocoddyl.ResidualModelFrameVelocity(state, tip, zero_motion, lwa, nu),
+                crocoddyl.ResidualModelFrameVelocity(state, tip, zero_motion, local, nu),
                 crocoddyl.ActivationModelWeightedQuad(np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])),
             ),
             "geodesic": cost(

@@ -59,7 +59,9 @@ def load_model(path: str | Path) -> LearnedModel:
     d = read_json(path)
     if not isinstance(d, dict) or d.get("format") != MODEL_FORMAT:
         raise InputError(f"not a reachirl model file (expected format {MODEL_FORMAT!r})", path)
-    if list(d.get("features", [])) != list(FEATURES):
+    if "features" not in d or "weights" not in d:
+        raise InputError("model lacks its 'features' or 'weights' entry", path)
+    if list(d["features"]) != list(FEATURES):
         raise InputError(f"feature list {d.get('features')} differs from {list(FEATURES)}", path)
     try:
         return LearnedModel(

@@ -1,0 +1,71 @@
+"""``reachirl bench [SUITE ...] [--out BENCH.json] [--quick]``: performance benchmarks.
+
+Suites live in the source checkout's ``benchmarks/`` folder (``bench_<suite>.py`` with ``run(...) -> dict``):
+``doc`` (CasADi DOC against a plain formulation), ``backends`` (CasADi against Crocoddyl/CSQP) and ``irl``
+(MO-IRL against the baselines on virtual subjects). Every timing is reported beside a baseline measured in the
+same run, since shared machines are noisy.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import time
+from pathlib import Path
+
+from ..errors import InputError
+from ..io import atomic_write_json
+
+SUITES = ("doc", "backends", "irl")
+
+
+def _bench_dir() -> Path:
+    return Path(__file__).resolve().parents[3] / "benchmarks"
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser("bench", help="run the performance benchmarks and print their figures")
+    p.add_argument("suites", nargs="*", metavar="SUITE",
+                   help=f"which suites to run: {', '.join(SUITES)} (default: all)")
+    p.add_argument("--out", type=Path, default=None, help="write all figures to this JSON file")
+    p.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
+    return p
+
+
+def _load(suite: str):
+    path = _bench_dir() / f"bench_{suite}.py"
+    if not path.exists():
+        raise InputError(f"benchmark suite {suite!r} not found; `reachirl bench` runs from a source checkout",
+                         path)
+    spec = importlib.util.spec_from_file_location(f"reachirl_bench_{suite}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def run(args: argparse.Namespace) -> int:
+    suites = args.suites or list(SUITES)
+    unknown = sorted(set(suites) - set(SUITES))
+    if unknown:
+        raise InputError(f"unknown benchmark suite(s) {unknown}; choose from {list(SUITES)}")
+    results = {}
+    for suite in suites:
+        module = _load(suite)
+        t0 = time.perf_counter()
+        print(f"== {suite} ==", flush=True)
+        kwargs = {}
+        if suite == "doc":
+            kwargs = {"n_repeats": 6, "sweep": False} if args.quick else {}
+        elif args.quick:
+            kwargs = {"quick": True}
+        if suite == "irl" and args.out is not None:
+            kwargs["out_dir"] = args.out.parent / "bench_irl"
+        res = module.run(**kwargs)
+        res["wall_time_s"] = time.perf_counter() - t0
+        results[suite] = res
+        print(json.dumps(res, indent=2, default=str), flush=True)
+    if args.out is not None:
+        atomic_write_json(args.out, results)
+        print(f"wrote {args.out}")
+    return 0

@@ -1,0 +1,91 @@
+"""`reachirl fit` and `reachirl evaluate` end to end on a small virtual dataset, and their error paths."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.cli import main
+from reachirl.data.trial import save_trials, trial_from_solution
+
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+
+
+@pytest.fixture(scope="module")
+def trials_file(tmp_path_factory, arm):
+    rng = np.random.default_rng(0)
+    w_true = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5], [0.05, 1.0, 0.05, 0.5, 0.2, 0.05, 0.5]])
+    w_true = w_true / FEATURE_SCALE
+    trials = []
+    for i in range(4):
+        q0 = np.deg2rad([0.0, 90.0]) + np.deg2rad(rng.normal(0, 2, 2))
+        task = ReachingTask(arm, q0, 0.9 * arm.length, 0.7 + 0.03 * rng.normal(), n_nodes=40)
+        sol = solve_doc(task, w_true * np.exp(0.1 * rng.normal(size=w_true.shape)))
+        assert sol.converged
+        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S1", posture="P2", trial_id=str(i)))
+    path = tmp_path_factory.mktemp("cli") / "trials.npz"
+    save_trials(path, trials)
+    return path
+
+
+def test_fit_then_evaluate(trials_file, tmp_path, capsys):
+    model = tmp_path / "model.json"
+    assert main(["fit", str(trials_file), "--sections", "2", "--nodes", "40", "--max-iter", "5",
+                 "--out", str(model)]) == 0
+    m = json.loads(model.read_text())
+    assert m["format"] == "reachirl-model/1" and m["method"] == "moirl" and m["n_windows"] == 2
+    w = np.array(m["weights"])
+    assert w.shape == (2, 7) and np.all(w >= 0)
+    assert m["info"]["n_doc_solves"] >= 1 and len(m["info"]["history"]) >= 1
+    history = [h["merit"] for h in m["info"]["history"]]
+    assert history[-1] <= history[0]
+
+    metrics = tmp_path / "metrics.json"
+    assert main(["evaluate", "--model", str(model), str(trials_file), "--out", str(metrics)]) == 0
+    out = json.loads(metrics.read_text())
+    s = out["summary"]
+    assert s["n_trials"] == 4
+    for key in ("q1", "q2", "q"):
+        assert set(s["rmse_deg"][key]) == {"mean", "std"}
+        assert 0 <= s["rmse_deg"][key]["mean"] < 10
+    assert [t["id"] for t in out["trials"]] == [f"S1/P2/right/{i}" for i in range(4)]
+    assert set(out["trials"][0]["rmse_deg"]) == {"q1", "q2", "q"}
+    # q RMSE pools both joints: between the two joints' RMSEs
+    t0 = out["trials"][0]["rmse_deg"]
+    assert min(t0["q1"], t0["q2"]) - 1e-9 <= t0["q"] <= max(t0["q1"], t0["q2"]) + 1e-9
+    assert "RMSE q1" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("make_args", "match"),
+    [
+        (lambda d, t: ["fit", str(d / "missing.npz"), "--sections", "1", "--out", str(d / "m.json")],
+         r"missing\.npz: file not found"),
+        (lambda d, t: ["fit", str(d / "bad.npz"), "--sections", "1", "--out", str(d / "m.json")],
+         r"bad\.npz: not a trials file"),
+        (lambda d, t: ["fit", str(t), "--sections", "0", "--out", str(d / "m.json")],
+         r"--sections must be between 1 and"),
+        (lambda d, t: ["evaluate", "--model", str(d / "bad.json"), str(t), "--out", str(d / "x.json")],
+         r"bad\.json: line 1: invalid JSON"),
+        (lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
+         r"other\.json: not a reachirl model file"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_args, match):
+    (tmp_path / "bad.npz").write_text("time,q1\n1,2\n")
+    (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
+    assert main(make_args(tmp_path, trials_file)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err
+    assert not (tmp_path / "m.json").exists() and not (tmp_path / "x.json").exists()
+
+
+def test_usage_error_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["fit"])
+    assert e.value.code == 2
+    assert "required" in capsys.readouterr().err
