@@ -8,9 +8,16 @@ Public API (see the README):
 * :class:`MOIRL` — the MO-IRL estimator with time-varying weights.
 """
 
-from .arm import ArmModel
-from .doc import DocSolution, ReachingTask, solve_doc
-from .features import FEATURES
+import os as _os
+
+# Every matrix here is tiny (2×2 dynamics, 56-weight subproblems): a multi-threaded BLAS only spins, and was
+# measured 100× slower in L-BFGS-B on a busy 2-core machine. Must be set before numpy loads; users can override.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    _os.environ.setdefault(_var, "1")
+
+from .arm import ArmModel  # noqa: E402
+from .doc import DocSolution, ReachingTask, solve_doc  # noqa: E402
+from .features import FEATURES  # noqa: E402
 
 __all__ = ["FEATURES", "ArmModel", "DocSolution", "MOIRL", "ReachingTask", "solve_doc"]
 __version__ = "0.1.0"

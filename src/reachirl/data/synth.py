@@ -76,7 +76,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ..arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
-from ..doc import DocSolution, ReachingTask, solve_doc
+from ..doc import ReachingTask, solve_doc
 from ..features import FEATURES, windowed_features
 from ..io import atomic_write_json, atomic_write_text, to_jsonable
 from .writers import write_c3d, write_mot, write_trc
@@ -318,7 +318,7 @@ def _draw_trial_inputs(rng: np.random.Generator, posture: str):
 
 
 def nominal_task(subject: SynthSubject, posture: str, config: SynthConfig) -> ReachingTask:
-    """The reach from the exact posture in Berret's mean duration (its solution warm-starts the trials)."""
+    """The reach from the exact posture in Berret's mean duration under the nominal weights."""
     arm = subject.arm
     duration = BERRET_DURATIONS_S[posture][0] / MOVEMENT_FRACTION
     q0 = posture_q(posture)
@@ -331,13 +331,11 @@ def simulate_trial(
     posture: str,
     trial_index: int,
     config: SynthConfig,
-    warm_start: DocSolution | None = None,
 ) -> SynthTrial:
     """Draw, solve and record one reach. Deterministic in ``(config.seed, subject, posture, trial_index)``.
 
-    ``warm_start`` (the reach of :func:`nominal_task` under the nominal weights) makes IPOPT 3–5× faster;
-    when the warm solve fails the trial is solved cold, and only when that fails too is it redrawn (a DOC
-    failure, counted in ``doc_retries``).
+    Each reach is solved cold (a neighbouring reach's multipliers are a poor warm start); a trial whose DOC
+    fails is redrawn, and the failure counted in ``doc_retries``.
     """
     s_idx = int(subject.subject[1:]) - 1
     p_idx = POSTURES.index(posture)
@@ -351,9 +349,7 @@ def simulate_trial(
         q0 = np.clip(q0, probe.q_lower + np.deg2rad(1.0), probe.q_upper - np.deg2rad(1.0))
         q0[1] = max(q0[1], 0.0)  # a straight elbow at most
         task = ReachingTask(arm, q0, target, duration / MOVEMENT_FRACTION, n_nodes=config.n_nodes)
-        sol = solve_doc(task, w, warm_start=warm_start) if warm_start is not None else None
-        if sol is None or not sol.converged:
-            sol = solve_doc(task, w)
+        sol = solve_doc(task, w)
         if sol.converged:
             break
         retries += 1
@@ -421,9 +417,7 @@ def to_opensim_axes(markers: dict) -> dict:
 
 def _simulate_group(subject: SynthSubject, posture: str, config: SynthConfig) -> list[SynthTrial]:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    nominal = solve_doc(nominal_task(subject, posture, config), nominal_weights())
-    warm = nominal if nominal.converged else None
-    return [simulate_trial(subject, posture, k, config, warm) for k in range(config.n_trials)]
+    return [simulate_trial(subject, posture, k, config) for k in range(config.n_trials)]
 
 
 # ---------------------------------------------------------------------- human-likeness

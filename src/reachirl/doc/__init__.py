@@ -41,12 +41,20 @@ def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
     return w
 
 
-def solve_doc(task: ReachingTask, weights, backend: str = "casadi", warm_start: DocSolution | None = None) -> DocSolution:
+def solve_doc(
+    task: ReachingTask,
+    weights,
+    backend: str = "casadi",
+    warm_start: DocSolution | None = None,
+    *,
+    retry_cold: bool = True,
+) -> DocSolution:
     """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
 
     ``warm_start`` is a previous :class:`DocSolution` of the same task (other weights, as in MO-IRL's line
     search); the CasADi backend then reuses its primal and dual variables. A solution of another task is ignored:
-    its multipliers mislead the solver, so the solve starts cold. A solution that did not converge is returned with ``converged=False``, never raised.
+    its multipliers mislead the solver, so the solve starts cold. When a warm start fails, the solve is retried
+    cold unless ``retry_cold=False`` (MO-IRL's line search: a try the warm start cannot reach is rejected anyway). A solution that did not converge is returned with ``converged=False``, never raised.
     """
     if not isinstance(task, ReachingTask):
         raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")
@@ -57,4 +65,6 @@ def solve_doc(task: ReachingTask, weights, backend: str = "casadi", warm_start: 
         from . import crocoddyl as impl
     else:
         raise ValueError(f"unknown DOC backend {backend!r}; choose one of {BACKENDS}")
+    if backend == "casadi":
+        return impl.solve(task, w, warm_start=warm_start, retry_cold=retry_cold)
     return impl.solve(task, w, warm_start=warm_start)

@@ -48,6 +48,7 @@ IPOPT_OPTIONS: dict = {
     "ipopt.linear_solver": "mumps",
 }
 WARM_OPTIONS: dict = {
+    "ipopt.max_iter": 100,  # a warm start that has not converged by then is worse than a cold one
     "ipopt.warm_start_init_point": "yes",
     "ipopt.mu_init": 1e-6,
     "ipopt.warm_start_bound_push": 1e-9,
@@ -248,44 +249,64 @@ def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> 
     return 1.0 / max(cost, 1e-8)
 
 
-def solve(task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None) -> DocSolution:
-    nlp = build_nlp(task.n_nodes, weights.shape[0])
-    lbx, ubx, lbg, ubg = nlp.bounds(task)
-    args = {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
-    warm = warm_start.warm if warm_start is not None else None
-    key = _task_key(task)
-    if warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key:
-        # the same reach under new weights (MO-IRL's line search): reuse primal and dual variables and the scale
-        solver = nlp.warm
-        args.update(x0=warm["x"], lam_x0=warm["lam_x"], lam_g0=warm["lam_g"])
-        fscale = warm["fscale"]
-    else:
-        # another reach: its multipliers mislead IPOPT (10x more iterations measured), so start cold
-        solver = nlp.cold
-        args["x0"] = initial_guess(task)
-        fscale = _objective_scale(task, weights, args["x0"])
-    args["x0"] = np.clip(args["x0"], lbx, ubx)
-    args["p"] = nlp.params(task, weights, fscale)
+def _run(nlp: _Nlp, solver, args: dict) -> tuple[dict, dict, float]:
     with nlp.lock:  # an nlpsol instance is not re-entrant
         t0 = time.perf_counter()
         out = solver(**args)
         elapsed = time.perf_counter() - t0
         stats = solver.stats()
-    z = _exact_slacks(task, np.asarray(out["x"]).reshape(-1))
-    q, qd, tau = _unpack(task, z)
+    return out, stats, elapsed
+
+
+def _converged(stats: dict, z: np.ndarray) -> bool:
     status = str(stats.get("return_status", ""))
     ok = bool(stats.get("success", False)) or status == "Solved_To_Acceptable_Level"
-    ok = ok and bool(np.all(np.isfinite(q)))
+    return ok and bool(np.all(np.isfinite(z)))
+
+
+def solve(
+    task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None, retry_cold: bool = True
+) -> DocSolution:
+    """Solve the DOC; warm from ``warm_start`` when it is the same task, cold otherwise, and cold again when the
+    warm attempt fails and ``retry_cold``.
+
+    ``iterations`` and ``solve_time`` count every attempt.
+    """
+    nlp = build_nlp(task.n_nodes, weights.shape[0])
+    lbx, ubx, lbg, ubg = nlp.bounds(task)
+    bounds = {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+    warm = warm_start.warm if warm_start is not None else None
+    key = _task_key(task)
+    iterations, elapsed = 0, 0.0
+    out = stats = None
+    if warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key:
+        # the same reach under new weights (MO-IRL's line search): reuse primal and dual variables and the scale
+        fscale = warm["fscale"]
+        args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "lam_x0": warm["lam_x"], "lam_g0": warm["lam_g"],
+                "p": nlp.params(task, weights, fscale)}
+        out, stats, elapsed = _run(nlp, nlp.warm, args)
+        iterations = int(stats.get("iter_count", 0))
+    if out is None or (retry_cold and not _converged(stats, np.asarray(out["x"]))):
+        # cold: a neighbouring reach's multipliers mislead IPOPT (10x more iterations measured), and so does a
+        # warm start after a large change of weights
+        x0 = np.clip(initial_guess(task), lbx, ubx)
+        fscale = _objective_scale(task, weights, x0)
+        args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
+        out, stats, t_cold = _run(nlp, nlp.cold, args)
+        iterations += int(stats.get("iter_count", 0))
+        elapsed += t_cold
+    z = _exact_slacks(task, np.asarray(out["x"]).reshape(-1))
+    q, qd, tau = _unpack(task, z)
     return DocSolution(
         t=task.t,
         q=q,
         qd=qd,
         tau=tau,
         cost=float(nlp.objective(z, args["p"])) / fscale,
-        converged=ok,
-        iterations=int(stats.get("iter_count", -1)),
+        converged=_converged(stats, z),
+        iterations=iterations,
         solve_time=elapsed,
-        status=status,
+        status=str(stats.get("return_status", "")),
         backend="casadi",
         warm={
             "backend": "casadi",

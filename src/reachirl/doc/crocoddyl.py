@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -80,18 +81,23 @@ _NX, _NU = 6, 2  # augmented state (q, q̇, τ_prev) and control τ
 class CsqpOptions:
     """CSQP settings (tuned on the benchmark problems, see ``benchmarks/bench_backends.py``).
 
-    ``termination_tolerance`` is on CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics gaps
-    and the constraint violation), scaled here by the cost's magnitude so that it is a relative tolerance.
+    * ``termination_tolerance`` bounds CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics
+      gaps and the constraint violation), relative to the initial guess's cost per knot ``J(guess) / N`` so that
+      it does not depend on the overall scale of the weights.
+    * CSQP's line search uses the merit function, not the filter: the filter (with its default memory of one
+      iterate) accepted full steps that cycled on this problem.
+    * QPs are solved loosely (ADMM ``eps_abs``/``eps_rel``); when CSQP stops early on an inexact step it is
+      restarted from where it stopped with a tight QP tolerance (``polish_eps``).
     """
 
     max_iter: int = 200
-    termination_tolerance: float = 1e-5
-    relative_tolerance: bool = True
+    termination_tolerance: float = 5e-3
     max_qp_iters: int = 1000
-    eps_abs: float = 1e-6
-    eps_rel: float = 0.0
+    eps_abs: float = 1e-4
+    eps_rel: float = 1e-4
+    polish_eps: float = 1e-6
     energy_smoothing: float = 1e-3  # ε of the smooth |q̇ᵀτ|, in W
-    use_filter_line_search: bool = True
+    use_filter_line_search: bool = False
 
 
 DEFAULT_OPTIONS = CsqpOptions()
@@ -99,10 +105,15 @@ DEFAULT_OPTIONS = CsqpOptions()
 
 # ---------------------------------------------------------------------- the knot model
 class KnotData(crocoddyl.ActionDataAbstract):
+    """The knot's data, with cached numpy views of its own and the inner model's arrays (they never move)."""
+
     def __init__(self, model: KnotModel):
         crocoddyl.ActionDataAbstract.__init__(self, model)
-        self.inner = model.inner.createData()
+        self.inner = di = model.inner.createData()
         self.Fu[4:, :] = np.eye(_NU)  # τ_prev at the next knot is this knot's τ
+        self.v = (self.xnext, self.g, self.Fx, self.Fu, self.Lx, self.Lu, self.Lxx, self.Lxu, self.Luu,
+                  self.Gx, self.Gu)
+        self.vi = (di.xnext, di.g, di.Fx, di.Fu, di.Lx, di.Lu, di.Lxx, di.Lxu, di.Luu, di.Gx, di.Gu)
 
 
 class KnotModel(crocoddyl.ActionModelAbstract):
@@ -120,14 +131,17 @@ class KnotModel(crocoddyl.ActionModelAbstract):
         ng = int(self.dam.constraints.ng) if self.dam.constraints is not None else 0
         crocoddyl.ActionModelAbstract.__init__(self, crocoddyl.StateVector(_NX), _NU, 1, ng, 0)
         self.first, self.terminal = first, terminal
+        self.n_constraints = ng
         self.eps = float(energy_smoothing)
         self.dt = float(inner.dt)
         self.w_energy = 0.0
         self.w_torque_change = 0.0
         # keep the cost items (shared with the C++ sum) to change their weights without a map lookup
-        self._items = {
-            name: self.costs.costs[name] for names in CROCODDYL_COST_ITEMS.values() for name in names
-        } if not terminal else {}
+        self._items = (
+            {name: self.costs.costs[name] for names in CROCODDYL_COST_ITEMS.values() for name in names}
+            if not terminal
+            else {}
+        )
 
     def createData(self):  # noqa: N802  (Crocoddyl's API)
         return KnotData(self)
@@ -148,79 +162,76 @@ class KnotModel(crocoddyl.ActionModelAbstract):
 
     # Crocoddyl calls calc(data, x) on the terminal knot and calc(data, x, u) on the others.
     def calc(self, data, x, u=None):
-        xi = x[:4]
         di = data.inner
+        xnext, g = data.v[0], data.v[1]
         if u is None or self.terminal:
-            self.inner.calc(di, xi)
+            self.inner.calc(di, x[:4])
             data.cost = di.cost
-            data.xnext[:] = x
-            if self.ng:
-                data.g[:] = di.g
-            return
-        self.inner.calc(di, xi, u)
-        cost = di.cost
-        if self.w_energy > 0.0:
-            r = x[2] * u[0] + x[3] * u[1]
-            cost += self.w_energy * self.dt * (np.sqrt(r * r + self.eps * self.eps) - self.eps)
-        if self.w_torque_change > 0.0:
-            du = u - x[4:]
-            cost += self.w_torque_change / self.dt * (du @ du)
-        data.cost = cost
-        xn = data.xnext
-        xn[:4] = di.xnext
-        xn[4:] = u
-        if self.ng:
-            data.g[:] = di.g
+            xnext[:] = x
+        else:
+            self.inner.calc(di, x[:4], u)
+            cost = di.cost
+            u0, u1 = u[0].item(), u[1].item()
+            if self.w_energy > 0.0:
+                r = x[2].item() * u0 + x[3].item() * u1
+                cost += self.w_energy * self.dt * (math.sqrt(r * r + self.eps * self.eps) - self.eps)
+            if self.w_torque_change > 0.0:
+                d0, d1 = u0 - x[4].item(), u1 - x[5].item()
+                cost += self.w_torque_change / self.dt * (d0 * d0 + d1 * d1)
+            data.cost = cost
+            xnext[:4] = data.vi[0]
+            xnext[4:] = u
+        if self.n_constraints:
+            g[:] = data.vi[1]
 
     def calcDiff(self, data, x, u=None):  # noqa: N802  (Crocoddyl's API)
-        xi = x[:4]
         di = data.inner
+        _, _, Fx, Fu, Lx, Lu, Lxx, Lxu, Luu, Gx, Gu = data.v
+        _, _, iFx, iFu, iLx, iLu, iLxx, iLxu, iLuu, iGx, iGu = data.vi
         if u is None or self.terminal:
-            self.inner.calcDiff(di, xi)
-            data.Lx[:4] = di.Lx
-            data.Lxx[:4, :4] = di.Lxx
-            if self.ng:
-                data.Gx[:, :4] = di.Gx
+            self.inner.calcDiff(di, x[:4])
+            Lx[:4] = iLx
+            Lxx[:4, :4] = iLxx
+            if self.n_constraints:
+                Gx[:, :4] = iGx
             return
-        self.inner.calcDiff(di, xi, u)
-        data.Fx[:4, :4] = di.Fx
-        data.Fu[:4] = di.Fu
-        Lx = np.zeros(_NX)
-        Lx[:4] = di.Lx
-        Lu = di.Lu.copy()
-        Lxx = np.zeros((_NX, _NX))
-        Lxx[:4, :4] = di.Lxx
-        Lxu = np.zeros((_NX, _NU))
-        Lxu[:4] = di.Lxu
-        Luu = di.Luu.copy()
+        self.inner.calcDiff(di, x[:4], u)
+        Fx[:4, :4] = iFx
+        Fu[:4] = iFu
+        Lx[:4] = iLx
+        Lu[:] = iLu
+        Lxx[:4, :4] = iLxx
+        Lxu[:4] = iLxu
+        Luu[:] = iLuu
+        # the two Python terms, in scalars (numpy calls on 2-vectors cost more than the arithmetic)
         if self.w_energy > 0.0:
-            qd = x[2:4]
-            r = qd @ u
-            s = np.sqrt(r * r + self.eps * self.eps)
+            v0, v1 = x[2].item(), x[3].item()
+            u0, u1 = u[0].item(), u[1].item()
+            r = v0 * u0 + v1 * u1
+            s = math.sqrt(r * r + self.eps * self.eps)
             c = self.w_energy * self.dt
-            d1, d2 = c * r / s, c * self.eps**2 / s**3  # first and second derivative of the smooth |r|
-            Lx[2:4] += d1 * u
-            Lu += d1 * qd
-            Lxx[2:4, 2:4] += d2 * np.outer(u, u)  # Gauss-Newton: ∂²r/∂q̇∂τ = I is left out
-            Lxu[2:4] += d2 * np.outer(u, qd)
-            Luu += d2 * np.outer(qd, qd)
+            d1, d2 = c * r / s, c * self.eps * self.eps / (s * s * s)  # first and second derivative of smooth |r|
+            Lx[2] += d1 * u0
+            Lx[3] += d1 * u1
+            Lu[0] += d1 * v0
+            Lu[1] += d1 * v1
+            # Gauss-Newton, like Crocoddyl's residual costs: the term d1·∂²r/∂q̇∂τ = d1·I is left out
+            Lxx[2:4, 2:4] += [[d2 * u0 * u0, d2 * u0 * u1], [d2 * u0 * u1, d2 * u1 * u1]]
+            Lxu[2:4] += [[d2 * u0 * v0, d2 * u0 * v1], [d2 * u1 * v0, d2 * u1 * v1]]
+            Luu += [[d2 * v0 * v0, d2 * v0 * v1], [d2 * v0 * v1, d2 * v1 * v1]]
         if self.w_torque_change > 0.0:
             c = 2.0 * self.w_torque_change / self.dt
-            du = u - x[4:]
-            Lu += c * du
-            Lx[4:] = -c * du
+            d0, d1 = c * (u[0].item() - x[4].item()), c * (u[1].item() - x[5].item())
+            Lu[0] += d0
+            Lu[1] += d1
+            Lx[4], Lx[5] = -d0, -d1
             Luu[0, 0] += c
             Luu[1, 1] += c
             Lxx[4, 4] = Lxx[5, 5] = c
             Lxu[4, 0] = Lxu[5, 1] = -c
-        data.Lx[:] = Lx
-        data.Lu[:] = Lu
-        data.Lxx[:, :] = Lxx
-        data.Lxu[:, :] = Lxu
-        data.Luu[:, :] = Luu
-        if self.ng:
-            data.Gx[:, :4] = di.Gx
-            data.Gu[:, :] = di.Gu
+        if self.n_constraints:
+            Gx[:, :4] = iGx
+            Gu[:] = iGu
 
 
 # ---------------------------------------------------------------------- the problem
@@ -317,19 +328,21 @@ class ReachingProblem:
         for k, m in enumerate(self.running):
             m.set_dt(task.dt)
             m.set_weights(weights[self.window[k]])
-            if m.ng:
+            if m.n_constraints:
                 m.g_lb, m.g_ub = lb, ub
         # the manager stacks its constraints in the order of their names: "fingertip", then "state_bounds"
         t = self.terminal
         t.g_lb = np.r_[task.target_x, -np.inf, -np.inf, task.q_lower, 0.0, 0.0]
         t.g_ub = np.r_[task.target_x, np.inf, np.inf, task.q_upper, 0.0, 0.0]
 
-    def make_solver(self):
+    def make_solver(self, tolerance: float, eps: float | None = None):
+        """A fresh CSQP solver (no state carried over from earlier solves, so results are reproducible)."""
         o = self.options
         solver = mim_solvers.SolverCSQP(self.problem)
+        solver.termination_tolerance = tolerance
         solver.max_qp_iters = o.max_qp_iters
-        solver.eps_abs = o.eps_abs
-        solver.eps_rel = o.eps_rel
+        solver.eps_abs = o.eps_abs if eps is None else eps
+        solver.eps_rel = o.eps_rel if eps is None else 0.0
         solver.use_filter_line_search = o.use_filter_line_search
         solver.with_callbacks = False
         return solver
@@ -387,17 +400,20 @@ def solve(
     xs, us = _to_shooting(task, *guess)
     with prob.lock:  # one problem's data is not re-entrant
         prob.update(task, weights)
-        solver = prob.make_solver()
-        tol = options.termination_tolerance
-        if options.relative_tolerance:
-            tol *= max(1.0, abs(prob.problem.calc(xs, us)) / max(task.duration, 1e-9))
-        solver.termination_tolerance = tol
+        tol = options.termination_tolerance * abs(prob.problem.calc(xs, us)) / n
         t0 = time.perf_counter()
+        solver = prob.make_solver(tol)
         ok = bool(solver.solve(xs, us, options.max_iter, False))
+        iterations = int(solver.iter)
+        if not ok and iterations < options.max_iter and options.polish_eps < options.eps_abs:
+            # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
+            polisher = prob.make_solver(tol, eps=options.polish_eps)
+            ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
+            iterations += int(polisher.iter)
+            solver = polisher
         elapsed = time.perf_counter() - t0
         X = np.array(solver.xs)
         U = np.array(solver.us)
-        iterations = int(solver.iter)
         kkt, gap, cons = float(solver.KKT), float(solver.gap_norm), float(solver.constraint_norm)
     q, qd, tau = X[:, :2], X[:, 2:4], U
     finite = bool(np.all(np.isfinite(X)) and np.all(np.isfinite(U)))

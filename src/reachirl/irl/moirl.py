@@ -17,8 +17,8 @@ Choices the seed leaves open, fixed here (each an option):
   in the merit.
 * **Time normalisation**: every demonstration is resampled to the DOC's ``N + 1`` knots over its own duration, so
   trials of different durations are compared at the same normalised times.
-* **Feature scaling**: none in the model. The subproblem's solver works on ``Δω`` scaled by the demonstrations'
-  mean features, which conditions the search but leaves its minimiser unchanged.
+* **Feature scaling**: none. Features are raw SI quantities and the subproblem is solved on the raw weights;
+  a rescaling of the features with the inverse rescaling of the weights would leave every DOC unchanged.
 * **Tolerance**: the fit also stops when an accepted step improves the merit by less than ``tol`` (relative).
 
 Options from the original MO-IRL (Mehrdad et al. 2025), all off by default so the seed's form is the default:
@@ -153,8 +153,10 @@ class MOIRL:
         return [t.to_task(self.n_nodes) for t in trials]
 
     def _rollouts(self, tasks, w, warm: list[DocSolution] | None) -> list[DocSolution]:
+        """DOC rollouts; line-search tries (``warm`` given) are not retried cold: a failed try is rejected."""
         return [
-            solve_doc(task, w, backend=self.backend, warm_start=None if warm is None else warm[i])
+            solve_doc(task, w, backend=self.backend, warm_start=None if warm is None else warm[i],
+                      retry_cold=warm is None)
             for i, task in enumerate(tasks)
         ]
 
@@ -225,7 +227,6 @@ class MOIRL:
             np.linspace(0, self.n_nodes * 0.9, self.n_suffixes + 1).astype(int)
         )
         phi_star = self._demo_features(trials, starts)
-        scale = np.mean(np.abs(phi_star if not self.n_suffixes else phi_star[:, 0]), axis=0) + 1e-12
 
         w = np.full((self.n_windows, N_FEATURES), float(self.w0))
         sols = self._rollouts(tasks, w, None)
@@ -241,7 +242,7 @@ class MOIRL:
         self.stop_reason_ = "max_iter"
         for it in range(1, self.max_iter + 1):
             groups = self._subproblem_terms(phi_star, bank, starts)
-            dw, info = solve_delta(w, groups, self.beta, self.use_gamma, self.l1, scale)
+            dw, info = solve_delta(w, groups, self.beta, self.use_gamma, self.l1)
             alpha, accepted, tries = self.alpha0, False, 0
             for tries in range(1, self.max_tries + 1):  # noqa: B007  (tries is reported)
                 w_try = np.maximum(w + alpha * dw, 0.0)
