@@ -12,8 +12,9 @@ Choices the paper leaves open, fixed here:
 
 * **Acceleration** on interval ``k`` is the Euler one, ``qdd_k = (qd_{k+1} - qd_k) / dt``. On a DOC solution it
   equals the forward dynamics ``M⁻¹(τ_k - b)`` exactly.
-* **Energy** ``φ2 = |qd_kᵀ τ_k|`` is used as is (no smoothing). The DOC backends make it smooth with the exact
-  slack form ``qd_kᵀ τ_k = s⁺ - s⁻``, ``s± ≥ 0``, which equals it at the optimum.
+* **Energy** ``φ2 = |qd_kᵀ τ_k|`` is used as is (no smoothing). The CasADi backend makes it smooth with the
+  exact slack form ``qd_kᵀ τ_k = s⁺ - s⁻``, ``s± ≥ 0``, which equals it at the optimum; the Crocoddyl backend,
+  which has no slack variables, uses ``√(r² + ε²) − ε`` with ε = 1 mW (at most ε × duration off).
 * **Torque change** is a finite difference across intervals, ``τ̇_k = (τ_k - τ_{k-1}) / dt`` for ``k ≥ 1``, and 0
   on the first interval (no torque is known before the reach).
 * **Geodesic** is the kinetic-energy form of the paper's table, ``qdᵀ M(q) qd`` (no square root).

@@ -54,11 +54,8 @@ def run(args: argparse.Namespace) -> int:
         module = _load(suite)
         t0 = time.perf_counter()
         print(f"== {suite} ==", flush=True)
-        kwargs = {}
-        if suite == "doc":
-            kwargs = {"n_repeats": 6, "sweep": False} if args.quick else {}
-        elif args.quick:
-            kwargs = {"quick": True}
+        quick = {"doc": {"n_repeats": 6, "sweep": False}, "backends": {"n_repeats": 1}, "irl": {"quick": True}}
+        kwargs = dict(quick[suite]) if args.quick else {}
         if suite == "irl" and args.out is not None:
             kwargs["out_dir"] = args.out.parent / "bench_irl"
         res = module.run(**kwargs)

@@ -1,45 +1,45 @@
 """Pinocchio + Crocoddyl + mim_solvers CSQP backend of the reaching DOC (the seed paper's own solver stack).
 
-It solves the problem of :mod:`reachirl.doc.task` on the same discretisation as :mod:`reachirl.features`:
-``N = task.n_nodes`` intervals of ``dt = duration / N``, semi-implicit Euler (Crocoddyl's
+It solves the problem of :mod:`reachirl.doc.task` on the same discretisation as :mod:`reachirl.features`: ``N
+= task.n_nodes`` intervals of ``dt = duration / N``, semi-implicit Euler (Crocoddyl's
 ``IntegratedActionModelEuler``), control ``u = τ`` and ``x_0 = (q0, 0)``.
 
 Layers, Crocoddyl's vocabulary from the bottom up:
 
 * **State.** ``StateMultibody`` of :meth:`ArmModel.pinocchio_model` (with two extra frames at the segments'
-  centres of mass) for the arm; the knots of the shooting problem carry the *augmented* state
-  ``x = (q, q̇, τ_prev)`` (``StateVector(6)``) because the torque change ``τ̇_k = (τ_k − τ_{k−1}) / dt`` couples
-  consecutive knots.
-* **Costs** (Crocoddyl built-ins, C++), one ``CostModelSum`` per knot, items named by :data:`FEATURES`, Crocoddyl
-  weight ``2 ω`` because its quadratic activation is ``½‖r‖²``:
+  centres of mass) for the arm; the knots of the shooting problem carry the *augmented* state ``x = (q, q̇,
+  τ_prev)`` (``StateVector(6)``) because the torque change ``τ̇_k = (τ_k − τ_{k−1}) / dt`` couples consecutive
+  knots.
+* **Costs** (Crocoddyl built-ins, C++), one ``CostModelSum`` per knot, items named by :data:`FEATURES`,
+  Crocoddyl weight ``2 ω`` because its quadratic activation is ``½‖r‖²``:
 
-  - ``cartesian_velocity``: ``ResidualModelFrameVelocity`` of ``fingertip``, linear part. Its norm is the same in
-    every orientation, so the LOCAL frame is used: with pin 4.0.0 + crocoddyl 3.2.1 the LOCAL_WORLD_ALIGNED
-    variant's ``∂r/∂q`` is wrong (off by the frame-rotation term; the finite-difference test catches it), which
-    made CSQP stall at non-stationary points.
+  - ``cartesian_velocity``: ``ResidualModelFrameVelocity`` of ``fingertip``, linear part. Its norm is the same
+    in every orientation, so the LOCAL frame is used: with pin 4.0.0 + crocoddyl 3.2.1 the LOCAL_WORLD_ALIGNED
+    variant's ``∂r/∂q`` is wrong (off by the frame-rotation term; the finite-difference test catches it),
+    which made CSQP stall at non-stationary points.
   - ``geodesic``: ``q̇ᵀM(q)q̇ = Σ_i m_i‖v_{c,i}‖² + I_i ω_i²`` (twice the kinetic energy), as two
     ``ResidualModelFrameVelocity`` of the CoM frames with weighted activations ``(m, m, m, 0, 0, I)``; the
     forearm's item is ``geodesic/forearm`` and always carries the same weight as ``geodesic``.
-  - ``joint_acceleration``: ``ResidualModelJointAcceleration`` (the forward dynamics ``q̈_k``, which is exactly
-    the Euler acceleration ``(q̇_{k+1} − q̇_k) / dt`` of features.py).
+  - ``joint_acceleration``: ``ResidualModelJointAcceleration`` (the forward dynamics ``q̈_k``, which is
+    exactly the Euler acceleration ``(q̇_{k+1} − q̇_k) / dt`` of features.py).
   - ``joint_velocity``: ``ResidualModelState`` with activation on ``q̇``.
   - ``joint_torque``: ``ResidualModelControl``.
-* **Action model per knot** (:class:`KnotModel`, Python): wraps the knot's ``IntegratedActionModelEuler`` (C++,
-  dynamics and the costs above) and adds the two terms that need the augmented state or are non-smooth, with
-  analytic derivatives (Gauss-Newton Hessians, like Crocoddyl's residual costs):
+* **Action model per knot** (:class:`KnotModel`, Python): wraps the knot's ``IntegratedActionModelEuler``
+  (C++, dynamics and the costs above) and adds the two terms that need the augmented state or are non-smooth,
+  with analytic derivatives (Gauss-Newton Hessians, like Crocoddyl's residual costs):
 
   - ``torque_change``: ``(ω/dt) ‖τ_k − τ_{k−1}‖²`` for ``k ≥ 1`` and nothing on interval 0.
-  - ``energy``: ``ω dt (√(r² + ε²) − ε)``, ``r = q̇_kᵀτ_k``. This smooth absolute value differs from ``|r|`` by
-    at most ``ε`` (default 1e-3 W), so ``Φ2`` by at most ``ε · duration``; the reported ``cost`` is always
+  - ``energy``: ``ω dt (√(r² + ε²) − ε)``, ``r = q̇_kᵀτ_k``. This smooth absolute value differs from ``|r|``
+    by at most ``ε`` (default 1e-3 W), so ``Φ2`` by at most ``ε · duration``; the reported ``cost`` is always
     :func:`reachirl.features.trajectory_cost` of the solution (the exact, non-smoothed objective).
 
-* **Constraints** (``ConstraintModelManager`` of ``ConstraintModelResidual`` per knot, bounds owned by the knot
-  model so a new task only rewrites numbers): ``q_lower ≤ q ≤ q_upper`` and ``|q̇| ≤ qd_max`` on knots
-  ``1..N−1``; on the terminal knot the joint bounds, ``q̇_N = 0`` and the fingertip ``x = target_x`` (equalities
-  as ``lb = ub``, which is how CSQP takes them).
+* **Constraints** (``ConstraintModelManager`` of ``ConstraintModelResidual`` per knot, bounds owned by the
+  knot model so a new task only rewrites numbers): ``q_lower ≤ q ≤ q_upper`` and ``|q̇| ≤ qd_max`` on knots
+  ``1..N−1``; on the terminal knot the joint bounds, ``q̇_N = 0`` and the fingertip ``x = target_x``
+  (equalities as ``lb = ub``, which is how CSQP takes them).
 
-One shooting problem is built per ``(arm, N, n_windows)`` and cached; ``q0``, ``dt``, the target, the bounds and
-the weights are updated in place before each solve (weights through ``costs.costs[name].weight``).
+One shooting problem is built per ``(arm, N, n_windows)`` and cached; ``q0``, ``dt``, the target, the bounds
+and the weights are updated in place before each solve (weights through ``costs.costs[name].weight``).
 """
 
 from __future__ import annotations
@@ -51,10 +51,10 @@ import threading
 import time
 from dataclasses import dataclass
 
-import numpy as np
-import pinocchio as pin  # noqa: I001  (pinocchio and crocoddyl must be imported before mim_solvers)
 import crocoddyl
 import mim_solvers
+import numpy as np
+import pinocchio as pin
 
 from ..arm import ArmModel
 from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
@@ -82,8 +82,8 @@ class CsqpOptions:
     """CSQP settings (tuned on the benchmark problems, see ``benchmarks/bench_backends.py``).
 
     * ``termination_tolerance`` bounds CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics
-      gaps and the constraint violation), relative to the initial guess's cost per knot ``J(guess) / N`` so that
-      it does not depend on the overall scale of the weights.
+      gaps and the constraint violation), relative to the cold initial guess's cost per knot ``J(guess) / N``
+      so that it does not depend on the overall scale of the weights (nor on a warm start).
     * CSQP's line search uses the merit function, not the filter: the filter (with its default memory of one
       iterate) accepted full steps that cycled on this problem.
     * QPs are solved loosely (ADMM ``eps_abs``/``eps_rel``); when CSQP stops early on an inexact step it is
@@ -111,8 +111,19 @@ class KnotData(crocoddyl.ActionDataAbstract):
         crocoddyl.ActionDataAbstract.__init__(self, model)
         self.inner = di = model.inner.createData()
         self.Fu[4:, :] = np.eye(_NU)  # τ_prev at the next knot is this knot's τ
-        self.v = (self.xnext, self.g, self.Fx, self.Fu, self.Lx, self.Lu, self.Lxx, self.Lxu, self.Luu,
-                  self.Gx, self.Gu)
+        self.v = (
+            self.xnext,
+            self.g,
+            self.Fx,
+            self.Fu,
+            self.Lx,
+            self.Lu,
+            self.Lxx,
+            self.Lxu,
+            self.Luu,
+            self.Gx,
+            self.Gu,
+        )
         self.vi = (di.xnext, di.g, di.Fx, di.Fu, di.Lx, di.Lu, di.Lxx, di.Lxu, di.Luu, di.Gx, di.Gu)
 
 
@@ -210,7 +221,10 @@ class KnotModel(crocoddyl.ActionModelAbstract):
             r = v0 * u0 + v1 * u1
             s = math.sqrt(r * r + self.eps * self.eps)
             c = self.w_energy * self.dt
-            d1, d2 = c * r / s, c * self.eps * self.eps / (s * s * s)  # first and second derivative of smooth |r|
+            d1, d2 = (
+                c * r / s,
+                c * self.eps * self.eps / (s * s * s),
+            )  # first and second derivative of smooth |r|
             Lx[2] += d1 * u0
             Lx[3] += d1 * u1
             Lu[0] += d1 * v0
@@ -240,13 +254,16 @@ def _com_frames(model, arm: ArmModel) -> tuple[int, int]:
     ids = []
     for name, joint, c in (("upper_arm_com", 1, arm.c1), ("forearm_com", 2, arm.c2)):
         ids.append(
-            model.addFrame(pin.Frame(name, joint, 0, pin.SE3(np.eye(3), np.array([c, 0.0, 0.0])), pin.FrameType.OP_FRAME))
+            model.addFrame(
+                pin.Frame(name, joint, 0, pin.SE3(np.eye(3), np.array([c, 0.0, 0.0])), pin.FrameType.OP_FRAME)
+            )
         )
     return ids[0], ids[1]
 
 
 class ReachingProblem:
-    """The Crocoddyl shooting problem of one ``(arm, N, n_windows)`` shape; tasks and weights go in in place."""
+    """The Crocoddyl shooting problem of one ``(arm, N, n_windows)`` shape; tasks and weights go in in place.
+    """
 
     def __init__(self, arm: ArmModel, n: int, n_windows: int, options: CsqpOptions = DEFAULT_OPTIONS):
         self.arm, self.n, self.n_windows, self.options = arm, n, n_windows, options
@@ -299,21 +316,34 @@ class ReachingProblem:
                 costs.addCost(name, c, 0.0)
             constraints = crocoddyl.ConstraintModelManager(state, nu)
             if k > 0:  # x_0 is fixed
-                constraints.addConstraint("state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf))
+                constraints.addConstraint(
+                    "state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf)
+                )
             dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
             running.append(
-                KnotModel(crocoddyl.IntegratedActionModelEuler(dam, dt), first=(k == 0), terminal=False,
-                          energy_smoothing=options.energy_smoothing)
+                KnotModel(
+                    crocoddyl.IntegratedActionModelEuler(dam, dt),
+                    first=(k == 0),
+                    terminal=False,
+                    energy_smoothing=options.energy_smoothing,
+                )
             )
         costs = crocoddyl.CostModelSum(state, nu)
         constraints = crocoddyl.ConstraintModelManager(state, nu)
-        constraints.addConstraint("state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf))
         constraints.addConstraint(
-            "fingertip", crocoddyl.ConstraintModelResidual(state, tip_residual, np.full(3, -np.inf), np.full(3, np.inf))
+            "state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf)
+        )
+        constraints.addConstraint(
+            "fingertip",
+            crocoddyl.ConstraintModelResidual(state, tip_residual, np.full(3, -np.inf), np.full(3, np.inf)),
         )
         dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
-        terminal = KnotModel(crocoddyl.IntegratedActionModelEuler(dam, 0.0), first=False, terminal=True,
-                             energy_smoothing=options.energy_smoothing)
+        terminal = KnotModel(
+            crocoddyl.IntegratedActionModelEuler(dam, 0.0),
+            first=False,
+            terminal=True,
+            energy_smoothing=options.energy_smoothing,
+        )
         self.running, self.terminal = running, terminal
         self.problem = crocoddyl.ShootingProblem(np.zeros(_NX), running, terminal)
         self.lock = threading.Lock()
@@ -348,12 +378,20 @@ class ReachingProblem:
         return solver
 
 
+def build_problem(
+    arm: ArmModel, n: int, n_windows: int, options: CsqpOptions | None = None
+) -> ReachingProblem:
+    """The cached problem of one ``(arm, N, n_windows)`` shape (and solver options)."""
+    return _cached_problem(arm, int(n), int(n_windows), options or DEFAULT_OPTIONS)
+
+
 @functools.lru_cache(maxsize=8)
-def build_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions = DEFAULT_OPTIONS) -> ReachingProblem:
-    """The cached problem of one ``(arm, N, n_windows)`` shape."""
+def _cached_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions) -> ReachingProblem:
     t0 = time.perf_counter()
     p = ReachingProblem(arm, n, n_windows, options)
-    log.debug("built the Crocoddyl problem N=%d, %d windows in %.3f s", n, n_windows, time.perf_counter() - t0)
+    log.debug(
+        "built the Crocoddyl problem N=%d, %d windows in %.3f s", n, n_windows, time.perf_counter() - t0
+    )
     return p
 
 
@@ -363,13 +401,18 @@ def _min_jerk(s: np.ndarray) -> np.ndarray:
 
 
 def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A dynamically consistent cold start ``(q, q̇, τ)``: a minimum-jerk joint path from ``q0`` to the posture
-    with the fingertip on the bar at (at most) its starting height, q̇ by Euler differences, τ by inverse
-    dynamics."""
+    """A dynamically consistent cold start ``(q, q̇, τ)``: a minimum-jerk joint path from ``q0`` to the
+    posture with the fingertip on the bar at (at most) its starting height, q̇ by Euler differences, τ by
+    inverse dynamics.
+    """
     arm, n, dt = task.arm, task.n_nodes, task.dt
     y0 = float(arm.fk(task.q0)[1])
     y_max = np.sqrt(max((0.98 * arm.length) ** 2 - task.target_x**2, 0.0))
-    qf = np.clip(arm.ik(np.array([task.target_x, np.clip(y0, -y_max, y_max)])), task.q_lower + 1e-3, task.q_upper - 1e-3)
+    qf = np.clip(
+        arm.ik(np.array([task.target_x, np.clip(y0, -y_max, y_max)])),
+        task.q_lower + 1e-3,
+        task.q_upper - 1e-3,
+    )
     q = task.q0 + _min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None] * (qf - task.q0)
     q[-1] = q[-2]
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
@@ -385,22 +428,30 @@ def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list
 
 
 def solve(
-    task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None, options: CsqpOptions | None = None
+    task: ReachingTask,
+    weights: np.ndarray,
+    warm_start: DocSolution | None = None,
+    options: CsqpOptions | None = None,
 ) -> DocSolution:
-    """Solve the reaching DOC with CSQP; ``warm_start`` (a previous solution of the same ``N``) seeds the primal
-    trajectory ``(q, q̇, τ)``."""
+    """Solve the reaching DOC with CSQP; ``warm_start`` (a previous solution of the same ``N``) seeds the
+    primal trajectory ``(q, q̇, τ)``.
+    """
     options = options or DEFAULT_OPTIONS
     weights = np.asarray(weights, dtype=float)
     n = task.n_nodes
     prob = build_problem(task.arm, n, weights.shape[0], options)
+    cold = _to_shooting(task, *initial_guess(task))
     if warm_start is not None and np.shape(warm_start.q) == (n + 1, 2) and np.shape(warm_start.tau) == (n, 2):
-        guess = (np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau))
+        xs, us = _to_shooting(
+            task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau)
+        )
     else:
-        guess = initial_guess(task)
-    xs, us = _to_shooting(task, *guess)
+        xs, us = cold
     with prob.lock:  # one problem's data is not re-entrant
         prob.update(task, weights)
-        tol = options.termination_tolerance * abs(prob.problem.calc(xs, us)) / n
+        # the tolerance depends on the task and the weights only (the cold guess's cost), not on the warm
+        # start
+        tol = options.termination_tolerance * abs(prob.problem.calc(*cold)) / n
         t0 = time.perf_counter()
         solver = prob.make_solver(tol)
         ok = bool(solver.solve(xs, us, options.max_iter, False))
@@ -418,7 +469,9 @@ def solve(
     q, qd, tau = X[:, :2], X[:, 2:4], U
     finite = bool(np.all(np.isfinite(X)) and np.all(np.isfinite(U)))
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights) if finite else float("nan")
-    status = f"{'converged' if ok else 'not converged'} (KKT {kkt:.2e}, gaps {gap:.1e}, constraints {cons:.1e})"
+    status = (
+        f"{'converged' if ok else 'not converged'} (KKT {kkt:.2e}, gaps {gap:.1e}, constraints {cons:.1e})"
+    )
     return DocSolution(
         t=task.t,
         q=q.copy(),

@@ -1,0 +1,133 @@
+"""``reachirl simulate --model MODEL.json TRIALS [--render OUT.gif] [--trial ID|INDEX ...] [--backend B]
+[--mode M]``.
+
+Predicts each selected trial with the learned weights, plays the DOC's torques back in MuJoCo (open loop or
+with PD tracking) and prints how far MuJoCo's reach drifts from the DOC's; optionally renders the reaches (the
+demonstrations as translucent ghosts) to a GIF or MP4.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import InputError
+
+BACKENDS = ("casadi", "crocoddyl")
+MODES = ("open-loop", "pd")
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser("simulate", help="play predicted reaches back in MuJoCo and render them")
+    p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
+    p.add_argument(
+        "trials", type=Path, help="trials file (NPZ) written by `reachirl preprocess` or `reachirl synth`"
+    )
+    p.add_argument(
+        "--render", type=Path, default=None, metavar="OUT.gif", help="write an animation (.gif or .mp4)"
+    )
+    p.add_argument(
+        "--trial",
+        action="append",
+        default=None,
+        metavar="ID|INDEX",
+        help="a trial to simulate, by id (subject/posture/side/trial), trial_id or 0-based index; "
+        "repeat for several (default: all)",
+    )
+    p.add_argument("--backend", choices=BACKENDS, default="casadi", help="DOC backend (default casadi)")
+    p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
+    p.add_argument("--substeps", type=int, default=10, help="MuJoCo steps per DOC interval (default 10)")
+    p.add_argument("--kp", type=float, default=50.0, help="PD stiffness, N·m/rad (default 50)")
+    p.add_argument("--kd", type=float, default=5.0, help="PD damping, N·m·s/rad (default 5)")
+    p.add_argument(
+        "--fps", type=float, default=30.0, help="animation frames per second of reach time (default 30)"
+    )
+    p.add_argument("--size", type=int, default=480, help="animation width and height in pixels (default 480)")
+    p.add_argument(
+        "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON"
+    )
+    return p
+
+
+def _select(trials, keys, path):
+    if not keys:
+        return list(trials)
+    chosen = []
+    for key in keys:
+        hits = [t for t in trials if key in (t.id, t.trial_id)]
+        if not hits and key.lstrip("-").isdigit():
+            i = int(key)
+            if not -len(trials) <= i < len(trials):
+                raise InputError(
+                    f"--trial {key}: index out of range (the file holds {len(trials)} trials)", path
+                )
+            hits = [trials[i]]
+        if not hits:
+            raise InputError(f"--trial {key}: no trial with that id, trial_id or index", path)
+        chosen.extend(hits)
+    return chosen
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from ..data.trial import load_trials
+    from ..io import atomic_write_json
+    from ..irl.model import load_model
+    from ..sim import simulate as sim
+    from ..sim.render import osmesa_available
+
+    if args.substeps < 1:
+        raise InputError(f"--substeps must be >= 1, got {args.substeps}")
+    if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
+        raise InputError("the animation must end in .gif or .mp4", args.render)
+    if args.render is not None:
+        ok, why = osmesa_available()
+        if not ok:
+            raise RuntimeError(f"cannot render offscreen: {why}")
+    model = load_model(args.model)
+    trials = _select(load_trials(args.trials), args.trial, args.trials)
+    sims = []
+    for tr in trials:
+        s = sim.simulate_trial(
+            tr,
+            model.weights,
+            n_nodes=model.n_nodes,
+            backend=args.backend,
+            mode=args.mode,
+            substeps=args.substeps,
+            kp=args.kp,
+            kd=args.kd,
+        )
+        sims.append(s)
+        r, d = s.result, s.solution
+        print(
+            f"{tr.id}: DOC ({d.backend}) {'converged' if d.converged else 'NOT converged'} in {d.iterations} "
+            f"iterations, {d.solve_time:.2f} s; MuJoCo {r.mode} ({r.substeps} substeps): RMSE q "
+            f"{r.rmse_deg['q']:.3f}° (q1 {r.rmse_deg['q1']:.3f}°, q2 {r.rmse_deg['q2']:.3f}°), "
+            f"max {r.max_abs_deg:.3f}°, final fingertip x error {1000 * r.final_x_error:+.2f} mm"
+        )
+    if len(sims) > 1:
+        rm = np.array([s.result.rmse_deg["q"] for s in sims])
+        fx = np.array([abs(s.result.final_x_error) for s in sims])
+        print(
+            f"{len(sims)} trials: RMSE q {rm.mean():.3f} ± {rm.std():.3f}°, |final x error| "
+            f"{1000 * fx.mean():.2f} ± {1000 * fx.std():.2f} mm"
+        )
+    if args.out is not None:
+        atomic_write_json(
+            args.out,
+            {
+                "backend": args.backend,
+                "mode": args.mode,
+                "substeps": args.substeps,
+                "trials": [s.summary() for s in sims],
+            },
+        )
+        print(f"wrote {args.out}")
+    if args.render is not None:
+        path, n_frames = sim.render_simulations(
+            sims, args.render, fps=args.fps, width=args.size, height=args.size
+        )
+        print(f"wrote {path} ({n_frames} frames)")
+    return 0

@@ -1,0 +1,196 @@
+"""The Crocoddyl/CSQP backend: pinned versions, derivatives against finite differences, agreement with CasADi.
+"""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.features import FEATURES, trajectory_cost
+
+cb = pytest.importorskip("reachirl.doc.crocoddyl")
+
+POSTURES_DEG = {
+    "P1": (-60.0, 90.0),
+    "P2": (0.0, 90.0),
+    "P3": (30.0, 120.0),
+    "P4": (-60.0, 60.0),
+    "P5": (50.0, 80.0),
+}
+# Typical size of each Φ (N = 100, 0.7 s reaches from the postures above); weights are ~1/Φ times random
+# factors.
+PHI_SCALE = np.array([0.5, 3.0, 0.3, 60.0, 100.0, 3.0, 40.0])
+
+
+def random_weights(rng, n_windows):
+    return np.exp(rng.uniform(np.log(0.3), np.log(3.0), (n_windows, len(FEATURES)))) / PHI_SCALE
+
+
+def make_task(arm, posture, duration=0.7, n=100):
+    return ReachingTask(arm, np.deg2rad(POSTURES_DEG[posture]), 0.95 * arm.length, duration, n)
+
+
+def rmse_deg(a, b):
+    return float(np.rad2deg(np.sqrt(np.mean((a - b) ** 2))))
+
+
+def test_pinocchio_is_pinned_to_a_version_that_works_with_crocoddyl():
+    import crocoddyl
+    import pinocchio
+
+    # pin 4.1.0 + crocoddyl 3.2.1 segfaults in ResidualModelFrameTranslation.calc (reference/facts.md §6)
+    assert pinocchio.__version__ == "4.0.0"
+    assert crocoddyl.__version__ == "3.2.1"
+
+
+def test_frame_translation_residual_does_not_crash():
+    """Run the call that segfaults with pin 4.1.0 in a child process, so a crash fails this test only."""
+    code = textwrap.dedent(
+        """
+        import numpy as np, pinocchio, crocoddyl
+        from reachirl import ArmModel
+        model = ArmModel.from_anthropometrics(1.76, 70.0, "M").pinocchio_model()
+        state = crocoddyl.StateMultibody(model)
+        tip = model.getFrameId("fingertip")
+        residual = crocoddyl.ResidualModelFrameTranslation(state, tip, np.zeros(3), 2)
+        costs = crocoddyl.CostModelSum(state, 2)
+        costs.addCost("tip", crocoddyl.CostModelResidual(state, residual), 1.0)
+        actuation = crocoddyl.ActuationModelFull(state)
+        dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs)
+        d = dam.createData()
+        x, u = np.array([0.3, 1.0, 0.5, -0.2]), np.array([1.0, 0.5])
+        dam.calc(d, x, u)
+        dam.calcDiff(d, x, u)
+        assert np.isfinite(d.cost)
+        import mim_solvers  # after pinocchio and crocoddyl (libboost_atomic)
+        """
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, f"exit {proc.returncode}: {proc.stderr[-2000:]}"
+
+
+def _finite_difference(model, x, u, h=1e-6):
+    def f(x, u):
+        d = model.createData()
+        model.calc(d, x, u) if u is not None else model.calc(d, x)
+        return d.cost, d.xnext.copy(), d.g.copy()
+
+    g0 = f(x, u)[2]
+    Lx, Fx, Gx = np.zeros(6), np.zeros((6, 6)), np.zeros((g0.size, 6))
+    for i in range(6):
+        e = np.zeros(6)
+        e[i] = h
+        (cp, xp, gp), (cm, xm, gm) = f(x + e, u), f(x - e, u)
+        Lx[i], Fx[:, i], Gx[:, i] = (cp - cm) / (2 * h), (xp - xm) / (2 * h), (gp - gm) / (2 * h)
+    if u is None:
+        return Lx, Fx, Gx, None, None, None
+    Lu, Fu, Gu = np.zeros(2), np.zeros((6, 2)), np.zeros((g0.size, 2))
+    for i in range(2):
+        e = np.zeros(2)
+        e[i] = h
+        (cp, xp, gp), (cm, xm, gm) = f(x, u + e), f(x, u - e)
+        Lu[i], Fu[:, i], Gu[:, i] = (cp - cm) / (2 * h), (xp - xm) / (2 * h), (gp - gm) / (2 * h)
+    return Lx, Fx, Gx, Lu, Fu, Gu
+
+
+@pytest.mark.parametrize("feature", [*FEATURES, "all"])
+def test_knot_derivatives_match_finite_differences(arm, rng, feature):
+    task = make_task(arm, "P2")
+    w = random_weights(rng, 1) if feature == "all" else np.eye(len(FEATURES))[[FEATURES.index(feature)]]
+    prob = cb.build_problem(arm, task.n_nodes, 1)
+    prob.update(task, w)
+    for _ in range(3):
+        x = np.r_[rng.uniform(-1, 1.5, 2), rng.uniform(-3, 3, 2), rng.uniform(-5, 5, 2)]
+        u = rng.uniform(-8, 8, 2)
+        for model, uu in ((prob.running[7], u), (prob.terminal, None)):
+            d = model.createData()
+            if uu is None:
+                model.calc(d, x)
+                model.calcDiff(d, x)
+            else:
+                model.calc(d, x, uu)
+                model.calcDiff(d, x, uu)
+            Lx, Fx, Gx, Lu, Fu, Gu = _finite_difference(model, x, uu)
+            scale = 1.0 + np.abs(Lx).max()
+            np.testing.assert_allclose(d.Lx, Lx, atol=2e-6 * scale, err_msg=f"{feature}: Lx")
+            np.testing.assert_allclose(d.Gx, Gx, atol=1e-6, err_msg=f"{feature}: Gx")
+            if uu is not None:
+                np.testing.assert_allclose(
+                    d.Lu, Lu, atol=2e-6 * (1.0 + np.abs(Lu).max()), err_msg=f"{feature}: Lu"
+                )
+                np.testing.assert_allclose(d.Fx, Fx, atol=1e-6, err_msg=f"{feature}: Fx")
+                np.testing.assert_allclose(d.Fu, Fu, atol=1e-6, err_msg=f"{feature}: Fu")
+                np.testing.assert_allclose(d.Gu, Gu, atol=1e-6, err_msg=f"{feature}: Gu")
+
+
+def test_problem_cost_is_the_features_cost(arm, rng):
+    """On a dynamically consistent trajectory the shooting problem's cost is Σ ω Φ of features.py (energy up
+    to its smoothing ε·duration), and its constraints read the terminal fingertip x and velocity.
+    """
+    task = make_task(arm, "P4", duration=0.75)
+    w = random_weights(rng, 6)
+    q, qd, tau = cb.initial_guess(task)
+    prob = cb.build_problem(arm, task.n_nodes, 6)
+    prob.update(task, w)
+    xs, us = cb._to_shooting(task, q, qd, tau)
+    cost = prob.problem.calc(xs, us)
+    exact = trajectory_cost(arm, q, qd, tau, task.dt, w)
+    assert abs(cost - exact) <= w[:, 1].max() * cb.DEFAULT_OPTIONS.energy_smoothing * task.duration + 1e-9
+    g = prob.problem.terminalData.g
+    assert g[0] == pytest.approx(arm.fk(q[-1])[0])
+    np.testing.assert_allclose(g[3:], np.r_[q[-1], qd[-1]])
+
+
+@pytest.mark.parametrize(("posture", "n_windows", "seed"), [("P2", 1, 0), ("P4", 8, 1)])
+def test_backends_agree(arm, posture, n_windows, seed):
+    rng = np.random.default_rng(seed)
+    task = make_task(arm, posture, duration=rng.uniform(0.6, 0.8))
+    w = random_weights(rng, n_windows)
+    a = solve_doc(task, w, backend="casadi")
+    b = solve_doc(task, w, backend="crocoddyl")
+    assert a.converged and b.converged, (a.status, b.status)
+    assert b.backend == "crocoddyl" and b.q.shape == (101, 2) and b.tau.shape == (100, 2)
+    assert rmse_deg(a.q, b.q) < 0.5
+    assert abs(b.cost - a.cost) / a.cost < 0.01
+    # the constraints hold
+    assert arm.fk(b.q[-1])[0] == pytest.approx(task.target_x, abs=1e-5)
+    np.testing.assert_allclose(b.qd[-1], 0.0, atol=1e-4)
+    np.testing.assert_allclose(b.q[0], task.q0)
+
+
+def test_weights_change_in_place_and_warm_start_converges(arm):
+    rng = np.random.default_rng(3)
+    task = make_task(arm, "P2")
+    w = random_weights(rng, 6)
+    first = solve_doc(task, w, backend="crocoddyl")
+    prob = cb.build_problem(arm, task.n_nodes, 6)
+    item = prob.running[50].costs.costs["joint_torque"]
+    assert item.weight == pytest.approx(2 * w[3, FEATURES.index("joint_torque")])
+    w2 = w * 1.1
+    w2[:, FEATURES.index("joint_acceleration")] *= 1.2
+    cold = solve_doc(task, w2, backend="crocoddyl")
+    warm = solve_doc(task, w2, backend="crocoddyl", warm_start=first)
+    assert cb.build_problem(arm, task.n_nodes, 6) is prob  # the same problem, updated in place
+    assert item.weight == pytest.approx(2 * w2[3, FEATURES.index("joint_torque")])
+    assert cold.converged and warm.converged
+    # A primal warm start does not reliably save CSQP iterations (no multipliers to restart from, and the
+    # Gauss-Newton SQP crawls along the flat valley of end postures): only check it lands on the same reach.
+    assert rmse_deg(cold.q, warm.q) < 0.5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("posture", list(POSTURES_DEG))
+@pytest.mark.parametrize("n_windows", [1, 6, 8])
+def test_backends_agree_sweep(arm, posture, n_windows):
+    rng = np.random.default_rng(100 * n_windows + int(posture[1]))
+    task = make_task(arm, posture, duration=rng.uniform(0.6, 0.8))
+    w = random_weights(rng, n_windows)
+    a = solve_doc(task, w, backend="casadi")
+    b = solve_doc(task, w, backend="crocoddyl")
+    assert a.converged, a.status
+    assert b.converged, b.status
+    assert rmse_deg(a.q, b.q) < 0.5
+    assert abs(b.cost - a.cost) / a.cost < 0.01
