@@ -133,3 +133,17 @@ def test_simulate_cli_bad_trial_is_exit_2(arm, tmp_path, capsys):
     assert main(["simulate", "--model", str(model), str(trials), "--trial", "9"]) == 2
     assert "index out of range" in capsys.readouterr().err
     assert main(["simulate", "--model", str(model), str(trials), "--render", str(tmp_path / "x.png")]) == 2
+
+
+@pytest.mark.parametrize("sex", ["M", "F"])
+def test_mjcf_compiles_for_any_body_size(sex):
+    """MuJoCo checks A + B >= C on each inertia; exact halves failed after rounding for some subjects."""
+    from reachirl import ArmModel
+
+    rng = np.random.default_rng(1)
+    for _ in range(25):
+        arm = ArmModel.from_anthropometrics(rng.uniform(1.5, 2.0), rng.uniform(45, 110), sex,
+                                            upper_arm_m=rng.uniform(0.22, 0.34), forearm_m=rng.uniform(0.2, 0.3),
+                                            hand_m=rng.uniform(0.15, 0.21))
+        model = arm_mujoco_model(arm, 0.005, 0.9 * arm.length)
+        assert model.nv == 2
