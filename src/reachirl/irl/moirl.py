@@ -144,8 +144,10 @@ class MOIRL:
             raise ValueError(f"acceptance must be 'merit' or 'either', got {self.acceptance!r}")
         if self.memory is not None and self.memory < 1:
             raise ValueError(f"memory must be >= 1 or None, got {self.memory}")
-        if not 0 < self.shrink < 1 or self.max_tries < 1 or self.w0 < 0:
-            raise ValueError("need 0 < shrink < 1, max_tries >= 1 and w0 >= 0")
+        if not 0 < self.shrink < 1 or self.max_tries < 1:
+            raise ValueError(f"need 0 < shrink < 1 and max_tries >= 1, got {self.shrink} and {self.max_tries}")
+        if not self.w0 > 0 or not 0 < self.alpha0 <= 1:
+            raise ValueError(f"need w0 > 0 and 0 < alpha0 <= 1 (weights stay > 0), got {self.w0} and {self.alpha0}")
 
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         if self.rollout == "mean":
@@ -245,7 +247,7 @@ class MOIRL:
             dw, info = solve_delta(w, groups, self.beta, self.use_gamma, self.l1)
             alpha, accepted, tries = self.alpha0, False, 0
             for tries in range(1, self.max_tries + 1):  # noqa: B007  (tries is reported)
-                w_try = np.maximum(w + alpha * dw, 0.0)
+                w_try = w + alpha * dw  # > 0: Δω ≥ −(1 − min_ratio) ω and α ≤ 1
                 cand = self._rollouts(tasks, w_try, sols)
                 n_solves += len(cand)
                 failed = sum(not s.converged for s in cand)
@@ -303,7 +305,7 @@ class MOIRL:
         target = ps.mean(axis=0)
         if np.sum((target - f_new.mean(axis=0)) ** 2) < np.sum((target - f_old.mean(axis=0)) ** 2):
             return True
-        w_new = np.maximum(w + alpha * dw, 0.0)
+        w_new = w + alpha * dw
         d_old = np.sum(w * (target - f_old.mean(axis=0)))
         d_new = np.sum(w_new * (target - f_new.mean(axis=0)))
         g0 = d_old * np.sum(dw * (target - f_old.mean(axis=0)))  # d/dα of ½(ωᵀ(Φ*−Φ̃))² at α = 0, Φ̃ held

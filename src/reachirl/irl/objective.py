@@ -93,8 +93,12 @@ def solve_delta(
     use_gamma: bool = True,
     l1: float = 0.0,
     max_iter: int = 500,
+    min_ratio: float = 1e-3,
 ) -> tuple[np.ndarray, dict]:
-    """``Δω* = argmin_{Δω ≥ −ω} f(Δω)`` with L-BFGS-B (scipy), from ``Δω = 0``. Returns ``Δω`` and solver info.
+    """``Δω* = argmin_{Δω > −ω} f(Δω)`` with L-BFGS-B (scipy), from ``Δω = 0``. Returns ``Δω`` and solver info.
+
+    The strict bound is ``Δω ≥ −(1 − min_ratio) ω``: a step can shrink a weight by at most ``1/min_ratio`` but
+    never to zero. (At ``ω = 0`` the DOC has no cost left, returns its initial guess, and a fit can lock there.)
 
     The search runs on the raw weights: scaling them by the features' sizes was tried and made L-BFGS-B take
     500 iterations instead of about 40, for a worse objective.
@@ -110,10 +114,10 @@ def solve_delta(
         np.zeros(w.size),
         jac=True,
         method="L-BFGS-B",
-        bounds=list(zip((-w).reshape(-1), [None] * w.size, strict=True)),
+        bounds=list(zip((-(1.0 - min_ratio) * w).reshape(-1), [None] * w.size, strict=True)),
         options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-12},
     )
-    dw = np.maximum(res.x.reshape(shape), -w)  # exact feasibility: ω + Δω ≥ 0
+    dw = np.maximum(res.x.reshape(shape), -(1.0 - min_ratio) * w)  # exact feasibility: ω + Δω > 0
     return dw, {"fun": float(res.fun), "nit": int(res.nit), "success": bool(res.success), "message": str(res.message)}
 
 

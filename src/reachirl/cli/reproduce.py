@@ -1,0 +1,286 @@
+"""``reachirl reproduce``: the seed paper's protocol (train / CV / ISCV × 1/6/8 sections) on the built-in
+virtual subjects or on PATH, with the RMSE table, figures and a report under DIR.
+
+Each (posture, sections) unit runs as one task in local processes (``--workers``) or on a Dask cluster
+(``--scheduler tcp://HOST:PORT``) and is checkpointed under DIR/units/; rerunning into the same DIR skips the
+finished units. ``--quick`` runs the same code path on fewer trials and postures (P2 and P4), smaller DOCs and
+fewer iterations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+from ..errors import InputError
+
+QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
+FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 50, "max_iter": 30}
+
+
+def _positive(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def _nonneg(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return v
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser(
+        "reproduce",
+        help="run the seed paper's protocol and write its table and figures",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--data",
+        metavar="PATH",
+        help="trials file (.npz from `reachirl preprocess`) or a folder with manifest.csv "
+        "[+ subjects.csv]; default: the built-in virtual subjects",
+    )
+    p.add_argument(
+        "--sections",
+        type=_positive,
+        nargs="+",
+        default=[1, 6, 8],
+        metavar="N",
+        help="numbers of weight sections (default: 1 6 8)",
+    )
+    p.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
+    p.add_argument(
+        "--workers",
+        type=_positive,
+        default=None,
+        metavar="N",
+        help="local worker processes (default: all cores; 1 runs in this process)",
+    )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run the units on this Dask scheduler (tcp://HOST:PORT)"
+    )
+    p.add_argument("--seed", type=_nonneg, default=0, metavar="N", help="seed of the random training trials")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations",
+    )
+    g = p.add_argument_group("protocol options")
+    g.add_argument("--postures", nargs="+", metavar="NAME", help="postures to run (default: all in the data)")
+    g.add_argument(
+        "--method",
+        nargs="+",
+        default=["moirl"],
+        metavar="NAME",
+        help="moirl (default) and/or baselines (maxent, bilevel, kkt); the first one is the main table",
+    )
+    g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
+    g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only")
+    g.add_argument(
+        "--cv",
+        choices=("rest", "other-side"),
+        default="rest",
+        help="cross-validate on the subject's other trials (rest; the seed) or on its other arm "
+        "(other-side; UE-ADL: learn right, validate on the mirrored left)",
+    )
+    g.add_argument(
+        "--n-train", type=_nonneg, metavar="N", help="training trials per posture (default 10; 0: all)"
+    )
+    g.add_argument("--n-cv", type=_nonneg, metavar="N", help="CV trials per posture (default: all; 0: all)")
+    g.add_argument(
+        "--n-iscv", type=_nonneg, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
+    )
+    g.add_argument("--nodes", type=_positive, metavar="N", help="DOC knots (default 50; --quick 40)")
+    g.add_argument("--max-iter", type=_positive, metavar="N", help="MO-IRL iterations at most (default 30)")
+    g.add_argument("--data-seed", type=_nonneg, default=0, metavar="N", help="seed of the built-in data set")
+    g.add_argument(
+        "--markers", metavar="MAP", help="shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder"
+    )
+    g.add_argument(
+        "--max-units",
+        type=_positive,
+        metavar="N",
+        help="stop after N new units (resume later into the same --out)",
+    )
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _config(args):
+    from ..experiments.protocol import ProtocolConfig
+
+    base = QUICK if args.quick else FULL
+
+    def pick(name, arg):
+        v = getattr(args, arg)
+        if v is None:
+            return base[name]
+        return None if v == 0 else v
+
+    postures = args.postures
+    return ProtocolConfig(
+        sections=tuple(args.sections),
+        postures=tuple(postures) if postures else None,
+        methods=tuple(args.method),
+        seed=args.seed,
+        train_subject=args.train_subject,
+        train_side=args.train_side,
+        n_train=pick("n_train", "n_train"),
+        cv=args.cv,
+        n_cv=pick("n_cv", "n_cv"),
+        n_iscv=pick("n_iscv", "n_iscv"),
+        n_nodes=args.nodes or base["nodes"],
+        max_iter=args.max_iter or base["max_iter"],
+    )
+
+
+def _quick_postures(config, dataset):
+    """--quick without --postures: P2 and P4 (the seed's Fig. 4) when present, else the first two."""
+    from dataclasses import replace
+
+    if config.postures is not None:
+        return config
+    have = dataset.postures
+    chosen = [p for p in ("P2", "P4") if p in have] or have[:2]
+    return replace(config, postures=tuple(chosen))
+
+
+def _print_table(console, outputs, config, postures) -> None:
+    from rich.table import Table
+
+    from ..experiments import tables as tb
+
+    for m, table in outputs["tables"].items():
+        t = Table(title=f"{m}: RMSE of the joint angles (deg), mean ± SD", show_lines=False)
+        t.add_column("posture")
+        t.add_column("joint")
+        for s in tb.SETS:
+            for n in config.sections:
+                t.add_column(f"{tb.SET_LABELS[s]} ({outputs['n_trials'][s]})\n{n} sec.", justify="center")
+        rows = tb.table_rows(table, postures, config.sections)
+        for i, row in enumerate(rows):
+            p, j = row[0], row[1]
+            t.add_row(
+                p if j == "q1" else "",
+                f"[bold]{j}[/]" if j == "q" else j,
+                *[c.replace(" ± ", "±") for c in row[2:]],
+                end_section=(j == "q" and i < len(rows) - 1),
+            )
+        console.print(t)
+
+
+def run(args) -> int:
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from ..experiments import datasets
+    from ..experiments.runner import reproduce
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder; --out needs a folder", out)
+    if args.scheduler and "://" not in args.scheduler and ":" not in args.scheduler:
+        raise InputError(f"--scheduler {args.scheduler!r}: expected an address like tcp://HOST:PORT")
+    config = _config(args)
+    workers = args.workers or (os.cpu_count() or 1)
+    err = Console(stderr=True)
+    out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
+
+    t0 = time.perf_counter()
+    if args.data is None:
+        err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
+    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers)
+    if args.quick:
+        config = _quick_postures(config, dataset)
+    data_s = time.perf_counter() - t0
+
+    progress = Progress(
+        TextColumn("[progress.description]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("units"),
+        TimeElapsedColumn(),
+        TextColumn("left"),
+        TimeRemainingColumn(),
+        console=err,
+        disable=args.no_progress or not err.is_terminal,
+        transient=False,
+    )
+    state = {"done": 0, "total": 0}
+    log_lines = not args.no_progress and not err.is_terminal  # e.g. a log file: one line per unit
+
+    def on_start(total, reused):
+        state["task"] = progress.add_task("reproduce", total=total)
+        state["total"] = total
+        if reused:
+            err.print(f"[dim]{reused} unit(s) already done in {out / 'units'}; reusing them[/]")
+
+    def on_done(key, res, reused):
+        progress.update(state["task"], advance=1, description=f"{key}{' (reused)' if reused else ''}")
+        state["done"] += 1
+        if log_lines:
+            how = (
+                "reused"
+                if reused
+                else f"fit {res['fit']['time_s']:.1f} s, evaluation {res['evaluation']['time_s']:.1f} s"
+            )
+            print(f"[{state['done']}/{state['total']}] {key} ({how})", file=sys.stderr, flush=True)
+
+    with progress:
+        result = reproduce(
+            dataset,
+            config,
+            out,
+            workers=workers,
+            scheduler=args.scheduler,
+            max_units=args.max_units,
+            data_s=data_s,
+            on_start=on_start,
+            on_done=on_done,
+        )
+    summary = result["summary"]
+    if result["stopped"]:
+        print(
+            f"stopped after {len(summary.computed)} new unit(s) (--max-units); rerun with the same --out "
+            f"to finish",
+            file=sys.stderr,
+        )
+        return 0
+    outputs = result["outputs"]
+    _print_table(out_console, outputs, config, result["postures"])
+    for n in outputs["notes"]:
+        out_console.print(f"[dim]- {n}[/]", highlight=False)
+    tm = outputs["timing"]
+    out_console.print(
+        f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (fits {tm['fit_s_sum']:.1f} s + "
+        f"evaluation {tm['evaluation_s_sum']:.1f} s over the workers), figures/report {tm['report_s']:.1f} s",
+        highlight=False,
+    )
+    out_console.print(
+        f"wrote {out / 'table.md'}, table.csv, results.json, report.md and "
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'}",
+        highlight=False,
+    )
+    return 0

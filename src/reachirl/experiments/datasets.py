@@ -1,0 +1,241 @@
+"""Where ``reproduce`` gets its trials: the built-in virtual subjects, a trials file, or a folder
+with a manifest.
+
+:func:`load` is the one entry point. It returns a :class:`Dataset`: the trials, where they came from, and the
+true weights when the data are virtual subjects (``truth.json`` beside the manifest).
+
+* ``None``: the built-in data set (:func:`reachirl.data.synth.builtin_dataset_dir`, generated on first use and
+  cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would.
+* a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
+  ``truth.json`` beside it (virtual subjects) is read as the ground truth;
+* a folder holding ``manifest.csv`` (``file,subject,posture[,side,static]``) and optionally ``subjects.csv``
+  (``subject,sex,height_m,mass_kg[,...]``) and ``truth.json``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..data.trial import Trial, load_trials
+from ..errors import InputError
+
+__all__ = ["Dataset", "fingerprint", "load", "preprocess_folder", "toy"]
+
+log = logging.getLogger(__name__)
+
+_MANIFEST_NAMES = ("manifest.csv",)
+_SUBJECT_NAMES = ("subjects.csv", "subject_info.csv", "subject-info.csv")
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Trials plus provenance. ``truth`` is ``truth.json`` of virtual subjects (``None`` for real data)."""
+
+    trials: tuple[Trial, ...]
+    source: str
+    kind: str  # "builtin" | "trials-file" | "folder" | "memory"
+    truth: dict | None = field(default=None, repr=False)
+
+    @property
+    def subjects(self) -> list[str]:
+        return sorted({t.subject for t in self.trials})
+
+    @property
+    def postures(self) -> list[str]:
+        return sorted({t.posture for t in self.trials})
+
+    def describe(self) -> dict:
+        counts: dict[str, dict[str, int]] = {}
+        for t in self.trials:
+            counts.setdefault(t.subject, {}).setdefault(t.posture, 0)
+            counts[t.subject][t.posture] += 1
+        return {
+            "source": self.source,
+            "kind": self.kind,
+            "n_trials": len(self.trials),
+            "subjects": self.subjects,
+            "postures": self.postures,
+            "trials_per_subject_posture": counts,
+            "has_truth": self.truth is not None,
+            "fingerprint": fingerprint(self.trials),
+        }
+
+
+def fingerprint(trials: Sequence[Trial]) -> str:
+    """A short hash of the trials' identities, arms and arrays (what a unit's result depends on)."""
+    h = hashlib.sha256()
+    for t in trials:
+        h.update(json.dumps([t.id, t.target_x, t.arm.to_dict()], sort_keys=True).encode())
+        for a in (t.t, t.q, t.qd, t.qdd, t.tau, t.x0):
+            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _find(folder: Path, names: Sequence[str]) -> Path | None:
+    for n in names:
+        if (folder / n).is_file():
+            return folder / n
+    return None
+
+
+def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list[Trial]:
+    """Every file of ``folder/manifest.csv`` to a :class:`Trial`, as ``reachirl preprocess --manifest`` does.
+
+    ``marker_map`` is ``shoulder=A,elbow=B,wrist=C,fingertip=D``; without it the marker names come from
+    ``truth.json`` (virtual subjects) or the built-in marker sets are tried (``ue-adl``, then ``default``).
+    """
+    from ..data.markersets import load_markerset, parse_marker_map, resolve_name
+    from ..data.preprocess import DEFAULT_SUBJECT, angles_to_trial, markers_to_trial
+    from ..data.readers import MarkerData, read_file, read_manifest, read_subject_info
+
+    folder = Path(folder)
+    manifest = _find(folder, _MANIFEST_NAMES)
+    if manifest is None:
+        raise InputError("folder has no manifest.csv (columns file,subject,posture[,side])", folder)
+    entries = read_manifest(manifest)
+    info_path = _find(folder, _SUBJECT_NAMES)
+    infos = read_subject_info(info_path) if info_path else None
+    if marker_map is None and (folder / "truth.json").is_file():
+        m = json.loads((folder / "truth.json").read_text(encoding="utf-8")).get("markers")
+        if isinstance(m, dict):
+            marker_map = ",".join(f"{k}={v}" for k, v in m.items())
+    fixed = parse_marker_map(marker_map) if marker_map else None
+    statics: dict[Path, MarkerData] = {}
+    trials = []
+    for e in entries:
+        if infos is not None and e.subject not in infos:
+            raise InputError(f"subject {e.subject!r} is not in {info_path.name}", manifest)
+        info = infos[e.subject] if infos is not None else DEFAULT_SUBJECT
+        side = e.side or "right"
+        data = read_file(e.file)
+        if isinstance(data, MarkerData):
+            mset = fixed
+            if mset is None:
+                ue = load_markerset("ue-adl")
+                pre = "L" if side == "left" else "R"
+                mset = ue if resolve_name(f"{pre}FTP", data.names) else load_markerset("default")
+            static = None
+            if mset.needs_static:
+                sp = e.static or (folder / mset.static.format(subject=e.subject) if mset.static else None)
+                if sp is None or not Path(sp).is_file():
+                    raise InputError(
+                        f"marker set {mset.name!r} needs a static trial (manifest column 'static')", e.file
+                    )
+                if sp not in statics:
+                    statics[sp] = read_file(sp)
+                static = statics[sp]
+            tr = markers_to_trial(
+                data,
+                mset,
+                subject=e.subject,
+                posture=e.posture,
+                trial_id=e.file.stem,
+                side=side,
+                static=static,
+                subject_info=info,
+            )
+        else:
+            tr = angles_to_trial(
+                data, subject=e.subject, posture=e.posture, trial_id=e.file.stem, side=side, subject_info=info
+            )
+        trials.append(tr)
+    return trials
+
+
+def _read_truth(folder: Path) -> dict | None:
+    p = folder / "truth.json"
+    if not p.is_file():
+        return None
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        log.warning("%s: unreadable (%s); no ground truth", p, e)
+        return None
+
+
+def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None) -> Dataset:
+    """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`."""
+    if path is None:
+        from ..data.synth import builtin_dataset_dir
+
+        folder = builtin_dataset_dir(seed)
+        trials = preprocess_folder(folder, marker_map)
+        return Dataset(
+            tuple(trials),
+            f"built-in virtual subjects (seed {seed}): {folder}",
+            "builtin",
+            _read_truth(folder),
+        )
+    p = Path(path)
+    if not p.exists():
+        raise InputError("no such file or folder (expected a trials .npz or a folder with manifest.csv)", p)
+    if p.is_dir():
+        trials = preprocess_folder(p, marker_map)
+        kind, truth = "folder", _read_truth(p)
+    else:
+        trials = load_trials(p)
+        kind, truth = "trials-file", _read_truth(p.parent)
+    if not trials:
+        raise InputError("holds no trials", p)
+    return Dataset(tuple(trials), str(p), kind, truth)
+
+
+def toy(
+    n_subjects: int = 2,
+    postures: Sequence[str] = ("P2", "P4"),
+    n_trials: int = 4,
+    n_nodes: int = 40,
+    seed: int = 0,
+) -> Dataset:
+    """A small in-memory virtual data set for tests and examples: DOC reaches (no markers, no preprocessing)
+    from Berret's postures under the synth module's nominal weights, jittered per trial, with their truth.
+
+    Subjects differ in anthropometrics; each trial jitters the start (2° SD), the duration (0.7 ± 0.04 s) and
+    every weight (× exp(N(0, 0.2))). The bar is at 95 % of arm length.
+    """
+    from ..arm import ArmModel
+    from ..data.synth import nominal_weights, posture_q
+    from ..data.trial import trial_from_solution
+    from ..doc import ReachingTask, solve_doc
+
+    rng = np.random.default_rng(seed)
+    w_nom = nominal_weights()
+    bodies = [(1.76, 70.0, "M"), (1.70, 63.0, "F"), (1.82, 80.0, "M"), (1.65, 58.0, "F")]
+    trials, truth_subjects = [], {}
+    for k in range(n_subjects):
+        h, m, sex = bodies[k % len(bodies)]
+        arm = ArmModel.from_anthropometrics(h + 0.01 * (k // len(bodies)), m, sex)
+        sid = f"S{k + 1:02d}"
+        truth_subjects[sid] = {"trials": {}}
+        for p in postures:
+            for i in range(n_trials):
+                for _attempt in range(10):
+                    q0 = posture_q(p) + np.deg2rad(rng.normal(0.0, 2.0, 2))
+                    w = w_nom * np.exp(rng.normal(0.0, 0.2, w_nom.shape))
+                    task = ReachingTask(
+                        arm, q0, 0.95 * arm.length, 0.7 + rng.normal(0.0, 0.04), n_nodes=n_nodes
+                    )
+                    sol = solve_doc(task, w)
+                    if sol.converged:
+                        break
+                else:  # pragma: no cover
+                    raise RuntimeError(f"toy data: the DOC failed 10 times for {sid} {p}")
+                tid = f"{sid}_{p}_T{i + 1:02d}"
+                trials.append(trial_from_solution(sol, arm, task.target_x, sid, p, tid))
+                truth_subjects[sid]["trials"].setdefault(p, []).append(
+                    {"trial_id": f"T{i + 1:02d}", "file": f"{tid}.trc", "weights": w.tolist()}
+                )
+    truth = {
+        "generator": "reachirl.experiments.datasets.toy",
+        "n_windows": int(w_nom.shape[0]),
+        "truth": {"nominal_weights": w_nom.tolist()},
+        "subjects": truth_subjects,
+    }
+    return Dataset(tuple(trials), f"toy virtual subjects (seed {seed}, in memory)", "memory", truth)

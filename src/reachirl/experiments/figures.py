@@ -1,0 +1,265 @@
+"""The figures of ``reproduce`` (matplotlib, Agg). Each function takes ``ax``/``axes=None`` and returns
+the figure.
+
+* :func:`plot_prediction` — seed Fig. 2: demonstrations vs predictions, q and q̇ (one posture, one section
+  count);
+* :func:`plot_weights` — seed Fig. 3: the learned weights per posture and section count, normalised as each
+  feature's share of its window's cost at the training demonstrations (``ω_sj Φ*_sj / Σ_j ω_sj Φ*_sj``), so
+  features in different units are comparable;
+* :func:`plot_iscv` — seed Fig. 4: inter-subject predictions for some postures, time normalised;
+* :func:`plot_convergence` — the merit of every fit per iteration;
+* :func:`plot_truth` — virtual subjects: learned vs true cost shares;
+* :func:`plot_methods` — MO-IRL vs the baselines that were run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import matplotlib
+import matplotlib.ticker
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ..features import FEATURES
+from .protocol import SET_LABELS, SETS
+
+__all__ = [
+    "plot_convergence",
+    "plot_iscv",
+    "plot_methods",
+    "plot_prediction",
+    "plot_truth",
+    "plot_weights",
+    "save",
+]
+
+SHORT = {
+    "cartesian_velocity": "hand vel.",
+    "energy": "energy",
+    "geodesic": "geodesic",
+    "joint_acceleration": "joint acc.",
+    "torque_change": "torque chg.",
+    "joint_velocity": "joint vel.",
+    "joint_torque": "torque",
+}
+JOINT_COLOURS = ("tab:blue", "tab:green")
+
+
+def save(fig, path) -> None:
+    """Write ``fig`` as PNG atomically and close it."""
+    from ..io import atomic_path
+
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png", metadata={"Software": None})
+    plt.close(fig)
+
+
+def _grid(axes, nrows, ncols, figsize):
+    if axes is None:
+        fig, axes = plt.subplots(nrows, ncols, figsize=figsize, squeeze=False)
+    else:
+        axes = np.asarray(axes, dtype=object).reshape(nrows, ncols)
+        fig = axes[0, 0].figure
+    return fig, axes
+
+
+def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes=None):
+    """Demonstrations (dashed) and DOC predictions (solid) of one set: q1, q2 (top), q̇1, q̇2 (bottom)."""
+    fig, axes = _grid(axes, 2, 2, (10, 6))
+    t = arrays[f"{set_name}/t"]
+    for j in range(2):
+        for row, (kind, unit) in enumerate((("q", "deg"), ("qd", "deg/s"))):
+            ax = axes[row, j]
+            demo = np.rad2deg(arrays[f"{set_name}/demo_{kind}"][..., j])
+            pred = np.rad2deg(arrays[f"{set_name}/pred_{kind}"][..., j])
+            for i in range(t.shape[0]):
+                ax.plot(
+                    t[i],
+                    demo[i],
+                    "--",
+                    color="goldenrod",
+                    lw=1.0,
+                    alpha=0.8,
+                    label="demonstration" if i == 0 else None,
+                )
+                ax.plot(
+                    t[i],
+                    pred[i],
+                    "-",
+                    color=JOINT_COLOURS[j],
+                    lw=1.2,
+                    alpha=0.9,
+                    label="prediction" if i == 0 else None,
+                )
+            sym = "q" if kind == "q" else "q̇"
+            ax.set_ylabel(f"{sym}{j + 1} ({unit})")
+            ax.grid(alpha=0.3)
+            if row == 1:
+                ax.set_xlabel("time (s)")
+    axes[0, 0].legend(loc="best", fontsize=8)
+    fig.suptitle(title or f"{SET_LABELS.get(set_name, set_name)}: demonstrations vs predictions")
+    fig.tight_layout()
+    return fig
+
+
+def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = ""):
+    """``shares[(posture, sections)] = (n_windows, 7)`` cost shares; one heatmap per posture (columns) and
+    section count (rows): features on the y axis, windows on the x axis."""
+    fig, axes = _grid(
+        axes, len(sections), len(postures), (2.3 * len(postures) + 1.5, 2.4 * len(sections) + 0.6)
+    )
+    im = None
+    for r, n in enumerate(sections):
+        for c, p in enumerate(postures):
+            ax = axes[r, c]
+            s = shares.get((p, n))
+            if s is None:
+                ax.set_axis_off()
+                continue
+            s = np.asarray(s)
+            im = ax.imshow(
+                s.T,
+                aspect="auto",
+                cmap="viridis",
+                vmin=0,
+                vmax=1,
+                interpolation="nearest",
+                extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
+            )
+            ax.set_xticks(range(1, s.shape[0] + 1))
+            ax.tick_params(labelsize=7)
+            ax.set_yticks(range(len(FEATURES)))
+            ax.set_yticklabels([SHORT[f] for f in FEATURES] if c == 0 else [], fontsize=7)
+            if r == 0:
+                ax.set_title(p, fontsize=9)
+            if c == 0:
+                ax.set_ylabel(f"{n} section{'s' if n > 1 else ''}", fontsize=8)
+            if r == len(sections) - 1:
+                ax.set_xlabel("window", fontsize=8)
+    if im is not None:
+        fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
+    fig.suptitle(title or "Learned weights (each feature's share of its window's cost)")
+    return fig
+
+
+def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
+    """ISCV trials of each posture (columns): q (top) and q̇ (bottom), measured dashed, predicted solid,
+    q1 blue,
+    q2 green, over normalised time."""
+    postures = list(arrays_by_posture)
+    fig, axes = _grid(axes, 2, max(1, len(postures)), (5 * max(1, len(postures)), 6))
+    for c, p in enumerate(postures):
+        a = arrays_by_posture[p]
+        if "iscv/t" not in a:
+            axes[0, c].set_axis_off()
+            axes[1, c].set_axis_off()
+            continue
+        n_pts = a["iscv/t"].shape[1]
+        s = np.linspace(0, 1, n_pts)
+        for row, kind in enumerate(("q", "qd")):
+            ax = axes[row, c]
+            for j in range(2):
+                demo = np.rad2deg(a[f"iscv/demo_{kind}"][..., j])
+                pred = np.rad2deg(a[f"iscv/pred_{kind}"][..., j])
+                for i in range(demo.shape[0]):
+                    ax.plot(s, demo[i], "--", color=JOINT_COLOURS[j], lw=0.8, alpha=0.5)
+                    ax.plot(s, pred[i], "-", color=JOINT_COLOURS[j], lw=1.0, alpha=0.8)
+            ax.plot([], [], "k--", label="measured")
+            ax.plot([], [], "k-", label="predicted")
+            ax.set_ylabel("q (deg)" if kind == "q" else "q̇ (deg/s)")
+            ax.grid(alpha=0.3)
+            if row == 0:
+                ax.set_title(f"{p}: ISCV ({a['iscv/t'].shape[0]} trials); q1 blue, q2 green", fontsize=9)
+            else:
+                ax.set_xlabel("normalised time")
+        axes[0, c].legend(loc="best", fontsize=8)
+    fig.suptitle(title or "Inter-subject cross-validation")
+    fig.tight_layout()
+    return fig
+
+
+def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title: str = ""):
+    """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration."""
+    fig, axes = _grid(axes, 1, len(sections), (4.2 * len(sections), 3.4))
+    postures = sorted({p for p, _ in histories})
+    colours = plt.get_cmap("tab10")
+    for c, n in enumerate(sections):
+        ax = axes[0, c]
+        for k, p in enumerate(postures):
+            h = histories.get((p, n)) or []
+            ok = [r for r in h if r.get("merit") is not None and r.get("accepted", True)]
+            it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
+            if it:
+                ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
+        ax.set_title(f"{n} section{'s' if n > 1 else ''}", fontsize=9)
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+        ax.set_xlabel("iteration")
+        ax.grid(alpha=0.3, which="both")
+        if c == 0:
+            ax.set_ylabel("merit m(x) (rad², rad²/s²)")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(title or "MO-IRL convergence (accepted steps)")
+    fig.tight_layout()
+    return fig
+
+
+def plot_truth(learned: dict, true: dict, axes=None, title: str = ""):
+    """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
+    (bottom)."""
+    postures = [p for p in learned if p in true]
+    fig, axes = _grid(axes, 2, max(1, len(postures)), (2.5 * max(1, len(postures)) + 1.5, 5.2))
+    im = None
+    for c, p in enumerate(postures):
+        for r, (label, d) in enumerate((("learned", learned), ("true", true))):
+            ax = axes[r, c]
+            s = np.asarray(d[p])
+            im = ax.imshow(
+                s.T,
+                aspect="auto",
+                cmap="viridis",
+                vmin=0,
+                vmax=1,
+                interpolation="nearest",
+                extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
+            )
+            ax.set_xticks(range(1, s.shape[0] + 1))
+            ax.tick_params(labelsize=7)
+            ax.set_yticks(range(len(FEATURES)))
+            ax.set_yticklabels([SHORT[f] for f in FEATURES] if c == 0 else [], fontsize=7)
+            if r == 0:
+                ax.set_title(p, fontsize=9)
+            if c == 0:
+                ax.set_ylabel(label, fontsize=9)
+            if r == 1:
+                ax.set_xlabel("window", fontsize=8)
+    if im is not None:
+        fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
+    fig.suptitle(title or "Virtual subjects: learned vs true weights (cost shares)")
+    return fig
+
+
+def plot_methods(headlines: dict, sections: Sequence[int], ax=None, title: str = ""):
+    """``headlines[method][set][sections] = {"mean", "std"}`` (ALL postures, q): grouped bars."""
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(8, 3.6))
+    else:
+        fig = ax.figure
+    methods = list(headlines)
+    labels = [f"{SET_LABELS[s]} {n}" for s in SETS for n in sections]
+    x = np.arange(len(labels))
+    width = 0.8 / max(1, len(methods))
+    for k, m in enumerate(methods):
+        means = [((headlines[m][s].get(n) or {}).get("mean") or np.nan) for s in SETS for n in sections]
+        sds = [((headlines[m][s].get(n) or {}).get("std") or 0.0) for s in SETS for n in sections]
+        ax.bar(x + (k - (len(methods) - 1) / 2) * width, means, width, yerr=sds, capsize=2, label=m)
+    ax.set_xticks(x)
+    ax.set_xticklabels(labels, rotation=45, ha="right", fontsize=8)
+    ax.set_ylabel("RMSE of q (deg), ALL postures")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_title(title or "Methods compared")
+    fig.tight_layout()
+    return fig

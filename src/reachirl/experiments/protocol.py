@@ -1,0 +1,338 @@
+"""The seed paper's protocol (§II-D): per posture, learn from one subject, cross-validate, then ISCV.
+
+For each initial posture and each number of weight sections:
+
+* **training**: ``n_train`` trials of the training subject chosen at random (seeded; the same trials for every
+  section count), learned by MO-IRL and predicted back;
+* **CV**: the training subject's other trials of that posture (``cv="rest"``), or, for data with both arms
+  (UE-ADL), its reaches with the other arm, already mirrored into the right-arm convention
+  (``cv="other-side"``);
+* **ISCV**: every trial of that posture of the other subjects (the seed: subject 2's 20 trials).
+
+Every prediction is the DOC from the trial's own arm, initial state, target and duration
+(:func:`reachirl.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
+:func:`run_unit` is a pure function of the unit and its trials, so it gives the same numbers in any process.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import time
+import zlib
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..data.trial import Trial
+from ..errors import InputError
+from .datasets import fingerprint
+
+__all__ = [
+    "SETS",
+    "ProtocolConfig",
+    "Split",
+    "Unit",
+    "make_estimator",
+    "make_units",
+    "run_unit",
+    "split_trials",
+]
+
+SETS = ("train", "cv", "iscv")
+SET_LABELS = {"train": "Training", "cv": "CV", "iscv": "ISCV"}
+METHODS = ("moirl", "maxent", "bilevel", "kkt")
+RESULT_VERSION = 1  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
+
+
+@dataclass(frozen=True)
+class ProtocolConfig:
+    """Every choice of the protocol. ``None`` means "decide from the data" (see :func:`split_trials`)."""
+
+    sections: tuple[int, ...] = (1, 6, 8)
+    postures: tuple[str, ...] | None = None  # None: every posture of the data
+    methods: tuple[str, ...] = ("moirl",)
+    seed: int = 0
+    train_subject: str | None = None  # None: the first subject (sorted ids)
+    train_side: str | None = None  # None: either arm
+    n_train: int | None = 10  # None: every trial of the training subject (and side)
+    cv: str = "rest"  # "rest" | "other-side"
+    n_cv: int | None = None  # None: all of them
+    n_iscv: int | None = None  # None: all of them (per posture)
+    n_nodes: int = 100
+    max_iter: int = 30
+    tol: float = 1e-5
+    backend: str = "casadi"
+    estimator_options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        secs = tuple(int(s) for s in self.sections)
+        if not secs or any(s < 1 for s in secs):
+            raise InputError(f"--sections must be positive integers, got {list(self.sections)}")
+        if any(s > self.n_nodes for s in secs):
+            raise InputError(f"--sections {max(secs)} exceeds the {self.n_nodes} DOC intervals")
+        object.__setattr__(self, "sections", tuple(dict.fromkeys(secs)))
+        if self.cv not in ("rest", "other-side"):
+            raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
+        for m in self.methods:
+            if m not in METHODS:
+                raise InputError(f"unknown method {m!r}; expected one of {', '.join(METHODS)}")
+        if self.train_side not in (None, "right", "left"):
+            raise InputError(f"train side must be right or left, got {self.train_side!r}")
+        for name in ("n_train", "n_cv", "n_iscv"):
+            v = getattr(self, name)
+            if v is not None and int(v) < 1:
+                raise InputError(f"{name} must be >= 1, got {v}")
+        if self.postures is not None:
+            object.__setattr__(self, "postures", tuple(self.postures))
+        object.__setattr__(self, "methods", tuple(dict.fromkeys(self.methods)))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Split:
+    posture: str
+    train: tuple[Trial, ...]
+    cv: tuple[Trial, ...]
+    iscv: tuple[Trial, ...]
+
+    def sets(self) -> dict[str, tuple[Trial, ...]]:
+        return {"train": self.train, "cv": self.cv, "iscv": self.iscv}
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One task: learn ``method`` with ``sections`` windows on ``split``'s training trials and evaluate."""
+
+    method: str
+    posture: str
+    sections: int
+    seed: int
+    n_nodes: int
+    max_iter: int
+    tol: float
+    backend: str
+    estimator_options: tuple = ()  # sorted (key, value) pairs, hashable
+
+    @property
+    def key(self) -> str:
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in self.posture)
+        return f"{self.method}-{safe}-s{self.sections}"
+
+    def fingerprint(self, split: Split) -> str:
+        """What the unit's result depends on: its parameters and its trials."""
+        payload = json.dumps(
+            {
+                "v": RESULT_VERSION,
+                "code": code_fingerprint(self.method, self.backend),
+                "unit": asdict(self),
+                "data": {k: fingerprint(v) for k, v in split.sets().items()},
+                "ids": {k: [t.id for t in v] for k, v in split.sets().items()},
+            },
+            sort_keys=True,
+            default=str,
+        )
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+# The modules a unit's numbers depend on, so that a checkpoint made by other code is not reused.
+_CODE_COMMON = (
+    "arm.py",
+    "features.py",
+    "evaluation.py",
+    "data/trial.py",
+    "doc/__init__.py",
+    "doc/task.py",
+    "irl/objective.py",
+    "irl/moirl.py",
+    "experiments/protocol.py",
+)
+
+
+@functools.lru_cache(maxsize=16)
+def code_fingerprint(method: str = "moirl", backend: str = "casadi") -> str:
+    """A hash of the source of the modules a unit's result depends on: the arm, features, evaluation, the DOC
+    backend, MO-IRL, and for a baseline ``irl/baselines/`` and ``irl/methods.py``."""
+    root = Path(__file__).resolve().parent.parent
+    names = [*_CODE_COMMON, f"doc/{backend}.py"]
+    if method != "moirl":
+        names += [
+            "irl/methods.py",
+            *sorted(p.relative_to(root).as_posix() for p in (root / "irl" / "baselines").glob("*.py")),
+        ]
+    h = hashlib.sha256()
+    for name in names:
+        f = root / name
+        if f.is_file():
+            h.update(name.encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _rng(seed: int, posture: str) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(posture.encode())]))
+
+
+def _pick(trials: list[Trial], n: int | None, rng: np.random.Generator) -> tuple[list[Trial], list[Trial]]:
+    """``n`` trials at random (kept in file order) and the rest."""
+    if n is None or n >= len(trials):
+        return list(trials), []
+    idx = np.sort(rng.choice(len(trials), size=int(n), replace=False))
+    chosen = set(idx.tolist())
+    return [trials[i] for i in idx], [t for i, t in enumerate(trials) if i not in chosen]
+
+
+def resolve_postures(trials: Sequence[Trial], config: ProtocolConfig) -> list[str]:
+    available = sorted({t.posture for t in trials})
+    if config.postures is None:
+        return available
+    unknown = [p for p in config.postures if p not in available]
+    if unknown:
+        raise InputError(f"unknown posture(s) {', '.join(unknown)}; the data have {', '.join(available)}")
+    return list(config.postures)
+
+
+def resolve_train_subject(trials: Sequence[Trial], config: ProtocolConfig) -> str:
+    subjects = sorted({t.subject for t in trials})
+    if config.train_subject is None:
+        return subjects[0]
+    if config.train_subject not in subjects:
+        raise InputError(
+            f"unknown training subject {config.train_subject!r}; the data have {', '.join(subjects)}"
+        )
+    return config.train_subject
+
+
+def split_trials(trials: Sequence[Trial], posture: str, config: ProtocolConfig) -> Split:
+    """The training / CV / ISCV trials of one posture (the same for every section count and method)."""
+    subject = resolve_train_subject(trials, config)
+    rng = _rng(config.seed, posture)
+    mine = [t for t in trials if t.posture == posture and t.subject == subject]
+    others = [t for t in trials if t.posture == posture and t.subject != subject]
+    if config.cv == "other-side":
+        side = config.train_side or "right"
+        pool = [t for t in mine if t.side == side]
+        train, _ = _pick(pool, config.n_train, rng)
+        cv = [t for t in mine if t.side != side]
+    else:
+        pool = [t for t in mine if config.train_side is None or t.side == config.train_side]
+        train, cv = _pick(pool, config.n_train, rng)
+    if not train:
+        raise InputError(
+            f"posture {posture}: no training trials of subject {subject!r}"
+            + (f" ({config.train_side or 'right'} arm)" if config.cv == "other-side" else "")
+        )
+    cv, _ = _pick(cv, config.n_cv, rng)
+    iscv, _ = _pick(others, config.n_iscv, rng)
+    return Split(posture, tuple(train), tuple(cv), tuple(iscv))
+
+
+def make_units(postures: Sequence[str], config: ProtocolConfig) -> list[Unit]:
+    """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing."""
+    opts = tuple(sorted((str(k), v) for k, v in config.estimator_options.items()))
+    return [
+        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts)
+        for s in sorted(config.sections, reverse=True)
+        for m in config.methods
+        for p in postures
+    ]
+
+
+def make_estimator(unit: Unit):
+    """The estimator of ``unit.method`` from :func:`reachirl.irl.methods.make_estimator`: MO-IRL or a baseline
+    with the same API (``fit(trials)`` → ``weights_``; optionally ``history_``, ``n_doc_solves_``,
+    ``n_doc_failures_``). Only the hyperparameters its constructor takes are passed."""
+    import inspect
+
+    from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.methods import make_estimator as factory
+
+    if unit.method not in AVAILABLE:
+        raise InputError(f"method {unit.method!r} is not available; choose one of {', '.join(AVAILABLE)}")
+    wanted = {
+        "n_nodes": unit.n_nodes,
+        "max_iter": unit.max_iter,
+        "tol": unit.tol,
+        "backend": unit.backend,
+        "random_state": unit.seed,
+        **dict(unit.estimator_options),
+    }
+    params = inspect.signature(AVAILABLE[unit.method].__init__).parameters
+    if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        wanted = {k: v for k, v in wanted.items() if k in params}
+    return factory(unit.method, unit.sections, **wanted)
+
+
+def _history(est) -> list[dict]:
+    keep = ("iteration", "merit", "alpha", "tries", "accepted", "doc_solves", "doc_failures", "wall_time")
+    out = []
+    for rec in getattr(est, "history_", []) or []:
+        out.append({k: rec[k] for k in keep if k in rec})
+    return out
+
+
+def _cost_shares(weights: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Each feature's share of each window's cost, ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` (rows sum to 1;
+    0 if empty)."""
+    c = weights * phi
+    tot = c.sum(axis=1, keepdims=True)
+    return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
+
+
+def run_unit(unit: Unit, split: Split) -> dict:
+    """Fit on ``split.train`` and predict every trial of every set. Pure: same inputs, same result.
+
+    Returns a JSON-able ``"result"`` dict (weights, history, per-trial RMSEs, counts, times) and ``"arrays"``
+    (predictions and the demonstrations on the DOC's knots, float32, for the figures).
+    """
+    import os
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from ..evaluation import evaluate_trials, summarise
+
+    est = make_estimator(unit)
+    t0 = time.perf_counter()
+    est.fit(list(split.train))
+    fit_time = time.perf_counter() - t0
+    w = np.asarray(est.weights_, dtype=float)
+    phi = np.mean([t.features(unit.n_nodes, unit.sections) for t in split.train], axis=0)
+    sets, arrays = {}, {}
+    eval_time, eval_fail, eval_solves = 0.0, 0, 0
+    for name, trials in split.sets().items():
+        t1 = time.perf_counter()
+        errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend)
+        eval_time += time.perf_counter() - t1
+        eval_solves += len(errs)
+        eval_fail += sum(not e.converged for e in errs)
+        sets[name] = {"trials": [e.to_dict() for e in errs], "summary": summarise(errs) if errs else None}
+        if errs:
+            demos = [t.resample(unit.n_nodes + 1) for t in trials]
+            arrays[f"{name}/t"] = np.stack([e.prediction.t for e in errs]).astype(np.float32)
+            arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)
+            arrays[f"{name}/pred_qd"] = np.stack([e.prediction.qd for e in errs]).astype(np.float32)
+            arrays[f"{name}/demo_q"] = np.stack([d.q for d in demos]).astype(np.float32)
+            arrays[f"{name}/demo_qd"] = np.stack([d.qd for d in demos]).astype(np.float32)
+    result = {
+        "key": unit.key,
+        "unit": asdict(unit),
+        "fingerprint": unit.fingerprint(split),
+        "weights": w.tolist(),
+        "demo_features": phi.tolist(),
+        "cost_shares": _cost_shares(w, phi).tolist(),
+        "history": _history(est),
+        "n_iter": int(getattr(est, "n_iter_", len(_history(est)) - 1)),
+        "stop_reason": str(getattr(est, "stop_reason_", "")),
+        "fit": {
+            "time_s": fit_time,
+            "doc_solves": int(getattr(est, "n_doc_solves_", 0)),
+            "doc_failures": int(getattr(est, "n_doc_failures_", 0)),
+        },
+        "evaluation": {"time_s": eval_time, "doc_solves": eval_solves, "doc_failures": eval_fail},
+        "sets": sets,
+    }
+    return {"result": result, "arrays": arrays}

@@ -1,0 +1,466 @@
+"""Everything ``reproduce`` writes once the units are done: tables, figures, ``results.json`` and
+``report.md``.
+
+:func:`write_outputs` is the one entry point; it reads the units' predictions back from their NPZ checkpoints,
+so a resumed run draws the same figures as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..features import FEATURES
+from ..io import atomic_write_json, atomic_write_text
+from . import figures as fg
+from . import tables as tb
+from .datasets import Dataset
+from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
+from .runner import load_unit_arrays
+
+__all__ = ["RESULTS_FORMAT", "true_weights", "write_outputs"]
+
+RESULTS_FORMAT = "reachirl-reproduce/1"
+
+
+def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
+    """Mean true weights ``(n_windows, 7)`` of the given trials (``truth.json`` of virtual subjects), matched
+    on the trial file's stem; the nominal weights when none match; ``None`` without truth."""
+    if not truth:
+        return None
+    by_stem = {}
+    for subj in (truth.get("subjects") or {}).values():
+        for recs in (subj.get("trials") or {}).values():
+            for r in recs:
+                by_stem[Path(str(r.get("file", ""))).stem] = r.get("weights")
+    ws = [by_stem[i] for i in trial_ids if by_stem.get(i) is not None]
+    if ws:
+        return np.mean(np.asarray(ws, dtype=float), axis=0)
+    nominal = (truth.get("truth") or {}).get("nominal_weights")
+    return None if nominal is None else np.asarray(nominal, dtype=float)
+
+
+def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
+    """Learned vs true cost shares for the units whose section count equals the truth's windows."""
+    learned, true, metrics = {}, {}, {}
+    if dataset.truth is None:
+        return learned, true, metrics
+    n_true = int(dataset.truth.get("n_windows", 0) or 0)
+    ids = {t.id: t.trial_id for t in dataset.trials}
+    for r in results.values():
+        u = r["unit"]
+        if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
+            continue
+        train_ids = [ids.get(t["id"], t["id"]) for t in r["sets"]["train"]["trials"]]
+        w_true = true_weights(dataset.truth, train_ids)
+        if w_true is None or w_true.shape != (n_true, len(FEATURES)):
+            continue
+        phi = np.asarray(r["demo_features"])
+        s_true = _cost_shares(w_true, phi)
+        s_learned = np.asarray(r["cost_shares"])
+        p = u["posture"]
+        learned[p], true[p] = s_learned, s_true
+        tv = 0.5 * np.abs(s_learned - s_true).sum(axis=1)  # total variation per window, in [0, 1]
+        a, b = s_learned.ravel() - s_learned.mean(), s_true.ravel() - s_true.mean()
+        corr = float(a @ b / np.sqrt((a @ a) * (b @ b))) if (a @ a) > 0 and (b @ b) > 0 else None
+        dom_l, dom_t = s_learned.argmax(axis=1), s_true.argmax(axis=1)
+        metrics[p] = {
+            "sections": n_true,
+            "mean_total_variation": float(tv.mean()),
+            "share_correlation": corr,
+            "dominant_feature_agreement": float(np.mean(dom_l == dom_t)),
+            "learned_dominant": [FEATURES[i] for i in dom_l],
+            "true_dominant": [FEATURES[i] for i in dom_t],
+        }
+    return learned, true, metrics
+
+
+def _count(items) -> dict:
+    out: dict = {}
+    for i in items:
+        out[i] = out.get(i, 0) + 1
+    return out
+
+
+def _pick(options: Sequence, preferred) -> object | None:
+    for p in preferred:
+        if p in options:
+            return p
+    return options[0] if options else None
+
+
+def _fmt(c: dict | None) -> str:
+    return "—" if not c or c.get("mean") is None else f"{c['mean']:.2f} ± {c['std']:.2f}"
+
+
+def write_outputs(
+    out_dir: str | Path,
+    dataset: Dataset,
+    config: ProtocolConfig,
+    postures: Sequence[str],
+    train_subject: str,
+    split_sizes: dict,
+    results: dict[str, dict],
+    timing: dict,
+    run_info: dict,
+) -> dict:
+    """Write ``table.csv``, ``table.md``, ``figures/*.png``, ``results.json`` and ``report.md``.
+
+    Returns ``{"tables": {method: table}, "paths": {...}, "timing": {...}, "notes": [...]}``.
+    """
+    t0 = time.perf_counter()
+    out = Path(out_dir)
+    sections = list(config.sections)
+    methods = list(config.methods)
+    main = methods[0]
+    tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
+    n_trials = {s: ("/".join(sorted({str(v) for v in split_sizes[s].values()})) or "0") for s in SETS}
+
+    # ---- notes: DOC failures, conventions
+    fit_solves = sum(r["fit"]["doc_solves"] for r in results.values())
+    fit_fail = sum(r["fit"]["doc_failures"] for r in results.values())
+    ev_solves = sum(r["evaluation"]["doc_solves"] for r in results.values())
+    ev_fail = sum(r["evaluation"]["doc_failures"] for r in results.values())
+    notes = [
+        f"DOC failures: {fit_fail} of {fit_solves} solves during the fits "
+        "(a failed line-search try is rejected); "
+        f"{ev_fail} of {ev_solves} predictions did not converge (their RMSE is counted as is, not dropped).",
+        tb.ALL_CONVENTION,
+        "Fits ended by: "
+        + ", ".join(
+            f"{k} {v}"
+            for k, v in sorted(
+                _count(r["stop_reason"] or "one-shot (no iterations)" for r in results.values()).items()
+            )
+        )
+        + f" (at most {config.max_iter} iterations).",
+        "RMSE in degrees, mean ± population SD over trials; each prediction is the DOC from the trial's own "
+        "initial state, target and duration, compared on the DOC's knots (time normalised).",
+    ]
+    zero = sorted(r["key"] for r in results.values() if not np.any(np.asarray(r["weights"]) > 0))
+    if zero:
+        notes.append(
+            f"Degenerate fits: {', '.join(zero)} learned all-zero weights (the DOC then has no cost and "
+            "returns its initial guess, a minimum-jerk path); their rows are reported as they are."
+        )
+    md_tables = []
+    for m in methods:
+        md_tables.append(
+            tb.to_markdown(
+                tables[m],
+                postures,
+                sections,
+                n_trials,
+                title=f"{m}: RMSE of the joint angles (deg)" if len(methods) > 1 else "",
+            )
+        )
+    table_md = "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n"
+    atomic_write_text(out / "table.md", table_md)
+    atomic_write_text(out / "table.csv", tb.to_csv(tables, postures, sections))
+
+    # ---- figures
+    t_fig = time.perf_counter()
+    fig_dir = out / "figures"
+    figs: dict[str, dict] = {}
+    by = {(r["unit"]["method"], r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values()}
+
+    def key(m, p, n):
+        return by[(m, p, n)]["key"] if (m, p, n) in by else None
+
+    p2 = _pick(postures, ["P2"])
+    n8 = _pick(sorted(sections, reverse=True), [8])
+    if p2 is not None and key(main, p2, n8):
+        arrays = load_unit_arrays(out, key(main, p2, n8))
+        if "train/t" in arrays:
+            fig = fg.plot_prediction(
+                arrays,
+                "train",
+                title=f"{p2}, {n8} sections: training demonstrations (dashed) vs MO-IRL predictions (solid)",
+            )
+            fg.save(fig, fig_dir / "fig2_prediction.png")
+            figs["fig2_prediction.png"] = {
+                "caption": f"Seed Fig. 2 equivalent: posture {p2}, {n8} sections, "
+                "training trials of the training subject, q (top) and q̇ (bottom)."
+            }
+    shares = {
+        (r["unit"]["posture"], r["unit"]["sections"]): r["cost_shares"]
+        for r in results.values()
+        if r["unit"]["method"] == main
+    }
+    if shares:
+        fg.save(fg.plot_weights(shares, postures, sections), fig_dir / "fig3_weights.png")
+        figs["fig3_weights.png"] = {
+            "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
+            "section count (rows), each shown as the feature's share of its window's "
+            "cost at the training demonstrations (ω·Φ*, normalised per window)."
+        }
+    iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
+    iscv_arrays = {}
+    for p in iscv_postures:
+        k = key(main, p, n8)
+        if k:
+            a = load_unit_arrays(out, k)
+            if "iscv/t" in a:
+                iscv_arrays[p] = a
+    if iscv_arrays:
+        fg.save(
+            fg.plot_iscv(iscv_arrays, title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)"),
+            fig_dir / "fig4_iscv.png",
+        )
+        figs["fig4_iscv.png"] = {
+            "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
+            f"({n8} sections), q (top) and q̇ (bottom) over normalised time."
+        }
+    hist = {
+        (r["unit"]["posture"], r["unit"]["sections"]): r["history"]
+        for r in results.values()
+        if r["unit"]["method"] == main
+    }
+    if hist:
+        fg.save(fg.plot_convergence(hist, sections), fig_dir / "convergence.png")
+        figs["convergence.png"] = {
+            "caption": "Merit m(x) of every fit at each accepted iteration (iteration 0: "
+            "the initial weights ω₀ = 0.05)."
+        }
+    learned, true, truth_metrics = _truth_comparison(dataset, results, main, postures)
+    if learned:
+        fg.save(fg.plot_truth(learned, true), fig_dir / "weights_vs_truth.png")
+        figs["weights_vs_truth.png"] = {
+            "caption": "Virtual subjects: learned (top) vs true (bottom) cost shares, "
+            "true weights = mean of the training trials' own (jittered) weights "
+            "from truth.json."
+        }
+    if len(methods) > 1:
+        heads = {
+            m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS}
+            for m in methods
+        }
+        fg.save(fg.plot_methods(heads, sections), fig_dir / "methods.png")
+        figs["methods.png"] = {"caption": "ALL-postures RMSE of q per method, set and section count."}
+    fig_time = time.perf_counter() - t_fig
+
+    # ---- results.json and report.md
+    computed = set(run_info.get("computed", []))
+    timing = dict(timing)
+    timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in results.values() if r["key"] in computed)
+    timing["evaluation_s_sum"] = sum(
+        r["evaluation"]["time_s"] for r in results.values() if r["key"] in computed
+    )
+    timing["figures_s"] = fig_time
+    timing["report_s"] = time.perf_counter() - t0
+    timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
+    units = []
+    for r in sorted(results.values(), key=lambda r: r["key"]):
+        units.append(
+            {
+                k: r[k]
+                for k in (
+                    "key",
+                    "unit",
+                    "fingerprint",
+                    "weights",
+                    "cost_shares",
+                    "n_iter",
+                    "stop_reason",
+                    "fit",
+                    "evaluation",
+                    "history",
+                )
+            }
+            | {
+                "sets": {
+                    s: {"summary": r["sets"][s]["summary"], "trials": r["sets"][s]["trials"]} for s in SETS
+                },
+                "predictions": f"units/{r['key']}.npz",
+            }
+        )
+    results_json = {
+        "format": RESULTS_FORMAT,
+        "data": dataset.describe(),
+        "protocol": config.to_dict() | {"train_subject": train_subject, "postures_run": list(postures)},
+        "split_sizes": split_sizes,
+        "tables": tables,
+        "headline": {m: tb.headline(tables[m], sections) for m in methods},
+        "all_postures_convention": tb.ALL_CONVENTION,
+        "seed_table": {
+            "source": "seed paper Table II (Berret et al.'s human data, 2 subjects)",
+            "table": tb.SEED_TABLE,
+        },
+        "doc": {
+            "fit_solves": fit_solves,
+            "fit_failures": fit_fail,
+            "predictions": ev_solves,
+            "prediction_failures": ev_fail,
+        },
+        "truth_comparison": truth_metrics,
+        "figures": {f"figures/{k}": v["caption"] for k, v in figs.items()},
+        "units": units,
+        "run": run_info,
+        "timing": timing,
+        "notes": notes,
+    }
+    report = _report_md(
+        dataset,
+        config,
+        postures,
+        train_subject,
+        split_sizes,
+        tables,
+        methods,
+        sections,
+        md_tables,
+        notes,
+        figs,
+        truth_metrics,
+        timing,
+        run_info,
+    )
+    atomic_write_text(out / "report.md", report)
+    atomic_write_json(out / "results.json", results_json)
+    return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
+
+
+def _report_md(
+    dataset,
+    config,
+    postures,
+    train_subject,
+    split_sizes,
+    tables,
+    methods,
+    sections,
+    md_tables,
+    notes,
+    figs,
+    truth_metrics,
+    timing,
+    run_info,
+) -> str:
+    main = methods[0]
+    tab = tables[main]
+    virtual = dataset.truth is not None
+    lines = ["# reachirl reproduce: MO-IRL with time-varying weights", ""]
+    lines += ["## Setup", ""]
+    desc = dataset.describe()
+    lines += [
+        f"- **Data:** {dataset.source} — {desc['n_trials']} trials, subjects {', '.join(desc['subjects'])}, "
+        f"postures {', '.join(desc['postures'])}."
+        + (
+            " Virtual subjects: reaches generated by the DOC under known time-varying weights (truth.json), "
+            "recorded as noisy 100 Hz markers and preprocessed like real data."
+            if virtual
+            else ""
+        ),
+        f"- **Protocol (seed §II-D):** per posture ({', '.join(postures)}) and section count "
+        f"({', '.join(map(str, sections))}): learn from "
+        f"{'all' if config.n_train is None else config.n_train} trial(s) of subject {train_subject} "
+        f"{'(' + (config.train_side or 'right') + ' arm) ' if config.cv == 'other-side' else ''}"
+        f"chosen at random (seed {config.seed}), cross-validate on "
+        + ("its other-arm reaches (mirrored)" if config.cv == "other-side" else "its other trials")
+        + ", ISCV on the other subjects' trials of the same posture.",
+        "- **Trials per posture:** "
+        + "; ".join(
+            f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS
+        )
+        + ".",
+        f"- **Method:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
+        f"at most {config.max_iter} MO-IRL iterations (tol {config.tol:g}); seed defaults otherwise "
+        "(β = 1e-10, ω₀ = 0.05, α = 1 shrinking by 0.25, at most 10 tries).",
+        "",
+        "## Results: RMSE of the joint angles (deg), seed Table II layout",
+        "",
+    ]
+    lines += md_tables
+    lines += [f"- {n}" for n in notes] + [""]
+    lines += [
+        "### Headline (ALL postures, q): ours beside the seed's",
+        "",
+        "The seed's numbers are **its results on its own data** (Berret et al.'s human reaches, 2 subjects, "
+        "10/10/20 trials); ours are on "
+        + ("virtual subjects" if virtual else dataset.source)
+        + ", so the comparison is of magnitudes and trends, not number for number.",
+        "",
+        "| sections | " + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed)" for s in SETS) + " |",
+        "|---|" + "---|" * (2 * len(SETS)),
+    ]
+    for row in tb.headline(tab, sections):
+        lines.append(
+            f"| {row['sections']} | "
+            + " | ".join(f"{_fmt(row[s])} | {_fmt(row['seed_' + s])}" for s in SETS)
+            + " |"
+        )
+    lines += [""]
+    # what the numbers say
+    says = []
+    lo, hi = min(sections), max(sections)
+    if lo != hi:
+        for s in SETS:
+            a, b = tab[tb.ALL][s].get(lo, {}).get("q"), tab[tb.ALL][s].get(hi, {}).get("q")
+            if a and b and a.get("mean") is not None and b.get("mean") is not None:
+                says.append(
+                    f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with "
+                    f"{lo} ({'better' if b['mean'] < a['mean'] else 'not better'})."
+                )
+    per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
+    per_p = {p: v for p, v in per_p.items() if v is not None}
+    if len(per_p) > 1:
+        worst = sorted(per_p, key=per_p.get, reverse=True)[:2]
+        says.append(
+            f"Hardest postures in CV ({hi} sections): {', '.join(f'{p} ({per_p[p]:.2f}°)' for p in worst)} "
+            "(the seed: P3 and P5)."
+        )
+    if says:
+        lines += ["What they show: " + " ".join(says), ""]
+    lines += ["### The seed's Table II (its own human data)", "", tb.seed_markdown()]
+    lines += ["## Figures", ""]
+    for name, f in figs.items():
+        lines += [f"### {name}", "", f"![{name}](figures/{name})", "", f["caption"], ""]
+    if truth_metrics:
+        lines += [
+            "## Virtual subjects: learned vs true weights",
+            "",
+            "Per posture: total-variation distance between learned and true cost shares (0 = same, 1 = "
+            "disjoint; mean over windows), correlation of the shares, and how often the dominant "
+            "feature of a "
+            "window agrees.",
+            "",
+            "| posture | total variation | correlation | dominant feature agrees |",
+            "|---|---|---|---|",
+        ]
+        for p, m in truth_metrics.items():
+            corr = "—" if m["share_correlation"] is None else f"{m['share_correlation']:.2f}"
+            lines.append(
+                f"| {p} | {m['mean_total_variation']:.2f} | {corr} | "
+                f"{100 * m['dominant_feature_agreement']:.0f} % |"
+            )
+        lines += [
+            "",
+            "Features whose effects on the trajectory are nearly collinear (e.g. joint acceleration and "
+            "torque change) can trade weight without changing the reach, so a low RMSE with imperfect shares "
+            "is expected: MO-IRL matches trajectories, not weights.",
+            "",
+        ]
+        ends_true = sorted({m["true_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})
+        ends_learned = sorted({m["learned_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})
+        lines += [
+            "At movement onset and termination (first and last windows) the true weights make "
+            f"{', '.join(ends_true)} dominate; the learned ones give {', '.join(ends_learned)}.",
+            "",
+        ]
+    lines += [
+        "## Run",
+        "",
+        f"- Units: {run_info.get('n_units')} ({len(run_info.get('computed', []))} computed, "
+        f"{len(run_info.get('reused', []))} reused from checkpoints in units/); "
+        f"executor: {run_info.get('executor')}.",
+        "- Time split (s): " + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ".",
+        "  (`fit_s_sum` and `evaluation_s_sum` add the units' own times over the workers; `units_wall_s` is "
+        "the wall time of all units; `report_s` includes `figures_s`.)",
+        "- Files: `table.md`, `table.csv`, `results.json` (every unit's weights, history, per-trial RMSE), "
+        "`units/*.json` + `units/*.npz` (checkpoints and predictions), `figures/*.png`.",
+        "",
+    ]
+    return "\n".join(lines)

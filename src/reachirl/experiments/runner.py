@@ -1,0 +1,258 @@
+"""Run the protocol's units in local processes or on a Dask cluster, with atomic checkpoints.
+
+Each unit's result goes to ``OUT/units/<key>.json`` (with its predictions in ``<key>.npz``), written
+atomically
+by the coordinating process as soon as the unit finishes: the NPZ first, then the JSON, which marks the unit
+done. A rerun into the same folder reuses every unit whose JSON carries the same fingerprint (the unit's
+parameters and trials), so killing a run loses only the units in progress.
+
+Units are pure functions of their inputs (:func:`reachirl.experiments.protocol.run_unit`), so local processes,
+the in-process path (``workers=1``) and Dask give the same numbers.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import json
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
+from .protocol import Split, Unit, run_unit
+
+__all__ = ["RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class RunSummary:
+    results: dict[str, dict]  # key -> unit result (JSON content)
+    computed: list[str]
+    reused: list[str]
+    stopped_early: bool
+
+
+def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
+    d = Path(out_dir) / "units"
+    return d / f"{key}.json", d / f"{key}.npz"
+
+
+def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
+    """A finished unit's result, or ``None`` if absent, unreadable or for other inputs (other fingerprint)."""
+    js, npz = unit_paths(out_dir, key)
+    if not js.is_file():
+        return None
+    try:
+        res = json.loads(js.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    if fingerprint is not None and res.get("fingerprint") != fingerprint:
+        return None
+    if res.get("has_arrays") and not npz.is_file():
+        return None
+    return res
+
+
+def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
+    _, npz = unit_paths(out_dir, key)
+    if not npz.is_file():
+        return {}
+    with np.load(npz, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _save(out_dir: Path, payload: dict) -> dict:
+    res = dict(payload["result"])
+    js, npz = unit_paths(out_dir, res["key"])
+    res["has_arrays"] = bool(payload["arrays"])
+    if payload["arrays"]:
+        atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
+    atomic_write_json(js, res)
+    return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read
+
+
+def _local_executor(workers: int) -> cf.Executor:
+    # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
+    ctx = multiprocessing.get_context("spawn")
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+
+
+def _dask_client(address: str):
+    try:
+        from dask.distributed import Client
+    except ImportError as e:  # pragma: no cover
+        raise InputError(f"--scheduler needs dask.distributed ({e})") from None
+    try:
+        return Client(address, timeout="15s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as e:
+        raise InputError(f"cannot connect to the Dask scheduler ({e})", address) from None
+
+
+def run_units(
+    units: Sequence[Unit],
+    splits: dict[str, Split],
+    out_dir: str | Path,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    max_units: int | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+    on_done: Callable[[str, dict, bool], None] | None = None,
+) -> RunSummary:
+    """Run (or reuse) every unit; ``splits`` maps a posture to its :class:`Split`.
+
+    ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
+    stops after that many *new* units (for tests and for splitting a long run).
+    """
+    out_dir = Path(out_dir)
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    results: dict[str, dict] = {}
+    todo: list[tuple[Unit, str]] = []
+    reused: list[str] = []
+    for u in units:
+        fp = u.fingerprint(splits[u.posture])
+        res = load_unit(out_dir, u.key, fp)
+        if res is not None:
+            results[u.key] = res
+            reused.append(u.key)
+        else:
+            todo.append((u, fp))
+    if on_start:
+        on_start(len(units), len(reused))
+    for k in reused:
+        if on_done:
+            on_done(k, results[k], True)
+    limit = len(todo) if max_units is None else max(0, min(int(max_units), len(todo)))
+    stopped = limit < len(todo)
+    todo = todo[:limit] if scheduler is None and workers <= 1 else todo
+    computed: list[str] = []
+
+    fingerprints = {u.key: fp for u, fp in todo}
+
+    def finish(payload: dict) -> None:
+        # the coordinator's fingerprint: a remote worker may hash other source files
+        payload["result"]["fingerprint"] = fingerprints[payload["result"]["key"]]
+        res = _save(out_dir, payload)
+        results[res["key"]] = res
+        computed.append(res["key"])
+        if on_done:
+            on_done(res["key"], res, False)
+
+    if not todo or limit == 0:
+        return RunSummary(results, computed, reused, stopped)
+    if scheduler is None and workers <= 1:
+        for u, _ in todo:
+            finish(run_unit(u, splits[u.posture]))
+    elif scheduler is None:
+        with _local_executor(min(workers, len(todo))) as ex:
+            futures = [ex.submit(run_unit, u, splits[u.posture]) for u, _ in todo]
+            try:
+                for f in cf.as_completed(futures):
+                    finish(f.result())
+                    if len(computed) >= limit:
+                        break
+            finally:
+                for f in futures:
+                    f.cancel()
+    else:
+        from dask.distributed import as_completed
+
+        client = _dask_client(scheduler)
+        try:
+            futures = [
+                client.submit(run_unit, u, splits[u.posture], key=f"reachirl-{u.key}-{fp}", pure=False)
+                for u, fp in todo
+            ]
+            try:
+                for f in as_completed(futures, loop=client.loop):
+                    finish(f.result())
+                    if len(computed) >= limit:
+                        break
+            finally:
+                client.cancel(futures)
+        finally:
+            client.close()
+    return RunSummary(results, computed, reused, stopped)
+
+
+def reproduce(
+    dataset,
+    config,
+    out_dir: str | Path,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    max_units: int | None = None,
+    data_s: float = 0.0,
+    on_start: Callable[[int, int], None] | None = None,
+    on_done: Callable[[str, dict, bool], None] | None = None,
+) -> dict:
+    """The whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`) into ``out_dir``.
+
+    Returns ``{"stopped": bool, "summary": RunSummary, "outputs": write_outputs(...) or None}``; with
+    ``max_units`` reached, the outputs are not written (rerun to finish).
+    """
+    import time
+
+    from .protocol import code_fingerprint, make_units, resolve_postures, resolve_train_subject, split_trials
+    from .report import write_outputs
+
+    trials = list(dataset.trials)
+    if not trials:
+        raise InputError("no trials to run the protocol on", dataset.source)
+    postures = resolve_postures(trials, config)
+    subject = resolve_train_subject(trials, config)
+    splits = {p: split_trials(trials, p, config) for p in postures}
+    split_sizes = {s: {p: len(splits[p].sets()[s]) for p in postures} for s in ("train", "cv", "iscv")}
+    units = make_units(postures, config)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    summary = run_units(
+        units,
+        splits,
+        out_dir,
+        workers=workers,
+        scheduler=scheduler,
+        max_units=max_units,
+        on_start=on_start,
+        on_done=on_done,
+    )
+    units_wall = time.perf_counter() - t0
+    if summary.stopped_early:
+        return {"stopped": True, "summary": summary, "outputs": None}
+    run_info = {
+        "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
+        "n_units": len(units),
+        "computed": summary.computed,
+        "reused": summary.reused,
+        "executor": f"dask ({scheduler})"
+        if scheduler
+        else ("in-process" if workers <= 1 else f"{workers} local processes"),
+    }
+    outputs = write_outputs(
+        out_dir,
+        dataset,
+        config,
+        postures,
+        subject,
+        split_sizes,
+        summary.results,
+        {"data_s": data_s, "units_wall_s": units_wall},
+        run_info,
+    )
+    return {
+        "stopped": False,
+        "summary": summary,
+        "outputs": outputs,
+        "postures": postures,
+        "train_subject": subject,
+    }

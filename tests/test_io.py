@@ -1,0 +1,49 @@
+"""Atomic writes: the file appears whole or not at all, with the usual permissions, and no pickle."""
+
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from reachirl.io import atomic_path, atomic_write_json, npz_bytes, read_json
+from reachirl.errors import InputError
+
+
+def test_atomic_write_leaves_nothing_on_error(tmp_path):
+    target = tmp_path / "out.json"
+    with pytest.raises(RuntimeError, match="boom"), atomic_path(target) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("boom")
+    assert not target.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_write_has_umask_permissions(tmp_path):
+    old = os.umask(0o022)
+    try:
+        atomic_write_json(tmp_path / "r.json", {"a": np.float64(1.5), "b": np.arange(3), "c": float("nan")})
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "r.json").stat().st_mode) == 0o644
+    assert read_json(tmp_path / "r.json") == {"a": 1.5, "b": [0, 1, 2], "c": None}
+
+
+def test_npz_bytes_is_deterministic_and_pickle_free(tmp_path):
+    arrays = {"x": np.arange(5.0), "meta": np.frombuffer(b"{}", dtype=np.uint8)}
+    assert npz_bytes(arrays) == npz_bytes(arrays)
+    (tmp_path / "a.npz").write_bytes(npz_bytes(arrays))
+    with np.load(tmp_path / "a.npz", allow_pickle=False) as z:
+        np.testing.assert_array_equal(z["x"], np.arange(5.0))
+    with pytest.raises(TypeError, match="never hold pickles"):
+        npz_bytes({"o": np.array([{}], dtype=object)})
+
+
+@pytest.mark.parametrize(("text", "match"), [("", "file is empty"), ("{x", r"line 1: invalid JSON")])
+def test_read_json_errors_name_the_file(tmp_path, text, match):
+    p = tmp_path / "m.json"
+    p.write_text(text)
+    with pytest.raises(InputError, match=rf"m\.json: {match}"):
+        read_json(p)
+    with pytest.raises(InputError, match=r"nope\.json: file not found"):
+        read_json(tmp_path / "nope.json")
