@@ -1,11 +1,14 @@
 """DOC benchmark: reachirl's CasADi backend against a plain formulation of the same problem, in the same run.
 
 The plain baseline is the problem as one would first write it: multiple shooting in CasADi SX with states
-``(q, q̇)`` and torques ``τ`` as decision variables, forward dynamics ``M⁻¹(τ − b)`` in the Euler step, the same
-seven features, the same slack form of the energy term, the same constraints, and IPOPT with its default options.
+``(q, q̇)`` and torques ``τ`` as decision variables, forward dynamics ``M⁻¹(τ − b)`` in the Euler step, the
+same seven features, the same slack form of the energy term, the same constraints, and IPOPT with its default
+options.
 
 Figures (N = 100 knots, 8 windows, all seven features): median cold and warm solve times over 20 problems
-(5 postures × 4 weight draws), iteration counts, the convergence rate over a 135-problem sweep, and the ratios.
+(5 postures × 4 weight draws), as CPU time (``time.process_time`` around the whole call; the machine may be
+shared, so prefer these and ``ratios_cpu``) and wall time, iteration counts, the convergence rate over a
+135-problem sweep, and the ratios.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ import casadi as ca
 import numpy as np
 
 from reachirl import ArmModel, ReachingTask, solve_doc
-from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, initial_guess
+from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, guess_knots
 from reachirl.features import N_FEATURES, trajectory_cost, window_index
 
 POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
@@ -79,24 +82,24 @@ class PlainDoc:
     def x0(self) -> np.ndarray:
         """Linear interpolation of the cold guess's end posture, zero velocities and torques."""
         n, task = self.n, self.task
-        q_end = initial_guess(task).reshape(n - 1, 4)[-1, :2]
+        q_end = guess_knots(task)[-1]
         s = np.linspace(0, 1, n + 1)[:, None]
         q = task.q0 + s * (q_end - task.q0)
         X = np.hstack([q, np.zeros((n + 1, 2))])
         return np.r_[X.reshape(-1), np.zeros(2 * n), np.zeros(2 * n)]
 
     def solve(self, weights: np.ndarray, x0: np.ndarray | None = None) -> dict:
-        t0 = time.perf_counter()
-        out = self.solver(x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx, ubx=self.ubx,
-                          lbg=0, ubg=0)
-        elapsed = time.perf_counter() - t0
+        c0, t0 = time.process_time(), time.perf_counter()
+        out = self.solver(x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx,
+                          ubx=self.ubx, lbg=0, ubg=0)
+        elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         st = self.solver.stats()
         z = np.asarray(out["x"]).reshape(-1)
         n = self.n
         X = z[: 4 * (n + 1)].reshape(n + 1, 4)
         tau = z[4 * (n + 1) : 4 * (n + 1) + 2 * n].reshape(n, 2)
-        return {"time": elapsed, "iterations": int(st["iter_count"]), "converged": bool(st["success"]),
-                "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
+        return {"time": elapsed, "cpu": cpu, "iterations": int(st["iter_count"]),
+                "converged": bool(st["success"]), "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
 
 
 def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
@@ -112,14 +115,20 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
         problems.append((task, w, w * np.exp(0.1 * rng.normal(size=w.shape))))  # warm: a 10 % weight change
 
     solve_doc(problems[0][0], problems[0][1])  # build (and cache) the NLP outside the timings
-    ours = {"cold": [], "warm": [], "cold_it": [], "warm_it": [], "ok": 0, "n": 0}
-    plain = {"cold": [], "warm": [], "cold_it": [], "warm_it": [], "ok": 0, "n": 0}
+    keys = ("cold", "warm", "cold_cpu", "warm_cpu", "cold_it", "warm_it")
+    ours = {**{k: [] for k in keys}, "ok": 0, "n": 0}
+    plain = {**{k: [] for k in keys}, "ok": 0, "n": 0}
     agree_deg, agree_cost = [], []
     for task, w, w2 in problems:
+        c0 = time.process_time()
         cold = solve_doc(task, w)
+        c1 = time.process_time()
         warm = solve_doc(task, w2, warm_start=cold)
+        c2 = time.process_time()
         ours["cold"].append(cold.solve_time)
         ours["warm"].append(warm.solve_time)
+        ours["cold_cpu"].append(c1 - c0)  # the whole solve_doc call: initial guess, solver, post-processing
+        ours["warm_cpu"].append(c2 - c1)
         ours["cold_it"].append(cold.iterations)
         ours["warm_it"].append(warm.iterations)
         ours["ok"] += cold.converged + warm.converged
@@ -129,6 +138,8 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
         pw = pd.solve(w2, x0=pc["x"])  # plain warm start: the previous primal solution
         plain["cold"].append(pc["time"])
         plain["warm"].append(pw["time"])
+        plain["cold_cpu"].append(pc["cpu"])
+        plain["warm_cpu"].append(pw["cpu"])
         plain["cold_it"].append(pc["iterations"])
         plain["warm_it"].append(pw["iterations"])
         plain["ok"] += pc["converged"] + pw["converged"]
@@ -141,27 +152,33 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
     def med(v):
         return float(np.median(v))
 
+    def fig(d):
+        return {
+            "cold_cpu_median_s": med(d["cold_cpu"]), "warm_cpu_median_s": med(d["warm_cpu"]),
+            "cold_median_s": med(d["cold"]), "warm_median_s": med(d["warm"]),
+            "cold_iterations_median": med(d["cold_it"]), "warm_iterations_median": med(d["warm_it"]),
+            "converged": f"{d['ok']}/{d['n']}",
+        }
+
     out = {
         "problem": {"n_nodes": n_nodes, "n_windows": n_windows, "features": 7, "n_problems": n_repeats},
-        "reachirl": {
-            "cold_median_s": med(ours["cold"]), "warm_median_s": med(ours["warm"]),
-            "cold_iterations_median": med(ours["cold_it"]), "warm_iterations_median": med(ours["warm_it"]),
-            "converged": f"{ours['ok']}/{ours['n']}",
-        },
-        "plain_baseline": {
-            "cold_median_s": med(plain["cold"]), "warm_median_s": med(plain["warm"]),
-            "cold_iterations_median": med(plain["cold_it"]), "warm_iterations_median": med(plain["warm_it"]),
-            "converged": f"{plain['ok']}/{plain['n']}",
-        },
+        "reachirl": fig(ours),
+        "plain_baseline": fig(plain),
         "agreement": {
             "q_rmse_deg_max": max(agree_deg) if agree_deg else None,
             "cost_rel_diff_max": max(agree_cost) if agree_cost else None,
         },
     }
-    out["ratios"] = {
-        "warm_vs_plain_cold": out["reachirl"]["warm_median_s"] / out["plain_baseline"]["cold_median_s"],
-        "warm_vs_plain_warm": out["reachirl"]["warm_median_s"] / out["plain_baseline"]["warm_median_s"],
-        "cold_vs_plain_cold": out["reachirl"]["cold_median_s"] / out["plain_baseline"]["cold_median_s"],
+    r, b = out["reachirl"], out["plain_baseline"]
+    out["ratios_cpu"] = {
+        "warm_vs_plain_cold": r["warm_cpu_median_s"] / b["cold_cpu_median_s"],
+        "warm_vs_plain_warm": r["warm_cpu_median_s"] / b["warm_cpu_median_s"],
+        "cold_vs_plain_cold": r["cold_cpu_median_s"] / b["cold_cpu_median_s"],
+    }
+    out["ratios"] = {  # wall time: noisy on a loaded machine, prefer ratios_cpu
+        "warm_vs_plain_cold": r["warm_median_s"] / b["cold_median_s"],
+        "warm_vs_plain_warm": r["warm_median_s"] / b["warm_median_s"],
+        "cold_vs_plain_cold": r["cold_median_s"] / b["cold_median_s"],
     }
     if sweep:
         out["convergence_sweep"] = convergence_sweep(arm, seed)
@@ -171,20 +188,24 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
 def convergence_sweep(arm: ArmModel, seed: int = 0) -> dict:
     """5 postures × 3 durations × 1/6/8 windows × 3 weight draws = 135 cold solves."""
     rng = np.random.default_rng(seed + 1)
-    ok, its, times = 0, [], []
+    ok, its, times, cpus = 0, [], [], []
     n = 0
     for posture in POSTURES_DEG:
         for duration in (0.6, 0.72, 0.85):
             for n_windows in (1, 6, 8):
                 for _ in range(3):
                     task = ReachingTask(arm, np.deg2rad(posture), 0.9 * arm.length, duration)
-                    sol = solve_doc(task, random_weights(rng, n_windows))
+                    w = random_weights(rng, n_windows)
+                    c0 = time.process_time()
+                    sol = solve_doc(task, w)
+                    cpus.append(time.process_time() - c0)
                     ok += sol.converged
                     its.append(sol.iterations)
                     times.append(sol.solve_time)
                     n += 1
     return {"n_problems": n, "converged": ok, "rate": ok / n, "iterations_median": float(np.median(its)),
-            "iterations_max": int(max(its)), "solve_time_median_s": float(np.median(times))}
+            "iterations_max": int(max(its)), "solve_time_median_s": float(np.median(times)),
+            "cpu_median_s": float(np.median(cpus))}
 
 
 if __name__ == "__main__":

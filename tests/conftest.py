@@ -7,7 +7,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 
-from reachirl import ArmModel  # noqa: E402
+from reachirl import ArmModel
 
 
 @pytest.fixture(scope="session")

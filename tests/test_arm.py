@@ -16,7 +16,7 @@ def random_states(rng, n=20):
 def test_pinocchio_dynamics_match_closed_form(arm, rng):
     model = arm.pinocchio_model()
     data = model.createData()
-    for q, qd, qdd in zip(*random_states(rng)):
+    for q, qd, qdd in zip(*random_states(rng), strict=True):
         M = pin.crba(model, data, q)
         M = np.triu(M) + np.triu(M, 1).T
         np.testing.assert_allclose(M, arm.mass_matrix(q), atol=1e-9)

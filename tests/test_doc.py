@@ -7,7 +7,8 @@ import pytest
 from reachirl import FEATURES, ReachingTask, solve_doc
 from reachirl.features import trajectory_cost
 
-# Start postures (q1, q2) in degrees: a spread of the workspace, fingertip short of a bar at 90 % of arm length.
+# Start postures (q1, q2) in degrees: a spread of the workspace, fingertip short of a bar at 90 % of arm
+# length.
 TEST_POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
 # Typical size of each Φ over a whole reach (from a uniform-weight solve); weights are drawn relative to it.
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
@@ -113,8 +114,11 @@ def test_weights_change_the_optimum(arm):
     a, t = solve_doc(task, acc), solve_doc(task, trq)
     assert a.converged and t.converged
     # each optimum is best under its own cost
-    assert trajectory_cost(arm, a.q, a.qd, a.tau, task.dt, acc) < trajectory_cost(arm, t.q, t.qd, t.tau, task.dt, acc)
-    assert trajectory_cost(arm, t.q, t.qd, t.tau, task.dt, trq) < trajectory_cost(arm, a.q, a.qd, a.tau, task.dt, trq)
+    def cost(s, w):
+        return trajectory_cost(arm, s.q, s.qd, s.tau, task.dt, w)
+
+    assert cost(a, acc) < cost(t, acc)
+    assert cost(t, trq) < cost(a, trq)
 
 
 def test_convergence_sweep(arm):
@@ -177,4 +181,19 @@ def test_agrees_with_a_plain_multiple_shooting_formulation(arm):
     assert ours.converged and plain["converged"]
     assert np.rad2deg(np.sqrt(np.mean((ours.q - plain["q"]) ** 2))) < 0.01
     np.testing.assert_allclose(plain["tau"], ours.tau, atol=1e-3 * np.abs(ours.tau).max())
-    assert trajectory_cost(arm, plain["q"], plain["qd"], plain["tau"], task.dt, w) == pytest.approx(ours.cost, rel=1e-5)
+    c_plain = trajectory_cost(arm, plain["q"], plain["qd"], plain["tau"], task.dt, w)
+    assert c_plain == pytest.approx(ours.cost, rel=1e-5)
+
+
+def test_falls_back_to_ipopt_when_fatrop_fails(arm, monkeypatch):
+    """A cold fatrop solve that does not converge is solved again with IPOPT (forced: 2 fatrop iterations)."""
+    from reachirl.doc import casadi as backend
+
+    monkeypatch.setattr(backend, "FATROP_OPTIONS", {**backend.FATROP_OPTIONS, "fatrop.max_iter": 2})
+    monkeypatch.setattr(backend, "build_nlp", backend.build_nlp.__wrapped__)  # a fresh NLP, outside the cache
+    task = make_task(arm, TEST_POSTURES_DEG[0], n_nodes=40)
+    w = random_weights(np.random.default_rng(5), 2)
+    sol = solve_doc(task, w)
+    assert sol.converged and sol.status.startswith("ipopt") and sol.iterations > 2
+    assert sol.cost == pytest.approx(trajectory_cost(arm, sol.q, sol.qd, sol.tau, task.dt, w), rel=1e-8)
+    assert arm.fk(sol.q[-1])[0] == pytest.approx(task.target_x, abs=1e-10)

@@ -82,7 +82,7 @@ def test_feature_errors():
         feature_rates(ARM, q, q, np.zeros((4, 2)), 0.0)
     with pytest.raises(ValueError, match="NaN"):
         feature_rates(ARM, q, np.full((5, 2), np.nan), np.zeros((4, 2)), 0.1)
-    with pytest.raises(ValueError, match="n_windows must be in 1..4"):
+    with pytest.raises(ValueError, match=r"n_windows must be in 1\.\.4"):
         windowed_features(ARM, q, q, np.zeros((4, 2)), 0.1, 5)
     with pytest.raises(ValueError, match=r"weights must have shape \(n_windows, 7\)"):
         trajectory_cost(ARM, q, q, np.zeros((4, 2)), 0.1, np.ones(7))

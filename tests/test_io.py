@@ -6,8 +6,8 @@ import stat
 import numpy as np
 import pytest
 
-from reachirl.io import atomic_path, atomic_write_json, npz_bytes, read_json
 from reachirl.errors import InputError
+from reachirl.io import atomic_path, atomic_write_json, npz_bytes, read_json
 
 
 def test_atomic_write_leaves_nothing_on_error(tmp_path):

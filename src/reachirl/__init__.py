@@ -19,7 +19,7 @@ from .arm import ArmModel  # noqa: E402
 from .doc import DocSolution, ReachingTask, solve_doc  # noqa: E402
 from .features import FEATURES  # noqa: E402
 
-__all__ = ["FEATURES", "ArmModel", "DocSolution", "MOIRL", "ReachingTask", "solve_doc"]
+__all__ = ["FEATURES", "MOIRL", "ArmModel", "DocSolution", "ReachingTask", "solve_doc"]
 __version__ = "0.1.0"
 
 

@@ -149,7 +149,7 @@ class ArmModel:
         q = np.asarray(q, dtype=float)
         q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
         s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q12), np.cos(q12)
-        J = np.empty(q.shape[:-1] + (2, 2))
+        J = np.empty((*q.shape[:-1], 2, 2))
         J[..., 0, 0] = -self.l1 * s1 - self.l2 * s12
         J[..., 0, 1] = -self.l2 * s12
         J[..., 1, 0] = self.l1 * c1 + self.l2 * c12
@@ -193,7 +193,7 @@ class ArmModel:
         a = self.i1 + self.i2 + self.m1 * self.c1**2 + self.m2 * (self.l1**2 + self.c2**2)
         b = self.m2 * self.l1 * self.c2
         d = self.i2 + self.m2 * self.c2**2
-        M = np.empty(q.shape[:-1] + (2, 2))
+        M = np.empty((*q.shape[:-1], 2, 2))
         M[..., 0, 0] = a + 2 * b * cq2
         M[..., 0, 1] = M[..., 1, 0] = d + b * cq2
         M[..., 1, 1] = d
@@ -230,7 +230,7 @@ class ArmModel:
     # ------------------------------------------------------------------ Pinocchio
     def pinocchio_model(self):
         """The same arm as a Pinocchio model: two revolute-Z joints, a ``fingertip`` frame, gravity along -y."""
-        import pinocchio as pin  # noqa: PLC0415  (heavy import, only where needed)
+        import pinocchio as pin
 
         model = pin.Model()
         model.name = "reachirl_arm"
@@ -254,6 +254,6 @@ def _planar_inertia(mass: float, com_x: float, izz: float):
     The x/y inertias are set to ``izz`` as well: they never act in planar motion about z, but keep the tensor
     physically valid (triangle inequality).
     """
-    import pinocchio as pin  # noqa: PLC0415
+    import pinocchio as pin
 
     return pin.Inertia(mass, np.array([com_x, 0.0, 0.0]), np.diag([izz * 0.5, izz * 0.5, izz]))

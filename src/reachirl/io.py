@@ -13,7 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_json", "atomic_write_text", "npz_bytes", "read_json", "to_jsonable"]
+__all__ = [
+    "atomic_path",
+    "atomic_write_bytes",
+    "atomic_write_json",
+    "atomic_write_text",
+    "npz_bytes",
+    "read_json",
+    "to_jsonable",
+]
 
 
 @contextlib.contextmanager

@@ -18,11 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data.markersets import MarkerSet, load_markerset, parse_marker_map, resolve_name
-from ..data.preprocess import DEFAULT_SUBJECT, PreprocessOptions, angles_to_trial, markers_to_trial
-from ..data.readers import FORMATS, ManifestEntry, MarkerData, read_file, read_manifest, read_subject_info
+from ..data.markersets import load_markerset, parse_marker_map
+from ..data.pipeline import preprocess_entries
+from ..data.preprocess import PreprocessOptions
+from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_info
 from ..data.trial import Trial, save_trials
-from ..data.ue_adl import find_static, parse_trial_name
+from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
 
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
@@ -127,15 +128,6 @@ def _expand(inputs: list[str]) -> list[Path]:
     return out
 
 
-def _auto_markerset(md: MarkerData) -> MarkerSet:
-    ue = load_markerset("ue-adl")
-    if any(
-        resolve_name(f"{pre}FTP", md.names) and resolve_name(f"{pre}UAR1", md.names) for pre in ("R", "L")
-    ):
-        return ue
-    return load_markerset("default")
-
-
 def _summary(tr: Trial) -> str:
     speed = np.linalg.norm(tr.arm.fingertip_velocity(tr.q, tr.qd), axis=1)
     q = np.degrees(tr.q)
@@ -163,79 +155,29 @@ def run(args) -> int:
             raise InputError("no INPUT files (or give --manifest)")
         entries = [ManifestEntry(file=p, subject="", posture="") for p in _expand(args.inputs)]
     infos = read_subject_info(args.subject_info) if args.subject_info else None
-    fixed_set = (
+    markers = (
         parse_marker_map(args.markers)
         if args.markers
         else (load_markerset(args.markerset) if args.markerset else None)
     )
-    cli_static = Path(args.static) if args.static else None
-    statics: dict[Path, MarkerData] = {}
-    trials: list[Trial] = []
     lines: list[str] = []
-    used_default = False
-    for e in entries:
-        ue = parse_trial_name(e.file)
-        subject = e.subject or args.subject or (ue[0] if ue else e.file.stem)
-        side = e.side or args.side or (ue[1] if ue else "right")
-        posture = e.posture or args.posture or ("forward" if ue else "default")
-        trial_id = ue[2] if ue else e.file.stem
-        if infos is not None:
-            if subject not in infos:
-                raise InputError(
-                    f"subject {subject!r} is not in the subject-info file {args.subject_info}", e.file
-                )
-            info = infos[subject]
-        else:
-            info, used_default = DEFAULT_SUBJECT, True
-        data = read_file(e.file, args.format)
-        if isinstance(data, MarkerData):
-            mset = fixed_set or _auto_markerset(data)
-            static_md = None
-            if mset.needs_static:
-                sp = (
-                    e.static
-                    or cli_static
-                    or (find_static(e.file, subject, mset.static) if mset.static else None)
-                )
-                if sp is None:
-                    raise InputError(
-                        f"marker set {mset.name!r} needs a static trial: give --static, a manifest "
-                        f"'static' column, or put {subject}_static.csv beside the file",
-                        e.file,
-                    )
-                if sp not in statics:
-                    statics[sp] = read_file(sp, "auto")  # type: ignore[assignment]
-                    if not isinstance(statics[sp], MarkerData):
-                        raise InputError("static trial holds joint angles, expected markers", sp)
-                static_md = statics[sp]
-            tr = markers_to_trial(
-                data,
-                mset,
-                subject=subject,
-                posture=posture,
-                trial_id=trial_id,
-                side=side,
-                static=static_md,
-                subject_info=info,
-                options=options,
-            )
-        else:
-            tr = angles_to_trial(
-                data,
-                subject=subject,
-                posture=posture,
-                trial_id=trial_id,
-                side=side,
-                subject_info=info,
-                options=options,
-            )
-        trials.append(tr)
-        lines.append(_summary(tr))
+    trials = preprocess_entries(
+        entries,
+        subject_info=infos,
+        markers=markers,
+        static=Path(args.static) if args.static else None,
+        options=options,
+        fmt=args.format,
+        subject=args.subject,
+        posture=args.posture,
+        side=args.side,
+        on_trial=lambda tr: lines.append(_summary(tr)),
+    )
     out = Path(args.out)
     if out.exists() and out.is_dir():
         raise InputError("is a folder; --out must be a file path", out)
     save_trials(out, trials)
-    if used_default:
+    if infos is None:
         print(
             "note: no --subject-info; masses and inertias use Berret 2011's mean subject "
             "(M, 1.76 m, 69.9 kg)",

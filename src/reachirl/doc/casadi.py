@@ -1,17 +1,42 @@
-"""CasADi + IPOPT backend of the reaching DOC.
+"""CasADi backend of the reaching DOC: stage-wise multiple shooting, solved by fatrop (IPOPT as the fallback).
 
-Formulation (exactly the problem of :mod:`reachirl.doc.task`, written in fewer variables):
+Formulation (exactly the problem of :mod:`reachirl.doc.task`):
 
-* The arm is fully actuated, so the semi-implicit Euler trajectory is determined by the joint positions at the
-  knots: ``q̇_k = (q_k − q_{k−1}) / dt``, ``q̈_k = (q̇_{k+1} − q̇_k) / dt`` and ``τ_k = M(q_k) q̈_k + b(q_k, q̇_k)``
-  (inverse dynamics, which is the exact inverse of the Euler step with ``q̈_k = M⁻¹(τ_k − b)``). The decision
-  variables are ``q_1 … q_{N−1}``; ``q̇_0 = 0`` and ``q̇_N = 0`` are imposed by ``q_{−1} = q_0`` and
-  ``q_N = q_{N−1}``. Joint limits are variable bounds and the speed bound is a linear constraint.
-* The energy term ``|q̇_kᵀτ_k|`` uses the exact slack form ``q̇_kᵀτ_k = s⁺_k − s⁻_k``, ``s± ≥ 0`` (a smoothed
-  absolute value made IPOPT stall). On interval 0, ``q̇_0 = 0`` makes it zero, so it has no slack.
-* The arm's parameters, ``q0``, the target, ``dt`` and the weights are NLP *parameters*: one NLP is built per
-  ``(N, n_windows)`` shape and reused for every arm, task and weight.
-* Variables are ordered knot by knot so the KKT matrix is banded.
+* Multiple shooting on the ``N`` Euler intervals, stage by stage. The state of knot ``k`` is
+  ``x_k = (q_k, q̇_k, τ_{k−1})`` (6) and the control of interval ``k`` is ``u_k = (q̈_k, s⁺_k, s⁻_k)`` (4).
+  Stage 0 is known but for ``q̈_0`` (``q_0 = q0``, ``q̇_0 = 0``, no energy), so the decision vector is
+  ``(q̈_0, x_1, u_1, …, x_{N−1}, u_{N−1}, x_N)``. The arm is fully actuated: the torque is the inverse
+  dynamics ``τ_k = M(q_k) q̈_k + b(q_k, q̇_k)``, the exact inverse of the Euler step with
+  ``q̈_k = M⁻¹(τ_k − b)``. Carrying ``τ_{k−1}`` in the state makes the torque-change term
+  ``‖(τ_k − τ_{k−1})/dt‖²`` depend on one stage only (it is 0 on interval 0, as in :mod:`reachirl.features`).
+* The constraints of stage ``k`` are, in this order, the gap
+  ``x_{k+1} = (q_k + dt(q̇_k + dt q̈_k), q̇_k + dt q̈_k, τ_k)`` (first: fatrop detects the stages from it)
+  and the exact slack form of the energy ``|q̇_kᵀτ_k|``: ``q̇_kᵀτ_k − s⁺_k + s⁻_k = 0``, ``s± ≥ 0`` (a
+  smoothed absolute value made IPOPT stall). The terminal constraints are ``q̇_N = 0`` and the fingertip on
+  the bar, ``P_x(q_N) = target``. Joint limits and the speed bound are variable bounds. No variable is fixed
+  by equal bounds: fatrop needed 300 iterations with ``τ_{−1}`` and the slacks of interval 0 fixed that way.
+* The arm's parameters, ``q0``, the target, ``dt``, the objective scale and the weights are NLP *parameters*:
+  one NLP is built per ``(N, n_windows)`` shape, cached, and reused for every arm, task and weight.
+* The objective is normalised by the cost of the starting point, so the solvers see an order-one objective
+  (this took IPOPT from 75 % to 100 % convergence).
+* The returned trajectory is rebuilt from the knots ``q_k``: ``q̇`` by differences, ``τ`` by inverse dynamics,
+  the final posture moved onto the bar to machine precision (the solvers meet constraints to their
+  feasibility tolerance), and the cost is the NLP objective there with exact slacks. It equals
+  :func:`reachirl.features.trajectory_cost` of the returned trajectory.
+
+Solvers, and why (CPU time, N = 100, 8 windows, 7 features, 20 problems of ``benchmarks/bench_doc.py``, on a
+loaded 2-core machine; before this form, IPOPT on the positions-only form took 29 ms and 16 iterations cold,
+15 ms and 8.5 iterations warm):
+
+* **fatrop** (``structure_detection="auto"``) exploits the stage structure with a Riccati recursion, and the
+  stage-wise Hessian is ~4x cheaper to evaluate than the positions-only one. Cold: 18 iterations, 16 ms;
+  warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
+  multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
+  JIT-compiling the NLP functions halved their evaluation time but took ~40 s per shape; not used.
+* fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
+  previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
+* **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved
+  again cold with IPOPT.
 """
 
 from __future__ import annotations
@@ -26,18 +51,22 @@ import numpy as np
 from ..features import N_FEATURES, trajectory_cost, window_index
 from .task import DocSolution, ReachingTask
 
-__all__ = ["IPOPT_OPTIONS", "build_nlp", "initial_guess", "solve"]
+__all__ = [
+    "FATROP_OPTIONS", "FATROP_WARM_OPTIONS", "IPOPT_OPTIONS", "build_nlp", "guess_knots", "initial_guess",
+    "solve",
+]
 
-# Tuned on 40 random problems (5 postures, 1/6/8 windows, log-uniform weights; see benchmarks/bench_doc.py):
-# * the objective is normalised by the initial guess's cost (an NLP parameter) and IPOPT's gradient scaling is
-#   capped at 1, which took convergence from 75 % to 100 %;
-# * tol 1e-6 on that order-one objective, with feasibility kept at 1e-9; q then agrees with a tol = 1e-10 solve
-#   to 0.02 deg. Tighter tolerances stall on "Search_Direction_Becomes_Too_Small" at the same point;
+NX, NU = 6, 4  # state (q, q̇, τ_prev) and control (q̈, s⁺, s⁻) sizes
+
+# IPOPT (the fallback). Tuned on the former positions-only form and kept on this one:
+# * the objective is normalised by the initial guess's cost and IPOPT's gradient scaling is capped at 1;
+# * tol 1e-6 on that order-one objective, with feasibility kept at 1e-9;
 # * the adaptive barrier halves the iterations of the monotone one.
 IPOPT_OPTIONS: dict = {
     "ipopt.print_level": 0,
     "ipopt.sb": "yes",
     "print_time": False,
+    "calc_lam_p": False,
     "ipopt.tol": 1e-6,
     "ipopt.acceptable_tol": 1e-5,
     "ipopt.acceptable_iter": 3,
@@ -47,8 +76,8 @@ IPOPT_OPTIONS: dict = {
     "ipopt.nlp_scaling_max_gradient": 1.0,
     "ipopt.linear_solver": "mumps",
 }
-WARM_OPTIONS: dict = {
-    "ipopt.max_iter": 100,  # a warm start that has not converged by then is worse than a cold one
+IPOPT_WARM_OPTIONS: dict = {
+    "ipopt.max_iter": 100,
     "ipopt.warm_start_init_point": "yes",
     "ipopt.mu_init": 1e-6,
     "ipopt.warm_start_bound_push": 1e-9,
@@ -57,12 +86,39 @@ WARM_OPTIONS: dict = {
     "ipopt.warm_start_slack_bound_push": 1e-9,
     "ipopt.warm_start_slack_bound_frac": 1e-9,
 }
+WARM_OPTIONS = IPOPT_WARM_OPTIONS  # former name
+
+# fatrop (the default), measured on the benchmark problems (cold, and warm after a 10 % weight change):
+# * tolerance 1e-6 on the order-one objective, as IPOPT's: the default 1e-8 took 25 instead of 20 iterations
+#   and failed 2 of 10 problems (it stalls with inertia corrections once the barrier parameter is at 1e-9);
+# * a faster linear decrease of its monotone barrier parameter (0.1 instead of 0.2): 18 iterations, 20/20;
+# * warm: the previous primal point, mu_init 1e-5 and a bound push of 1e-7 (12 iterations instead of 20 with
+#   the cold options); a smaller mu_init (1e-7 … 1e-9) took as many or more iterations.
+FATROP_OPTIONS: dict = {
+    "print_time": False,
+    "calc_lam_p": False,
+    "expand": True,
+    "structure_detection": "auto",
+    "fatrop.print_level": 0,
+    "fatrop.tolerance": 1e-6,
+    "fatrop.tol_acceptable": 1e-5,
+    "fatrop.acceptable_iter": 3,
+    "fatrop.mu_linear_decrease_factor": 0.1,
+    "fatrop.max_iter": 200,
+}
+FATROP_WARM_OPTIONS: dict = {
+    "fatrop.mu_init": 1e-5,
+    "fatrop.bound_push": 1e-7,
+    "fatrop.bound_frac": 1e-7,
+    "fatrop.max_iter": 60,  # a warm start that has not converged by then is worse than a cold one
+}
+
 _ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
 
 
 def _inverse_dynamics(arm, q, qd, qdd):
     """Closed-form ``τ = M q̈ + C q̇ + g`` on CasADi symbols (the same equations as ArmModel)."""
-    l1, l2, m1, m2, c1, c2, i1, i2, g = arm
+    l1, _l2, m1, m2, c1, c2, i1, i2, g = arm
     cq2, sq2 = ca.cos(q[1]), ca.sin(q[1])
     a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
     b = m2 * l1 * c2
@@ -76,7 +132,7 @@ def _inverse_dynamics(arm, q, qd, qdd):
 
 
 def _mass_matrix(arm, q):
-    l1, l2, m1, m2, c1, c2, i1, i2, g = arm
+    l1, _l2, m1, m2, c1, c2, i1, i2, _g = arm
     cq2 = ca.cos(q[1])
     a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
     b = m2 * l1 * c2
@@ -92,92 +148,96 @@ def _fingertip(arm, q):
 
 
 class _Nlp:
-    """One NLP of a given shape, with a cold and a warm IPOPT instance."""
+    """One NLP of a given shape, with its solvers (built lazily, each used under ``lock``)."""
 
-    def __init__(self, n: int, n_windows: int, options: dict | None = None):
+    def __init__(self, n: int, n_windows: int):
         self.n, self.n_windows = n, n_windows
         arm = ca.SX.sym("arm", len(_ARM_FIELDS))
         q0 = ca.SX.sym("q0", 2)
         target = ca.SX.sym("target")
         dt = ca.SX.sym("dt")
-        fscale = ca.SX.sym("fscale")  # objective normalisation: 1 / (cost of the initial guess)
+        fscale = ca.SX.sym("fscale")  # objective normalisation: 1 / (cost of the starting point)
         w = ca.SX.sym("w", n_windows * N_FEATURES)  # row-major (window, feature)
         arm_l = [arm[i] for i in range(len(_ARM_FIELDS))]
+        l1, l2 = arm_l[0], arm_l[1]
 
-        # decision variables, knot by knot: q_k (2), then s⁺_k, s⁻_k for k = 1..N-1
-        z_blocks, qs, sp, sm = [], [q0], [None], [None]
-        for k in range(1, n):
-            qk = ca.SX.sym(f"q{k}", 2)
-            spk, smk = ca.SX.sym(f"sp{k}"), ca.SX.sym(f"sm{k}")
-            z_blocks += [qk, spk, smk]
-            qs.append(qk)
-            sp.append(spk)
-            sm.append(smk)
-        qs.append(qs[-1])  # q_N = q_{N-1}  ⇔  q̇_N = 0
-        z = ca.vertcat(*z_blocks)
-
+        # stage 0: the state (q0, q̇_0 = 0, no τ_prev) is known, so only q̈_0 is a variable
+        xs = [None] + [ca.SX.sym(f"x{k}", NX) for k in range(1, n + 1)]
+        us = [ca.SX.sym("u0", 2)] + [ca.SX.sym(f"u{k}", NU) for k in range(1, n)]
+        z_blocks: list = [us[0]]
         win = window_index(n, n_windows)
-        qd = [ca.SX.zeros(2)] + [(qs[k] - qs[k - 1]) / dt for k in range(1, n + 1)]  # q̇_0 = 0
         obj = 0
-        g, lbg, ubg = [], [], []
-        tau_prev = None
+        g: list = []
         for k in range(n):
-            qdd = (qd[k + 1] - qd[k]) / dt
-            tau = _inverse_dynamics(arm_l, qs[k], qd[k], qdd)
-            wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
-            l1, l2 = arm_l[0], arm_l[1]
-            q1, q12 = qs[k][0], qs[k][0] + qs[k][1]
+            if k == 0:
+                q, qd, tau_prev = q0, ca.SX.zeros(2), None
+                qdd, sp, sm = us[0], 0, 0
+            else:
+                x, u = xs[k], us[k]
+                q, qd, tau_prev = x[0:2], x[2:4], x[4:6]
+                qdd, sp, sm = u[0:2], u[2], u[3]
+                z_blocks += [x, u]
+            tau = _inverse_dynamics(arm_l, q, qd, qdd)
+            qd_next = qd + dt * qdd
+            # the gap first: fatrop's structure detection starts a stage at it
+            g.append(xs[k + 1] - ca.vertcat(q + dt * qd_next, qd_next, tau))
+            if k > 0:
+                g.append(ca.dot(qd, tau) - sp + sm)
+            q1, q12 = q[0], q[0] + q[1]
             jac = ca.vertcat(
                 ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
                 ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
             )
-            pdot = jac @ qd[k]
+            wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
             rates = [
-                ca.sumsqr(pdot),
-                (sp[k] + sm[k]) if k > 0 else 0,
-                ca.bilin(_mass_matrix(arm_l, qs[k]), qd[k], qd[k]),
+                ca.sumsqr(jac @ qd),
+                sp + sm,
+                ca.bilin(_mass_matrix(arm_l, q), qd, qd),
                 ca.sumsqr(qdd),
                 ca.sumsqr((tau - tau_prev) / dt) if k > 0 else 0,
-                ca.sumsqr(qd[k]),
+                ca.sumsqr(qd),
                 ca.sumsqr(tau),
             ]
             obj += dt * sum(wk[j] * rates[j] for j in range(N_FEATURES))
-            tau_prev = tau
-            if k > 0:
-                g += [ca.dot(qd[k], tau) - sp[k] + sm[k], qd[k]]
-                lbg += [0.0, -np.inf, -np.inf]
-                ubg += [0.0, np.inf, np.inf]
-        g.append(_fingertip(arm_l, qs[n])[0] - target)
-        lbg.append(0.0)
-        ubg.append(0.0)
-        self.n_z = z.numel()
+        z_blocks.append(xs[n])
+        g.append(xs[n][2:4])  # q̇_N = 0 (a constraint: fatrop handles fixed bounds badly)
+        g.append(_fingertip(arm_l, xs[n][0:2])[0] - target)
+        z = ca.vertcat(*z_blocks)
+        gg = ca.vertcat(*g)
+        self.n_z, self.n_g = z.numel(), gg.numel()
         self.p = ca.vertcat(arm, q0, target, dt, fscale, w)
-        self.nlp = {"x": z, "p": self.p, "f": fscale * obj, "g": ca.vertcat(*g)}
-        self.lbg_template = np.array(lbg, dtype=float)
-        self.ubg_template = np.array(ubg, dtype=float)
-        self.speed_rows = np.array(
-            [1 + 3 * (k - 1) + j for k in range(1, n) for j in range(2)], dtype=int
-        )  # rows of g holding q̇_k
+        self.nlp = {"x": z, "p": self.p, "f": fscale * obj, "g": gg}
         self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
-        opts = dict(IPOPT_OPTIONS)
-        opts.update(options or {})
-        self.cold = ca.nlpsol("doc_cold", "ipopt", self.nlp, opts)
-        self.warm = ca.nlpsol("doc_warm", "ipopt", self.nlp, {**opts, **WARM_OPTIONS})
+        self._solvers: dict = {}
         self.lock = threading.Lock()
+
+    def solver(self, kind: str):
+        """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"``; built on first use."""
+        if kind not in self._solvers:
+            if kind.startswith("fatrop"):
+                opts = {**FATROP_OPTIONS, "equality": [True] * self.n_g}
+                if kind == "fatrop_warm":
+                    opts.update(FATROP_WARM_OPTIONS)
+                self._solvers[kind] = ca.nlpsol(f"doc_{kind}", "fatrop", self.nlp, opts)
+            else:
+                opts = dict(IPOPT_OPTIONS)
+                if kind == "ipopt_warm":
+                    opts.update(IPOPT_WARM_OPTIONS)
+                self._solvers[kind] = ca.nlpsol(f"doc_{kind}", "ipopt", self.nlp, opts)
+        return self._solvers[kind]
 
     def params(self, task: ReachingTask, weights: np.ndarray, fscale: float) -> np.ndarray:
         a = task.arm
-        return np.concatenate(
-            [[getattr(a, f) for f in _ARM_FIELDS], task.q0, [task.target_x, task.dt, fscale], weights.reshape(-1)]
-        )
+        arm = [getattr(a, f) for f in _ARM_FIELDS]
+        return np.concatenate([arm, task.q0, [task.target_x, task.dt, fscale], weights.reshape(-1)])
 
-    def bounds(self, task: ReachingTask) -> tuple[np.ndarray, ...]:
-        lbx = np.tile(np.r_[task.q_lower, 0.0, 0.0], self.n - 1)
-        ubx = np.tile(np.r_[task.q_upper, np.inf, np.inf], self.n - 1)
-        lbg, ubg = self.lbg_template.copy(), self.ubg_template.copy()
-        lbg[self.speed_rows] = np.tile(-task.qd_max, self.n - 1)
-        ubg[self.speed_rows] = np.tile(task.qd_max, self.n - 1)
-        return lbx, ubx, lbg, ubg
+    def bounds(self, task: ReachingTask) -> dict:
+        inf = np.inf
+        lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
+        ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
+        lbx = np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]]
+        ubx = np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]]
+        return {"lbx": lbx, "ubx": ubx, "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
 
 
 @functools.lru_cache(maxsize=16)
@@ -190,11 +250,9 @@ def _min_jerk(s: np.ndarray) -> np.ndarray:
     return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
-def initial_guess(task: ReachingTask) -> np.ndarray:
-    """A cold start: a minimum-jerk joint path from ``q0`` to a posture with the fingertip on the bar.
-
-    The end posture keeps the fingertip's starting height where it is reachable (within 98 % of the arm's reach).
-    """
+def guess_knots(task: ReachingTask) -> np.ndarray:
+    """The cold start's joint path, shape ``(N+1, 2)``: minimum jerk from ``q0`` to a posture with the
+    fingertip on the bar, at the fingertip's starting height where reachable (within 98 % of the reach)."""
     arm, n = task.arm, task.n_nodes
     y0 = float(arm.fk(task.q0)[1])
     r_max = 0.98 * arm.length
@@ -203,37 +261,60 @@ def initial_guess(task: ReachingTask) -> np.ndarray:
     qf = np.clip(qf, task.q_lower + 1e-3, task.q_upper - 1e-3)
     s = _min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None]
     q = task.q0 + s * (qf - task.q0)
-    return _pack(task, q)
-
-
-def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
-    """Decision vector from a knot trajectory ``q (N+1, 2)``, slacks from its energy rates."""
-    arm, dt, n = task.arm, task.dt, task.n_nodes
-    q = q.copy()
     q[-1] = q[-2]
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
-    tau = arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
-    e = np.sum(qd[:-1] * tau, axis=1)
-    z = np.column_stack([q[1:n], np.maximum(e[1:], 0.0), np.maximum(-e[1:], 0.0)])
-    return z.reshape(-1)
+    return q
 
 
-def _exact_slacks(task: ReachingTask, z: np.ndarray) -> np.ndarray:
-    """Set ``s± = max(±q̇ᵀτ, 0)``: the interior point leaves both slightly positive (≈ barrier parameter)."""
-    q, qd, tau = _unpack(task, z)
-    e = np.sum(qd[1:-1] * tau[1:], axis=1)
-    z = z.reshape(task.n_nodes - 1, 4).copy()
-    z[:, 2], z[:, 3] = np.maximum(e, 0.0), np.maximum(-e, 0.0)
-    return z.reshape(-1)
+def initial_guess(task: ReachingTask) -> np.ndarray:
+    """A cold start (decision vector): the trajectory of :func:`guess_knots`."""
+    return _pack(task, guess_knots(task))
 
 
-def _unpack(task: ReachingTask, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    n, dt = task.n_nodes, task.dt
-    inner = np.asarray(z).reshape(n - 1, 4)[:, :2]
-    q = np.vstack([task.q0, inner, inner[-1:]])
+def _knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q, q̇, τ`` of the semi-implicit Euler trajectory through the knots ``q (N+1, 2)`` (``q̇_0 = 0``)."""
+    dt = task.dt
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
     tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
     return q, qd, tau
+
+
+def _on_bar(task: ReachingTask, q: np.ndarray) -> np.ndarray:
+    """The final posture ``q (2,)`` moved onto the bar (``P_x = target``) by minimum-norm Newton steps.
+
+    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact."""
+    q = np.array(q, dtype=float)
+    for _ in range(3):
+        r = task.target_x - float(task.arm.fk(q)[0])
+        if abs(r) < 1e-15:
+            break
+        j = task.arm.jacobian(q)[0]
+        q += j * (r / float(j @ j))
+    return q
+
+
+def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
+    """Decision vector of the trajectory through the knots ``q (N+1, 2)``, slacks ``s± = max(±q̇ᵀτ, 0)``.
+
+    ``q_0`` is set to ``task.q0`` and ``q_{N−1}`` to ``q_N`` (``q̇_0 = q̇_N = 0``)."""
+    n, dt = task.n_nodes, task.dt
+    q = np.array(q, dtype=float)
+    q[0] = task.q0
+    q[-2] = q[-1]
+    q, qd, tau = _knots(task, q)
+    e = np.sum(qd[:-1] * tau, axis=1)
+    z = np.zeros((n + 1, NX + NU))
+    z[:, 0:2], z[:, 2:4] = q, qd
+    z[1:, 4:6] = tau
+    z[:n, 6:8] = np.diff(qd, axis=0) / dt
+    z[:n, 8], z[:n, 9] = np.maximum(e, 0.0), np.maximum(-e, 0.0)
+    return np.r_[z[0, 6:8], z[1:n].reshape(-1), z[n, :NX]]
+
+
+def _unpack_q(task: ReachingTask, z: np.ndarray) -> np.ndarray:
+    """Knots ``q (N+1, 2)`` of a decision vector."""
+    n = task.n_nodes
+    inner = np.asarray(z, dtype=float).reshape(-1)[2 : 2 + (NX + NU) * (n - 1)].reshape(n - 1, NX + NU)
+    return np.vstack([task.q0, inner[:, 0:2], np.asarray(z)[-NX : -NX + 2]])
 
 
 def _task_key(task: ReachingTask) -> tuple:
@@ -243,14 +324,15 @@ def _task_key(task: ReachingTask) -> tuple:
 
 
 def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> float:
-    """``1 / cost`` of the starting point, so that IPOPT sees an objective of order one."""
-    q, qd, tau = _unpack(task, z)
+    """``1 / cost`` of the starting point, so that the solver sees an objective of order one."""
+    q, qd, tau = _knots(task, _unpack_q(task, z))
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights)
     return 1.0 / max(cost, 1e-8)
 
 
-def _run(nlp: _Nlp, solver, args: dict) -> tuple[dict, dict, float]:
+def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[dict, dict, float]:
     with nlp.lock:  # an nlpsol instance is not re-entrant
+        solver = nlp.solver(kind)
         t0 = time.perf_counter()
         out = solver(**args)
         elapsed = time.perf_counter() - t0
@@ -258,62 +340,80 @@ def _run(nlp: _Nlp, solver, args: dict) -> tuple[dict, dict, float]:
     return out, stats, elapsed
 
 
+# fatrop's IpSolverReturnFlag, reported by CasADi as a number
+_FATROP_STATUS = ("Success", "MaxIterExceeded", "StopAtAcceptablePoint", "LocalInfeasibility",
+                  "LineSearchFailed", "ErrorInStepComputation", "Unknown")
+
+
+def _status(kind: str, stats: dict) -> str:
+    status = str(stats.get("return_status", ""))
+    if kind.startswith("fatrop"):
+        try:
+            status = _FATROP_STATUS[int(status)]
+        except (ValueError, IndexError):
+            pass
+    return f"{kind.split('_')[0]}: {status}"
+
+
 def _converged(stats: dict, z: np.ndarray) -> bool:
     status = str(stats.get("return_status", ""))
-    ok = bool(stats.get("success", False)) or status == "Solved_To_Acceptable_Level"
+    # "2": fatrop's StopAtAcceptablePoint
+    ok = bool(stats.get("success", False)) or status in ("Solved_To_Acceptable_Level", "2")
     return ok and bool(np.all(np.isfinite(z)))
 
 
 def solve(
     task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None, retry_cold: bool = True
 ) -> DocSolution:
-    """Solve the DOC; warm from ``warm_start`` when it is the same task, cold otherwise, and cold again when the
-    warm attempt fails and ``retry_cold``.
+    """Solve the DOC; warm from ``warm_start`` when it is the same task, cold otherwise, and cold again when
+    the warm attempt fails and ``retry_cold``. A cold fatrop solve that fails is retried with IPOPT.
 
     ``iterations`` and ``solve_time`` count every attempt.
     """
     nlp = build_nlp(task.n_nodes, weights.shape[0])
-    lbx, ubx, lbg, ubg = nlp.bounds(task)
-    bounds = {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+    bounds = nlp.bounds(task)
+    lbx, ubx = bounds["lbx"], bounds["ubx"]
     warm = warm_start.warm if warm_start is not None else None
     key = _task_key(task)
     iterations, elapsed = 0, 0.0
     out = stats = None
-    if warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key:
-        # the same reach under new weights (MO-IRL's line search): reuse primal and dual variables and the scale
+    ok = False
+    same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
+    if same_task and len(warm["x"]) == nlp.n_z:
+        # the same reach under new weights (MO-IRL's line search): reuse the primal point and the scale
         fscale = warm["fscale"]
-        args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "lam_x0": warm["lam_x"], "lam_g0": warm["lam_g"],
-                "p": nlp.params(task, weights, fscale)}
-        out, stats, elapsed = _run(nlp, nlp.warm, args)
+        args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}
+        kind = "fatrop_warm"
+        out, stats, elapsed = _run(nlp, kind, args)
         iterations = int(stats.get("iter_count", 0))
-    if out is None or (retry_cold and not _converged(stats, np.asarray(out["x"]))):
-        # cold: a neighbouring reach's multipliers mislead IPOPT (10x more iterations measured), and so does a
-        # warm start after a large change of weights
+        ok = _converged(stats, np.asarray(out["x"]))
+    if out is None or (retry_cold and not ok):
+        # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
+        # change of weights
         x0 = np.clip(initial_guess(task), lbx, ubx)
         fscale = _objective_scale(task, weights, x0)
         args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
-        out, stats, t_cold = _run(nlp, nlp.cold, args)
-        iterations += int(stats.get("iter_count", 0))
-        elapsed += t_cold
-    z = _exact_slacks(task, np.asarray(out["x"]).reshape(-1))
-    q, qd, tau = _unpack(task, z)
+        for kind in ("fatrop", "ipopt"):
+            out, stats, t = _run(nlp, kind, args)
+            iterations += int(stats.get("iter_count", 0))
+            elapsed += t
+            ok = _converged(stats, np.asarray(out["x"]))
+            if ok:
+                break
+    q = _unpack_q(task, np.asarray(out["x"]).reshape(-1))
+    q[-1] = _on_bar(task, q[-1])
+    z = _pack(task, q)
+    q, qd, tau = _knots(task, _unpack_q(task, z))
     return DocSolution(
         t=task.t,
         q=q,
         qd=qd,
         tau=tau,
         cost=float(nlp.objective(z, args["p"])) / fscale,
-        converged=_converged(stats, z),
+        converged=ok,
         iterations=iterations,
         solve_time=elapsed,
-        status=str(stats.get("return_status", "")),
+        status=_status(kind, stats),
         backend="casadi",
-        warm={
-            "backend": "casadi",
-            "task": key,
-            "fscale": fscale,
-            "x": z,
-            "lam_x": np.asarray(out["lam_x"]).reshape(-1),
-            "lam_g": np.asarray(out["lam_g"]).reshape(-1),
-        },
+        warm={"backend": "casadi", "task": key, "fscale": fscale, "x": z},
     )

@@ -91,62 +91,19 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
     ``marker_map`` is ``shoulder=A,elbow=B,wrist=C,fingertip=D``; without it the marker names come from
     ``truth.json`` (virtual subjects) or the built-in marker sets are tried (``ue-adl``, then ``default``).
     """
-    from ..data.markersets import load_markerset, parse_marker_map, resolve_name
-    from ..data.preprocess import DEFAULT_SUBJECT, angles_to_trial, markers_to_trial
-    from ..data.readers import MarkerData, read_file, read_manifest, read_subject_info
+    from ..data.markersets import parse_marker_map
+    from ..data.pipeline import preprocess_manifest
 
     folder = Path(folder)
     manifest = _find(folder, _MANIFEST_NAMES)
     if manifest is None:
         raise InputError("folder has no manifest.csv (columns file,subject,posture[,side])", folder)
-    entries = read_manifest(manifest)
     info_path = _find(folder, _SUBJECT_NAMES)
-    infos = read_subject_info(info_path) if info_path else None
     if marker_map is None and (folder / "truth.json").is_file():
         m = json.loads((folder / "truth.json").read_text(encoding="utf-8")).get("markers")
         if isinstance(m, dict):
             marker_map = ",".join(f"{k}={v}" for k, v in m.items())
-    fixed = parse_marker_map(marker_map) if marker_map else None
-    statics: dict[Path, MarkerData] = {}
-    trials = []
-    for e in entries:
-        if infos is not None and e.subject not in infos:
-            raise InputError(f"subject {e.subject!r} is not in {info_path.name}", manifest)
-        info = infos[e.subject] if infos is not None else DEFAULT_SUBJECT
-        side = e.side or "right"
-        data = read_file(e.file)
-        if isinstance(data, MarkerData):
-            mset = fixed
-            if mset is None:
-                ue = load_markerset("ue-adl")
-                pre = "L" if side == "left" else "R"
-                mset = ue if resolve_name(f"{pre}FTP", data.names) else load_markerset("default")
-            static = None
-            if mset.needs_static:
-                sp = e.static or (folder / mset.static.format(subject=e.subject) if mset.static else None)
-                if sp is None or not Path(sp).is_file():
-                    raise InputError(
-                        f"marker set {mset.name!r} needs a static trial (manifest column 'static')", e.file
-                    )
-                if sp not in statics:
-                    statics[sp] = read_file(sp)
-                static = statics[sp]
-            tr = markers_to_trial(
-                data,
-                mset,
-                subject=e.subject,
-                posture=e.posture,
-                trial_id=e.file.stem,
-                side=side,
-                static=static,
-                subject_info=info,
-            )
-        else:
-            tr = angles_to_trial(
-                data, subject=e.subject, posture=e.posture, trial_id=e.file.stem, side=side, subject_info=info
-            )
-        trials.append(tr)
-    return trials
+    return preprocess_manifest(manifest, info_path, parse_marker_map(marker_map) if marker_map else None)
 
 
 def _read_truth(folder: Path) -> dict | None:

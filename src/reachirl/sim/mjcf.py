@@ -3,7 +3,8 @@
 The arm moves in the vertical x-y plane (x forward, y up) with gravity ``(0, -g, 0)``: two hinge joints about
 z, no joint damping, armature, friction or limits, no contacts, torque motors with unit gear. Each segment's
 inertial matches :meth:`ArmModel.pinocchio_model` (CoM at ``c`` on the segment's x axis, ``izz = i``; the two
-out-of-plane moments, which never act, are ``0.6 i`` so that MuJoCo's A + B ≥ C check holds after rounding). MuJoCo's ``Euler`` integrator is semi-implicit Euler,
+out-of-plane moments, which never act, are ``0.6 i`` so that MuJoCo's A + B ≥ C check holds after rounding).
+MuJoCo's ``Euler`` integrator is semi-implicit Euler,
 the DOC's own discretisation, so a playback with the timestep equal to the DOC's ``dt`` reproduces the plan to
 round-off.
 """
