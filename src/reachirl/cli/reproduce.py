@@ -18,7 +18,7 @@ from pathlib import Path
 from ..errors import InputError
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
-FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 50, "max_iter": 30}
+FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
 
 
 def _positive(text: str) -> int:
@@ -104,7 +104,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--n-iscv", type=_nonneg, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
     )
-    g.add_argument("--nodes", type=_positive, metavar="N", help="DOC knots (default 50; --quick 40)")
+    g.add_argument("--nodes", type=_positive, metavar="N", help="DOC knots (default 100, as the DOC; --quick 40)")
     g.add_argument("--max-iter", type=_positive, metavar="N", help="MO-IRL iterations at most (default 30)")
     g.add_argument("--data-seed", type=_nonneg, default=0, metavar="N", help="seed of the built-in data set")
     g.add_argument(
