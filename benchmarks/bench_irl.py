@@ -1,0 +1,418 @@
+"""IRL benchmark: MO-IRL against MaxEnt, bilevel and KKT IOC on virtual subjects with known weights.
+
+One virtual subject (:mod:`reachirl.data.synth`, Berret's protocol, seed-paper-like true weights with 8
+windows: joint acceleration at onset and termination, geodesic/energy/torque mid-movement), one posture, 10
+training and 10 cross-validation reaches (each under the truth jittered by ``exp(N(0, 0.2))``, with its own
+start and duration). For each method and 1 and 8 windows:
+
+* training and CV RMSE of q (degrees; :func:`reachirl.evaluation.evaluate_trials`, each reach predicted
+  from its own start);
+* truth agreement: RMSE (degrees) between the learned weights' predictions and the nominal true weights'
+  predictions on the CV tasks (how well the *cost* was recovered, regardless of trial-to-trial jitter);
+* DOC solves, wall and CPU time of the fit, iterations, DOC failures.
+
+A reference DOC (cold, 100 knots, true weights, on the training reaches' mean task) is timed in the same
+run so the fit times can be read as ratios on a shared, noisy machine. The full run also sweeps MO-IRL's
+options (8 windows) and gives bilevel a 4000-solve budget to count the solves it needs to reach MO-IRL's
+merit. ``run(quick=True)`` uses 5 + 5 reaches, a smaller bilevel budget and skips both.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import platform
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from reachirl import ArmModel, ReachingTask, solve_doc
+from reachirl.data.trial import Trial, trial_from_solution
+from reachirl.doc import DocSolution
+from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.irl.methods import make_estimator
+from reachirl.irl.moirl import demonstration_states, mean_task
+from reachirl.irl.objective import merit
+
+log = logging.getLogger(__name__)
+
+N_NODES = 100
+POSTURE = "P2"
+
+
+# ---------------------------------------------------------------------- virtual demonstrations
+def _trial_from_knots(
+    arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, trial_id: str, posture: str, subject: str
+) -> Trial:
+    """A trial from a DOC's knot trajectory (Euler velocities, inverse-dynamics torques: the DOC's own)."""
+    dt = np.diff(t)
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt[:, None]])
+    qdd = np.diff(qd, axis=0) / dt[:, None]
+    tau = arm.inverse_dynamics(q[:-1], qd[:-1], qdd)
+    sol = DocSolution(
+        t=t, q=q, qd=qd, tau=tau, cost=float("nan"), converged=True, iterations=0, solve_time=0.0
+    )
+    return trial_from_solution(sol, arm, target_x, subject=subject, posture=posture, trial_id=trial_id)
+
+
+def virtual_subject(n_trials: int, posture: str = POSTURE, seed: int = 0, n_nodes: int = N_NODES):
+    """``(trials, truth (8, 7), source)``: ``n_trials`` reaches of one virtual subject from ``posture``.
+
+    Uses :mod:`reachirl.data.synth` (its nominal weights are the truth). The demonstrations are the DOC's
+    knots themselves (no recording noise), on the same discretisation as the fits.
+    """
+    from reachirl.data import synth
+
+    config = synth.SynthConfig(
+        n_subjects=1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
+    )
+    subject = synth.draw_subject(seed, 0)
+    arm = subject.arm
+    trials = []
+    for i in range(n_trials):
+        st = synth.simulate_trial(subject, posture, i, config)
+        trials.append(
+            _trial_from_knots(arm, st.t_knots, st.q_knots, st.target_x, st.trial_id, posture, subject.subject)
+        )
+    return trials, synth.nominal_weights(), "reachirl.data.synth"
+
+
+# ---------------------------------------------------------------------- measuring one fit
+def _rmse_summary(weights: np.ndarray, trials) -> dict:
+    errs = evaluate_trials(weights, trials, n_nodes=N_NODES)
+    s = summarise(errs)
+    return {
+        "mean": s["rmse_deg"]["q"]["mean"],
+        "std": s["rmse_deg"]["q"]["std"],
+        "failures": s["doc_failures"],
+        "predictions": [e.prediction for e in errs],
+    }
+
+
+def _agreement(pred: list, truth_pred: list) -> float:
+    """Mean over tasks of the RMSE (deg) between two predictions of q."""
+    return float(np.mean([rmse_deg(a.q, b.q)[2] for a, b in zip(pred, truth_pred, strict=True)]))
+
+
+def with_angle_noise(trial: Trial, sd_deg: float, rng: np.random.Generator) -> Trial:
+    """The trial with Gaussian noise on its joint angles (velocities, accelerations, torques re-derived)."""
+    q = trial.q + np.deg2rad(sd_deg) * rng.standard_normal(trial.q.shape)
+    dt = np.diff(trial.t)[:, None]
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
+    qdd = np.vstack([np.diff(qd, axis=0) / dt, np.zeros((1, 2))])
+    return replace(trial, q=q, qd=qd, qdd=qdd, tau=trial.arm.inverse_dynamics(q, qd, qdd), x0=None)
+
+
+def _fit_and_score(method: str, n_windows: int, train, cv, truth_cv_pred, **kw) -> tuple[dict, object]:
+    est = make_estimator(method, n_windows, n_nodes=N_NODES, **kw)
+    t0, c0 = time.perf_counter(), time.process_time()
+    est.fit(train)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    tr = _rmse_summary(est.weights_, train)
+    cvs = _rmse_summary(est.weights_, cv)
+    row = {
+        "method": method,
+        "label": method + "".join(f"/{v}" for k, v in kw.items() if k == "pooling"),
+        "n_windows": n_windows,
+        "options": {k: v for k, v in kw.items()},
+        "train_rmse_deg": tr["mean"],
+        "train_rmse_sd": tr["std"],
+        "cv_rmse_deg": cvs["mean"],
+        "cv_rmse_sd": cvs["std"],
+        "truth_agreement_deg": _agreement(cvs["predictions"], truth_cv_pred),
+        "doc_solves": int(est.n_doc_solves_),
+        "doc_failures": int(getattr(est, "n_doc_failures_", 0)),
+        "fit_time_s": wall,
+        "fit_cpu_s": cpu,
+        "iterations": int(est.n_iter_),
+        "merit": float(getattr(est, "merit_", np.nan)),
+        "stop_reason": str(getattr(est, "stop_reason_", "")),
+        "eval_failures": tr["failures"] + cvs["failures"],
+        "weights": np.asarray(est.weights_).tolist(),
+    }
+    return row, est
+
+
+def _merit_curve(est) -> list[tuple[int, float]]:
+    """(cumulative DOC solves, best merit so far) along a fit's history."""
+    out, best = [], np.inf
+    for i, h in enumerate(est.history_):
+        solves = h.get("doc_solves", i + 1)
+        best = min(best, h["merit"])
+        out.append((int(solves), float(best)))
+    return out
+
+
+def _solves_to_reach(curve: list[tuple[int, float]], level: float) -> int | None:
+    for solves, m in curve:
+        if m <= level:
+            return solves
+    return None
+
+
+def _reference_doc_time(task: ReachingTask, weights: np.ndarray, repeats: int = 5) -> tuple[float, float]:
+    """Median wall and CPU time of a cold DOC under ``weights`` (after one untimed solve that builds the
+    NLP)."""
+    solve_doc(task, weights)
+    walls, cpus = [], []
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        solve_doc(task, weights)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return float(np.median(walls)), float(np.median(cpus))
+
+
+# ---------------------------------------------------------------------- the benchmark
+def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
+    """Run the IRL benchmark; returns the results and, with ``out_dir``, writes ``bench_irl.json`` and
+    ``bench_irl.md`` there."""
+    n_train, n_cv = (5, 5) if quick else (10, 10)
+    bilevel_evals = 120 if quick else 400
+    t_start = time.perf_counter()
+    trials, truth, source = virtual_subject(n_train + n_cv, seed=seed)
+    train, cv = trials[:n_train], trials[n_train:]
+    task0 = mean_task(train, N_NODES)
+    ref_doc, ref_doc_cpu = _reference_doc_time(task0, truth)
+
+    truth_train = _rmse_summary(truth, train)
+    truth_cv = _rmse_summary(truth, cv)
+    x_demos = demonstration_states(train, N_NODES)
+    truth_merit = merit(x_demos, solve_doc(task0, truth).state)
+
+    rows, curves = [], {}
+    methods = [
+        ("moirl", {"max_iter": 50}),
+        ("maxent", {"max_iter": 50}),
+        ("bilevel", {"max_evals": bilevel_evals}),
+        ("kkt", {}),
+        ("kkt", {"pooling": "per_demo"}),
+    ]
+    for n_windows in (1, 8):
+        for method, kw in methods:
+            row, est = _fit_and_score(method, n_windows, train, cv, truth_cv["predictions"], **kw)
+            rows.append(row)
+            if method != "kkt":
+                curves[f"{method}/{n_windows}"] = _merit_curve(est)
+            log.info(
+                "%s/%d: train %.2f cv %.2f truth %.2f solves %d time %.2fs",
+                method,
+                n_windows,
+                row["train_rmse_deg"],
+                row["cv_rmse_deg"],
+                row["truth_agreement_deg"],
+                row["doc_solves"],
+                row["fit_time_s"],
+            )
+
+    options = []
+    if not quick:
+        variants = [
+            {},
+            {"rollout": "per_demo"},
+            {"memory": 2},
+            {"memory": None},
+            {"acceptance": "either"},
+            {"n_suffixes": 5},
+            {"n_suffixes": 20},
+            {"l1": 1e-6},
+            {"tol": 0.0},
+        ]
+        for v in variants:
+            row, _ = _fit_and_score("moirl", 8, train, cv, truth_cv["predictions"], max_iter=50, **v)
+            row["variant"] = ", ".join(f"{k}={v[k]!r}" for k in v) or "default"
+            options.append(row)
+
+    extra = {}
+    if not quick:  # angle noise on the training reaches (evaluated against the clean ones)
+        rng = np.random.default_rng(seed)
+        for sd in (0.1, 1.0):
+            noisy = [with_angle_noise(t, sd, rng) for t in train]
+            for method, kw in (("kkt", {}), ("kkt", {"pooling": "per_demo"}), ("moirl", {"max_iter": 50})):
+                est = make_estimator(method, 8, n_nodes=N_NODES, **kw).fit(noisy)
+                extra[f"noise_{sd}deg/{method}{'/per_demo' if kw.get('pooling') else ''}/8w"] = {
+                    "train_rmse_deg_vs_clean": _rmse_summary(est.weights_, train)["mean"],
+                    "doc_solves": int(est.n_doc_solves_),
+                }
+    if not quick:  # how many DOC solves bilevel needs to reach MO-IRL's 8-window merit, given a large budget
+        est = make_estimator("bilevel", 8, n_nodes=N_NODES, max_evals=4000)
+        c0 = time.process_time()
+        est.fit(train)
+        curve = _merit_curve(est)
+        extra["bilevel_8w_4000"] = {
+            "doc_solves": est.n_doc_solves_,
+            "final_merit": float(est.merit_),
+            "fit_cpu_s": time.process_time() - c0,
+            "train_rmse_deg": _rmse_summary(est.weights_, train)["mean"],
+            "solves_to_reach_moirl_merit": _solves_to_reach(curve, curves["moirl/8"][-1][1]),
+        }
+
+    targets = _targets(rows, curves, ref_doc)
+    result = {
+        "benchmark": "irl",
+        "quick": quick,
+        "seed": seed,
+        "data": {
+            "source": source,
+            "posture": POSTURE,
+            "n_train": n_train,
+            "n_cv": n_cv,
+            "n_nodes": N_NODES,
+            "truth_weights": np.asarray(truth).tolist(),
+        },
+        "machine": {
+            "python": platform.python_version(),
+            "cpus": os.cpu_count(),
+            "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
+        },
+        "reference_doc_s": ref_doc,
+        "reference_doc_cpu_s": ref_doc_cpu,
+        "extra": extra,
+        "truth": {
+            "train_rmse_deg": truth_train["mean"],
+            "cv_rmse_deg": truth_cv["mean"],
+            "merit": truth_merit,
+        },
+        "rows": rows,
+        "merit_curves": curves,
+        "moirl_options": options,
+        "targets": targets,
+        "elapsed_s": time.perf_counter() - t_start,
+    }
+    if out_dir is not None:
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        _atomic_write(out / "bench_irl.json", json.dumps(result, indent=2, default=_json_default))
+        _atomic_write(out / "bench_irl.md", markdown(result))
+    return result
+
+
+def _targets(rows: list[dict], curves: dict, ref_doc: float) -> dict:
+    by = {(r["label"], r["n_windows"]): r for r in rows}
+    mo8, mo1, bi8 = by[("moirl", 8)], by[("moirl", 1)], by[("bilevel", 8)]
+    out = {
+        "moirl8_fit_le_5s": {
+            "value_s": mo8["fit_time_s"],
+            "cpu_s": mo8["fit_cpu_s"],
+            "in_reference_doc_walls": mo8["fit_time_s"] / ref_doc,
+            "met": mo8["fit_time_s"] <= 5.0,
+            "met_on_cpu_time": mo8["fit_cpu_s"] <= 5.0,
+        },
+        "moirl8_train_rmse_le_2deg": {
+            "value_deg": mo8["train_rmse_deg"],
+            "met": mo8["train_rmse_deg"] <= 2.0,
+        },
+        "8_windows_beat_1": {
+            "train_1": mo1["train_rmse_deg"],
+            "train_8": mo8["train_rmse_deg"],
+            "cv_1": mo1["cv_rmse_deg"],
+            "cv_8": mo8["cv_rmse_deg"],
+            "met": mo8["cv_rmse_deg"] < mo1["cv_rmse_deg"],
+        },
+    }
+    for nw in (1, 8):
+        mo, bi = by[("moirl", nw)], by[("bilevel", nw)]
+        mo_curve, bi_curve = curves[f"moirl/{nw}"], curves[f"bilevel/{nw}"]
+        mo_final = mo_curve[-1][1]
+        bi_final = bi_curve[-1][1]
+        # DOC solves each needs to reach the other's final training merit (the common objective)
+        bi_to_mo = _solves_to_reach(bi_curve, mo_final)
+        mo_to_bi = _solves_to_reach(mo_curve, bi_final)
+        out[f"solves_{nw}w"] = {
+            "moirl_solves": mo["doc_solves"],
+            "bilevel_solves": bi["doc_solves"],
+            "moirl_final_merit": mo_final,
+            "bilevel_final_merit": bi_final,
+            "bilevel_solves_to_reach_moirl_merit": bi_to_mo,
+            "moirl_solves_to_reach_bilevel_merit": mo_to_bi,
+            "moirl_train_rmse": mo["train_rmse_deg"],
+            "bilevel_train_rmse": bi["train_rmse_deg"],
+        }
+    s8 = out["solves_8w"]
+    reached = s8["moirl_solves_to_reach_bilevel_merit"]
+    out["moirl_10x_fewer_solves_than_bilevel"] = {
+        "met": reached is not None
+        and 10 * reached <= bi8["doc_solves"]
+        and mo8["train_rmse_deg"] <= bi8["train_rmse_deg"] + 1e-9,
+        "moirl_solves_to_bilevel_merit": reached,
+        "bilevel_solves": bi8["doc_solves"],
+    }
+    return out
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def markdown(result: dict) -> str:
+    """The benchmark's Markdown report: the methods × windows table, the MO-IRL option sweep, the targets."""
+    lines = [
+        f"# IRL benchmark ({'quick' if result['quick'] else 'full'})",
+        "",
+        f"Virtual subject ({result['data']['source']}), posture {result['data']['posture']}, "
+        f"{result['data']['n_train']} training + {result['data']['n_cv']} CV reaches, "
+        f"{result['data']['n_nodes']} knots. Reference DOC (cold, true weights, mean task): "
+        f"{result['reference_doc_s'] * 1e3:.0f} ms wall, {result['reference_doc_cpu_s'] * 1e3:.0f} ms CPU. "
+        f"True weights: train RMSE {result['truth']['train_rmse_deg']:.2f}°, "
+        f"CV RMSE {result['truth']['cv_rmse_deg']:.2f}° (the floor set by trial-to-trial jitter).",
+        "",
+        "| method | windows | train RMSE (°) | CV RMSE (°) | truth agreement (°) | DOC solves | fit time (s) "
+        "| fit CPU (s) | fit CPU / ref DOC CPU | iterations |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    ref = result["reference_doc_cpu_s"]
+    for r in result["rows"]:
+        lines.append(
+            f"| {r['label']} | {r['n_windows']} | {r['train_rmse_deg']:.2f} ± {r['train_rmse_sd']:.2f} "
+            f"| {r['cv_rmse_deg']:.2f} ± {r['cv_rmse_sd']:.2f} | {r['truth_agreement_deg']:.2f} "
+            f"| {r['doc_solves']} | {r['fit_time_s']:.2f} | {r['fit_cpu_s']:.2f} "
+            f"| {r['fit_cpu_s'] / ref:.0f} | {r['iterations']} |"
+        )
+    if result["moirl_options"]:
+        lines += [
+            "",
+            "MO-IRL options (8 windows):",
+            "",
+            "| variant | train RMSE (°) | CV RMSE (°) | truth agreement (°) | DOC solves | fit time (s) "
+            "| fit CPU (s) | iterations | stop |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for r in result["moirl_options"]:
+            lines.append(
+                f"| {r['variant']} | {r['train_rmse_deg']:.2f} | {r['cv_rmse_deg']:.2f} "
+                f"| {r['truth_agreement_deg']:.2f} | {r['doc_solves']} | {r['fit_time_s']:.2f} "
+                f"| {r['fit_cpu_s']:.2f} | {r['iterations']} | {r['stop_reason']} |"
+            )
+    for name, e in result.get("extra", {}).items():
+        shown = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in e.items()}
+        lines += ["", f"`{name}`: {shown}"]
+    lines += ["", "Targets:", ""]
+    for name, t in result["targets"].items():
+        shown = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in t.items()}
+        lines.append(f"- `{name}`: {shown}")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.INFO)
+    res = run(quick=args.quick, out_dir=args.out)
+    print(markdown(res))

@@ -1,0 +1,174 @@
+"""Bilevel inverse optimal control (Mombaur et al. 2010; Berret et al. 2011): a derivative-free outer search
+over the weights, with a full DOC solved at every evaluation.
+
+The outer problem minimises MO-IRL's own merit (:func:`reachirl.irl.objective.merit`): the mean squared state
+error ``(1/D) Σ_d (1/N) ‖x*_d − x(ω)‖²`` between the demonstrations and the DOC rollout on the demonstrations'
+mean task (:func:`reachirl.irl.moirl.mean_task`), the same rollout MO-IRL uses by default. The search runs on
+log-weights around MO-IRL's start, ``ω = w0 · exp(θ)`` with ``θ₀ = 0``, so the weights stay positive and each
+coordinate moves in relative terms; ``θ`` is bounded to ``±log_bound`` (default ``log 1e4``: four decades
+either way), which keeps the DOC away from weights it cannot solve. Berret used CONDOR; here scipy's Powell
+(default) or Nelder-Mead, capped at ``max_evals`` DOC solves. Each DOC is warm-started from the previous
+converged one and retried cold if that fails (both count as solves); a DOC that still fails scores
+``failure_merit`` times the initial merit (finite, so the direct-search line searches stay well defined).
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ...data.trial import Trial
+from ...doc import DocSolution, solve_doc
+from ...features import N_FEATURES
+from ..moirl import MOIRL, demonstration_states, mean_task
+from ..objective import merit
+
+__all__ = ["BilevelIOC"]
+
+METHODS = ("powell", "nelder-mead")
+
+
+class _BudgetError(Exception):
+    """Raised inside the objective when the DOC budget is spent."""
+
+
+class BilevelIOC:
+    """Derivative-free bilevel IOC with ``n_windows`` time windows of weights.
+
+    Fitted attributes: ``weights_`` (the best evaluated), ``merit_``, ``history_`` (one record per evaluation:
+    merit, converged, weights, cumulative DOC solves, wall time), ``n_doc_solves_``, ``n_doc_failures_``,
+    ``n_iter_`` (outer iterations of the direct search), ``fit_time_``, ``stop_reason_``.
+    """
+
+    def __init__(
+        self,
+        n_windows: int = 8,
+        *,
+        n_nodes: int = 100,
+        max_evals: int = 400,
+        method: str = "powell",
+        w0: float = 0.05,
+        log_bound: float = float(np.log(1e4)),
+        xtol: float = 1e-3,
+        ftol: float = 1e-6,
+        failure_merit: float = 10.0,
+        backend: str = "casadi",
+    ):
+        self.n_windows = n_windows
+        self.n_nodes = n_nodes
+        self.max_evals = max_evals
+        self.method = method
+        self.w0 = w0
+        self.log_bound = log_bound
+        self.xtol = xtol
+        self.ftol = ftol
+        self.failure_merit = failure_merit
+        self.backend = backend
+
+    def get_params(self) -> dict:
+        return {k: getattr(self, k) for k in inspect.signature(type(self).__init__).parameters if k != "self"}
+
+    def _check_params(self, trials: Sequence[Trial]) -> None:
+        if not trials:
+            raise ValueError("fit needs at least one demonstration")
+        if not all(isinstance(t, Trial) for t in trials):
+            raise TypeError("fit takes a sequence of Trial")
+        if not 1 <= self.n_windows <= self.n_nodes:
+            raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if int(self.max_evals) < 2:
+            raise ValueError(f"max_evals must be >= 2, got {self.max_evals}")
+        if not self.log_bound > 0:
+            raise ValueError(f"log_bound must be > 0, got {self.log_bound}")
+        if not self.w0 > 0:
+            raise ValueError(f"w0 must be > 0 (the search is on log-weights), got {self.w0}")
+
+    def fit(self, trials: Sequence[Trial]) -> BilevelIOC:
+        trials = list(trials)
+        self._check_params(trials)
+        t_start = time.perf_counter()
+        task = mean_task(trials, self.n_nodes)
+        x_demos = demonstration_states(trials, self.n_nodes)
+        shape = (self.n_windows, N_FEATURES)
+        self.history_ = []
+        state: dict = {"warm": None, "best": (np.inf, None, None), "m0": None, "solves": 0}
+
+        def evaluate(theta: np.ndarray) -> float:
+            if state["solves"] >= self.max_evals:
+                raise _BudgetError
+            w = self.w0 * np.exp(np.clip(theta, -self.log_bound, self.log_bound)).reshape(shape)
+            sol: DocSolution = solve_doc(
+                task, w, backend=self.backend, warm_start=state["warm"], retry_cold=False
+            )
+            state["solves"] += 1
+            if not sol.converged and state["warm"] is not None and state["solves"] < self.max_evals:
+                sol = solve_doc(task, w, backend=self.backend)  # a distant warm start can mislead IPOPT
+                state["solves"] += 1
+            m = merit(x_demos, sol.state) if sol.converged else np.inf
+            if sol.converged:
+                state["warm"] = sol
+            if state["m0"] is None:
+                state["m0"] = m if np.isfinite(m) else 1.0
+            if m < state["best"][0]:
+                state["best"] = (m, w, sol)
+            self.history_.append(
+                {
+                    "evaluation": len(self.history_) + 1,
+                    "merit": m,
+                    "converged": sol.converged,
+                    "weights": w.tolist(),
+                    "doc_solves": state["solves"],
+                    "wall_time": time.perf_counter() - t_start,
+                }
+            )
+            return m if np.isfinite(m) else self.failure_merit * state["m0"]
+
+        theta0 = np.zeros(self.n_windows * N_FEATURES)
+        if self.method == "powell":
+            opts = {"maxfev": int(self.max_evals), "xtol": self.xtol, "ftol": self.ftol}
+        else:
+            opts = {"maxfev": int(self.max_evals), "xatol": self.xtol, "fatol": self.ftol, "adaptive": True}
+        n_iter = 0
+
+        def count(_xk) -> None:
+            nonlocal n_iter
+            n_iter += 1
+
+        try:
+            bounds = [(-self.log_bound, self.log_bound)] * theta0.size
+            res = minimize(
+                evaluate,
+                theta0,
+                method="Powell" if self.method == "powell" else "Nelder-Mead",
+                bounds=bounds,
+                options=opts,
+                callback=count,
+            )
+            self.stop_reason_ = "max_evals" if state["solves"] >= self.max_evals else str(res.message)
+            n_iter = int(getattr(res, "nit", n_iter))
+        except _BudgetError:
+            self.stop_reason_ = "max_evals"
+        m_best, w_best, sol_best = state["best"]
+        if w_best is None:  # no DOC converged: keep the start
+            w_best = np.full(shape, float(self.w0))
+        self.weights_ = w_best
+        self.merit_ = m_best
+        self.n_doc_solves_ = state["solves"]
+        self.n_doc_failures_ = sum(
+            not h["converged"] for h in self.history_
+        )  # evaluations without a converged DOC
+        self.n_iter_ = n_iter
+        self.fit_time_ = time.perf_counter() - t_start
+        self.train_solutions_ = [sol_best] if sol_best is not None else []
+        return self
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "weights_"):
+            raise RuntimeError("this BilevelIOC is not fitted yet; call fit(trials) first")
+
+    predict = MOIRL.predict

@@ -1,0 +1,267 @@
+"""MO-IRL: the subproblem's gradient, non-negative weights, recovery of known weights, determinism, DOC
+failures inside a fit, bad parameters."""
+
+import itertools
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.data.trial import trial_from_solution
+from reachirl.evaluation import evaluate_trials
+from reachirl.irl import moirl as moirl_module
+from reachirl.irl.moirl import MOIRL
+from reachirl.irl.objective import subproblem_objective
+
+# Typical size of each Φ over a whole reach; true weights are relative importances divided by it.
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+N_NODES = 40
+
+
+def true_weights(n_windows: int = 2) -> np.ndarray:
+    """Joint acceleration dominant at onset, energy later, a little torque throughout (seed-like)."""
+    rel = np.full((2, 7), 0.05)
+    rel[:, 3] = [2.0, 0.3]
+    rel[:, 1] = [0.3, 1.5]
+    rel[:, 6] = 0.5
+    rel = rel if n_windows == 2 else rel.mean(axis=0, keepdims=True)
+    return rel / FEATURE_SCALE
+
+
+def known_weight_demos(arm, w, n_demos: int = 4, n_nodes: int = N_NODES, seed: int = 0):
+    """Demonstrations that are DOC solutions under ``w`` from jittered starts (posture P2) and durations."""
+    rng = np.random.default_rng(seed)
+    demos = []
+    for i in range(n_demos):
+        q0 = np.deg2rad([-90.0, 90.0]) + np.deg2rad(rng.normal(0.0, 2.0, 2))
+        task = ReachingTask(arm, q0, 0.9 * arm.length, 0.7 + 0.02 * i, n_nodes=n_nodes)
+        sol = solve_doc(task, w)
+        assert sol.converged
+        demos.append(trial_from_solution(sol, arm, task.target_x, trial_id=str(i)))
+    return demos
+
+
+def mean_rmse(w, demos, n_nodes: int = N_NODES) -> float:
+    return float(np.mean([e.rmse_q for e in evaluate_trials(w, demos, n_nodes=n_nodes)]))
+
+
+@pytest.fixture(scope="module")
+def demos(arm):
+    return known_weight_demos(arm, true_weights(2))
+
+
+@pytest.fixture(scope="module")
+def fitted(demos):
+    return MOIRL(2, n_nodes=N_NODES, max_iter=15).fit(demos)
+
+
+# ---------------------------------------------------------------------- the subproblem (pure functions)
+def _random_groups(rng, n_groups, n_windows=2):
+    groups = []
+    for g in range(n_groups):
+        n_traj, n_demo = 1 + g, 2 + g
+        phi_i = rng.uniform(0.0, 1.0, (n_traj, n_windows, 7))
+        phi_star = rng.uniform(0.0, 1.0, (n_demo, n_windows, 7))
+        groups.append((phi_i, phi_star, rng.uniform(0.5, 1.5, n_demo)))
+    return groups
+
+
+@pytest.mark.parametrize(
+    ("use_gamma", "l1", "n_groups"),
+    [(True, 0.0, 1), (False, 0.0, 1), (True, 1e-2, 1), (True, 0.0, 3), (False, 1e-2, 3)],
+)
+def test_subproblem_gradient_matches_finite_differences(use_gamma, l1, n_groups):
+    rng = np.random.default_rng(3)
+    w = rng.uniform(0.1, 1.0, (2, 7))
+    dw = rng.normal(0.0, 0.3, (2, 7))
+    groups = _random_groups(rng, n_groups)
+    beta = 1e-2
+    f, g = subproblem_objective(dw, w, groups, beta=beta, use_gamma=use_gamma, l1=l1, l1_smoothing=1e-3)
+    assert np.isfinite(f) and g.shape == dw.shape
+    h = 1e-6
+    fd = np.zeros_like(dw)
+    for idx in np.ndindex(dw.shape):
+        e = np.zeros_like(dw)
+        e[idx] = h
+        fp = subproblem_objective(dw + e, w, groups, beta, use_gamma, l1, 1e-3)[0]
+        fm = subproblem_objective(dw - e, w, groups, beta, use_gamma, l1, 1e-3)[0]
+        fd[idx] = (fp - fm) / (2 * h)
+    np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-8)
+
+
+def test_subproblem_is_stable_for_large_cost_mismatch():
+    rng = np.random.default_rng(4)
+    groups = _random_groups(rng, 1)
+    w = np.full((2, 7), 1e4)  # exp(−C) would overflow without the log-sum-exp
+    f, g = subproblem_objective(np.zeros((2, 7)), w, groups)
+    assert np.isfinite(f) and np.all(np.isfinite(g))
+
+
+# ---------------------------------------------------------------------- fitting
+def test_weights_stay_non_negative(fitted):
+    assert fitted.weights_.shape == (2, 7)
+    assert np.all(fitted.weights_ >= 0)
+    for rec in fitted.history_:
+        assert np.min(rec["weights"]) >= 0
+    assert fitted.n_doc_solves_ >= len(fitted.history_)
+    assert fitted.n_iter_ == len(fitted.history_) - 1
+
+
+def test_fit_reproduces_known_weights_trajectories(fitted, demos):
+    # From w0 = 0.05 everywhere the predictions are about 6° off (measured: 6.2°). The demonstrations are DOC
+    # solutions under one fixed weight matrix on the same discretisation, so the truth reproduces them
+    # exactly; MO-IRL measured 0.86° (subproblem on scaled weights) and 1.10° (raw weights). 1.5° leaves room
+    # for solver and tuning changes while still requiring a 4× improvement over the start.
+    start = mean_rmse(np.full((2, 7), 0.05), demos)
+    learned = mean_rmse(fitted.weights_, demos)
+    assert start > 4.0
+    assert learned < 1.5
+    merits = [h["merit"] for h in fitted.history_ if h["accepted"]]
+    assert all(b < a for a, b in itertools.pairwise(merits))  # accepted steps decrease the merit
+    assert fitted.merit_ == pytest.approx(merits[-1])
+
+
+def test_fit_is_deterministic(demos, fitted):
+    again = MOIRL(2, n_nodes=N_NODES, max_iter=15).fit(demos)
+    np.testing.assert_array_equal(again.weights_, fitted.weights_)
+    assert again.n_doc_solves_ == fitted.n_doc_solves_
+
+
+def test_predict_returns_the_doc_under_learned_weights(fitted, demos):
+    sol = fitted.predict(demos[0])
+    assert sol.converged and sol.q.shape == (N_NODES + 1, 2)
+    direct = solve_doc(demos[0].to_task(N_NODES), fitted.weights_)
+    np.testing.assert_allclose(sol.q, direct.q, atol=1e-9)
+    # a task on another discretisation is moved onto the model's
+    task = demos[0].to_task(N_NODES + 10)
+    assert fitted.predict(task).q.shape == (N_NODES + 1, 2)
+
+
+def test_doc_failures_inside_a_fit_are_recorded_not_raised(demos, monkeypatch):
+    real = moirl_module.solve_doc
+    calls = {"n": 0, "failed": 0}
+
+    def flaky(task, weights, **kw):
+        calls["n"] += 1
+        sol = real(task, weights, **kw)
+        if calls["n"] in (2, 3):  # the first two line-search tries fail
+            sol = replace(sol, converged=False, status="Test_Failure")
+        calls["failed"] += not sol.converged  # (plus any genuine failure of a long warm-started step)
+        return sol
+
+    monkeypatch.setattr(moirl_module, "solve_doc", flaky)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=3).fit(demos)
+    assert est.n_doc_solves_ == calls["n"]
+    assert est.n_doc_failures_ == calls["failed"] >= 2
+    assert est.history_[1]["doc_failures"] >= 2 and est.history_[1]["tries"] >= 3
+    assert np.all(np.isfinite(est.weights_)) and np.all(est.weights_ >= 0)
+    assert np.isfinite(est.merit_) and est.merit_ < est.history_[0]["merit"]
+
+
+def test_failed_initial_doc_does_not_crash(demos, monkeypatch):
+    real = moirl_module.solve_doc
+
+    def always_fail(task, weights, **kw):
+        return replace(real(task, weights, **kw), converged=False)
+
+    monkeypatch.setattr(moirl_module, "solve_doc", always_fail)
+    est = MOIRL(1, n_nodes=N_NODES, max_iter=2, max_tries=2).fit(demos[:2])
+    assert est.stop_reason_ == "no_improving_step"
+    assert est.n_doc_failures_ == est.n_doc_solves_
+    np.testing.assert_array_equal(est.weights_, np.full((1, 7), 0.05))
+
+
+def test_no_weight_reaches_zero(demos):
+    # Regression: with the bound Δω ≥ −ω, beta=1e-4 zeroed every weight of window 1 here, which left the DOC's
+    # trajectory there undetermined (32° between a cold and a warm-started prediction under those weights).
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=20, beta=1e-4).fit(demos)
+    assert np.all(est.weights_ > 0)
+    for rec in est.history_:
+        assert np.min(rec["weights"]) > 0
+
+
+# ---------------------------------------------------------------------- bad parameters
+@pytest.mark.parametrize(
+    ("params", "match"),
+    [
+        ({"rollout": "median"}, "rollout must be"),
+        ({"acceptance": "armijo"}, "acceptance must be"),
+        ({"n_windows": 0}, "n_windows must be in"),
+        ({"n_windows": N_NODES + 1}, "n_windows must be in"),
+        ({"memory": 0}, "memory must be"),
+        ({"shrink": 1.5}, "shrink"),
+    ],
+)
+def test_bad_parameters_raise(demos, params, match):
+    params = {"n_windows": 2, **params}
+    with pytest.raises(ValueError, match=match):
+        MOIRL(n_nodes=N_NODES, **params).fit(demos)
+
+
+def test_empty_trials_and_wrong_types_raise():
+    with pytest.raises(ValueError, match="at least one demonstration"):
+        MOIRL(2).fit([])
+    with pytest.raises(TypeError, match="sequence of Trial"):
+        MOIRL(2).fit([np.zeros(3)])
+
+
+def test_predict_before_fit_raises(demos):
+    with pytest.raises(RuntimeError, match="not fitted"):
+        MOIRL(2).predict(demos[0])
+
+
+def test_predict_rejects_other_inputs():
+    est = MOIRL(1, n_nodes=N_NODES)
+    est.weights_ = np.full((1, 7), 0.05)  # as if fitted
+    with pytest.raises(TypeError, match="Trial or a ReachingTask"):
+        est.predict("task")
+
+
+# ---------------------------------------------------------------------- slow: a virtual subject, 8 windows
+def virtual_subject_trials(n_trials: int = 10, posture: str = "P2", seed: int = 0, n_nodes: int = 100):
+    """Reaches of one virtual subject (reachirl.data.synth) as trials on the DOC's own knots, and the
+    truth."""
+    from reachirl.data import synth
+    from reachirl.data.trial import Trial
+
+    config = synth.SynthConfig(
+        n_subjects=1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
+    )
+    subject = synth.draw_subject(seed, 0)
+    arm = subject.arm
+    trials = []
+    for i in range(n_trials):
+        st = synth.simulate_trial(subject, posture, i, config)
+        dt = np.diff(st.t_knots)[:, None]
+        qd = np.vstack([np.zeros(2), np.diff(st.q_knots, axis=0) / dt])
+        qdd = np.diff(qd, axis=0) / dt
+        qdd = np.vstack([qdd, qdd[-1:]])
+        trials.append(
+            Trial(
+                subject=subject.subject,
+                posture=posture,
+                trial_id=st.trial_id,
+                t=st.t_knots,
+                q=st.q_knots,
+                qd=qd,
+                qdd=qdd,
+                tau=arm.inverse_dynamics(st.q_knots, qd, qdd),
+                target_x=st.target_x,
+                arm=arm,
+            )
+        )
+    return trials, synth.nominal_weights()
+
+
+@pytest.mark.slow
+def test_eight_windows_fit_a_virtual_subject_within_two_degrees():
+    # The truth varies in time (joint acceleration at onset and termination), so 8 windows must beat 1.
+    # Measured: 8 windows 0.98° (44 DOC solves), 1 window 4.9°; the jittered truth itself gives 0.53°.
+    trials, _ = virtual_subject_trials(10)
+    fit8 = MOIRL(8, max_iter=50).fit(trials)
+    fit1 = MOIRL(1, max_iter=50).fit(trials)
+    rmse8, rmse1 = mean_rmse(fit8.weights_, trials, 100), mean_rmse(fit1.weights_, trials, 100)
+    assert rmse8 <= 2.0
+    assert rmse8 < rmse1
+    assert fit8.n_doc_solves_ <= 100
