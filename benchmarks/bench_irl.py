@@ -29,9 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from reachirl import ArmModel, ReachingTask, solve_doc
-from reachirl.data.trial import Trial, trial_from_solution
-from reachirl.doc import DocSolution
+from reachirl import ReachingTask, solve_doc
+from reachirl.data.trial import Trial
 from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
 from reachirl.irl.methods import make_estimator
 from reachirl.irl.moirl import demonstration_states, mean_task
@@ -44,40 +43,15 @@ POSTURE = "P2"
 
 
 # ---------------------------------------------------------------------- virtual demonstrations
-def _trial_from_knots(
-    arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, trial_id: str, posture: str, subject: str
-) -> Trial:
-    """A trial from a DOC's knot trajectory (Euler velocities, inverse-dynamics torques: the DOC's own)."""
-    dt = np.diff(t)
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt[:, None]])
-    qdd = np.diff(qd, axis=0) / dt[:, None]
-    tau = arm.inverse_dynamics(q[:-1], qd[:-1], qdd)
-    sol = DocSolution(
-        t=t, q=q, qd=qd, tau=tau, cost=float("nan"), converged=True, iterations=0, solve_time=0.0
-    )
-    return trial_from_solution(sol, arm, target_x, subject=subject, posture=posture, trial_id=trial_id)
-
-
 def virtual_subject(n_trials: int, posture: str = POSTURE, seed: int = 0, n_nodes: int = N_NODES):
     """``(trials, truth (8, 7), source)``: ``n_trials`` reaches of one virtual subject from ``posture``.
 
-    Uses :mod:`reachirl.data.synth` (its nominal weights are the truth). The demonstrations are the DOC's
-    knots themselves (no recording noise), on the same discretisation as the fits.
+    The demonstrations are the DOC's knots themselves (no recording noise), on the same discretisation as the
+    fits; the truth is the synth module's nominal weights.
     """
     from reachirl.data import synth
 
-    config = synth.SynthConfig(
-        n_subjects=1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
-    )
-    subject = synth.draw_subject(seed, 0)
-    arm = subject.arm
-    trials = []
-    for i in range(n_trials):
-        st = synth.simulate_trial(subject, posture, i, config)
-        trials.append(
-            _trial_from_knots(arm, st.t_knots, st.q_knots, st.target_x, st.trial_id, posture, subject.subject)
-        )
-    return trials, synth.nominal_weights(), "reachirl.data.synth"
+    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights(), "reachirl.data.synth"
 
 
 # ---------------------------------------------------------------------- measuring one fit

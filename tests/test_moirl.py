@@ -191,6 +191,8 @@ def test_no_weight_reaches_zero(demos):
         ({"n_windows": N_NODES + 1}, "n_windows must be in"),
         ({"memory": 0}, "memory must be"),
         ({"shrink": 1.5}, "shrink"),
+        ({"w0": 0.0}, r"need w0 > 0"),
+        ({"alpha0": 2.0}, r"0 < alpha0 <= 1"),
     ],
 )
 def test_bad_parameters_raise(demos, params, match):
@@ -220,38 +222,10 @@ def test_predict_rejects_other_inputs():
 
 # ---------------------------------------------------------------------- slow: a virtual subject, 8 windows
 def virtual_subject_trials(n_trials: int = 10, posture: str = "P2", seed: int = 0, n_nodes: int = 100):
-    """Reaches of one virtual subject (reachirl.data.synth) as trials on the DOC's own knots, and the
-    truth."""
+    """Reaches of one virtual subject on the DOC's own knots, and the truth."""
     from reachirl.data import synth
-    from reachirl.data.trial import Trial
 
-    config = synth.SynthConfig(
-        n_subjects=1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
-    )
-    subject = synth.draw_subject(seed, 0)
-    arm = subject.arm
-    trials = []
-    for i in range(n_trials):
-        st = synth.simulate_trial(subject, posture, i, config)
-        dt = np.diff(st.t_knots)[:, None]
-        qd = np.vstack([np.zeros(2), np.diff(st.q_knots, axis=0) / dt])
-        qdd = np.diff(qd, axis=0) / dt
-        qdd = np.vstack([qdd, qdd[-1:]])
-        trials.append(
-            Trial(
-                subject=subject.subject,
-                posture=posture,
-                trial_id=st.trial_id,
-                t=st.t_knots,
-                q=st.q_knots,
-                qd=qd,
-                qdd=qdd,
-                tau=arm.inverse_dynamics(st.q_knots, qd, qdd),
-                target_x=st.target_x,
-                arm=arm,
-            )
-        )
-    return trials, synth.nominal_weights()
+    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights()
 
 
 @pytest.mark.slow
@@ -265,3 +239,37 @@ def test_eight_windows_fit_a_virtual_subject_within_two_degrees():
     assert rmse8 <= 2.0
     assert rmse8 < rmse1
     assert fit8.n_doc_solves_ <= 100
+
+
+def test_either_acceptance_returns_the_best_merit_seen(demos):
+    """"either" may accept a step that raises the merit (on feature mismatch); the fit must go on from there and
+    return the weights of the best merit, never worse than the start."""
+    est = MOIRL(n_windows=2, n_nodes=N_NODES, acceptance="either", max_iter=6).fit(demos)
+    merits = [h["merit"] for h in est.history_ if h["accepted"]]
+    assert est.merit_ == pytest.approx(min(merits))
+    assert est.merit_ <= est.history_[0]["merit"]
+    np.testing.assert_allclose(est.weights_, est.history_[est.best_iteration_]["weights"])
+
+
+def test_doc_solves_count_every_solver_run(demos, monkeypatch):
+    import reachirl.irl.moirl as moirl_mod
+
+    real = moirl_mod.solve_doc
+    runs = []
+
+    def counting(*a, **k):
+        sol = real(*a, **k)
+        runs.append(sol.attempts)
+        return sol
+
+    monkeypatch.setattr(moirl_mod, "solve_doc", counting)
+    est = MOIRL(n_windows=2, n_nodes=N_NODES, max_iter=3).fit(demos)
+    assert est.n_doc_solves_ == sum(runs) >= len(runs)
+
+
+def test_all_zero_weights_are_refused(arm):
+    from reachirl import ReachingTask, solve_doc
+
+    task = ReachingTask(arm, np.deg2rad([-90.0, 90.0]), 0.9 * arm.length, 0.7, n_nodes=N_NODES)
+    with pytest.raises(ValueError, match="weights are all zero"):
+        solve_doc(task, np.zeros((2, 7)))

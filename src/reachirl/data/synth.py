@@ -79,6 +79,7 @@ from ..arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
 from ..doc import ReachingTask, solve_doc
 from ..features import FEATURES, windowed_features
 from ..io import atomic_write_json, atomic_write_text, to_jsonable
+from .trial import Trial, trial_from_knots
 from .writers import write_c3d, write_mot, write_trc
 
 __all__ = [
@@ -255,6 +256,11 @@ class SynthTrial:
     markers: dict = field(repr=False)  # name -> (n_frames, 3) mm, with noise
     angles_deg: np.ndarray = field(repr=False)  # (n_frames, 2) for MOT output, with noise
 
+    def to_trial(self, arm: ArmModel) -> Trial:
+        """The reach as a trial on the DOC's own knots (no recording, no noise)."""
+        return trial_from_knots(arm, self.t_knots, self.q_knots, self.target_x, self.subject, self.posture,
+                                self.trial_id)
+
 
 @dataclass(frozen=True)
 class SynthResult:
@@ -418,6 +424,19 @@ def to_opensim_axes(markers: dict) -> dict:
 def _simulate_group(subject: SynthSubject, posture: str, config: SynthConfig) -> list[SynthTrial]:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     return [simulate_trial(subject, posture, k, config) for k in range(config.n_trials)]
+
+
+def knot_trials(n_trials: int, posture: str = "P2", seed: int = 0, n_nodes: int = 100,
+                subject_index: int = 0) -> list[Trial]:
+    """``n_trials`` reaches of one virtual subject from ``posture``, in memory, on the DOC's own knots.
+
+    The ground truth is :func:`nominal_weights` (each trial jittered around it). For benchmarks and tests that
+    need no files; :func:`generate` records the same reaches as marker files.
+    """
+    config = SynthConfig(n_subjects=subject_index + 1, n_trials=n_trials, seed=seed, postures=(posture,),
+                         n_nodes=n_nodes)
+    subject = draw_subject(seed, subject_index)
+    return [simulate_trial(subject, posture, i, config).to_trial(subject.arm) for i in range(n_trials)]
 
 
 # ---------------------------------------------------------------------- human-likeness

@@ -19,7 +19,7 @@ from ..arm import ArmModel
 from ..errors import InputError
 from ..io import atomic_write_bytes, npz_bytes
 
-__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "trial_from_solution"]
+__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "trial_from_knots", "trial_from_solution"]
 
 TRIALS_FORMAT = "reachirl-trials/1"
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
@@ -203,14 +203,23 @@ def trial_fields() -> tuple[str, ...]:
     return tuple(f.name for f in fields(Trial))
 
 
+def trial_from_knots(arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, subject: str = "virtual",
+                     posture: str = "", trial_id: str = "0", side: str = "right", source: str = "") -> Trial:
+    """A trial from a knot path ``q (N+1, 2)`` at times ``t``, read as the DOC reads it: Euler velocities
+    ``q̇_k = (q_k − q_{k−1})/dt`` (0 at the start), Euler accelerations, inverse-dynamics torques.
+
+    For a DOC solution these are exactly its own velocities and torques (used for virtual subjects and tests).
+    """
+    t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+    dt = np.diff(t)[:, None]
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
+    qdd = np.diff(qd, axis=0) / dt
+    qdd = np.vstack([qdd, qdd[-1:]])
+    return Trial(subject=subject, posture=posture, trial_id=trial_id, t=t, q=q, qd=qd, qdd=qdd,
+                 tau=arm.inverse_dynamics(q, qd, qdd), target_x=target_x, arm=arm, side=side, source=source)
+
+
 def trial_from_solution(sol, arm: ArmModel, target_x: float, subject: str = "virtual", posture: str = "",
                         trial_id: str = "0", side: str = "right", source: str = "") -> Trial:
-    """A trial holding a DOC solution's trajectory (for virtual subjects and tests).
-
-    Accelerations are the solution's own Euler ones, so ``tau`` on every interval is ``sol.tau`` exactly.
-    """
-    dt = np.diff(sol.t)
-    qdd = np.diff(sol.qd, axis=0) / dt[:, None]
-    qdd = np.vstack([qdd, qdd[-1:]])
-    return Trial(subject=subject, posture=posture, trial_id=trial_id, t=sol.t, q=sol.q, qd=sol.qd, qdd=qdd,
-                 tau=arm.inverse_dynamics(sol.q, sol.qd, qdd), target_x=target_x, arm=arm, side=side, source=source)
+    """A trial holding a DOC solution's trajectory: its torque on every interval is ``sol.tau`` exactly."""
+    return trial_from_knots(arm, sol.t, sol.q, target_x, subject, posture, trial_id, side, source)

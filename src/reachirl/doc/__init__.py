@@ -36,6 +36,8 @@ def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
         raise ValueError("weights must be finite")
     if np.any(w < 0):
         raise ValueError(f"weights must be >= 0, got a minimum of {w.min():.3g}")
+    if not np.any(w > 0):
+        raise ValueError("weights are all zero: the DOC would have no cost to minimise")
     if n_nodes is not None and w.shape[0] > n_nodes:
         raise ValueError(f"{w.shape[0]} windows do not fit in {n_nodes} intervals")
     return w

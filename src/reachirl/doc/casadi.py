@@ -375,7 +375,7 @@ def solve(
     lbx, ubx = bounds["lbx"], bounds["ubx"]
     warm = warm_start.warm if warm_start is not None else None
     key = _task_key(task)
-    iterations, elapsed = 0, 0.0
+    iterations, elapsed, attempts = 0, 0.0, 0
     out = stats = None
     ok = False
     same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
@@ -385,7 +385,7 @@ def solve(
         args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}
         kind = "fatrop_warm"
         out, stats, elapsed = _run(nlp, kind, args)
-        iterations = int(stats.get("iter_count", 0))
+        iterations, attempts = int(stats.get("iter_count", 0)), 1
         ok = _converged(stats, np.asarray(out["x"]))
     if out is None or (retry_cold and not ok):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
@@ -396,6 +396,7 @@ def solve(
         for kind in ("fatrop", "ipopt"):
             out, stats, t = _run(nlp, kind, args)
             iterations += int(stats.get("iter_count", 0))
+            attempts += 1
             elapsed += t
             ok = _converged(stats, np.asarray(out["x"]))
             if ok:
@@ -413,6 +414,7 @@ def solve(
         converged=ok,
         iterations=iterations,
         solve_time=elapsed,
+        attempts=attempts,
         status=_status(kind, stats),
         backend="casadi",
         warm={"backend": "casadi", "task": key, "fscale": fscale, "x": z},

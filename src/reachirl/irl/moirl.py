@@ -78,8 +78,9 @@ class MOIRL:
     Parameters follow the seed: ``beta=1e-10``, ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``.
     ``callback(iteration_record)`` is called after every iteration (for progress bars).
 
-    Fitted attributes: ``weights_ (n_windows, 7)``, ``history_`` (one dict per iteration: merit, alpha, tries,
-    weights, DOC solves, failures, wall time), ``merit_``, ``n_doc_solves_``, ``n_iter_``, ``stop_reason_``.
+    Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``history_`` (one dict per
+    iteration: merit, alpha, tries, weights, DOC solves (every solver run), failures, wall time), ``merit_``,
+    ``best_iteration_``, ``n_doc_solves_``, ``n_iter_``, ``stop_reason_``.
     """
 
     def __init__(
@@ -232,8 +233,9 @@ class MOIRL:
 
         w = np.full((self.n_windows, N_FEATURES), float(self.w0))
         sols = self._rollouts(tasks, w, None)
-        n_solves, n_fail = len(sols), sum(not s.converged for s in sols)
+        n_solves, n_fail = sum(s.attempts for s in sols), sum(not s.converged for s in sols)
         m = self._merit(x_demos, sols)
+        best = (m, w, sols, 0)  # the fit returns the best merit seen ("either" acceptance can raise it)
         bank = [self._features(tasks, sols, starts)]
         self.history_ = [
             {"iteration": 0, "merit": m, "alpha": 0.0, "tries": 0, "accepted": True, "weights": w.tolist(),
@@ -249,7 +251,7 @@ class MOIRL:
             for tries in range(1, self.max_tries + 1):  # noqa: B007  (tries is reported)
                 w_try = w + alpha * dw  # > 0: Δω ≥ −(1 − min_ratio) ω and α ≤ 1
                 cand = self._rollouts(tasks, w_try, sols)
-                n_solves += len(cand)
+                n_solves += sum(s.attempts for s in cand)
                 failed = sum(not s.converged for s in cand)
                 n_fail += failed
                 m_try = self._merit(x_demos, cand)
@@ -268,15 +270,18 @@ class MOIRL:
                 break
             improvement = (m - m_try) / m if np.isfinite(m) and m > 0 else np.inf
             w, sols, m = w_try, cand, m_try
+            if m < best[0]:
+                best = (m, w, sols, it)
             bank.append(self._features(tasks, sols, starts))
             if self.memory is not None:
                 bank = bank[-self.memory :]
             record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
             self.history_.append(record)
             self._notify(record)
-            if improvement < self.tol:
+            if 0 <= improvement < self.tol:  # a step accepted on another criterion (worse merit) goes on
                 self.stop_reason_ = "tol"
                 break
+        m, w, sols, self.best_iteration_ = best
         self.weights_ = w
         self.merit_ = m
         self.n_doc_solves_ = n_solves
