@@ -9,7 +9,9 @@ true weights when the data are virtual subjects (``truth.json`` beside the manif
 * a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
   ``truth.json`` beside it (virtual subjects) is read as the ground truth;
 * a folder holding ``manifest.csv`` (``file,subject,posture[,side,static]``) and optionally ``subjects.csv``
-  (``subject,sex,height_m,mass_kg[,...]``) and ``truth.json``.
+  (``subject,sex,height_m,mass_kg[,...]``) and ``truth.json``;
+* a UE-ADL folder (``ADLxxx/ADLxxxFR1.csv`` ..., static trials beside them, its ``subjects.csv``), with no
+  manifest: every reach, posture ``forward``.
 """
 
 from __future__ import annotations
@@ -92,13 +94,22 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
     ``truth.json`` (virtual subjects) or the built-in marker sets are tried (``ue-adl``, then ``default``).
     """
     from ..data.markersets import parse_marker_map
-    from ..data.pipeline import preprocess_manifest
+    from ..data.pipeline import preprocess_entries, preprocess_manifest
+    from ..data.readers import ManifestEntry, read_subject_info
+    from ..data.ue_adl import reach_files
 
     folder = Path(folder)
     manifest = _find(folder, _MANIFEST_NAMES)
-    if manifest is None:
-        raise InputError("folder has no manifest.csv (columns file,subject,posture[,side])", folder)
     info_path = _find(folder, _SUBJECT_NAMES)
+    if manifest is None:  # a UE-ADL folder: its reach files, each with its static trial beside it
+        files = reach_files(folder)
+        if not files:
+            raise InputError("folder has no manifest.csv (columns file,subject,posture[,side]) and no UE-ADL "
+                             "reach files (ADLxxxFR1.csv ...)", folder)
+        infos = read_subject_info(info_path) if info_path else None
+        markers = parse_marker_map(marker_map) if marker_map else None
+        entries = [ManifestEntry(file=f, subject="", posture="") for f in files]
+        return preprocess_entries(entries, subject_info=infos, markers=markers)
     if marker_map is None and (folder / "truth.json").is_file():
         m = json.loads((folder / "truth.json").read_text(encoding="utf-8")).get("markers")
         if isinstance(m, dict):

@@ -35,7 +35,7 @@ ALL = "ALL"
 ALL_TRIALS = "ALL (trials)"
 ALL_CONVENTION = (
     "ALL = mean over postures of the per-posture mean RMSE ± SD of those posture means "
-    "(the seed's convention); "
+    "(the seed's convention; with a single posture, its trials); "
     "ALL (trials) = mean ± SD over every trial of every posture pooled."
 )
 
@@ -303,6 +303,10 @@ def build_table(
                 cell["doc_failures"] = fails
                 table[p][s][n] = cell
             table[ALL_TRIALS][s][n] = {**{j: _stats(pooled[j]) for j in JOINTS}, "doc_failures": fails_all}
+            if len(postures) == 1:  # an SD over one posture mean would read ± 0: give the trials' spread
+                table[ALL][s][n] = {k: dict(v) if isinstance(v, dict) else v
+                                    for k, v in table[ALL_TRIALS][s][n].items()}
+                continue
             table[ALL][s][n] = {**{j: _stats(means[j]) for j in JOINTS}, "doc_failures": fails_all}
             for j in JOINTS:
                 table[ALL][s][n][j]["n"] = len(means[j])  # number of postures averaged
