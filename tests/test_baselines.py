@@ -170,3 +170,12 @@ def test_moirl_reaches_bilevels_merit_with_ten_times_fewer_doc_solves():
     bi = BilevelIOC(8, n_nodes=100, max_evals=400).fit(trials)
     mo_solves = next(h["doc_solves"] for h in mo.history_ if h["merit"] <= bi.merit_)
     assert 10 * mo_solves <= bi.n_doc_solves_
+
+
+def test_get_params_spans_the_class_hierarchy():
+    from reachirl.irl.baselines import MaxEntIRL
+
+    p = MaxEntIRL(n_windows=3, beta=1e-3).get_params()
+    assert p["n_windows"] == 3 and p["beta"] == 1e-3
+    assert p["use_gamma"] is False and p["memory"] is None
+    assert "kwargs" not in p

@@ -16,29 +16,10 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
+from ._args import non_negative_int, positive_int
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
-
-
-def _positive(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return v
-
-
-def _nonneg(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return v
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -56,7 +37,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--sections",
-        type=_positive,
+        type=positive_int,
         nargs="+",
         default=[1, 6, 8],
         metavar="N",
@@ -65,7 +46,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     p.add_argument(
         "--workers",
-        type=_positive,
+        type=positive_int,
         default=None,
         metavar="N",
         help="local worker processes (default: all cores; 1 runs in this process)",
@@ -73,7 +54,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--scheduler", metavar="ADDRESS", help="run the units on this Dask scheduler (tcp://HOST:PORT)"
     )
-    p.add_argument("--seed", type=_nonneg, default=0, metavar="N", help="seed of the random training trials")
+    p.add_argument("--seed", type=non_negative_int, default=0, metavar="N", help="seed of the random training trials")
     p.add_argument(
         "--quick",
         action="store_true",
@@ -98,21 +79,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "(other-side; UE-ADL: learn right, validate on the mirrored left)",
     )
     g.add_argument(
-        "--n-train", type=_nonneg, metavar="N", help="training trials per posture (default 10; 0: all)"
+        "--n-train", type=non_negative_int, metavar="N", help="training trials per posture (default 10; 0: all)"
     )
-    g.add_argument("--n-cv", type=_nonneg, metavar="N", help="CV trials per posture (default: all; 0: all)")
+    g.add_argument("--n-cv", type=non_negative_int, metavar="N", help="CV trials per posture (default: all; 0: all)")
     g.add_argument(
-        "--n-iscv", type=_nonneg, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
+        "--n-iscv", type=non_negative_int, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
     )
-    g.add_argument("--nodes", type=_positive, metavar="N", help="DOC knots (default 100, as the DOC; --quick 40)")
-    g.add_argument("--max-iter", type=_positive, metavar="N", help="MO-IRL iterations at most (default 30)")
-    g.add_argument("--data-seed", type=_nonneg, default=0, metavar="N", help="seed of the built-in data set")
+    g.add_argument("--nodes", type=positive_int, metavar="N", help="DOC knots (default 100, as the DOC; --quick 40)")
+    g.add_argument("--max-iter", type=positive_int, metavar="N", help="MO-IRL iterations at most (default 30)")
+    g.add_argument("--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set")
     g.add_argument(
         "--markers", metavar="MAP", help="shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder"
     )
     g.add_argument(
         "--max-units",
-        type=_positive,
+        type=positive_int,
         metavar="N",
         help="stop after N new units (resume later into the same --out)",
     )

@@ -5,36 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
-def _seed(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer seed, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer seed, got {v}")
-    return v
-
-
-def _fraction(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number in [0.5, 1), got {text!r}") from None
-    if not 0.5 <= v < 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in [0.5, 1), got {v}")
-    return v
+from ._args import float_in, non_negative_int, positive_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -46,17 +17,17 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description=(
             "Generate virtual subjects reaching to a vertical bar from Berret et al. 2011's five initial "
             "postures. Each reach is the DOC solution under the subject's true time-varying weights "
-            "(jittered per trial), recorded as markers SHO, ELB, WRI, FTP at 100 Hz (TRC/C3D, mm, "
-            "lab Z up) or as joint angles (MOT, degrees). Writes the recordings, manifest.csv, "
-            "subjects.csv, truth.json and human_likeness.csv. Read them back with: reachirl preprocess "
+            "(jittered per trial), recorded as markers SHO, ELB, WRI, FTP at 100 Hz in mm (TRC in OpenSim's "
+            "Y-up axes, C3D with the lab's Z up) or as joint angles (MOT, degrees). Writes the recordings, "
+            "manifest.csv, subjects.csv, truth.json and human_likeness.csv. Read them back with: reachirl preprocess "
             "DIR/*.trc --manifest DIR/manifest.csv --subject-info DIR/subjects.csv "
             "--markers shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
         ),
     )
     p.add_argument("--out", required=True, help="output folder (created if needed)")
-    p.add_argument("--subjects", type=_positive_int, default=2, help="number of virtual subjects (default 2)")
-    p.add_argument("--trials", type=_positive_int, default=20, help="trials per posture (default 20)")
-    p.add_argument("--seed", type=_seed, default=0, help="random seed (default 0); same seed, same bytes")
+    p.add_argument("--subjects", type=positive_int, default=2, help="number of virtual subjects (default 2)")
+    p.add_argument("--trials", type=positive_int, default=20, help="trials per posture (default 20)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0); same seed, same bytes")
     p.add_argument("--format", dest="fmt", choices=FORMATS, default="trc", help="file format (default trc)")
     p.add_argument(
         "--postures",
@@ -67,11 +38,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--target-fraction",
-        type=_fraction,
+        type=float_in(0.5, 1.0),
         default=0.95,
         help="bar distance as a fraction of arm length (default 0.95, the seed's; Berret used 0.85)",
     )
-    p.add_argument("--workers", type=_positive_int, default=2, help="worker processes (default 2)")
+    p.add_argument("--workers", type=positive_int, default=2, help="worker processes (default 2)")
     return p
 
 

@@ -48,6 +48,18 @@ SHORT = {
 JOINT_COLOURS = ("tab:blue", "tab:green")
 
 
+
+def _share_heatmap(ax, shares, feature_labels: bool):
+    """Cost shares ``(n_windows, 7)`` as a window × feature heatmap on ``ax``; returns the image."""
+    s = np.asarray(shares)
+    im = ax.imshow(s.T, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest",
+                   extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5))
+    ax.set_xticks(range(1, s.shape[0] + 1))
+    ax.tick_params(labelsize=7)
+    ax.set_yticks(range(len(FEATURES)))
+    ax.set_yticklabels([SHORT[f] for f in FEATURES] if feature_labels else [], fontsize=7)
+    return im
+
 def save(fig, path) -> None:
     """Write ``fig`` as PNG atomically and close it."""
     from ..io import atomic_path
@@ -119,20 +131,7 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
             if s is None:
                 ax.set_axis_off()
                 continue
-            s = np.asarray(s)
-            im = ax.imshow(
-                s.T,
-                aspect="auto",
-                cmap="viridis",
-                vmin=0,
-                vmax=1,
-                interpolation="nearest",
-                extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
-            )
-            ax.set_xticks(range(1, s.shape[0] + 1))
-            ax.tick_params(labelsize=7)
-            ax.set_yticks(range(len(FEATURES)))
-            ax.set_yticklabels([SHORT[f] for f in FEATURES] if c == 0 else [], fontsize=7)
+            im = _share_heatmap(ax, s, feature_labels=c == 0)
             if r == 0:
                 ax.set_title(p, fontsize=9)
             if c == 0:
@@ -215,20 +214,7 @@ def plot_truth(learned: dict, true: dict, axes=None, title: str = ""):
     for c, p in enumerate(postures):
         for r, (label, d) in enumerate((("learned", learned), ("true", true))):
             ax = axes[r, c]
-            s = np.asarray(d[p])
-            im = ax.imshow(
-                s.T,
-                aspect="auto",
-                cmap="viridis",
-                vmin=0,
-                vmax=1,
-                interpolation="nearest",
-                extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
-            )
-            ax.set_xticks(range(1, s.shape[0] + 1))
-            ax.tick_params(labelsize=7)
-            ax.set_yticks(range(len(FEATURES)))
-            ax.set_yticklabels([SHORT[f] for f in FEATURES] if c == 0 else [], fontsize=7)
+            im = _share_heatmap(ax, d[p], feature_labels=c == 0)
             if r == 0:
                 ax.set_title(p, fontsize=9)
             if c == 0:

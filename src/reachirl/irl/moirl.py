@@ -32,7 +32,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import fields, replace
+from dataclasses import fields
 
 import numpy as np
 
@@ -40,6 +40,7 @@ from ..arm import ArmModel
 from ..data.trial import Trial
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..features import N_FEATURES, feature_rates, window_index, windowed_features
+from .base import WeightEstimator
 from .objective import merit, solve_delta
 
 __all__ = ["MOIRL", "demonstration_states", "mean_task"]
@@ -72,7 +73,7 @@ def _suffix_features(rates: np.ndarray, dt: float, n_windows: int, starts: np.nd
     return out
 
 
-class MOIRL:
+class MOIRL(WeightEstimator):
     """Minimal Observation IRL with ``n_windows`` time windows of weights.
 
     Parameters follow the seed: ``beta=1e-10``, ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``.
@@ -129,16 +130,8 @@ class MOIRL:
         self.callback = callback
 
     # ------------------------------------------------------------------ helpers
-    def get_params(self) -> dict:
-        return {k: getattr(self, k) for k in self.__init__.__code__.co_varnames[1:] if hasattr(self, k)}
-
-    def _check_params(self, trials: Sequence[Trial]) -> None:
-        if not trials:
-            raise ValueError("fit needs at least one demonstration")
-        if not all(isinstance(t, Trial) for t in trials):
-            raise TypeError("fit takes a sequence of Trial")
-        if not 1 <= self.n_windows <= self.n_nodes:
-            raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
+    def _check_params(self, trials: Sequence[Trial]) -> list[Trial]:
+        trials = self._check_trials(trials)
         if self.rollout not in ("mean", "per_demo"):
             raise ValueError(f"rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
         if self.acceptance not in ("merit", "either"):
@@ -149,6 +142,7 @@ class MOIRL:
             raise ValueError(f"need 0 < shrink < 1 and max_tries >= 1, got {self.shrink} and {self.max_tries}")
         if not self.w0 > 0 or not 0 < self.alpha0 <= 1:
             raise ValueError(f"need w0 > 0 and 0 < alpha0 <= 1 (weights stay > 0), got {self.w0} and {self.alpha0}")
+        return trials
 
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         if self.rollout == "mean":
@@ -221,8 +215,7 @@ class MOIRL:
 
     # ------------------------------------------------------------------ fit / predict
     def fit(self, trials: Sequence[Trial]) -> MOIRL:
-        trials = list(trials)
-        self._check_params(trials)
+        trials = self._check_params(trials)
         t_start = time.perf_counter()
         tasks = self._tasks(trials)
         x_demos = demonstration_states(trials, self.n_nodes)
@@ -318,20 +311,3 @@ class MOIRL:
         armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self.armijo_c1 * alpha * g0
         curvature = abs(g1) <= self.curvature_c2 * abs(g0)
         return bool(g0 < 0 and armijo and curvature)
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "weights_"):
-            raise RuntimeError("this MOIRL is not fitted yet; call fit(trials) first")
-
-    def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
-        """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration."""
-        self._check_fitted()
-        if isinstance(trial_or_task, Trial):
-            task = trial_or_task.to_task(self.n_nodes)
-        elif isinstance(trial_or_task, ReachingTask):
-            task = trial_or_task
-            if task.n_nodes != self.n_nodes:
-                task = replace(task, n_nodes=self.n_nodes)
-        else:
-            raise TypeError(f"predict takes a Trial or a ReachingTask, got {type(trial_or_task).__name__}")
-        return solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start)

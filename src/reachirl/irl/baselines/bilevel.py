@@ -14,7 +14,6 @@ converged one and retried cold if that fails (both count as solves); a DOC that 
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections.abc import Sequence
 
@@ -24,7 +23,8 @@ from scipy.optimize import minimize
 from ...data.trial import Trial
 from ...doc import DocSolution, solve_doc
 from ...features import N_FEATURES
-from ..moirl import MOIRL, demonstration_states, mean_task
+from ..base import WeightEstimator
+from ..moirl import demonstration_states, mean_task
 from ..objective import merit
 
 __all__ = ["BilevelIOC"]
@@ -36,7 +36,7 @@ class _BudgetError(Exception):
     """Raised inside the objective when the DOC budget is spent."""
 
 
-class BilevelIOC:
+class BilevelIOC(WeightEstimator):
     """Derivative-free bilevel IOC with ``n_windows`` time windows of weights.
 
     Fitted attributes: ``weights_`` (the best evaluated), ``merit_``, ``history_`` (one record per evaluation:
@@ -69,16 +69,8 @@ class BilevelIOC:
         self.failure_merit = failure_merit
         self.backend = backend
 
-    def get_params(self) -> dict:
-        return {k: getattr(self, k) for k in inspect.signature(type(self).__init__).parameters if k != "self"}
-
-    def _check_params(self, trials: Sequence[Trial]) -> None:
-        if not trials:
-            raise ValueError("fit needs at least one demonstration")
-        if not all(isinstance(t, Trial) for t in trials):
-            raise TypeError("fit takes a sequence of Trial")
-        if not 1 <= self.n_windows <= self.n_nodes:
-            raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
+    def _check_params(self, trials: Sequence[Trial]) -> list[Trial]:
+        trials = self._check_trials(trials)
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if int(self.max_evals) < 2:
@@ -87,10 +79,10 @@ class BilevelIOC:
             raise ValueError(f"log_bound must be > 0, got {self.log_bound}")
         if not self.w0 > 0:
             raise ValueError(f"w0 must be > 0 (the search is on log-weights), got {self.w0}")
+        return trials
 
     def fit(self, trials: Sequence[Trial]) -> BilevelIOC:
-        trials = list(trials)
-        self._check_params(trials)
+        trials = self._check_params(trials)
         t_start = time.perf_counter()
         task = mean_task(trials, self.n_nodes)
         x_demos = demonstration_states(trials, self.n_nodes)
@@ -167,8 +159,3 @@ class BilevelIOC:
         self.train_solutions_ = [sol_best] if sol_best is not None else []
         return self
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "weights_"):
-            raise RuntimeError("this BilevelIOC is not fitted yet; call fit(trials) first")
-
-    predict = MOIRL.predict

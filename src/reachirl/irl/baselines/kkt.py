@@ -36,7 +36,6 @@ torque changes, i.e. second and third differences of the joint angles, so angle 
 from __future__ import annotations
 
 import functools
-import inspect
 import time
 from collections.abc import Sequence
 
@@ -48,7 +47,7 @@ from scipy.optimize import nnls
 from ...data.trial import Trial
 from ...doc.casadi import _ARM_FIELDS, _fingertip, _inverse_dynamics, _mass_matrix
 from ...features import N_FEATURES, window_index
-from ..moirl import MOIRL
+from ..base import WeightEstimator
 
 __all__ = ["KKTIOC", "kkt_matrices", "kkt_residual"]
 
@@ -146,7 +145,7 @@ def kkt_residual(
     return float(np.sqrt(num / max(den, 1e-300)))
 
 
-class KKTIOC:
+class KKTIOC(WeightEstimator):
     """Residual (KKT) inverse optimal control with ``n_windows`` time windows of weights; one NNLS, no DOC.
 
     ``zero_power_tol``: knots whose power is below this fraction of the peak get a free energy multiplier.
@@ -187,9 +186,6 @@ class KKTIOC:
         self.pooling = pooling
         self.backend = backend
 
-    def get_params(self) -> dict:
-        return {k: getattr(self, k) for k in inspect.signature(type(self).__init__).parameters if k != "self"}
-
     def _solve(self, A: np.ndarray, w_rel: np.ndarray | None = None) -> tuple[np.ndarray, float]:
         """``min ‖A ω̃‖`` over ``ω̃ ≥ 0``, ``Σ ω̃ = 1`` (or just the residual of ``w_rel``): ``(ω̃, residual)``
         with the residual relative to the RMS column norm of ``A``."""
@@ -204,13 +200,7 @@ class KKTIOC:
         return w_rel, float(np.linalg.norm(R @ w_rel) / max(np.linalg.norm(R) / np.sqrt(n), 1e-300))
 
     def fit(self, trials: Sequence[Trial]) -> KKTIOC:
-        trials = list(trials)
-        if not trials:
-            raise ValueError("fit needs at least one demonstration")
-        if not all(isinstance(t, Trial) for t in trials):
-            raise TypeError("fit takes a sequence of Trial")
-        if not 1 <= self.n_windows <= self.n_nodes:
-            raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
+        trials = self._check_trials(trials)
         if self.normalisation not in ("cost", "gradient"):
             raise ValueError(f"normalisation must be 'cost' or 'gradient', got {self.normalisation!r}")
         if self.pooling not in ("joint", "per_demo"):
@@ -254,8 +244,3 @@ class KKTIOC:
         ]
         return self
 
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "weights_"):
-            raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
-
-    predict = MOIRL.predict

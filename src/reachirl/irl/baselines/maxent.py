@@ -6,8 +6,6 @@ two differ only in those two choices.
 
 from __future__ import annotations
 
-import inspect
-
 from ..moirl import MOIRL
 
 __all__ = ["MaxEntIRL"]
@@ -19,10 +17,3 @@ class MaxEntIRL(MOIRL):
 
     def __init__(self, n_windows: int = 8, *, memory: int | None = None, use_gamma: bool = False, **kwargs):
         super().__init__(n_windows, memory=memory, use_gamma=use_gamma, **kwargs)
-
-    def get_params(self) -> dict:
-        return {k: getattr(self, k) for k in inspect.signature(MOIRL.__init__).parameters if k != "self"}
-
-    def _check_fitted(self) -> None:
-        if not hasattr(self, "weights_"):
-            raise RuntimeError("this MaxEntIRL is not fitted yet; call fit(trials) first")

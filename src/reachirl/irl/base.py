@@ -1,0 +1,59 @@
+"""What every learner of DOC weights shares: scikit-learn-style parameters, the checks on its demonstrations,
+and prediction by the DOC under the learned weights."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Sequence
+from dataclasses import replace
+
+from ..data.trial import Trial
+from ..doc import DocSolution, ReachingTask, solve_doc
+
+__all__ = ["WeightEstimator"]
+
+
+class WeightEstimator:
+    """Base of MOIRL and the baselines. Subclasses store ``n_windows``, ``n_nodes`` and ``backend`` in
+    ``__init__`` and set ``weights_`` in ``fit``."""
+
+    n_windows: int
+    n_nodes: int
+    backend: str
+
+    def get_params(self) -> dict:
+        """The constructor's parameters and their values (over the class hierarchy)."""
+        names: list[str] = []
+        for cls in type(self).__mro__:
+            if "__init__" in cls.__dict__ and cls is not object:
+                for p in inspect.signature(cls.__init__).parameters.values():
+                    if p.name != "self" and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL) and p.name not in names:
+                        names.append(p.name)
+        return {k: getattr(self, k) for k in names if hasattr(self, k)}
+
+    def _check_trials(self, trials: Sequence[Trial]) -> list[Trial]:
+        trials = list(trials)
+        if not trials:
+            raise ValueError("fit needs at least one demonstration")
+        if not all(isinstance(t, Trial) for t in trials):
+            raise TypeError("fit takes a sequence of Trial")
+        if not 1 <= self.n_windows <= self.n_nodes:
+            raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
+        return trials
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "weights_"):
+            raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
+
+    def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
+        """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration."""
+        self._check_fitted()
+        if isinstance(trial_or_task, Trial):
+            task = trial_or_task.to_task(self.n_nodes)
+        elif isinstance(trial_or_task, ReachingTask):
+            task = trial_or_task
+            if task.n_nodes != self.n_nodes:
+                task = replace(task, n_nodes=self.n_nodes)
+        else:
+            raise TypeError(f"predict takes a Trial or a ReachingTask, got {type(trial_or_task).__name__}")
+        return solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start)
