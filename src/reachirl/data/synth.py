@@ -6,7 +6,7 @@ a vertical bar, under the subject's true weights jittered for that trial. The re
 markers at 100 Hz placed by the arm's kinematics, in a lab frame, with noise and rest before and after, and
 written as TRC, C3D or MOT files with a manifest, a subject-info CSV and ``truth.json``.
 
-**Population** (Berret 2011; facts §2): height 1.76 ± 0.06 m, mass 69.9 ± 8.4 kg, 16 of 20 male. Each
+**Population** (Berret et al. 2011, PLoS Comput Biol 7(10) e1002183): height 1.76 ± 0.06 m, mass 69.9 ± 8.4 kg, 16 of 20 male. Each
 subject is male with probability 0.8; height and mass are drawn around sex-specific means chosen so that the
 mixture has Berret's mean (men +2 cm / +2.1 kg, women −8 cm / −8.4 kg, within-sex SD 5 cm / 7.5 kg, clipped
 at ±2.5 SD). Segment lengths are Dumas 2007's mean lengths scaled by height over the table's reference
@@ -24,7 +24,7 @@ to a bar at 85–95 % of arm length (see :func:`berret_to_model` and ``docs/figu
   forward, forearm 60° above it; P5 upper arm 50° behind the vertical, forearm pointing down-forward (hand
   beside the hip).
 * Every fingertip starts short of the bar (x ≤ 0.5 m against a bar at ≥ 0.6 m).
-* The alternative suggested in facts §2 (shoulder from the downward vertical) makes P1 a straight horizontal
+* The other common reading (shoulder from the downward vertical) makes P1 a straight horizontal
   arm with the fingertip at x = L, beyond the bar (physically through it), which cannot be a start posture.
 * It matches the seed paper's remark that P3 and P5 need "more activity in joint space" for a small
   fingertip motion: they are the two postures with the upper arm behind the trunk.
@@ -759,7 +759,7 @@ def builtin_dataset_dir(seed: int = 0) -> Path:
 
 # ---------------------------------------------------------------------- the posture figure
 def _downward_vertical_reading(elbow_deg: float, shoulder_deg: float) -> np.ndarray:
-    """The alternative of facts §2 (rejected): shoulder from the downward vertical, elbow < 0 = flexion."""
+    """The other reading (rejected): shoulder from the downward vertical, elbow < 0 = flexion."""
     return np.deg2rad([float(shoulder_deg) - 90.0, -float(elbow_deg)])
 
 
