@@ -259,7 +259,6 @@ def make_estimator(unit: Unit):
         "max_iter": unit.max_iter,
         "tol": unit.tol,
         "backend": unit.backend,
-        "random_state": unit.seed,
         **dict(unit.estimator_options),
     }
     params = inspect.signature(AVAILABLE[unit.method].__init__).parameters

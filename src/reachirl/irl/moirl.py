@@ -33,6 +33,7 @@ import logging
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -73,11 +74,25 @@ def _suffix_features(rates: np.ndarray, dt: float, n_windows: int, starts: np.nd
     return out
 
 
+class _Step(NamedTuple):
+    """The line search's outcome: the accepted try, or ``accepted=False`` with the current point."""
+
+    accepted: bool
+    alpha: float
+    tries: int
+    weights: np.ndarray
+    solutions: list
+    merit: float
+    solves: int
+    failures: int
+
+
 class MOIRL(WeightEstimator):
     """Minimal Observation IRL with ``n_windows`` time windows of weights.
 
     Parameters follow the seed: ``beta=1e-10``, ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``.
-    ``callback(iteration_record)`` is called after every iteration (for progress bars).
+    ``callback(iteration_record)`` is called after every iteration (for progress bars). The fit makes no
+    random choice: the same demonstrations give the same weights (the protocol's trial split takes a seed).
 
     Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``history_`` (one dict per
     iteration: merit, alpha, tries, weights, DOC solves (every solver run), failures, wall time), ``merit_``,
@@ -105,7 +120,6 @@ class MOIRL(WeightEstimator):
         armijo_c1: float = 1e-4,
         curvature_c2: float = 0.9,
         backend: str = "casadi",
-        random_state: int | None = 0,
         callback: Callable[[dict], None] | None = None,
     ):
         self.n_windows = n_windows
@@ -126,7 +140,6 @@ class MOIRL(WeightEstimator):
         self.armijo_c1 = armijo_c1
         self.curvature_c2 = curvature_c2
         self.backend = backend
-        self.random_state = random_state
         self.callback = callback
 
     # ------------------------------------------------------------------ helpers
@@ -238,21 +251,14 @@ class MOIRL(WeightEstimator):
             log.warning("the DOC at the initial weights did not converge")
         self.stop_reason_ = "max_iter"
         for it in range(1, self.max_iter + 1):
-            groups = self._subproblem_terms(phi_star, bank, starts)
-            dw, info = solve_delta(w, groups, self.beta, self.use_gamma, self.l1)
-            alpha, accepted, tries = self.alpha0, False, 0
-            for tries in range(1, self.max_tries + 1):  # noqa: B007  (tries is reported)
-                w_try = w + alpha * dw  # > 0: Δω ≥ −(1 − min_ratio) ω and α ≤ 1
-                cand = self._rollouts(tasks, w_try, sols)
-                n_solves += sum(s.attempts for s in cand)
-                failed = sum(not s.converged for s in cand)
-                n_fail += failed
-                m_try = self._merit(x_demos, cand)
-                if m_try < m or (failed == 0 and self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star,
-                                                                       starts)):
-                    accepted = True
-                    break
-                alpha *= self.shrink
+            # Δω* from the subproblem (seed Eq. 4), then ω ← ω + αΔω* with α from the line search on the merit
+            dw, info = solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self.beta, self.use_gamma,
+                                   self.l1)
+            step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts)
+            n_solves += step.solves
+            n_fail += step.failures
+            accepted, alpha, tries = step.accepted, step.alpha, step.tries
+            w_try, cand, m_try = step.weights, step.solutions, step.merit
             record = {"iteration": it, "alpha": alpha if accepted else 0.0, "tries": tries, "accepted": accepted,
                       "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail}
             if not accepted:
@@ -283,6 +289,22 @@ class MOIRL(WeightEstimator):
         self.fit_time_ = time.perf_counter() - t_start
         self.train_solutions_ = sols
         return self
+
+    def _line_search(self, w, dw, m, sols, tasks, x_demos, phi_star, starts) -> _Step:
+        """``α = α0, α0·shrink, …`` (at most ``max_tries``): the first ``ω + αΔω`` whose DOC rollout lowers the
+        merit (or passes the "either" test) is accepted. ``ω + αΔω > 0`` since ``Δω ≥ −(1 − min_ratio) ω``."""
+        alpha, solves, failures = self.alpha0, 0, 0
+        for tries in range(1, self.max_tries + 1):
+            w_try = w + alpha * dw
+            cand = self._rollouts(tasks, w_try, sols)
+            solves += sum(s.attempts for s in cand)
+            failed = sum(not s.converged for s in cand)
+            failures += failed
+            m_try = self._merit(x_demos, cand)
+            if m_try < m or (failed == 0 and self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)):
+                return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures)
+            alpha *= self.shrink
+        return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures)
 
     def _notify(self, record: dict) -> None:
         log.info("iteration %d: merit %.5g alpha %.3g tries %d", record["iteration"], record["merit"],

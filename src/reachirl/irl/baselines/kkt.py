@@ -30,7 +30,8 @@ DOC is invariant to the scale of ``ω``, so no rescaling is needed: ``weights_ =
 
 No DOC is solved in the fit (``n_doc_solves_ = 0``). The method needs the demonstrations' accelerations and
 torque changes, i.e. second and third differences of the joint angles, so angle noise is amplified by
-``1/dt²`` and ``1/dt³``: nearly exact on noise-free DOC solutions, it degrades fast with noise (Colombel et al. 2022; Bečanović et al. 2024).
+``1/dt²`` and ``1/dt³``: nearly exact on noise-free DOC solutions, it degrades fast with noise
+(Colombel et al. 2022; Bečanović et al. 2024).
 """
 
 from __future__ import annotations
