@@ -6,11 +6,11 @@ a vertical bar, under the subject's true weights jittered for that trial. The re
 markers at 100 Hz placed by the arm's kinematics, in a lab frame, with noise and rest before and after, and
 written as TRC, C3D or MOT files with a manifest, a subject-info CSV and ``truth.json``.
 
-**Population** (Berret et al. 2011, PLoS Comput Biol 7(10) e1002183): height 1.76 ± 0.06 m, mass
-69.9 ± 8.4 kg, 16 of 20 male. Each subject is male with probability 0.8; height and mass are drawn around
-sex-specific means chosen so that the mixture has Berret's mean (men +2 cm / +2.1 kg, women −8 cm / −8.4 kg,
-within-sex SD 5 cm / 7.5 kg, clipped at ±2.5 SD). Segment lengths are Dumas 2007's mean lengths scaled by height over the table's reference
-stature, each times ``exp(N(0, 0.03))`` (about 3 % individual variation).
+**Population** (Berret et al. 2011, PLoS Comput Biol 7(10) e1002183): height 1.76 ± 0.06 m, mass 69.9 ± 8.4 kg,
+16 of 20 male. Each subject is male with probability 0.8; height and mass are drawn around sex-specific means
+chosen so that the mixture has Berret's mean (men +2 cm / +2.1 kg, women −8 cm / −8.4 kg, within-sex SD 5 cm /
+7.5 kg, clipped at ±2.5 SD). Segment lengths are Dumas 2007's mean lengths scaled by height over the table's
+reference stature, each times ``exp(N(0, 0.03))`` (about 3 % individual variation).
 
 **Initial postures.** Berret gives them as ``[elbow; shoulder]`` in degrees: P1 [0; 90], P2 [−90; 90], P3
 [−120; 120], P4 [−90; 30], P5 [−80; 140]. We read both angles as measured from the *forward horizontal* in a
