@@ -1,0 +1,32 @@
+"""The examples run and do what they say (each is a short script with a main())."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def load(name: str):
+    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_quickstart_writes_its_figure(tmp_path, capsys):
+    out = tmp_path / "q.png"
+    assert load("quickstart").main(["--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+    text = capsys.readouterr().out
+    assert text.count("converged=True") == 3
+
+
+@pytest.mark.slow
+def test_learn_from_ue_adl_predicts_the_other_arm(capsys):
+    assert load("learn_from_ue_adl").main([]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rmse = {ln.split()[0]: float(ln.split("RMSE of q ")[1].split()[0]) for ln in lines if "RMSE of q" in ln}
+    assert rmse["training"] < 6 and rmse["validation"] < 10
+    assert sum(ln.startswith("window ") for ln in lines) == 8
