@@ -13,11 +13,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc  # noqa: E402
-from reachirl.data.synth import posture_q  # noqa: E402
+from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
+from reachirl.data.synth import posture_q
 
 
 def main(argv: list[str] | None = None) -> int:
