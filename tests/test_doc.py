@@ -1,4 +1,5 @@
-"""The CasADi DOC: constraints, cost, local optimality, warm starts, a convergence sweep, errors."""
+"""The DOC: constraints, cost and local optimality on both backends; warm starts, a convergence sweep and
+errors on the default one."""
 
 import numpy as np
 import pinocchio as pin
@@ -23,16 +24,34 @@ def make_task(arm, posture_deg, duration=0.7, frac=0.9, n_nodes=100):
     return ReachingTask(arm, np.deg2rad(posture_deg), frac * arm.length, duration, n_nodes=n_nodes)
 
 
-@pytest.fixture(scope="module")
-def solved(arm):
+# What each backend guarantees. Both meet the constraints and the Euler dynamics to round-off (measured on this
+# example: Crocoddyl's gaps 2e-12, constraints 3e-10). Crocoddyl's energy term is |·| smoothed by ε = 1 mW, so
+# its optimum is that of a slightly different problem: perturbations may lower the exact cost by a little.
+TOL = {
+    "casadi": {"feasibility": 1e-8, "dynamics": 1e-8, "optimality": 1e-7},
+    "crocoddyl": {"feasibility": 1e-8, "dynamics": 1e-8, "optimality": 5e-4},
+}
+
+
+def _solve_example(arm, backend):
     rng = np.random.default_rng(7)
     task = make_task(arm, TEST_POSTURES_DEG[1])
     w = random_weights(rng, 8)
-    return task, w, solve_doc(task, w)
+    return task, w, solve_doc(task, w, backend=backend)
 
 
-def test_solution_shapes_and_fields(solved):
-    task, _, sol = solved
+@pytest.fixture(scope="module")
+def solved(arm):
+    return _solve_example(arm, "casadi")
+
+
+@pytest.fixture(scope="module", params=list(TOL))
+def any_backend(arm, request):
+    return (*_solve_example(arm, request.param), TOL[request.param])
+
+
+def test_solution_shapes_and_fields(any_backend):
+    task, _, sol, _ = any_backend
     n = task.n_nodes
     assert sol.converged and sol.iterations > 0 and sol.solve_time > 0
     assert sol.t.shape == (n + 1,) and sol.q.shape == (n + 1, 2) and sol.qd.shape == (n + 1, 2)
@@ -40,26 +59,26 @@ def test_solution_shapes_and_fields(solved):
     assert sol.t[-1] == pytest.approx(task.duration)
 
 
-def test_constraints_hold_at_solution(solved):
-    task, _, sol = solved
-    arm, dt = task.arm, task.dt
+def test_constraints_hold_at_solution(any_backend):
+    task, _, sol, tol = any_backend
+    arm, dt, eps = task.arm, task.dt, tol["feasibility"]
     np.testing.assert_allclose(sol.q[0], task.q0, atol=1e-12)
     np.testing.assert_allclose(sol.qd[0], 0.0, atol=1e-12)
-    np.testing.assert_allclose(sol.qd[-1], 0.0, atol=1e-9)
-    assert arm.fk(sol.q[-1])[0] == pytest.approx(task.target_x, abs=1e-8)
-    assert np.all(sol.q >= task.q_lower - 1e-8) and np.all(sol.q <= task.q_upper + 1e-8)
-    assert np.all(np.abs(sol.qd) <= task.qd_max + 1e-8)
+    np.testing.assert_allclose(sol.qd[-1], 0.0, atol=eps)
+    assert arm.fk(sol.q[-1])[0] == pytest.approx(task.target_x, abs=eps)
+    assert np.all(sol.q >= task.q_lower - eps) and np.all(sol.q <= task.q_upper + eps)
+    assert np.all(np.abs(sol.qd) <= task.qd_max + eps)
     # semi-implicit Euler with Pinocchio's ABA (an independent implementation of the dynamics)
     model = arm.pinocchio_model()
     data = model.createData()
     for k in range(task.n_nodes):
         qdd = pin.aba(model, data, sol.q[k], sol.qd[k], sol.tau[k])
-        np.testing.assert_allclose(sol.qd[k + 1], sol.qd[k] + dt * qdd, atol=1e-8)
-        np.testing.assert_allclose(sol.q[k + 1], sol.q[k] + dt * sol.qd[k + 1], atol=1e-12)
+        np.testing.assert_allclose(sol.qd[k + 1], sol.qd[k] + dt * qdd, atol=tol["dynamics"])
+        np.testing.assert_allclose(sol.q[k + 1], sol.q[k] + dt * sol.qd[k + 1], atol=tol["dynamics"])
 
 
-def test_reported_cost_equals_features_cost(solved):
-    task, w, sol = solved
+def test_reported_cost_equals_features_cost(any_backend):
+    task, w, sol, _ = any_backend
     expected = trajectory_cost(task.arm, sol.q, sol.qd, sol.tau, task.dt, w)
     assert sol.cost == pytest.approx(expected, rel=1e-8)
 
@@ -78,13 +97,15 @@ def _perturbed(task, q, rng, amplitude):
     return q_new, qd, tau
 
 
-def test_feasible_perturbations_never_lower_the_cost(solved, rng):
-    task, w, sol = solved
+def test_feasible_perturbations_never_lower_the_cost(any_backend, rng):
+    task, w, sol, tol = any_backend
+    q_sol = sol.q.copy()
+    q_sol[-1] = q_sol[-2]  # the exact q̇_N = 0 (Crocoddyl meets it to its tolerance)
     for amplitude in (1e-2, 3e-2):
         for _ in range(20):
-            q, qd, tau = _perturbed(task, sol.q, rng, amplitude)
-            assert task.arm.fk(q[-1])[0] == pytest.approx(task.target_x, abs=1e-12)
-            assert trajectory_cost(task.arm, q, qd, tau, task.dt, w) >= sol.cost * (1 - 1e-7)
+            q, qd, tau = _perturbed(task, q_sol, rng, amplitude)
+            assert task.arm.fk(q[-1])[0] == pytest.approx(task.arm.fk(q_sol[-1])[0], abs=1e-12)
+            assert trajectory_cost(task.arm, q, qd, tau, task.dt, w) >= sol.cost * (1 - tol["optimality"])
 
 
 def test_warm_start_reaches_the_same_optimum_in_fewer_iterations(solved, rng):
