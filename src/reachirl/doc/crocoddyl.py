@@ -44,6 +44,7 @@ and the weights are updated in place before each solve (weights through ``costs.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import math
@@ -93,9 +94,9 @@ class CsqpOptions:
     max_iter: int = 200
     termination_tolerance: float = 5e-3
     max_qp_iters: int = 1000
-    eps_abs: float = 1e-4
-    eps_rel: float = 1e-4
-    polish_eps: float = 1e-6
+    qp_eps_max: float = 1e-3
+    qp_eps_min: float = 0.1
+    qp_forcing: float = 0.1
     energy_smoothing: float = 1e-3  # ε of the smooth |q̇ᵀτ|, in W
     use_filter_line_search: bool = False
 
@@ -365,17 +366,43 @@ class ReachingProblem:
         t.g_lb = np.r_[task.target_x, -np.inf, -np.inf, task.q_lower, 0.0, 0.0]
         t.g_ub = np.r_[task.target_x, np.inf, np.inf, task.q_upper, 0.0, 0.0]
 
-    def make_solver(self, tolerance: float, eps: float | None = None):
+    def make_solver(self, tolerance: float, eps: float, callbacks=()):
         """A fresh CSQP solver (no state carried over from earlier solves, so results are reproducible)."""
         o = self.options
         solver = mim_solvers.SolverCSQP(self.problem)
         solver.termination_tolerance = tolerance
         solver.max_qp_iters = o.max_qp_iters
-        solver.eps_abs = o.eps_abs if eps is None else eps
-        solver.eps_rel = o.eps_rel if eps is None else 0.0
+        solver.eps_abs = eps
+        solver.eps_rel = 0.0
         solver.use_filter_line_search = o.use_filter_line_search
         solver.with_callbacks = False
+        if callbacks:
+            solver.setCallbacks(list(callbacks))
         return solver
+
+
+class _Monitor(mim_solvers.CallbackAbstract):
+    """CSQP's per-iteration callback (run after each QP, just before CSQP's own KKT test).
+
+    It sets the next QP's tolerance from the current KKT residual and declares convergence on stagnation.
+    """
+
+    def __init__(self, tol: float, options: CsqpOptions):
+        mim_solvers.CallbackAbstract.__init__(self)
+        self.tol, self.o = tol, options
+        self.eps_min = options.qp_eps_min * tol
+        self.history: list[tuple[float, float, float, float, float, int]] = []
+        self.stagnated = False
+
+    def eps_for(self, kkt: float) -> float:
+        return min(self.o.qp_eps_max, max(self.eps_min, self.o.qp_forcing * kkt))
+
+    def __call__(self, solver, name):
+        kkt, cost = float(solver.KKT), float(solver.cost)
+        step = max(float(np.abs(np.array(solver.dx)).max()), float(np.abs(np.array(solver.du)).max()))
+        self.history.append((kkt, cost, float(solver.gap_norm), float(solver.constraint_norm), step,
+                             int(solver.qp_iters)))
+        solver.eps_abs = self.eps_for(kkt)
 
 
 def build_problem(
@@ -453,12 +480,14 @@ def solve(
         # start
         tol = options.termination_tolerance * abs(prob.problem.calc(*cold)) / n
         t0 = time.perf_counter()
-        solver = prob.make_solver(tol)
+        monitor = _Monitor(tol, options)
+        solver = prob.make_solver(tol, options.qp_eps_max, [monitor])
         ok = bool(solver.solve(xs, us, options.max_iter, False))
         iterations = int(solver.iter)
-        if not ok and iterations < options.max_iter and options.polish_eps < options.eps_abs:
+        if not ok and iterations < options.max_iter:
             # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
-            polisher = prob.make_solver(tol, eps=options.polish_eps)
+            polisher = prob.make_solver(tol, monitor.eps_min, [monitor])
+            monitor.o = dataclasses.replace(options, qp_eps_max=monitor.eps_min)
             ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
             iterations += int(polisher.iter)
             solver = polisher
@@ -466,6 +495,7 @@ def solve(
         X = np.array(solver.xs)
         U = np.array(solver.us)
         kkt, gap, cons = float(solver.KKT), float(solver.gap_norm), float(solver.constraint_norm)
+        qp_iters = sum(h[-1] for h in monitor.history)
     q, qd, tau = X[:, :2], X[:, 2:4], U
     finite = bool(np.all(np.isfinite(X)) and np.all(np.isfinite(U)))
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights) if finite else float("nan")
@@ -483,5 +513,5 @@ def solve(
         solve_time=elapsed,
         status=status,
         backend="crocoddyl",
-        warm={"backend": "crocoddyl", "n": n},
+        warm={"backend": "crocoddyl", "n": n, "qp_iters": qp_iters, "history": monitor.history},
     )
