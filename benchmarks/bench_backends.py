@@ -5,9 +5,11 @@ Problems: the 5 start postures (P1 (−60°, 90°), P2 (0°, 90°), P3 (30°, 12
 of a 1.76 m, 70 kg male arm, bar at 0.95 L, durations 0.6–0.8 s, N = 100 knots, 1 and 8 windows, random
 weights (log-uniform factors 0.3–3 over 1/Φ typical sizes). Figures: median cold solve time and iterations,
 median warm solve time and iterations after a ~10 % weight change (warm-started from the previous solution),
-the agreement of the two backends (q RMSE in degrees, relative cost difference under
-``features.trajectory_cost``), and where the Crocoddyl backend's time goes (Python knot model vs the C++ model
-inside it vs the rest, i.e. CSQP's QPs).
+the same changed problems solved cold (``cold2``, to tell what the warm start saves), CPU times
+(``time.process_time`` around ``solve_doc``, so on a loaded 2-core machine they are steadier than the wall-clock
+``solve_time``; medians over the problems of the median over repeats), the agreement of the two backends (q
+RMSE in degrees, relative cost difference under ``features.trajectory_cost``), and where the Crocoddyl
+backend's time goes (Python knot model vs the C++ model inside it vs the rest, i.e. CSQP's QPs).
 """
 
 from __future__ import annotations
@@ -74,25 +76,35 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
 def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
     """Time both backends on the same problems; returns a JSON-able dict of figures."""
     probs = problems(seed, windows)
-    per = {
-        b: {"cold_s": [], "cold_iter": [], "warm_s": [], "warm_iter": [], "converged": 0, "warm_converged": 0}
-        for b in BACKENDS
-    }
+    keys = ("cold_s", "cold_iter", "warm_s", "warm_iter", "cold_cpu_s", "warm_cpu_s", "cold2_cpu_s", "cold2_iter")
+    per = {b: {**{k: [] for k in keys}, "converged": 0, "warm_converged": 0} for b in BACKENDS}
     rmse, dcost, rows = [], [], []
     for task, w, w2 in probs:
         sols = {}
         for b in BACKENDS:
-            times, warm_times = [], []
+            times, warm_times, cpu, warm_cpu, cold2_cpu = [], [], [], [], []
             for _ in range(n_repeats):
+                c0 = time.process_time()
                 s = solve_doc(task, w, backend=b)
-                times.append(s.solve_time)
+                c1 = time.process_time()
                 sw = solve_doc(task, w2, backend=b, warm_start=s)
+                c2 = time.process_time()
+                s2 = solve_doc(task, w2, backend=b)
+                c3 = time.process_time()
+                times.append(s.solve_time)
                 warm_times.append(sw.solve_time)
+                cpu.append(c1 - c0)
+                warm_cpu.append(c2 - c1)
+                cold2_cpu.append(c3 - c2)
             sols[b] = s
             per[b]["cold_s"].append(_median(times))
             per[b]["cold_iter"].append(s.iterations)
             per[b]["warm_s"].append(_median(warm_times))
             per[b]["warm_iter"].append(sw.iterations)
+            per[b]["cold_cpu_s"].append(_median(cpu))
+            per[b]["warm_cpu_s"].append(_median(warm_cpu))
+            per[b]["cold2_cpu_s"].append(_median(cold2_cpu))
+            per[b]["cold2_iter"].append(s2.iterations)
             per[b]["converged"] += int(s.converged)
             per[b]["warm_converged"] += int(sw.converged)
         a, c = sols["casadi"], sols["crocoddyl"]
@@ -111,6 +123,7 @@ def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
                 "crocoddyl_cold_s": per["crocoddyl"]["cold_s"][-1],
                 "casadi_iter": a.iterations,
                 "crocoddyl_iter": c.iterations,
+                "crocoddyl_status": c.status,
             }
         )
     summary = {}
@@ -121,6 +134,11 @@ def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
             "cold_median_iterations": _median(p["cold_iter"]),
             "warm_median_s": _median(p["warm_s"]),
             "warm_median_iterations": _median(p["warm_iter"]),
+            "cold_cpu_median_s": _median(p["cold_cpu_s"]),
+            "warm_cpu_median_s": _median(p["warm_cpu_s"]),
+            "cold2_cpu_median_s": _median(p["cold2_cpu_s"]),
+            "cold2_median_iterations": _median(p["cold2_iter"]),
+            "warm_faster_than_cold2": f"{np.sum(np.less(p['warm_cpu_s'], p['cold2_cpu_s']))}/{len(probs)}",
             "converged": f"{p['converged']}/{len(probs)}",
             "warm_converged": f"{p['warm_converged']}/{len(probs)}",
         }
@@ -132,6 +150,9 @@ def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
     }
     summary["ratio_cold_crocoddyl_over_casadi"] = (
         summary["crocoddyl"]["cold_median_s"] / summary["casadi"]["cold_median_s"]
+    )
+    summary["ratio_cold_cpu_crocoddyl_over_casadi"] = (
+        summary["crocoddyl"]["cold_cpu_median_s"] / summary["casadi"]["cold_cpu_median_s"]
     )
     summary["crocoddyl_profile"] = _profile_crocoddyl(probs[0][0], probs[0][1])
     summary["problems"] = rows

@@ -24,12 +24,13 @@ def make_task(arm, posture_deg, duration=0.7, frac=0.9, n_nodes=100):
     return ReachingTask(arm, np.deg2rad(posture_deg), frac * arm.length, duration, n_nodes=n_nodes)
 
 
-# What each backend guarantees. Both meet the constraints and the Euler dynamics to round-off (measured on this
-# example: Crocoddyl's gaps 2e-12, constraints 3e-10). Crocoddyl's energy term is |·| smoothed by ε = 1 mW, so
-# its optimum is that of a slightly different problem: perturbations may lower the exact cost by a little.
+# What each backend guarantees. CasADi meets the constraints and the Euler dynamics to round-off; Crocoddyl/CSQP
+# declares convergence once its gaps and constraint violation are within its absolute feasibility tolerance,
+# 1e-5 (rad, rad/s, m). Crocoddyl's energy term is |·| smoothed by ε = 1 mW, so its optimum is that of a slightly
+# different problem: perturbations may lower the exact cost by a little.
 TOL = {
     "casadi": {"feasibility": 1e-8, "dynamics": 1e-8, "optimality": 1e-7},
-    "crocoddyl": {"feasibility": 1e-8, "dynamics": 1e-8, "optimality": 5e-4},
+    "crocoddyl": {"feasibility": 1e-5, "dynamics": 1e-5, "optimality": 5e-4},
 }
 
 
