@@ -1,7 +1,6 @@
 """Run the protocol's units in local processes or on a Dask cluster, with atomic checkpoints.
 
-Each unit's result goes to ``OUT/units/<key>.json`` (with its predictions in ``<key>.npz``), written
-atomically
+Each unit's result goes to ``OUT/units/<key>.json`` (with its predictions in ``<key>.npz``), written atomically
 by the coordinating process as soon as the unit finishes: the NPZ first, then the JSON, which marks the unit
 done. A rerun into the same folder reuses every unit whose JSON carries the same fingerprint (the unit's
 parameters and trials), so killing a run loses only the units in progress.
