@@ -20,6 +20,7 @@ __all__ = [
     "atomic_write_text",
     "npz_bytes",
     "read_json",
+    "read_text",
     "to_jsonable",
 ]
 
@@ -74,19 +75,34 @@ def atomic_write_json(path: str | os.PathLike, obj, indent: int | None = 2) -> N
     atomic_write_text(path, json.dumps(to_jsonable(obj), indent=indent, sort_keys=False) + "\n")
 
 
+def read_text(path: str | os.PathLike) -> str:
+    """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
+    :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
+    from .errors import InputError
+
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except FileNotFoundError:
+        raise InputError("file not found", p) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a file", p) from None
+    except OSError as e:
+        raise InputError(f"cannot read ({e.strerror})", p) from None
+    if not raw.strip():
+        raise InputError("file is empty", p)
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")  # decodes any bytes
+
+
 def read_json(path: str | os.PathLike):
     """Read JSON, raising :class:`~reachirl.errors.InputError` naming the file on any problem."""
     from .errors import InputError
 
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("file not found", p) from None
-    except OSError as e:
-        raise InputError(f"cannot read ({e.strerror})", p) from None
-    if not text.strip():
-        raise InputError("file is empty", p)
+    text = read_text(p)
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:

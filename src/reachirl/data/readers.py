@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io import read_text
 
 __all__ = [
     "FORMATS",
@@ -165,26 +166,6 @@ class AngleData:
 
 
 # ---------------------------------------------------------------------- helpers
-def _read_text(path: Path) -> str:
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("file not found", path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a file", path) from None
-    except OSError as e:
-        raise InputError(f"cannot read ({e.strerror})", path) from None
-    if not raw.strip():
-        raise InputError("file is empty", path)
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        try:
-            return raw.decode("latin-1")
-        except UnicodeDecodeError:  # pragma: no cover - latin-1 decodes any bytes
-            raise InputError("not a text file", path) from None
-
-
 def _float(cell: str, path: Path, line: int, col: str, allow_empty: bool = False) -> float:
     cell = cell.strip()
     if cell == "" and allow_empty:
@@ -209,7 +190,7 @@ def _unit_scale(unit: str, path: Path, where: str) -> float:
 def read_trc(path: str | Path) -> MarkerData:
     """Read an OpenSim TRC marker file (tab-separated; ``Units`` from the header line; Y up by convention)."""
     path = Path(path)
-    lines = _read_text(path).splitlines()
+    lines = read_text(path).splitlines()
     if not lines[0].startswith("PathFileType"):
         raise InputError("not a TRC file (line 1 should start with 'PathFileType')", path, "line 1")
     if len(lines) < 5:
@@ -311,7 +292,7 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
     the names.
     """
     path = Path(path)
-    text = _read_text(path)
+    text = read_text(path)
     lines = text.splitlines()
     if lines[0].split(",")[0].strip() != "Trajectories":
         raise InputError("not a Vicon 'Trajectories' CSV (line 1 should be 'Trajectories')", path, "line 1")
@@ -431,7 +412,7 @@ def read_mot(path: str | Path) -> AngleData:
     ``shoulder``/``elbow``)
     in the model convention."""
     path = Path(path)
-    lines = _read_text(path).splitlines()
+    lines = read_text(path).splitlines()
     end = next((k for k, ln in enumerate(lines) if ln.strip().lower() == "endheader"), None)
     if end is None:
         raise InputError("not a MOT file (no 'endheader' line)", path)
@@ -456,7 +437,7 @@ def read_mot(path: str | Path) -> AngleData:
 def read_angles_csv(path: str | Path) -> AngleData:
     """Read a ``time,q1,q2`` CSV (radians unless ``_deg`` suffixes or a ``# units: deg`` line say degrees)."""
     path = Path(path)
-    lines = _read_text(path).splitlines()
+    lines = read_text(path).splitlines()
     units = None
     k = 0
     while k < len(lines) and (lines[k].lstrip().startswith("#") or not lines[k].strip()):
@@ -501,7 +482,7 @@ def detect_format(path: str | Path) -> str:
     if ext in (".mot", ".sto"):
         return "mot"
     if ext in (".csv", ".txt"):
-        first = _read_text(path).lstrip().split("\n", 1)[0]
+        first = read_text(path).lstrip().split("\n", 1)[0]
         return "vicon-csv" if first.split(",")[0].strip() == "Trajectories" else "csv"
     raise InputError(
         f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path
@@ -561,7 +542,7 @@ class SubjectInfo:
 
 
 def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
-    text = _read_text(path)
+    text = read_text(path)
     reader = csv.DictReader(io.StringIO(text))
     fields_ = [f.strip() for f in (reader.fieldnames or [])]
     reader.fieldnames = fields_

@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io import atomic_write_text
+from ..io import atomic_write_text, read_text
 from .markersets import load_markerset
 from .preprocess import PreprocessOptions, reconstruct_markers
-from .readers import SubjectInfo, _read_text, read_subject_info, read_vicon_csv
+from .readers import SubjectInfo, read_subject_info, read_vicon_csv
 
 __all__ = [
     "SAMPLE_DIR",
@@ -92,7 +92,7 @@ def convert_subjects(src: str | Path, dst: str | Path, with_lengths: bool = Fals
     info = read_subject_info(src)
     raw = {}
     if with_lengths:
-        reader = csv.DictReader(_read_text(src).splitlines())
+        reader = csv.DictReader(read_text(src).splitlines())
         for row in reader:
             raw[row["subject"].strip()] = row
     lines = ["subject,sex,height_m,mass_kg" + (",upper_arm_m,forearm_m" if with_lengths else "")]
@@ -114,7 +114,7 @@ def read_authors_angles(path: str | Path) -> dict[str, np.ndarray]:
     """The authors' angles file: ``{"finger_velocity", "shoulder_flexion", "elbow_flexion", ...}`` in
     degrees."""
     path = Path(path)
-    lines = [ln for ln in _read_text(path).splitlines() if ln.strip()]
+    lines = [ln for ln in read_text(path).splitlines() if ln.strip()]
     header = [h.strip() for h in lines[0].split(",")]
     keys = {
         "Finger Velocity": "finger_velocity",
