@@ -323,15 +323,6 @@ def _draw_trial_inputs(rng: np.random.Generator, posture: str):
     return w, q0, duration
 
 
-def nominal_task(subject: SynthSubject, posture: str, config: SynthConfig) -> ReachingTask:
-    """The reach from the exact posture in Berret's mean duration under the nominal weights."""
-    arm = subject.arm
-    duration = BERRET_DURATIONS_S[posture][0] / MOVEMENT_FRACTION
-    q0 = posture_q(posture)
-    q0[1] = max(q0[1], 0.0)
-    return ReachingTask(arm, q0, config.target_fraction * arm.length, duration, n_nodes=config.n_nodes)
-
-
 def simulate_trial(
     subject: SynthSubject,
     posture: str,

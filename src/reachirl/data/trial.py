@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import zipfile
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -198,9 +198,6 @@ def load_trials(path: str | Path) -> list[Trial]:
         raise InputError("the file holds no trials", path)
     return out
 
-
-def trial_fields() -> tuple[str, ...]:
-    return tuple(f.name for f in fields(Trial))
 
 
 def trial_from_knots(arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, subject: str = "virtual",

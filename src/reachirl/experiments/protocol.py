@@ -148,6 +148,7 @@ _CODE_COMMON = (
     "data/trial.py",
     "doc/__init__.py",
     "doc/task.py",
+    "irl/base.py",
     "irl/objective.py",
     "irl/moirl.py",
     "experiments/protocol.py",

@@ -319,10 +319,6 @@ def _cell(c: dict | None, digits: int = 2) -> str:
     return f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}"
 
 
-def column_labels(sections: Sequence[int]) -> list[str]:
-    return [f"{SET_LABELS[s]} {n}" for s in SETS for n in sections]
-
-
 def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) -> list[list[str]]:
     """``[posture, joint, cell, …]`` rows, cells formatted ``mean ± SD`` (the terminal and
     markdown layout)."""

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..arm import ArmModel
 from ..doc.task import DocSolution
+from ..evaluation import rmse_deg
 from .mjcf import arm_mujoco_model
 
 __all__ = ["MODES", "PlaybackResult", "playback"]
@@ -110,11 +111,7 @@ def playback(
         q_out[k + 1], qd_out[k + 1] = data.qpos, data.qvel
 
     err = np.rad2deg(q_out - q_ref)
-    rmse = {
-        "q1": float(np.sqrt(np.mean(err[:, 0] ** 2))),
-        "q2": float(np.sqrt(np.mean(err[:, 1] ** 2))),
-        "q": float(np.sqrt(np.mean(err**2))),
-    }
+    rmse = dict(zip(("q1", "q2", "q"), rmse_deg(q_out, q_ref), strict=True))
     x_err = float(arm.fk(q_out[-1])[0] - arm.fk(q_ref[-1])[0])
     result = PlaybackResult(
         mode=mode,

@@ -93,13 +93,6 @@ class MarkerSet:
             self.name, joints, {"right": pre, "left": pre}, self.static, self.up, self.description
         )
 
-    def trial_markers(self) -> tuple[str, ...]:
-        """The markers a reach trial must hold (clusters and direct markers)."""
-        out: list[str] = []
-        for s in self.joints.values():
-            out += [*s.markers, *s.cluster]
-        return tuple(dict.fromkeys(out))
-
 
 def resolve_name(name: str, available_names: Iterable[str]) -> str | None:
     """``name`` if present, else its unique case-insensitive match, else ``None``."""
