@@ -43,6 +43,7 @@ class PlainDoc:
         Sp, Sm = ca.SX.sym("Sp", n), ca.SX.sym("Sm", n)
         win = window_index(n, n_windows)
         g, obj = [X[:, 0] - ca.vertcat(task.q0, 0, 0)], 0
+        tau_rest = ca.DM(arm.gravity_torque(task.q0))  # held at rest before the reach
         for k in range(n):
             q, qd, tau = X[:2, k], X[2:, k], U[:, k]
             M = _mass_matrix(a, q)
@@ -59,7 +60,7 @@ class PlainDoc:
                 Sp[k] + Sm[k],
                 ca.bilin(M, qd, qd),
                 ca.sumsqr(qdd),
-                ca.sumsqr((tau - U[:, k - 1]) / dt) if k > 0 else 0,
+                ca.sumsqr((tau - (U[:, k - 1] if k > 0 else tau_rest)) / dt),
                 ca.sumsqr(qd),
                 ca.sumsqr(tau),
             ]

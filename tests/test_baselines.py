@@ -58,12 +58,12 @@ def test_registry_builds_every_method_unfitted():
         make_estimator("condor", 1)
 
 
-def test_maxent_is_moirl_without_gamma_and_with_full_memory():
+def test_maxent_is_moirl_with_every_trajectory_and_the_likelihoods_own_gamma():
     est = MaxEntIRL(4, max_iter=7)
     assert isinstance(est, MOIRL)
-    assert est.memory is None and est.use_gamma is False and est.max_iter == 7
+    assert est.memory is None and est.use_gamma is True and est.max_iter == 7
     params = est.get_params()
-    assert params["memory"] is None and params["use_gamma"] is False and params["n_windows"] == 4
+    assert params["memory"] is None and params["use_gamma"] is True and params["n_windows"] == 4
 
 
 # ---------------------------------------------------------------------- each baseline on a known-weight
@@ -177,5 +177,5 @@ def test_get_params_spans_the_class_hierarchy():
 
     p = MaxEntIRL(n_windows=3, beta=1e-3).get_params()
     assert p["n_windows"] == 3 and p["beta"] == 1e-3
-    assert p["use_gamma"] is False and p["memory"] is None
+    assert p["use_gamma"] is True and p["memory"] is None and p["scaling"] == "demo"
     assert "kwargs" not in p

@@ -27,7 +27,8 @@ def test_hand_computed_constant_velocity_case():
     # q̇ᵀM q̇ with q2 = 0: M11 = i1 + i2 + m1 c1² + m2 (l1² + c2² + 2 l1 c2) = 0.03 + 0.045 + 1.5*0.25 = 0.45
     np.testing.assert_allclose(r[:, 2], [4 * 0.45, 4 * 0.45])
     np.testing.assert_allclose(r[:, 3], [0.0, 0.0])  # constant velocity
-    np.testing.assert_allclose(r[:, 4], [0.0, 0.0])  # constant torque
+    # constant torque after the onset jump from τ_{−1} = g(q0) = 0 (no gravity): ‖(1, −1)/0.5‖² = 8
+    np.testing.assert_allclose(r[:, 4], [8.0, 0.0])
     np.testing.assert_allclose(r[:, 5], [4.0, 4.0])
     np.testing.assert_allclose(r[:, 6], [2.0, 2.0])
     Phi = windowed_features(ARM, q, qd, tau, dt, 1)
@@ -41,9 +42,22 @@ def test_hand_computed_acceleration_and_torque_change():
     tau = np.array([[0.0, 0.0], [3.0, 4.0], [3.0, 4.0]])
     r = feature_rates(ARM, q, qd, tau, dt)
     np.testing.assert_allclose(r[:, 3], [100.0, 400.0, 500.0])  # ‖Δq̇/dt‖²
-    np.testing.assert_allclose(r[:, 4], [0.0, 2500.0, 0.0])  # first interval has no torque change
+    np.testing.assert_allclose(r[:, 4], [0.0, 2500.0, 0.0])  # τ_0 = τ_{−1} = g(q0) = 0: no jump at onset
     np.testing.assert_allclose(r[:, 1], [0.0, 3.0, 11.0])  # |q̇ᵀτ| with the knot's own q̇
     np.testing.assert_allclose(r[:, 6], [0.0, 25.0, 25.0])
+
+
+def test_torque_change_at_onset_is_measured_from_the_gravity_torque_at_rest():
+    # with gravity, the arm is held at rest before the reach: τ_{−1} = g(q0). At q0 = 0 (arm horizontal)
+    # g = 9.81 · (m1 c1 + m2 l1 + m2 c2, m2 c2) = 9.81 · (0.3 + 0.45 + 0.3, 0.3) = (10.3005, 2.943) N·m
+    arm = ArmModel(l1=0.3, l2=0.4, m1=2.0, m2=1.5, c1=0.15, c2=0.2, i1=0.01, i2=0.02, gravity=9.81)
+    dt = 0.1
+    q = np.zeros((3, 2))
+    qd = np.zeros((3, 2))
+    held = np.array([[10.3005, 2.943], [10.3005, 2.943]])
+    np.testing.assert_allclose(feature_rates(arm, q, qd, held, dt)[:, 4], [0.0, 0.0], atol=1e-18)
+    jump = held + [[1.0, 0.0], [1.0, 0.0]]
+    np.testing.assert_allclose(feature_rates(arm, q, qd, jump, dt)[:, 4], [100.0, 0.0])  # ‖(1, 0)/0.1‖²
 
 
 def test_energy_is_absolute_value():

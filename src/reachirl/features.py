@@ -15,8 +15,9 @@ Choices the paper leaves open, fixed here:
 * **Energy** ``φ2 = |qd_kᵀ τ_k|`` is used as is (no smoothing). The CasADi backend makes it smooth with the
   exact slack form ``qd_kᵀ τ_k = s⁺ - s⁻``, ``s± ≥ 0``, which equals it at the optimum; the Crocoddyl backend,
   which has no slack variables, uses ``√(r² + ε²) − ε`` with ε = 1 mW (at most ε × duration off).
-* **Torque change** is a finite difference across intervals, ``τ̇_k = (τ_k - τ_{k-1}) / dt`` for ``k ≥ 1``, and 0
-  on the first interval (no torque is known before the reach).
+* **Torque change** is a finite difference across intervals, ``τ̇_k = (τ_k - τ_{k-1}) / dt``. Before the reach the
+  arm is held at rest, so ``τ_{-1} = g(q_0)``, the gravity torque at the initial posture: the torque jump at onset
+  is counted like any other.
 * **Geodesic** is the kinetic-energy form of the paper's table, ``qdᵀ M(q) qd`` (no square root).
 * **Windows**: interval ``k`` belongs to window ``floor(k · n_windows / N)``, so windows are equal up to one
   interval.
@@ -92,8 +93,7 @@ def feature_rates(arm: ArmModel, q: np.ndarray, qd: np.ndarray, tau: np.ndarray,
     q, qd, tau = _check(q, qd, tau, dt)
     qk, qdk = q[:-1], qd[:-1]
     qdd = np.diff(qd, axis=0) / dt
-    tau_dot = np.zeros_like(tau)
-    tau_dot[1:] = np.diff(tau, axis=0) / dt
+    tau_dot = np.diff(np.vstack([arm.gravity_torque(q[0]), tau]), axis=0) / dt  # τ_{-1} = g(q_0): at rest
     pdot = arm.fingertip_velocity(qk, qdk)
     M = arm.mass_matrix(qk)
     return np.column_stack(

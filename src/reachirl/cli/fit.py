@@ -53,9 +53,13 @@ def run(args: argparse.Namespace) -> int:
         "n_doc_solves": getattr(est, "n_doc_solves_", None),
         "fit_time_s": getattr(est, "fit_time_", None),
         "stop_reason": getattr(est, "stop_reason_", None),
+        "flag": getattr(est, "flag_", None),
+        "warnings": list(getattr(est, "warnings_", [])),
         "history": getattr(est, "history_", []),
     }
     save_model(args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info))
+    for msg in info["warnings"]:
+        console.print(f"[bold yellow]warning:[/] {msg}")
     print(f"wrote {args.out}: {args.method}, {args.sections} section(s), {info['n_iter']} iterations, "
           f"{info['n_doc_solves']} DOC solves, {info['fit_time_s']:.1f} s")
     return 0

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.signal import butter, sosfiltfilt
 
 from ..arm import ArmModel
 from ..errors import InputError
@@ -113,9 +114,43 @@ class Trial:
         return replace(self, t=t_new, q=q, qd=qd, qdd=qdd, tau=tau)
 
     def knots(self, n_nodes: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(q (N+1,2), qd (N+1,2), tau (N,2))`` on the DOC's ``N = n_nodes`` intervals, for the features."""
-        r = self.resample(n_nodes + 1)
-        return r.q, r.qd, r.tau[:-1]
+        """``(q (N+1,2), qd (N+1,2), tau (N,2))`` on the DOC's ``N = n_nodes`` intervals, computed exactly as the
+        DOC computes its own: ``q_k`` on the knots (cubic spline of the filtered angles), the semi-implicit Euler
+        velocities ``q̇_k = (q_k − q_{k−1})/dt`` (``q̇_0`` from ``x0``), the Euler accelerations
+        ``q̈_k = (q̇_{k+1} − q̇_k)/dt`` and the inverse-dynamics torques ``τ_k = M(q_k) q̈_k + b(q_k, q̇_k)``.
+
+        A DOC solution stored as a trial (:func:`trial_from_solution`) gives back its own ``q``, ``q̇`` and ``τ``
+        exactly, so its features are the DOC's own. Demonstrations enter MO-IRL's features and merit this way.
+        """
+        n = int(n_nodes)
+        dt = self.duration / n
+        q = CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n + 1))
+        qd = np.vstack([self.x0[2:], np.diff(q, axis=0) / dt])
+        tau = self.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
+        return q, qd, tau
+
+    def lowpass(self, cutoff_hz: float, order: int = 4) -> Trial:
+        """The same reach with its angles low-passed again (zero-lag Butterworth of ``order`` at ``cutoff_hz``,
+        scipy's ``sosfiltfilt`` on a uniform grid at the trial's own mean rate) and ``q̇``, ``q̈``, ``τ``
+        re-derived. For features of derivatives up to the third order (``τ̇``), which amplify the noise that the
+        recording's position filter leaves; the initial state keeps its velocity."""
+        n = self.t.shape[0]
+        fs = (n - 1) / self.duration
+        if not 0 < cutoff_hz < fs / 2:
+            raise ValueError(f"cutoff must be in (0, {fs / 2:g}) Hz for a trial sampled at {fs:g} Hz, got {cutoff_hz}")
+        t = np.linspace(0.0, self.duration, n)
+        q = CubicSpline(self.t, self.q, axis=0)(t)
+        sos = butter(order, cutoff_hz, fs=fs, output="sos")
+        q = sosfiltfilt(sos, q, axis=0, padtype="odd", padlen=min(n - 1, 3 * (2 * len(sos) + 1)))
+        spline = CubicSpline(t, q, axis=0)
+        qd, qdd = spline(t, 1), spline(t, 2)
+        return replace(self, t=t, q=q, qd=qd, qdd=qdd, tau=self.arm.inverse_dynamics(q, qd, qdd),
+                       x0=np.r_[q[0], self.x0[2:]])
+
+    def knot_state(self, n_nodes: int) -> np.ndarray:
+        """The state ``(q1, q2, q̇1, q̇2)`` on the DOC's knots, ``(N+1, 4)``, as :meth:`knots` defines it."""
+        q, qd, _ = self.knots(n_nodes)
+        return np.hstack([q, qd])
 
     def features(self, n_nodes: int, n_windows: int) -> np.ndarray:
         """Φ of this demonstration per window, ``(n_windows, 7)``, on the DOC's discretisation."""

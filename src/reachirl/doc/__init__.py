@@ -50,6 +50,7 @@ def solve_doc(
     warm_start: DocSolution | None = None,
     *,
     retry_cold: bool = True,
+    guess: np.ndarray | None = None,
 ) -> DocSolution:
     """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
 
@@ -57,6 +58,8 @@ def solve_doc(
     search); the solve then starts from its solution. A solution of another task is ignored (measured: it costs
     more iterations than a cold start). When a warm start fails, the solve is retried cold unless
     ``retry_cold=False`` (MO-IRL's line search: a try the warm start cannot reach is rejected anyway).
+    ``guess`` (a joint path ``(N+1, 2)`` on the task's knots, e.g. the demonstrations' mean) replaces the
+    minimum-jerk path of the cold start.
     A solution that did not converge is returned with ``converged=False``, never raised.
     """
     if not isinstance(task, ReachingTask):
@@ -68,6 +71,11 @@ def solve_doc(
         from . import crocoddyl as impl
     else:
         raise ValueError(f"unknown DOC backend {backend!r}; choose one of {BACKENDS}")
+    if guess is not None:
+        guess = np.array(guess, dtype=float)
+        if guess.shape != (task.n_nodes + 1, 2) or not np.all(np.isfinite(guess)):
+            raise ValueError(f"guess must be a finite joint path of shape {(task.n_nodes + 1, 2)}, got {guess.shape}")
+        guess = np.clip(guess, task.q_lower, task.q_upper)
     if backend == "casadi":
-        return impl.solve(task, w, warm_start=warm_start, retry_cold=retry_cold)
-    return impl.solve(task, w, warm_start=warm_start)
+        return impl.solve(task, w, warm_start=warm_start, retry_cold=retry_cold, guess=guess)
+    return impl.solve(task, w, warm_start=warm_start, guess=guess)

@@ -8,7 +8,8 @@ Formulation (exactly the problem of :mod:`reachirl.doc.task`):
   ``(q̈_0, x_1, u_1, …, x_{N−1}, u_{N−1}, x_N)``. The arm is fully actuated: the torque is the inverse
   dynamics ``τ_k = M(q_k) q̈_k + b(q_k, q̇_k)``, the exact inverse of the Euler step with
   ``q̈_k = M⁻¹(τ_k − b)``. Carrying ``τ_{k−1}`` in the state makes the torque-change term
-  ``‖(τ_k − τ_{k−1})/dt‖²`` depend on one stage only (it is 0 on interval 0, as in :mod:`reachirl.features`).
+  ``‖(τ_k − τ_{k−1})/dt‖²`` depend on one stage only; on interval 0, ``τ_{−1} = g(q0)`` (the arm held at rest, as
+  in :mod:`reachirl.features`).
 * The constraints of stage ``k`` are, in this order, the gap
   ``x_{k+1} = (q_k + dt(q̇_k + dt q̈_k), q̇_k + dt q̈_k, τ_k)`` (first: fatrop detects the stages from it)
   and the exact slack form of the energy ``|q̇_kᵀτ_k|``: ``q̇_kᵀτ_k − s⁺_k + s⁻_k = 0``, ``s± ≥ 0`` (a
@@ -169,8 +170,9 @@ class _Nlp:
         obj = 0
         g: list = []
         for k in range(n):
-            if k == 0:
-                q, qd, tau_prev = q0, ca.SX.zeros(2), None
+            if k == 0:  # at rest before the reach: τ_{−1} = g(q0)
+                q, qd = q0, ca.SX.zeros(2)
+                tau_prev = _inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))
                 qdd, sp, sm = us[0], 0, 0
             else:
                 x, u = xs[k], us[k]
@@ -194,7 +196,7 @@ class _Nlp:
                 sp + sm,
                 ca.bilin(_mass_matrix(arm_l, q), qd, qd),
                 ca.sumsqr(qdd),
-                ca.sumsqr((tau - tau_prev) / dt) if k > 0 else 0,
+                ca.sumsqr((tau - tau_prev) / dt),
                 ca.sumsqr(qd),
                 ca.sumsqr(tau),
             ]
@@ -363,7 +365,11 @@ def _converged(stats: dict, z: np.ndarray) -> bool:
 
 
 def solve(
-    task: ReachingTask, weights: np.ndarray, warm_start: DocSolution | None = None, retry_cold: bool = True
+    task: ReachingTask,
+    weights: np.ndarray,
+    warm_start: DocSolution | None = None,
+    retry_cold: bool = True,
+    guess: np.ndarray | None = None,
 ) -> DocSolution:
     """Solve the DOC; warm from ``warm_start`` when it is the same task, cold otherwise, and cold again when
     the warm attempt fails and ``retry_cold``. A cold fatrop solve that fails is retried with IPOPT.
@@ -390,7 +396,7 @@ def solve(
     if out is None or (retry_cold and not ok):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
         # change of weights
-        x0 = np.clip(initial_guess(task), lbx, ubx)
+        x0 = np.clip(initial_guess(task) if guess is None else _pack(task, guess), lbx, ubx)
         fscale = _objective_scale(task, weights, x0)
         args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
         for kind in ("fatrop", "ipopt"):

@@ -28,7 +28,7 @@ Layers, Crocoddyl's vocabulary from the bottom up:
   (C++, dynamics and the costs above) and adds the two terms that need the augmented state or are non-smooth,
   with analytic derivatives (Gauss-Newton Hessians, like Crocoddyl's residual costs):
 
-  - ``torque_change``: ``(ω/dt) ‖τ_k − τ_{k−1}‖²`` for ``k ≥ 1`` and nothing on interval 0.
+  - ``torque_change``: ``(ω/dt) ‖τ_k − τ_{k−1}‖²``, with ``τ_{−1} = g(q0)`` (held at rest) carried in ``x_0``.
   - ``energy``: ``ω dt (√(r² + ε²) − ε)``, ``r = q̇_kᵀτ_k``. This smooth absolute value differs from ``|r|``
     by at most ``ε`` (default 1e-3 W), so ``Φ2`` by at most ``ε · duration``; the reported ``cost`` is always
     :func:`reachirl.features.trajectory_cost` of the solution (the exact, non-smoothed objective).
@@ -211,7 +211,7 @@ class KnotModel(crocoddyl.ActionModelAbstract):
             for name in names:
                 self._items[name].weight = weight
         self.w_energy = float(w[_J_ENERGY])
-        self.w_torque_change = 0.0 if self.first else float(w[_J_TORQUE_CHANGE])
+        self.w_torque_change = float(w[_J_TORQUE_CHANGE])
 
     # Crocoddyl calls calc(data, x) on the terminal knot and calc(data, x, u) on the others.
     def calc(self, data, x, u=None):
@@ -394,7 +394,7 @@ class ReachingProblem:
         """Write the task's numbers and the weights into the problem (no rebuild)."""
         if task.arm != self.arm or task.n_nodes != self.n or weights.shape != (self.n_windows, N_FEATURES):
             raise ValueError("task or weights do not match this problem's shape")
-        self.problem.x0 = np.r_[task.q0, 0.0, 0.0, 0.0, 0.0]
+        self.problem.x0 = np.r_[task.q0, 0.0, 0.0, task.arm.gravity_torque(task.q0)]  # at rest: τ_{−1} = g(q0)
         lb = np.r_[task.q_lower, -task.qd_max]
         ub = np.r_[task.q_upper, task.qd_max]
         for k, m in enumerate(self.running):
@@ -511,10 +511,22 @@ def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return q, qd, tau
 
 
+def _path_knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, q̇, τ)`` of the semi-implicit Euler trajectory through a joint path (``q_0 = q0``, at rest at both
+    ends)."""
+    q = np.array(q, dtype=float)
+    q[0] = task.q0
+    q[-2] = q[-1]
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / task.dt])
+    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / task.dt)
+    return q, qd, tau
+
+
 def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    tau_prev = np.vstack([np.zeros(2), tau])
+    g0 = task.arm.gravity_torque(task.q0)  # at rest before the reach: τ_{−1} = g(q0)
+    tau_prev = np.vstack([g0, tau])
     xs = np.hstack([q, qd, tau_prev])
-    xs[0] = np.r_[task.q0, 0.0, 0.0, 0.0, 0.0]
+    xs[0] = np.r_[task.q0, 0.0, 0.0, g0]
     return list(xs), list(np.asarray(tau, dtype=float))
 
 
@@ -523,6 +535,7 @@ def solve(
     weights: np.ndarray,
     warm_start: DocSolution | None = None,
     options: CsqpOptions | None = None,
+    guess: np.ndarray | None = None,
 ) -> DocSolution:
     """Solve the reaching DOC with CSQP; ``warm_start`` (a previous solution of the same ``N``) seeds the
     primal trajectory ``(q, q̇, τ)`` (CSQP has no dual warm start). On the benchmark's ~10 % weight changes it
@@ -534,7 +547,7 @@ def solve(
     weights = np.asarray(weights, dtype=float)
     n = task.n_nodes
     prob = build_problem(task.arm, n, weights.shape[0], options)
-    cold = _to_shooting(task, *initial_guess(task))
+    cold = _to_shooting(task, *(initial_guess(task) if guess is None else _path_knots(task, guess)))
     if warm_start is not None and np.shape(warm_start.q) == (n + 1, 2) and np.shape(warm_start.tau) == (n, 2):
         xs, us = _to_shooting(
             task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau)

@@ -117,9 +117,20 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
     return fig
 
 
-def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = ""):
+def _mark_flag(ax, flag: str | None) -> None:
+    """Cross out a panel whose fit is flagged (``"w0"``: never left the initial weights; ``"one_step"``)."""
+    if not flag:
+        return
+    text = {"w0": "NOT LEARNED\n(initial weights ω₀)", "one_step": "one step only"}.get(flag, flag)
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=8, color="white",
+            fontweight="bold", bbox={"facecolor": "crimson", "alpha": 0.85, "edgecolor": "none"})
+
+
+def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = "",
+                 flags: dict | None = None):
     """``shares[(posture, sections)] = (n_windows, 7)`` cost shares; one heatmap per posture (columns) and
-    section count (rows): features on the y axis, windows on the x axis."""
+    section count (rows): features on the y axis, windows on the x axis. ``flags[(posture, sections)]`` marks
+    fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``)."""
     fig, axes = _grid(
         axes, len(sections), len(postures), (2.3 * len(postures) + 1.5, 2.4 * len(sections) + 0.6)
     )
@@ -132,6 +143,7 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
                 ax.set_axis_off()
                 continue
             im = _share_heatmap(ax, s, feature_labels=c == 0)
+            _mark_flag(ax, (flags or {}).get((p, n)))
             if r == 0:
                 ax.set_title(p, fontsize=9)
             if c == 0:
@@ -205,9 +217,9 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
     return fig
 
 
-def plot_truth(learned: dict, true: dict, axes=None, title: str = ""):
+def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None):
     """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
-    (bottom)."""
+    (bottom). ``flags[posture]`` marks learned panels whose fit never left ω₀ or made one step."""
     postures = [p for p in learned if p in true]
     fig, axes = _grid(axes, 2, max(1, len(postures)), (2.5 * max(1, len(postures)) + 1.5, 5.2))
     im = None
@@ -217,6 +229,7 @@ def plot_truth(learned: dict, true: dict, axes=None, title: str = ""):
             im = _share_heatmap(ax, d[p], feature_labels=c == 0)
             if r == 0:
                 ax.set_title(p, fontsize=9)
+                _mark_flag(ax, (flags or {}).get(p))
             if c == 0:
                 ax.set_ylabel(label, fontsize=9)
             if r == 1:

@@ -45,7 +45,7 @@ __all__ = [
 SETS = ("train", "cv", "iscv")
 SET_LABELS = {"train": "Training", "cv": "CV", "iscv": "ISCV"}
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
-RESULT_VERSION = 1  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
+RESULT_VERSION = 2  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
 
 
 @dataclass(frozen=True)
@@ -327,10 +327,14 @@ def run_unit(unit: Unit, split: Split) -> dict:
         "history": _history(est),
         "n_iter": int(getattr(est, "n_iter_", len(_history(est)) - 1)),
         "stop_reason": str(getattr(est, "stop_reason_", "")),
+        "flag": getattr(est, "flag_", None),
+        "warnings": list(getattr(est, "warnings_", [])),
+        "smoothness": getattr(est, "smoothness_", None),
         "fit": {
             "time_s": fit_time,
             "doc_solves": int(getattr(est, "n_doc_solves_", 0)),
             "doc_failures": int(getattr(est, "n_doc_failures_", 0)),
+            "doc_recovered": int(getattr(est, "n_doc_recovered_", 0)),
         },
         "evaluation": {"time_s": eval_time, "doc_solves": eval_solves, "doc_failures": eval_fail},
         "sets": sets,

@@ -140,6 +140,10 @@ def write_outputs(
         "RMSE in degrees, mean ± population SD over trials; each prediction is the DOC from the trial's own "
         "initial state, target and duration, compared on the DOC's knots (time normalised).",
     ]
+    flagged = sorted(f"{r['key']} ({r['flag']})" for r in results.values() if r.get("flag"))
+    notes.append(
+        "Fits flagged: " + (", ".join(flagged) if flagged else "none") + ". " + tb.FLAG_NOTE
+    )
     zero = sorted(r["key"] for r in results.values() if not np.any(np.asarray(r["weights"]) > 0))
     if zero:
         notes.append(
@@ -191,7 +195,9 @@ def write_outputs(
         if r["unit"]["method"] == main
     }
     if shares:
-        fg.save(fg.plot_weights(shares, postures, sections), fig_dir / "fig3_weights.png")
+        flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
+                 for r in results.values() if r["unit"]["method"] == main}
+        fg.save(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir / "fig3_weights.png")
         figs["fig3_weights.png"] = {
             "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
             "section count (rows), each shown as the feature's share of its window's "
@@ -223,11 +229,15 @@ def write_outputs(
         fg.save(fg.plot_convergence(hist, sections), fig_dir / "convergence.png")
         figs["convergence.png"] = {
             "caption": "Merit m(x) of every fit at each accepted iteration (iteration 0: "
-            "the initial weights ω₀ = 0.05)."
+            "the initial weights ω₀)."
         }
     learned, true, truth_metrics = _truth_comparison(dataset, results, main, postures)
     if learned:
-        fg.save(fg.plot_truth(learned, true), fig_dir / "weights_vs_truth.png")
+        n_true = int(dataset.truth.get("n_windows", 0) or 0)
+        truth_flags = {r["unit"]["posture"]: r.get("flag") for r in results.values()
+                       if r["unit"]["method"] == main and r["unit"]["sections"] == n_true}
+        fg.save(fg.plot_truth(learned, true, title=f"Virtual subjects, {n_true} sections: learned vs true "
+                              "weights (cost shares)", flags=truth_flags), fig_dir / "weights_vs_truth.png")
         figs["weights_vs_truth.png"] = {
             "caption": "Virtual subjects: learned (top) vs true (bottom) cost shares, "
             "true weights = mean of the training trials' own (jittered) weights "
@@ -265,6 +275,9 @@ def write_outputs(
                     "cost_shares",
                     "n_iter",
                     "stop_reason",
+                    "flag",
+                    "warnings",
+                    "smoothness",
                     "fit",
                     "evaluation",
                     "history",

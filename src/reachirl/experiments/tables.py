@@ -301,6 +301,7 @@ def build_table(
                 fails = sum(not t.get("converged", True) for t in trials)
                 fails_all += fails
                 cell["doc_failures"] = fails
+                cell["flag"] = r.get("flag") if r else None
                 table[p][s][n] = cell
             table[ALL_TRIALS][s][n] = {**{j: _stats(pooled[j]) for j in JOINTS}, "doc_failures": fails_all}
             if len(postures) == 1:  # an SD over one posture mean would read ± 0: give the trials' spread
@@ -313,10 +314,15 @@ def build_table(
     return table
 
 
-def _cell(c: dict | None, digits: int = 2) -> str:
+FLAG_MARKS = {"w0": "†", "one_step": "‡"}
+FLAG_NOTE = ("† the fit never left its initial weights ω₀ (no step lowered the merit): those predictions are "
+             "ω₀'s, not learned; ‡ the fit stopped after one step.")
+
+
+def _cell(c: dict | None, digits: int = 2, flag: str | None = None) -> str:
     if not c or c.get("mean") is None:
         return "—"
-    return f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}"
+    return f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}" + (f" {FLAG_MARKS[flag]}" if flag in FLAG_MARKS else "")
 
 
 def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) -> list[list[str]]:
@@ -325,7 +331,8 @@ def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) ->
     rows = []
     for p in [*postures, ALL, ALL_TRIALS]:
         for j in JOINTS:
-            rows.append([p, j, *[_cell(table[p][s].get(n, {}).get(j)) for s in SETS for n in sections]])
+            rows.append([p, j, *[_cell(table[p][s].get(n, {}).get(j), flag=table[p][s].get(n, {}).get("flag"))
+                                 for s in SETS for n in sections]])
     return rows
 
 
@@ -349,10 +356,12 @@ def to_markdown(
 
 def to_csv(tables: dict[str, dict], postures: Sequence[str], sections: Sequence[int]) -> str:
     """Wide CSV in Table II's layout: ``method,posture,joint`` then ``<set>_<n>_mean``, ``<set>_<n>_std``,
-    ``<set>_<n>_n`` for every set and section count (degrees, 4 decimals; empty when there are no trials)."""
+    ``<set>_<n>_n`` for every set and section count (degrees, 4 decimals; empty when there are no trials), and
+    ``<n>_flag`` per section count: ``w0`` (the fit never left its initial weights), ``one_step`` or empty."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     cols = [f"{s}_{n}_{k}" for s in SETS for n in sections for k in ("mean", "std", "n")]
+    cols += [f"{n}_flag" for n in sections]
     w.writerow(["method", "posture", "joint", *cols])
     for method, table in tables.items():
         for p in [*postures, ALL, ALL_TRIALS]:
@@ -366,6 +375,7 @@ def to_csv(tables: dict[str, dict], postures: Sequence[str], sections: Sequence[
                             "" if c["std"] is None else f"{c['std']:.4f}",
                             c["n"],
                         ]
+                vals += [table[p]["train"].get(n, {}).get("flag") or "" for n in sections]
                 w.writerow([method, p, j, *vals])
     return buf.getvalue()
 

@@ -11,15 +11,37 @@ One iteration (seed §II-C):
 
 Choices the seed leaves open, fixed here (each an option):
 
+* **Scale-free steps** (``scaling="demo"``, the default): the subproblem is solved in normalised coordinates
+  (features divided by the demonstrations' per-(window, feature) mean, weights multiplied by it) with a
+  multiplicative step ``ω ⊙ exp(η)``, ``|η| ≤ log(max_ratio)`` (:func:`reachirl.irl.objective.solve_step`), and
+  the initial weights are ``w0`` in those coordinates (every feature starts with the same share of each window's
+  cost). The step, in ω-space, does not depend on the features' units, and one iteration moves a weight by at
+  most ``max_ratio``. ``scaling=None`` is the seed's raw form: ``Δω ≥ −(1 − 10⁻³)ω`` on SI features, ``w0``
+  uniform (:func:`reachirl.irl.objective.solve_delta`).
+* **Line search that judges steps, not solver failures**: a try whose warm-started DOC fails is solved again
+  cold, then from the demonstrations' mean path; only a try that still fails is rejected as a failure (counted).
+  A try is accepted only if it lowers the merit by more than ``tol`` (relative), well above the DOC's own
+  repeatability (warm against cold solves of the same weights differ by ~2e-5).
+* **Merit**: ``merit="state"`` (the seed's full-state ``(q, q̇)`` error) or ``"normalised"`` (each channel
+  divided by the demonstrations' variance of it, :func:`reachirl.irl.objective.channel_scale`).
+* **Smoothness prior** across adjacent windows (``smoothness``): ``λ/2 Σ (log ω_{s+1,j} − log ω_{s,j})²`` per
+  demonstration in the subproblem; ``smoothness="cv"`` chooses ``λ`` from :data:`SMOOTHNESS_GRID` by
+  ``cv_folds``-fold cross-validation on the training demonstrations (never on held-out data).
+
 * **The training rollout** (``rollout="mean"``): one DOC from the demonstrations' mean initial posture, mean
   target and mean duration, on their mean arm. ``rollout="per_demo"`` solves one DOC per demonstration from its
   own start, target and duration; each demonstration is then compared with its own rollout, in the subproblem and
   in the merit.
 * **Time normalisation**: every demonstration is resampled to the DOC's ``N + 1`` knots over its own duration, so
   trials of different durations are compared at the same normalised times.
-* **Feature scaling**: none. Features are raw SI quantities and the subproblem is solved on the raw weights;
-  a rescaling of the features with the inverse rescaling of the weights would leave every DOC unchanged.
-* **Tolerance**: the fit also stops when an accepted step improves the merit by less than ``tol`` (relative).
+* **Demonstration features** are computed exactly as the DOC computes its own (:meth:`Trial.knots`: the same
+  knots, Euler ``q̈``, inverse-dynamics ``τ`` and ``τ̇``, with ``τ_{−1} = g(q_0)``), from the trial's filtered
+  angles. ``feature_cutoff`` (Hz) low-passes them once more for the features only (:meth:`Trial.lowpass`):
+  quadratic features of the second and third derivatives turn the noise a 10 Hz position filter leaves into a
+  bias (on the virtual subjects the demonstrations' torque change is 10-30× a DOC's), but a filter also
+  distorts clean reaches at their ends (a DOC solution's torque change in the first and last of 8 windows
+  moved ×9 and ×0.05 at 6 Hz), and held-out RMSEs were no better with it (8 windows: virtual ISCV 1.94° with
+  it, 1.95° without; UE-ADL 4.16° with, 4.06° without), so it is off by default.
 
 Options from the original MO-IRL (Mehrdad et al. 2025), all off by default so the seed's form is the default:
 ``l1`` (elastic-net λ), ``n_suffixes`` (suffix sub-sampling), ``acceptance="either"`` (also accept a step that
@@ -42,9 +64,12 @@ from ..data.trial import Trial
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..features import N_FEATURES, feature_rates, window_index, windowed_features
 from .base import WeightEstimator
-from .objective import merit, solve_delta
+from .objective import channel_scale, feature_scale, merit, solve_delta, solve_step
 
-__all__ = ["MOIRL", "demonstration_states", "mean_task"]
+__all__ = ["FLAG_TEXT", "MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task"]
+
+SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
+"""Candidate ``λ`` of ``smoothness="cv"`` (per demonstration; ``λ → ∞`` would tie the windows into one)."""
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +87,7 @@ def mean_task(trials: Sequence[Trial], n_nodes: int) -> ReachingTask:
 
 def demonstration_states(trials: Sequence[Trial], n_nodes: int) -> np.ndarray:
     """Demonstrations on the DOC's normalised knots, ``(D, N+1, 4)`` of ``(q1, q2, q̇1, q̇2)``."""
-    return np.stack([t.resample(n_nodes + 1).state for t in trials])
+    return np.stack([t.knot_state(n_nodes) for t in trials])
 
 
 def _suffix_features(rates: np.ndarray, dt: float, n_windows: int, starts: np.ndarray) -> np.ndarray:
@@ -85,18 +110,23 @@ class _Step(NamedTuple):
     merit: float
     solves: int
     failures: int
+    recovered: int
 
 
 class MOIRL(WeightEstimator):
     """Minimal Observation IRL with ``n_windows`` time windows of weights.
 
-    Parameters follow the seed: ``beta=1e-10``, ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``.
-    ``callback(iteration_record)`` is called after every iteration (for progress bars). The fit makes no
-    random choice: the same demonstrations give the same weights (the protocol's trial split takes a seed).
+    Seed parameters: ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``; ``beta=1e-10`` is the
+    seed's and acts on ``η`` (the log-step) with ``scaling="demo"``. ``callback(iteration_record)`` is called
+    after every iteration (for progress bars). The fit makes no random choice: the same demonstrations give the
+    same weights (the protocol's trial split, and the folds of ``smoothness="cv"``, are deterministic).
 
     Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``history_`` (one dict per
-    iteration: merit, alpha, tries, weights, DOC solves (every solver run), failures, wall time), ``merit_``,
-    ``best_iteration_``, ``n_doc_solves_``, ``n_iter_``, ``stop_reason_``.
+    iteration: merit, alpha, tries, weights, DOC solves (every solver run), failures (tries whose DOC failed
+    after every retry), recovered (tries a retry rescued), wall time), ``merit_``, ``initial_merit_``,
+    ``best_iteration_``, ``n_doc_solves_``, ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``,
+    ``smoothness_`` (the ``λ`` used), ``cv_scores_`` (with ``smoothness="cv"``) and ``warnings_`` (a fit that
+    never left ``ω₀``, or made a single step, says so: its weights are not learned ones).
     """
 
     def __init__(
@@ -105,12 +135,18 @@ class MOIRL(WeightEstimator):
         *,
         n_nodes: int = 100,
         max_iter: int = 30,
-        tol: float = 1e-5,
+        tol: float = 1e-4,
         beta: float = 1e-10,
         w0: float = 0.05,
         alpha0: float = 1.0,
         shrink: float = 0.25,
         max_tries: int = 10,
+        scaling: str | None = "demo",
+        max_ratio: float = 10.0,
+        smoothness: float | str = 0.0,
+        cv_folds: int = 3,
+        merit: str = "state",
+        feature_cutoff: float | None = None,
         rollout: str = "mean",
         memory: int | None = 1,
         use_gamma: bool = True,
@@ -131,6 +167,12 @@ class MOIRL(WeightEstimator):
         self.alpha0 = alpha0
         self.shrink = shrink
         self.max_tries = max_tries
+        self.scaling = scaling
+        self.max_ratio = max_ratio
+        self.smoothness = smoothness
+        self.cv_folds = cv_folds
+        self.merit = merit
+        self.feature_cutoff = feature_cutoff
         self.rollout = rollout
         self.memory = memory
         self.use_gamma = use_gamma
@@ -149,12 +191,31 @@ class MOIRL(WeightEstimator):
             raise ValueError(f"rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
         if self.acceptance not in ("merit", "either"):
             raise ValueError(f"acceptance must be 'merit' or 'either', got {self.acceptance!r}")
+        if self.scaling not in ("demo", None):
+            raise ValueError(f"scaling must be 'demo' or None, got {self.scaling!r}")
+        if self.scaling == "demo" and (not self.use_gamma or self.l1):
+            raise ValueError("use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None")
+        if self.merit not in ("state", "normalised"):
+            raise ValueError(f"merit must be 'state' or 'normalised', got {self.merit!r}")
         if self.memory is not None and self.memory < 1:
             raise ValueError(f"memory must be >= 1 or None, got {self.memory}")
         if not 0 < self.shrink < 1 or self.max_tries < 1:
             raise ValueError(f"need 0 < shrink < 1 and max_tries >= 1, got {self.shrink} and {self.max_tries}")
         if not self.w0 > 0 or not 0 < self.alpha0 <= 1:
             raise ValueError(f"need w0 > 0 and 0 < alpha0 <= 1 (weights stay > 0), got {self.w0} and {self.alpha0}")
+        if not self.max_ratio > 1:
+            raise ValueError(f"max_ratio must be > 1, got {self.max_ratio}")
+        if not (isinstance(self.max_iter, int | np.integer) and self.max_iter >= 1):
+            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
+        if not (np.isfinite(self.tol) and self.tol >= 0):
+            raise ValueError(f"tol must be a number >= 0, got {self.tol}")
+        if isinstance(self.smoothness, str):
+            if self.smoothness != "cv":
+                raise ValueError(f"smoothness must be a number >= 0 or 'cv', got {self.smoothness!r}")
+            if int(self.cv_folds) < 2:
+                raise ValueError(f"cv_folds must be >= 2, got {self.cv_folds}")
+        elif not (np.isfinite(self.smoothness) and self.smoothness >= 0):
+            raise ValueError(f"smoothness must be a number >= 0 or 'cv', got {self.smoothness!r}")
         return trials
 
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
@@ -162,13 +223,25 @@ class MOIRL(WeightEstimator):
             return [mean_task(trials, self.n_nodes)]
         return [t.to_task(self.n_nodes) for t in trials]
 
-    def _rollouts(self, tasks, w, warm: list[DocSolution] | None) -> list[DocSolution]:
-        """DOC rollouts; line-search tries (``warm`` given) are not retried cold: a failed try is rejected."""
-        return [
-            solve_doc(task, w, backend=self.backend, warm_start=None if warm is None else warm[i],
-                      retry_cold=warm is None)
-            for i, task in enumerate(tasks)
-        ]
+    def _rollout(self, task, w, warm: DocSolution | None, guess: np.ndarray) -> tuple[DocSolution, int]:
+        """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
+        Returns the solution and the number of solver runs behind it."""
+        sol = solve_doc(task, w, backend=self.backend, warm_start=warm)
+        runs = sol.attempts
+        if not sol.converged:
+            sol = solve_doc(task, w, backend=self.backend, guess=guess)
+            runs += sol.attempts
+        return sol, runs
+
+    def _rollouts(self, tasks, w, warm, guesses) -> tuple[list[DocSolution], int, int]:
+        """Rollouts of every task; returns them, the solver runs, and how many needed more than one run."""
+        sols, runs, rescued = [], 0, 0
+        for i, task in enumerate(tasks):
+            sol, n = self._rollout(task, w, None if warm is None else warm[i], guesses[i])
+            sols.append(sol)
+            runs += n
+            rescued += int(sol.converged and n > 1 and warm is not None)
+        return sols, runs, rescued
 
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
@@ -184,6 +257,8 @@ class MOIRL(WeightEstimator):
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         out = []
         for t in trials:
+            if self.feature_cutoff is not None:
+                t = t.lowpass(self.feature_cutoff)
             if self.n_suffixes:
                 q, qd, tau = t.knots(self.n_nodes)
                 dt = t.duration / self.n_nodes
@@ -192,11 +267,11 @@ class MOIRL(WeightEstimator):
                 out.append(t.features(self.n_nodes, self.n_windows))
         return np.stack(out)
 
-    def _merit(self, x_demos: np.ndarray, sols: list[DocSolution]) -> float:
+    def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None) -> float:
         if any(not s.converged for s in sols):
             return np.inf
         x = sols[0].state if self.rollout == "mean" else np.stack([s.state for s in sols])
-        return merit(x_demos, x)
+        return merit(x_demos, x, channels)
 
     def _subproblem_terms(self, phi_star: np.ndarray, bank: list[np.ndarray], starts: np.ndarray):
         """Stack (demonstration, trajectory) pairs into the arrays the subproblem takes.
@@ -226,49 +301,105 @@ class MOIRL(WeightEstimator):
                     groups.append((phi_i, phi_star[d : d + 1], np.ones(1)))
         return groups
 
+    def _step(self, w, sigma, phi_star, bank, starts, smoothness) -> tuple[np.ndarray, dict]:
+        """``Δω*`` of seed Eq. 4: scale-free (``scaling="demo"``) or in the seed's raw coordinates."""
+        if self.scaling is None:
+            return solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self.beta, self.use_gamma,
+                               self.l1)
+        groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
+        n_demo = phi_star.shape[0]
+        return solve_step(w, sigma, groups, self.beta, self.max_ratio, smoothness * n_demo)
+
     # ------------------------------------------------------------------ fit / predict
     def fit(self, trials: Sequence[Trial]) -> MOIRL:
         trials = self._check_params(trials)
         t_start = time.perf_counter()
+        smoothness = self.smoothness
+        self.cv_scores_ = None
+        if smoothness == "cv":
+            smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
+        self.smoothness_ = float(smoothness)
+        self._fit(trials, float(smoothness))
+        self.fit_time_ = time.perf_counter() - t_start
+        return self
+
+    def _choose_smoothness(self, trials: list[Trial]) -> float:
+        """``λ`` of :data:`SMOOTHNESS_GRID` with the lowest mean joint-angle RMSE over ``cv_folds`` folds of the
+        training demonstrations (each fold predicted by the DOC from its own start, as a test trial would be).
+        Ties go to the smoother model. The folds interleave the trials in their given order."""
+        from ..evaluation import rmse_deg
+
+        k = min(int(self.cv_folds), len(trials))
+        if k < 2:
+            return 0.0
+        folds = [list(range(i, len(trials), k)) for i in range(k)]
+        scores = {}
+        for lam in SMOOTHNESS_GRID:
+            errs = []
+            for held in folds:
+                train = [t for i, t in enumerate(trials) if i not in held]
+                est = MOIRL(**{**self.get_params(), "smoothness": lam, "callback": None})
+                est._fit(train, lam)
+                for i in held:
+                    sol = est.predict(trials[i])
+                    q = trials[i].knot_state(self.n_nodes)[:, :2]
+                    errs.append(rmse_deg(sol.q, q)[2] if sol.converged else np.inf)
+            scores[lam] = float(np.mean(errs))
+        self.cv_scores_ = scores
+        best = min(scores.values())
+        # the smoothest λ within 1 % of the best score (prefer the simpler model)
+        return max(lam for lam, v in scores.items() if v <= best * 1.01)
+
+    def _fit(self, trials: list[Trial], smoothness: float) -> None:
+        t_start = time.perf_counter()
         tasks = self._tasks(trials)
         x_demos = demonstration_states(trials, self.n_nodes)
+        channels = channel_scale(x_demos) if self.merit == "normalised" else None
+        guesses = [x_demos[:, :, :2].mean(axis=0)] if self.rollout == "mean" else list(x_demos[:, :, :2])
         starts = np.array([0]) if not self.n_suffixes else np.unique(
             np.linspace(0, self.n_nodes * 0.9, self.n_suffixes + 1).astype(int)
         )
         phi_star = self._demo_features(trials, starts)
-
-        w = np.full((self.n_windows, N_FEATURES), float(self.w0))
-        sols = self._rollouts(tasks, w, None)
-        n_solves, n_fail = sum(s.attempts for s in sols), sum(not s.converged for s in sols)
-        m = self._merit(x_demos, sols)
+        sigma = None
+        if self.scaling == "demo":
+            sigma = feature_scale(phi_star[:, 0] if self.n_suffixes else phi_star)
+            w = float(self.w0) / sigma  # every feature starts with the same share of each window's cost
+        else:
+            w = np.full((self.n_windows, N_FEATURES), float(self.w0))
+        sols, n_solves, _ = self._rollouts(tasks, w, None, guesses)
+        n_fail = sum(not s.converged for s in sols)
+        n_rescued = 0
+        m = self._merit(x_demos, sols, channels)
         best = (m, w, sols, 0)  # the fit returns the best merit seen ("either" acceptance can raise it)
         bank = [self._features(tasks, sols, starts)]
         self.history_ = [
             {"iteration": 0, "merit": m, "alpha": 0.0, "tries": 0, "accepted": True, "weights": w.tolist(),
-             "doc_solves": n_solves, "doc_failures": n_fail, "wall_time": time.perf_counter() - t_start}
+             "doc_solves": n_solves, "doc_failures": n_fail, "doc_recovered": 0,
+             "wall_time": time.perf_counter() - t_start}
         ]
         if not np.isfinite(m):
             log.warning("the DOC at the initial weights did not converge")
         self.stop_reason_ = "max_iter"
+        n_accepted = 0
         for it in range(1, self.max_iter + 1):
             # Δω* from the subproblem (seed Eq. 4), then ω ← ω + αΔω* with α from the line search on the merit
-            dw, info = solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self.beta, self.use_gamma,
-                                   self.l1)
-            step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts)
+            dw, info = self._step(w, sigma, phi_star, bank, starts, smoothness)
+            step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels)
             n_solves += step.solves
             n_fail += step.failures
+            n_rescued += step.recovered
             accepted, alpha, tries = step.accepted, step.alpha, step.tries
-            w_try, cand, m_try = step.weights, step.solutions, step.merit
             record = {"iteration": it, "alpha": alpha if accepted else 0.0, "tries": tries, "accepted": accepted,
-                      "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail}
+                      "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail,
+                      "doc_recovered": n_rescued}
             if not accepted:
                 record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
                 self.history_.append(record)
                 self._notify(record)
                 self.stop_reason_ = "no_improving_step"
                 break
-            improvement = (m - m_try) / m if np.isfinite(m) and m > 0 else np.inf
-            w, sols, m = w_try, cand, m_try
+            n_accepted += 1
+            w, sols, m = step.weights, step.solutions, step.merit
             if m < best[0]:
                 best = (m, w, sols, it)
             bank.append(self._features(tasks, sols, starts))
@@ -277,34 +408,41 @@ class MOIRL(WeightEstimator):
             record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
             self.history_.append(record)
             self._notify(record)
-            if 0 <= improvement < self.tol:  # a step accepted on another criterion (worse merit) goes on
-                self.stop_reason_ = "tol"
-                break
         m, w, sols, self.best_iteration_ = best
         self.weights_ = w
         self.merit_ = m
+        self.initial_merit_ = self.history_[0]["merit"]
+        self.n_accepted_ = n_accepted
         self.n_doc_solves_ = n_solves
         self.n_doc_failures_ = n_fail
+        self.n_doc_recovered_ = n_rescued
         self.n_iter_ = len(self.history_) - 1
-        self.fit_time_ = time.perf_counter() - t_start
         self.train_solutions_ = sols
-        return self
+        self.flag_ = fit_flag(self.best_iteration_, n_accepted)
+        self.warnings_ = fit_warnings(self.best_iteration_, n_accepted, self.initial_merit_, m)
+        for msg in self.warnings_:
+            log.warning(msg)
 
-    def _line_search(self, w, dw, m, sols, tasks, x_demos, phi_star, starts) -> _Step:
+    def _line_search(self, w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels) -> _Step:
         """``α = α0, α0·shrink, …`` (at most ``max_tries``): the first ``ω + αΔω`` whose DOC rollout lowers the
-        merit (or passes the "either" test) is accepted. ``ω + αΔω > 0`` since ``Δω ≥ −(1 − min_ratio) ω``."""
-        alpha, solves, failures = self.alpha0, 0, 0
+        merit by more than ``tol`` (relative; or passes the "either" test) is accepted. A try whose DOC fails
+        even after the cold and demonstration-path retries counts as a failure and is rejected.
+        ``ω + αΔω > 0`` since ``Δω > −ω``."""
+        alpha, solves, failures, recovered = self.alpha0, 0, 0, 0
         for tries in range(1, self.max_tries + 1):
             w_try = w + alpha * dw
-            cand = self._rollouts(tasks, w_try, sols)
-            solves += sum(s.attempts for s in cand)
+            cand, runs, rescued = self._rollouts(tasks, w_try, sols, guesses)
+            solves += runs
+            recovered += rescued
             failed = sum(not s.converged for s in cand)
             failures += failed
-            m_try = self._merit(x_demos, cand)
-            if m_try < m or (failed == 0 and self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)):
-                return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures)
+            m_try = self._merit(x_demos, cand, channels)
+            if m_try < m * (1.0 - self.tol) or (
+                failed == 0 and self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
+            ):
+                return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures, recovered)
             alpha *= self.shrink
-        return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures)
+        return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures, recovered)
 
     def _notify(self, record: dict) -> None:
         log.info("iteration %d: merit %.5g alpha %.3g tries %d", record["iteration"], record["merit"],
@@ -333,3 +471,27 @@ class MOIRL(WeightEstimator):
         armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self.armijo_c1 * alpha * g0
         curvature = abs(g1) <= self.curvature_c2 * abs(g0)
         return bool(g0 < 0 and armijo and curvature)
+
+
+def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
+    """``"w0"`` for a fit whose weights are still the initial ones, ``"one_step"`` for a fit that made a single
+    step, ``None`` otherwise (the marker the tables and figures show)."""
+    if best_iteration == 0:
+        return "w0"
+    if n_accepted == 1:
+        return "one_step"
+    return None
+
+
+FLAG_TEXT = {"w0": "never left w0 (not learned)", "one_step": "stopped after one step"}
+
+
+def fit_warnings(best_iteration: int, n_accepted: int, initial_merit: float, final_merit: float) -> list[str]:
+    """What a reader of a fit must be told: weights that are still ``ω₀`` (no step improved the merit) are not
+    learned; a fit that made one step only is barely learned."""
+    if best_iteration == 0:
+        return ["never left the initial weights: no step lowered the merit, so these weights are w0, not learned"]
+    if n_accepted == 1:
+        gain = 100.0 * (1.0 - final_merit / initial_merit) if np.isfinite(initial_merit) and initial_merit else 0.0
+        return [f"stopped after one step (merit {gain:.1f} % below w0's): the weights are barely learned"]
+    return []

@@ -9,7 +9,21 @@ Notation: ``ω``, ``Δω`` are weight matrices ``(n_windows, 7)``; ``Φ*_d`` the
 
 Since ``γ_i exp(−C(x_i, Δω)) = exp(−C(x_i, ω + Δω))``, each demonstration's term is
 ``log(1 + Σ_i exp(−C(x_i, ω + Δω)))``, evaluated with a log-sum-exp that never overflows. Turning γ off
-(``gamma=False``) gives the classic MaxEnt form with ``γ_i = 1``.
+(``gamma=False``) sets ``γ_i = 1``.
+
+**Scale-free steps** (:func:`solve_step`, MO-IRL's default). The subproblem only sees the products
+``ω_{s,j} Φ_{s,j}``, but its raw form (:func:`solve_delta`) is solved in SI coordinates: ``β``, the bound
+``Δω > −ω`` and L-BFGS-B's path then depend on the features' units, and one step can move a weight by three
+orders of magnitude. :func:`solve_step` instead
+
+* works in normalised coordinates: features divided by a per-(window, feature) scale ``σ_{s,j}`` taken from the
+  demonstrations (:func:`feature_scale`), weights multiplied by it (``θ = ω ⊙ σ``), so ``C`` is unchanged;
+* takes a multiplicative step ``ω + Δω = ω ⊙ exp(η)`` with ``|η| ≤ log(max_ratio)`` (a trust region: one step
+  moves a weight by at most ``max_ratio``), so ``Δω > −ω`` holds strictly by construction;
+* regularises ``β/2 ‖η‖²`` (unit-free) and, optionally, the roughness of the weights across adjacent windows,
+  ``λ/2 Σ_{s,j} (log ω'_{s+1,j} − log ω'_{s,j})²`` (``λ → ∞`` ties the windows into one).
+
+Changing a feature's unit rescales its weight and leaves every step, in ω-space, the same.
 """
 
 from __future__ import annotations
@@ -20,10 +34,14 @@ from scipy.special import logsumexp, softmax
 
 __all__ = [
     "Group",
+    "channel_scale",
     "cost_mismatch",
+    "feature_scale",
     "gamma",
     "merit",
     "solve_delta",
+    "solve_step",
+    "step_objective",
     "subproblem_objective",
 ]
 
@@ -121,13 +139,117 @@ def solve_delta(
     return dw, {"fun": float(res.fun), "nit": int(res.nit), "success": bool(res.success), "message": str(res.message)}
 
 
-def merit(x_demos: np.ndarray, x: np.ndarray) -> float:
+def merit(x_demos: np.ndarray, x: np.ndarray, channel_weights: np.ndarray | None = None) -> float:
     """``m(x) = (1/D) Σ_d (1/N) ‖x*_d − x‖²`` over the full state ``(q1, q2, q̇1, q̇2)`` on common knots.
 
     ``x_demos`` is ``(D, N+1, 4)`` and ``x`` either ``(N+1, 4)`` (one rollout compared with every demonstration)
-    or ``(D, N+1, 4)`` (one rollout per demonstration).
+    or ``(D, N+1, 4)`` (one rollout per demonstration). ``channel_weights (4,)`` weighs each channel's squared
+    error (the seed: all 1, so rad/s errors outweigh rad ones; :func:`channel_scale` makes them unit-free).
     """
     x_demos = np.asarray(x_demos, dtype=float)
     x = np.asarray(x, dtype=float)
     n = x_demos.shape[1]
-    return float(np.mean(np.sum((x_demos - x) ** 2, axis=(1, 2)) / n))
+    sq = (x_demos - x) ** 2
+    if channel_weights is not None:
+        sq = sq * np.asarray(channel_weights, dtype=float)
+    return float(np.mean(np.sum(sq, axis=(1, 2)) / n))
+
+
+def channel_scale(x_demos: np.ndarray) -> np.ndarray:
+    """Weights ``1/σ_c²`` of the normalised merit: ``σ_c²`` is the demonstrations' variance of channel ``c``
+    (pooled over demonstrations and knots), so each of ``q1, q2, q̇1, q̇2`` counts by its error relative to
+    its own range. Shape ``(4,)``."""
+    var = np.var(np.asarray(x_demos, dtype=float).reshape(-1, 4), axis=0)
+    return 1.0 / np.maximum(var, 1e-12 * max(float(var.max()), 1e-300))
+
+
+def feature_scale(phi_star: np.ndarray, floor: float = 1e-3) -> np.ndarray:
+    """The per-(window, feature) scale ``σ_{s,j}`` of the normalised coordinates: the demonstrations' mean
+    ``Φ*_{s,j}``, floored at ``floor`` times that feature's largest window (a feature nearly absent from a
+    window would otherwise be blown up). ``phi_star (D, S, 7)`` → ``(S, 7)``, every entry > 0."""
+    phi = np.abs(np.asarray(phi_star, dtype=float))
+    sigma = phi.reshape(-1, *phi.shape[-2:]).mean(axis=0)
+    top = sigma.max(axis=0, keepdims=True)
+    top = np.where(top > 0, top, 1.0)
+    return np.maximum(sigma, floor * top)
+
+
+def _roughness(log_w: np.ndarray) -> tuple[float, np.ndarray]:
+    """``½ Σ_{s,j} (log ω_{s+1,j} − log ω_{s,j})²`` and its gradient in ``log ω``."""
+    d = np.diff(log_w, axis=0)
+    g = np.zeros_like(log_w)
+    g[1:] += d
+    g[:-1] -= d
+    return 0.5 * float(np.sum(d**2)), g
+
+
+def step_objective(
+    eta: np.ndarray,
+    theta: np.ndarray,
+    groups: list[Group],
+    beta: float,
+    smoothness: float = 0.0,
+    log_sigma: np.ndarray | None = None,
+) -> tuple[float, np.ndarray]:
+    """The scale-free subproblem in the log-step ``η`` (normalised coordinates; see the module docstring).
+
+    ``f(η) = Σ_d log(1 + Σ_i exp(−C(x_i, θ ⊙ e^η))) + β/2 ‖η‖² + λ/2 Σ (Δ_s log ω')²`` with
+    ``log ω' = log θ + η − log σ``. ``groups`` hold normalised features ``Φ/σ``. Returns ``f`` and ``∂f/∂η``.
+    """
+    theta_new = theta * np.exp(eta)
+    value = 0.5 * beta * float(np.sum(eta**2))
+    grad = beta * eta
+    g_theta = np.zeros_like(theta)
+    for group in groups:
+        v, g = _log_partition(theta_new, group)
+        value, g_theta = value + v, g_theta + g
+    grad = grad + g_theta * theta_new
+    if smoothness > 0 and theta.shape[0] > 1:
+        log_w = np.log(theta_new) - (0.0 if log_sigma is None else log_sigma)
+        r, g = _roughness(log_w)
+        value += smoothness * r
+        grad = grad + smoothness * g
+    return value, grad
+
+
+def solve_step(
+    w: np.ndarray,
+    sigma: np.ndarray,
+    groups: list[Group],
+    beta: float = 1e-10,
+    max_ratio: float = 10.0,
+    smoothness: float = 0.0,
+    max_iter: int = 500,
+) -> tuple[np.ndarray, dict]:
+    """The scale-free MO-IRL step: ``Δω = ω ⊙ (exp(η*) − 1)`` with
+    ``η* = argmin_{|η| ≤ log(max_ratio)} f(η)`` (:func:`step_objective`, L-BFGS-B from ``η = 0``).
+
+    ``w (S, 7)`` are the current weights (> 0), ``sigma (S, 7)`` the scale of :func:`feature_scale`, and
+    ``groups`` hold features already divided by ``sigma``. ``Δω > −ω`` holds strictly, and no weight moves by
+    more than a factor ``max_ratio``.
+    """
+    w = np.asarray(w, dtype=float)
+    if np.any(w <= 0):
+        raise ValueError("the scale-free step needs weights > 0")
+    if not max_ratio > 1:
+        raise ValueError(f"max_ratio must be > 1, got {max_ratio}")
+    theta = w * sigma
+    log_sigma = np.log(sigma)
+    shape = w.shape
+    bound = float(np.log(max_ratio))
+
+    def fun(x: np.ndarray) -> tuple[float, np.ndarray]:
+        f, g = step_objective(x.reshape(shape), theta, groups, beta, smoothness, log_sigma)
+        return f, g.reshape(-1)
+
+    res = minimize(
+        fun,
+        np.zeros(w.size),
+        jac=True,
+        method="L-BFGS-B",
+        bounds=[(-bound, bound)] * w.size,
+        options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-12},
+    )
+    eta = np.clip(res.x.reshape(shape), -bound, bound)
+    info = {"fun": float(res.fun), "nit": int(res.nit), "success": bool(res.success), "message": str(res.message)}
+    return w * np.expm1(eta), info

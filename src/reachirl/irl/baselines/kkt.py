@@ -69,7 +69,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
     win = window_index(n, n_windows)
     phi = [[0] * N_FEATURES for _ in range(n_windows)]
     power = []
-    tau_prev = None
+    tau_prev = _inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))  # at rest before: τ_{−1} = g(q0)
     for k in range(n):
         qdd = (qd[k + 1] - qd[k]) / dt
         tau = _inverse_dynamics(arm_l, qs[k], qd[k], qdd)
@@ -87,7 +87,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
             ca.fabs(e) if k > 0 else 0,  # d|e|/dz = sign(e) de/dz (CasADi: sign(0) = 0)
             ca.bilin(_mass_matrix(arm_l, qs[k]), qd[k], qd[k]),
             ca.sumsqr(qdd),
-            ca.sumsqr((tau - tau_prev) / dt) if k > 0 else 0,
+            ca.sumsqr((tau - tau_prev) / dt),
             ca.sumsqr(qd[k]),
             ca.sumsqr(tau),
         ]
