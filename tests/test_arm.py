@@ -133,3 +133,34 @@ def test_arm_model_validates_fields():
 
 def test_arm_dict_round_trip(arm):
     assert ArmModel.from_dict(arm.to_dict()) == arm
+
+
+def test_from_anthropometrics_matches_dumas_2007_by_hand():
+    """A man of 80 kg with Dumas' mean lengths (upper arm 271, forearm 253, hand to fingertip 189 mm), computed
+    by hand from Dumas et al. 2007's table: mass %, CoM % and r_zz % of (2.4, 45.2, 32), (1.7, 41.7, 27) and
+    (0.6, 35.7, 24)."""
+    arm = ArmModel.from_anthropometrics(1.77, 80.0, "M", upper_arm_m=0.271, forearm_m=0.253, hand_m=0.189)
+    assert arm.m1 == pytest.approx(1.92) and arm.c1 == pytest.approx(0.122492)
+    assert arm.i1 == pytest.approx(1.92 * 0.08672**2)
+    # forearm 1.36 kg at 105.501 mm, hand 0.48 kg at 253 + 67.473 = 320.473 mm from the elbow
+    assert arm.m2 == pytest.approx(1.84)
+    c2 = (1.36 * 0.105501 + 0.48 * 0.320473) / 1.84
+    assert arm.c2 == pytest.approx(c2)
+    i2 = 1.36 * 0.06831**2 + 1.36 * (0.105501 - c2) ** 2 + 0.48 * 0.04536**2 + 0.48 * (0.320473 - c2) ** 2
+    assert arm.i2 == pytest.approx(i2)
+    assert arm.l2 == pytest.approx(0.442)
+
+
+def test_dumas_hand_rows_to_the_fingertip_and_to_the_metacarpals_describe_the_same_hand():
+    # Dumas 2007, men: metacarpal definition 80 mm, CoM 83.9 %, r_zz 56 %; fingertip definition 189 mm, 35.7 %, 24 %
+    assert 0.839 * 0.080 == pytest.approx(0.357 * 0.189, abs=1e-3)  # CoM 67.1 vs 67.5 mm from the wrist
+    assert 0.56 * 0.080 == pytest.approx(0.24 * 0.189, abs=1e-3)  # radius of gyration 44.8 vs 45.4 mm
+    # so the default (fingertip) hand puts its CoM 67.5 mm from the wrist, not at 35.7 % of a shorter hand
+    arm = ArmModel.from_anthropometrics(1.77, 80.0, "M", upper_arm_m=0.271, forearm_m=0.253, hand_m=0.189)
+    x_hand = (arm.c2 * arm.m2 - 1.36 * 0.105501) / 0.48
+    assert x_hand - 0.253 == pytest.approx(0.067473)
+
+
+def test_default_forearm_is_dumas_mean_length():
+    arm = ArmModel.from_anthropometrics(1.77, 80.0, "M", upper_arm_m=0.271, hand_m=0.189)
+    assert arm.l2 == pytest.approx(0.253 + 0.189)

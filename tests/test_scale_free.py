@@ -200,3 +200,14 @@ def test_smoothness_cv_chooses_from_the_grid_on_the_training_demonstrations(doc_
     assert est.smoothness_ in SMOOTHNESS_GRID
     best = min(est.cv_scores_.values())
     assert est.cv_scores_[est.smoothness_] <= best * 1.01
+
+
+def test_a_step_that_only_rescales_stops_the_fit_without_doc_solves(doc_demos, monkeypatch):
+    from reachirl.irl import moirl as moirl_module
+
+    _, _, _, demos = doc_demos
+    monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (-0.9 * w, {"nit": 1}))
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=5).fit(demos)
+    assert est.stop_reason_ == "step_only_rescales"
+    assert est.n_doc_solves_ == est.history_[0]["doc_solves"]  # nothing spent on the null direction
+    assert est.flag_ == "w0"

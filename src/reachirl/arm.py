@@ -21,12 +21,20 @@ import numpy as np
 __all__ = ["DUMAS_2007", "ArmModel"]
 
 # Dumas, Cheze & Verriest 2007, J Biomech 40:543-553: (mass % of body mass, CoM % of length from the proximal
-# joint, radius of gyration about the CoM r_zz % of length) and mean segment length (m).
+# joint along the segment, radius of gyration about the CoM r_zz % of length (z: the medio-lateral axis, about
+# which sagittal flexion turns) and mean segment length (m). Segment definitions:
+# * upper arm: glenohumeral (shoulder) joint centre → elbow joint centre;
+# * forearm: elbow joint centre → wrist joint centre;
+# * hand: wrist joint centre → tip of the 3rd finger. Dumas' primary hand length ends at the midpoint of the 2nd
+#   and 5th metacarpal heads (M 80 mm, F 71 mm; CoM 83.9 % / 76.8 %, r_zz 56 % / 58 %); the fingertip rows used
+#   here (M 189 mm, F 167 mm; CoM 35.7 % / 32.7 %, r_zz 24 % / 25 %) are the same parameters re-expressed on the
+#   longer length (men: CoM 67.1 vs 67.5 mm from the wrist, radius 44.8 vs 45.4 mm), and the fingertip is the
+#   end-effector, so the lengths measured from markers are the fingertip ones.
 DUMAS_2007 = {
     "M": {
         "upper_arm": (2.4, 45.2, 32.0, 0.271),
-        "forearm": (1.7, 41.7, 27.0, 0.268),  # sources give 253-283 mm; the midpoint
-        "hand": (0.6, 35.7, 24.0, 0.189),  # wrist centre to fingertip
+        "forearm": (1.7, 41.7, 27.0, 0.253),
+        "hand": (0.6, 35.7, 24.0, 0.189),  # wrist centre to 3rd fingertip
     },
     "F": {
         "upper_arm": (2.2, 45.4, 33.0, 0.243),

@@ -21,7 +21,11 @@ Choices the seed leaves open, fixed here (each an option):
 * **Line search that judges steps, not solver failures**: a try whose warm-started DOC fails is solved again
   cold, then from the demonstrations' mean path; only a try that still fails is rejected as a failure (counted).
   A try is accepted only if it lowers the merit by more than ``tol`` (relative), well above the DOC's own
-  repeatability (warm against cold solves of the same weights differ by ~2e-5).
+  repeatability (warm against cold solves of the same weights differ by ~2e-5). A step that scales every
+  weight by one factor changes no DOC; the fit stops there (``stop_reason_ = "step_only_rescales"``) instead of
+  spending ``max_tries`` solves on it. This happens when the demonstrations cost more than the rollout on
+  every feature, as one window often finds on time-varying data: the likelihood's only advice is then to
+  lower the temperature.
 * **Merit**: ``merit="state"`` (the seed's full-state ``(q, q̇)`` error) or ``"normalised"`` (each channel
   divided by the demonstrations' variance of it, :func:`reachirl.irl.objective.channel_scale`).
 * **Smoothness prior** across adjacent windows (``smoothness``): ``λ/2 Σ (log ω_{s+1,j} − log ω_{s,j})²`` per
@@ -384,6 +388,17 @@ class MOIRL(WeightEstimator):
         for it in range(1, self.max_iter + 1):
             # Δω* from the subproblem (seed Eq. 4), then ω ← ω + αΔω* with α from the line search on the merit
             dw, info = self._step(w, sigma, phi_star, bank, starts, smoothness)
+            if _is_rescale(w, dw):
+                # every weight scaled by one factor: no DOC changes, so no α can lower the merit. (The
+                # demonstrations cost more than the rollout on every feature: the likelihood has nothing left.)
+                record = {"iteration": it, "alpha": 0.0, "tries": 0, "accepted": False,
+                          "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail,
+                          "doc_recovered": n_rescued, "merit": m, "weights": w.tolist(),
+                          "wall_time": time.perf_counter() - t_start}
+                self.history_.append(record)
+                self._notify(record)
+                self.stop_reason_ = "step_only_rescales"
+                break
             step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels)
             n_solves += step.solves
             n_fail += step.failures
@@ -471,6 +486,12 @@ class MOIRL(WeightEstimator):
         armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self.armijo_c1 * alpha * g0
         curvature = abs(g1) <= self.curvature_c2 * abs(g0)
         return bool(g0 < 0 and armijo and curvature)
+
+
+def _is_rescale(w: np.ndarray, dw: np.ndarray, rtol: float = 1e-9) -> bool:
+    """Whether ``ω + Δω`` is ``ω`` times one common factor (a step the DOC cannot see)."""
+    ratio = (w + dw) / w
+    return bool(np.ptp(ratio) <= rtol * np.max(np.abs(ratio)))
 
 
 def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
