@@ -77,7 +77,7 @@ from scipy.interpolate import CubicSpline
 
 from ..arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
 from ..doc import ReachingTask, solve_doc
-from ..features import FEATURES, windowed_features
+from ..features import FEATURES, feature_rates, window_index, windowed_features
 from ..io import atomic_write_json, atomic_write_text, to_jsonable
 from .trial import Trial, trial_from_knots
 from .writers import write_c3d, write_mot, write_trc
@@ -525,7 +525,11 @@ def format_human_likeness(rows: Sequence[dict]) -> tuple[list[str], list[list[st
 # ---------------------------------------------------------------------- feature scales (documentation)
 def typical_feature_scales(n_nodes: int = 100) -> np.ndarray:
     """Mean Φ per window and feature over the five postures' reaches of the reference arm under pure
-    joint-acceleration weights (the origin of :data:`FEATURE_SCALE`), shape ``(7,)``."""
+    joint-acceleration weights (the origin of :data:`FEATURE_SCALE`), shape ``(7,)``.
+
+    The torque change of the onset interval (the jump from the gravity torque at rest) is left out: a reach
+    under pure joint-acceleration weights starts at full acceleration, so that one jump (×28 the rest of the
+    reach) says how little this reference penalises it, not how large torque changes typically are."""
     arm = ArmModel.from_anthropometrics(1.76, 69.9, "M")
     w = np.zeros((N_WINDOWS, len(FEATURES)))
     w[:, FEATURES.index("joint_acceleration")] = 1.0
@@ -539,7 +543,11 @@ def typical_feature_scales(n_nodes: int = 100) -> np.ndarray:
             n_nodes=n_nodes,
         )
         sol = solve_doc(task, w)
-        out.append(windowed_features(arm, sol.q, sol.qd, sol.tau, task.dt, N_WINDOWS).mean(axis=0))
+        rates = feature_rates(arm, sol.q, sol.qd, sol.tau, task.dt)
+        rates[0, FEATURES.index("torque_change")] = 0.0
+        phi = np.zeros((N_WINDOWS, len(FEATURES)))
+        np.add.at(phi, window_index(task.n_nodes, N_WINDOWS), rates * task.dt)
+        out.append(phi.mean(axis=0))
     return np.mean(out, axis=0)
 
 
