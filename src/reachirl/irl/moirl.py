@@ -40,12 +40,12 @@ Choices the seed leaves open, fixed here (each an option):
   trials of different durations are compared at the same normalised times.
 * **Demonstration features** are computed exactly as the DOC computes its own (:meth:`Trial.knots`: the same
   knots, Euler ``q̈``, inverse-dynamics ``τ`` and ``τ̇``, with ``τ_{−1} = g(q_0)``), from the trial's filtered
-  angles. ``feature_cutoff`` (Hz) low-passes them once more for the features only (:meth:`Trial.lowpass`):
-  quadratic features of the second and third derivatives turn the noise a 10 Hz position filter leaves into a
-  bias (on the virtual subjects the demonstrations' torque change is 10-30× a DOC's), but a filter also
-  distorts clean reaches at their ends (a DOC solution's torque change in the first and last of 8 windows
-  moved ×9 and ×0.05 at 6 Hz), and held-out RMSEs were no better with it (8 windows: virtual ISCV 1.94° with
-  it, 1.95° without; UE-ADL 4.16° with, 4.06° without), so it is off by default.
+  angles; rollouts go through the very same function. ``feature_cutoff`` (Hz) low-passes both sides once more
+  (:meth:`Trial.lowpass`), so the filter's distortions cancel: quadratic features of second and third
+  derivatives turn the noise a 10 Hz position filter leaves into a bias (on the virtual subjects the
+  demonstrations' torque change is 10-100× a DOC's). Held-out RMSEs were no better with it (8 windows, ALL
+  postures: virtual ISCV 2.01° at 6 Hz, 1.91° without; UE-ADL 4.15° at 6 Hz, 4.06° without), so it is off by
+  default.
 
 Options from the original MO-IRL (Mehrdad et al. 2025), all off by default so the seed's form is the default:
 ``l1`` (elastic-net λ), ``n_suffixes`` (suffix sub-sampling), ``acceptance="either"`` (also accept a step that
@@ -64,7 +64,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..arm import ArmModel
-from ..data.trial import Trial
+from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..features import N_FEATURES, feature_rates, window_index, windowed_features
 from .base import WeightEstimator
@@ -247,29 +247,27 @@ class MOIRL(WeightEstimator):
             rescued += int(sol.converged and n > 1 and warm is not None)
         return sols, runs, rescued
 
+    def _trajectory_features(self, trial: Trial, starts: np.ndarray) -> np.ndarray:
+        """Φ of one trajectory, demonstration or rollout alike: ``(n_windows, 7)``, or with suffixes
+        ``(1 + n_suffixes, n_windows, 7)``. With ``feature_cutoff`` both sides are seen through the same
+        low-pass filter, so the filter's own distortions cancel in ``Φ_i − Φ*``."""
+        if self.feature_cutoff is not None:
+            trial = trial.lowpass(self.feature_cutoff)
+        if not self.n_suffixes:
+            return trial.features(self.n_nodes, self.n_windows)
+        q, qd, tau = trial.knots(self.n_nodes)
+        dt = trial.duration / self.n_nodes
+        return _suffix_features(feature_rates(trial.arm, q, qd, tau, dt), dt, self.n_windows, starts)
+
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
-        out = []
-        for task, sol in zip(tasks, sols, strict=True):
-            if self.n_suffixes:
-                rates = feature_rates(task.arm, sol.q, sol.qd, sol.tau, task.dt)
-                out.append(_suffix_features(rates, task.dt, self.n_windows, starts))
-            else:
-                out.append(windowed_features(task.arm, sol.q, sol.qd, sol.tau, task.dt, self.n_windows))
-        return np.stack(out)
+        return np.stack([
+            self._trajectory_features(trial_from_solution(sol, task.arm, task.target_x), starts)
+            for task, sol in zip(tasks, sols, strict=True)
+        ])
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
-        out = []
-        for t in trials:
-            if self.feature_cutoff is not None:
-                t = t.lowpass(self.feature_cutoff)
-            if self.n_suffixes:
-                q, qd, tau = t.knots(self.n_nodes)
-                dt = t.duration / self.n_nodes
-                out.append(_suffix_features(feature_rates(t.arm, q, qd, tau, dt), dt, self.n_windows, starts))
-            else:
-                out.append(t.features(self.n_nodes, self.n_windows))
-        return np.stack(out)
+        return np.stack([self._trajectory_features(t, starts) for t in trials])
 
     def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None) -> float:
         if any(not s.converged for s in sols):
