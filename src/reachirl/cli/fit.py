@@ -27,6 +27,24 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
+def _accepts(method: str, name: str) -> bool:
+    """Whether ``method``'s estimator takes the keyword ``name``, following ``**kwargs`` up to the base classes
+    (``MaxEntIRL(**kwargs)`` passes them on to ``MOIRL``)."""
+    import inspect
+
+    from ..irl.methods import METHODS as CLASSES
+
+    for cls in CLASSES[method].__mro__:
+        if "__init__" not in cls.__dict__ or cls is object:
+            continue
+        params = inspect.signature(cls.__init__).parameters
+        if name in params:
+            return True
+        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            return False
+    return False
+
+
 def run(args: argparse.Namespace) -> int:
     from ..irl.methods import make_estimator
 
@@ -43,7 +61,9 @@ def run(args: argparse.Namespace) -> int:
             status.update(f"{args.method}: iteration {rec['iteration']}, merit {rec['merit']:.4g}, "
                           f"{rec['doc_solves']} DOC solves")
 
-        est = make_estimator(args.method, args.sections, callback=progress, **kwargs)
+        if _accepts(args.method, "callback"):  # the baselines take no progress callback
+            kwargs["callback"] = progress
+        est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
     info = {
         "trials": str(args.trials),
