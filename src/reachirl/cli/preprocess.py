@@ -57,6 +57,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--manifest", metavar="CSV", help="file,subject,posture[,side,static]; paths relative to it"
     )
+    p.add_argument(
+        "--export", metavar="DIR", default=None,
+        help="also write each processed trial (t, q, q̇, τ in SI and degrees) as DIR/<trial id>.csv and its "
+        "angles as the OpenSim motion file DIR/<trial id>.mot (slashes in ids become _; DIR/index.csv maps them)",
+    )
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
     g.add_argument("--cutoff", type=float, default=d.cutoff_hz, metavar="HZ", help="low-pass cutoff; 0: none")
@@ -176,7 +181,16 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and out.is_dir():
         raise InputError("is a folder; --out must be a file path", out)
+    if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
+        raise InputError("exists and is not a folder; --export needs a folder", args.export)
     save_trials(out, trials)
+    if args.export is not None:
+        from ..exports import TrajectoryExport, export_trajectories
+
+        export_trajectories(args.export, [
+            TrajectoryExport(id=tr.id, t=tr.t, side=tr.side, demo={"q": tr.q, "qd": tr.qd, "tau": tr.tau})
+            for tr in trials
+        ])
     if infos is None:
         print(
             "note: no --subject-info; masses and inertias use Berret 2011's mean subject "
@@ -186,4 +200,6 @@ def run(args) -> int:
     for ln in lines:
         print(ln)
     print(f"wrote {len(trials)} trial(s) to {out}")
+    if args.export is not None:
+        print(f"wrote {len(trials)} trajectories (.csv, .mot) and index.csv to {args.export}")
     return 0
