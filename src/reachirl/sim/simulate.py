@@ -96,4 +96,4 @@ def render_simulations(
         for s in sims
     ]
     frames = render_frames(clips, fps=fps, width=width, height=height)
-    return write_animation(path, frames, fps=fps), len(frames)
+    return write_animation(path, frames, fps=fps)
