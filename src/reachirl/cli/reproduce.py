@@ -176,6 +176,7 @@ def run(args) -> int:
     )
 
     from ..experiments import datasets
+    from ..experiments.report import write_outputs
     from ..experiments.runner import reproduce
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -241,16 +242,15 @@ def run(args) -> int:
             on_start=on_start,
             on_done=on_done,
         )
-    summary = result["summary"]
-    if result["stopped"]:
+    if result.stopped:
         print(
-            f"stopped after {len(summary.computed)} new unit(s) (--max-units); rerun with the same --out "
+            f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out "
             f"to finish",
             file=sys.stderr,
         )
         return 0
-    outputs = result["outputs"]
-    _print_table(out_console, outputs, config, result["postures"])
+    outputs = write_outputs(result)
+    _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)
     tm = outputs["timing"]
@@ -260,8 +260,8 @@ def run(args) -> int:
         highlight=False,
     )
     out_console.print(
-        f"wrote {out / 'table.md'}, table.csv, results.json, report.md and "
-        f"{len(outputs['figures'])} figure(s) in {out / 'figures'}",
+        f"wrote {out / 'table.md'}, table.csv, results.json, report.md, "
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}",
         highlight=False,
     )
     return 0

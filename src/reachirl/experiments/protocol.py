@@ -45,7 +45,7 @@ __all__ = [
 SETS = ("train", "cv", "iscv")
 SET_LABELS = {"train": "Training", "cv": "CV", "iscv": "ISCV"}
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
-RESULT_VERSION = 1  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
+RESULT_VERSION = 2  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
 
 
 @dataclass(frozen=True)
@@ -315,8 +315,12 @@ def run_unit(unit: Unit, split: Split) -> dict:
             arrays[f"{name}/t"] = np.stack([e.prediction.t for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_qd"] = np.stack([e.prediction.qd for e in errs]).astype(np.float32)
+            arrays[f"{name}/pred_tau"] = np.stack([e.prediction.tau for e in errs]).astype(np.float32)
             arrays[f"{name}/demo_q"] = np.stack([d.q for d in demos]).astype(np.float32)
             arrays[f"{name}/demo_qd"] = np.stack([d.qd for d in demos]).astype(np.float32)
+            arrays[f"{name}/demo_tau"] = np.stack([d.tau[:-1] for d in demos]).astype(np.float32)
+            arrays[f"{name}/ids"] = np.array([t.id for t in trials], dtype=str)
+            arrays[f"{name}/sides"] = np.array([t.side for t in trials], dtype=str)
     result = {
         "key": unit.key,
         "unit": asdict(unit),
