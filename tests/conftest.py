@@ -32,6 +32,12 @@ def run_reachirl(*args, timeout: float = 300, cwd=None):
 
 
 @pytest.fixture(scope="session")
+def cli():
+    """``cli("fit", ...)`` runs the installed console script: see :func:`run_reachirl`."""
+    return run_reachirl
+
+
+@pytest.fixture(scope="session")
 def tiny_trials(tmp_path_factory, arm):
     """A trials file of 6 DOC reaches (2 subjects × 3 trials, posture P2, 20 knots) for the CLI tests."""
     from reachirl import ReachingTask, solve_doc
