@@ -54,3 +54,48 @@ def test_reproduce_every_method(tiny_trials, tmp_path, cli):
     res = json.loads((out / "results.json").read_text())
     assert sorted({u["unit"]["method"] for u in res["units"]}) == sorted(METHODS)
     assert len(res["units"]) == 2 * len(METHODS)
+    # every trial of every set of every unit is exported (docs/outputs.md)
+    for u in res["units"]:
+        index = (out / "predictions" / u["key"] / "index.csv").read_text().splitlines()
+        n = sum(len(u["sets"][s]["trials"]) for s in ("train", "cv", "iscv"))
+        assert index[0] == "id,file,set" and len(index) == 1 + n
+        assert all((out / "predictions" / u["key"] / f"{row.split(',')[1]}.mot").is_file() for row in index[1:])
+
+    # reachirl plot RUN_DIR draws the run's figures again, as PNG and PDF
+    figs = tmp_path / "figs"
+    proc = cli("plot", out, "--out", figs)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("fig2_prediction", "fig3_weights", "fig4_iscv", "convergence", "methods"):
+        assert (figs / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (figs / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+        assert f"wrote {figs / name}.png" in proc.stdout
+
+
+def test_plot_model(models, tiny_trials, tmp_path, cli):
+    import matplotlib.image
+
+    _, model = models["moirl"]
+    proc = cli("plot", "--model", model, tiny_trials, "--out", tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("prediction", "weights", "convergence"):
+        img = matplotlib.image.imread(tmp_path / f"{name}.png")
+        assert img.shape[0] > 300 and img.shape[1] > 300 and img[..., :3].std() > 0.05  # drawn, not blank
+        assert (tmp_path / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+    # kkt has no merit history: no convergence figure, and no error
+    _, kkt = models["kkt"]
+    proc = cli("plot", "--model", kkt, tiny_trials, "--out", tmp_path / "kkt", "--no-pdf")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "kkt").iterdir()) == ["prediction.png", "weights.png"]
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (lambda d, t: ["plot", d, "--out", d / "o"], "no results.json"),
+        (lambda d, t: ["plot", t, "--out", d / "o"], "expected a `reachirl reproduce` folder"),
+        (lambda d, t: ["plot", "--model", d / "missing.json", t, "--out", d / "o"], "missing.json: file not found"),
+    ],
+)
+def test_plot_bad_input(args, match, tiny_trials, tmp_path, cli):
+    proc = cli(*args(tmp_path, tiny_trials))
+    assert proc.returncode == 2 and match in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
