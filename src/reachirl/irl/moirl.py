@@ -160,7 +160,7 @@ class MOIRL(WeightEstimator):
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         if self.rollout == "mean":
             return [mean_task(trials, self.n_nodes)]
-        return [t.to_task(self.n_nodes) for t in trials]
+        return [ReachingTask.from_trial(t, self.n_nodes) for t in trials]
 
     def _rollouts(self, tasks, w, warm: list[DocSolution] | None) -> list[DocSolution]:
         """DOC rollouts; line-search tries (``warm`` given) are not retried cold: a failed try is rejected."""
