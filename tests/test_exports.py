@@ -30,7 +30,8 @@ def test_clashing_names_get_a_suffix(tmp_path):
 def exported(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("exp")
     model = d / "model.json"
-    assert cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--out", model).returncode == 0
+    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--out", model)
+    assert proc.returncode == 0, proc.stderr
     proc = cli("evaluate", "--model", model, tiny_trials, "--out", d / "metrics.json", "--predictions", d / "pred")
     assert proc.returncode == 0, proc.stderr
     return d / "pred", proc

@@ -37,7 +37,8 @@ def documented() -> dict[str, list[str]]:
 def written(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("outputs")
     model = d / "model.json"
-    assert cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--out", model).returncode == 0
+    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--out", model)
+    assert proc.returncode == 0, proc.stderr
     proc = cli("evaluate", "--model", model, tiny_trials, "--out", d / "metrics.json", "--predictions", d / "pred")
     assert proc.returncode == 0, proc.stderr
     proc = cli("reproduce", "--data", tiny_trials, "--sections", "1", "2", "--nodes", "20", "--max-iter", "2",

@@ -16,7 +16,13 @@ from ..irl.model import load_model
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("evaluate", help="predict every trial from its own start and report joint-angle RMSE")
+    p = sub.add_parser(
+        "evaluate",
+        help="predict every trial from its own start and report joint-angle RMSE",
+        description="Predict every trial by the DOC under the model's weights, from the trial's own arm, start, "
+        "target and duration, and write the RMSE of the joint angles (degrees, on the DOC's knots) to "
+        "METRICS.json; with --predictions, also the trajectories as CSV and OpenSim MOT (docs/outputs.md).",
+    )
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument("trials", type=Path, help="trials file")
     p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
@@ -25,7 +31,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--predictions", type=Path, default=None, metavar="DIR",
                    help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
                    "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
-                   "(slashes in ids become _; DIR/index.csv maps ids to files)")
+                   "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)")
     return p
 
 

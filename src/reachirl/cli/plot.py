@@ -21,13 +21,14 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "plot",
         help="draw predictions, weight shares and convergence as PNG and PDF",
-        description=__doc__,
+        description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("source", type=Path, metavar="TRIALS|RUN_DIR",
                    help="a trials file (with --model) or a folder written by `reachirl reproduce`")
     p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
-                   help="model JSON written by `reachirl fit` (then SOURCE is a trials file)")
+                   help="model JSON written by `reachirl fit`, then SOURCE is a trials file (default: SOURCE is a run "
+                   "folder)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder to write the figures to")
     p.add_argument("--trial", action="append", default=None, metavar="ID|INDEX",
                    help="with --model: plot only this trial (id, trial_id or 0-based index); repeat for several "
