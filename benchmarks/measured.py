@@ -81,13 +81,16 @@ def bench_numbers(bench: dict) -> dict:
                 if doc.get("convergence_sweep") else None
             ),
         }
-    if bench.get("backends"):
-        s = bench["backends"].get("summary", {})
-        if "casadi" in s and "crocoddyl" in s:
-            out["backends"] = {
-                "crocoddyl_vs_casadi_cold": round(s["crocoddyl"]["cold_median_s"] / s["casadi"]["cold_median_s"], 1),
-                "crocoddyl_vs_casadi_warm": round(s["crocoddyl"]["warm_median_s"] / s["casadi"]["warm_median_s"], 1),
-            }
+    bk = bench.get("backends")
+    if bk and "casadi" in bk and "crocoddyl" in bk:
+        a, c = bk["casadi"], bk["crocoddyl"]
+        out["backends"] = {
+            "crocoddyl_vs_casadi_cold_cpu": round(c["cold_cpu_median_s"] / a["cold_cpu_median_s"], 1),
+            "crocoddyl_vs_casadi_warm_cpu": round(c["warm_cpu_median_s"] / a["warm_cpu_median_s"], 1),
+            "crocoddyl_converged": c["converged"],
+            "agreement_q_deg_max": round(bk["agreement"]["q_rmse_deg_max"], 3),
+            "agreement_cost_pct_max": round(bk["agreement"]["cost_diff_pct_max_abs"], 3),
+        }
     return out
 
 
@@ -144,8 +147,10 @@ def render(snap: dict) -> str:
         ]
     b = (snap.get("bench") or {}).get("backends")
     if b:
-        lines += [f"- **Crocoddyl/CSQP** against CasADi (`make bench`): {b['crocoddyl_vs_casadi_cold']}× the cold "
-                  f"time, {b['crocoddyl_vs_casadi_warm']}× the warm time.", ""]
+        lines += [f"- **Crocoddyl/CSQP** against CasADi (`make bench`, same run): {b['crocoddyl_vs_casadi_cold_cpu']}× "
+                  f"the cold CPU time, {b['crocoddyl_vs_casadi_warm_cpu']}× the warm; converged "
+                  f"{b['crocoddyl_converged']}; agreement within {b['agreement_q_deg_max']}° RMSE of q and "
+                  f"{b['agreement_cost_pct_max']} % of the cost.", ""]
     lines.append(END)
     return "\n".join(lines)
 
