@@ -54,6 +54,11 @@ def test_reproduce_every_method(tiny_trials, tmp_path, cli):
     res = json.loads((out / "results.json").read_text())
     assert sorted({u["unit"]["method"] for u in res["units"]}) == sorted(METHODS)
     assert len(res["units"]) == 2 * len(METHODS)
+    # the report: differences only with a paired test, the seed's numbers labelled as other data
+    report = (out / "report.md").read_text()
+    assert "Wilcoxon signed-rank p =" in report and "better" not in report
+    assert "(seed, other data)" in report and "chosen at random (seed 0)" in report
+    assert set(res["comparisons"]["moirl"]) == {"train", "iscv"}  # CV has 1 trial: nothing to pair
     # every trial of every set of every unit is exported (docs/outputs.md)
     for u in res["units"]:
         index = (out / "predictions" / u["key"] / "index.csv").read_text().splitlines()
