@@ -158,7 +158,7 @@ def test_simulate_renders_an_mp4_through_the_console_script(arm, tmp_path, cli):
 
     trials, model = _trials_file(arm, tmp_path)
     out = tmp_path / "reach.mp4"
-    proc = cli("simulate", "--model", model, trials, "--trial", "0", "--render", out, "--size", "160")
+    proc = cli("simulate", "--model", model, trials, "--trial", "0", "--render", out, "--size", "161")
     assert proc.returncode == 0, proc.stderr
     reader = imageio.get_reader(out, format="FFMPEG")
     try:
@@ -167,4 +167,4 @@ def test_simulate_renders_an_mp4_through_the_console_script(arm, tmp_path, cli):
     finally:
         reader.close()
     assert f"wrote {out} ({n} frames)" in proc.stdout and n >= 10
-    assert frame.shape == (160, 160, 3) and frame.std() > 5  # a picture, not a blank frame
+    assert frame.shape == (162, 162, 3) and frame.std() > 5  # odd sizes padded to even (H.264); not blank

@@ -141,7 +141,10 @@ def write_animation(path: str | Path, frames: Sequence[np.ndarray], fps: float =
             frames, durations = _merge_repeats(frames, 1000.0 / fps)
             iio.imwrite(tmp, np.stack(frames), duration=durations, loop=0)
         elif suffix == ".mp4":
-            iio.imwrite(tmp, np.stack(frames), plugin="FFMPEG", fps=fps, codec="libx264", macro_block_size=1)
+            video = np.stack(frames)
+            h, w = video.shape[1:3]  # H.264 with yuv420p needs even sizes: repeat the last row/column
+            video = np.pad(video, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            iio.imwrite(tmp, video, plugin="FFMPEG", fps=fps, codec="libx264", macro_block_size=1)
         else:
             raise ValueError(f"animations are written as .gif or .mp4, got {path}")
     log.info("wrote %d frames to %s", len(frames), path)
