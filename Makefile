@@ -7,7 +7,7 @@ export MUJOCO_GL ?= osmesa
 export PYOPENGL_PLATFORM ?= osmesa
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: install run test test-slow bench lint clean system-deps
+.PHONY: install run test test-slow bench measured lint clean system-deps
 
 install: $(STAMP)
 
@@ -39,6 +39,10 @@ test-slow: install
 
 bench: install
 	$(VENV)/bin/reachirl bench --out bench.json
+
+# the README's Measured section and docs/measured.json, from the outputs of `make run` and `make bench`
+measured: run bench
+	$(PY) benchmarks/measured.py --results results/results.json --bench bench.json
 
 lint: install
 	$(VENV)/bin/ruff check src tests benchmarks examples

@@ -2,7 +2,7 @@
 
 Solves the reaching DOC from Berret's posture P2 (upper arm down, forearm forward) to a bar at 95 % of arm length
 under three costs (joint acceleration alone, torque alone, torque change alone) and plots the joint angles and
-the fingertip paths. Run: ``.venv/bin/python examples/quickstart.py [--out quickstart.png]``.
+the fingertip paths. Run: ``.venv/bin/python examples/quickstart.py --out /tmp/quickstart.png``.
 """
 
 from __future__ import annotations
@@ -17,12 +17,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
-from reachirl.data.synth import posture_q
+from reachirl.synth import posture_q
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("quickstart.png"), help="figure to write")
+    parser.add_argument("--out", type=Path, required=True, help="figure to write (PNG)")
     args = parser.parse_args(argv)
 
     arm = ArmModel.from_anthropometrics(height_m=1.76, mass_kg=70.0, sex="M")

@@ -1,9 +1,10 @@
 """How human-like are the virtual subjects, and what do Berret's initial postures look like?
 
 Generates a small virtual data set (1 subject × 5 postures × 5 trials) into a temporary folder, prints its
-human-likeness table next to Berret et al. 2011's numbers and the true weight profile, and redraws
-``docs/figures/berret_postures.png`` (the five initial postures under the chosen angle reading and under
-the rejected one). Run: ``.venv/bin/python examples/virtual_subjects.py [--figure PATH]``.
+human-likeness table next to Berret et al. 2011's numbers and the true weight profile, and draws the five
+initial postures under the chosen angle reading and under the rejected one (the figure in
+``docs/figures/berret_postures.png``). Run: ``.venv/bin/python examples/virtual_subjects.py --figure
+/tmp/berret_postures.png``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from reachirl import FEATURES
-from reachirl.data.synth import (
+from reachirl.synth import (
     FEATURE_SCALE,
     RELATIVE_IMPORTANCE,
     SynthConfig,
@@ -27,9 +28,8 @@ from reachirl.data.synth import (
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    default_fig = Path(__file__).resolve().parents[1] / "docs" / "figures" / "berret_postures.png"
-    parser.add_argument("--figure", type=Path, default=default_fig, help="where to save the posture figure")
-    parser.add_argument("--trials", type=int, default=5, help="trials per posture")
+    parser.add_argument("--figure", type=Path, required=True, help="where to save the posture figure (PNG)")
+    parser.add_argument("--trials", type=int, default=5, help="trials per posture (default 5)")
     args = parser.parse_args(argv)
 
     import matplotlib

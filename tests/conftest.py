@@ -18,3 +18,41 @@ def arm() -> ArmModel:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+def run_reachirl(*args, timeout: float = 300, cwd=None):
+    """Run the installed ``reachirl`` console script (not ``main()`` in-process); returns the CompletedProcess."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    exe = Path(sys.executable).parent / "reachirl"
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, timeout=timeout, cwd=cwd,
+                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """``cli("fit", ...)`` runs the installed console script: see :func:`run_reachirl`."""
+    return run_reachirl
+
+
+@pytest.fixture(scope="session")
+def tiny_trials(tmp_path_factory, arm):
+    """A trials file of 6 DOC reaches (2 subjects × 3 trials, posture P2, 20 knots) for the CLI tests."""
+    from reachirl import ReachingTask, solve_doc
+    from reachirl.data.trial import save_trials, trial_from_solution
+
+    rng = np.random.default_rng(0)
+    w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5]]) / np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+    trials = []
+    for s in ("S1", "S2"):
+        for i in range(3):
+            q0 = np.deg2rad([0.0, 90.0]) + np.deg2rad(rng.normal(0, 2, 2))
+            task = ReachingTask(arm, q0, 0.9 * arm.length, 0.7 + 0.03 * rng.normal(), n_nodes=20)
+            sol = solve_doc(task, w * np.exp(0.1 * rng.normal(size=w.shape)))
+            assert sol.converged
+            trials.append(trial_from_solution(sol, arm, task.target_x, subject=s, posture="P2", trial_id=f"T{i}"))
+    path = tmp_path_factory.mktemp("tiny") / "trials.npz"
+    save_trials(path, trials)
+    return path

@@ -30,3 +30,11 @@ def test_learn_from_ue_adl_predicts_the_other_arm(capsys):
     rmse = {ln.split()[0]: float(ln.split("RMSE of q ")[1].split()[0]) for ln in lines if "RMSE of q" in ln}
     assert rmse["training"] < 6 and rmse["validation"] < 10
     assert sum(ln.startswith("window ") for ln in lines) == 8
+
+
+@pytest.mark.parametrize("name", ["quickstart", "virtual_subjects"])
+def test_examples_need_an_output_path(name, capsys):
+    """No default output: an example never writes into the repository or the current folder unasked."""
+    with pytest.raises(SystemExit) as e:
+        load(name).main([])
+    assert e.value.code == 2 and "required" in capsys.readouterr().err

@@ -131,10 +131,10 @@ def test_fit_is_deterministic(demos, fitted):
 def test_predict_returns_the_doc_under_learned_weights(fitted, demos):
     sol = fitted.predict(demos[0])
     assert sol.converged and sol.q.shape == (N_NODES + 1, 2)
-    direct = solve_doc(demos[0].to_task(N_NODES), fitted.weights_)
+    direct = solve_doc(ReachingTask.from_trial(demos[0], N_NODES), fitted.weights_)
     np.testing.assert_allclose(sol.q, direct.q, atol=1e-9)
     # a task on another discretisation is moved onto the model's
-    task = demos[0].to_task(N_NODES + 10)
+    task = ReachingTask.from_trial(demos[0], N_NODES + 10)
     assert fitted.predict(task).q.shape == (N_NODES + 1, 2)
 
 
@@ -242,7 +242,7 @@ def test_predict_rejects_other_inputs():
 # ---------------------------------------------------------------------- slow: a virtual subject, 8 windows
 def virtual_subject_trials(n_trials: int = 10, posture: str = "P2", seed: int = 0, n_nodes: int = 100):
     """Reaches of one virtual subject on the DOC's own knots, and the truth."""
-    from reachirl.data import synth
+    from reachirl import synth
 
     return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights()
 

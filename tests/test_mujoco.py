@@ -118,6 +118,7 @@ def test_simulate_cli_renders_a_gif(arm, tmp_path, capsys):
     assert "S1/P2/right/1" in text and "RMSE q" in text and "final fingertip x error" in text
     frames = iio.imread(out, index=None)
     assert frames.shape[0] >= 10 and frames.shape[1:3] == (160, 160)
+    assert f"wrote {out} ({frames.shape[0]} frames)" in text  # the count announced is the count in the file
     last = frames[-1][..., :3].astype(int)
     blue = (last[..., 2] > 150) & (last[..., 0] < 120)  # the simulated arm
     red = (last[..., 0] > 180) & (last[..., 1] < 110) & (last[..., 2] < 110)  # the target bar
@@ -147,3 +148,23 @@ def test_mjcf_compiles_for_any_body_size(sex):
                                             hand_m=rng.uniform(0.15, 0.21))
         model = arm_mujoco_model(arm, 0.005, 0.9 * arm.length)
         assert model.nv == 2
+
+
+def test_simulate_renders_an_mp4_through_the_console_script(arm, tmp_path, cli):
+    ok, why = osmesa_available()
+    if not ok:
+        pytest.skip(why)
+    import imageio
+
+    trials, model = _trials_file(arm, tmp_path)
+    out = tmp_path / "reach.mp4"
+    proc = cli("simulate", "--model", model, trials, "--trial", "0", "--render", out, "--size", "161")
+    assert proc.returncode == 0, proc.stderr
+    reader = imageio.get_reader(out, format="FFMPEG")
+    try:
+        n = reader.count_frames()
+        frame = reader.get_data(0)
+    finally:
+        reader.close()
+    assert f"wrote {out} ({n} frames)" in proc.stdout and n >= 10
+    assert frame.shape == (162, 162, 3) and frame.std() > 5  # odd sizes padded to even (H.264); not blank

@@ -11,6 +11,7 @@ import pytest
 from reachirl.errors import InputError
 from reachirl.experiments import datasets, tables
 from reachirl.experiments.protocol import ProtocolConfig, make_units, run_unit, split_trials
+from reachirl.experiments.report import write_outputs
 from reachirl.experiments.runner import load_unit, reproduce, run_units
 
 FAST = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "n_nodes": 40, "max_iter": 3}
@@ -129,13 +130,15 @@ def test_dask_equals_local(toy, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     cfg = _config(sections=(1, 2), postures=("P4",), max_iter=2)
     local = reproduce(toy, cfg, tmp_path / "local", workers=1)
+    write_outputs(local)
     with distributed.LocalCluster(
         n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
     ) as cluster:
         remote = reproduce(toy, cfg, tmp_path / "dask", scheduler=cluster.scheduler_address)
-    assert remote["summary"].computed and not remote["summary"].reused
+    write_outputs(remote)
+    assert remote.summary.computed and not remote.summary.reused
     assert (tmp_path / "local" / "table.csv").read_bytes() == (tmp_path / "dask" / "table.csv").read_bytes()
-    for key in local["summary"].results:
+    for key in local.summary.results:
         a = json.loads((tmp_path / "local" / "units" / f"{key}.json").read_text())
         b = json.loads((tmp_path / "dask" / "units" / f"{key}.json").read_text())
         assert a["weights"] == b["weights"] and a["sets"] == b["sets"]

@@ -7,11 +7,11 @@ merit 0.253 → 0.180; 1 window CV 3.94°; the truth weights themselves 1.67° (
 import numpy as np
 import pytest
 
-from reachirl import MOIRL, solve_doc
+from reachirl import MOIRL, ReachingTask, solve_doc
 from reachirl.cli import main
-from reachirl.data.synth import SynthConfig, generate, nominal_weights
 from reachirl.data.trial import load_trials
 from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.synth import SynthConfig, generate, nominal_weights
 
 pytestmark = pytest.mark.slow
 
@@ -31,7 +31,7 @@ def test_moirl_recovers_the_truths_trajectories(trials):
     fits = {n: MOIRL(n_windows=n).fit(train) for n in (1, 8)}
     cv = {n: summarise(evaluate_trials(m.weights_, test))["rmse_deg"]["q"]["mean"] for n, m in fits.items()}
     truth_cv = summarise(evaluate_trials(truth, test))["rmse_deg"]["q"]["mean"]
-    agreement = [rmse_deg(fits[8].predict(t).q, solve_doc(t.to_task(), truth).q)[2] for t in test]
+    agreement = [rmse_deg(fits[8].predict(t).q, solve_doc(ReachingTask.from_trial(t), truth).q)[2] for t in test]
 
     assert fits[8].merit_ < 0.8 * fits[8].initial_merit_ and fits[8].flag_ is None
     assert np.all(fits[8].weights_ >= 0)

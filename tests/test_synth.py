@@ -7,10 +7,10 @@ import time
 import numpy as np
 import pytest
 
-from reachirl import FEATURES, ArmModel
+from reachirl import FEATURES, ArmModel, synth
 from reachirl.cli import main
-from reachirl.data import synth
-from reachirl.data.synth import (
+from reachirl.data.writers import read_mot_simple, read_trc_simple
+from reachirl.synth import (
     BERRET_POSTURES_DEG,
     MARKERS,
     POSTURES,
@@ -22,7 +22,6 @@ from reachirl.data.synth import (
     nominal_weights,
     posture_q,
 )
-from reachirl.data.writers import read_mot_simple, read_trc_simple
 
 SMALL = {"n_subjects": 1, "n_trials": 2, "postures": ("P2", "P5"), "workers": 1}
 

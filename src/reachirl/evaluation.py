@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.trial import Trial
-from .doc import DocSolution, solve_doc
+from .doc import DocSolution, ReachingTask, solve_doc
 
 __all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
 
@@ -48,7 +48,7 @@ def evaluate_trials(
     """Predict every trial from its own initial state and measure the RMSE against it."""
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
-        sol = solve_doc(trial.to_task(n_nodes), weights, backend=backend)
+        sol = solve_doc(ReachingTask.from_trial(trial, n_nodes), weights, backend=backend)
         ref = trial.resample(n_nodes + 1)
         e = TrialError(trial.id, *rmse_deg(sol.q, ref.q), converged=sol.converged, prediction=sol)
         out.append(e)

@@ -14,7 +14,7 @@ import sys
 
 from ..errors import InputError
 
-COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "simulate", "bench")
+COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -24,11 +24,14 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details to stderr")
+    verbose_help = "log progress details to stderr, and show the traceback of an internal error"
+    parser.add_argument("-v", "--verbose", action="store_true", help=verbose_help)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in COMMANDS:
         module = importlib.import_module(f"{__name__}.{name}")
         p = module.add_parser(sub)
+        # -v anywhere on the line: SUPPRESS keeps the top-level value when the subcommand's flag is absent
+        p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=verbose_help)
         p.set_defaults(_run=module.run)
     return parser
 

@@ -25,10 +25,11 @@ def _bench_dir() -> Path:
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("bench", help="run the performance benchmarks and print their figures")
+    p = sub.add_parser("bench", help="run the performance benchmarks and print their figures",
+                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("suites", nargs="*", metavar="SUITE",
                    help=f"which suites to run: {', '.join(SUITES)} (default: all)")
-    p.add_argument("--out", type=Path, default=None, help="write all figures to this JSON file")
+    p.add_argument("--out", type=Path, default=None, help="write all figures to this JSON file (default: print only)")
     p.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
     return p
 

@@ -9,21 +9,52 @@ from rich.console import Console
 from rich.progress import Progress
 
 from ..data.trial import load_trials
+from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
 from ..irl.model import load_model
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("evaluate", help="predict every trial from its own start and report joint-angle RMSE")
+    p = sub.add_parser(
+        "evaluate",
+        help="predict every trial from its own start and report joint-angle RMSE",
+        description="Predict every trial by the DOC under the model's weights, from the trial's own arm, start, "
+        "target and duration, and write the RMSE of the joint angles (degrees, on the DOC's knots) to "
+        "METRICS.json; with --predictions, also the trajectories as CSV and OpenSim MOT (docs/outputs.md).",
+    )
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument("trials", type=Path, help="trials file")
     p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi", help="DOC backend")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
+                   help="DOC backend (default casadi)")
+    p.add_argument("--predictions", type=Path, default=None, metavar="DIR",
+                   help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
+                   "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
+                   "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)")
     return p
 
 
+def prediction_exports(trials, errors, set_name: str = ""):
+    """One :class:`~reachirl.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
+    knots beside the prediction."""
+    from ..exports import TrajectoryExport
+
+    out = []
+    for tr, e in zip(trials, errors, strict=True):
+        sol = e.prediction
+        demo = tr.resample(sol.t.size)
+        out.append(TrajectoryExport(
+            id=tr.id, t=sol.t, side=tr.side, set=set_name,
+            demo={"q": demo.q, "qd": demo.qd, "tau": demo.tau[:-1]},
+            pred={"q": sol.q, "qd": sol.qd, "tau": sol.tau},
+        ))
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
+        raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     model = load_model(args.model)
     trials = load_trials(args.trials)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
@@ -37,4 +68,9 @@ def run(args: argparse.Namespace) -> int:
           f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
           + (f" ({summary['doc_failures']} DOC failures)" if summary["doc_failures"] else ""))
     print(f"wrote {args.out}")
+    if args.predictions is not None:
+        from ..exports import export_trajectories
+
+        export_trajectories(args.predictions, prediction_exports(trials, errors))
+        print(f"wrote {len(errors)} trajectories (.csv, .mot) and index.csv to {args.predictions}")
     return 0

@@ -15,16 +15,43 @@ METHODS = ("moirl", "maxent", "bilevel", "kkt")
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("fit", help="learn cost weights from demonstration trials")
+    p = sub.add_parser(
+        "fit",
+        help="learn cost weights from demonstration trials",
+        description="Learn the time-varying cost weights (n_windows x 7, FEATURES order) behind the trials of a "
+        "trials file with MO-IRL or a baseline, and write them with their provenance to MODEL.json "
+        "(schema: docs/outputs.md).",
+    )
     p.add_argument("trials", type=Path, help="trials file written by `reachirl preprocess` or `reachirl synth`")
-    p.add_argument("--sections", type=int, required=True, help="number of time windows of weights (e.g. 1, 6, 8)")
+    p.add_argument("--sections", type=int, required=True,
+                   help="number of time windows of weights (e.g. 1, 6, 8); required")
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
-    p.add_argument("--max-iter", type=int, default=30, help="MO-IRL iterations at most (default 30)")
+    p.add_argument("--max-iter", type=int, default=30,
+                   help="iterations at most of moirl and maxent; bilevel and kkt ignore it (default 30)")
     p.add_argument("--nodes", type=int, default=100, help="DOC knots N (default 100)")
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
-                   help="training rollout from the demonstrations' mean start, or one per demonstration")
+                   help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
+                   "(default mean)")
     return p
+
+
+def _accepts(method: str, name: str) -> bool:
+    """Whether ``method``'s estimator takes the keyword ``name``, following ``**kwargs`` up to the base classes
+    (``MaxEntIRL(**kwargs)`` passes them on to ``MOIRL``)."""
+    import inspect
+
+    from ..irl.methods import METHODS as CLASSES
+
+    for cls in CLASSES[method].__mro__:
+        if "__init__" not in cls.__dict__ or cls is object:
+            continue
+        params = inspect.signature(cls.__init__).parameters
+        if name in params:
+            return True
+        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            return False
+    return False
 
 
 def run(args: argparse.Namespace) -> int:
@@ -43,7 +70,9 @@ def run(args: argparse.Namespace) -> int:
             status.update(f"{args.method}: iteration {rec['iteration']}, merit {rec['merit']:.4g}, "
                           f"{rec['doc_solves']} DOC solves")
 
-        est = make_estimator(args.method, args.sections, callback=progress, **kwargs)
+        if _accepts(args.method, "callback"):  # the baselines take no progress callback
+            kwargs["callback"] = progress
+        est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
     info = {
         "trials": str(args.trials),

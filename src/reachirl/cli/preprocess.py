@@ -3,7 +3,9 @@
 Per input file, the subject, posture, side and static trial come from (first found): the manifest row, the
 command-line option, a UE-ADL file name (``ADL001FR3.csv`` → subject ADL001, right arm, trial FR3, posture
 ``forward``; its static ``ADL001_static.csv`` beside it), else the file's stem / ``default`` / ``right``. A
-folder as INPUT stands for its reach files (``*.trc``, ``*.c3d``, ``*.mot``, ``*.sto`` and UE-ADL reaches).
+folder as INPUT stands for its reach files (``*.trc``, ``*.c3d``, ``*.mot``, ``*.sto`` and UE-ADL reaches);
+a single folder that holds a ``manifest.csv`` stands for that manifest (and its ``subjects.csv`` for
+``--subject-info``, its ``truth.json`` marker names for ``--markers``), as ``reproduce --data FOLDER`` reads it.
 
 ``--subject-info`` takes reachirl's CSV (``subject,sex,height_m,mass_kg[,upper_arm_m,forearm_m,hand_m]``) or
 UE-ADL's ``subjects.csv`` as is. Without it, Berret 2011's mean subject (M, 1.76 m, 69.9 kg) is used, with a
@@ -33,7 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "preprocess",
         help="motion-capture files -> trials (q, qd, qdd, tau on the subject's planar arm)",
-        description=__doc__,
+        description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("inputs", nargs="*", metavar="INPUT", help="marker or joint-angle files, or folders")
@@ -44,23 +46,42 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--format", default="auto", choices=("auto", *FORMATS), help="input format (default: auto)"
     )
     p.add_argument(
-        "--markers", metavar="MAP", help="shoulder=A,elbow=B,wrist=C,fingertip=D (B1+B2: midpoint)"
+        "--markers", metavar="MAP",
+        help="shoulder=A,elbow=B,wrist=C,fingertip=D (B1+B2: midpoint) (default: --markerset, else detected)"
     )
     p.add_argument(
-        "--static", metavar="FILE", help="static calibration trial (for landmark-based marker sets)"
+        "--static", metavar="FILE",
+        help="static calibration trial, for landmark-based marker sets (default: <subject>_static.csv beside "
+        "each file, when the marker set needs one)"
     )
-    p.add_argument("--markerset", metavar="NAME|FILE", help="preset (ue-adl, default) or a JSON marker set")
-    p.add_argument("--subject-info", metavar="CSV", help="subject,sex,height_m,mass_kg[,upper_arm_m,...]")
-    p.add_argument("--subject", metavar="ID", help="subject id (default: from the file name)")
-    p.add_argument("--posture", metavar="NAME", help="posture / condition label")
-    p.add_argument("--side", choices=("right", "left"), help="arm that moved (left arms are mirrored)")
+    p.add_argument("--markerset", metavar="NAME|FILE",
+                   help="preset (ue-adl, default) or a JSON marker set (default: ue-adl when the file has its "
+                   "clusters, else default)")
+    p.add_argument("--subject-info", metavar="CSV",
+                   help="CSV with subject,sex,height_m (m),mass_kg (kg)[,upper_arm_m,forearm_m,hand_m] (default: "
+                   "subjects.csv inside a single INPUT folder, else Berret 2011's mean subject)")
+    p.add_argument("--subject", metavar="ID", help="subject id (default: from the manifest or the file name)")
+    p.add_argument("--posture", metavar="NAME",
+                   help="posture / condition label (default: from the manifest, else 'default')")
+    p.add_argument("--side", choices=("right", "left"),
+                   help="arm that moved; left arms are mirrored (default: from the manifest, else right)")
     p.add_argument(
-        "--manifest", metavar="CSV", help="file,subject,posture[,side,static]; paths relative to it"
+        "--manifest", metavar="CSV",
+        help="CSV with the columns file,subject,posture[,side,static]; paths relative to it (default: "
+        "manifest.csv inside a single INPUT folder, when there is one)"
+    )
+    p.add_argument(
+        "--export", metavar="DIR", default=None,
+        help="also write each processed trial (t, q, q̇, τ in SI and degrees) as DIR/<trial id>.csv and its "
+        "angles as the OpenSim motion file DIR/<trial id>.mot (slashes in ids become _; DIR/index.csv maps them) "
+        "(default: none)",
     )
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
-    g.add_argument("--cutoff", type=float, default=d.cutoff_hz, metavar="HZ", help="low-pass cutoff; 0: none")
-    g.add_argument("--filter-order", type=int, default=d.filter_order, metavar="N")
+    g.add_argument("--cutoff", type=float, default=d.cutoff_hz, metavar="HZ",
+                   help=f"zero-lag Butterworth low-pass cutoff in Hz; 0: no filter (default {d.cutoff_hz:g})")
+    g.add_argument("--filter-order", type=int, default=d.filter_order, metavar="N",
+                   help=f"order of the Butterworth low-pass, applied forward and backward (default {d.filter_order})")
     g.add_argument(
         "--threshold",
         type=float,
@@ -75,17 +96,24 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         metavar="FRAMES",
         help="longest gap filled by a cubic spline (default 10)",
     )
-    g.add_argument("--plane", choices=("pca", "vertical", "axes"), default=d.plane)
-    g.add_argument("--up-axis", metavar="AXIS", help="lab axis opposite gravity (+z Vicon/C3D, +y TRC)")
-    g.add_argument("--forward-axis", metavar="AXIS", help="lab forward axis, with --plane axes")
-    g.add_argument("--ik", choices=("segments", "fingertip"), default=d.ik)
+    g.add_argument("--plane", choices=("pca", "vertical", "axes"), default=d.plane,
+                   help="sagittal plane: pca = principal plane of the joint centres (Berret), vertical = the "
+                   "vertical plane of the fingertip's travel, axes = --up-axis/--forward-axis (default pca)")
+    g.add_argument("--up-axis", metavar="AXIS", help="lab axis opposite gravity, e.g. +z "
+                   "(default: the format's, +z Vicon/C3D, +y TRC)")
+    g.add_argument("--forward-axis", metavar="AXIS", help="lab forward axis, with --plane axes "
+                   "(default: the horizontal axis the fingertip moves along)")
+    g.add_argument("--ik", choices=("segments", "fingertip"), default=d.ik,
+                   help="planar IK: segments = angles of the shoulder->elbow and elbow->distal directions, "
+                   "fingertip = 2-link IK of the fingertip alone (Berret) (default segments)")
     g.add_argument(
         "--distal",
         choices=("fingertip", "wrist"),
         default=d.distal,
-        help="q2 from elbow->fingertip (model's segment 2) or elbow->wrist",
+        help="q2 from elbow->fingertip (the model's segment 2) or elbow->wrist (default fingertip)",
     )
-    g.add_argument("--n-samples", type=int, metavar="N", help="resample each trial to N points (Berret: 200)")
+    g.add_argument("--n-samples", type=int, metavar="N",
+                   help="resample each trial to N points (Berret: 200) (default: keep the recording's samples)")
     return p
 
 
@@ -138,8 +166,30 @@ def _summary(tr: Trial) -> str:
     )
 
 
+def _folder_defaults(args) -> None:
+    """A single INPUT folder with a manifest.csv stands for its manifest (as ``reproduce --data FOLDER``), and
+    its subjects.csv for --subject-info, unless they are given."""
+    if args.manifest or len(args.inputs) != 1 or not Path(args.inputs[0]).is_dir():
+        return
+    folder = Path(args.inputs[0])
+    if (folder / "manifest.csv").is_file():
+        args.manifest = str(folder / "manifest.csv")
+        args.inputs = []
+        print(f"note: using the folder's manifest {args.manifest}", file=sys.stderr)
+    if not args.subject_info and (folder / "subjects.csv").is_file():
+        args.subject_info = str(folder / "subjects.csv")
+        print(f"note: using the folder's subject info {args.subject_info}", file=sys.stderr)
+    if not (args.markers or args.markerset) and (folder / "truth.json").is_file():  # virtual subjects
+        from ..io import read_json
+
+        m = read_json(folder / "truth.json").get("markers")
+        if isinstance(m, dict):
+            args.markers = ",".join(f"{k}={v}" for k, v in m.items())
+
+
 def run(args) -> int:
     options = _options(args)
+    _folder_defaults(args)
     if args.manifest:
         entries = read_manifest(args.manifest)
         if args.inputs:  # the manifest describes the files given; each must be in it
@@ -176,7 +226,16 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and out.is_dir():
         raise InputError("is a folder; --out must be a file path", out)
+    if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
+        raise InputError("exists and is not a folder; --export needs a folder", args.export)
     save_trials(out, trials)
+    if args.export is not None:
+        from ..exports import TrajectoryExport, export_trajectories
+
+        export_trajectories(args.export, [
+            TrajectoryExport(id=tr.id, t=tr.t, side=tr.side, demo={"q": tr.q, "qd": tr.qd, "tau": tr.tau})
+            for tr in trials
+        ])
     if infos is None:
         print(
             "note: no --subject-info; masses and inertias use Berret 2011's mean subject "
@@ -186,4 +245,6 @@ def run(args) -> int:
     for ln in lines:
         print(ln)
     print(f"wrote {len(trials)} trial(s) to {out}")
+    if args.export is not None:
+        print(f"wrote {len(trials)} trajectories (.csv, .mot) and index.csv to {args.export}")
     return 0

@@ -26,7 +26,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "reproduce",
         help="run the seed paper's protocol and write its table and figures",
-        description=__doc__,
+        description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
@@ -52,9 +52,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="local worker processes (default: all cores; 1 runs in this process)",
     )
     p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="run the units on this Dask scheduler (tcp://HOST:PORT)"
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on this Dask scheduler (tcp://HOST:PORT) (default: local processes)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0, metavar="N", help="seed of the random training trials")
+    p.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="N", help="seed of the random training trials (default 0)"
+    )
     p.add_argument(
         "--quick",
         action="store_true",
@@ -70,13 +74,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="moirl (default) and/or baselines (maxent, bilevel, kkt); the first one is the main table",
     )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
-    g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only")
+    g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
+                   "(default: either arm; with --cv other-side, right)")
     g.add_argument(
         "--cv",
         choices=("rest", "other-side"),
         default="rest",
         help="cross-validate on the subject's other trials (rest; the seed) or on its other arm "
-        "(other-side; UE-ADL: learn right, validate on the mirrored left)",
+        "(other-side; UE-ADL: learn right, validate on the mirrored left) (default rest)",
     )
     g.add_argument(
         "--n-train", type=non_negative_int, metavar="N", help="training trials per posture (default 10; 0: all)"
@@ -87,15 +92,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     g.add_argument("--nodes", type=positive_int, metavar="N", help="DOC knots (default 100, as the DOC; --quick 40)")
     g.add_argument("--max-iter", type=positive_int, metavar="N", help="MO-IRL iterations at most (default 30)")
-    g.add_argument("--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set")
     g.add_argument(
-        "--markers", metavar="MAP", help="shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder"
+        "--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set (default 0)"
+    )
+    g.add_argument(
+        "--markers", metavar="MAP",
+        help="shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder (default: truth.json's markers, else "
+        "the built-in marker sets)"
     )
     g.add_argument(
         "--max-units",
         type=positive_int,
         metavar="N",
-        help="stop after N new units (resume later into the same --out)",
+        help="stop after N new units (resume later into the same --out) (default: no limit)",
     )
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
@@ -176,6 +185,7 @@ def run(args) -> int:
     )
 
     from ..experiments import datasets
+    from ..experiments.report import write_outputs
     from ..experiments.runner import reproduce
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -241,16 +251,15 @@ def run(args) -> int:
             on_start=on_start,
             on_done=on_done,
         )
-    summary = result["summary"]
-    if result["stopped"]:
+    if result.stopped:
         print(
-            f"stopped after {len(summary.computed)} new unit(s) (--max-units); rerun with the same --out "
+            f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out "
             f"to finish",
             file=sys.stderr,
         )
         return 0
-    outputs = result["outputs"]
-    _print_table(out_console, outputs, config, result["postures"])
+    outputs = write_outputs(result)
+    _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)
     tm = outputs["timing"]
@@ -260,8 +269,8 @@ def run(args) -> int:
         highlight=False,
     )
     out_console.print(
-        f"wrote {out / 'table.md'}, table.csv, results.json, report.md and "
-        f"{len(outputs['figures'])} figure(s) in {out / 'figures'}",
+        f"wrote {out / 'table.md'}, table.csv, results.json, report.md, "
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}",
         highlight=False,
     )
     return 0

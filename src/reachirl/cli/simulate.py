@@ -18,13 +18,18 @@ MODES = ("open-loop", "pd")
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("simulate", help="play predicted reaches back in MuJoCo and render them")
+    p = sub.add_parser("simulate", help="play predicted reaches back in MuJoCo and render them",
+                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument(
         "trials", type=Path, help="trials file (NPZ) written by `reachirl preprocess` or `reachirl synth`"
     )
     p.add_argument(
-        "--render", type=Path, default=None, metavar="OUT.gif", help="write an animation (.gif or .mp4)"
+        "--render",
+        type=Path,
+        default=None,
+        metavar="OUT.gif",
+        help="write an animation, .gif or .mp4 (H.264) (default: none)",
     )
     p.add_argument(
         "--trial",
@@ -44,7 +49,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--size", type=int, default=480, help="animation width and height in pixels (default 480)")
     p.add_argument(
-        "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON"
+        "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
     )
     return p
 

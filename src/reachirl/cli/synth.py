@@ -9,7 +9,7 @@ from ._args import float_in, non_negative_int, positive_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from ..data.synth import FORMATS, POSTURES
+    from ..synth import FORMATS, POSTURES
 
     p = subparsers.add_parser(
         "synth",
@@ -47,7 +47,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..data.synth import SynthConfig, format_human_likeness, generate
+    from ..synth import SynthConfig, format_human_likeness, generate
 
     try:
         config = SynthConfig(

@@ -369,9 +369,15 @@ def _col_name(cols: dict[str, int], j: int) -> str:
 
 # ---------------------------------------------------------------------- angles: MOT, CSV
 _Q_ALIASES = {
-    "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder"),
-    "q2": ("q2", "elbow", "elbow_flex", "q_elbow"),
+    "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder", "r_shoulder_elev", "l_shoulder_elev"),
+    "q2": ("q2", "elbow", "elbow_flex", "q_elbow", "r_elbow_flex", "l_elbow_flex"),
 }
+# OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.exports)
+_Q1_OFFSET_RAD = {"r_shoulder_elev": -np.pi / 2, "l_shoulder_elev": -np.pi / 2}
+
+
+def _q1_offset(name: str) -> float:
+    return _Q1_OFFSET_RAD.get(re.sub(r"_(deg|rad)$", "", name.strip().lower()), 0.0)
 
 
 def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int, int]:
@@ -430,8 +436,9 @@ def read_mot(path: str | Path) -> AngleData:
     header = lines[hdr_k].split(sep) if sep else lines[hdr_k].split()
     it, i1, i2 = _find_q_columns(header, path, hdr_k + 1)
     a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
-    q = a[:, [i1, i2]]
-    return AngleData(t=a[:, it], q=np.radians(q) if in_degrees else q, source=str(path))
+    q = np.radians(a[:, [i1, i2]]) if in_degrees else a[:, [i1, i2]]
+    q[:, 0] += _q1_offset(header[i1])
+    return AngleData(t=a[:, it], q=q, source=str(path))
 
 
 def read_angles_csv(path: str | Path) -> AngleData:
@@ -466,8 +473,9 @@ def read_angles_csv(path: str | Path) -> AngleData:
             )
         units = col_unit
     a = _angle_rows(lines, k + 1, ",", max(it, i1, i2) + 1, path, header)
-    q = a[:, [i1, i2]]
-    return AngleData(t=a[:, it], q=np.radians(q) if units == "deg" else q, source=str(path))
+    q = np.radians(a[:, [i1, i2]]) if units == "deg" else a[:, [i1, i2]]
+    q[:, 0] += _q1_offset(header[i1])
+    return AngleData(t=a[:, it], q=q, source=str(path))
 
 
 # ---------------------------------------------------------------------- dispatch

@@ -98,12 +98,6 @@ class Trial:
         """``(n, 4)`` state ``(q1, q2, q̇1, q̇2)``."""
         return np.hstack([self.q, self.qd])
 
-    def to_task(self, n_nodes: int = 100, **bounds):
-        """The DOC task of this reach: its own arm, initial posture, target and duration."""
-        from ..doc.task import ReachingTask
-
-        return ReachingTask(self.arm, self.x0[:2], self.target_x, self.duration, n_nodes=n_nodes, **bounds)
-
     def resample(self, n_points: int) -> Trial:
         """The same reach on ``n_points`` equally spaced samples (cubic spline; torques re-derived)."""
         t_new = np.linspace(0.0, self.duration, n_points)

@@ -81,6 +81,12 @@ class ReachingTask:
                 f"target_x {self.target_x:.3f} m is out of reach of an arm {self.arm.length:.3f} m long"
             )
 
+    @classmethod
+    def from_trial(cls, trial, n_nodes: int = 100, **bounds) -> ReachingTask:
+        """The DOC task of a recorded reach (a :class:`~reachirl.data.trial.Trial`): its own arm, initial
+        posture, target and duration."""
+        return cls(trial.arm, trial.x0[:2], trial.target_x, trial.duration, n_nodes=n_nodes, **bounds)
+
     @property
     def dt(self) -> float:
         return self.duration / self.n_nodes

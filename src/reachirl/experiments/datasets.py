@@ -4,7 +4,7 @@ with a manifest.
 :func:`load` is the one entry point. It returns a :class:`Dataset`: the trials, where they came from, and the
 true weights when the data are virtual subjects (``truth.json`` beside the manifest).
 
-* ``None``: the built-in data set (:func:`reachirl.data.synth.builtin_dataset_dir`, generated on first use and
+* ``None``: the built-in data set (:func:`reachirl.synth.builtin_dataset_dir`, generated on first use and
   cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would.
 * a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
   ``truth.json`` beside it (virtual subjects) is read as the ground truth;
@@ -131,7 +131,7 @@ def _read_truth(folder: Path) -> dict | None:
 def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None) -> Dataset:
     """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`."""
     if path is None:
-        from ..data.synth import builtin_dataset_dir
+        from ..synth import builtin_dataset_dir
 
         folder = builtin_dataset_dir(seed)
         trials = preprocess_folder(folder, marker_map)
@@ -169,9 +169,9 @@ def toy(
     every weight (× exp(N(0, 0.2))). The bar is at 95 % of arm length.
     """
     from ..arm import ArmModel
-    from ..data.synth import nominal_weights, posture_q
     from ..data.trial import trial_from_solution
     from ..doc import ReachingTask, solve_doc
+    from ..synth import nominal_weights, posture_q
 
     rng = np.random.default_rng(seed)
     w_nom = nominal_weights()

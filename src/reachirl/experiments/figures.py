@@ -46,6 +46,7 @@ SHORT = {
     "joint_torque": "torque",
 }
 JOINT_COLOURS = ("tab:blue", "tab:green")
+PRED_COLOUR, DEMO_COLOUR = "tab:blue", "tab:orange"
 
 
 
@@ -55,18 +56,26 @@ def _share_heatmap(ax, shares, feature_labels: bool):
     im = ax.imshow(s.T, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest",
                    extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5))
     ax.set_xticks(range(1, s.shape[0] + 1))
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=9)
     ax.set_yticks(range(len(FEATURES)))
-    ax.set_yticklabels([SHORT[f] for f in FEATURES] if feature_labels else [], fontsize=7)
+    ax.set_yticklabels([SHORT[f] for f in FEATURES] if feature_labels else [], fontsize=9)
     return im
 
-def save(fig, path) -> None:
-    """Write ``fig`` as PNG atomically and close it."""
+def save(fig, path, close: bool = True) -> None:
+    """Write ``fig`` atomically as PNG (200 dpi) or PDF, from ``path``'s suffix, and close it (unless
+    ``close=False``)."""
+    from pathlib import Path
+
     from ..io import atomic_path
 
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png", metadata={"Software": None})
-    plt.close(fig)
+    fmt = Path(path).suffix.lower().lstrip(".") or "png"
+    if fmt not in ("png", "pdf"):
+        raise ValueError(f"figures are written as .png or .pdf, got {path}")
+    meta = {"Software": None} if fmt == "png" else {"Creator": None, "Producer": None, "CreationDate": None}
+    with atomic_path(path, suffix=f".{fmt}") as tmp:
+        fig.savefig(tmp, dpi=200, bbox_inches="tight", format=fmt, metadata=meta)
+    if close:
+        plt.close(fig)
 
 
 def _grid(axes, nrows, ncols, figsize):
@@ -79,8 +88,9 @@ def _grid(axes, nrows, ncols, figsize):
 
 
 def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes=None):
-    """Demonstrations (dashed) and DOC predictions (solid) of one set: q1, q2 (top), q̇1, q̇2 (bottom)."""
-    fig, axes = _grid(axes, 2, 2, (10, 6))
+    """Demonstrations (orange, dashed) and DOC predictions (blue, solid) of one set: q1, q2 (top), q̇1, q̇2
+    (bottom); the same two colours in every panel, as the legend says."""
+    fig, axes = _grid(axes, 2, 2, (7.5, 5.0))
     t = arrays[f"{set_name}/t"]
     for j in range(2):
         for row, (kind, unit) in enumerate((("q", "deg"), ("qd", "deg/s"))):
@@ -88,31 +98,18 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             demo = np.rad2deg(arrays[f"{set_name}/demo_{kind}"][..., j])
             pred = np.rad2deg(arrays[f"{set_name}/pred_{kind}"][..., j])
             for i in range(t.shape[0]):
-                ax.plot(
-                    t[i],
-                    demo[i],
-                    "--",
-                    color="goldenrod",
-                    lw=1.0,
-                    alpha=0.8,
-                    label="demonstration" if i == 0 else None,
-                )
-                ax.plot(
-                    t[i],
-                    pred[i],
-                    "-",
-                    color=JOINT_COLOURS[j],
-                    lw=1.2,
-                    alpha=0.9,
-                    label="prediction" if i == 0 else None,
-                )
+                ax.plot(t[i], demo[i], "--", color=DEMO_COLOUR, lw=1.2, alpha=0.85,
+                        label="demonstration" if i == 0 else None)
+                ax.plot(t[i], pred[i], "-", color=PRED_COLOUR, lw=1.2, alpha=0.85,
+                        label="prediction" if i == 0 else None)
             sym = "q" if kind == "q" else "q̇"
-            ax.set_ylabel(f"{sym}{j + 1} ({unit})")
+            ax.set_ylabel(f"{sym}{j + 1} ({unit})", fontsize=10)
+            ax.tick_params(labelsize=9)
             ax.grid(alpha=0.3)
             if row == 1:
-                ax.set_xlabel("time (s)")
-    axes[0, 0].legend(loc="best", fontsize=8)
-    fig.suptitle(title or f"{SET_LABELS.get(set_name, set_name)}: demonstrations vs predictions")
+                ax.set_xlabel("time (s)", fontsize=10)
+    axes[0, 0].legend(loc="best", fontsize=9)
+    fig.suptitle(title or f"{SET_LABELS.get(set_name, set_name)}: demonstrations vs predictions", fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -132,7 +129,7 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
     section count (rows): features on the y axis, windows on the x axis. ``flags[(posture, sections)]`` marks
     fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``)."""
     fig, axes = _grid(
-        axes, len(sections), len(postures), (2.3 * len(postures) + 1.5, 2.4 * len(sections) + 0.6)
+        axes, len(sections), len(postures), (2.4 * len(postures) + 2.2, 2.6 * len(sections) + 0.8)
     )
     im = None
     for r, n in enumerate(sections):
@@ -145,14 +142,16 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
             im = _share_heatmap(ax, s, feature_labels=c == 0)
             _mark_flag(ax, (flags or {}).get((p, n)))
             if r == 0:
-                ax.set_title(p, fontsize=9)
+                ax.set_title(p, fontsize=10)
             if c == 0:
-                ax.set_ylabel(f"{n} section{'s' if n > 1 else ''}", fontsize=8)
+                ax.set_ylabel(f"{n} section{'s' if n > 1 else ''}", fontsize=10)
             if r == len(sections) - 1:
-                ax.set_xlabel("window", fontsize=8)
+                ax.set_xlabel("window", fontsize=10)
     if im is not None:
-        fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
-    fig.suptitle(title or "Learned weights (each feature's share of its window's cost)")
+        cb = fig.colorbar(im, ax=axes, shrink=0.8)
+        cb.set_label("share of the window's cost", fontsize=10)
+        cb.ax.tick_params(labelsize=9)
+    fig.suptitle(title or "Learned weights (each feature's share of its window's cost)", fontsize=11)
     return fig
 
 
@@ -194,7 +193,7 @@ def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
 
 def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title: str = ""):
     """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration."""
-    fig, axes = _grid(axes, 1, len(sections), (4.2 * len(sections), 3.4))
+    fig, axes = _grid(axes, 1, len(sections), (3.6 * len(sections) + 0.6, 3.2))
     postures = sorted({p for p, _ in histories})
     colours = plt.get_cmap("tab10")
     for c, n in enumerate(sections):
@@ -205,12 +204,13 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
             it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
-        ax.set_title(f"{n} section{'s' if n > 1 else ''}", fontsize=9)
+        ax.set_title(f"{n} section{'s' if n > 1 else ''}", fontsize=10)
+        ax.tick_params(labelsize=9)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
         ax.set_xlabel("iteration")
         ax.grid(alpha=0.3, which="both")
         if c == 0:
-            ax.set_ylabel("merit m(x) (rad², rad²/s²)")
+            ax.set_ylabel("merit m(x) = mean ‖x* − x‖²\n(x = q in rad, q̇ in rad/s)", fontsize=9)
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(title or "MO-IRL convergence (accepted steps)")
     fig.tight_layout()

@@ -269,7 +269,8 @@ def make_estimator(unit: Unit):
 
 
 def _history(est) -> list[dict]:
-    keep = ("iteration", "merit", "alpha", "tries", "accepted", "doc_solves", "doc_failures", "wall_time")
+    keep = ("iteration", "merit", "alpha", "tries", "accepted", "doc_solves", "doc_failures", "doc_recovered",
+            "wall_time")
     out = []
     for rec in getattr(est, "history_", []) or []:
         out.append({k: rec[k] for k in keep if k in rec})
@@ -315,8 +316,12 @@ def run_unit(unit: Unit, split: Split) -> dict:
             arrays[f"{name}/t"] = np.stack([e.prediction.t for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_qd"] = np.stack([e.prediction.qd for e in errs]).astype(np.float32)
+            arrays[f"{name}/pred_tau"] = np.stack([e.prediction.tau for e in errs]).astype(np.float32)
             arrays[f"{name}/demo_q"] = np.stack([d.q for d in demos]).astype(np.float32)
             arrays[f"{name}/demo_qd"] = np.stack([d.qd for d in demos]).astype(np.float32)
+            arrays[f"{name}/demo_tau"] = np.stack([d.tau[:-1] for d in demos]).astype(np.float32)
+            arrays[f"{name}/ids"] = np.array([t.id for t in trials], dtype=str)
+            arrays[f"{name}/sides"] = np.array([t.side for t in trials], dtype=str)
     result = {
         "key": unit.key,
         "unit": asdict(unit),

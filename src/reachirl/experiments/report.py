@@ -1,8 +1,14 @@
-"""Everything ``reproduce`` writes once the units are done: tables, figures, ``results.json`` and
-``report.md``.
+"""Everything ``reproduce`` writes once the units are done, one function per output:
 
-:func:`write_outputs` is the one entry point; it reads the units' predictions back from their NPZ checkpoints,
-so a resumed run draws the same figures as an uninterrupted one.
+* :func:`write_tables` — ``table.md`` and ``table.csv``;
+* :func:`write_figures` — ``figures/*.png`` (and ``.pdf``);
+* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.exports`);
+* :func:`write_results_json` — ``results.json``;
+* :func:`write_report` — ``report.md``.
+
+:func:`write_outputs` calls them in turn on the :class:`~reachirl.experiments.results.RunResult` that
+:func:`reachirl.experiments.runner.reproduce` returns (the command line calls both). Predictions are read back
+from the units' NPZ checkpoints, so a resumed run writes the same files as an uninterrupted one.
 """
 
 from __future__ import annotations
@@ -19,9 +25,19 @@ from . import figures as fg
 from . import tables as tb
 from .datasets import Dataset
 from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
-from .runner import load_unit_arrays
+from .results import RunResult, load_unit_arrays
 
-__all__ = ["RESULTS_FORMAT", "true_weights", "write_outputs"]
+__all__ = [
+    "RESULTS_FORMAT",
+    "paired_comparison",
+    "true_weights",
+    "write_figures",
+    "write_outputs",
+    "write_predictions",
+    "write_report",
+    "write_results_json",
+    "write_tables",
+]
 
 RESULTS_FORMAT = "reachirl-reproduce/1"
 
@@ -96,30 +112,38 @@ def _fmt(c: dict | None) -> str:
     return "—" if not c or c.get("mean") is None else f"{c['mean']:.2f} ± {c['std']:.2f}"
 
 
-def write_outputs(
-    out_dir: str | Path,
-    dataset: Dataset,
-    config: ProtocolConfig,
-    postures: Sequence[str],
-    train_subject: str,
-    split_sizes: dict,
-    results: dict[str, dict],
-    timing: dict,
-    run_info: dict,
-) -> dict:
-    """Write ``table.csv``, ``table.md``, ``figures/*.png``, ``results.json`` and ``report.md``.
+def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: int, hi: int,
+                      postures: Sequence[str], n_boot: int = 2000, seed: int = 0) -> dict | None:
+    """``hi`` against ``lo`` sections on the same trials (paired by trial id, pooled over ``postures``): the
+    mean difference of the per-trial RMSE of q (deg; negative: ``hi`` is lower), its 95 % bootstrap interval
+    (``n_boot`` resamples of the trials, seeded) and the two-sided Wilcoxon signed-rank p-value. ``None``
+    with fewer than 2 paired trials."""
+    from scipy.stats import wilcoxon
 
-    Returns ``{"tables": {method: table}, "paths": {...}, "timing": {...}, "notes": [...]}``.
-    """
-    t0 = time.perf_counter()
-    out = Path(out_dir)
-    sections = list(config.sections)
-    methods = list(config.methods)
-    main = methods[0]
-    tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
-    n_trials = {s: ("/".join(sorted({str(v) for v in split_sizes[s].values()})) or "0") for s in SETS}
+    def per_trial(n):
+        out = {}
+        for r in results.values():
+            u = r["unit"]
+            if u["method"] == method and u["sections"] == n and u["posture"] in postures:
+                for t in r["sets"][set_name]["trials"]:
+                    out[(u["posture"], t["id"])] = t["rmse_deg"]["q"]
+        return out
 
-    # ---- notes: DOC failures, conventions
+    a, b = per_trial(lo), per_trial(hi)
+    keys = sorted(set(a) & set(b))
+    if len(keys) < 2:
+        return None
+    d = np.array([b[k] - a[k] for k in keys], dtype=float)
+    rng = np.random.default_rng(seed)
+    boot = d[rng.integers(0, d.size, size=(n_boot, d.size))].mean(axis=1)
+    lo_ci, hi_ci = np.quantile(boot, [0.025, 0.975])
+    p = float(wilcoxon(d).pvalue) if np.any(d != 0) else 1.0
+    return {"n": int(d.size), "mean_diff_deg": float(d.mean()), "ci95_deg": [float(lo_ci), float(hi_ci)],
+            "wilcoxon_p": p, "test": "two-sided Wilcoxon signed-rank over paired trials; 95 % bootstrap CI of "
+            "the mean difference"}
+
+
+def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
     fit_solves = sum(r["fit"]["doc_solves"] for r in results.values())
     fit_fail = sum(r["fit"]["doc_failures"] for r in results.values())
     ev_solves = sum(r["evaluation"]["doc_solves"] for r in results.values())
@@ -150,24 +174,39 @@ def write_outputs(
             f"Degenerate fits: {', '.join(zero)} learned all-zero weights (the DOC then has no cost and "
             "returns its initial guess, a minimum-jerk path); their rows are reported as they are."
         )
-    md_tables = []
-    for m in methods:
-        md_tables.append(
-            tb.to_markdown(
-                tables[m],
-                postures,
-                sections,
-                n_trials,
-                title=f"{m}: RMSE of the joint angles (deg)" if len(methods) > 1 else "",
-            )
-        )
-    table_md = "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n"
-    atomic_write_text(out / "table.md", table_md)
-    atomic_write_text(out / "table.csv", tb.to_csv(tables, postures, sections))
+    doc = {"fit_solves": fit_solves, "fit_failures": fit_fail, "predictions": ev_solves,
+           "prediction_failures": ev_fail}
+    return notes, doc
 
-    # ---- figures
-    t_fig = time.perf_counter()
-    fig_dir = out / "figures"
+
+def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str]) -> list[str]:
+    """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
+    methods = list(tables)
+    md_tables = [
+        tb.to_markdown(tables[m], postures, sections, n_trials,
+                       title=f"{m}: RMSE of the joint angles (deg)" if len(methods) > 1 else "")
+        for m in methods
+    ]
+    atomic_write_text(out / "table.md", "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n")
+    atomic_write_text(out / "table.csv", tb.to_csv(tables, postures, sections))
+    return md_tables
+
+
+def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
+    if pdf:
+        fg.save(fig, fig_dir / f"{Path(name).stem}.pdf", close=False)
+    fg.save(fig, fig_dir / name)
+
+
+def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], fig_dir: Path | None = None,
+                  pdf: bool = False) -> dict[str, dict]:
+    """``figures/*.png`` (and ``.pdf`` with ``pdf``) under ``run.out_dir`` (or ``fig_dir``); returns
+    ``{name: {"caption"}}``."""
+    out = run.out_dir
+    fig_dir = fig_dir or out / "figures"
+    results, postures = run.results, run.postures
+    sections, methods = list(run.config.sections), list(run.config.methods)
+    main = methods[0]
     figs: dict[str, dict] = {}
     by = {(r["unit"]["method"], r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values()}
 
@@ -180,11 +219,10 @@ def write_outputs(
         arrays = load_unit_arrays(out, key(main, p2, n8))
         if "train/t" in arrays:
             fig = fg.plot_prediction(
-                arrays,
-                "train",
-                title=f"{p2}, {n8} sections: training demonstrations (dashed) vs MO-IRL predictions (solid)",
+                arrays, "train",
+                title=f"{p2}, {n8} sections: training demonstrations (dashed) vs {main} predictions (solid)",
             )
-            fg.save(fig, fig_dir / "fig2_prediction.png")
+            _save_figure(fig, fig_dir, "fig2_prediction.png", pdf)
             figs["fig2_prediction.png"] = {
                 "caption": f"Seed Fig. 2 equivalent: posture {p2}, {n8} sections, "
                 "training trials of the training subject, q (top) and q̇ (bottom)."
@@ -197,7 +235,7 @@ def write_outputs(
     if shares:
         flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
                  for r in results.values() if r["unit"]["method"] == main}
-        fg.save(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir / "fig3_weights.png")
+        _save_figure(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir, "fig3_weights.png", pdf)
         figs["fig3_weights.png"] = {
             "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
             "section count (rows), each shown as the feature's share of its window's "
@@ -212,9 +250,9 @@ def write_outputs(
             if "iscv/t" in a:
                 iscv_arrays[p] = a
     if iscv_arrays:
-        fg.save(
+        _save_figure(
             fg.plot_iscv(iscv_arrays, title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)"),
-            fig_dir / "fig4_iscv.png",
+            fig_dir, "fig4_iscv.png", pdf,
         )
         figs["fig4_iscv.png"] = {
             "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
@@ -226,63 +264,80 @@ def write_outputs(
         if r["unit"]["method"] == main
     }
     if hist:
-        fg.save(fg.plot_convergence(hist, sections), fig_dir / "convergence.png")
+        _save_figure(fg.plot_convergence(hist, sections), fig_dir, "convergence.png", pdf)
         figs["convergence.png"] = {
             "caption": "Merit m(x) of every fit at each accepted iteration (iteration 0: "
             "the initial weights ω₀)."
         }
-    learned, true, truth_metrics = _truth_comparison(dataset, results, main, postures)
+    learned, true, truth_metrics = truth
     if learned:
-        n_true = int(dataset.truth.get("n_windows", 0) or 0)
+        n_true = next(iter(truth_metrics.values()))["sections"]
         truth_flags = {r["unit"]["posture"]: r.get("flag") for r in results.values()
                        if r["unit"]["method"] == main and r["unit"]["sections"] == n_true}
-        fg.save(fg.plot_truth(learned, true, title=f"Virtual subjects, {n_true} sections: learned vs true "
-                              "weights (cost shares)", flags=truth_flags), fig_dir / "weights_vs_truth.png")
+        _save_figure(fg.plot_truth(learned, true, title=f"Virtual subjects, {n_true} sections: learned vs true "
+                                   "weights (cost shares)", flags=truth_flags), fig_dir, "weights_vs_truth.png",
+                     pdf)
         figs["weights_vs_truth.png"] = {
-            "caption": "Virtual subjects: learned (top) vs true (bottom) cost shares, "
-            "true weights = mean of the training trials' own (jittered) weights "
-            "from truth.json."
+            "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
+            "true weights = mean of the training trials' own (jittered) weights from truth.json."
         }
     if len(methods) > 1:
         heads = {
             m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS}
             for m in methods
         }
-        fg.save(fg.plot_methods(heads, sections), fig_dir / "methods.png")
+        _save_figure(fg.plot_methods(heads, sections), fig_dir, "methods.png", pdf)
         figs["methods.png"] = {"caption": "ALL-postures RMSE of q per method, set and section count."}
-    fig_time = time.perf_counter() - t_fig
+    return figs
 
-    # ---- results.json and report.md
-    computed = set(run_info.get("computed", []))
-    timing = dict(timing)
-    timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in results.values() if r["key"] in computed)
-    timing["evaluation_s_sum"] = sum(
-        r["evaluation"]["time_s"] for r in results.values() if r["key"] in computed
-    )
-    timing["figures_s"] = fig_time
-    timing["report_s"] = time.perf_counter() - t0
-    timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
+
+def write_predictions(run: RunResult) -> list[Path]:
+    """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit
+    (:func:`reachirl.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
+    from ..exports import TrajectoryExport, export_trajectories
+
+    written = []
+    for key in sorted(run.results):
+        a = load_unit_arrays(run.out_dir, key)
+        items = []
+        for s in SETS:
+            if f"{s}/ids" not in a:
+                continue
+            for i, tid in enumerate(a[f"{s}/ids"]):
+                items.append(TrajectoryExport(
+                    id=str(tid), t=a[f"{s}/t"][i].astype(float), side=str(a[f"{s}/sides"][i]), set=s,
+                    demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                    pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                ))
+        if items:
+            written.append(export_trajectories(run.out_dir / "predictions" / key, items))
+    return written
+
+
+def _comparisons(run: RunResult) -> dict:
+    """Paired comparisons of the most against the fewest sections, per set, for every method."""
+    sections = list(run.config.sections)
+    lo, hi = min(sections), max(sections)
+    if lo == hi:
+        return {}
+    out = {}
+    for m in run.config.methods:
+        for s in SETS:
+            c = paired_comparison(run.results, m, s, lo, hi, run.postures)
+            if c is not None:
+                out.setdefault(m, {})[s] = {"sections": [lo, hi], **c}
+    return out
+
+
+def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: dict, notes: list[str],
+                       doc: dict, comparisons: dict) -> Path:
+    """``results.json`` (schema: docs/outputs.md)."""
+    config, sections = run.config, list(run.config.sections)
     units = []
-    for r in sorted(results.values(), key=lambda r: r["key"]):
+    for r in sorted(run.results.values(), key=lambda r: r["key"]):
         units.append(
-            {
-                k: r[k]
-                for k in (
-                    "key",
-                    "unit",
-                    "fingerprint",
-                    "weights",
-                    "cost_shares",
-                    "n_iter",
-                    "stop_reason",
-                    "flag",
-                    "warnings",
-                    "smoothness",
-                    "fit",
-                    "evaluation",
-                    "history",
-                )
-            }
+            {k: r.get(k) for k in ("key", "unit", "fingerprint", "weights", "cost_shares", "n_iter", "stop_reason",
+                                   "flag", "warnings", "smoothness", "fit", "evaluation", "history")}
             | {
                 "sets": {
                     s: {"summary": r["sets"][s]["summary"], "trials": r["sets"][s]["trials"]} for s in SETS
@@ -292,66 +347,76 @@ def write_outputs(
         )
     results_json = {
         "format": RESULTS_FORMAT,
-        "data": dataset.describe(),
-        "protocol": config.to_dict() | {"train_subject": train_subject, "postures_run": list(postures)},
-        "split_sizes": split_sizes,
+        "data": run.dataset.describe(),
+        "protocol": config.to_dict() | {"train_subject": run.train_subject, "postures_run": list(run.postures)},
+        "split_sizes": run.split_sizes,
         "tables": tables,
-        "headline": {m: tb.headline(tables[m], sections) for m in methods},
+        "headline": {m: tb.headline(tables[m], sections) for m in config.methods},
+        "comparisons": comparisons,
         "all_postures_convention": tb.ALL_CONVENTION,
         "seed_table": {
-            "source": "seed paper Table II (Berret et al.'s human data, 2 subjects)",
+            "source": "seed paper Table II (Berret et al.'s human data, 2 subjects): different data",
             "table": tb.SEED_TABLE,
         },
-        "doc": {
-            "fit_solves": fit_solves,
-            "fit_failures": fit_fail,
-            "predictions": ev_solves,
-            "prediction_failures": ev_fail,
-        },
+        "doc": doc,
         "truth_comparison": truth_metrics,
         "figures": {f"figures/{k}": v["caption"] for k, v in figs.items()},
         "units": units,
-        "run": run_info,
-        "timing": timing,
+        "run": run.run_info,
+        "timing": run.timing,
         "notes": notes,
     }
-    report = _report_md(
-        dataset,
-        config,
-        postures,
-        train_subject,
-        split_sizes,
-        tables,
-        methods,
-        sections,
-        md_tables,
-        notes,
-        figs,
-        truth_metrics,
-        timing,
-        run_info,
-    )
-    atomic_write_text(out / "report.md", report)
-    atomic_write_json(out / "results.json", results_json)
+    path = run.out_dir / "results.json"
+    atomic_write_json(path, results_json)
+    return path
+
+
+def write_report(run: RunResult, tables: dict, md_tables: list[str], notes: list[str], figs: dict,
+                 truth_metrics: dict, comparisons: dict) -> Path:
+    """``report.md``."""
+    path = run.out_dir / "report.md"
+    atomic_write_text(path, _report_md(run, tables, md_tables, notes, figs, truth_metrics, comparisons))
+    return path
+
+
+def write_outputs(run: RunResult) -> dict:
+    """Every output of a finished run (see the module docstring), in turn.
+
+    Returns ``{"tables": {method: table}, "timing": {...}, "notes": [...], "figures": [...], "n_trials"}``.
+    """
+    t0 = time.perf_counter()
+    out, config = run.out_dir, run.config
+    postures, sections, methods = run.postures, list(config.sections), list(config.methods)
+    results = run.results
+    tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
+    n_trials = {s: ("/".join(sorted({str(v) for v in run.split_sizes[s].values()})) or "0") for s in SETS}
+    notes, doc = _notes(results, config)
+    md_tables = write_tables(out, tables, postures, sections, n_trials, notes)
+    t_fig = time.perf_counter()
+    truth = _truth_comparison(run.dataset, results, methods[0], postures)
+    figs = write_figures(run, tables, truth)
+    fig_time = time.perf_counter() - t_fig
+    t_pred = time.perf_counter()
+    write_predictions(run)
+    computed = set(run.run_info.get("computed", []))
+    timing = dict(run.timing)
+    timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in results.values() if r["key"] in computed)
+    timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in results.values() if r["key"] in computed)
+    timing["figures_s"] = fig_time
+    timing["predictions_s"] = time.perf_counter() - t_pred
+    timing["report_s"] = time.perf_counter() - t0
+    timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
+    run.timing = timing
+    comparisons = _comparisons(run)
+    write_report(run, tables, md_tables, notes, figs, truth[2], comparisons)
+    write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
-def _report_md(
-    dataset,
-    config,
-    postures,
-    train_subject,
-    split_sizes,
-    tables,
-    methods,
-    sections,
-    md_tables,
-    notes,
-    figs,
-    truth_metrics,
-    timing,
-    run_info,
-) -> str:
+def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons) -> str:
+    dataset, config, postures = run.dataset, run.config, run.postures
+    train_subject, split_sizes, timing, run_info = run.train_subject, run.split_sizes, run.timing, run.run_info
+    methods, sections = list(config.methods), list(config.sections)
     main = methods[0]
     tab = tables[main]
     virtual = dataset.truth is not None
@@ -369,9 +434,13 @@ def _report_md(
         ),
         f"- **Protocol (seed §II-D):** per posture ({', '.join(postures)}) and section count "
         f"({', '.join(map(str, sections))}): learn from "
-        f"{'all' if config.n_train is None else config.n_train} trial(s) of subject {train_subject} "
-        f"{'(' + (config.train_side or 'right') + ' arm) ' if config.cv == 'other-side' else ''}"
-        f"chosen at random (seed {config.seed}), cross-validate on "
+        + (
+            f"all the trials of subject {train_subject} "
+            if config.n_train is None
+            else f"{config.n_train} trial(s) of subject {train_subject} chosen at random (seed {config.seed}) "
+        )
+        + f"{'(' + (config.train_side or 'right') + ' arm) ' if config.cv == 'other-side' else ''}"
+        "(when a posture has fewer, all of them), cross-validate on "
         + ("its other-arm reaches (mirrored)" if config.cv == "other-side" else "its other trials")
         + ", ISCV on the other subjects' trials of the same posture.",
         "- **Trials per posture:** "
@@ -389,14 +458,17 @@ def _report_md(
     lines += md_tables
     lines += [f"- {n}" for n in notes] + [""]
     lines += [
-        "### Headline (ALL postures, q): ours beside the seed's",
+        "### Headline (ALL postures, q): ours beside the seed's (different data)",
         "",
-        "The seed's numbers are **its results on its own data** (Berret et al.'s human reaches, 2 subjects, "
-        "10/10/20 trials); ours are on "
+        "The seed's columns are **its results on other data and another task** (Berret et al.'s human "
+        "reaches to a bar, 2 subjects, 10/10/20 trials); ours are on "
         + ("virtual subjects" if virtual else dataset.source)
+        + (", cross-validated on the other arm" if config.cv == "other-side" else "")
         + ", so the comparison is of magnitudes and trends, not number for number.",
         "",
-        "| sections | " + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed)" for s in SETS) + " |",
+        "| sections | "
+        + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed, other data)" for s in SETS)
+        + " |",
         "|---|" + "---|" * (2 * len(SETS)),
     ]
     for row in tb.headline(tab, sections):
@@ -409,14 +481,20 @@ def _report_md(
     # what the numbers say
     says = []
     lo, hi = min(sections), max(sections)
-    if lo != hi:
-        for s in SETS:
-            a, b = tab[tb.ALL][s].get(lo, {}).get("q"), tab[tb.ALL][s].get(hi, {}).get("q")
-            if a and b and a.get("mean") is not None and b.get("mean") is not None:
-                says.append(
-                    f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with "
-                    f"{lo} ({'better' if b['mean'] < a['mean'] else 'not better'})."
-                )
+    for s, c in comparisons.get(main, {}).items():
+        a, b = tab[tb.ALL][s].get(lo, {}).get("q"), tab[tb.ALL][s].get(hi, {}).get("q")
+        if not (a and b and a.get("mean") is not None and b.get("mean") is not None):
+            continue
+        if c["wilcoxon_p"] < 0.05:
+            verdict = "lower" if c["mean_diff_deg"] < 0 else "higher"
+        else:
+            verdict = "no significant difference"
+        says.append(
+            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo} "
+            f"({verdict}: paired difference {c['mean_diff_deg']:+.2f}°, 95 % bootstrap CI "
+            f"[{c['ci95_deg'][0]:+.2f}, {c['ci95_deg'][1]:+.2f}]°, Wilcoxon signed-rank p = "
+            f"{c['wilcoxon_p']:.2g}, n = {c['n']} trials)."
+        )
     per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
     per_p = {p: v for p, v in per_p.items() if v is not None}
     if len(per_p) > 1:
@@ -427,7 +505,7 @@ def _report_md(
         )
     if says:
         lines += ["What they show: " + " ".join(says), ""]
-    lines += ["### The seed's Table II (its own human data)", "", tb.seed_markdown()]
+    lines += ["### The seed's Table II (its own human data: not the data above)", "", tb.seed_markdown()]
     lines += ["## Figures", ""]
     for name, f in figs.items():
         lines += [f"### {name}", "", f"![{name}](figures/{name})", "", f["caption"], ""]
@@ -473,7 +551,8 @@ def _report_md(
         "  (`fit_s_sum` and `evaluation_s_sum` add the units' own times over the workers; `units_wall_s` is "
         "the wall time of all units; `report_s` includes `figures_s`.)",
         "- Files: `table.md`, `table.csv`, `results.json` (every unit's weights, history, per-trial RMSE), "
-        "`units/*.json` + `units/*.npz` (checkpoints and predictions), `figures/*.png`.",
+        "`units/*.json` + `units/*.npz` (checkpoints and predictions), `figures/*.png`, "
+        "`predictions/<unit>/<trial id>.csv|.mot` (schemas: docs/outputs.md in the source).",
         "",
     ]
     return "\n".join(lines)

@@ -12,70 +12,20 @@ the in-process path (``workers=1``) and Dask give the same numbers.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import json
 import logging
 import multiprocessing
 import os
+import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import InputError
-from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
 from .protocol import Split, Unit, run_unit
+from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
 
-__all__ = ["RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
+__all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass
-class RunSummary:
-    results: dict[str, dict]  # key -> unit result (JSON content)
-    computed: list[str]
-    reused: list[str]
-    stopped_early: bool
-
-
-def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
-    d = Path(out_dir) / "units"
-    return d / f"{key}.json", d / f"{key}.npz"
-
-
-def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
-    """A finished unit's result, or ``None`` if absent, unreadable or for other inputs (other fingerprint)."""
-    js, npz = unit_paths(out_dir, key)
-    if not js.is_file():
-        return None
-    try:
-        res = json.loads(js.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
-        return None
-    if fingerprint is not None and res.get("fingerprint") != fingerprint:
-        return None
-    if res.get("has_arrays") and not npz.is_file():
-        return None
-    return res
-
-
-def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
-    _, npz = unit_paths(out_dir, key)
-    if not npz.is_file():
-        return {}
-    with np.load(npz, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
-
-
-def _save(out_dir: Path, payload: dict) -> dict:
-    res = dict(payload["result"])
-    js, npz = unit_paths(out_dir, res["key"])
-    res["has_arrays"] = bool(payload["arrays"])
-    if payload["arrays"]:
-        atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
-    atomic_write_json(js, res)
-    return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read
 
 
 def _local_executor(workers: int) -> cf.Executor:
@@ -139,7 +89,7 @@ def run_units(
     def finish(payload: dict) -> None:
         # the coordinator's fingerprint: a remote worker may hash other source files
         payload["result"]["fingerprint"] = fingerprints[payload["result"]["key"]]
-        res = _save(out_dir, payload)
+        res = save_unit(out_dir, payload)
         results[res["key"]] = res
         computed.append(res["key"])
         if on_done:
@@ -193,16 +143,13 @@ def reproduce(
     data_s: float = 0.0,
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
-) -> dict:
-    """The whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`) into ``out_dir``.
-
-    Returns ``{"stopped": bool, "summary": RunSummary, "outputs": write_outputs(...) or None}``; with
-    ``max_units`` reached, the outputs are not written (rerun to finish).
+) -> RunResult:
+    """Run (or resume) the whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`),
+    checkpointing each unit under ``out_dir/units/``, and return the :class:`RunResult`. Nothing else is
+    written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
+    (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
     """
-    import time
-
     from .protocol import code_fingerprint, make_units, resolve_postures, resolve_train_subject, split_trials
-    from .report import write_outputs
 
     trials = list(dataset.trials)
     if not trials:
@@ -225,9 +172,6 @@ def reproduce(
         on_start=on_start,
         on_done=on_done,
     )
-    units_wall = time.perf_counter() - t0
-    if summary.stopped_early:
-        return {"stopped": True, "summary": summary, "outputs": None}
     run_info = {
         "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
         "n_units": len(units),
@@ -237,21 +181,14 @@ def reproduce(
         if scheduler
         else ("in-process" if workers <= 1 else f"{workers} local processes"),
     }
-    outputs = write_outputs(
-        out_dir,
-        dataset,
-        config,
-        postures,
-        subject,
-        split_sizes,
-        summary.results,
-        {"data_s": data_s, "units_wall_s": units_wall},
-        run_info,
+    return RunResult(
+        out_dir=out_dir,
+        dataset=dataset,
+        config=config,
+        postures=postures,
+        train_subject=subject,
+        split_sizes=split_sizes,
+        summary=summary,
+        timing={"data_s": data_s, "units_wall_s": time.perf_counter() - t0},
+        run_info=run_info,
     )
-    return {
-        "stopped": False,
-        "summary": summary,
-        "outputs": outputs,
-        "postures": postures,
-        "train_subject": subject,
-    }

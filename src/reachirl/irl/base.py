@@ -49,7 +49,7 @@ class WeightEstimator:
         """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration."""
         self._check_fitted()
         if isinstance(trial_or_task, Trial):
-            task = trial_or_task.to_task(self.n_nodes)
+            task = ReachingTask.from_trial(trial_or_task, self.n_nodes)
         elif isinstance(trial_or_task, ReachingTask):
             task = trial_or_task
             if task.n_nodes != self.n_nodes:

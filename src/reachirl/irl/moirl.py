@@ -225,7 +225,7 @@ class MOIRL(WeightEstimator):
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         if self.rollout == "mean":
             return [mean_task(trials, self.n_nodes)]
-        return [t.to_task(self.n_nodes) for t in trials]
+        return [ReachingTask.from_trial(t, self.n_nodes) for t in trials]
 
     def _rollout(self, task, w, warm: DocSolution | None, guess: np.ndarray) -> tuple[DocSolution, int]:
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).

@@ -112,9 +112,23 @@ def render_frames(
     return frames
 
 
-def write_animation(path: str | Path, frames: Sequence[np.ndarray], fps: float = 30.0) -> Path:
-    """Write frames to a GIF (or MP4 when the suffix is ``.mp4`` and an ffmpeg plugin is installed),
-    atomically.
+def _merge_repeats(frames: Sequence[np.ndarray], dt_ms: float) -> tuple[list[np.ndarray], list[float]]:
+    """Consecutive identical frames as one frame shown longer (GIF writers merge them anyway, so the file's
+    frame count is the count returned here)."""
+    out: list[np.ndarray] = []
+    durations: list[float] = []
+    for f in frames:
+        if out and np.array_equal(out[-1], f):
+            durations[-1] += dt_ms
+        else:
+            out.append(f)
+            durations.append(dt_ms)
+    return out, durations
+
+
+def write_animation(path: str | Path, frames: Sequence[np.ndarray], fps: float = 30.0) -> tuple[Path, int]:
+    """Write frames to a GIF or an MP4 (H.264 through imageio-ffmpeg), atomically; returns the path and the
+    number of frames in the file (a GIF shows a run of identical frames as one longer frame).
     """
     import imageio.v3 as iio
 
@@ -124,8 +138,14 @@ def write_animation(path: str | Path, frames: Sequence[np.ndarray], fps: float =
     suffix = path.suffix.lower()
     with atomic_path(path, suffix=suffix) as tmp:
         if suffix == ".gif":
-            iio.imwrite(tmp, np.stack(frames), duration=1000.0 / fps, loop=0)
+            frames, durations = _merge_repeats(frames, 1000.0 / fps)
+            iio.imwrite(tmp, np.stack(frames), duration=durations, loop=0)
+        elif suffix == ".mp4":
+            video = np.stack(frames)
+            h, w = video.shape[1:3]  # H.264 with yuv420p needs even sizes: repeat the last row/column
+            video = np.pad(video, ((0, 0), (0, h % 2), (0, w % 2), (0, 0)), mode="edge")
+            iio.imwrite(tmp, video, plugin="FFMPEG", fps=fps, codec="libx264", macro_block_size=1)
         else:
-            iio.imwrite(tmp, np.stack(frames), fps=fps)
+            raise ValueError(f"animations are written as .gif or .mp4, got {path}")
     log.info("wrote %d frames to %s", len(frames), path)
-    return path
+    return path, len(frames)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.trial import Trial
-from ..doc import DocSolution, solve_doc
+from ..doc import DocSolution, ReachingTask, solve_doc
 from .playback import PlaybackResult, playback
 from .render import RenderClip, render_frames, write_animation
 
@@ -56,9 +56,10 @@ def simulate_trial(
     kp: float = 50.0,
     kd: float = 5.0,
 ) -> TrialSimulation:
-    """Predict ``trial`` with ``solve_doc(trial.to_task(n_nodes), weights)`` and play the torques in MuJoCo.
+    """Predict ``trial`` with ``solve_doc(ReachingTask.from_trial(trial, n_nodes), weights)`` and play the
+    torques in MuJoCo.
     """
-    task = trial.to_task(n_nodes)
+    task = ReachingTask.from_trial(trial, n_nodes)
     sol = solve_doc(task, weights, backend=backend)
     if not sol.converged:
         log.warning("trial %s: the DOC did not converge (%s)", trial.id, sol.status)
@@ -96,4 +97,4 @@ def render_simulations(
         for s in sims
     ]
     frames = render_frames(clips, fps=fps, width=width, height=height)
-    return write_animation(path, frames, fps=fps), len(frames)
+    return write_animation(path, frames, fps=fps)

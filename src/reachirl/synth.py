@@ -75,12 +75,12 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
-from ..doc import ReachingTask, solve_doc
-from ..features import FEATURES, feature_rates, window_index, windowed_features
-from ..io import atomic_write_json, atomic_write_text, to_jsonable
-from .trial import Trial, trial_from_knots
-from .writers import write_c3d, write_mot, write_trc
+from .arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
+from .data.trial import Trial, trial_from_knots
+from .data.writers import write_c3d, write_mot, write_trc
+from .doc import ReachingTask, solve_doc
+from .features import FEATURES, feature_rates, window_index, windowed_features
+from .io import atomic_write_json, atomic_write_text, to_jsonable
 
 __all__ = [
     "BERRET_DURATIONS_S",
@@ -657,7 +657,7 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
             }
         )
     return {
-        "generator": "reachirl.data.synth",
+        "generator": "reachirl.synth",
         "version": GENERATOR_VERSION,
         "config": {k: v for k, v in asdict(config).items() if k != "workers"},
         "features": list(FEATURES),

@@ -1,0 +1,139 @@
+"""``reachirl plot --model MODEL.json TRIALS --out DIR`` or ``reachirl plot RUN_DIR --out DIR``: figures as PNG
+and PDF.
+
+With a model: each trial is predicted from its own start (as ``evaluate`` does) and DIR gets
+``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
+feature's share of its window's cost at the trials) and ``convergence.png`` (the fit's merit per iteration, when
+the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
+``fig3_weights``, ``fig4_iscv``, ``convergence``, ``methods``) drawn again from its ``results.json`` and
+``units/``. Every figure is written as ``.png`` and ``.pdf``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "plot",
+        help="draw predictions, weight shares and convergence as PNG and PDF",
+        description=__doc__.replace("``", ""),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("source", type=Path, metavar="TRIALS|RUN_DIR",
+                   help="a trials file (with --model) or a folder written by `reachirl reproduce`")
+    p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
+                   help="model JSON written by `reachirl fit`, then SOURCE is a trials file (default: SOURCE is a run "
+                   "folder)")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder to write the figures to")
+    p.add_argument("--trial", action="append", default=None, metavar="ID|INDEX",
+                   help="with --model: plot only this trial (id, trial_id or 0-based index); repeat for several "
+                   "(default: all)")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
+                   help="with --model: DOC backend of the predictions (default casadi)")
+    p.add_argument("--no-pdf", action="store_true", help="write PNG only (default: PNG and PDF)")
+    return p
+
+
+def _save(fig, out: Path, stem: str, pdf: bool, written: list[Path]) -> None:
+    from ..experiments import figures as fg
+
+    if pdf:
+        fg.save(fig, out / f"{stem}.pdf", close=False)
+        written.append(out / f"{stem}.pdf")
+    fg.save(fig, out / f"{stem}.png")
+    written.append(out / f"{stem}.png")
+
+
+def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool = True) -> list[Path]:
+    """The figures of a learned model on trials (see the module docstring); returns the files written."""
+    import numpy as np
+
+    from ..evaluation import evaluate_trials
+    from ..experiments import figures as fg
+
+    n, n_nodes = model.n_windows, model.n_nodes
+    written: list[Path] = []
+    errors = evaluate_trials(model.weights, trials, n_nodes=n_nodes, backend=backend)
+    demos = [t.resample(n_nodes + 1) for t in trials]
+    arrays = {
+        "trials/t": np.stack([e.prediction.t for e in errors]),
+        "trials/pred_q": np.stack([e.prediction.q for e in errors]),
+        "trials/pred_qd": np.stack([e.prediction.qd for e in errors]),
+        "trials/demo_q": np.stack([d.q for d in demos]),
+        "trials/demo_qd": np.stack([d.qd for d in demos]),
+    }
+    rmse = np.mean([e.rmse_q for e in errors])
+    title = (f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
+             f"predictions (solid); mean RMSE of q {rmse:.2f}°")
+    _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
+    phi = np.mean([t.features(n_nodes, n) for t in trials], axis=0)
+    c = model.weights * phi
+    tot = c.sum(axis=1, keepdims=True)
+    shares = np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
+    label = f"at {len(trials)} trial(s)"
+    _save(fg.plot_weights({(label, n): shares}, [label], [n],
+                          title=f"{model.method}: each feature's share of its window's cost"),
+          out, "weights", pdf, written)
+    history = model.info.get("history") or []
+    if any(h.get("merit") is not None for h in history):
+        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence"),
+              out, "convergence", pdf, written)
+    return written
+
+
+def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
+    """A ``reproduce`` folder's figures drawn again from ``results.json`` and ``units/``."""
+    from dataclasses import fields
+
+    from ..experiments import tables as tb
+    from ..experiments.protocol import ProtocolConfig
+    from ..experiments.report import write_figures
+    from ..experiments.results import RunResult, RunSummary
+    from ..io import read_json
+
+    res_path = run_dir / "results.json"
+    if not res_path.is_file():
+        raise InputError("not a `reachirl reproduce` folder (no results.json)", run_dir)
+    d = read_json(res_path)
+    if not isinstance(d, dict) or d.get("format") != "reachirl-reproduce/1" or "units" not in d:
+        raise InputError("not a results file of `reachirl reproduce` (format reachirl-reproduce/1)", res_path)
+    proto = d.get("protocol", {})
+    config = ProtocolConfig(**{f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto})
+    results = {u["key"]: u for u in d["units"]}
+    postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in d["units"]}))
+    sections, methods = list(config.sections), list(config.methods)
+    tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
+    run = RunResult(out_dir=run_dir, dataset=None, config=config, postures=postures, train_subject="",
+                    split_sizes={}, summary=RunSummary(results, [], list(results), False))
+    figs = write_figures(run, tables, ({}, {}, {}), fig_dir=out, pdf=pdf)
+    return [out / f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
+
+
+def run(args: argparse.Namespace) -> int:
+    from .simulate import _select
+
+    out = args.out
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a folder; --out needs a folder", out)
+    if args.model is not None:
+        from ..data.trial import load_trials
+        from ..irl.model import load_model
+
+        if args.source.is_dir():
+            raise InputError("is a folder; with --model, give a trials file", args.source)
+        model = load_model(args.model)
+        trials = _select(load_trials(args.source), args.trial, args.source)
+        written = model_figures(model, trials, out, backend=args.backend, pdf=not args.no_pdf)
+    else:
+        if not args.source.is_dir():
+            raise InputError("expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials "
+                             "file)", args.source)
+        written = run_figures(args.source, out, pdf=not args.no_pdf)
+    for p in written:
+        print(f"wrote {p}")
+    return 0

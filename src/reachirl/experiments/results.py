@@ -1,0 +1,90 @@
+"""What a protocol run leaves behind: the units' checkpoint files and the :class:`RunResult` that
+:func:`reachirl.experiments.runner.reproduce` returns and :func:`reachirl.experiments.report.write_outputs` writes
+out. Both modules import this one and never each other.
+
+Each unit's result is ``OUT/units/<key>.json`` with its predictions in ``<key>.npz``: the NPZ is written first,
+then the JSON, which marks the unit done.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
+
+__all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "save_unit", "unit_paths"]
+
+
+@dataclass
+class RunSummary:
+    results: dict[str, dict]  # key -> unit result (JSON content)
+    computed: list[str]
+    reused: list[str]
+    stopped_early: bool
+
+
+@dataclass
+class RunResult:
+    """A finished (or stopped) protocol run: everything the report needs, nothing written yet but the units."""
+
+    out_dir: Path
+    dataset: object  # experiments.datasets.Dataset
+    config: object  # experiments.protocol.ProtocolConfig
+    postures: list[str]
+    train_subject: str
+    split_sizes: dict
+    summary: RunSummary
+    timing: dict = field(default_factory=dict)
+    run_info: dict = field(default_factory=dict)
+
+    @property
+    def stopped(self) -> bool:
+        return self.summary.stopped_early
+
+    @property
+    def results(self) -> dict[str, dict]:
+        return self.summary.results
+
+
+def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
+    d = Path(out_dir) / "units"
+    return d / f"{key}.json", d / f"{key}.npz"
+
+
+def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
+    """A finished unit's result, or ``None`` if absent, unreadable or for other inputs (other fingerprint)."""
+    js, npz = unit_paths(out_dir, key)
+    if not js.is_file():
+        return None
+    try:
+        res = json.loads(js.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+    if fingerprint is not None and res.get("fingerprint") != fingerprint:
+        return None
+    if res.get("has_arrays") and not npz.is_file():
+        return None
+    return res
+
+
+def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
+    _, npz = unit_paths(out_dir, key)
+    if not npz.is_file():
+        return {}
+    with np.load(npz, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def save_unit(out_dir: Path, payload: dict) -> dict:
+    """Write a unit's ``{"result", "arrays"}`` (NPZ first, then the JSON); returns the JSON as read back."""
+    res = dict(payload["result"])
+    js, npz = unit_paths(out_dir, res["key"])
+    res["has_arrays"] = bool(payload["arrays"])
+    if payload["arrays"]:
+        atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
+    atomic_write_json(js, res)
+    return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read
