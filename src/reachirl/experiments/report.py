@@ -149,8 +149,9 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
     ev_solves = sum(r["evaluation"]["doc_solves"] for r in results.values())
     ev_fail = sum(r["evaluation"]["doc_failures"] for r in results.values())
     notes = [
-        f"DOC failures: {fit_fail} of {fit_solves} solves during the fits "
-        "(a failed line-search try is rejected); "
+        f"DOC failures: {fit_fail} rollouts of {fit_solves} solves during the fits failed even after their "
+        "cold and demonstration-path retries (such a line-search try is rejected); "
+        f"{sum(r['fit'].get('doc_recovered', 0) for r in results.values())} tries were rescued by a retry; "
         f"{ev_fail} of {ev_solves} predictions did not converge (their RMSE is counted as is, not dropped).",
         tb.ALL_CONVENTION,
         "Fits ended by: "
