@@ -13,7 +13,8 @@ start and duration). For each method and 1 and 8 windows:
 
 A reference DOC (cold, 100 knots, true weights, on the training reaches' mean task) is timed in the same
 run so the fit times can be read as ratios on a shared, noisy machine. The full run also sweeps MO-IRL's
-options (8 windows) and measures KKT and MO-IRL under angle noise. ``run(quick=True)`` uses 5 + 5 reaches, a smaller bilevel budget and skips both.
+options (8 windows) and measures KKT and MO-IRL under angle noise. ``run(quick=True)`` uses 5 + 5 reaches,
+a smaller bilevel budget and skips both.
 
 Bilevel runs to convergence or to 20× MO-IRL's DOC solves (at least 200), whichever comes first; the table
 gives each method's budget and stop reason. A † marks a fit that never left its initial weights.
@@ -82,6 +83,17 @@ def with_angle_noise(trial: Trial, sd_deg: float, rng: np.random.Generator) -> T
     return replace(trial, q=q, qd=qd, qdd=qdd, tau=trial.arm.inverse_dynamics(q, qd, qdd), x0=None)
 
 
+def _budget(kw: dict):
+    """A method's budget as the table states it: DOC solves, iterations, or one solve (KKT)."""
+    if "max_evals" in kw:
+        return int(kw["max_evals"])
+    return f"{kw['max_iter']} iterations" if "max_iter" in kw else "one solve"
+
+
+def _mark(row: dict) -> str:
+    return " †" if row.get("flag") == "w0" else ""
+
+
 def _fit_and_score(method: str, n_windows: int, train, cv, truth_cv_pred, **kw) -> tuple[dict, object]:
     est = make_estimator(method, n_windows, n_nodes=N_NODES, **kw)
     t0, c0 = time.perf_counter(), time.process_time()
@@ -106,7 +118,7 @@ def _fit_and_score(method: str, n_windows: int, train, cv, truth_cv_pred, **kw) 
         "iterations": int(est.n_iter_),
         "merit": float(getattr(est, "merit_", np.nan)),
         "stop_reason": str(getattr(est, "stop_reason_", "")),
-        "budget": int(kw["max_evals"]) if "max_evals" in kw else (f"{kw['max_iter']} iterations" if "max_iter" in kw else "one solve"),
+        "budget": _budget(kw),
         "flag": getattr(est, "flag_", None),
         "eval_failures": tr["failures"] + cvs["failures"],
         "weights": np.asarray(est.weights_).tolist(),
@@ -360,7 +372,7 @@ def markdown(result: dict) -> str:
         lines.append(
             f"| {r['label']} | {r['n_windows']} | {r['train_rmse_deg']:.2f} ± {r['train_rmse_sd']:.2f} "
             f"| {r['cv_rmse_deg']:.2f} ± {r['cv_rmse_sd']:.2f} | {r['truth_agreement_deg']:.2f} "
-            f"| {r['doc_solves']} | {r['budget']} | {r['stop_reason'] or '—'}{' †' if r.get('flag') == 'w0' else ''} "
+            f"| {r['doc_solves']} | {r['budget']} | {r['stop_reason'] or '—'}{_mark(r)} "
             f"| {r['fit_time_s']:.2f} | {r['fit_cpu_s']:.2f} | {r['fit_cpu_s'] / ref:.0f} | {r['iterations']} |"
         )
     if result["moirl_options"]:

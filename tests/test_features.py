@@ -56,7 +56,7 @@ def test_torque_change_at_onset_is_measured_from_the_gravity_torque_at_rest():
     qd = np.zeros((3, 2))
     held = np.array([[10.3005, 2.943], [10.3005, 2.943]])
     np.testing.assert_allclose(feature_rates(arm, q, qd, held, dt)[:, 4], [0.0, 0.0], atol=1e-18)
-    jump = held + [[1.0, 0.0], [1.0, 0.0]]
+    jump = held + np.array([[1.0, 0.0], [1.0, 0.0]])
     np.testing.assert_allclose(feature_rates(arm, q, qd, jump, dt)[:, 4], [100.0, 0.0])  # ‖(1, 0)/0.1‖²
 
 

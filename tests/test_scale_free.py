@@ -132,10 +132,10 @@ def doc_demos(arm):
 
 
 def test_a_doc_solution_fed_back_as_a_demonstration_has_the_docs_own_features(doc_demos):
-    w, task, sol, demos = doc_demos
+    _, task, sol, demos = doc_demos
     own = windowed_features(task.arm, sol.q, sol.qd, sol.tau, task.dt, 2)
     np.testing.assert_allclose(demos[0].features(N_NODES, 2), own, rtol=1e-9, atol=1e-12)
-    q, qd, tau = demos[0].knots(N_NODES)
+    _, qd, tau = demos[0].knots(N_NODES)
     np.testing.assert_allclose(tau, sol.tau, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(qd, sol.qd, rtol=1e-9, atol=1e-12)
 
@@ -144,7 +144,7 @@ def test_a_doc_solution_fed_back_as_a_demonstration_has_the_docs_own_features(do
 def test_the_true_weights_are_a_fixed_point_of_the_first_step(doc_demos, cutoff):
     """From the true weights, the rollout is the demonstration itself: the step must not move the weights
     by more than a few percent (with the default feature filter, which smooths the DOC's own path a little)."""
-    w, task, sol, demos = doc_demos
+    w, task, _, demos = doc_demos
     est = MOIRL(2, n_nodes=N_NODES, feature_cutoff=cutoff)
     starts = np.array([0])
     phi_star = est._demo_features(demos, starts)

@@ -79,7 +79,7 @@ from .arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
 from .data.trial import Trial, trial_from_knots
 from .data.writers import write_c3d, write_mot, write_trc
 from .doc import ReachingTask, solve_doc
-from .features import FEATURES, feature_rates, window_index, windowed_features
+from .features import FEATURES, feature_rates, window_index
 from .io import atomic_write_json, atomic_write_text, to_jsonable
 
 __all__ = [

@@ -66,7 +66,7 @@ import numpy as np
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
-from ..features import N_FEATURES, feature_rates, window_index, windowed_features
+from ..features import N_FEATURES, feature_rates, window_index
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, merit, solve_delta, solve_step
 
