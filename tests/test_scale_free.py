@@ -2,6 +2,8 @@
 (``Δω > −ω``, at most ``max_ratio``), invariance to the features' units, the demonstrations' features as the DOC
 computes them, and the fixed point at the true weights."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -211,3 +213,27 @@ def test_a_step_that_only_rescales_stops_the_fit_without_doc_solves(doc_demos, m
     assert est.stop_reason_ == "step_only_rescales"
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]  # nothing spent on the null direction
     assert est.flag_ == "w0"
+
+
+def test_the_line_search_spends_no_solve_on_steps_below_min_step(doc_demos, monkeypatch):
+    from reachirl.irl import moirl as moirl_module
+
+    _, _, _, demos = doc_demos
+    monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (5e-4 * w, {"nit": 1}))
+    monkeypatch.setattr(moirl_module, "_is_rescale", lambda w, dw: False)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, min_step=1e-3).fit(demos)
+    assert est.history_[1]["tries"] == 0 and est.stop_reason_ == "no_improving_step"
+    assert est.n_doc_solves_ == est.history_[0]["doc_solves"]
+    with pytest.raises(ValueError, match=r"min_step must be in \[0, 1\)"):
+        MOIRL(2, n_nodes=N_NODES, min_step=1.5).fit(demos)
+
+
+def test_the_trust_region_follows_the_accepted_steps(doc_demos):
+    _, _, _, demos = doc_demos
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=6).fit(demos)
+    ws = [np.asarray(h["weights"]) for h in est.history_ if h["accepted"]]
+    assert len(ws) >= 3, "the fit must make at least two steps for this test to mean anything"
+    # each accepted step after the first moves log-weights by at most 4× the step before it
+    logs = [np.max(np.abs(np.log(b / a))) for a, b in itertools.pairwise(ws)]
+    for a, b in itertools.pairwise(logs):
+        assert b <= 4.0 * a * (1 + 1e-9) + 1e-12 or b <= np.log(1 + est.min_step) + 1e-12
