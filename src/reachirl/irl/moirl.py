@@ -27,9 +27,9 @@ Choices the seed leaves open, fixed here (each an option):
   repeatability (warm against cold solves of the same weights differ by ~2e-5), and the search ends once a try
   would move no weight by more than ``min_step`` (relative): such a try cannot move the merit beyond that noise.
   A step that scales every weight by one factor changes no DOC; the fit stops there
-  (``stop_reason_ = "step_only_rescales"``) instead of spending ``max_tries`` solves on it. This happens when the demonstrations cost more than the rollout on
-  every feature, as one window often finds on time-varying data: the likelihood's only advice is then to
-  lower the temperature.
+  (``stop_reason_ = "step_only_rescales"``) instead of spending ``max_tries`` solves on it. This happens when
+  the demonstrations cost more than the rollout on every feature, as one window often finds on time-varying
+  data: the likelihood's only advice is then to lower the temperature.
 * **Merit**: ``merit="state"`` (the seed's full-state ``(q, q̇)`` error) or ``"normalised"`` (each channel
   divided by the demonstrations' variance of it, :func:`reachirl.irl.objective.channel_scale`).
 * **Smoothness prior** across adjacent windows (``smoothness``): ``λ/2 Σ (log ω_{s+1,j} − log ω_{s,j})²`` per
