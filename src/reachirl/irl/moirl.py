@@ -395,30 +395,22 @@ class MOIRL(WeightEstimator):
         for it in range(1, self.max_iter + 1):
             # Δω* from the subproblem (seed Eq. 4), then ω ← ω + αΔω* with α from the line search on the merit
             dw, info = self._step(w, sigma, phi_star, bank, starts, smoothness, ratio)
-            if _is_rescale(w, dw):
-                # every weight scaled by one factor: no DOC changes, so no α can lower the merit. (The
-                # demonstrations cost more than the rollout on every feature: the likelihood has nothing left.)
-                record = {"iteration": it, "alpha": 0.0, "tries": 0, "accepted": False,
-                          "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail,
-                          "doc_recovered": n_rescued, "merit": m, "weights": w.tolist(),
-                          "wall_time": time.perf_counter() - t_start}
-                self.history_.append(record)
-                self._notify(record)
-                self.stop_reason_ = "step_only_rescales"
-                break
-            step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels)
+            # every weight scaled by one factor changes no DOC, so no α can lower the merit (the demonstrations
+            # cost more than the rollout on every feature: the likelihood has nothing left to say)
+            rescale = _is_rescale(w, dw)
+            step = (_Step(False, 0.0, 0, w, sols, m, 0, 0, 0) if rescale else
+                    self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels))
             n_solves += step.solves
             n_fail += step.failures
             n_rescued += step.recovered
-            accepted, alpha, tries = step.accepted, step.alpha, step.tries
-            record = {"iteration": it, "alpha": alpha if accepted else 0.0, "tries": tries, "accepted": accepted,
+            record = {"iteration": it, "alpha": step.alpha, "tries": step.tries, "accepted": step.accepted,
                       "subproblem_iterations": info["nit"], "doc_solves": n_solves, "doc_failures": n_fail,
                       "doc_recovered": n_rescued}
-            if not accepted:
+            if not step.accepted:
                 record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
                 self.history_.append(record)
                 self._notify(record)
-                self.stop_reason_ = "no_improving_step"
+                self.stop_reason_ = "step_only_rescales" if rescale else "no_improving_step"
                 break
             n_accepted += 1
             # trust region: the next step may go 4× as far (in log-weights) as this accepted one, up to max_ratio
