@@ -43,6 +43,18 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as e:
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:  # a path the user gave cannot be read or written (checked up front where possible)
+        from ..validation import PATH_ERRNOS
+
+        if args.verbose:
+            raise
+        if e.errno in PATH_ERRNOS:
+            where = e.filename if e.filename is not None else "a file"
+            print(f"reachirl {args.command}: error: {where}: {e.strerror or e}", file=sys.stderr)
+            return 2
+        print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"reachirl {args.command}: interrupted", file=sys.stderr)
         return 130

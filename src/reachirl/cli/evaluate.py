@@ -11,7 +11,7 @@ from rich.progress import Progress
 from ..data.trial import load_trials
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
-from ..irl.model import load_model
+from ..validation import check_output_file, load_model_checked
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -24,7 +24,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    model = load_model(args.model)
+    check_output_file(args.out)
+    model = load_model_checked(args.model)
     trials = load_trials(args.trials)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))

@@ -25,6 +25,7 @@ from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_i
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
+from ._args import int_in, number_in
 
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
 
@@ -59,21 +60,23 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
-    g.add_argument("--cutoff", type=float, default=d.cutoff_hz, metavar="HZ", help="low-pass cutoff; 0: none")
-    g.add_argument("--filter-order", type=int, default=d.filter_order, metavar="N")
+    g.add_argument("--cutoff", type=number_in(0.0, 1000.0), default=d.cutoff_hz, metavar="HZ",
+                   help=f"low-pass cutoff, 0 to 1000 Hz and below half the frame rate; 0: none (default {d.cutoff_hz:g})")
+    g.add_argument("--filter-order", type=int_in(1, 8), default=d.filter_order, metavar="N",
+                   help=f"Butterworth order, 1 to 8 (default {d.filter_order}); --cutoff 0 turns the filter off")
     g.add_argument(
         "--threshold",
-        type=float,
+        type=number_in(0.001, 0.9),
         default=d.onset_threshold,
         metavar="FRAC",
-        help="onset/offset at this fraction of the peak fingertip speed (default 0.05)",
+        help="onset/offset at this fraction of the peak fingertip speed, 0.001 to 0.9 (default 0.05)",
     )
     g.add_argument(
         "--max-gap",
-        type=int,
+        type=int_in(0, 100000),
         default=d.max_gap_frames,
         metavar="FRAMES",
-        help="longest gap filled by a cubic spline (default 10)",
+        help="longest gap filled by a cubic spline, 0 to 100000 (default 10)",
     )
     g.add_argument("--plane", choices=("pca", "vertical", "axes"), default=d.plane)
     g.add_argument("--up-axis", metavar="AXIS", help="lab axis opposite gravity (+z Vicon/C3D, +y TRC)")
@@ -85,7 +88,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=d.distal,
         help="q2 from elbow->fingertip (model's segment 2) or elbow->wrist",
     )
-    g.add_argument("--n-samples", type=int, metavar="N", help="resample each trial to N points (Berret: 200)")
+    g.add_argument("--n-samples", type=int_in(4, 100000), metavar="N",
+                   help="resample each trial to N points, 4 to 100000 (Berret: 200)")
     return p
 
 
@@ -139,7 +143,10 @@ def _summary(tr: Trial) -> str:
 
 
 def run(args) -> int:
+    from ..validation import check_output_file
+
     options = _options(args)
+    out = check_output_file(args.out)
     if args.manifest:
         entries = read_manifest(args.manifest)
         if args.inputs:  # the manifest describes the files given; each must be in it
@@ -173,9 +180,6 @@ def run(args) -> int:
         side=args.side,
         on_trial=lambda tr: lines.append(_summary(tr)),
     )
-    out = Path(args.out)
-    if out.exists() and out.is_dir():
-        raise InputError("is a folder; --out must be a file path", out)
     save_trials(out, trials)
     if infos is None:
         print(

@@ -189,7 +189,8 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax = axes[0, c]
         for k, p in enumerate(postures):
             h = histories.get((p, n)) or []
-            ok = [r for r in h if r.get("merit") is not None and r.get("accepted", True)]
+            ok = [r for r in h if r.get("merit") is not None and r.get("iteration") is not None
+                  and r.get("accepted", True)]  # a baseline's history may lack iterations (bilevel)
             it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
