@@ -79,7 +79,6 @@ def read_text(path: str | os.PathLike) -> str:
     """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
     :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
     from .errors import InputError
-
     from .validation import MAX_FILE_BYTES
 
     p = Path(path)

@@ -22,7 +22,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser("fit", help="learn cost weights from demonstration trials")
     p.add_argument("trials", type=Path, help="trials file written by `reachirl preprocess` or `reachirl synth`")
     p.add_argument("--sections", type=int_in(1, MAX_NODES), required=True,
-                   help=f"number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes")
+                   help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes")
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
     p.add_argument("--max-iter", type=int_in(1, MAX_ITER), default=30,
@@ -51,7 +51,15 @@ def run(args: argparse.Namespace) -> int:
             status.update(f"{args.method}: iteration {rec.get('iteration', '?')}, merit {rec.get('merit', '?')}, "
                           f"{rec.get('doc_solves', '?')} DOC solves")
 
-        est = make_estimator(args.method, args.sections, callback=progress, **kwargs)
+        import inspect
+
+        from ..irl.methods import METHODS
+
+        # only what the method's constructor takes (bilevel and kkt have no callback)
+        accepted = inspect.signature(METHODS[args.method].__init__).parameters
+        any_kw = any(p.kind is p.VAR_KEYWORD for p in accepted.values())
+        kwargs = {k: v for k, v in {**kwargs, "callback": progress}.items() if any_kw or k in accepted}
+        est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
     info = {
         "trials": str(args.trials),

@@ -61,7 +61,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
     g.add_argument("--cutoff", type=number_in(0.0, 1000.0), default=d.cutoff_hz, metavar="HZ",
-                   help=f"low-pass cutoff, 0 to 1000 Hz and below half the frame rate; 0: none (default {d.cutoff_hz:g})")
+                   help=f"low-pass cutoff, 0 to 1000 Hz and below half the frame rate; 0: none "
+                   f"(default {d.cutoff_hz:g})")
     g.add_argument("--filter-order", type=int_in(1, 8), default=d.filter_order, metavar="N",
                    help=f"Butterworth order, 1 to 8 (default {d.filter_order}); --cutoff 0 turns the filter off")
     g.add_argument(

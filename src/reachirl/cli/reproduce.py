@@ -13,7 +13,6 @@ import argparse
 import os
 import sys
 import time
-from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
@@ -207,11 +206,11 @@ def run(args) -> int:
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
-    from ..irl.methods import METHODS as _methods
+    from ..irl.methods import METHODS
 
-    unknown = [m for m in config.methods if m not in _methods]
+    unknown = [m for m in config.methods if m not in METHODS]
     if unknown:
-        raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(_methods)}")
+        raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping

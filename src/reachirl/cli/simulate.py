@@ -80,7 +80,6 @@ def run(args: argparse.Namespace) -> int:
     from ..io import atomic_write_json
     from ..sim import simulate as sim
     from ..sim.render import osmesa_available
-
     from ..validation import check_output_file, load_model_checked
 
     if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):

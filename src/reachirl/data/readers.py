@@ -544,6 +544,13 @@ class SubjectInfo:
 def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
     text = read_text(path)
     reader = csv.DictReader(io.StringIO(text))
+    try:
+        return _csv_rows(path, reader, required)
+    except csv.Error as e:  # e.g. a stray carriage return inside a field
+        raise InputError(f"not a readable CSV ({e})", path, f"line {reader.line_num}") from None
+
+
+def _csv_rows(path: Path, reader: csv.DictReader, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
     fields_ = [f.strip() for f in (reader.fieldnames or [])]
     reader.fieldnames = fields_
     missing = [c for c in required if c not in fields_]

@@ -200,7 +200,8 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax.grid(alpha=0.3, which="both")
         if c == 0:
             ax.set_ylabel("merit m(x) (rad², rad²/s²)")
-    axes[0, 0].legend(fontsize=8)
+    if axes[0, 0].get_legend_handles_labels()[0]:  # a one-shot baseline has no iterations to plot
+        axes[0, 0].legend(fontsize=8)
     fig.suptitle(title or "MO-IRL convergence (accepted steps)")
     fig.tight_layout()
     return fig

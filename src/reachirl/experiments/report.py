@@ -18,6 +18,7 @@ from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
 from . import tables as tb
 from .datasets import Dataset
+from .no_data import annotate_no_data, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
 from .runner import load_unit_arrays
 
@@ -146,6 +147,10 @@ def write_outputs(
             f"Degenerate fits: {', '.join(zero)} learned all-zero weights (the DOC then has no cost and "
             "returns its initial guess, a minimum-jerk path); their rows are reported as they are."
         )
+    empty = [s for s in SETS if not any(split_sizes[s].values())]
+    if empty:  # the table shows "—" there; say why
+        reasons = split_reasons(config)
+        notes.append("— means no data: " + "; ".join(reasons[s] for s in empty) + ".")
     md_tables = []
     for m in methods:
         md_tables.append(
@@ -319,7 +324,7 @@ def write_outputs(
         run_info,
     )
     atomic_write_text(out / "report.md", report)
-    atomic_write_json(out / "results.json", results_json)
+    atomic_write_json(out / "results.json", annotate_no_data(results_json, split_reasons(config)))
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
+from .no_data import annotate_no_data
 from .protocol import Split, Unit, run_unit
 
 __all__ = ["RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
@@ -72,6 +73,7 @@ def _save(out_dir: Path, payload: dict) -> dict:
     res = dict(payload["result"])
     js, npz = unit_paths(out_dir, res["key"])
     res["has_arrays"] = bool(payload["arrays"])
+    res = annotate_no_data(res)  # an empty split: "no_data" and its reason, never a bare null
     if payload["arrays"]:
         atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
     atomic_write_json(js, res)
