@@ -46,19 +46,63 @@ def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
 
 
 def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
-    """A finished unit's result, or ``None`` if absent, unreadable or for other inputs (other fingerprint)."""
+    """A finished unit's result, or ``None`` (recompute it) if absent, damaged, for other inputs (other
+    fingerprint), or if its NPZ is missing, damaged or not the one its JSON was written with (SHA-256)."""
     js, npz = unit_paths(out_dir, key)
     if not js.is_file():
         return None
     try:
         res = json.loads(js.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError, RecursionError) as e:
+        log.warning("%s: damaged (%s); recomputing the unit", js, e)
+        return None
+    if not isinstance(res, dict) or res.get("key") != key:
+        log.warning("%s: not a unit result of %s; recomputing the unit", js, key)
         return None
     if fingerprint is not None and res.get("fingerprint") != fingerprint:
         return None
-    if res.get("has_arrays") and not npz.is_file():
-        return None
+    if res.get("has_arrays"):
+        problem = _npz_problem(npz, res.get("npz_sha256"))
+        if problem:
+            log.warning("%s: %s; recomputing the unit", npz, problem)
+            return None
     return res
+
+
+def _npz_problem(npz: Path, sha256: str | None) -> str | None:
+    """Why a unit's NPZ cannot be reused, or ``None``."""
+    import hashlib
+
+    from ..validation import check_npz_file
+
+    if not npz.is_file():
+        return "missing"
+    try:
+        check_npz_file(npz)
+    except InputError as e:
+        return e.reason
+    if sha256 is not None and hashlib.sha256(npz.read_bytes()).hexdigest() != sha256:
+        return "content differs from the one its JSON was written with"
+    return None
+
+
+def clean_stale_temporaries(out_dir: Path) -> list[Path]:
+    """Remove the temporary files of atomic writes (``.<name>.<random>.tmp`` or ``….png``) that a killed run
+    left in ``out_dir``, ``units/`` and ``figures/``. Returns what was removed."""
+    import re
+
+    pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|png|json|npz|csv|md|gif|mp4)$")
+    removed = []
+    for folder in (out_dir, out_dir / "units", out_dir / "figures"):
+        if not folder.is_dir():
+            continue
+        for f in folder.iterdir():
+            if f.is_file() and pattern.match(f.name):
+                f.unlink(missing_ok=True)
+                removed.append(f)
+    if removed:
+        log.info("removed %d temporary file(s) left by an interrupted run", len(removed))
+    return removed
 
 
 def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
@@ -75,7 +119,11 @@ def _save(out_dir: Path, payload: dict) -> dict:
     res["has_arrays"] = bool(payload["arrays"])
     res = annotate_no_data(res)  # an empty split: "no_data" and its reason, never a bare null
     if payload["arrays"]:
-        atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
+        import hashlib
+
+        data = npz_bytes(dict(sorted(payload["arrays"].items())))
+        res["npz_sha256"] = hashlib.sha256(data).hexdigest()  # checked before the unit is reused
+        atomic_write_bytes(npz, data)
     atomic_write_json(js, res)
     return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read
 
@@ -216,6 +264,7 @@ def reproduce(
     units = make_units(postures, config)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    clean_stale_temporaries(out_dir)
     t0 = time.perf_counter()
     summary = run_units(
         units,
