@@ -113,9 +113,16 @@ def _name_max(folder: Path) -> int:
         return 255
 
 
+def _exists(p: Path) -> bool:
+    try:
+        return p.exists()
+    except OSError:  # e.g. a name too long to stat
+        return False
+
+
 def _existing_ancestor(path: Path) -> Path:
     p = path
-    while not p.exists() and p != p.parent:
+    while not _exists(p) and p != p.parent:
         p = p.parent
     return p
 
@@ -146,14 +153,14 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     p = Path(path)
     if str(path) == "" or p.name in ("", ".", ".."):
         raise InputError(f"{option}: expected a file path, got {str(path)!r}")
-    if p.is_dir():
-        raise InputError(f"{option}: is a folder, expected a file path", p)
-    if p.exists() and not p.is_file():
-        raise InputError(f"{option}: is not a regular file", p)
     parent = p.absolute().parent
     _check_writable_folder(parent, option)
     if len(os.fsencode(p.name)) + 16 > _name_max(_existing_ancestor(parent)):
         raise InputError(f"{option}: the file name is {len(os.fsencode(p.name))} bytes long, too long here", p)
+    if p.is_dir():
+        raise InputError(f"{option}: is a folder, expected a file path", p)
+    if p.exists() and not p.is_file():
+        raise InputError(f"{option}: is not a regular file", p)
     return p
 
 
@@ -162,7 +169,7 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     p = Path(path)
     if str(path) == "":
         raise InputError(f"{option}: expected a folder path, got ''")
-    if p.exists() and not p.is_dir():
+    if _exists(p) and not p.is_dir():
         raise InputError(f"{option}: exists and is not a folder", p)
     _check_writable_folder(p.absolute(), option)
     return p

@@ -520,6 +520,15 @@ def reconstruct_markers(
             f"(< {options.min_peak_speed:g} m/s)",
             src,
         )
+    path = {k: float(np.sum(np.linalg.norm(np.diff(joints[k], axis=0), axis=1))) for k in ("shoulder", "fingertip")}
+    if path["shoulder"] > path["fingertip"]:
+        # in a reach the fingertip travels furthest and the shoulder least; the other way round, the marker map
+        # is upside down (the reach would be planned from a nonsense posture)
+        raise InputError(
+            f"the shoulder travels {path['shoulder']:.2f} m and the fingertip {path['fingertip']:.2f} m: are the "
+            "markers swapped? (check --markers or the marker set)",
+            src,
+        )
     onset, offset = detect_onset_offset(speed, options.onset_threshold)
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
