@@ -15,7 +15,7 @@ from ..errors import InputError
 from ._args import int_in, number_in
 
 BACKENDS = ("casadi", "crocoddyl")
-MAX_RENDER_BYTES = 2 * 1024**3  # frames of an animation, all in memory
+MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
 MODES = ("open-loop", "pd")
 
 

@@ -224,8 +224,9 @@ def _dask_client(address: str):
         raise InputError(f"--scheduler needs dask.distributed ({e})") from None
     try:
         return Client(address, timeout="15s", set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as e:
-        raise InputError(f"cannot connect to the Dask scheduler ({e})", address) from None
+    except Exception as e:  # OSError, TimeoutError, ValueError, a protocol whose package is missing, ...
+        raise InputError(f"cannot connect to the Dask scheduler ({type(e).__name__}: {str(e)[:200]})",
+                         address) from None
 
 
 def run_units(
