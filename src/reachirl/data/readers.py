@@ -98,6 +98,12 @@ class MarkerData:
                 n = a.shape[0]
             elif a.shape[0] != n:
                 raise InputError(f"marker {name!r} has {a.shape[0]} frames, others have {n}", where)
+            far = np.abs(a) > MAX_MARKER_COORDINATE  # NaN (unseen) is not far; inf is
+            if np.any(far):
+                k = int(np.flatnonzero(np.any(far, axis=1))[0])
+                raise InputError(
+                    f"marker {name!r} is {np.abs(a[k]).max():.3g} m from the lab's origin, beyond any lab "
+                    f"({MAX_MARKER_COORDINATE:.0f} m): a corrupt value?", where, f"frame {k + 1}")
             a.setflags(write=False)
             clean[str(name)] = a
         object.__setattr__(self, "markers", clean)
@@ -124,6 +130,7 @@ class MarkerData:
         return self.markers[name]
 
 
+MAX_MARKER_COORDINATE = 1000.0  # m: no motion-capture volume is larger
 MAX_JOINT_SPEED = 100.0  # rad/s (~5700°/s): human joints peak near 20-30 rad/s, in throwing
 
 
