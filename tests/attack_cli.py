@@ -253,6 +253,14 @@ def attacks():
     def big(L):
         return L[:6] + ["\t".join(x if i < 2 else "1e308" for i, x in enumerate(l.split("\t"))) for l in L[6:]]
     A["preprocess:trc-1e308"] = lambda: pre(mktrc("big.trc", big))
+    def cell(L, col, f):
+        L = list(L)
+        p = L[60].split("\t")
+        p[col] = f(p[col])
+        L[60] = "\t".join(p)
+        return L
+    A["preprocess:trc-one-cell-1e308"] = lambda: pre(mktrc("c308.trc", lambda L: cell(L, 5, lambda v: "1e308")))
+    A["preprocess:trc-marker-spike-500mm"] = lambda: pre(mktrc("spk.trc", lambda L: cell(L, 11, lambda v: str(float(v) + 500))))
     A["preprocess:trc-swapped"] = lambda: [R, "preprocess", trc, "--markers", "shoulder=FTP,elbow=WRI,wrist=ELB,fingertip=SHO", "--out", str(W / "p.npz")]
     A["preprocess:trc-truncated"] = lambda: pre(trunc(trc, "tt.trc", 0.05))
     A["preprocess:trc-binary"] = lambda: pre(trunc(sys.executable, "bb.trc", 0.001))

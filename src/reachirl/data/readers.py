@@ -269,9 +269,10 @@ def read_trc(path: str | Path) -> MarkerData:
 def read_c3d(path: str | Path) -> MarkerData:
     """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
     up)."""
+    from ..validation import check_file_size
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path)
+    check_file_size(path)  # a regular file (not /dev/zero) of sane size
     if path.stat().st_size == 0:
         raise InputError("file is empty", path)
     import ezc3d
