@@ -59,11 +59,20 @@ def _nulls(obj, path=""):
 
 
 def test_empty_splits_say_no_data_with_a_reason(first_run):
+    import re
+
     out, _, table_md = first_run
-    for f in [out / "results.json", *sorted((out / "units").glob("*.json"))]:
-        text = f.read_text()
-        assert "NaN" not in text and "Infinity" not in text, f
-        assert not _nulls(json.loads(text)), (f, _nulls(json.loads(text)))
+    written = sorted(f for f in out.rglob("*") if f.is_file())
+    assert {f.name for f in written} >= {"results.json", "table.csv", "table.md", "report.md", f"{KEY}.json"}
+    for f in written:  # every result file the run wrote
+        if f.suffix in (".json", ".csv", ".md"):
+            text = f.read_text()
+            assert not re.search(r"(?<![A-Za-z])(nan|NaN|inf|Infinity)(?![A-Za-z])", text), f
+            if f.suffix == ".json":
+                assert not _nulls(json.loads(text)), (f, _nulls(json.loads(text)))
+        elif f.suffix == ".npz":
+            with np.load(f, allow_pickle=False) as z:
+                assert all(np.all(np.isfinite(z[k])) for k in z.files if z[k].dtype.kind == "f"), f
     results = json.loads((out / "results.json").read_text())
     iscv = results["tables"]["moirl"]["P2"]["iscv"]["1"]["q"]
     assert iscv["mean"] is None and iscv["n"] == 0
