@@ -65,7 +65,7 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
          r"missing\.npz: file not found"),
         (lambda d, t: ["fit", str(d / "bad.npz"), "--sections", "1", "--out", str(d / "m.json")],
          r"bad\.npz: not a trials file"),
-        (lambda d, t: ["fit", str(t), "--sections", "0", "--out", str(d / "m.json")],
+        (lambda d, t: ["fit", str(t), "--sections", "101", "--out", str(d / "m.json")],
          r"--sections must be between 1 and"),
         (lambda d, t: ["evaluate", "--model", str(d / "bad.json"), str(t), "--out", str(d / "x.json")],
          r"bad\.json: line 1: invalid JSON"),

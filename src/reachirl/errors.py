@@ -16,4 +16,6 @@ class InputError(ValueError):
         if where:
             parts.append(str(where))
         self.path, self.where, self.reason = path, where, message
-        super().__init__(": ".join([*parts, message]) if parts else message)
+        text = ": ".join([*parts, message]) if parts else message
+        # one line, whatever the input held (a field quoted from a garbled file may hold line breaks)
+        super().__init__(text.replace("\r", "\\r").replace("\n", "\\n"))

@@ -79,16 +79,24 @@ def read_text(path: str | os.PathLike) -> str:
     """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
     :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
     from .errors import InputError
+    from .validation import MAX_FILE_BYTES
 
     p = Path(path)
     try:
-        raw = p.read_bytes()
+        with open(p, "rb") as fh:  # bounded: a device such as /dev/zero never ends
+            raw = fh.read(65536)
+            if b"\0" not in raw:
+                raw += fh.read(MAX_FILE_BYTES + 1 - len(raw))
     except FileNotFoundError:
         raise InputError("file not found", p) from None
     except IsADirectoryError:
         raise InputError("is a directory, expected a file", p) from None
     except OSError as e:
         raise InputError(f"cannot read ({e.strerror})", p) from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise InputError(f"file is larger than {MAX_FILE_BYTES // 1024**2} MB, more than any input of reachirl", p)
+    if b"\0" in raw[:65536]:
+        raise InputError("is a binary file (it holds NUL bytes), expected text", p)
     if not raw.strip():
         raise InputError("file is empty", p)
     try:
@@ -103,10 +111,19 @@ def read_json(path: str | os.PathLike):
 
     p = Path(path)
     text = read_text(p)
+    from .validation import MAX_JSON_DEPTH, json_depth
+
     try:
-        return json.loads(text)
+        obj = json.loads(text)
     except json.JSONDecodeError as e:
         raise InputError(f"invalid JSON ({e.msg})", p, f"line {e.lineno}") from None
+    except RecursionError:
+        raise InputError("JSON nested too deeply", p) from None
+    except ValueError as e:  # e.g. an integer of more than 4300 digits
+        raise InputError(f"invalid JSON ({str(e).splitlines()[0][:100]})", p) from None
+    if json_depth(obj) > MAX_JSON_DEPTH:
+        raise InputError(f"JSON nested more than {MAX_JSON_DEPTH} levels deep", p)
+    return obj
 
 
 def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:

@@ -253,3 +253,26 @@ def test_options_are_validated():
     with pytest.raises(ValueError, match="plane must be"):
         PreprocessOptions(plane="diagonal")
     assert replace(PreprocessOptions(), n_samples=200).n_samples == 200
+
+
+def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
+    """Issue 12: a one-frame marker jump, swapped markers and an absurd coordinate are refused with the frame."""
+    from reachirl.errors import InputError
+
+    spiked = {k: np.array(v) for k, v in reach.markers.items()}
+    spiked["FT"][55, 0] += 0.5  # 0.5 m in one frame at 100 Hz
+    with pytest.raises(InputError, match=r"s\.trc: frame 5[67]: the fingertip moves 500 mm in one frame"):
+        markers_to_trial(MarkerData(100.0, spiked, source="s.trc"), parse_marker_map(synth.MAP), subject="S1",
+                         posture="P2", trial_id="1")
+    swapped = "shoulder=FT,elbow=WR,wrist=EL,fingertip=SH"
+    n = len(reach.t)
+    sway = np.c_[0.03 * np.sin(2 * np.pi * np.arange(n) / 100.0), np.zeros((n, 2))]  # the trunk sways 3 cm
+    swaying = {k: np.asarray(v) + sway for k, v in reach.markers.items()}
+    with pytest.raises(InputError, match=r"s\.trc: the shoulder travels .* m and the fingertip .* m: are the "
+                                         r"markers swapped\?"):
+        markers_to_trial(MarkerData(100.0, swaying, source="s.trc"), parse_marker_map(swapped),
+                         subject="S1", posture="P2", trial_id="1")
+    far = {k: np.array(v) for k, v in reach.markers.items()}
+    far["EL"][10, 2] = 1e308
+    with pytest.raises(InputError, match=r"s\.trc: frame 11: marker 'EL' is 1e\+308 m from the lab's origin"):
+        MarkerData(100.0, far, source="s.trc")

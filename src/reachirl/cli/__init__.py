@@ -10,11 +10,20 @@ import argparse
 import importlib
 import logging
 import os
+import signal
 import sys
 
 from ..errors import InputError
 
 COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench")
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that every ``finally`` runs (workers ended, finished units kept)."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,13 +51,38 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (main() called from a thread): leave SIGTERM alone
+        previous = None
+    try:
+        return _run(args)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args) -> int:
+    try:
         return int(args._run(args) or 0)
     except InputError as e:
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"reachirl {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except OSError as e:  # a path the user gave cannot be read or written (checked up front where possible)
+        from ..validation import PATH_ERRNOS
+
+        if args.verbose:
+            raise
+        if e.errno in PATH_ERRNOS:
+            where = e.filename if e.filename is not None else "a file"
+            print(f"reachirl {args.command}: error: {where}: {e.strerror or e}", file=sys.stderr)
+            return 2
+        print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+              file=sys.stderr)
+        return 1
+    except KeyboardInterrupt as e:
+        terminated = isinstance(e, _Terminated)
+        print(f"reachirl {args.command}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
     except Exception as e:  # an internal error: say so in one line; -v for the traceback
         if args.verbose:
             raise

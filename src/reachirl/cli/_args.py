@@ -38,3 +38,33 @@ def float_in(lo: float, hi: float) -> Callable[[str], float]:
 
 positive_int = int_at_least(1)
 non_negative_int = int_at_least(0)
+
+
+def int_in(lo: int, hi: int) -> Callable[[str], int]:
+    """An integer in ``[lo, hi]`` (the limits go in the option's help)."""
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {text[:40]!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {text[:40]}")
+        return v
+
+    return parse
+
+
+def number_in(lo: float, hi: float) -> Callable[[str], float]:
+    """A finite number in ``[lo, hi]`` (NaN and infinities are refused)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number in [{lo:g}, {hi:g}], got {text[:40]!r}") from None
+        if not lo <= v <= hi:  # False for NaN
+            raise argparse.ArgumentTypeError(f"expected a number in [{lo:g}, {hi:g}], got {text[:40]}")
+        return v
+
+    return parse

@@ -50,6 +50,10 @@ def run(args: argparse.Namespace) -> int:
     unknown = sorted(set(suites) - set(SUITES))
     if unknown:
         raise InputError(f"unknown benchmark suite(s) {unknown}; choose from {list(SUITES)}")
+    if args.out is not None:
+        from ..validation import check_output_file
+
+        check_output_file(args.out)
     results = {}
     for suite in suites:
         module = _load(suite)

@@ -12,7 +12,7 @@ from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
-from ..irl.model import load_model
+from ..validation import check_output_file, load_model_checked
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -53,9 +53,10 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 
 def run(args: argparse.Namespace) -> int:
+    check_output_file(args.out)
     if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
-    model = load_model(args.model)
+    model = load_model_checked(args.model)
     trials = load_trials(args.trials)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))

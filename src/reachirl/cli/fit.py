@@ -10,6 +10,10 @@ from rich.console import Console
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
+from ..validation import MAX_ITER, NODES_RANGE, check_output_file
+from ._args import int_in
+
+MIN_NODES, MAX_NODES = NODES_RANGE
 
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
 
@@ -23,13 +27,15 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(schema: docs/outputs.md).",
     )
     p.add_argument("trials", type=Path, help="trials file written by `reachirl preprocess` or `reachirl synth`")
-    p.add_argument("--sections", type=int, required=True,
-                   help="number of time windows of weights (e.g. 1, 6, 8); required")
+    p.add_argument("--sections", type=int_in(1, MAX_NODES), required=True,
+                   help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes; required")
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
-    p.add_argument("--max-iter", type=int, default=30,
-                   help="iterations at most of moirl and maxent; bilevel and kkt ignore it (default 30)")
-    p.add_argument("--nodes", type=int, default=100, help="DOC knots N (default 100)")
+    p.add_argument("--max-iter", type=int_in(1, MAX_ITER), default=30,
+                   help=f"iterations at most of moirl and maxent, 1 to {MAX_ITER}; bilevel and kkt ignore it "
+                   "(default 30)")
+    p.add_argument("--nodes", type=int_in(MIN_NODES, MAX_NODES), default=100,
+                   help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
                    "(default mean)")
@@ -58,8 +64,9 @@ def run(args: argparse.Namespace) -> int:
     from ..irl.methods import make_estimator
 
     console = Console(stderr=True)
+    check_output_file(args.out)
     trials = load_trials(args.trials)
-    if args.sections < 1 or args.sections > args.nodes:
+    if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes}
     if args.method in ("moirl", "maxent"):
@@ -67,8 +74,8 @@ def run(args: argparse.Namespace) -> int:
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
         def progress(rec: dict) -> None:
-            status.update(f"{args.method}: iteration {rec['iteration']}, merit {rec['merit']:.4g}, "
-                          f"{rec['doc_solves']} DOC solves")
+            status.update(f"{args.method}: iteration {rec.get('iteration', '?')}, merit {rec.get('merit', '?')}, "
+                          f"{rec.get('doc_solves', '?')} DOC solves")
 
         if _accepts(args.method, "callback"):  # the baselines take no progress callback
             kwargs["callback"] = progress
@@ -90,5 +97,6 @@ def run(args: argparse.Namespace) -> int:
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
     print(f"wrote {args.out}: {args.method}, {args.sections} section(s), {info['n_iter']} iterations, "
-          f"{info['n_doc_solves']} DOC solves, {info['fit_time_s']:.1f} s")
+          f"{info['n_doc_solves']} DOC solves"
+          + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else ""))
     return 0

@@ -27,6 +27,7 @@ from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_i
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
+from ._args import int_in, number_in
 
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
 
@@ -78,23 +79,25 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
-    g.add_argument("--cutoff", type=float, default=d.cutoff_hz, metavar="HZ",
-                   help=f"zero-lag Butterworth low-pass cutoff in Hz; 0: no filter (default {d.cutoff_hz:g})")
-    g.add_argument("--filter-order", type=int, default=d.filter_order, metavar="N",
-                   help=f"order of the Butterworth low-pass, applied forward and backward (default {d.filter_order})")
+    g.add_argument("--cutoff", type=number_in(0.0, 1000.0), default=d.cutoff_hz, metavar="HZ",
+                   help=f"zero-lag Butterworth low-pass cutoff, 0 to 1000 Hz and below half the frame rate; "
+                   f"0: no filter (default {d.cutoff_hz:g})")
+    g.add_argument("--filter-order", type=int_in(1, 8), default=d.filter_order, metavar="N",
+                   help=f"order of the Butterworth low-pass, 1 to 8, applied forward and backward "
+                   f"(default {d.filter_order})")
     g.add_argument(
         "--threshold",
-        type=float,
+        type=number_in(0.001, 0.9),
         default=d.onset_threshold,
         metavar="FRAC",
-        help="onset/offset at this fraction of the peak fingertip speed (default 0.05)",
+        help="onset/offset at this fraction of the peak fingertip speed, 0.001 to 0.9 (default 0.05)",
     )
     g.add_argument(
         "--max-gap",
-        type=int,
+        type=int_in(0, 100000),
         default=d.max_gap_frames,
         metavar="FRAMES",
-        help="longest gap filled by a cubic spline (default 10)",
+        help="longest gap filled by a cubic spline, 0 to 100000 (default 10)",
     )
     g.add_argument("--plane", choices=("pca", "vertical", "axes"), default=d.plane,
                    help="sagittal plane: pca = principal plane of the joint centres (Berret), vertical = the "
@@ -112,8 +115,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=d.distal,
         help="q2 from elbow->fingertip (the model's segment 2) or elbow->wrist (default fingertip)",
     )
-    g.add_argument("--n-samples", type=int, metavar="N",
-                   help="resample each trial to N points (Berret: 200) (default: keep the recording's samples)")
+    g.add_argument("--n-samples", type=int_in(4, 100000), metavar="N",
+                   help="resample each trial to N points, 4 to 100000 (Berret: 200) "
+                   "(default: keep the recording's samples)")
     return p
 
 
@@ -188,8 +192,13 @@ def _folder_defaults(args) -> None:
 
 
 def run(args) -> int:
+    from ..validation import check_output_file
+
     options = _options(args)
     _folder_defaults(args)
+    out = check_output_file(args.out)
+    if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
+        raise InputError("exists and is not a folder; --export needs a folder", args.export)
     if args.manifest:
         entries = read_manifest(args.manifest)
         if args.inputs:  # the manifest describes the files given; each must be in it
@@ -223,11 +232,6 @@ def run(args) -> int:
         side=args.side,
         on_trial=lambda tr: lines.append(_summary(tr)),
     )
-    out = Path(args.out)
-    if out.exists() and out.is_dir():
-        raise InputError("is a folder; --out must be a file path", out)
-    if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
-        raise InputError("exists and is not a folder; --export needs a folder", args.export)
     save_trials(out, trials)
     if args.export is not None:
         from ..exports import TrajectoryExport, export_trajectories

@@ -13,10 +13,10 @@ import argparse
 import os
 import sys
 import time
-from pathlib import Path
 
 from ..errors import InputError
-from ._args import non_negative_int, positive_int
+from ..validation import MAX_ITER, NODES_RANGE
+from ._args import int_in, non_negative_int, positive_int
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
@@ -37,19 +37,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--sections",
-        type=positive_int,
+        type=int_in(1, NODES_RANGE[1]),
         nargs="+",
         default=[1, 6, 8],
         metavar="N",
-        help="numbers of weight sections (default: 1 6 8)",
+        help="numbers of weight sections, each 1 to --nodes (default: 1 6 8)",
     )
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     p.add_argument(
         "--workers",
-        type=positive_int,
+        type=int_in(1, 256),
         default=None,
         metavar="N",
-        help="local worker processes (default: all cores; 1 runs in this process)",
+        help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)",
     )
     p.add_argument(
         "--scheduler",
@@ -90,8 +90,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--n-iscv", type=non_negative_int, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
     )
-    g.add_argument("--nodes", type=positive_int, metavar="N", help="DOC knots (default 100, as the DOC; --quick 40)")
-    g.add_argument("--max-iter", type=positive_int, metavar="N", help="MO-IRL iterations at most (default 30)")
+    g.add_argument("--nodes", type=int_in(*NODES_RANGE), metavar="N",
+                   help=f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100, as the DOC; --quick 40)")
+    g.add_argument("--max-iter", type=int_in(1, MAX_ITER), metavar="N",
+                   help=f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30)")
     g.add_argument(
         "--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set (default 0)"
     )
@@ -173,6 +175,23 @@ def _print_table(console, outputs, config, postures) -> None:
         console.print(t)
 
 
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
+
+
+def _check_scheduler(address: str | None) -> None:
+    """A Dask address ``PROTOCOL://HOST:PORT`` (or ``HOST:PORT``) with a protocol Dask knows."""
+    if not address:
+        return
+    import re
+
+    m = re.fullmatch(r"(?:([a-z]+)://)?([^\s/:]+|\[[0-9a-fA-F:]+\]):(\d{1,5})/?", address)
+    if not m or (m.group(1) and m.group(1) not in SCHEDULER_PROTOCOLS) or not 0 < int(m.group(3)) < 65536:
+        raise InputError(
+            f"--scheduler {address[:60]!r}: expected an address like tcp://HOST:PORT "
+            f"(protocols: {', '.join(SCHEDULER_PROTOCOLS)})"
+        )
+
+
 def run(args) -> int:
     from rich.console import Console
     from rich.progress import (
@@ -189,12 +208,19 @@ def run(args) -> int:
     from ..experiments.runner import reproduce
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder; --out needs a folder", out)
-    if args.scheduler and "://" not in args.scheduler and ":" not in args.scheduler:
-        raise InputError(f"--scheduler {args.scheduler!r}: expected an address like tcp://HOST:PORT")
+    from ..validation import check_output_dir
+
+    out = check_output_dir(args.out)
+    _check_scheduler(args.scheduler)
     config = _config(args)
+    too_many = [n for n in config.sections if n > config.n_nodes]
+    if too_many:
+        raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
+    from ..irl.methods import METHODS
+
+    unknown = [m for m in config.methods if m not in METHODS]
+    if unknown:
+        raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping

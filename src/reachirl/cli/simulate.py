@@ -12,8 +12,10 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from ._args import int_in, number_in
 
 BACKENDS = ("casadi", "crocoddyl")
+MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
 MODES = ("open-loop", "pd")
 
 
@@ -41,13 +43,16 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--backend", choices=BACKENDS, default="casadi", help="DOC backend (default casadi)")
     p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
-    p.add_argument("--substeps", type=int, default=10, help="MuJoCo steps per DOC interval (default 10)")
-    p.add_argument("--kp", type=float, default=50.0, help="PD stiffness, N·m/rad (default 50)")
-    p.add_argument("--kd", type=float, default=5.0, help="PD damping, N·m·s/rad (default 5)")
+    p.add_argument("--substeps", type=int_in(1, 1000), default=10,
+                   help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)")
+    p.add_argument("--kp", type=number_in(0.0, 1e5), default=50.0, help="PD stiffness, N·m/rad, 0 to 1e5 (default 50)")
+    p.add_argument("--kd", type=number_in(0.0, 1e4), default=5.0, help="PD damping, N·m·s/rad, 0 to 1e4 (default 5)")
     p.add_argument(
-        "--fps", type=float, default=30.0, help="animation frames per second of reach time (default 30)"
+        "--fps", type=number_in(1.0, 120.0), default=30.0,
+        help="animation frames per second of reach time, 1 to 120 (default 30)"
     )
-    p.add_argument("--size", type=int, default=480, help="animation width and height in pixels (default 480)")
+    p.add_argument("--size", type=int_in(16, 1280), default=480,
+                   help="animation width and height in pixels, 16 to 1280 (default 480)")
     p.add_argument(
         "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
     )
@@ -78,20 +83,29 @@ def run(args: argparse.Namespace) -> int:
 
     from ..data.trial import load_trials
     from ..io import atomic_write_json
-    from ..irl.model import load_model
     from ..sim import simulate as sim
     from ..sim.render import osmesa_available
+    from ..validation import check_output_file, load_model_checked
 
-    if args.substeps < 1:
-        raise InputError(f"--substeps must be >= 1, got {args.substeps}")
     if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
         raise InputError("the animation must end in .gif or .mp4", args.render)
+    for opt, path in (("--out", args.out), ("--render", args.render)):
+        if path is not None:
+            check_output_file(path, opt)
     if args.render is not None:
         ok, why = osmesa_available()
         if not ok:
             raise RuntimeError(f"cannot render offscreen: {why}")
-    model = load_model(args.model)
+    model = load_model_checked(args.model)
     trials = _select(load_trials(args.trials), args.trial, args.trials)
+    if args.render is not None:  # every frame is held in memory until the file is written
+        n_frames = sum(int(tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
+        n_bytes = n_frames * args.size * args.size * 3
+        if n_bytes > MAX_RENDER_BYTES:
+            raise InputError(
+                f"--render: {len(trials)} trial(s) at --fps {args.fps:g} and --size {args.size} make {n_frames} "
+                f"frames ({n_bytes / 1024**3:.1f} GB); choose fewer --trial, a lower --fps or a smaller --size "
+                f"(at most {MAX_RENDER_BYTES / 1024**3:.0f} GB)", args.render)
     sims = []
     for tr in trials:
         s = sim.simulate_trial(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
-from ._args import float_in, non_negative_int, positive_int
+from ._args import float_in, int_in, non_negative_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -25,8 +25,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         ),
     )
     p.add_argument("--out", required=True, help="output folder (created if needed)")
-    p.add_argument("--subjects", type=positive_int, default=2, help="number of virtual subjects (default 2)")
-    p.add_argument("--trials", type=positive_int, default=20, help="trials per posture (default 20)")
+    p.add_argument("--subjects", type=int_in(1, 100), default=2,
+                   help="number of virtual subjects, 1 to 100 (default 2)")
+    p.add_argument("--trials", type=int_in(1, 1000), default=20, help="trials per posture, 1 to 1000 (default 20)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0); same seed, same bytes")
     p.add_argument("--format", dest="fmt", choices=FORMATS, default="trc", help="file format (default trc)")
     p.add_argument(
@@ -42,7 +43,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=0.95,
         help="bar distance as a fraction of arm length (default 0.95, the seed's; Berret used 0.85)",
     )
-    p.add_argument("--workers", type=positive_int, default=2, help="worker processes (default 2)")
+    p.add_argument("--workers", type=int_in(1, 256), default=2, help="worker processes, 1 to 256 (default 2)")
     return p
 
 
@@ -61,6 +62,9 @@ def run(args) -> int:
         )
     except ValueError as e:
         raise InputError(str(e)) from None
+    from ..validation import check_output_dir
+
+    check_output_dir(args.out)
     try:
         result = generate(args.out, config)
     except OSError as e:

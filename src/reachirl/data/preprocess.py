@@ -77,6 +77,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: m/s: a human fingertip peaks near 1-3 m/s in a reach and below 20 m/s in a throw; faster is a glitch
+MAX_FINGERTIP_SPEED = 30.0
+
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
 
@@ -507,6 +510,14 @@ def reconstruct_markers(
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
 
+    # a marker that jumps faster than any arm moves is a glitch (the low-pass would smear it into the reach)
+    for k in ("fingertip", "shoulder"):
+        raw = np.linalg.norm(np.diff(joints[k], axis=0), axis=1) * md.rate
+        if np.nanmax(raw, initial=0.0) > MAX_FINGERTIP_SPEED:
+            f = int(np.nanargmax(raw))
+            raise InputError(
+                f"the {k} moves {raw[f] / md.rate * 1000:.0f} mm in one frame ({raw[f]:.3g} m/s, faster than any "
+                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?", src, f"frame {f + 2}")
     if options.cutoff_hz is not None:
         joints = {
             k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()
@@ -518,6 +529,15 @@ def reconstruct_markers(
         raise InputError(
             f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
             f"(< {options.min_peak_speed:g} m/s)",
+            src,
+        )
+    path = {k: float(np.sum(np.linalg.norm(np.diff(joints[k], axis=0), axis=1))) for k in ("shoulder", "fingertip")}
+    if path["shoulder"] > path["fingertip"]:
+        # in a reach the fingertip travels furthest and the shoulder least; the other way round, the marker map
+        # is upside down (the reach would be planned from a nonsense posture)
+        raise InputError(
+            f"the shoulder travels {path['shoulder']:.2f} m and the fingertip {path['fingertip']:.2f} m: are the "
+            "markers swapped? (check --markers or the marker set)",
             src,
         )
     onset, offset = detect_onset_offset(speed, options.onset_threshold)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import math
 import re
 from collections.abc import Mapping
@@ -97,6 +98,12 @@ class MarkerData:
                 n = a.shape[0]
             elif a.shape[0] != n:
                 raise InputError(f"marker {name!r} has {a.shape[0]} frames, others have {n}", where)
+            far = np.abs(a) > MAX_MARKER_COORDINATE  # NaN (unseen) is not far; inf is
+            if np.any(far):
+                k = int(np.flatnonzero(np.any(far, axis=1))[0])
+                raise InputError(
+                    f"marker {name!r} is {np.abs(a[k]).max():.3g} m from the lab's origin, beyond any lab "
+                    f"({MAX_MARKER_COORDINATE:.0f} m): a corrupt value?", where, f"frame {k + 1}")
             a.setflags(write=False)
             clean[str(name)] = a
         object.__setattr__(self, "markers", clean)
@@ -121,6 +128,10 @@ class MarkerData:
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.markers[name]
+
+
+MAX_MARKER_COORDINATE = 1000.0  # m: no motion-capture volume is larger
+MAX_JOINT_SPEED = 100.0  # rad/s (~5700°/s): human joints peak near 20-30 rad/s, in throwing
 
 
 @dataclass(frozen=True)
@@ -155,6 +166,20 @@ class AngleData:
                 "are degrees declared as radians?",
                 where,
             )
+        # An angle that jumps by about a turn between two samples has wrapped (359° is -1°): unwrap it. A jump
+        # faster than any arm moves after that is a glitch in the file, not a reach.
+        wrapped = np.flatnonzero(np.any(np.abs(np.diff(q, axis=0)) > np.pi, axis=1))
+        if wrapped.size:
+            logging.getLogger(__name__).warning(
+                "%s: angles wrap around a full turn at sample %d; unwrapped", where or "angles", wrapped[0] + 2)
+            q = np.unwrap(q, axis=0)
+        speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
+        if np.any(speed > MAX_JOINT_SPEED):
+            k, j = np.unravel_index(int(np.argmax(speed)), speed.shape)
+            raise InputError(
+                f"q{j + 1} jumps by {np.degrees(abs(q[k + 1, j] - q[k, j])):.0f}° in one sample "
+                f"({speed[k, j]:.0f} rad/s, more than any arm's {MAX_JOINT_SPEED:.0f} rad/s): a glitch in the file?",
+                where, f"sample {k + 2}")
         for a in (t, q):
             a.setflags(write=False)
         object.__setattr__(self, "t", t)
@@ -244,9 +269,10 @@ def read_trc(path: str | Path) -> MarkerData:
 def read_c3d(path: str | Path) -> MarkerData:
     """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
     up)."""
+    from ..validation import check_file_size
+
     path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path)
+    check_file_size(path)  # a regular file (not /dev/zero) of sane size
     if path.stat().st_size == 0:
         raise InputError("file is empty", path)
     import ezc3d
@@ -269,6 +295,11 @@ def read_c3d(path: str | Path) -> MarkerData:
         raise InputError("C3D file holds no 3-D points", path)
     if pts.shape[2] == 0:
         raise InputError("C3D file holds no frames", path)
+    declared = _c3d_declared_frames(path)
+    if declared is not None and declared > pts.shape[2]:
+        # ezc3d reads what is there and says nothing: a cut-off file would give a cut-off reach
+        raise InputError(f"truncated C3D file: the header declares {declared} frames, the file holds "
+                         f"{pts.shape[2]}", path)
     if len(labels) < pts.shape[1]:
         labels += [f"M{k + 1:03d}" for k in range(len(labels), pts.shape[1])]
     if len(set(labels[: pts.shape[1]])) != pts.shape[1]:
@@ -280,6 +311,26 @@ def read_c3d(path: str | Path) -> MarkerData:
         xyz[r < 0] = np.nan
     markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
     return MarkerData(rate=rate, markers=markers, source=str(path), up="+z")
+
+
+def _c3d_declared_frames(path: Path) -> int | None:
+    """Frames declared by a C3D header (words 4 and 5: first and last frame), or ``None`` when unknown (16-bit
+    frame numbers saturate at 65535 in long files)."""
+    import struct
+
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(10)
+    except OSError:
+        return None
+    if len(head) < 10 or head[1] != 0x50:
+        return None
+    counts = []
+    for order in "<>":  # Intel/DEC headers are little-endian, MIPS big-endian
+        first, last = struct.unpack(order + "HH", head[6:10])
+        if 1 <= first <= last < 65535:
+            counts.append(last - first + 1)
+    return min(counts) if counts else None
 
 
 # ---------------------------------------------------------------------- Vicon Nexus CSV
@@ -552,6 +603,13 @@ class SubjectInfo:
 def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
     text = read_text(path)
     reader = csv.DictReader(io.StringIO(text))
+    try:
+        return _csv_rows(path, reader, required)
+    except csv.Error as e:  # e.g. a stray carriage return inside a field
+        raise InputError(f"not a readable CSV ({e})", path, f"line {reader.line_num}") from None
+
+
+def _csv_rows(path: Path, reader: csv.DictReader, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
     fields_ = [f.strip() for f in (reader.fieldnames or [])]
     reader.fieldnames = fields_
     missing = [c for c in required if c not in fields_]

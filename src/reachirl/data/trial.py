@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -186,21 +187,28 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
 
 def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
+    from ..validation import check_npz_file, check_trial_meta, check_trial_physics
+
     path = Path(path)
     if not path.exists():
         raise InputError("file not found", path)
     if path.is_dir() or not zipfile.is_zipfile(path):
         raise InputError("not a trials file (expected the NPZ written by `reachirl preprocess` or `synth`)", path)
+    check_npz_file(path)  # sizes, dtypes and CRCs, before any array is read
     try:
         with np.load(path, allow_pickle=False) as z:
             files = set(z.files)
             if "meta.json" not in files:
                 raise InputError("not a reachirl trials file (no meta.json entry)", path)
             header = json.loads(bytes(z["meta.json"]).decode("utf-8"))
-            if header.get("format") != TRIALS_FORMAT:
-                raise InputError(f"unsupported format {header.get('format')!r}, expected {TRIALS_FORMAT!r}", path)
+            if not isinstance(header, dict) or header.get("format") != TRIALS_FORMAT:
+                found = header.get("format") if isinstance(header, dict) else type(header).__name__
+                raise InputError(f"unsupported format {found!r}, expected {TRIALS_FORMAT!r}", path)
+            if not isinstance(header.get("trials"), list):
+                raise InputError("meta.json: field 'trials' must be a list", path)
             out = []
             for i, m in enumerate(header["trials"]):
+                check_trial_meta(m, i, path)
                 missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
                 if missing:
                     raise InputError(f"trial {i} lacks arrays {missing}", path)
@@ -219,12 +227,14 @@ def load_trials(path: str | Path) -> list[Trial]:
                 )
     except InputError:
         raise
-    except (zipfile.BadZipFile, OSError, EOFError) as e:
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as e:
         raise InputError(f"not a readable NPZ trials file ({e})", path) from None
-    except (KeyError, TypeError, ValueError, json.JSONDecodeError) as e:
-        raise InputError(f"malformed trials file ({e})", path) from None
+    except (KeyError, TypeError, ValueError, AttributeError, RecursionError, json.JSONDecodeError) as e:
+        raise InputError(f"malformed trials file ({type(e).__name__}: {str(e)[:120]})", path) from None
     if not out:
         raise InputError("the file holds no trials", path)
+    for i, tr in enumerate(out):
+        check_trial_physics(tr, i, path)
     return out
 
 

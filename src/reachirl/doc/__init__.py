@@ -6,6 +6,8 @@ mim_solvers CSQP, the seed paper's own stack). Both solve the same problem; see 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..features import N_FEATURES
@@ -61,10 +63,20 @@ def solve_doc(
     ``guess`` (a joint path ``(N+1, 2)`` on the task's knots, e.g. the demonstrations' mean) replaces the
     minimum-jerk path of the cold start.
     A solution that did not converge is returned with ``converged=False``, never raised.
+
+    The problem is scale-free: ω and c·ω (any c > 0) have the same optimum. The backends solve it for
+    ``ω / max(ω)`` and the cost is scaled back, so that weights of 1e-20 or 1e300 solve exactly the problem of
+    their normalised version (before, tiny weights met CasADi's objective-scale floor and returned a
+    "converged" non-optimum, and huge ones overflowed Crocoddyl's arithmetic and aborted the process).
     """
     if not isinstance(task, ReachingTask):
         raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")
     w = check_weights(weights, task.n_nodes)
+    scale = float(w.max())
+    # ω / max(ω), rounded to 40 significant bits: ω and c·ω then give the same numbers (not merely equal to
+    # round-off) to the solvers, whose stopping tests would otherwise amplify the last bit
+    mant, expo = np.frexp(w / scale)
+    w = np.ldexp(np.round(mant * 2.0**40) / 2.0**40, expo)
     if backend == "casadi":
         from . import casadi as impl
     elif backend == "crocoddyl":
@@ -77,5 +89,7 @@ def solve_doc(
             raise ValueError(f"guess must be a finite joint path of shape {(task.n_nodes + 1, 2)}, got {guess.shape}")
         guess = np.clip(guess, task.q_lower, task.q_upper)
     if backend == "casadi":
-        return impl.solve(task, w, warm_start=warm_start, retry_cold=retry_cold, guess=guess)
-    return impl.solve(task, w, warm_start=warm_start, guess=guess)
+        sol = impl.solve(task, w, warm_start=warm_start, retry_cold=retry_cold, guess=guess)
+    else:
+        sol = impl.solve(task, w, warm_start=warm_start, guess=guess)
+    return dataclasses.replace(sol, cost=sol.cost * scale) if scale != 1.0 else sol

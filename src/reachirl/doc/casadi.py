@@ -326,10 +326,14 @@ def _task_key(task: ReachingTask) -> tuple:
 
 
 def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> float:
-    """``1 / cost`` of the starting point, so that the solver sees an objective of order one."""
+    """``1 / cost`` of the starting point, so that the solver sees an objective of order one.
+
+    No floor: a floor (it was 1e-8) made the objective of small weights tiny next to the solver's tolerance,
+    and the solver then stopped "converged" far from the optimum. :func:`reachirl.doc.solve_doc` passes weights
+    normalised to a maximum of 1, so the cost here is a physical quantity of order 1e-3 to 1e3."""
     q, qd, tau = _knots(task, _unpack_q(task, z))
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights)
-    return 1.0 / max(cost, 1e-8)
+    return 1.0 / cost if np.isfinite(cost) and cost > 1e-300 else 1.0
 
 
 def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[dict, dict, float]:

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..arm import ArmModel
+from ..validation import check_arm, check_duration, check_n_nodes
 
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask"]
 
@@ -64,9 +65,11 @@ class ReachingTask:
             raise ValueError(f"target_x must be finite, got {self.target_x}")
         if not (np.isfinite(self.duration) and self.duration > 0):
             raise ValueError(f"duration must be a positive number of seconds, got {self.duration}")
-        if int(self.n_nodes) != self.n_nodes or self.n_nodes < 4:
-            raise ValueError(f"n_nodes must be an integer >= 4, got {self.n_nodes}")
-        object.__setattr__(self, "n_nodes", int(self.n_nodes))
+        # physical and numerical ranges (InputError is a ValueError): a reach, a human-sized arm, a DOC that
+        # builds and solves in seconds
+        check_duration(self.duration, "ReachingTask")
+        check_arm(self.arm, "ReachingTask")
+        object.__setattr__(self, "n_nodes", check_n_nodes(self.n_nodes, "ReachingTask"))
         if np.any(self.q_lower >= self.q_upper):
             raise ValueError(f"q_lower {self.q_lower} must be below q_upper {self.q_upper}")
         if np.any(self.qd_max <= 0):

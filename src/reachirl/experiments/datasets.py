@@ -111,7 +111,7 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
         entries = [ManifestEntry(file=f, subject="", posture="") for f in files]
         return preprocess_entries(entries, subject_info=infos, markers=markers)
     if marker_map is None and (folder / "truth.json").is_file():
-        m = json.loads((folder / "truth.json").read_text(encoding="utf-8")).get("markers")
+        m = (_read_truth(folder) or {}).get("markers")
         if isinstance(m, dict):
             marker_map = ",".join(f"{k}={v}" for k, v in m.items())
     return preprocess_manifest(manifest, info_path, parse_marker_map(marker_map) if marker_map else None)
@@ -121,11 +121,49 @@ def _read_truth(folder: Path) -> dict | None:
     p = folder / "truth.json"
     if not p.is_file():
         return None
-    try:
-        return json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
-        log.warning("%s: unreadable (%s); no ground truth", p, e)
-        return None
+    from ..io import read_json
+
+    truth = read_json(p)  # InputError naming the file when it is not JSON
+    if not isinstance(truth, dict):
+        raise InputError(f"expected a JSON object (the ground truth of `reachirl synth`), found a "
+                         f"{type(truth).__name__}", p)
+    m = truth.get("markers")
+    if m is not None and not (isinstance(m, dict) and all(isinstance(v, str) for v in m.values())):
+        raise InputError("field 'markers': expected an object of marker names", p)
+    _check_truth_weights(truth, p)
+    return truth
+
+
+def _check_truth_weights(truth: dict, p: Path) -> None:
+    """The parts of truth.json the report reads: n_windows, nominal weights, per-trial weights (n_windows, 7)."""
+    def weights(w, where):
+        a = np.asarray(w, dtype=object)
+        ok = a.ndim == 2 and a.shape[1] == 7 and all(
+            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v) and v >= 0 for v in a.flat)
+        if not ok:
+            raise InputError(f"{where}: expected rows of 7 finite weights >= 0", p)
+
+    n = truth.get("n_windows", 1)
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 1000:
+        raise InputError(f"field 'n_windows': expected an integer in [1, 1000], found {str(n)[:40]}", p)
+    inner = truth.get("truth") or {}
+    if not isinstance(inner, dict):
+        raise InputError("field 'truth': expected an object", p)
+    if inner.get("nominal_weights") is not None:
+        weights(inner["nominal_weights"], "field 'truth.nominal_weights'")
+    subjects = truth.get("subjects") or {}
+    if not isinstance(subjects, dict):
+        raise InputError("field 'subjects': expected an object", p)
+    for sid, subj in subjects.items():
+        trials = subj.get("trials") if isinstance(subj, dict) else None
+        if not isinstance(trials or {}, dict) or not all(isinstance(r, list) for r in (trials or {}).values()):
+            raise InputError(f"field 'subjects.{sid}.trials': expected an object of lists", p)
+        for recs in (trials or {}).values():
+            for r in recs:
+                if not isinstance(r, dict):
+                    raise InputError(f"field 'subjects.{sid}.trials': expected objects, found {str(r)[:40]}", p)
+                if r.get("weights") is not None:
+                    weights(r["weights"], f"field 'subjects.{sid}.trials', file {str(r.get('file'))[:40]}")
 
 
 def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None) -> Dataset:

@@ -200,7 +200,8 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax = axes[0, c]
         for k, p in enumerate(postures):
             h = histories.get((p, n)) or []
-            ok = [r for r in h if r.get("merit") is not None and r.get("accepted", True)]
+            ok = [r for r in h if r.get("merit") is not None and r.get("iteration") is not None
+                  and r.get("accepted", True)]  # a baseline's history may lack iterations (bilevel)
             it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
@@ -211,7 +212,8 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax.grid(alpha=0.3, which="both")
         if c == 0:
             ax.set_ylabel("merit m(x) = mean ‖x* − x‖²\n(x = q in rad, q̇ in rad/s)", fontsize=9)
-    axes[0, 0].legend(fontsize=8)
+    if axes[0, 0].get_legend_handles_labels()[0]:  # a one-shot baseline has no iterations to plot
+        axes[0, 0].legend(fontsize=8)
     fig.suptitle(title or "MO-IRL convergence (accepted steps)")
     fig.tight_layout()
     return fig

@@ -24,6 +24,7 @@ from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
 from . import tables as tb
 from .datasets import Dataset
+from .no_data import annotate_no_data, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
 from .results import RunResult, load_unit_arrays
 
@@ -368,7 +369,7 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
         "notes": notes,
     }
     path = run.out_dir / "results.json"
-    atomic_write_json(path, results_json)
+    atomic_write_json(path, annotate_no_data(results_json, split_reasons(config)))
     return path
 
 
@@ -392,6 +393,10 @@ def write_outputs(run: RunResult) -> dict:
     tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
     n_trials = {s: ("/".join(sorted({str(v) for v in run.split_sizes[s].values()})) or "0") for s in SETS}
     notes, doc = _notes(results, config)
+    empty = [s for s in SETS if not any(run.split_sizes[s].values())]
+    if empty:  # the table shows "—" there; say why
+        reasons = split_reasons(config)
+        notes.append("— means no data: " + "; ".join(reasons[s] for s in empty) + ".")
     md_tables = write_tables(out, tables, postures, sections, n_trials, notes)
     t_fig = time.perf_counter()
     truth = _truth_comparison(run.dataset, results, methods[0], postures)

@@ -9,14 +9,19 @@ then the JSON, which marks the unit done.
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
+from .no_data import annotate_no_data
 
 __all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "save_unit", "unit_paths"]
+
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -56,19 +61,45 @@ def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
 
 
 def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
-    """A finished unit's result, or ``None`` if absent, unreadable or for other inputs (other fingerprint)."""
+    """A finished unit's result, or ``None`` (recompute it) if absent, damaged, for other inputs (other
+    fingerprint), or if its NPZ is missing, damaged or not the one its JSON was written with (SHA-256)."""
     js, npz = unit_paths(out_dir, key)
     if not js.is_file():
         return None
     try:
         res = json.loads(js.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
+    except (OSError, ValueError, RecursionError) as e:
+        log.warning("%s: damaged (%s); recomputing the unit", js, e)
+        return None
+    if not isinstance(res, dict) or res.get("key") != key:
+        log.warning("%s: not a unit result of %s; recomputing the unit", js, key)
         return None
     if fingerprint is not None and res.get("fingerprint") != fingerprint:
         return None
-    if res.get("has_arrays") and not npz.is_file():
-        return None
+    if res.get("has_arrays"):
+        problem = _npz_problem(npz, res.get("npz_sha256"))
+        if problem:
+            log.warning("%s: %s; recomputing the unit", npz, problem)
+            return None
     return res
+
+
+def _npz_problem(npz: Path, sha256: str | None) -> str | None:
+    """Why a unit's NPZ cannot be reused, or ``None``."""
+    import hashlib
+
+    from ..errors import InputError
+    from ..validation import check_npz_file
+
+    if not npz.is_file():
+        return "missing"
+    try:
+        check_npz_file(npz)
+    except InputError as e:
+        return e.reason
+    if sha256 is not None and hashlib.sha256(npz.read_bytes()).hexdigest() != sha256:
+        return "content differs from the one its JSON was written with"
+    return None
 
 
 def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
@@ -81,10 +112,15 @@ def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
 
 def save_unit(out_dir: Path, payload: dict) -> dict:
     """Write a unit's ``{"result", "arrays"}`` (NPZ first, then the JSON); returns the JSON as read back."""
+    import hashlib
+
     res = dict(payload["result"])
     js, npz = unit_paths(out_dir, res["key"])
     res["has_arrays"] = bool(payload["arrays"])
+    res = annotate_no_data(res)  # an empty split: "no_data" and its reason, never a bare null
     if payload["arrays"]:
-        atomic_write_bytes(npz, npz_bytes(dict(sorted(payload["arrays"].items()))))
+        data = npz_bytes(dict(sorted(payload["arrays"].items())))
+        res["npz_sha256"] = hashlib.sha256(data).hexdigest()  # checked before the unit is reused
+        atomic_write_bytes(npz, data)
     atomic_write_json(js, res)
     return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read

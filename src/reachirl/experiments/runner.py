@@ -28,10 +28,112 @@ __all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduc
 log = logging.getLogger(__name__)
 
 
+def clean_stale_temporaries(out_dir: Path) -> list[Path]:
+    """Remove the temporary files of atomic writes (``.<name>.<random>.tmp`` or ``….png``) that a killed run
+    left in ``out_dir``, ``units/`` and ``figures/``. Returns what was removed."""
+    import re
+
+    pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|png|json|npz|csv|md|gif|mp4)$")
+    removed = []
+    for folder in (out_dir, out_dir / "units", out_dir / "figures"):
+        if not folder.is_dir():
+            continue
+        for f in folder.iterdir():
+            if f.is_file() and pattern.match(f.name):
+                f.unlink(missing_ok=True)
+                removed.append(f)
+    if removed:
+        log.info("removed %d temporary file(s) left by an interrupted run", len(removed))
+    return removed
+
+
+#: memory (address space) of one local worker process, GB; REACHIRL_UNIT_MEMORY_GB overrides it
+UNIT_MEMORY_GB = 8.0
+#: wall-clock time of one unit in a local worker, s; REACHIRL_UNIT_TIMEOUT_S overrides it (a full-size unit
+#: takes minutes; a pathological one ran for 40 minutes and 16 GB before the inputs were bounded)
+UNIT_TIMEOUT_S = 4 * 3600
+
+
+class UnitTimeoutError(Exception):
+    """A unit ran longer than its time limit."""
+
+
+def _worker_init(parent_pid: int, memory_gb: float) -> None:
+    """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped."""
+    import signal
+    import threading
+    import time as _time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's business: it ends the workers
+    try:  # Linux: SIGKILL this process when the parent dies
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            _time.sleep(1.0)
+
+    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
+    try:
+        import resource
+
+        limit = int(memory_gb * 1024**3)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    except (ImportError, ValueError, OSError):
+        pass
+
+
+def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
+    """:func:`run_unit` in a local worker, stopped by SIGALRM after ``timeout_s``."""
+    import signal
+
+    def expire(signum, frame):
+        raise UnitTimeoutError(f"unit {unit.key} ran longer than {timeout_s:.0f} s")
+
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, timeout_s)
+    try:
+        return run_unit(unit, split)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _env_float(name: str, default: float) -> float:
+    try:
+        v = float(os.environ.get(name, default))
+    except ValueError:
+        raise InputError(f"environment variable {name}={os.environ[name]!r}: expected a number") from None
+    if not (v > 0 and v < float("inf")):
+        raise InputError(f"environment variable {name}={v}: expected a positive number")
+    return v
+
+
 def _local_executor(workers: int) -> cf.Executor:
     # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
     ctx = multiprocessing.get_context("spawn")
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    memory = _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB)
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                  initargs=(os.getpid(), memory))
+
+
+def _stop_workers(ex: cf.ProcessPoolExecutor) -> None:
+    """End the pool now: cancel what has not started and terminate the workers (a unit can run for minutes;
+    waiting for it made Ctrl-C hang)."""
+    procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=2.0)
+        if p.is_alive():
+            p.kill()
 
 
 def _dask_client(address: str):
@@ -41,8 +143,9 @@ def _dask_client(address: str):
         raise InputError(f"--scheduler needs dask.distributed ({e})") from None
     try:
         return Client(address, timeout="15s", set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as e:
-        raise InputError(f"cannot connect to the Dask scheduler ({e})", address) from None
+    except Exception as e:  # OSError, TimeoutError, ValueError, a protocol whose package is missing, ...
+        raise InputError(f"cannot connect to the Dask scheduler ({type(e).__name__}: {str(e)[:200]})",
+                         address) from None
 
 
 def run_units(
@@ -101,16 +204,30 @@ def run_units(
         for u, _ in todo:
             finish(run_unit(u, splits[u.posture]))
     elif scheduler is None:
-        with _local_executor(min(workers, len(todo))) as ex:
-            futures = [ex.submit(run_unit, u, splits[u.posture]) for u, _ in todo]
-            try:
-                for f in cf.as_completed(futures):
-                    finish(f.result())
-                    if len(computed) >= limit:
-                        break
-            finally:
-                for f in futures:
-                    f.cancel()
+        timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
+        ex = _local_executor(min(workers, len(todo)))
+        try:
+            futures = {ex.submit(_run_unit_bounded, u, splits[u.posture], timeout): u.key for u, _ in todo}
+            for f in cf.as_completed(futures):
+                try:
+                    payload = f.result()
+                except UnitTimeoutError as e:
+                    raise InputError(f"{e}; finished units are kept (rerun to resume), raise the limit with "
+                                     f"REACHIRL_UNIT_TIMEOUT_S", out_dir) from None
+                except MemoryError:
+                    raise InputError(f"unit {futures[f]} needed more than the worker's memory limit; raise it "
+                                     f"with REACHIRL_UNIT_MEMORY_GB", out_dir) from None
+                except cf.process.BrokenProcessPool:
+                    raise RuntimeError(f"a worker process died while running unit {futures[f]} (out of memory?)"
+                                       ) from None
+                finish(payload)
+                if len(computed) >= limit:
+                    break
+        except BaseException:
+            _stop_workers(ex)  # Ctrl-C, SIGTERM or an error: end now, keep the finished units
+            raise
+        else:
+            _stop_workers(ex)
     else:
         from dask.distributed import as_completed
 
@@ -161,6 +278,7 @@ def reproduce(
     units = make_units(postures, config)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    clean_stale_temporaries(out_dir)
     t0 = time.perf_counter()
     summary = run_units(
         units,

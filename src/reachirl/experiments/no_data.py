@@ -1,0 +1,60 @@
+"""An empty split or a number that cannot be computed is written as an explicit "no data" with its reason.
+
+Result files never hold NaN (``io.to_jsonable`` turns a non-finite float into ``null``); every ``null`` mean
+or summary gets a ``"no_data"`` entry beside it that says why, so that a reader never meets a bare ``null``
+where a number is expected.
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["annotate_no_data", "split_reasons"]
+
+_SPLITS = ("train", "cv", "iscv")
+
+
+def split_reasons(config=None) -> dict[str, str]:
+    """Why each split of the protocol can be empty."""
+    cv = getattr(config, "cv", "rest")
+    side = getattr(config, "train_side", None)
+    other = {"right": "left", "left": "right"}.get(side or "", "other")
+    return {
+        "train": "no training trials: the training subject has no trials of this posture (and side)",
+        "cv": (
+            f"no cross-validation trials: the training subject has no {other}-arm trials of this posture"
+            if cv == "other-side"
+            else "no cross-validation trials: the training set took every trial of the training subject "
+            "for this posture (lower --n-train, or record more trials)"
+        ),
+        "iscv": "no inter-subject trials: the data has no other subject with this posture",
+        "other": "cannot be computed (no finite values)",
+    }
+
+
+def _missing(v) -> bool:
+    return v is None or (isinstance(v, float) and not math.isfinite(v))
+
+
+def annotate_no_data(obj, reasons: dict[str, str] | None = None, _split: str = "other"):
+    """A copy of the JSON-able ``obj`` in which every dict with a missing (``None`` or non-finite) ``"mean"``
+    has ``"no_data": reason``, and every ``"summary": None`` is ``{"n_trials": 0, "no_data": reason}``. The
+    reason is that of the nearest enclosing split key (``train``, ``cv``, ``iscv``)."""
+    reasons = reasons or split_reasons()
+    if isinstance(obj, dict):
+        out = {}
+        for k, v in obj.items():
+            split = k if k in _SPLITS else _split
+            if k == "summary" and v is None:
+                out[k] = {"n_trials": 0, "no_data": reasons.get(split, reasons["other"])}
+            else:
+                out[k] = annotate_no_data(v, reasons, split)
+        if "mean" in out and _missing(out["mean"]) and "no_data" not in out:
+            out["mean"] = None
+            if "std" in out:
+                out["std"] = None
+            out["no_data"] = reasons.get(_split, reasons["other"])
+        return out
+    if isinstance(obj, list | tuple):
+        return [annotate_no_data(v, reasons, _split) for v in obj]
+    return obj

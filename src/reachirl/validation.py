@@ -1,0 +1,375 @@
+"""Validation at the doors: the physical ranges of a reach, the limits of every number a user can type, output
+paths, and the checks of the trials and model files before anything uses them.
+
+Every check raises :class:`~reachirl.errors.InputError` with one line that names the file (and field) and says
+what was expected and what was found, which the command line turns into exit code 2.
+
+The ranges are wide enough for any human reach and any sensible run, and narrow enough that no value inside them
+can make a solver hang, a buffer exhaust the memory or an arithmetic overflow produce NaN.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "ARM_RANGES",
+    "DURATION_RANGE",
+    "MAX_FILE_BYTES",
+    "MAX_NPZ_ENTRY_BYTES",
+    "NODES_RANGE",
+    "check_arm",
+    "check_duration",
+    "check_model_dict",
+    "check_n_nodes",
+    "check_npz_file",
+    "check_output_dir",
+    "check_output_file",
+    "check_trial_meta",
+    "check_trial_physics",
+    "load_model_checked",
+]
+
+# ---------------------------------------------------------------------- physical and numerical ranges
+#: DOC intervals N: 4 (the least the problem needs) to 1000 (10x the paper's 100; building and solving a DOC
+#: of N = 1000 takes seconds, N = 10⁶ would take hours and gigabytes).
+NODES_RANGE = (4, 1000)
+#: reach duration, s: a human reach lasts 0.2-3 s; below 10 ms or above 60 s it is not a reach (and a duration
+#: of 1 µs made the solver spin for minutes).
+DURATION_RANGE = (0.01, 60.0)
+#: ArmModel fields: lengths and CoM distances (m), masses (kg), inertias (kg·m²), gravity (m/s²).
+ARM_RANGES = {
+    "l1": (0.02, 2.0),
+    "l2": (0.02, 2.0),
+    "m1": (0.01, 100.0),
+    "m2": (0.01, 100.0),
+    "i1": (1e-8, 10.0),
+    "i2": (1e-8, 10.0),
+    "gravity": (0.0, 100.0),
+}
+#: no input file of reachirl is anywhere near this size; a read stops here (a TRC from /dev/zero never ends)
+MAX_FILE_BYTES = 512 * 1024**2
+#: one array of a trials or unit NPZ (a trial of 10⁶ samples is 16 MB per array)
+MAX_NPZ_ENTRY_BYTES = 256 * 1024**2
+#: JSON nesting deeper than this is not a reachirl file
+MAX_JSON_DEPTH = 64
+#: iterations of an iterative learner (MO-IRL, MaxEnt)
+MAX_ITER = 10000
+
+
+def _fmt(v) -> str:
+    """A number for a message: short, never 80 digits."""
+    if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
+        s = repr(v)
+        return s if len(s) <= 40 else s[:37] + "..."
+    if isinstance(v, int | np.integer) and abs(int(v)) < 10**12:
+        return str(int(v))
+    return f"{float(v):.6g}"
+
+
+def check_n_nodes(n, where: object | None = None, name: str = "n_nodes") -> int:
+    """``n`` as an int in :data:`NODES_RANGE`."""
+    lo, hi = NODES_RANGE
+    if isinstance(n, bool) or not isinstance(n, int | float | np.integer | np.floating):
+        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {_fmt(n)}", where)
+    if not math.isfinite(float(n)) or float(n) != int(n) or not lo <= int(n) <= hi:
+        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {_fmt(n)}", where)
+    return int(n)
+
+
+def check_duration(duration, where: object | None = None) -> float:
+    lo, hi = DURATION_RANGE
+    try:
+        d = float(duration)
+    except (TypeError, ValueError):
+        raise InputError(f"duration must be a number of seconds in [{lo}, {hi}], got {_fmt(duration)}", where) from None
+    if not (math.isfinite(d) and lo <= d <= hi):
+        raise InputError(f"duration {_fmt(d)} s is outside the range of a reach, [{lo}, {hi}] s", where)
+    return d
+
+
+def check_arm(arm, where: object | None = None) -> None:
+    """The arm's segments, masses, inertias and gravity are in :data:`ARM_RANGES` (a human arm, loosely)."""
+    for name, (lo, hi) in ARM_RANGES.items():
+        v = getattr(arm, name)
+        if not lo <= v <= hi:
+            raise InputError(f"arm {name} = {_fmt(v)} is outside the physical range [{lo:g}, {hi:g}]", where)
+
+
+# ---------------------------------------------------------------------- output paths
+def _name_max(folder: Path) -> int:
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):
+        return 255
+
+
+def _exists(p: Path) -> bool:
+    try:
+        return p.exists()
+    except OSError:  # e.g. a name too long to stat
+        return False
+
+
+def _existing_ancestor(path: Path) -> Path:
+    p = path
+    while not _exists(p) and p != p.parent:
+        p = p.parent
+    return p
+
+
+def _check_writable_folder(path: Path, option: str) -> None:
+    """``path``'s nearest existing ancestor is a folder in which a file can be created; every missing
+    component has a legal name length (with room for the atomic writes' temporary names)."""
+    anc = _existing_ancestor(path)
+    if not anc.is_dir():
+        raise InputError(f"{option}: {anc} is a file, not a folder", path)
+    limit = _name_max(anc)
+    for part in path.relative_to(anc).parts if path != anc else ():
+        if len(os.fsencode(part)) + 16 > limit:
+            raise InputError(
+                f"{option}: the name {part[:20]}... is {len(os.fsencode(part))} bytes long; the limit here is "
+                f"{limit - 16} bytes", path
+            )
+    try:
+        with tempfile.TemporaryFile(dir=anc, prefix=".reachirl-write-test-"):
+            pass
+    except OSError as e:
+        raise InputError(f"{option}: cannot write in {anc} ({e.strerror or e})", path) from None
+
+
+def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Before any work: ``path`` can be written atomically (it is not a folder, its folder exists or can be
+    made, is writable, and its name is not too long). Returns it as a :class:`Path`."""
+    p = Path(path)
+    if str(path) == "" or p.name in ("", ".", ".."):
+        raise InputError(f"{option}: expected a file path, got {str(path)!r}")
+    parent = p.absolute().parent
+    _check_writable_folder(parent, option)
+    if len(os.fsencode(p.name)) + 16 > _name_max(_existing_ancestor(parent)):
+        raise InputError(f"{option}: the file name is {len(os.fsencode(p.name))} bytes long, too long here", p)
+    if p.is_dir():
+        raise InputError(f"{option}: is a folder, expected a file path", p)
+    if p.exists() and not p.is_file():
+        raise InputError(f"{option}: is not a regular file", p)
+    return p
+
+
+def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Before any work: ``path`` is a folder (existing or to be made) in which files can be written."""
+    p = Path(path)
+    if str(path) == "":
+        raise InputError(f"{option}: expected a folder path, got ''")
+    if _exists(p) and not p.is_dir():
+        raise InputError(f"{option}: exists and is not a folder", p)
+    _check_writable_folder(p.absolute(), option)
+    return p
+
+
+#: errno values of an OSError that concern a path the user gave (not a bug of reachirl)
+PATH_ERRNOS = frozenset(
+    getattr(errno, n)
+    for n in ("EACCES", "EPERM", "EROFS", "ENOSPC", "EDQUOT", "ENAMETOOLONG", "ENOTDIR", "EISDIR", "EEXIST",
+              "ENOENT", "ELOOP", "EFBIG", "EMFILE")
+    if hasattr(errno, n)
+)
+
+
+# ---------------------------------------------------------------------- files
+def check_file_size(path: Path, limit: int = MAX_FILE_BYTES) -> None:
+    """A regular file of at most ``limit`` bytes (devices and FIFOs have no size to trust)."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise InputError("file not found", path) from None
+    except OSError as e:
+        raise InputError(f"cannot read ({e.strerror or e})", path) from None
+    import stat
+
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError("is a directory, expected a file", path)
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError("is not a regular file (a device, pipe or socket)", path)
+    if st.st_size > limit:
+        raise InputError(f"file is {st.st_size / 1024**2:.0f} MB, more than the {limit / 1024**2:.0f} MB limit", path)
+
+
+def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
+    """An NPZ that numpy can read without surprises: a regular file of sane size, a valid zip whose entries'
+    CRCs match, every entry a ``.npy`` of a plain numeric or fixed-width text dtype (no object arrays) whose declared shape fits in
+    ``max_entry`` bytes. Checked before any array is allocated (a declared shape of 2e11 would exhaust the
+    memory)."""
+    check_file_size(path)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            for info in infos:
+                if info.file_size > max_entry:
+                    raise InputError(
+                        f"entry {info.filename} is {info.file_size / 1024**2:.0f} MB uncompressed, more than "
+                        f"{max_entry / 1024**2:.0f} MB", path
+                    )
+            for info in infos:
+                if not info.filename.endswith(".npy"):
+                    raise InputError(f"entry {info.filename} is not a .npy array", path)
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    if version == (1, 0):
+                        shape, _fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+                    elif version == (2, 0):
+                        shape, _fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+                    else:
+                        raise InputError(f"entry {info.filename}: unsupported .npy version {version}", path)
+                    if dtype.hasobject or dtype.kind not in "biufU":
+                        raise InputError(f"entry {info.filename} has dtype {dtype}, expected numbers or text",
+                                         path)
+                    n_bytes = int(np.prod([int(s) for s in shape], dtype=object) or 0) * dtype.itemsize
+                    if n_bytes > max_entry or n_bytes > info.file_size:
+                        raise InputError(
+                            f"entry {info.filename} declares shape {tuple(shape)} ({_fmt(n_bytes)} bytes) but holds "
+                            f"{info.file_size} bytes", path
+                        )
+            bad = zf.testzip()  # decompresses every entry and checks its CRC
+            if bad is not None:
+                raise InputError(f"entry {bad} is damaged (CRC mismatch)", path)
+    except InputError:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError, OSError, NotImplementedError) as e:
+        raise InputError(f"not a readable NPZ file ({_short(e)})", path) from None
+    except Exception as e:  # zlib.error and friends from a damaged stream
+        raise InputError(f"damaged NPZ file ({type(e).__name__}: {_short(e)})", path) from None
+
+
+def _short(e: BaseException) -> str:
+    s = str(e).replace("\n", " ")
+    return s if len(s) <= 120 else s[:117] + "..."
+
+
+# ---------------------------------------------------------------------- JSON content
+def json_depth(obj, limit: int = MAX_JSON_DEPTH) -> int:
+    """Nesting depth of a parsed JSON value (stops counting past ``limit``)."""
+    depth, level = 0, [obj]
+    while level and depth <= limit:
+        depth += 1
+        nxt = []
+        for v in level:
+            if isinstance(v, dict):
+                nxt.extend(v.values())
+            elif isinstance(v, list):
+                nxt.extend(v)
+        level = nxt
+    return depth
+
+
+def _expect(cond: bool, message: str, where) -> None:
+    if not cond:
+        raise InputError(message, where)
+
+
+def check_model_dict(d, path) -> None:
+    """The content of a MODEL.json, field by field, before the model is built from it."""
+    from .features import FEATURES
+    from .irl.model import MODEL_FORMAT
+
+    _expect(isinstance(d, dict), f"expected a JSON object (a reachirl model), found a {type(d).__name__}", path)
+    _expect(d.get("format") == MODEL_FORMAT, f"not a reachirl model file (expected format {MODEL_FORMAT!r})", path)
+    feats = d.get("features")
+    _expect(
+        isinstance(feats, list) and all(isinstance(f, str) for f in feats),
+        f"field 'features': expected a list of the {len(FEATURES)} feature names, found {_fmt(feats)}",
+        path,
+    )
+    if "n_nodes" in d:
+        check_n_nodes(d["n_nodes"], path, "field 'n_nodes'")
+    n_nodes = int(d.get("n_nodes", 100))
+    w = d.get("weights")
+    _expect(isinstance(w, list) and len(w) > 0, f"field 'weights': expected a list of rows, found {_fmt(w)}", path)
+    for i, row in enumerate(w):
+        _expect(
+            isinstance(row, list)
+            and len(row) == len(FEATURES)
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in row),
+            f"field 'weights', row {i}: expected {len(FEATURES)} numbers, found {_fmt(row)}",
+            path,
+        )
+        for j, v in enumerate(row):
+            _expect(
+                math.isfinite(float(v)) and float(v) >= 0,
+                f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {_fmt(v)}",
+                path,
+            )
+    _expect(any(float(v) > 0 for row in w for v in row),
+            "field 'weights': all weights are zero, so the DOC would have no cost to minimise", path)
+    _expect(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals",
+            path)
+    if "n_windows" in d:
+        _expect(d["n_windows"] == len(w), f"field 'n_windows' = {_fmt(d['n_windows'])} but 'weights' has "
+                f"{len(w)} rows", path)
+    for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
+        if key in d:
+            _expect(isinstance(d[key], typ), f"field '{key}': expected {name}, found {_fmt(d[key])}", path)
+
+
+_META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
+
+
+def check_trial_meta(m, i: int, path) -> None:
+    """One trial's entry in a trials file's ``meta.json``."""
+    where = f"trial {i}"
+    _expect(isinstance(m, dict), f"{where}: expected an object, found {_fmt(m)}", path)
+    for key in ("subject", "posture", "trial_id", "target_x", "arm"):
+        _expect(key in m, f"{where}: field '{key}' is missing", path)
+    for key, typ in _META_TYPES.items():
+        if key in m:
+            _expect(isinstance(m[key], typ | int) and not isinstance(m[key], bool),
+                    f"{where}: field '{key}' must be a string, found {_fmt(m[key])}", path)
+    tx = m["target_x"]
+    _expect(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
+            f"{where}: field 'target_x' must be a finite number (m), found {_fmt(tx)}", path)
+    arm = m["arm"]
+    _expect(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {_fmt(arm)}", path)
+    for k, v in arm.items():
+        _expect(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
+                f"{where}: field 'arm.{k}' must be a finite number, found {_fmt(v)}", path)
+
+
+def check_trial_physics(trial, i: int, path) -> None:
+    """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
+    limits."""
+    from .doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+
+    where = f"trial {i} ({trial.id})"
+    try:
+        check_arm(trial.arm, where)
+        check_duration(trial.duration, where)
+    except InputError as e:
+        raise InputError(e.reason, path, where) from None
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    q0 = trial.x0[:2]
+    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
+        d = np.rad2deg
+        raise InputError(
+            f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
+            f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
+            path, where,
+        )
+
+
+def load_model_checked(path):
+    """:func:`reachirl.irl.model.load_model` after checking the file's size and every field of its content."""
+    from .io import read_json
+    from .irl.model import load_model
+
+    p = Path(path)
+    check_file_size(p, 64 * 1024**2)
+    check_model_dict(read_json(p), p)
+    return load_model(p)

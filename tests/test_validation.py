@@ -1,0 +1,282 @@
+"""Every input and option validated at the door: one-line input errors (exit 2) naming the file, the field and
+what was expected, in seconds, before any work; never an internal error, a hang or a silent wrong answer."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import subprocess
+import sys
+import time
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.data.readers import AngleData, read_c3d
+from reachirl.data.trial import load_trials, save_trials, trial_from_solution
+from reachirl.errors import InputError
+from reachirl.io import read_json, read_text
+from reachirl.irl.model import LearnedModel, save_model
+from reachirl.validation import check_output_dir, check_output_file, load_model_checked
+
+REACHIRL = str(Path(sys.executable).with_name("reachirl"))
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, arm) -> Path:
+    d = tmp_path_factory.mktemp("validation")
+    w = np.full((1, 7), 0.05)
+    trials = []
+    for i in range(2):
+        task = ReachingTask(arm, np.deg2rad([-20.0 + 5 * i, 90.0]), 0.9 * arm.length, 0.7, n_nodes=20)
+        trials.append(trial_from_solution(solve_doc(task, w), arm, task.target_x, subject="S1", posture="P2",
+                                          trial_id=str(i)))
+    save_trials(d / "trials.npz", trials)
+    save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
+    (d / "afile").write_text("x")
+    (d / "adir").mkdir()
+    return d
+
+
+def _npz_entries(path: Path) -> dict[str, bytes]:
+    with zipfile.ZipFile(path) as z:
+        return {n: z.read(n) for n in z.namelist()}
+
+
+def _write_npz(path: Path, entries: dict[str, bytes]) -> Path:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for n, b in entries.items():
+            z.writestr(n, b)
+    return path
+
+
+def _with_meta(files: Path, name: str, change) -> Path:
+    e = _npz_entries(files / "trials.npz")
+    meta = json.loads(bytes(np.load(io.BytesIO(e["meta.json.npy"]))).decode())
+    b = io.BytesIO()
+    np.save(b, np.frombuffer(json.dumps(change(meta)).encode(), dtype=np.uint8))
+    return _write_npz(files / name, {**e, "meta.json.npy": b.getvalue()})
+
+
+def _with_array(files: Path, name: str, key: str, value) -> Path:
+    e = _npz_entries(files / "trials.npz")
+    b = io.BytesIO()
+    np.save(b, value(np.load(io.BytesIO(e[key]))))
+    return _write_npz(files / name, {**e, key: b.getvalue()})
+
+
+# ---------------------------------------------------------------------- the trials file
+def test_trials_file_damage_is_an_input_error(files):
+    data = bytearray((files / "trials.npz").read_bytes())
+    data[len(data) // 3] ^= 0x10
+    (files / "flipped.npz").write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"flipped\.npz: not a readable NPZ file \(Bad CRC-32"):
+        load_trials(files / "flipped.npz")
+
+    header = "{'descr': '<f8', 'fortran_order': False, 'shape': (200000000000, 2), }"
+    header = header + " " * (118 - len(header)) + "\n"
+    huge = b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header.encode() + bytes(64)
+    _write_npz(files / "huge.npz", {**_npz_entries(files / "trials.npz"), "0/q.npy": huge})
+    t0 = time.monotonic()
+    with pytest.raises(InputError, match=r"huge\.npz: entry 0/q\.npy declares shape \(200000000000, 2\)"):
+        load_trials(files / "huge.npz")
+    assert time.monotonic() - t0 < 2.0
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda m: [m], r"unsupported format 'list'"),
+        (lambda m: {**m, "trials": {"a": 1}}, r"meta\.json: field 'trials' must be a list"),
+        (lambda m: {**m, "trials": [{**t, "subject": [1]} for t in m["trials"]]},
+         r"trial 0: field 'subject' must be a string, found \[1\]"),
+        (lambda m: {**m, "trials": [{**t, "arm": [1]} for t in m["trials"]]},
+         r"trial 0: field 'arm' must be an object"),
+        (lambda m: {**m, "trials": [{**t, "target_x": "far"} for t in m["trials"]]},
+         r"trial 0: field 'target_x' must be a finite number \(m\), found 'far'"),
+        (lambda m: {**m, "trials": [{**t, "arm": {**t["arm"], "l1": 250e3}} for t in m["trials"]]},
+         r"trial 0 \(S1/P2/right/0\): arm l1 = 250000 is outside the physical range \[0.02, 2\]"),
+    ],
+)
+def test_trials_metadata_is_checked_field_by_field(files, change, match):
+    with pytest.raises(InputError, match=r"bad\.npz: " + match):
+        load_trials(_with_meta(files, "bad.npz", change))
+
+
+def test_a_start_outside_the_joint_limits_names_the_trial(files):
+    path = _with_array(files, "q0.npz", "1/x0.npy", lambda a: np.array([3.0, 3.0, 0.0, 0.0]))
+    with pytest.raises(InputError, match=r"q0\.npz: trial 1 \(S1/P2/right/1\): the start q0 = \(171\.9°, 171\.9°\) "
+                                         r"lies outside the joint limits"):
+        load_trials(path)
+
+
+def test_a_duration_outside_a_reach_is_refused(files):
+    path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
+    with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):
+        load_trials(path)
+
+
+# ---------------------------------------------------------------------- the model file
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"features": 3}, r"field 'features': expected a list of the 7 feature names, found 3"),
+        ({"features": None}, r"field 'features': expected a list"),
+        ({"weights": [[0] * 7] * 2}, r"field 'weights': all weights are zero"),
+        ({"n_nodes": 4, "weights": [[0.1] * 7] * 6, "n_windows": 6},
+         r"field 'weights': 6 windows do not fit in n_nodes = 4 intervals"),
+        ({"n_nodes": 0}, r"field 'n_nodes' must be an integer in \[4, 1000\], got 0"),
+        ({"n_nodes": 1e308}, r"field 'n_nodes' must be an integer in \[4, 1000\], got 1e\+308"),
+        ({"weights": [[-1] * 7] * 2},
+         r"field 'weights', row 0, cartesian_velocity: expected a finite number >= 0, found -1"),
+        ({"weights": [[1] * 7, [1]]}, r"field 'weights', row 1: expected 7 numbers, found \[1\]"),
+        ({"info": [1]}, r"field 'info': expected an object"),
+    ],
+)
+def test_model_fields_are_checked(files, change, match):
+    d = json.loads((files / "model.json").read_text())
+    (files / "m.json").write_text(json.dumps({**d, **change}))
+    with pytest.raises(InputError, match=r"m\.json: " + match):
+        load_model_checked(files / "m.json")
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        ("[" * 100000 + "]" * 100000, r"JSON nested too deeply"),
+        ('{"n": ' + "9" * 5000 + "}", r"invalid JSON \(Exceeds the limit"),
+        ("[" * 100 + "]" * 100, r"JSON nested more than 64 levels deep"),
+    ],
+)
+def test_pathological_json_is_an_input_error(tmp_path, text, match):
+    (tmp_path / "x.json").write_text(text)
+    with pytest.raises(InputError, match=r"x\.json: " + match):
+        read_json(tmp_path / "x.json")
+
+
+def test_reading_a_device_ends_at_once():
+    t0 = time.monotonic()
+    with pytest.raises(InputError, match=r"/dev/zero: is a binary file \(it holds NUL bytes\), expected text"):
+        read_text("/dev/zero")
+    assert time.monotonic() - t0 < 2.0
+
+
+# ---------------------------------------------------------------------- output paths
+def test_output_paths_are_checked_before_any_work(files):
+    with pytest.raises(InputError, match=r"--out: is a folder, expected a file path"):
+        check_output_file(files / "adir")
+    with pytest.raises(InputError, match=r"afile: --out: .*afile is a file, not a folder"):
+        check_output_file(files / "afile" / "x.json")
+    with pytest.raises(InputError, match=r"--out: the file name is 300 bytes long, too long here"):
+        check_output_file(files / ("x" * 295 + ".json"))
+    with pytest.raises(InputError, match=r"--out: exists and is not a folder"):
+        check_output_dir(files / "afile")
+    with pytest.raises(InputError, match=r"--out: the name x{20}\.\.\. is 300 bytes long"):
+        check_output_dir(files / ("x" * 300) / "sub")
+    assert check_output_file(files / "new" / "deeper" / "x.json") == files / "new" / "deeper" / "x.json"
+    assert not (files / "new").exists()  # checking creates nothing
+    if os.geteuid() != 0:  # root writes anywhere
+        ro = files / "ro"
+        ro.mkdir()
+        ro.chmod(0o555)
+        with pytest.raises(InputError, match=r"--out: cannot write in .*ro \(Permission denied\)"):
+            check_output_file(ro / "x.json")
+
+
+# ---------------------------------------------------------------------- motion-capture files
+def test_a_truncated_c3d_is_refused(tmp_path):
+    from reachirl.data.writers import write_c3d
+
+    t = np.arange(100) / 100.0
+    markers = {n: np.c_[t * 100 + k, np.zeros(100), np.ones(100) * k] for k, n in enumerate(("A", "B"))}
+    write_c3d(tmp_path / "ok.c3d", t, markers)
+    data = (tmp_path / "ok.c3d").read_bytes()
+    assert read_c3d(tmp_path / "ok.c3d").n_frames == 100
+    (tmp_path / "cut.c3d").write_bytes(data[: int(len(data) * 0.8)])
+    with pytest.raises(InputError, match=r"cut\.c3d: truncated C3D file: the header declares 100 frames, the "
+                                         r"file holds \d+"):
+        read_c3d(tmp_path / "cut.c3d")
+
+
+def test_angles_that_wrap_are_unwrapped_and_glitches_refused():
+    t = np.arange(50) / 100.0
+    q = np.c_[np.linspace(-1.5, -0.5, 50), np.linspace(0.2, 1.2, 50)]
+    wrapped = q.copy()
+    wrapped[20, 0] += 2 * np.pi  # 359° away: the same angle
+    np.testing.assert_allclose(AngleData(t, wrapped, "w.mot").q, q, atol=1e-12)
+    glitch = q.copy()
+    glitch[20, 0] += np.deg2rad(100.0)
+    with pytest.raises(InputError, match=r"g\.mot: sample 21: q1 jumps by 10\d° in one sample"):
+        AngleData(t, glitch, "g.mot")
+
+
+# ---------------------------------------------------------------------- the console script
+CLI_CASES = [
+    (["fit", "{T}", "--sections", "1", "--nodes", "3", "--out", "{D}/fit_out.json"],
+     r"argument --nodes: expected an integer in \[4, 1000\], got 3"),
+    (["fit", "{T}", "--sections", "1", "--max-iter", "0", "--out", "{D}/fit_out.json"],
+     r"argument --max-iter: expected an integer in \[1, 10000\], got 0"),
+    (["fit", "{T}", "--sections", "1", "--out", "{D}/adir"], r"adir: --out: is a folder, expected a file path"),
+    (["preprocess", "x.trc", "--cutoff", "nan", "--out", "{D}/p.npz"],
+     r"argument --cutoff: expected a number in \[0, 1000\], got nan"),
+    (["preprocess", "x.trc", "--filter-order", "0", "--out", "{D}/p.npz"],
+     r"argument --filter-order: expected an integer in \[1, 8\], got 0"),
+    (["preprocess", "/dev/zero", "--format", "trc", "--out", "{D}/p.npz"], r"/dev/zero: is a binary file"),
+    (["simulate", "--model", "{M}", "{T}", "--fps", "0"], r"argument --fps: expected a number in \[1, 120\]"),
+    (["simulate", "--model", "{M}", "{T}", "--size", "100000"], r"argument --size: expected an integer in "),
+    (["simulate", "--model", "{M}", "{T}", "--mode", "pd", "--kp", "inf"], r"argument --kp: expected a number"),
+    (["evaluate", "--model", "{D}/huge_nodes.json", "{T}", "--out", "{D}/x.json"],
+     r"huge_nodes\.json: field 'n_nodes' must be an integer in \[4, 1000\], got 1e\+308"),
+    (["evaluate", "--model", "{M}", "{T}", "--out", "{D}/afile/x.json"], r"afile is a file, not a folder"),
+    (["reproduce", "--data", "{T}", "--out", "{D}/afile/o"], r"afile is a file, not a folder"),
+    (["reproduce", "--data", "{T}", "--nodes", "100000000", "--out", "{D}/o"],
+     r"argument --nodes: expected an integer in \[4, 1000\]"),
+    (["reproduce", "--data", "{T}", "--scheduler", "foo://bar:1", "--out", "{D}/o"],
+     r"--scheduler 'foo://bar:1': expected an address like tcp://HOST:PORT"),
+    (["reproduce", "--data", "{T}", "--method", "bogus", "--out", "{D}/o"], r"unknown method 'bogus'"),
+]
+
+
+# a sample in make test (each run of the console script costs about a second), all of them in make test-slow
+FAST = (0, 2, 5, 9, 13)
+
+
+@pytest.mark.parametrize(
+    "cases", [pytest.param([CLI_CASES[i] for i in FAST], id="sample"),
+              pytest.param(CLI_CASES, id="all", marks=pytest.mark.slow)]
+)
+def test_the_console_script_answers_bad_options_and_paths_in_one_line(files, cases):
+    d = json.loads((files / "model.json").read_text())
+    (files / "huge_nodes.json").write_text(json.dumps({**d, "n_nodes": 1e308}))
+    sub = {"{T}": str(files / "trials.npz"), "{M}": str(files / "model.json"), "{D}": str(files)}
+
+    def run(case):
+        argv, match = case
+        for key, value in sub.items():
+            argv = [a.replace(key, value) for a in argv]
+        t0 = time.monotonic()
+        p = subprocess.run([REACHIRL, *argv], capture_output=True, text=True, timeout=60)
+        return argv, p, time.monotonic() - t0, match
+
+    with ThreadPoolExecutor(max_workers=2) as ex:
+        results = list(ex.map(run, cases))
+    import re
+
+    for argv, p, elapsed, match in results:
+        lines = p.stderr.strip().splitlines()
+        errors = [ln for ln in lines if ": error:" in ln]
+        assert p.returncode == 2, (argv, p.stderr)
+        assert errors == lines[-1:] and re.search(match, lines[-1]), (argv, p.stderr)  # warnings may precede
+        assert "Traceback" not in p.stderr
+        assert elapsed < 20, (argv, elapsed)
+    assert not (files / "o").exists() and not (files / "fit_out.json").exists()
+
+
+def test_help_states_the_limits():
+    p = subprocess.run([REACHIRL, "fit", "--help"], capture_output=True, text=True, timeout=60)
+    assert "DOC knots N, 4 to 1000" in p.stdout and "1 to 10000" in p.stdout
