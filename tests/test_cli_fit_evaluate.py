@@ -39,8 +39,15 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
     w = np.array(m["weights"])
     assert w.shape == (2, 7) and np.all(w >= 0)
     assert m["info"]["n_doc_solves"] >= 1 and len(m["info"]["history"]) >= 1
-    history = [h["merit"] for h in m["info"]["history"]]
-    assert history[-1] <= history[0]
+    # the learned weights predict the trials better than the initial ones (evaluated through the CLI too)
+    start = tmp_path / "start.json"
+    start.write_text(json.dumps({**m, "weights": m["info"]["history"][0]["weights"]}))
+    rmse = {}
+    for name, path in (("learned", model), ("start", start)):
+        out = tmp_path / f"{name}_metrics.json"
+        assert main(["evaluate", "--model", str(path), str(trials_file), "--out", str(out)]) == 0
+        rmse[name] = json.loads(out.read_text())["summary"]["rmse_deg"]["q"]["mean"]
+    assert rmse["learned"] < 0.8 * rmse["start"], rmse
 
     metrics = tmp_path / "metrics.json"
     assert main(["evaluate", "--model", str(model), str(trials_file), "--out", str(metrics)]) == 0

@@ -78,10 +78,63 @@ def test_constraints_hold_at_solution(any_backend):
         np.testing.assert_allclose(sol.q[k + 1], sol.q[k] + dt * sol.qd[k + 1], atol=tol["dynamics"])
 
 
-def test_reported_cost_equals_features_cost(any_backend):
+def _cost_with_pinocchio(task, w, q, qd, tau):
+    """The seed's objective recomputed from scratch with Pinocchio (CRBA, RNEA, frame Jacobian), sharing no
+    code with reachirl.features: interval k of N is in window ⌊k·S/N⌋; q̈_k = (q̇_{k+1} − q̇_k)/dt;
+    τ̇_k = (τ_k − τ_{k−1})/dt with τ_{−1} the gravity torque at q_0."""
+    model = task.arm.pinocchio_model()
+    data = model.createData()
+    tip = model.getFrameId("fingertip")
+    n, dt, n_win = task.n_nodes, task.dt, w.shape[0]
+    tau_prev = pin.rnea(model, data, q[0], np.zeros(2), np.zeros(2))
+    total = 0.0
+    for k in range(n):
+        pin.computeJointJacobians(model, data, q[k])
+        pin.updateFramePlacements(model, data)
+        jac = pin.getFrameJacobian(model, data, tip, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:2]
+        mass = pin.crba(model, data, q[k])
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        qdd = (qd[k + 1] - qd[k]) / dt
+        rates = [
+            float(np.sum((jac @ qd[k]) ** 2)),
+            abs(float(qd[k] @ tau[k])),
+            float(qd[k] @ mass @ qd[k]),
+            float(qdd @ qdd),
+            float(np.sum(((tau[k] - tau_prev) / dt) ** 2)),
+            float(qd[k] @ qd[k]),
+            float(tau[k] @ tau[k]),
+        ]
+        total += dt * float(np.dot(w[(k * n_win) // n], rates))
+        tau_prev = tau[k]
+    return total
+
+
+def test_reported_cost_is_the_seeds_objective(any_backend):
     task, w, sol, _ = any_backend
-    expected = trajectory_cost(task.arm, sol.q, sol.qd, sol.tau, task.dt, w)
-    assert sol.cost == pytest.approx(expected, rel=1e-8)
+    # torques from the solution's own trajectory by RNEA (independent of the backend's inverse dynamics)
+    model = task.arm.pinocchio_model()
+    data = model.createData()
+    tau = np.array([pin.rnea(model, data, sol.q[k], sol.qd[k], (sol.qd[k + 1] - sol.qd[k]) / task.dt)
+                    for k in range(task.n_nodes)])
+    np.testing.assert_allclose(tau, sol.tau, rtol=1e-7, atol=1e-7)
+    assert sol.cost == pytest.approx(_cost_with_pinocchio(task, w, sol.q, sol.qd, tau), rel=1e-7)
+
+
+def test_the_returned_torques_drive_the_arm_onto_the_bar_at_rest(any_backend):
+    """The terminal constraints met by the motion the torques produce, not only by the returned knots:
+    integrate ``sol.tau`` from (q0, 0) with Pinocchio's ABA (semi-implicit Euler, the DOC's dynamics)."""
+    task, _, sol, tol = any_backend
+    model = task.arm.pinocchio_model()
+    data = model.createData()
+    q, qd = task.q0.copy(), np.zeros(2)
+    for k in range(task.n_nodes):
+        qd = qd + task.dt * pin.aba(model, data, q, qd, sol.tau[k])
+        q = q + task.dt * qd
+    pin.framesForwardKinematics(model, data, q)
+    tip_x = data.oMf[model.getFrameId("fingertip")].translation[0]
+    eps = 50 * tol["feasibility"]  # the open-loop integration accumulates the per-step feasibility error
+    np.testing.assert_allclose(qd, 0.0, atol=eps)
+    assert tip_x == pytest.approx(task.target_x, abs=eps)
 
 
 def _perturbed(task, q, rng, amplitude):

@@ -99,13 +99,28 @@ def test_subproblem_is_stable_for_large_cost_mismatch():
 
 
 # ---------------------------------------------------------------------- fitting
-def test_weights_stay_non_negative(fitted):
-    assert fitted.weights_.shape == (2, 7)
-    assert np.all(fitted.weights_ >= 0)
-    for rec in fitted.history_:
-        assert np.min(rec["weights"]) >= 0
-    assert fitted.n_doc_solves_ >= len(fitted.history_)
-    assert fitted.n_iter_ == len(fitted.history_) - 1
+def test_reported_merit_is_the_seeds_merit_of_the_returned_weights(fitted, demos):
+    """m(x) = (1/D) Σ_d (1/N) ‖x*_d − x‖² recomputed by hand: the mean task's rollout under ``weights_``
+    against each demonstration's knots (q, and q̇ by backward differences as the DOC defines it)."""
+    n = N_NODES
+    arms = [t.arm for t in demos]
+    from reachirl import ArmModel
+
+    arm = ArmModel(*[float(np.mean([getattr(a, f) for a in arms])) for f in ("l1", "l2", "m1", "m2", "c1",
+                                                                            "c2", "i1", "i2", "gravity")])
+    task = ReachingTask(arm, np.mean([t.x0[:2] for t in demos], axis=0), np.mean([t.target_x for t in demos]),
+                        np.mean([t.duration for t in demos]), n_nodes=n)
+    x = solve_doc(task, fitted.weights_).state
+    total = 0.0
+    for t in demos:
+        tk = np.linspace(0.0, t.duration, n + 1)
+        q = np.column_stack([np.interp(tk, t.t, t.q[:, j]) for j in range(2)])
+        qd = np.vstack([t.x0[2:], np.diff(q, axis=0) / (t.duration / n)])
+        total += np.sum((np.hstack([q, qd]) - x) ** 2) / (n + 1)
+    # the trials are DOC knots on the same grid, so interpolation is exact at the knots; the fit's rollout was
+    # warm-started and this one is cold: they agree to the DOC's repeatability (~2e-5, measured)
+    assert fitted.merit_ == pytest.approx(total / len(demos), rel=1e-4)
+    assert fitted.merit_ < fitted.initial_merit_
 
 
 def test_fit_reproduces_known_weights_trajectories(fitted, demos):
@@ -128,11 +143,15 @@ def test_fit_is_deterministic(demos, fitted):
     assert again.n_doc_solves_ == fitted.n_doc_solves_
 
 
-def test_predict_returns_the_doc_under_learned_weights(fitted, demos):
-    sol = fitted.predict(demos[0])
-    assert sol.converged and sol.q.shape == (N_NODES + 1, 2)
-    direct = solve_doc(ReachingTask.from_trial(demos[0], N_NODES), fitted.weights_)
-    np.testing.assert_allclose(sol.q, direct.q, atol=1e-9)
+def test_predict_plans_each_trials_own_reach(fitted, demos):
+    """A prediction starts where that trial starts, lasts as long, and ends at rest on that trial's bar."""
+    for t in demos[:2]:
+        sol = fitted.predict(t)
+        assert sol.converged and sol.q.shape == (N_NODES + 1, 2)
+        np.testing.assert_allclose(sol.q[0], t.x0[:2], atol=1e-12)
+        assert sol.t[-1] == pytest.approx(t.duration)
+        assert t.arm.fk(sol.q[-1])[0] == pytest.approx(t.target_x, abs=1e-8)
+        assert np.max(np.abs(np.diff(sol.q[-2:], axis=0))) < 1e-8  # q̇_N = 0
     # a task on another discretisation is moved onto the model's
     task = ReachingTask.from_trial(demos[0], N_NODES + 10)
     assert fitted.predict(task).q.shape == (N_NODES + 1, 2)

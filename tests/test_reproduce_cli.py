@@ -3,6 +3,8 @@ bad input."""
 
 import json
 
+import numpy as np
+
 import pytest
 
 from reachirl.cli import main
@@ -73,9 +75,14 @@ def test_outputs(reference_run, capsys):
         "convergence.png",
         "weights_vs_truth.png",
     } <= set(figs)
+    import matplotlib.image as mpimg
+
     for name in figs:
-        data = (out / "figures" / name).read_bytes()
-        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
+        img = mpimg.imread(out / "figures" / name)  # decodes: a valid PNG
+        h, w = img.shape[:2]
+        assert h >= 300 and w >= 400, (name, img.shape)
+        ink = np.mean(np.any(img[..., :3] < 0.9, axis=-1))  # share of pixels that are not (near) white
+        assert 0.01 < ink < 0.9, (name, ink)  # drawn on, and not a solid block
         assert f"figures/{name}" in report
     assert "seed" in report.lower() and "10.41 ± 3.81" in report  # the seed's own numbers beside ours
 
