@@ -4,7 +4,6 @@ bad input."""
 import json
 
 import numpy as np
-
 import pytest
 
 from reachirl.cli import main
