@@ -206,8 +206,8 @@ def check_file_size(path: Path, limit: int = MAX_FILE_BYTES) -> None:
 def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
     """An NPZ that numpy can read without surprises: a regular file of sane size, a valid zip whose entries'
     CRCs match, every entry a ``.npy`` of a plain numeric or fixed-width text dtype (no object arrays) whose
-    declared shape fits in ``max_entry`` bytes. Checked before any array is allocated (a declared shape of 2e11 would exhaust the
-    memory)."""
+    declared shape fits in ``max_entry`` bytes. Checked before any array is allocated (a declared shape of 2e11
+    would exhaust the memory)."""
     check_file_size(path)
     try:
         with zipfile.ZipFile(path) as zf:
