@@ -127,7 +127,7 @@ def write_outputs(
     notes = [
         f"DOC failures: {fit_fail} of {fit_solves} solves during the fits "
         "(a failed line-search try is rejected); "
-        f"{ev_fail} of {ev_solves} predictions did not converge (their RMSE is counted as is, not dropped).",
+        f"{ev_fail} of {ev_solves} predictions did not converge (counted per cell, left out of the RMSE statistics).",
         tb.ALL_CONVENTION,
         "Fits ended by: "
         + ", ".join(
