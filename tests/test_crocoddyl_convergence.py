@@ -49,3 +49,40 @@ def test_warm_start_only_from_the_same_task(task, arm):
     ignored = solve_doc(other, w, backend="crocoddyl", warm_start=first)
     assert ignored.iterations == cold.iterations
     np.testing.assert_array_equal(ignored.q, cold.q)
+
+
+def test_fit_and_evaluate_on_the_crocoddyl_backend(arm, tmp_path, capsys, monkeypatch):
+    """`reachirl fit --backend crocoddyl` runs MO-IRL on Pinocchio + Crocoddyl + CSQP (every DOC of the fit),
+    and evaluate predicts with it."""
+    import json
+
+    from reachirl.cli import main
+    from reachirl.data.trial import save_trials, trial_from_solution
+
+    w_true = np.array([[0.4, 0.3, 1.0, 0.005, 0.002, 0.2, 0.03]])
+    trials = []
+    for i, q0 in enumerate(([0.0, 90.0], [4.0, 86.0])):
+        task = ReachingTask(arm, np.deg2rad(q0), 0.9 * arm.length, 0.7, n_nodes=30)
+        sol = solve_doc(task, w_true, backend="crocoddyl")
+        assert sol.converged, sol.status
+        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S1", posture="P2", trial_id=str(i)))
+    path = tmp_path / "trials.npz"
+    save_trials(path, trials)
+    model = tmp_path / "model.json"
+    calls = []
+    original = cb.solve
+
+    def counting(*a, **k):
+        calls.append(1)
+        return original(*a, **k)
+
+    monkeypatch.setattr(cb, "solve", counting)
+    assert main(["fit", str(path), "--sections", "1", "--nodes", "30", "--max-iter", "2", "--backend",
+                 "crocoddyl", "--out", str(model)]) == 0
+    m = json.loads(model.read_text())
+    assert m["info"]["backend"] == "crocoddyl" and len(calls) == m["info"]["n_doc_solves"] >= 1
+    assert "(crocoddyl)" in capsys.readouterr().out
+    metrics = tmp_path / "metrics.json"
+    assert main(["evaluate", "--model", str(model), str(path), "--out", str(metrics), "--backend", "crocoddyl"]) == 0
+    s = json.loads(metrics.read_text())["summary"]
+    assert s["n_trials"] == 2 and s["doc_failures"] == 0 and s["rmse_deg"]["q"]["mean"] < 10

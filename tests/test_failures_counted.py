@@ -37,7 +37,7 @@ def test_summary_with_no_converged_prediction_has_no_rmse():
 
 def _unit(posture, rmses, converged):
     trials = [{"id": str(i), "rmse_deg": {"q1": r, "q2": r, "q": r}, "converged": c}
-              for i, (r, c) in enumerate(zip(rmses, converged))]
+              for i, (r, c) in enumerate(zip(rmses, converged, strict=True))]
     return {"unit": {"method": "moirl", "posture": posture, "sections": 1},
             "sets": {s: {"trials": trials} for s in tb.SETS}}
 

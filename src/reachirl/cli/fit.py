@@ -22,6 +22,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
     p.add_argument("--max-iter", type=int, default=30, help="MO-IRL iterations at most (default 30)")
     p.add_argument("--nodes", type=int, default=100, help="DOC knots N (default 100)")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
+                   help="DOC backend of the fit's solves (default: casadi)")
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="training rollout from the demonstrations' mean start, or one per demonstration")
     return p
@@ -34,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     trials = load_trials(args.trials)
     if args.sections < 1 or args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
-    kwargs = {"n_nodes": args.nodes}
+    kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     if args.method in ("moirl", "maxent"):
         kwargs.update(max_iter=args.max_iter, rollout=args.rollout)
 
@@ -48,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     info = {
         "trials": str(args.trials),
         "n_trials": len(trials),
+        "backend": args.backend,
         "trial_ids": [t.id for t in trials],
         "n_iter": getattr(est, "n_iter_", None),
         "n_doc_solves": getattr(est, "n_doc_solves_", None),
@@ -61,5 +64,5 @@ def run(args: argparse.Namespace) -> int:
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
     print(f"wrote {args.out}: {args.method}, {args.sections} section(s), {info['n_iter']} iterations, "
-          f"{info['n_doc_solves']} DOC solves, {info['fit_time_s']:.1f} s")
+          f"{info['n_doc_solves']} DOC solves ({args.backend}), {info['fit_time_s']:.1f} s")
     return 0

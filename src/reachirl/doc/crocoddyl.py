@@ -151,6 +151,8 @@ class CsqpOptions:
     qp_eps_max: float = 1e-3
     qp_eps_min: float = 0.1
     qp_forcing: float = 0.1
+    qp_stall_ratio: float = 0.5  # KKT not below this × the last qp_stall_window: tighten the QP tolerance cap
+    qp_stall_window: int = 5
     reset_rho: bool = False
     rho_update_interval: int = 25
     adaptive_rho_tolerance: int = 20
@@ -159,6 +161,7 @@ class CsqpOptions:
     energy_smoothing: float = 1e-3  # ε of the smooth |q̇ᵀτ|, in W
     objective_scale: float = 10.0  # the weights are scaled so that the cold guess costs this much
     use_filter_line_search: bool = False
+    energy_exact_hessian: bool = False  # add the energy's d1·∂²r/∂q̇∂τ term (not Gauss-Newton)
 
 
 DEFAULT_OPTIONS = CsqpOptions()
@@ -205,6 +208,7 @@ class KnotModel(crocoddyl.ActionModelAbstract):
         self.first, self.terminal = first, terminal
         self.n_constraints = ng
         self.eps = float(energy_smoothing)
+        self.exact_hessian = False
         self.dt = float(inner.dt)
         self.w_energy = 0.0
         self.w_torque_change = 0.0
@@ -287,10 +291,11 @@ class KnotModel(crocoddyl.ActionModelAbstract):
             Lxx[2, 3] += b
             Lxx[3, 2] += b
             Lxx[3, 3] += e
-            Lxu[2, 0] += d2 * u0 * v0
+            h = d1 if self.exact_hessian else 0.0  # d1·∂²r/∂q̇∂τ = d1·I
+            Lxu[2, 0] += d2 * u0 * v0 + h
             Lxu[2, 1] += d2 * u0 * v1
             Lxu[3, 0] += d2 * u1 * v0
-            Lxu[3, 1] += d2 * u1 * v1
+            Lxu[3, 1] += d2 * u1 * v1 + h
             a, b, e = d2 * v0 * v0, d2 * v0 * v1, d2 * v1 * v1
             Luu[0, 0] += a
             Luu[0, 1] += b
@@ -417,6 +422,7 @@ class ReachingProblem:
         lb = np.r_[task.q_lower, -task.qd_max]
         ub = np.r_[task.q_upper, task.qd_max]
         for k, m in enumerate(self.running):
+            m.exact_hessian = self.options.energy_exact_hessian
             m.set_dt(task.dt)
             m.set_weights(weights[self.window[k]])
             if m.n_constraints:
@@ -464,6 +470,7 @@ class _Monitor(mim_solvers.CallbackAbstract):
         self.acceptable = False  # the last point is feasible and its KKT residual within acceptable_factor·tol
         self._n_acceptable = 0
         self.mu = (options.merit_penalty, options.merit_penalty)  # CSQP's (mu_dynamic, mu_constraint)
+        self._tightened = 0  # len(history) when the QP tolerance cap was last tightened
 
     def __call__(self, solver, name):
         o = self.o
@@ -493,6 +500,15 @@ class _Monitor(mim_solvers.CallbackAbstract):
             self.mu = (max(self.mu[0], o.merit_penalty_factor * lam), max(self.mu[1], o.merit_penalty_factor * y))
             solver.mu_dynamic, solver.mu_constraint = self.mu
         solver.termination_tolerance = kkt if stop else -1.0
+        # inexact SQP: the QP tolerance follows the KKT residual, but ADMM's own residuals (ρ times the change
+        # of its iterates) can pass a loose tolerance while its multipliers are still far off, and the SQP then
+        # cycles with a KKT residual that never falls: when the KKT residual has not halved in qp_stall_window QPs,
+        # tighten the cap on the QP tolerance tenfold (down to eps_min)
+        kkts = [h[0] for h in self.history[-o.qp_stall_window - 1 : -1]]
+        since = len(self.history) - self._tightened
+        if since > o.qp_stall_window and kkt > o.qp_stall_ratio * min(kkts):
+            self.eps_max = max(self.eps_min, 0.1 * self.eps_max)
+            self._tightened = len(self.history)
         solver.eps_abs = min(self.eps_max, max(self.eps_min, o.qp_forcing * kkt))
 
 
