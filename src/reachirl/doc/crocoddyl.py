@@ -121,6 +121,14 @@ class CsqpOptions:
       least that many iterations; 10 or 15 cut the QPs too short (2–4 of the 10 benchmark problems failed).
     * when CSQP stops early (no acceptable step along an inexact QP direction) it is restarted from where it
       stopped with the tightest QP tolerance.
+    * ``qp_stall_ratio``/``qp_stall_window``: ADMM's stopping test compares ρ × the change of its iterates
+      with ``eps_abs``; at a small ρ it passes after 25 iterations with multipliers still far off, and the SQP
+      then cycled at the optimum (q within 0.004° of CasADi's) with a KKT residual stuck at ~1e-2 (2 of 172
+      learned-weight predictions). When the KKT residual has not halved over ``qp_stall_window`` QPs, the cap
+      on the QP tolerance is cut tenfold (down to ``qp_eps_min · tol``). Both then converged; on the random
+      benchmark problems it costs ~10 % more time.
+    * ``energy_exact_hessian`` (off): adding the energy's ``d1·∂²r/∂q̇∂τ`` term to the Gauss-Newton Hessian cut
+      the median iterations on 20 learned-weight problems from 36 to 21.5 but lost one of them (19/20).
 
     Scale and merit (issue 11: CSQP stalled on learned weights; measured on 54 predictions, one trial of each
     fit of ``benchmarks/learned_weights.json``: 46/54 converged before, 54/54 after):
