@@ -9,7 +9,12 @@ the same changed problems solved cold (``cold2``, to tell what the warm start sa
 (``time.process_time`` around ``solve_doc``, so on a loaded 2-core machine they are steadier than the wall-clock
 ``solve_time``; medians over the problems of the median over repeats), the agreement of the two backends (q
 RMSE in degrees, relative cost difference under ``features.trajectory_cost``), and where the Crocoddyl
-backend's time goes (Python knot model vs the C++ model inside it vs the rest, i.e. CSQP's QPs).
+backend's time goes (:func:`_profile_crocoddyl`).
+
+``learned_weights``: the same comparison on the weights real fits produce (:func:`learned_sweep`, from
+``benchmarks/learned_weights.json``, made by ``benchmarks/learned_weights.py``): both convergence rates,
+Crocoddyl's rate where CasADi converged, and the agreement where both converged (every 5th prediction by
+default; ``learned_stride=1`` for all of them).
 """
 
 from __future__ import annotations
@@ -43,37 +48,185 @@ def _median(x):
     return float(np.median(x)) if len(x) else float("nan")
 
 
+def _time(f, n: int) -> float:
+    f()
+    t0 = time.perf_counter()
+    for _ in range(n):
+        f()
+    return (time.perf_counter() - t0) / n
+
+
 def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
-    """Per-knot cost of the Python knot model and of the C++ integrated model inside it (µs per call)."""
+    """Where a Crocoddyl solve's time goes, measured piece by piece in this run.
+
+    Per knot (µs per call): the Python knot model (``knot_*``), the C++ ``IntegratedActionModelEuler`` inside
+    it with the five built-in features (``inner_*``), the custom terms' arithmetic (energy, torque change) in
+    Python scalars, an empty Python action model (the floor of any Python knot: the C++ → Python call), and a
+    CasADi ``Function`` of the custom terms called from Python (the compiled-derivatives route). Per solve
+    (ms): the SQP iterations × (calc + calcDiff of the 100 knots), the line-search rollouts (one calc per SQP
+    iteration at least), and CSQP's ADMM iterations (× the time of one, from ``computeDirection``), against the
+    measured solve time; the rest is Python in the monitor callback and bookkeeping.
+    """
+    import math
+
+    import casadi as ca
+    import crocoddyl
+
+    from reachirl import solve_doc
     from reachirl.doc import crocoddyl as cb
 
+    scale = cb.weight_scale(task, w)[0]
     prob = cb.build_problem(task.arm, task.n_nodes, w.shape[0])
-    prob.update(task, w)
+    prob.update(task, w * scale)
     m = prob.running[task.n_nodes // 2]
     d = m.createData()
     x = np.r_[task.q0, 0.5, -0.3, 1.0, 0.5]
     u = np.array([2.0, 1.0])
-    timings = {}
-    for name, f in (
-        ("knot_calc_us", lambda: m.calc(d, x, u)),
-        ("knot_calcdiff_us", lambda: m.calcDiff(d, x, u)),
-        ("inner_calc_us", lambda: m.inner.calc(d.inner, x[:4], u)),
-        ("inner_calcdiff_us", lambda: m.inner.calcDiff(d.inner, x[:4], u)),
-    ):
-        t0 = time.perf_counter()
-        for _ in range(n_calls):
-            f()
-        timings[name] = 1e6 * (time.perf_counter() - t0) / n_calls
-    xs, us = cb._to_shooting(task, *cb.initial_guess(task))
-    t0 = time.perf_counter()
-    for _ in range(20):
-        prob.problem.calc(xs, us)
-        prob.problem.calcDiff(xs, us)
-    timings["problem_calc_calcdiff_ms"] = 1e3 * (time.perf_counter() - t0) / 20
-    return timings
+    out = {
+        "knot_calc_us": 1e6 * _time(lambda: m.calc(d, x, u), n_calls),
+        "knot_calcdiff_us": 1e6 * _time(lambda: m.calcDiff(d, x, u), n_calls),
+        "inner_calc_us": 1e6 * _time(lambda: m.inner.calc(d.inner, x[:4], u), n_calls),
+        "inner_calcdiff_us": 1e6 * _time(lambda: m.inner.calcDiff(d.inner, x[:4], u), n_calls),
+    }
+
+    def custom_terms():
+        _, _, v0, v1, p0, p1 = x.tolist()
+        u0, u1 = u.tolist()
+        r = v0 * u0 + v1 * u1
+        s = math.sqrt(r * r + 1e-6)
+        return r / s, 1e-6 / (s * s * s), u0 - p0, u1 - p1
+
+    out["custom_terms_python_us"] = 1e6 * _time(custom_terms, n_calls)
+
+    class Empty(crocoddyl.ActionModelAbstract):
+        def __init__(self):
+            crocoddyl.ActionModelAbstract.__init__(self, crocoddyl.StateVector(6), 2, 1)
+
+        def calc(self, data, x, u=None):
+            pass
+
+        def calcDiff(self, data, x, u=None):  # noqa: N802
+            pass
+
+    e = Empty()
+    empty = crocoddyl.ShootingProblem(np.zeros(6), [e] * task.n_nodes, e)
+    xs0, us0 = [np.zeros(6)] * (task.n_nodes + 1), [np.zeros(2)] * task.n_nodes
+    out["empty_python_knot_calc_plus_calcdiff_us"] = (
+        1e6 * _time(lambda: (empty.calc(xs0, us0), empty.calcDiff(xs0, us0)), 50) / task.n_nodes
+    )
+    xs_, us_, ps_ = ca.SX.sym("x", 6), ca.SX.sym("u", 2), ca.SX.sym("p", 3)
+    r = ca.dot(xs_[2:4], us_)
+    c = ps_[0] * (ca.sqrt(r * r + ps_[2] ** 2) - ps_[2]) + ps_[1] * ca.sumsqr(us_ - xs_[4:6])
+    z = ca.vertcat(xs_, us_)
+    f = ca.Function("custom", [xs_, us_, ps_], [c, ca.gradient(c, z), ca.hessian(c, z)[0]])
+    pn = np.array([0.01, 10.0, 1e-3])
+    out["custom_terms_casadi_function_us"] = 1e6 * _time(lambda: f(x, u, pn), max(n_calls // 10, 10))
+
+    # one solve, then its pieces at its solution
+    sol = solve_doc(task, w, backend="crocoddyl")
+    iters = sol.iterations
+    qp_iters = int(sol.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in sol.status else 0
+    xs, us = cb._to_shooting(task, sol.q, sol.qd, sol.tau)
+    prob.update(task, w * scale)
+    t_calc = _time(lambda: prob.problem.calc(xs, us), 20)
+    t_diff = _time(lambda: prob.problem.calcDiff(xs, us), 20)
+
+    def one_sqp_iteration(n_qp):  # calcDiff, one QP of exactly n_qp ADMM iterations, the line search
+        solver = prob.make_solver(-1.0, 0.0)
+        solver.max_qp_iters = n_qp
+        solver.solve(list(xs), list(us), 1, False)
+
+    t_qp = (_time(lambda: one_sqp_iteration(225), 5) - _time(lambda: one_sqp_iteration(25), 5)) / 200
+    total = sol.solve_time
+    pieces = {
+        "knot_models_calcdiff_ms": 1e3 * iters * t_diff,
+        "knot_models_calc_ms": 1e3 * iters * t_calc,  # at least one line-search rollout per iteration
+        "admm_ms": 1e3 * qp_iters * t_qp,
+    }
+    pieces["rest_ms"] = 1e3 * total - sum(pieces.values())
+    python_share = 1.0 - (out["inner_calc_us"] + out["inner_calcdiff_us"]) / (
+        out["knot_calc_us"] + out["knot_calcdiff_us"]
+    )
+    out.update(
+        {
+            "problem_calc_ms": 1e3 * t_calc,
+            "problem_calcdiff_ms": 1e3 * t_diff,
+            "admm_iteration_us": 1e6 * t_qp,
+            "solve": {"time_ms": 1e3 * total, "sqp_iterations": iters, "admm_iterations": qp_iters, **pieces},
+            "python_share_of_knot_time": python_share,
+        }
+    )
+    return out
 
 
-def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
+def learned_sweep(stride: int = 1, path=None) -> dict:
+    """Both backends on the weights that fits really produce (``benchmarks/learned_weights.json``: MO-IRL,
+    MaxEnt and bilevel at 1/6/8 windows on the built-in virtual subjects and the UE-ADL sample), predicting
+    every trial of each fit's split (every ``stride``-th with ``stride > 1``), each from a cold start.
+
+    Reports both convergence rates, Crocoddyl's rate on the predictions where CasADi converged, and where both
+    converged the q RMSE between them (degrees) and the relative cost difference; a failure is counted, never
+    averaged in.
+    """
+    import importlib.util
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    spec = importlib.util.spec_from_file_location("reachirl_learned_weights", here / "learned_weights.py")
+    lw = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(lw)
+    fits = lw.load(path or here / "learned_weights.json")
+    rows, i = [], 0
+    for f in fits:
+        w = np.array(f["weights"])
+        for set_name, trials in f["trials"].items():
+            for d in trials:
+                i += 1
+                if (i - 1) % stride:
+                    continue
+                task = lw.to_task(d)
+                a = solve_doc(task, w, backend="casadi")
+                c = solve_doc(task, w, backend="crocoddyl")
+                rows.append(
+                    {
+                        "fit": f"{f['source']}/{f['method']}/{f['posture']}/s{f['sections']}",
+                        "set": set_name,
+                        "trial": d["id"],
+                        "casadi_converged": bool(a.converged),
+                        "crocoddyl_converged": bool(c.converged),
+                        "q_rmse_deg": float(np.rad2deg(np.sqrt(np.mean((a.q - c.q) ** 2)))),
+                        "cost_diff_pct": float(100.0 * (c.cost - a.cost) / a.cost),
+                        "casadi_s": a.solve_time,
+                        "crocoddyl_s": c.solve_time,
+                        "crocoddyl_iterations": c.iterations,
+                        "crocoddyl_status": c.status,
+                    }
+                )
+    both = [r for r in rows if r["casadi_converged"] and r["crocoddyl_converged"]]
+    n_ca = sum(r["casadi_converged"] for r in rows)
+    rm = [r["q_rmse_deg"] for r in both]
+    dc = [abs(r["cost_diff_pct"]) for r in both]
+    return {
+        "n_fits": len(fits),
+        "n_predictions": len(rows),
+        "casadi_converged": n_ca,
+        "crocoddyl_converged": sum(r["crocoddyl_converged"] for r in rows),
+        "crocoddyl_rate_where_casadi_converged": len(both) / n_ca if n_ca else float("nan"),
+        "both_converged": len(both),
+        "q_rmse_deg_median": _median(rm),
+        "q_rmse_deg_max": float(np.max(rm)) if rm else float("nan"),
+        "q_rmse_over_0.1deg": int(sum(v > 0.1 for v in rm)),
+        "cost_diff_pct_median_abs": _median(dc),
+        "cost_diff_pct_max_abs": float(np.max(dc)) if dc else float("nan"),
+        "cost_diff_over_0.1pct": int(sum(v > 0.1 for v in dc)),
+        "casadi_median_s": _median([r["casadi_s"] for r in rows]),
+        "crocoddyl_median_s": _median([r["crocoddyl_s"] for r in rows]),
+        "failures": [r for r in rows if r["casadi_converged"] != r["crocoddyl_converged"]],
+        "disagreements": [r for r in both if r["q_rmse_deg"] > 0.1 or abs(r["cost_diff_pct"]) > 0.1],
+    }
+
+
+def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8), learned_stride: int = 5) -> dict:
     """Time both backends on the same problems; returns a JSON-able dict of figures."""
     probs = problems(seed, windows)
     keys = ("cold_s", "cold_iter", "warm_s", "warm_iter", "cold_cpu_s", "warm_cpu_s", "cold2_cpu_s", "cold2_iter")
@@ -156,6 +309,7 @@ def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8)) -> dict:
     )
     summary["crocoddyl_profile"] = _profile_crocoddyl(probs[0][0], probs[0][1])
     summary["problems"] = rows
+    summary["learned_weights"] = learned_sweep(learned_stride)
     summary["setup"] = {
         "n_problems": len(probs),
         "n_repeats": n_repeats,

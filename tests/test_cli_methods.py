@@ -50,7 +50,7 @@ def test_reproduce_every_method(tiny_trials, tmp_path, cli):
                         "--out", out)
     assert proc.returncode == 0, proc.stderr
     for m in METHODS:
-        assert f"{m}: RMSE of the joint angles" in proc.stdout
+        assert f"{m} (casadi DOC): RMSE of the joint angles" in proc.stdout
     res = json.loads((out / "results.json").read_text())
     assert sorted({u["unit"]["method"] for u in res["units"]}) == sorted(METHODS)
     assert len(res["units"]) == 2 * len(METHODS)

@@ -57,14 +57,25 @@ def evaluate_trials(
     return out
 
 
-def summarise(errors: Sequence[TrialError]) -> dict:
-    """``{"n_trials", "rmse_deg": {"q1"|"q2"|"q": {"mean", "std"}}, "doc_failures"}`` (population SD)."""
+def summarise(errors: Sequence[TrialError], include_failed: bool = False) -> dict:
+    """``{"n_trials", "n_included", "doc_failures", "failures_included", "rmse_deg": {"q1"|"q2"|"q": {"mean",
+    "std"}}}`` (population SD).
+
+    A prediction whose DOC did not converge is not an answer of the model: it is counted in ``doc_failures`` and
+    left out of the RMSE statistics unless ``include_failed``. With no prediction left, mean and SD are None.
+    """
+    kept = [e for e in errors if include_failed or e.converged]
+
     def stats(key: str) -> dict:
-        v = np.array([getattr(e, f"rmse_{key}") for e in errors])
+        if not kept:
+            return {"mean": None, "std": None}
+        v = np.array([getattr(e, f"rmse_{key}") for e in kept])
         return {"mean": float(np.mean(v)), "std": float(np.std(v))}
 
     return {
         "n_trials": len(errors),
-        "rmse_deg": {k: stats(k) for k in ("q1", "q2", "q")},
+        "n_included": len(kept),
         "doc_failures": int(sum(not e.converged for e in errors)),
+        "failures_included": bool(include_failed),
+        "rmse_deg": {k: stats(k) for k in ("q1", "q2", "q")},
     }

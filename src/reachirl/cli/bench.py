@@ -59,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
         module = _load(suite)
         t0 = time.perf_counter()
         print(f"== {suite} ==", flush=True)
-        quick = {"doc": {"n_repeats": 6, "sweep": False}, "backends": {"n_repeats": 1}, "irl": {"quick": True}}
+        quick = {"doc": {"n_repeats": 6, "sweep": False}, "backends": {"n_repeats": 1, "learned_stride": 20},
+                 "irl": {"quick": True}}
         kwargs = dict(quick[suite]) if args.quick else {}
         if suite == "irl" and args.out is not None:
             kwargs["out_dir"] = args.out.parent / "bench_irl"

@@ -28,6 +28,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="DOC backend (default casadi)")
+    p.add_argument("--include-failed", action="store_true",
+                   help="average the RMSE of predictions whose DOC did not converge too (default: count them, "
+                        "leave them out)")
     p.add_argument("--predictions", type=Path, default=None, metavar="DIR",
                    help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
                    "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
@@ -62,12 +65,18 @@ def run(args: argparse.Namespace) -> int:
         task = progress.add_task("predicting", total=len(trials))
         errors = evaluate_trials(model.weights, trials, n_nodes=model.n_nodes, backend=args.backend,
                                  on_trial=lambda e: progress.advance(task))
-    summary = summarise(errors)
+    summary = summarise(errors, include_failed=args.include_failed)
     atomic_write_json(args.out, {"summary": summary, "trials": [e.to_dict() for e in errors]})
     r = summary["rmse_deg"]
-    print(f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
-          f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
-          + (f" ({summary['doc_failures']} DOC failures)" if summary["doc_failures"] else ""))
+    fails = summary["doc_failures"]
+    how = "included in" if args.include_failed else "left out of"
+    note = f"; {fails} DOC failure(s) ({args.backend}), {how} the RMSE" if fails else ""
+    if r["q"]["mean"] is None:
+        print(f"{summary['n_trials']} trials: no prediction converged ({args.backend}); no RMSE")
+    else:
+        print(f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
+              f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
+              f" over {summary['n_included']} prediction(s){note}")
     print(f"wrote {args.out}")
     if args.predictions is not None:
         from ..exports import export_trajectories

@@ -36,6 +36,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    "(default 30)")
     p.add_argument("--nodes", type=int_in(MIN_NODES, MAX_NODES), default=100,
                    help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
+                   help="DOC backend of the fit's solves (default: casadi)")
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
                    "(default mean)")
@@ -68,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     trials = load_trials(args.trials)
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
-    kwargs = {"n_nodes": args.nodes}
+    kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     if args.method in ("moirl", "maxent"):
         kwargs.update(max_iter=args.max_iter, rollout=args.rollout)
 
@@ -84,6 +86,7 @@ def run(args: argparse.Namespace) -> int:
     info = {
         "trials": str(args.trials),
         "n_trials": len(trials),
+        "backend": args.backend,
         "trial_ids": [t.id for t in trials],
         "n_iter": getattr(est, "n_iter_", None),
         "n_doc_solves": getattr(est, "n_doc_solves_", None),
@@ -97,6 +100,6 @@ def run(args: argparse.Namespace) -> int:
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
     print(f"wrote {args.out}: {args.method}, {args.sections} section(s), {info['n_iter']} iterations, "
-          f"{info['n_doc_solves']} DOC solves"
+          f"{info['n_doc_solves']} DOC solves ({args.backend})"
           + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else ""))
     return 0

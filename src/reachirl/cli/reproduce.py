@@ -73,6 +73,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         metavar="NAME",
         help="moirl (default) and/or baselines (maxent, bilevel, kkt); the first one is the main table",
     )
+    g.add_argument(
+        "--backend",
+        choices=("casadi", "crocoddyl"),
+        default="casadi",
+        help="DOC backend of every fit and prediction (default: casadi)",
+    )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
     g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
                    "(default: either arm; with --cv other-side, right)")
@@ -137,6 +143,7 @@ def _config(args):
         n_iscv=pick("n_iscv", "n_iscv"),
         n_nodes=args.nodes or base["nodes"],
         max_iter=args.max_iter or base["max_iter"],
+        backend=args.backend,
     )
 
 
@@ -157,7 +164,7 @@ def _print_table(console, outputs, config, postures) -> None:
     from ..experiments import tables as tb
 
     for m, table in outputs["tables"].items():
-        t = Table(title=f"{m}: RMSE of the joint angles (deg), mean ± SD", show_lines=False)
+        t = Table(title=f"{m} ({config.backend} DOC): RMSE of the joint angles (deg), mean ± SD", show_lines=False)
         t.add_column("posture")
         t.add_column("joint")
         for s in tb.SETS:

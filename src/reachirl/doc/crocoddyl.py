@@ -66,7 +66,9 @@ from ..arm import ArmModel
 from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
 from .task import DocSolution, ReachingTask
 
-__all__ = ["CROCODDYL_COST_ITEMS", "CsqpOptions", "KnotModel", "ReachingProblem", "build_problem", "solve"]
+__all__ = [
+    "CROCODDYL_COST_ITEMS", "CsqpOptions", "KnotModel", "ReachingProblem", "build_problem", "solve", "weight_scale",
+]
 
 log = logging.getLogger(__name__)
 
@@ -78,10 +80,6 @@ CROCODDYL_COST_ITEMS: dict[str, tuple[str, ...]] = {
     "joint_velocity": ("joint_velocity",),
     "joint_torque": ("joint_torque",),
 }
-#: the cost of the cold guess under the weights CSQP is given (see :func:`solve`). Measured on the 20 problems of
-#: benchmarks/bench_backends.py and tests/test_doc.py: 18/20 converged, median 32 iterations (the weights as
-#: given, with guess costs of 0.7 to 37: 18/20, 54 iterations; a scale of 1: 16/20; 10: 17/20; 30: 12/20).
-COST_SCALE = 5.0
 _J_ENERGY = FEATURES.index("energy")
 _J_TORQUE_CHANGE = FEATURES.index("torque_change")
 _NX, _NU = 6, 2  # augmented state (q, q̇, τ_prev) and control τ
@@ -113,19 +111,42 @@ class CsqpOptions:
       residual, ``clip(qp_forcing · KKT, qp_eps_min · tol, qp_eps_max)``. With a fixed tolerance above the
       KKT tolerance (as before: 1e-4 absolute + 1e-4 relative) the QP multipliers could never make the KKT
       residual small enough.
-    * ``reset_rho``: each QP starts from CSQP's base ADMM penalty ρ = 0.1, and ``adaptive_rho_tolerance``
-      lets ADMM change ρ only when its estimate is 20× off. Otherwise ρ carried over between SQP iterations
-      climbed to its cap 1e3 (its heuristic compares residuals relative to the step, which goes to zero), after
-      which each QP took its 1000 iterations (75 µs each) and the SQP crawled.
+    * ``reset_rho = False``: ADMM's penalty ρ carries over from one QP to the next (it settles at 2–10 on the
+      scaled objective). Resetting it to CSQP's base 0.1 before each QP (as before) left every QP at ρ = 0.1
+      for its first 25 iterations, after which the loose early QPs stopped: each SQP step then came from a
+      QP solved with the wrong ρ, and the SQP crawled (median 69 iterations on the learned-weight sample
+      below, against 29 without the reset). ``adaptive_rho_tolerance`` lets ADMM change ρ only when its
+      estimate is 20× off.
     * ``rho_update_interval`` (CSQP's default 25) is also how often ADMM tests its residuals, so a QP takes at
       least that many iterations; 10 or 15 cut the QPs too short (2–4 of the 10 benchmark problems failed).
     * when CSQP stops early (no acceptable step along an inexact QP direction) it is restarted from where it
       stopped with the tightest QP tolerance.
+    * ``qp_stall_ratio``/``qp_stall_window``: ADMM's stopping test compares ρ × the change of its iterates
+      with ``eps_abs``; at a small ρ it passes after 25 iterations with multipliers still far off, and the SQP
+      then cycled at the optimum (q within 0.004° of CasADi's) with a KKT residual stuck at ~1e-2 (2 of 172
+      learned-weight predictions). When the KKT residual has not halved over ``qp_stall_window`` QPs, the cap
+      on the QP tolerance is cut tenfold (down to ``qp_eps_min · tol``). Both then converged; on the random
+      benchmark problems it costs ~10 % more time.
+    * ``energy_exact_hessian`` (off): adding the energy's ``d1·∂²r/∂q̇∂τ`` term to the Gauss-Newton Hessian cut
+      the median iterations on 20 learned-weight problems from 36 to 21.5 but lost one of them (19/20).
 
-    CSQP's line search uses the merit function with CSQP's fixed penalty 10 (``merit_penalty``), not the
-    filter: the filter (with its default memory of one iterate) accepted full steps that cycled on this
-    problem; a penalty of 100 converged too but took more iterations, and CSQP's adaptive penalty (negative
-    values: 10 × the largest multiplier) took tiny steps and failed.
+    Scale and merit (issue 11: CSQP stalled on learned weights; measured on 54 predictions, one trial of each
+    fit of ``benchmarks/learned_weights.json``: 46/54 converged before, 54/54 after):
+
+    * ``objective_scale``: CSQP is not scale-invariant: its merit penalty, its ADMM penalty ρ and the QP and
+      feasibility tolerances are absolute numbers, while the scale-free MO-IRL (and MaxEnt, bilevel) return
+      weights whose cold-guess cost ranges from 0.25 to 5e4. The weights are multiplied by
+      ``objective_scale / J(cold guess)`` inside the solver (the minimiser does not change; the reported
+      ``cost`` is the unscaled one). The same problem at 1×, 10×, 100× and 1000× its weights converged only
+      at 10× before.
+    * ``merit_penalty_factor``: CSQP's line search uses the ℓ1 merit ``J + μ_dyn‖gaps‖₁ + μ_c‖violation‖₁``,
+      which is an exact penalty only when μ exceeds the multipliers. With CSQP's fixed μ = 10 the
+      terminal-constraint multipliers of the learned-weight problems reached 120 (at a cost of 10): the merit
+      then rejected the steps to the optimum and CSQP stopped or cycled with KKT ~1e-2. The monitor raises
+      μ_dyn and μ_c (never lowers them) to ``merit_penalty_factor`` × the largest dynamics and constraint
+      multipliers of the last QP. CSQP's own adaptive rule (negative penalties: 10 × the largest
+      multiplier) is too large a factor and took tiny steps (8/54 converged); the filter line search cycled.
+    * the energy smoothing ε (1e-3, 1e-2, 1e-1 W) made no difference to convergence.
     """
 
     max_iter: int = 200
@@ -138,12 +159,17 @@ class CsqpOptions:
     qp_eps_max: float = 1e-3
     qp_eps_min: float = 0.1
     qp_forcing: float = 0.1
-    reset_rho: bool = True
+    qp_stall_ratio: float = 0.5  # KKT not below this × the last qp_stall_window: tighten the QP tolerance cap
+    qp_stall_window: int = 5
+    reset_rho: bool = False
     rho_update_interval: int = 25
     adaptive_rho_tolerance: int = 20
     merit_penalty: float = 10.0
+    merit_penalty_factor: float = 1.2  # >0: raise the penalties to this factor × the largest multipliers
     energy_smoothing: float = 1e-3  # ε of the smooth |q̇ᵀτ|, in W
+    objective_scale: float = 10.0  # the weights are scaled so that the cold guess costs this much
     use_filter_line_search: bool = False
+    energy_exact_hessian: bool = False  # add the energy's d1·∂²r/∂q̇∂τ term (not Gauss-Newton)
 
 
 DEFAULT_OPTIONS = CsqpOptions()
@@ -151,26 +177,26 @@ DEFAULT_OPTIONS = CsqpOptions()
 
 # ---------------------------------------------------------------------- the knot model
 class KnotData(crocoddyl.ActionDataAbstract):
-    """The knot's data, with cached numpy views of its own and the inner model's arrays (they never move)."""
+    """The knot's data, with numpy views of its own and the inner model's arrays made once (the arrays never
+    move): each eigenpy attribute access builds a new view (~1 µs), and copying into a ready view with
+    ``np.copyto`` costs half of a sliced assignment."""
 
     def __init__(self, model: KnotModel):
         crocoddyl.ActionDataAbstract.__init__(self, model)
         self.inner = di = model.inner.createData()
         self.Fu[4:, :] = np.eye(_NU)  # τ_prev at the next knot is this knot's τ
-        self.v = (
-            self.xnext,
-            self.g,
-            self.Fx,
-            self.Fu,
-            self.Lx,
-            self.Lu,
-            self.Lxx,
-            self.Lxu,
-            self.Luu,
-            self.Gx,
-            self.Gu,
-        )
-        self.vi = (di.xnext, di.g, di.Fx, di.Fu, di.Lx, di.Lu, di.Lxx, di.Lxu, di.Luu, di.Gx, di.Gu)
+        Fx, Fu, Lx, Lu, Lxx, Lxu, Luu = self.Fx, self.Fu, self.Lx, self.Lu, self.Lxx, self.Lxu, self.Luu
+        self.xnext_, self.g_, self.Lx_, self.Lu_, self.Lxx_, self.Lxu_, self.Luu_ = (
+            self.xnext, self.g, Lx, Lu, Lxx, Lxu, Luu)
+        # (destination view, source view) pairs copied after the inner model's calcDiff
+        self.copies_running = [(Fx[:4, :4], di.Fx), (Fu[:4], di.Fu), (Lx[:4], di.Lx), (Lu, di.Lu),
+                               (Lxx[:4, :4], di.Lxx), (Lxu[:4], di.Lxu), (Luu, di.Luu)]
+        self.copies_terminal = [(Lx[:4], di.Lx), (Lxx[:4, :4], di.Lxx)]
+        if model.n_constraints:
+            self.copies_running += [(self.Gx[:, :4], di.Gx), (self.Gu, di.Gu)]
+            self.copies_terminal.append((self.Gx[:, :4], di.Gx))
+        self.inner_xnext, self.inner_g = di.xnext, di.g
+        self.xnext4, self.xnext_tau = self.xnext[:4], self.xnext[4:]
 
 
 class KnotModel(crocoddyl.ActionModelAbstract):
@@ -190,6 +216,7 @@ class KnotModel(crocoddyl.ActionModelAbstract):
         self.first, self.terminal = first, terminal
         self.n_constraints = ng
         self.eps = float(energy_smoothing)
+        self.exact_hessian = False
         self.dt = float(inner.dt)
         self.w_energy = 0.0
         self.w_torque_change = 0.0
@@ -220,78 +247,79 @@ class KnotModel(crocoddyl.ActionModelAbstract):
     # Crocoddyl calls calc(data, x) on the terminal knot and calc(data, x, u) on the others.
     def calc(self, data, x, u=None):
         di = data.inner
-        xnext, g = data.v[0], data.v[1]
         if u is None or self.terminal:
             self.inner.calc(di, x[:4])
             data.cost = di.cost
-            xnext[:] = x
+            np.copyto(data.xnext_, x)
         else:
             self.inner.calc(di, x[:4], u)
             cost = di.cost
-            u0, u1 = u[0].item(), u[1].item()
-            if self.w_energy > 0.0:
-                r = x[2].item() * u0 + x[3].item() * u1
-                cost += self.w_energy * self.dt * (math.sqrt(r * r + self.eps * self.eps) - self.eps)
-            if self.w_torque_change > 0.0:
-                d0, d1 = u0 - x[4].item(), u1 - x[5].item()
-                cost += self.w_torque_change / self.dt * (d0 * d0 + d1 * d1)
+            if self.w_energy > 0.0 or self.w_torque_change > 0.0:
+                _, _, v0, v1, p0, p1 = x.tolist()
+                u0, u1 = u.tolist()
+                if self.w_energy > 0.0:
+                    r = v0 * u0 + v1 * u1
+                    cost += self.w_energy * self.dt * (math.sqrt(r * r + self.eps * self.eps) - self.eps)
+                if self.w_torque_change > 0.0:
+                    d0, d1 = u0 - p0, u1 - p1
+                    cost += self.w_torque_change / self.dt * (d0 * d0 + d1 * d1)
             data.cost = cost
-            xnext[:4] = data.vi[0]
-            xnext[4:] = u
+            np.copyto(data.xnext4, data.inner_xnext)
+            np.copyto(data.xnext_tau, u)
         if self.n_constraints:
-            g[:] = data.vi[1]
+            np.copyto(data.g_, data.inner_g)
 
     def calcDiff(self, data, x, u=None):  # noqa: N802  (Crocoddyl's API)
         di = data.inner
-        _, _, Fx, Fu, Lx, Lu, Lxx, Lxu, Luu, Gx, Gu = data.v
-        _, _, iFx, iFu, iLx, iLu, iLxx, iLxu, iLuu, iGx, iGu = data.vi
         if u is None or self.terminal:
             self.inner.calcDiff(di, x[:4])
-            Lx[:4] = iLx
-            Lxx[:4, :4] = iLxx
-            if self.n_constraints:
-                Gx[:, :4] = iGx
+            for dst, src in data.copies_terminal:
+                np.copyto(dst, src)
             return
         self.inner.calcDiff(di, x[:4], u)
-        Fx[:4, :4] = iFx
-        Fu[:4] = iFu
-        Lx[:4] = iLx
-        Lu[:] = iLu
-        Lxx[:4, :4] = iLxx
-        Lxu[:4] = iLxu
-        Luu[:] = iLuu
+        for dst, src in data.copies_running:
+            np.copyto(dst, src)
+        Lx, Lu, Lxx, Lxu, Luu = data.Lx_, data.Lu_, data.Lxx_, data.Lxu_, data.Luu_
         # the two Python terms, in scalars (numpy calls on 2-vectors cost more than the arithmetic)
+        _, _, v0, v1, p0, p1 = x.tolist()
+        u0, u1 = u.tolist()
         if self.w_energy > 0.0:
-            v0, v1 = x[2].item(), x[3].item()
-            u0, u1 = u[0].item(), u[1].item()
             r = v0 * u0 + v1 * u1
             s = math.sqrt(r * r + self.eps * self.eps)
             c = self.w_energy * self.dt
-            d1, d2 = (
-                c * r / s,
-                c * self.eps * self.eps / (s * s * s),
-            )  # first and second derivative of smooth |r|
+            d1 = c * r / s  # first and second derivative of the smooth |r|
+            d2 = c * self.eps * self.eps / (s * s * s)
             Lx[2] += d1 * u0
             Lx[3] += d1 * u1
             Lu[0] += d1 * v0
             Lu[1] += d1 * v1
             # Gauss-Newton, like Crocoddyl's residual costs: the term d1·∂²r/∂q̇∂τ = d1·I is left out
-            Lxx[2:4, 2:4] += [[d2 * u0 * u0, d2 * u0 * u1], [d2 * u0 * u1, d2 * u1 * u1]]
-            Lxu[2:4] += [[d2 * u0 * v0, d2 * u0 * v1], [d2 * u1 * v0, d2 * u1 * v1]]
-            Luu += [[d2 * v0 * v0, d2 * v0 * v1], [d2 * v0 * v1, d2 * v1 * v1]]
-        if self.w_torque_change > 0.0:
-            c = 2.0 * self.w_torque_change / self.dt
-            d0, d1 = c * (u[0].item() - x[4].item()), c * (u[1].item() - x[5].item())
+            a, b, e = d2 * u0 * u0, d2 * u0 * u1, d2 * u1 * u1
+            Lxx[2, 2] += a
+            Lxx[2, 3] += b
+            Lxx[3, 2] += b
+            Lxx[3, 3] += e
+            h = d1 if self.exact_hessian else 0.0  # d1·∂²r/∂q̇∂τ = d1·I
+            Lxu[2, 0] += d2 * u0 * v0 + h
+            Lxu[2, 1] += d2 * u0 * v1
+            Lxu[3, 0] += d2 * u1 * v0
+            Lxu[3, 1] += d2 * u1 * v1 + h
+            a, b, e = d2 * v0 * v0, d2 * v0 * v1, d2 * v1 * v1
+            Luu[0, 0] += a
+            Luu[0, 1] += b
+            Luu[1, 0] += b
+            Luu[1, 1] += e
+        # always written (τ_prev's entries are not copied from the inner model, and a weight may become 0)
+        c = 2.0 * self.w_torque_change / self.dt
+        d0, d1 = c * (u0 - p0), c * (u1 - p1)
+        Lx[4], Lx[5] = -d0, -d1
+        Lxx[4, 4] = Lxx[5, 5] = c
+        Lxu[4, 0] = Lxu[5, 1] = -c
+        if c > 0.0:
             Lu[0] += d0
             Lu[1] += d1
-            Lx[4], Lx[5] = -d0, -d1
             Luu[0, 0] += c
             Luu[1, 1] += c
-            Lxx[4, 4] = Lxx[5, 5] = c
-            Lxu[4, 0] = Lxu[5, 1] = -c
-        if self.n_constraints:
-            Gx[:, :4] = iGx
-            Gu[:] = iGu
 
 
 # ---------------------------------------------------------------------- the problem
@@ -402,6 +430,7 @@ class ReachingProblem:
         lb = np.r_[task.q_lower, -task.qd_max]
         ub = np.r_[task.q_upper, task.qd_max]
         for k, m in enumerate(self.running):
+            m.exact_hessian = self.options.energy_exact_hessian
             m.set_dt(task.dt)
             m.set_weights(weights[self.window[k]])
             if m.n_constraints:
@@ -448,6 +477,8 @@ class _Monitor(mim_solvers.CallbackAbstract):
         self.reason = ""
         self.acceptable = False  # the last point is feasible and its KKT residual within acceptable_factor·tol
         self._n_acceptable = 0
+        self.mu = (options.merit_penalty, options.merit_penalty)  # CSQP's (mu_dynamic, mu_constraint)
+        self._tightened = 0  # len(history) when the QP tolerance cap was last tightened
 
     def __call__(self, solver, name):
         o = self.o
@@ -469,7 +500,23 @@ class _Monitor(mim_solvers.CallbackAbstract):
                 stop, self.reason = True, "converged to an acceptable level"
         else:
             self._n_acceptable = 0
+        if o.merit_penalty_factor > 0.0:
+            # the ℓ1 merit is an exact penalty only while its penalties exceed the multipliers (‖λ‖∞, ‖y‖∞),
+            # which grow with the weights: raise them (never lower them) before the line search
+            lam = max(float(np.abs(v).max()) for v in solver.lag_mul)
+            y = max((float(np.abs(v).max()) for v in solver.y if len(v)), default=0.0)
+            self.mu = (max(self.mu[0], o.merit_penalty_factor * lam), max(self.mu[1], o.merit_penalty_factor * y))
+            solver.mu_dynamic, solver.mu_constraint = self.mu
         solver.termination_tolerance = kkt if stop else -1.0
+        # inexact SQP: the QP tolerance follows the KKT residual, but ADMM's own residuals (ρ times the change
+        # of its iterates) can pass a loose tolerance while its multipliers are still far off, and the SQP then
+        # cycles with a KKT residual that never falls: when the KKT residual has not halved in qp_stall_window QPs,
+        # tighten the cap on the QP tolerance tenfold (down to eps_min)
+        kkts = [h[0] for h in self.history[-o.qp_stall_window - 1 : -1]]
+        since = len(self.history) - self._tightened
+        if since > o.qp_stall_window and kkt > o.qp_stall_ratio * min(kkts):
+            self.eps_max = max(self.eps_min, 0.1 * self.eps_max)
+            self._tightened = len(self.history)
         solver.eps_abs = min(self.eps_max, max(self.eps_min, o.qp_forcing * kkt))
 
 
@@ -534,6 +581,25 @@ def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list
     return list(xs), list(np.asarray(tau, dtype=float))
 
 
+def _task_key(task: ReachingTask) -> tuple:
+    """What must match for a warm start: everything in the task but the weights."""
+    return (task.n_nodes, task.arm, tuple(task.q0), task.target_x, task.duration, tuple(task.q_lower),
+            tuple(task.q_upper), tuple(task.qd_max))
+
+
+def weight_scale(task: ReachingTask, weights: np.ndarray, options: CsqpOptions | None = None,
+                 cold=None) -> tuple[float, float]:
+    """``(scale, J0)``: the solver sees ``scale × weights``, with ``J0`` the cost of the cold guess (``cold``,
+    by default :func:`initial_guess`) under ``weights``, so that the cold guess costs
+    ``options.objective_scale`` (scale 1 when that is ≤ 0)."""
+    options = options or DEFAULT_OPTIONS
+    xs, us = cold if cold is not None else _to_shooting(task, *initial_guess(task))
+    x = np.asarray(xs)
+    j0 = trajectory_cost(task.arm, x[:, :2], x[:, 2:4], np.asarray(us), task.dt, weights)
+    scale = options.objective_scale / max(j0, 1e-12) if options.objective_scale > 0 else 1.0
+    return scale, j0
+
+
 def solve(
     task: ReachingTask,
     weights: np.ndarray,
@@ -541,9 +607,10 @@ def solve(
     options: CsqpOptions | None = None,
     guess: np.ndarray | None = None,
 ) -> DocSolution:
-    """Solve the reaching DOC with CSQP; ``warm_start`` (a previous solution of the same ``N``) seeds the
-    primal trajectory ``(q, q̇, τ)`` (CSQP has no dual warm start). On the benchmark's ~10 % weight changes it
-    halves the median solve time, though on some problems it takes a few more iterations than a cold start.
+    """Solve the reaching DOC with CSQP; ``warm_start`` (a previous Crocoddyl solution of the same task, under
+    other weights) seeds the primal trajectory ``(q, q̇, τ)`` (CSQP has no dual warm start); a solution of
+    another task (or backend) is ignored, as :func:`reachirl.doc.solve_doc` documents (warm-start timings:
+    ``reachirl bench backends``).
     ``status`` reports the last KKT residual, the gaps' max-norm, the summed constraint violation and the ADMM
     iterations of all QPs.
     """
@@ -551,24 +618,23 @@ def solve(
     weights = np.asarray(weights, dtype=float)
     n = task.n_nodes
     prob = build_problem(task.arm, n, weights.shape[0], options)
-    guess = initial_guess(task) if guess is None else _path_knots(task, guess)
-    cold = _to_shooting(task, *guess)
-    # CSQP is not scale-free (absolute feasibility and QP tolerances, a fixed merit penalty): solve for the
-    # weights scaled so that the cold guess costs COST_SCALE, so that ω and c·ω are the same problem for CSQP too.
-    # The reported cost is that of the given weights.
-    guess_cost = trajectory_cost(task.arm, *guess, task.dt, weights)
-    solve_weights = weights * (COST_SCALE / guess_cost) if np.isfinite(guess_cost) and guess_cost > 0 else weights
-    if warm_start is not None and np.shape(warm_start.q) == (n + 1, 2) and np.shape(warm_start.tau) == (n, 2):
+    cold = _to_shooting(task, *(initial_guess(task) if guess is None else _path_knots(task, guess)))
+    warm = warm_start.warm if warm_start is not None else None
+    if warm and warm.get("backend") == "crocoddyl" and warm.get("task") == _task_key(task):
         xs, us = _to_shooting(
             task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau)
         )
     else:
         xs, us = cold
+    # CSQP is not scale-invariant (its merit penalty, ADMM penalty and QP tolerances are absolute): solve with
+    # the weights scaled so that the cold guess costs ``objective_scale``, as the CasADi backend normalises its
+    # objective. The minimiser is the same; the reported cost is that of the unscaled weights.
+    scale, j0 = weight_scale(task, weights, options, cold)
     with prob.lock:  # one problem's data is not re-entrant
-        prob.update(task, solve_weights)
+        prob.update(task, weights * scale)
         # the tolerance depends on the task and the weights only (the cold guess's cost), not on the warm
         # start
-        tol = options.termination_tolerance * abs(prob.problem.calc(*cold)) / n
+        tol = options.termination_tolerance * j0 * scale / n
         t0 = time.perf_counter()
         monitor = _Monitor(tol, options)
         solver = prob.make_solver(tol, options.qp_eps_max, [monitor])
@@ -578,6 +644,7 @@ def solve(
             # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
             monitor.eps_max = monitor.eps_min
             polisher = prob.make_solver(tol, monitor.eps_min, [monitor])
+            polisher.mu_dynamic, polisher.mu_constraint = monitor.mu
             ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
             iterations += int(polisher.iter)
             solver = polisher
@@ -607,5 +674,5 @@ def solve(
         solve_time=elapsed,
         status=status,
         backend="crocoddyl",
-        warm={"backend": "crocoddyl", "n": n},
+        warm={"backend": "crocoddyl", "task": _task_key(task)},
     )

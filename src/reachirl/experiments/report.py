@@ -153,7 +153,8 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
         f"DOC failures: {fit_fail} rollouts of {fit_solves} solves during the fits failed even after their "
         "cold and demonstration-path retries (such a line-search try is rejected); "
         f"{sum(r['fit'].get('doc_recovered', 0) for r in results.values())} tries were rescued by a retry; "
-        f"{ev_fail} of {ev_solves} predictions did not converge (their RMSE is counted as is, not dropped).",
+        f"{ev_fail} of {ev_solves} predictions did not converge (counted per cell, left out of the RMSE "
+        "statistics).",
         tb.ALL_CONVENTION,
         "Fits ended by: "
         + ", ".join(

@@ -292,8 +292,8 @@ def build_table(
                 r = by.get((method, p, n))
                 trials = r["sets"][s]["trials"] if r else []
                 cell = {}
-                for j in JOINTS:
-                    vals = [t["rmse_deg"][j] for t in trials]
+                for j in JOINTS:  # a prediction whose DOC failed is counted, not averaged in
+                    vals = [t["rmse_deg"][j] for t in trials if t.get("converged", True)]
                     cell[j] = _stats(vals)
                     pooled[j] += vals
                     if vals:
@@ -319,10 +319,12 @@ FLAG_NOTE = ("† the fit never left its initial weights ω₀ (no step lowered 
              "ω₀'s, not learned; ‡ the fit stopped after one step.")
 
 
-def _cell(c: dict | None, digits: int = 2, flag: str | None = None) -> str:
+def _cell(c: dict | None, digits: int = 2, flag: str | None = None, fails: int = 0) -> str:
+    failed = f" ({fails} DOC failed)" if fails else ""
     if not c or c.get("mean") is None:
-        return "—"
-    return f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}" + (f" {FLAG_MARKS[flag]}" if flag in FLAG_MARKS else "")
+        return "—" + failed
+    return (f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}" + (f" {FLAG_MARKS[flag]}" if flag in FLAG_MARKS else "")
+            + failed)
 
 
 def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) -> list[list[str]]:
@@ -331,7 +333,8 @@ def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) ->
     rows = []
     for p in [*postures, ALL, ALL_TRIALS]:
         for j in JOINTS:
-            rows.append([p, j, *[_cell(table[p][s].get(n, {}).get(j), flag=table[p][s].get(n, {}).get("flag"))
+            rows.append([p, j, *[_cell(table[p][s].get(n, {}).get(j), flag=table[p][s].get(n, {}).get("flag"),
+                                       fails=table[p][s].get(n, {}).get("doc_failures", 0) if j == "q" else 0)
                                  for s in SETS for n in sections]])
     return rows
 
