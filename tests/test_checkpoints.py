@@ -78,6 +78,11 @@ def test_empty_splits_say_no_data_with_a_reason(first_run):
     assert iscv["mean"] is None and iscv["n"] == 0
     assert iscv["no_data"].startswith("no inter-subject trials: the data has no other subject")
     assert "— means no data: no inter-subject trials" in table_md.decode()
+    import csv
+
+    rows = list(csv.DictReader((out / "table.csv").read_text().splitlines()))
+    assert rows and all(r["iscv_1_mean"] == "" and r["iscv_1_n"] == "0" for r in rows)
+    assert all("iscv: no inter-subject trials: the data has no other subject" in r["no_data"] for r in rows)
 
 
 @pytest.mark.parametrize(

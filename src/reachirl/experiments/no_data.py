@@ -25,7 +25,7 @@ def split_reasons(config=None) -> dict[str, str]:
             f"no cross-validation trials: the training subject has no {other}-arm trials of this posture"
             if cv == "other-side"
             else "no cross-validation trials: the training set took every trial of the training subject "
-            "for this posture (lower --n-train, or record more trials)"
+            "for this posture (lower --n-train or record more trials)"
         ),
         "iscv": "no inter-subject trials: the data has no other subject with this posture",
         "other": "cannot be computed (no finite values)",
@@ -58,3 +58,28 @@ def annotate_no_data(obj, reasons: dict[str, str] | None = None, _split: str = "
     if isinstance(obj, list | tuple):
         return [annotate_no_data(v, reasons, _split) for v in obj]
     return obj
+
+
+def csv_with_reasons(text: str, reasons: dict[str, str] | None = None) -> str:
+    """``table.csv`` with a last column ``no_data``: for each row whose cells are empty because a split has no
+    trials (``<split>_<sections>_n`` is 0), the reasons, ``"<split>: <reason>"`` joined by ``"; "``; empty
+    otherwise. The numeric columns stay as they are (empty, never NaN)."""
+    import csv
+    import io
+
+    reasons = reasons or split_reasons()
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return text
+    header = rows[0]
+    n_cols = [(i, c.split("_", 1)[0]) for i, c in enumerate(header) if c.endswith("_n")]
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow([*header, "no_data"])
+    for row in rows[1:]:
+        empty = []
+        for i, split in n_cols:
+            if i < len(row) and row[i].strip() in ("0", "") and split not in empty:
+                empty.append(split)
+        w.writerow([*row, "; ".join(f"{s}: {reasons.get(s, reasons['other'])}" for s in empty)])
+    return out.getvalue()

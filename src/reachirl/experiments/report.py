@@ -24,7 +24,7 @@ from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
 from . import tables as tb
 from .datasets import Dataset
-from .no_data import annotate_no_data, split_reasons
+from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
 from .results import RunResult, load_unit_arrays
 
@@ -182,7 +182,8 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
     return notes, doc
 
 
-def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str]) -> list[str]:
+def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str],
+                 reasons: dict[str, str] | None = None) -> list[str]:
     """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
     methods = list(tables)
     md_tables = [
@@ -191,7 +192,8 @@ def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, no
         for m in methods
     ]
     atomic_write_text(out / "table.md", "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n")
-    atomic_write_text(out / "table.csv", tb.to_csv(tables, postures, sections))
+    csv = tb.to_csv(tables, postures, sections)
+    atomic_write_text(out / "table.csv", csv_with_reasons(csv, reasons) if reasons is not None else csv)
     return md_tables
 
 
@@ -398,7 +400,7 @@ def write_outputs(run: RunResult) -> dict:
     if empty:  # the table shows "—" there; say why
         reasons = split_reasons(config)
         notes.append("— means no data: " + "; ".join(reasons[s] for s in empty) + ".")
-    md_tables = write_tables(out, tables, postures, sections, n_trials, notes)
+    md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
     t_fig = time.perf_counter()
     truth = _truth_comparison(run.dataset, results, methods[0], postures)
     figs = write_figures(run, tables, truth)
