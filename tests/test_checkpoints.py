@@ -128,3 +128,16 @@ def test_an_intact_checkpoint_is_reused(first_run, trials_file, tmp_path):
     results = _reproduce(trials_file, out)
     assert results["run"]["reused"] == [KEY] and results["run"]["computed"] == []
     assert (out / "table.csv").read_bytes() == table_csv
+
+
+def test_a_unit_over_its_time_limit_is_stopped(trials_file, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "0.001")
+    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "1", "--nodes", "20", "--max-iter",
+            "1", "--sections", "1", "--no-progress", "--out", str(tmp_path / "run")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(f"unit {KEY} ran longer than 0.001 s; finished units are kept (rerun to resume), "
+                            "raise the limit with REACHIRL_UNIT_TIMEOUT_S")
+    monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "nan")
+    assert main(argv) == 2
+    assert "REACHIRL_UNIT_TIMEOUT_S=nan: expected a positive number" in capsys.readouterr().err

@@ -93,7 +93,7 @@ def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
     import signal
 
     def expire(signum, frame):
-        raise UnitTimeoutError(f"unit {unit.key} ran longer than {timeout_s:.0f} s")
+        raise UnitTimeoutError(f"unit {unit.key} ran longer than {timeout_s:g} s")
 
     old = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
@@ -201,8 +201,18 @@ def run_units(
     if not todo or limit == 0:
         return RunSummary(results, computed, reused, stopped)
     if scheduler is None and workers <= 1:
+        import threading
+
+        timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
+        bounded = threading.current_thread() is threading.main_thread()  # SIGALRM needs the main thread
         for u, _ in todo:
-            finish(run_unit(u, splits[u.posture]))
+            try:
+                payload = _run_unit_bounded(u, splits[u.posture], timeout) if bounded else run_unit(
+                    u, splits[u.posture])
+            except UnitTimeoutError as e:
+                raise InputError(f"{e}; finished units are kept (rerun to resume), raise the limit with "
+                                 f"REACHIRL_UNIT_TIMEOUT_S", out_dir) from None
+            finish(payload)
     elif scheduler is None:
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
         ex = _local_executor(min(workers, len(todo)))
