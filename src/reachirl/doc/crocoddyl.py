@@ -55,7 +55,7 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import crocoddyl
 import mim_solvers
@@ -125,10 +125,15 @@ class CsqpOptions:
       with ``eps_abs``; at a small ρ it passes after 25 iterations with multipliers still far off, and the SQP
       then cycled at the optimum (q within 0.004° of CasADi's) with a KKT residual stuck at ~1e-2 (2 of 172
       learned-weight predictions). When the KKT residual has not halved over ``qp_stall_window`` QPs, the cap
-      on the QP tolerance is cut tenfold (down to ``qp_eps_min · tol``). Both then converged; on the random
-      benchmark problems it costs ~10 % more time.
+      on the QP tolerance is cut tenfold (down to ``qp_eps_min · tol``). Both then converged, and so did a
+      third that a window of 5 QPs left cycling.
     * ``energy_exact_hessian`` (off): adding the energy's ``d1·∂²r/∂q̇∂τ`` term to the Gauss-Newton Hessian cut
-      the median iterations on 20 learned-weight problems from 36 to 21.5 but lost one of them (19/20).
+      the median iterations on 20 learned-weight problems from 36 to 21.5 but lost one of them (19/20); on
+      the other hand a reach of ``reproduce --quick`` (N = 40, P4, ω₀) cycles with period 2 under the
+      Gauss-Newton model (KKT 0.5 for 200 iterations, at the optimum within 0.006°, ADMM's tolerance does not
+      matter) and converges with the full one. Hence ``fallback_exact_hessian``: a failed solve is solved
+      again, cold, with the full Hessian (``DocSolution.attempts`` = 2; iterations and time add up), as the
+      CasADi backend falls back from fatrop to IPOPT.
 
     Scale and merit (issue 11: CSQP stalled on learned weights; measured on 54 predictions, one trial of each
     fit of ``benchmarks/learned_weights.json``: 46/54 converged before, 54/54 after):
@@ -160,7 +165,7 @@ class CsqpOptions:
     qp_eps_min: float = 0.1
     qp_forcing: float = 0.1
     qp_stall_ratio: float = 0.5  # KKT not below this × the last qp_stall_window: tighten the QP tolerance cap
-    qp_stall_window: int = 5
+    qp_stall_window: int = 2
     reset_rho: bool = False
     rho_update_interval: int = 25
     adaptive_rho_tolerance: int = 20
@@ -170,6 +175,7 @@ class CsqpOptions:
     objective_scale: float = 10.0  # the weights are scaled so that the cold guess costs this much
     use_filter_line_search: bool = False
     energy_exact_hessian: bool = False  # add the energy's d1·∂²r/∂q̇∂τ term (not Gauss-Newton)
+    fallback_exact_hessian: bool = True  # a failed solve is solved again, cold, with energy_exact_hessian
 
 
 DEFAULT_OPTIONS = CsqpOptions()
@@ -600,6 +606,32 @@ def weight_scale(task: ReachingTask, weights: np.ndarray, options: CsqpOptions |
     return scale, j0
 
 
+def _attempt(prob: ReachingProblem, task: ReachingTask, weights: np.ndarray, xs, us, tol: float,
+             options: CsqpOptions):
+    """One CSQP solve (and its polishing restart) of ``prob`` under the (scaled) ``weights`` from ``(xs, us)``:
+    ``(ok, X, U, monitor, iterations, seconds)``."""
+    with prob.lock:  # one problem's data is not re-entrant
+        prob.update(task, weights)
+        t0 = time.perf_counter()
+        monitor = _Monitor(tol, options)
+        solver = prob.make_solver(tol, options.qp_eps_max, [monitor])
+        ok = bool(solver.solve(list(xs), list(us), options.max_iter, False))
+        iterations = int(solver.iter)
+        if not ok and iterations < options.max_iter:
+            # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
+            monitor.eps_max = monitor.eps_min
+            polisher = prob.make_solver(tol, monitor.eps_min, [monitor])
+            polisher.mu_dynamic, polisher.mu_constraint = monitor.mu
+            ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
+            iterations += int(polisher.iter)
+            solver = polisher
+            if not ok and iterations < options.max_iter and monitor.acceptable:
+                # no descent step even along an accurate QP direction: stop if the point is acceptable
+                ok, monitor.reason = True, "converged to an acceptable level (no descent step)"
+        elapsed = time.perf_counter() - t0
+        return ok, np.array(solver.xs), np.array(solver.us), monitor, iterations, elapsed
+
+
 def solve(
     task: ReachingTask,
     weights: np.ndarray,
@@ -630,32 +662,18 @@ def solve(
     # the weights scaled so that the cold guess costs ``objective_scale``, as the CasADi backend normalises its
     # objective. The minimiser is the same; the reported cost is that of the unscaled weights.
     scale, j0 = weight_scale(task, weights, options, cold)
-    with prob.lock:  # one problem's data is not re-entrant
-        prob.update(task, weights * scale)
-        # the tolerance depends on the task and the weights only (the cold guess's cost), not on the warm
-        # start
-        tol = options.termination_tolerance * j0 * scale / n
-        t0 = time.perf_counter()
-        monitor = _Monitor(tol, options)
-        solver = prob.make_solver(tol, options.qp_eps_max, [monitor])
-        ok = bool(solver.solve(xs, us, options.max_iter, False))
-        iterations = int(solver.iter)
-        if not ok and iterations < options.max_iter:
-            # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
-            monitor.eps_max = monitor.eps_min
-            polisher = prob.make_solver(tol, monitor.eps_min, [monitor])
-            polisher.mu_dynamic, polisher.mu_constraint = monitor.mu
-            ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
-            iterations += int(polisher.iter)
-            solver = polisher
-            if not ok and iterations < options.max_iter and monitor.acceptable:
-                # no descent step even along an accurate QP direction: stop if the point is acceptable
-                ok, monitor.reason = True, "converged to an acceptable level (no descent step)"
-        elapsed = time.perf_counter() - t0
-        X = np.array(solver.xs)
-        U = np.array(solver.us)
-        kkt, _, gap, cons, _ = monitor.history[-1] if monitor.history else (math.nan,) * 5
-        qp_iters = sum(h[4] for h in monitor.history)
+    # the tolerance depends on the task and the weights only (the cold guess's cost), not on the warm start
+    tol = options.termination_tolerance * j0 * scale / n
+    ok, X, U, monitor, iterations, elapsed = _attempt(prob, task, weights * scale, xs, us, tol, options)
+    attempts = 1
+    if not ok and options.fallback_exact_hessian and np.any(weights[:, _J_ENERGY] > 0):
+        # the Gauss-Newton model of the energy can make the SQP cycle: solve again, cold, with its full Hessian
+        fallback = replace(options, energy_exact_hessian=True, fallback_exact_hessian=False)
+        prob2 = build_problem(task.arm, n, weights.shape[0], fallback)
+        ok, X, U, monitor, it2, el2 = _attempt(prob2, task, weights * scale, *cold, tol, fallback)
+        iterations, elapsed, attempts = iterations + it2, elapsed + el2, 2
+    kkt, _, gap, cons, _ = monitor.history[-1] if monitor.history else (math.nan,) * 5
+    qp_iters = sum(h[4] for h in monitor.history)
     q, qd, tau = X[:, :2], X[:, 2:4], U
     finite = bool(np.all(np.isfinite(X)) and np.all(np.isfinite(U)))
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights) if finite else float("nan")
@@ -674,5 +692,6 @@ def solve(
         solve_time=elapsed,
         status=status,
         backend="crocoddyl",
+        attempts=attempts,
         warm={"backend": "crocoddyl", "task": _task_key(task)},
     )
