@@ -710,8 +710,8 @@ def cache_root() -> Path:
     return Path.home() / ".cache" / "reachirl"
 
 
-def _builtin_config(seed: int) -> SynthConfig:
-    return SynthConfig(n_subjects=2, n_trials=20, seed=seed, fmt="trc", workers=2)
+def _builtin_config(seed: int, n_subjects: int = 2) -> SynthConfig:
+    return SynthConfig(n_subjects=int(n_subjects), n_trials=20, seed=seed, fmt="trc", workers=2)
 
 
 def _cache_key(config: SynthConfig) -> str:
@@ -729,13 +729,17 @@ def _cache_key(config: SynthConfig) -> str:
     return f"synth-v{GENERATOR_VERSION}-seed{config.seed}-{hashlib.sha256(payload.encode()).hexdigest()[:10]}"
 
 
-def builtin_dataset_dir(seed: int = 0) -> Path:
+def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
     """The built-in data set (2 subjects × 5 postures × 20 trials, TRC), generated on first use and cached.
+
+    ``n_subjects`` draws that many subjects from the same population (``reachirl reproduce --subjects N``;
+    20 is Berret 2011's full design). Subjects and trials are drawn per index, so subject ``S01`` and its trials
+    are the same for every ``n_subjects``.
 
     Returns the folder with the TRC files, ``manifest.csv``, ``subjects.csv`` and ``truth.json``. It is built
     in a temporary folder and renamed into place, so a half-written cache is never used.
     """
-    config = _builtin_config(int(seed))
+    config = _builtin_config(int(seed), n_subjects)
     root = cache_root()
     final = root / _cache_key(config)
     if final.is_dir() and (final / "truth.json").is_file():

@@ -5,6 +5,10 @@ Each (posture, sections) unit runs as one task in local processes (``--workers``
 (``--scheduler tcp://HOST:PORT``) and is checkpointed under DIR/units/; rerunning into the same DIR skips the
 finished units. ``--quick`` runs the same code path on fewer trials and postures (P2 and P4), smaller DOCs and
 fewer iterations.
+
+``--iscv all-pairs`` learns from every subject in turn and predicts every other one (iscv_pairs.csv and its
+heatmaps; --n-iscv then counts trials per test subject). ``--subjects N`` makes N built-in virtual subjects
+(20 × 5 postures × 20 trials is Berret 2011's design).
 """
 
 from __future__ import annotations
@@ -63,6 +67,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--quick",
         action="store_true",
         help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations",
+    )
+    p.add_argument(
+        "--subjects",
+        type=positive_int,
+        metavar="N",
+        help="make N built-in virtual subjects (default 2; 20 is Berret 2011's design); not with --data",
+    )
+    p.add_argument(
+        "--iscv",
+        choices=("one", "all-pairs"),
+        default="one",
+        help="one: learn from the training subject only (the seed); all-pairs: learn from every subject in turn "
+        "and predict every other one, writing iscv_pairs.csv and its heatmaps (default one)",
     )
     g = p.add_argument_group("protocol options")
     g.add_argument("--postures", nargs="+", metavar="NAME", help="postures to run (default: all in the data)")
@@ -135,6 +152,7 @@ def _config(args):
         n_iscv=pick("n_iscv", "n_iscv"),
         n_nodes=args.nodes or base["nodes"],
         max_iter=args.max_iter or base["max_iter"],
+        iscv=args.iscv,
     )
 
 
@@ -202,7 +220,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     if args.data is None:
         err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
-    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers)
+    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers, n_subjects=args.subjects)
     if args.quick:
         config = _quick_postures(config, dataset)
     data_s = time.perf_counter() - t0
@@ -270,7 +288,8 @@ def run(args) -> int:
     )
     out_console.print(
         f"wrote {out / 'table.md'}, table.csv, results.json, report.md, "
-        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}",
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}"
+        + (f"; all-pairs ISCV in {out / 'iscv_pairs.csv'}" if config.iscv == "all-pairs" else ""),
         highlight=False,
     )
     return 0

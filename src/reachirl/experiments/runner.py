@@ -56,7 +56,8 @@ def run_units(
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
 ) -> RunSummary:
-    """Run (or reuse) every unit; ``splits`` maps a posture to its :class:`Split`.
+    """Run (or reuse) every unit; ``splits`` maps a unit's ``split_key`` (its posture, or (posture, training
+    subject) for an all-pairs unit) to its :class:`Split`.
 
     ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
     stops after that many *new* units (for tests and for splitting a long run).
@@ -67,7 +68,7 @@ def run_units(
     todo: list[tuple[Unit, str]] = []
     reused: list[str] = []
     for u in units:
-        fp = u.fingerprint(splits[u.posture])
+        fp = u.fingerprint(splits[u.split_key])
         res = load_unit(out_dir, u.key, fp)
         if res is not None:
             results[u.key] = res
@@ -99,10 +100,10 @@ def run_units(
         return RunSummary(results, computed, reused, stopped)
     if scheduler is None and workers <= 1:
         for u, _ in todo:
-            finish(run_unit(u, splits[u.posture]))
+            finish(run_unit(u, splits[u.split_key]))
     elif scheduler is None:
         with _local_executor(min(workers, len(todo))) as ex:
-            futures = [ex.submit(run_unit, u, splits[u.posture]) for u, _ in todo]
+            futures = [ex.submit(run_unit, u, splits[u.split_key]) for u, _ in todo]
             try:
                 for f in cf.as_completed(futures):
                     finish(f.result())
@@ -117,7 +118,7 @@ def run_units(
         client = _dask_client(scheduler)
         try:
             futures = [
-                client.submit(run_unit, u, splits[u.posture], key=f"reachirl-{u.key}-{fp}", pure=False)
+                client.submit(run_unit, u, splits[u.split_key], key=f"reachirl-{u.key}-{fp}", pure=False)
                 for u, fp in todo
             ]
             try:
@@ -149,6 +150,7 @@ def reproduce(
     written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
     """
+    from .pairs import pair_splits, pair_training_subjects
     from .protocol import code_fingerprint, make_units, resolve_postures, resolve_train_subject, split_trials
 
     trials = list(dataset.trials)
@@ -158,7 +160,9 @@ def reproduce(
     subject = resolve_train_subject(trials, config)
     splits = {p: split_trials(trials, p, config) for p in postures}
     split_sizes = {s: {p: len(splits[p].sets()[s]) for p in postures} for s in ("train", "cv", "iscv")}
-    units = make_units(postures, config)
+    splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
+    units = [u for u in make_units(postures, config, pair_training_subjects(trials, config))
+             if u.split_key in splits]
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
@@ -172,6 +176,9 @@ def reproduce(
         on_start=on_start,
         on_done=on_done,
     )
+    main = {k: r for k, r in summary.results.items() if r["unit"].get("train_subject") is None}
+    pairs = {k: r for k, r in summary.results.items() if k not in main}
+    summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)
     run_info = {
         "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
         "n_units": len(units),
@@ -191,4 +198,5 @@ def reproduce(
         summary=summary,
         timing={"data_s": data_s, "units_wall_s": time.perf_counter() - t0},
         run_info=run_info,
+        pairs=pairs,
     )
