@@ -100,7 +100,7 @@ def pair_rows(run) -> list[dict]:
     rows = []
     for k in sorted(cells, key=lambda k: (morder.get(k[0], 99), order.get(k[1], 99), k[2], k[3], k[4])):
         mean, sd, n = _stats(cells[k])
-        rows.append(dict(zip(COLUMNS, (*k, mean, sd, n))))
+        rows.append(dict(zip(COLUMNS, (*k, mean, sd, n), strict=True)))
     return rows
 
 
@@ -130,19 +130,31 @@ def transfer_summary(rows: Sequence[dict], method: str, postures: Sequence[str],
     subjects; ``{"cv", "iscv", "spearman_rho", "spearman_p", "n"}`` (ρ over the points; ``None`` if < 3)."""
     from scipy.stats import spearmanr
 
-    cv, iscv = [], []
+    cv, iscv, cv_c, iscv_c = [], [], [], []
     for p in postures:
         subjects, m = pair_matrix(rows, method, p, sections)
+        a, b = [], []
         for i in range(len(subjects)):
             off = np.delete(m[i], i)
             if np.isfinite(m[i, i]) and np.isfinite(off).any():
-                cv.append(float(m[i, i]))
-                iscv.append(float(np.nanmean(off)))
-    rho = p_val = None
-    if len(cv) >= 3 and np.ptp(cv) > 0 and np.ptp(iscv) > 0:
-        res = spearmanr(cv, iscv)
-        rho, p_val = float(res.statistic), float(res.pvalue)
-    return {"cv": cv, "iscv": iscv, "spearman_rho": rho, "spearman_p": p_val, "n": len(cv)}
+                a.append(float(m[i, i]))
+                b.append(float(np.nanmean(off)))
+        cv += a
+        iscv += b
+        if len(a) > 1:  # centred per posture: the subjects' differences, not the postures' difficulty
+            cv_c += list(np.asarray(a) - np.mean(a))
+            iscv_c += list(np.asarray(b) - np.mean(b))
+
+    def rho(x, y):
+        if len(x) >= 3 and np.ptp(x) > 0 and np.ptp(y) > 0:
+            res = spearmanr(x, y)
+            return float(res.statistic), float(res.pvalue)
+        return None, None
+
+    r, p_val = rho(cv, iscv)
+    rc, pc = rho(cv_c, iscv_c)
+    return {"cv": cv, "iscv": iscv, "spearman_rho": r, "spearman_p": p_val, "n": len(cv),
+            "within_posture_rho": rc, "within_posture_p": pc}
 
 
 # ---------------------------------------------------------------------- figures
@@ -243,7 +255,7 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
                 continue
             vmax = max(np.nanmax(mat) for _, mat in mats.values() if mat.size)
             fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.8), squeeze=False)
-            for ax, p in zip(axes[0], panels):
+            for ax, p in zip(axes[0], panels, strict=True):
                 subjects, mat = mats[p]
                 plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax)
             fig.suptitle(f"{m}, {n} section(s): RMSE of q (deg), weights of row subject on column subject's trials "
@@ -262,8 +274,8 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
         figs[name] = {"caption": f"{m}: distribution of CV and all-pairs ISCV RMSEs, and each training subject's "
                                  "CV against the mean RMSE of its weights on the other subjects (Spearman ρ)."}
         md += [f"### {m}", "", "| sections | CV (diagonal) mean | ISCV (off-diagonal) mean | ISCV/CV | "
-               "best donor (lowest mean ISCV, ALL) | worst donor | Spearman ρ (CV vs transfer) |",
-               "|---|---|---|---|---|---|---|"]
+               "best donor (lowest mean ISCV, ALL) | worst donor | Spearman ρ (CV vs transfer) | ρ within postures |",
+               "|---|---|---|---|---|---|---|---|"]
         for n in sections:
             sel = [r for r in rows if r["method"] == m and r["sections"] == n and r["posture"] != ALL]
             diag = [r["rmse_q_mean_deg"] for r in sel if r["train_subject"] == r["test_subject"]]
@@ -277,11 +289,16 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
             worst = max(donors, key=donors.get)
             ts = transfer_summary(rows, m, postures, n)
             rho = "—" if ts["spearman_rho"] is None else f"{ts['spearman_rho']:.2f} (p = {ts['spearman_p']:.2g})"
+            rho_c = ("—" if ts["within_posture_rho"] is None
+                     else f"{ts['within_posture_rho']:.2f} (p = {ts['within_posture_p']:.2g})")
             cvm = f"{np.mean(diag):.2f}°" if diag else "—"
             ratio = f"{np.mean(off) / np.mean(diag):.2f}" if diag else "—"
             md.append(f"| {n} | {cvm} | {np.mean(off):.2f}° | {ratio} | {best} ({donors[best]:.2f}°) | "
-                      f"{worst} ({donors[worst]:.2f}°) | {rho} |")
+                      f"{worst} ({donors[worst]:.2f}°) | {rho} | {rho_c} |")
         md.append("")
-    md += ["Means are over (train, test, posture) cells of the per-pair mean RMSE of q. The matrices are in "
+    md += ["Means are over (train, test, posture) cells of the per-pair mean RMSE of q. ρ: Spearman correlation, "
+           "over (training subject, posture), of the subject's own CV RMSE with the mean RMSE of its weights on "
+           "the others; within postures: both centred on their posture's mean first (subject differences only, "
+           "not posture difficulty). The matrices are in "
            "`iscv_pairs.csv` and the figures `iscv_pairs_*.png`, `iscv_vs_cv_*.png`.", ""]
     return {"rows": rows, "figures": figs, "markdown": md}

@@ -396,7 +396,9 @@ def write_outputs(run: RunResult) -> dict:
     t_fig = time.perf_counter()
     truth = _truth_comparison(run.dataset, results, methods[0], postures)
     figs = write_figures(run, tables, truth)
-    extra_md: list[str] = []
+    from .sensitivity import identifiability_section
+
+    extra_md: list[str] = identifiability_section(run)
     if run.config.iscv == "all-pairs":
         from .pairs import write_pairs
 

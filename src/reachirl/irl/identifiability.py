@@ -48,7 +48,7 @@ def difference_conditioning(phi_demo: np.ndarray, phi_ref: np.ndarray | None = N
         _, sv, vt = np.linalg.svd(diff, full_matrices=True)
         sv = np.concatenate([sv, np.zeros(len(FEATURES) - sv.size)])  # fewer demonstrations than features
         rank = int(np.sum(sv > 1e-9 * max(sv.max(), 1e-300)))
-        cond = float(sv.max() / sv.min()) if sv.min() > 0 else float("inf")
+        cond = float(sv.max() / sv.min()) if rank == len(FEATURES) else float("inf")
         worst = vt[-1]
         top = np.argsort(-np.abs(worst))[:2]
         out.append({
