@@ -90,6 +90,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         metavar="NAME",
         help="moirl (default) and/or baselines (maxent, bilevel, kkt); the first one is the main table",
     )
+    g.add_argument(
+        "--acceptance",
+        choices=("merit", "either", "multimodal"),
+        default=None,
+        help="MO-IRL step acceptance: merit (the seed, default), either, or multimodal (state and torque merits)",
+    )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
     g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
                    "(default: either arm; with --cv other-side, right)")
@@ -153,6 +159,7 @@ def _config(args):
         n_nodes=args.nodes or base["nodes"],
         max_iter=args.max_iter or base["max_iter"],
         iscv=args.iscv,
+        estimator_options={"acceptance": args.acceptance} if args.acceptance else {},
     )
 
 
