@@ -92,3 +92,23 @@ def test_bad_options(three_subjects, cli):
     with pytest.raises(SystemExit) as e:
         main(["reproduce", "--iscv", "every", "--out", "x"])
     assert e.value.code == 2
+
+
+@pytest.mark.slow
+def test_all_pairs_dask_equals_local_processes(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    from reachirl.experiments.report import write_outputs
+    from reachirl.experiments.runner import reproduce
+
+    toy = datasets.toy(n_subjects=3, postures=("P2", "P4"), n_trials=3, n_nodes=20, seed=4)
+    cfg = ProtocolConfig(sections=(1, 2), n_train=2, n_nodes=20, max_iter=2, iscv="all-pairs")
+    local = reproduce(toy, cfg, tmp_path / "local", workers=2)
+    write_outputs(local)
+    assert len(local.pairs) == 2 * 2 * 2  # 2 more training subjects × 2 postures × 2 section counts
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        remote = reproduce(toy, cfg, tmp_path / "dask", scheduler=cluster.scheduler_address)
+    write_outputs(remote)
+    for name in ("table.csv", "iscv_pairs.csv"):
+        assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()

@@ -9,6 +9,9 @@ For each initial posture and each number of weight sections:
   (``cv="other-side"``);
 * **ISCV**: every trial of that posture of the other subjects (the seed: subject 2's 20 trials).
 
+With ``iscv="all-pairs"`` every other subject is a training subject too, in extra units
+(``Unit.train_subject``; :mod:`reachirl.experiments.pairs`), and ``n_iscv`` counts trials per test subject.
+
 Every prediction is the DOC from the trial's own arm, initial state, target and duration
 (:func:`reachirl.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
 :func:`run_unit` is a pure function of the unit and its trials, so it gives the same numbers in any process.
