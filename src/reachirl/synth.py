@@ -69,7 +69,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -710,8 +710,8 @@ def cache_root() -> Path:
     return Path.home() / ".cache" / "reachirl"
 
 
-def _builtin_config(seed: int, n_subjects: int = 2) -> SynthConfig:
-    return SynthConfig(n_subjects=int(n_subjects), n_trials=20, seed=seed, fmt="trc", workers=2)
+def _builtin_config(seed: int) -> SynthConfig:
+    return SynthConfig(n_subjects=2, n_trials=20, seed=seed, fmt="trc", workers=2)
 
 
 def _cache_key(config: SynthConfig) -> str:
@@ -739,7 +739,9 @@ def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
     Returns the folder with the TRC files, ``manifest.csv``, ``subjects.csv`` and ``truth.json``. It is built
     in a temporary folder and renamed into place, so a half-written cache is never used.
     """
-    config = _builtin_config(int(seed), n_subjects)
+    config = _builtin_config(int(seed))
+    if int(n_subjects) != config.n_subjects:
+        config = replace(config, n_subjects=int(n_subjects))
     root = cache_root()
     final = root / _cache_key(config)
     if final.is_dir() and (final / "truth.json").is_file():
