@@ -11,8 +11,8 @@ fit's weights, without new DOC solves.
   trade weight without changing the reach (joint acceleration against torque change is the known one).
 * :func:`bootstrap_shares` — bootstrap intervals (seeded) of each feature's share of each window's cost,
   ``ω_sj Φ*_sj / Σ_j ω_sj Φ*_sj``, over resampled demonstrations: how much the shares the report shows move
-  when the demonstrations are redrawn, at fixed ω (a refit per resample is what
-  ``reachirl sensitivity --bootstrap-refits`` adds).
+  when the demonstrations are redrawn, at fixed ω. (A refit per resample, which would add the weights' own
+  variability, is not done: it costs one MO-IRL fit per resample.)
 
 :func:`identifiability` gathers the three into one JSON-able dict.
 """
