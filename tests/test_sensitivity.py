@@ -121,3 +121,14 @@ def test_bad_options(small_run, tmp_path, cli):
         run_sensitivity(small_run, SensitivityConfig(postures=("P9",)))
     with pytest.raises(InputError, match=r"--method 'maxent' was not run"):
         run_sensitivity(small_run, SensitivityConfig(method="maxent"))
+
+
+def test_effect_collinearity_finds_weights_that_move_the_path_alike():
+    from reachirl.experiments.sensitivity import _effect_collinearity
+
+    base = np.linspace(0, 1, 10)
+    feats = [{"displacement": np.sin(k * base + k)} for k in range(7)]
+    feats[4] = {"displacement": -2.0 * feats[3]["displacement"]}  # opposite direction, other magnitude
+    found = _effect_collinearity({("P2", "sensitivity", 0): {"features": feats}}, "P2", 1)
+    pair = [e for e in found if e["features"] == ["joint_acceleration", "torque_change"]]
+    assert pair and pair[0]["cos"] == pytest.approx(-1.0) and pair[0]["window"] == 1

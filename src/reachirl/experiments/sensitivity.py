@@ -224,6 +224,8 @@ def sensitivity_job(weights: np.ndarray, trials: Sequence, n_nodes: int, backend
             r, ps = _per_trial(wp, trials, n_nodes, backend, warm=sols)
             rec[name] = r.tolist()
             rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
+            if sign > 0:  # the direction the path moves in (every trial's knots, rad)
+                rec["displacement"] = np.concatenate([(a.q - b.q).ravel() for a, b in zip(ps, sols, strict=True)])
         out["features"].append(rec)
     return out
 
@@ -332,6 +334,7 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
         shares = np.asarray(r["cost_shares"])
         base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
         ident[p] = identifiability(np.asarray(r["weights"]), list(split.train), unit.n_nodes, seed=config.seed)
+        ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
         ident[p]["key"] = r["key"]
         ident[p]["flag"] = r.get("flag")
         for kind in ("occlude_feature", "freeze_window"):
@@ -388,6 +391,26 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
         "config": {"method": method, "sections": sections, "postures": postures, "percent": config.percent,
                    "n_boot": config.n_boot, "seed": config.seed, "train_subject": train_subject},
     }
+
+
+def _effect_collinearity(done: dict, posture: str, sections: int, threshold: float = 0.9) -> list[dict]:
+    """Per window, feature pairs whose +x % weight changes move the predicted paths in nearly the same (or the
+    opposite) direction: ``|cos| ≥ threshold`` between the displacements. Such weights trade off in their
+    effect on the reach even when their running rates are not correlated."""
+    out = []
+    for s in range(sections):
+        res = done.get((posture, "sensitivity", s))
+        if res is None:
+            continue
+        d = [np.asarray(f["displacement"], dtype=float) for f in res["features"]]
+        for i in range(N_FEATURES):
+            for j in range(i + 1, N_FEATURES):
+                ni, nj = np.linalg.norm(d[i]), np.linalg.norm(d[j])
+                if ni > 0 and nj > 0:
+                    c = float(d[i] @ d[j] / (ni * nj))
+                    if abs(c) >= threshold:
+                        out.append({"window": s + 1, "features": [FEATURES[i], FEATURES[j]], "cos": c})
+    return out
 
 
 def _row(method, posture, sections, kind, i, shares, window=None) -> dict:
@@ -522,7 +545,8 @@ def _markdown(out: dict) -> list[str]:
                      f"window {'/'.join(map(str, ranks))} of 7, condition number {min(cond):.3g}–{max(cond):.3g} "
                      f"(worst: window "
                      f"{worst['window']}, direction {' vs '.join(worst['worst_pair'])}); nearly collinear feature "
-                     f"rates: {pairs}.")
+                     f"rates: {pairs}; weights with nearly collinear effects on the path (|cos| ≥ 0.9, per window): "
+                     f"{_effects(d.get('effect_collinearity') or [])}.")
     lines.append("")
     return lines
 
@@ -571,6 +595,16 @@ def identifiability_section(run, n_boot: int = 200) -> list[str]:
                      f"(window {worst['window']}) | {pairs} | {top(0)} | {top(-1)} |")
     lines.append("")
     return lines
+
+
+def _effects(items: list[dict]) -> str:
+    if not items:
+        return "none (or no sensitivity run)"
+    count: dict[tuple, list] = {}
+    for e in items:
+        count.setdefault(tuple(e["features"]), []).append(e["window"])
+    top = sorted(count.items(), key=lambda kv: -len(kv[1]))[:4]
+    return ", ".join(f"{a}–{b} (windows {', '.join(map(str, w))})" for (a, b), w in top)
 
 
 def _ci(r, s) -> str:
