@@ -42,7 +42,9 @@ def written(tiny_trials, tmp_path_factory, cli):
     proc = cli("evaluate", "--model", model, tiny_trials, "--out", d / "metrics.json", "--predictions", d / "pred")
     assert proc.returncode == 0, proc.stderr
     proc = cli("reproduce", "--data", tiny_trials, "--sections", "1", "2", "--nodes", "20", "--max-iter", "2",
-               "--n-train", "2", "--workers", "1", "--no-progress", "--out", d / "run")
+               "--n-train", "2", "--workers", "1", "--no-progress", "--iscv", "all-pairs", "--out", d / "run")
+    assert proc.returncode == 0, proc.stderr
+    proc = cli("sensitivity", d / "run", "--no-occlusion", "--workers", "1", "--no-progress", "--out", d / "sens")
     assert proc.returncode == 0, proc.stderr
     proc = cli("simulate", "--model", model, tiny_trials, "--trial", "0", "--out", d / "sim.json")
     assert proc.returncode == 0, proc.stderr
@@ -80,6 +82,9 @@ def actual(d: Path) -> dict[str, list[str]]:
         "results.json units[]": list(unit),
         "unit.npz": npz,
         "SIM.json": list(json.loads((d / "sim.json").read_text())),
+        "iscv_pairs.csv": _csv_header(d / "run" / "iscv_pairs.csv"),
+        "sensitivity.csv": _csv_header(d / "sens" / "sensitivity.csv"),
+        "identifiability.json": list(json.loads((d / "sens" / "identifiability.json").read_text())),
     }
 
 

@@ -69,7 +69,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -729,13 +729,19 @@ def _cache_key(config: SynthConfig) -> str:
     return f"synth-v{GENERATOR_VERSION}-seed{config.seed}-{hashlib.sha256(payload.encode()).hexdigest()[:10]}"
 
 
-def builtin_dataset_dir(seed: int = 0) -> Path:
+def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
     """The built-in data set (2 subjects × 5 postures × 20 trials, TRC), generated on first use and cached.
+
+    ``n_subjects`` draws that many subjects from the same population (``reachirl reproduce --subjects N``;
+    20 is Berret 2011's full design). Subjects and trials are drawn per index, so subject ``S01`` and its trials
+    are the same for every ``n_subjects``.
 
     Returns the folder with the TRC files, ``manifest.csv``, ``subjects.csv`` and ``truth.json``. It is built
     in a temporary folder and renamed into place, so a half-written cache is never used.
     """
     config = _builtin_config(int(seed))
+    if int(n_subjects) != config.n_subjects:
+        config = replace(config, n_subjects=int(n_subjects))
     root = cache_root()
     final = root / _cache_key(config)
     if final.is_dir() and (final / "truth.json").is_file():

@@ -15,7 +15,7 @@ import sys
 
 from ..errors import InputError
 
-COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench")
+COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench", "sensitivity")
 
 
 class _Terminated(KeyboardInterrupt):

@@ -5,6 +5,10 @@ Each (posture, sections) unit runs as one task in local processes (``--workers``
 (``--scheduler tcp://HOST:PORT``) and is checkpointed under DIR/units/; rerunning into the same DIR skips the
 finished units. ``--quick`` runs the same code path on fewer trials and postures (P2 and P4), smaller DOCs and
 fewer iterations.
+
+``--iscv all-pairs`` learns from every subject in turn and predicts every other one (iscv_pairs.csv and its
+heatmaps; --n-iscv then counts trials per test subject). ``--subjects N`` makes N built-in virtual subjects
+(20 × 5 postures × 20 trials is Berret 2011's design).
 """
 
 from __future__ import annotations
@@ -64,6 +68,19 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         action="store_true",
         help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations",
     )
+    p.add_argument(
+        "--subjects",
+        type=positive_int,
+        metavar="N",
+        help="make N built-in virtual subjects (default 2; 20 is Berret 2011's design); not with --data",
+    )
+    p.add_argument(
+        "--iscv",
+        choices=("one", "all-pairs"),
+        default="one",
+        help="one: learn from the training subject only (the seed); all-pairs: learn from every subject in turn "
+        "and predict every other one, writing iscv_pairs.csv and its heatmaps (default one)",
+    )
     g = p.add_argument_group("protocol options")
     g.add_argument("--postures", nargs="+", metavar="NAME", help="postures to run (default: all in the data)")
     g.add_argument(
@@ -78,6 +95,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         choices=("casadi", "crocoddyl"),
         default="casadi",
         help="DOC backend of every fit and prediction (default: casadi)",
+    )
+    g.add_argument(
+        "--acceptance",
+        choices=("merit", "either", "multimodal"),
+        default=None,
+        help="MO-IRL step acceptance: merit (the seed, default), either, or multimodal (state and torque merits)",
     )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
     g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
@@ -144,6 +167,8 @@ def _config(args):
         n_nodes=args.nodes or base["nodes"],
         max_iter=args.max_iter or base["max_iter"],
         backend=args.backend,
+        iscv=args.iscv,
+        estimator_options={"acceptance": args.acceptance} if args.acceptance else {},
     )
 
 
@@ -235,7 +260,7 @@ def run(args) -> int:
     t0 = time.perf_counter()
     if args.data is None:
         err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
-    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers)
+    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers, n_subjects=args.subjects)
     if args.quick:
         config = _quick_postures(config, dataset)
     data_s = time.perf_counter() - t0
@@ -303,7 +328,8 @@ def run(args) -> int:
     )
     out_console.print(
         f"wrote {out / 'table.md'}, table.csv, results.json, report.md, "
-        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}",
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}"
+        + (f"; all-pairs ISCV in {out / 'iscv_pairs.csv'}" if config.iscv == "all-pairs" else ""),
         highlight=False,
     )
     return 0

@@ -166,16 +166,24 @@ def _check_truth_weights(truth: dict, p: Path) -> None:
                     weights(r["weights"], f"field 'subjects.{sid}.trials', file {str(r.get('file'))[:40]}")
 
 
-def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None) -> Dataset:
-    """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`."""
+def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None,
+         n_subjects: int | None = None) -> Dataset:
+    """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`.
+    ``n_subjects`` (built-in data only) makes that many virtual subjects (default 2)."""
+    if n_subjects is not None and path is not None:
+        raise InputError("--subjects makes built-in virtual subjects; it cannot be combined with --data")
+    if n_subjects is not None and int(n_subjects) < 2:
+        raise InputError(f"--subjects needs at least 2 subjects (one to learn from, one to predict), got {n_subjects}")
     if path is None:
         from ..synth import builtin_dataset_dir
 
-        folder = builtin_dataset_dir(seed)
+        n = 2 if n_subjects is None else int(n_subjects)
+        folder = builtin_dataset_dir(seed, n)
         trials = preprocess_folder(folder, marker_map)
         return Dataset(
             tuple(trials),
-            f"built-in virtual subjects (seed {seed}): {folder}",
+            f"built-in virtual subjects ({n} subjects, seed {seed}): {folder}"
+            if n != 2 else f"built-in virtual subjects (seed {seed}): {folder}",
             "builtin",
             _read_truth(folder),
         )

@@ -9,6 +9,9 @@ For each initial posture and each number of weight sections:
   (``cv="other-side"``);
 * **ISCV**: every trial of that posture of the other subjects (the seed: subject 2's 20 trials).
 
+With ``iscv="all-pairs"`` every other subject is a training subject too, in extra units
+(``Unit.train_subject``; :mod:`reachirl.experiments.pairs`), and ``n_iscv`` counts trials per test subject.
+
 Every prediction is the DOC from the trial's own arm, initial state, target and duration
 (:func:`reachirl.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
 :func:`run_unit` is a pure function of the unit and its trials, so it gives the same numbers in any process.
@@ -45,6 +48,7 @@ __all__ = [
 SETS = ("train", "cv", "iscv")
 SET_LABELS = {"train": "Training", "cv": "CV", "iscv": "ISCV"}
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
+ISCV_MODES = ("one", "all-pairs")
 RESULT_VERSION = 2  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
 
 
@@ -67,6 +71,7 @@ class ProtocolConfig:
     tol: float = 1e-5
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
+    iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
@@ -75,6 +80,8 @@ class ProtocolConfig:
         if any(s > self.n_nodes for s in secs):
             raise InputError(f"--sections {max(secs)} exceeds the {self.n_nodes} DOC intervals")
         object.__setattr__(self, "sections", tuple(dict.fromkeys(secs)))
+        if self.iscv not in ISCV_MODES:
+            raise InputError(f"--iscv must be one of {', '.join(ISCV_MODES)}, got {self.iscv!r}")
         if self.cv not in ("rest", "other-side"):
             raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
         for m in self.methods:
@@ -118,11 +125,17 @@ class Unit:
     tol: float
     backend: str
     estimator_options: tuple = ()  # sorted (key, value) pairs, hashable
+    train_subject: str | None = None  # None: the protocol's training subject; else an all-pairs unit
 
     @property
     def key(self) -> str:
-        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in self.posture)
-        return f"{self.method}-{safe}-s{self.sections}"
+        key = f"{self.method}-{_safe(self.posture)}-s{self.sections}"
+        return key if self.train_subject is None else f"{key}-t{_safe(self.train_subject)}"
+
+    @property
+    def split_key(self):
+        """The key of this unit's :class:`Split` in the ``splits`` mapping: the posture, or (posture, subject)."""
+        return self.posture if self.train_subject is None else (self.posture, self.train_subject)
 
     def fingerprint(self, split: Split) -> str:
         """What the unit's result depends on: its parameters and its trials."""
@@ -130,7 +143,7 @@ class Unit:
             {
                 "v": RESULT_VERSION,
                 "code": code_fingerprint(self.method, self.backend),
-                "unit": asdict(self),
+                "unit": {k: v for k, v in asdict(self).items() if not (k == "train_subject" and v is None)},
                 "data": {k: fingerprint(v) for k, v in split.sets().items()},
                 "ids": {k: [t.id for t in v] for k, v in split.sets().items()},
             },
@@ -173,6 +186,10 @@ def code_fingerprint(method: str = "moirl", backend: str = "casadi") -> str:
             h.update(name.encode())
             h.update(f.read_bytes())
     return h.hexdigest()[:16]
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
 
 def _rng(seed: int, posture: str) -> np.random.Generator:
@@ -229,16 +246,23 @@ def split_trials(trials: Sequence[Trial], posture: str, config: ProtocolConfig) 
             + (f" ({config.train_side or 'right'} arm)" if config.cv == "other-side" else "")
         )
     cv, _ = _pick(cv, config.n_cv, rng)
-    iscv, _ = _pick(others, config.n_iscv, rng)
+    if config.iscv == "all-pairs":  # n_iscv per test subject, so every pair has trials
+        iscv = [t for s in sorted({t.subject for t in others})
+                for t in _pick([t for t in others if t.subject == s], config.n_iscv, rng)[0]]
+    else:
+        iscv, _ = _pick(others, config.n_iscv, rng)
     return Split(posture, tuple(train), tuple(cv), tuple(iscv))
 
 
-def make_units(postures: Sequence[str], config: ProtocolConfig) -> list[Unit]:
-    """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing."""
+def make_units(postures: Sequence[str], config: ProtocolConfig,
+               pair_subjects: Sequence[str] = ()) -> list[Unit]:
+    """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing; with
+    ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects."""
     opts = tuple(sorted((str(k), v) for k, v in config.estimator_options.items()))
     return [
-        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts)
+        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts, subj)
         for s in sorted(config.sections, reverse=True)
+        for subj in (None, *pair_subjects)
         for m in config.methods
         for p in postures
     ]
@@ -311,7 +335,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
         eval_solves += len(errs)
         eval_fail += sum(not e.converged for e in errs)
         sets[name] = {"trials": [e.to_dict() for e in errs], "summary": summarise(errs) if errs else None}
-        if errs:
+        if errs and unit.train_subject is None:  # all-pairs units keep their RMSEs only
             demos = [t.resample(unit.n_nodes + 1) for t in trials]
             arrays[f"{name}/t"] = np.stack([e.prediction.t for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)

@@ -377,10 +377,10 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
 
 
 def write_report(run: RunResult, tables: dict, md_tables: list[str], notes: list[str], figs: dict,
-                 truth_metrics: dict, comparisons: dict) -> Path:
-    """``report.md``."""
+                 truth_metrics: dict, comparisons: dict, extra_md: Sequence[str] = ()) -> Path:
+    """``report.md`` (``extra_md``: more sections, before "Run")."""
     path = run.out_dir / "report.md"
-    atomic_write_text(path, _report_md(run, tables, md_tables, notes, figs, truth_metrics, comparisons))
+    atomic_write_text(path, _report_md(run, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md))
     return path
 
 
@@ -404,25 +404,35 @@ def write_outputs(run: RunResult) -> dict:
     t_fig = time.perf_counter()
     truth = _truth_comparison(run.dataset, results, methods[0], postures)
     figs = write_figures(run, tables, truth)
+    from .sensitivity import identifiability_section
+
+    extra_md: list[str] = identifiability_section(run)
+    if run.config.iscv == "all-pairs":
+        from .pairs import write_pairs
+
+        pairs_out = write_pairs(run)
+        figs.update(pairs_out["figures"])
+        extra_md += pairs_out["markdown"]
     fig_time = time.perf_counter() - t_fig
     t_pred = time.perf_counter()
     write_predictions(run)
     computed = set(run.run_info.get("computed", []))
     timing = dict(run.timing)
-    timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in results.values() if r["key"] in computed)
-    timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in results.values() if r["key"] in computed)
+    every = [*results.values(), *run.pairs.values()]
+    timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in every if r["key"] in computed)
+    timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in every if r["key"] in computed)
     timing["figures_s"] = fig_time
     timing["predictions_s"] = time.perf_counter() - t_pred
     timing["report_s"] = time.perf_counter() - t0
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
     comparisons = _comparisons(run)
-    write_report(run, tables, md_tables, notes, figs, truth[2], comparisons)
+    write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
-def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons) -> str:
+def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
     dataset, config, postures = run.dataset, run.config, run.postures
     train_subject, split_sizes, timing, run_info = run.train_subject, run.split_sizes, run.timing, run.run_info
     methods, sections = list(config.methods), list(config.sections)
@@ -550,6 +560,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             f"{', '.join(ends_true)} dominate; the learned ones give {', '.join(ends_learned)}.",
             "",
         ]
+    lines += list(extra_md)
     lines += [
         "## Run",
         "",

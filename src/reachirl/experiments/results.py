@@ -45,6 +45,7 @@ class RunResult:
     summary: RunSummary
     timing: dict = field(default_factory=dict)
     run_info: dict = field(default_factory=dict)
+    pairs: dict[str, dict] = field(default_factory=dict)  # --iscv all-pairs: the other subjects' units, by key
 
     @property
     def stopped(self) -> bool:

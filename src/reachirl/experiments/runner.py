@@ -159,7 +159,8 @@ def run_units(
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
 ) -> RunSummary:
-    """Run (or reuse) every unit; ``splits`` maps a posture to its :class:`Split`.
+    """Run (or reuse) every unit; ``splits`` maps a unit's ``split_key`` (its posture, or (posture, training
+    subject) for an all-pairs unit) to its :class:`Split`.
 
     ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
     stops after that many *new* units (for tests and for splitting a long run).
@@ -170,7 +171,7 @@ def run_units(
     todo: list[tuple[Unit, str]] = []
     reused: list[str] = []
     for u in units:
-        fp = u.fingerprint(splits[u.posture])
+        fp = u.fingerprint(splits[u.split_key])
         res = load_unit(out_dir, u.key, fp)
         if res is not None:
             results[u.key] = res
@@ -207,8 +208,8 @@ def run_units(
         bounded = threading.current_thread() is threading.main_thread()  # SIGALRM needs the main thread
         for u, _ in todo:
             try:
-                payload = _run_unit_bounded(u, splits[u.posture], timeout) if bounded else run_unit(
-                    u, splits[u.posture])
+                payload = _run_unit_bounded(u, splits[u.split_key], timeout) if bounded else run_unit(
+                    u, splits[u.split_key])
             except UnitTimeoutError as e:
                 raise InputError(f"{e}; finished units are kept (rerun to resume), raise the limit with "
                                  f"REACHIRL_UNIT_TIMEOUT_S", out_dir) from None
@@ -217,7 +218,7 @@ def run_units(
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
         ex = _local_executor(min(workers, len(todo)))
         try:
-            futures = {ex.submit(_run_unit_bounded, u, splits[u.posture], timeout): u.key for u, _ in todo}
+            futures = {ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout): u.key for u, _ in todo}
             for f in cf.as_completed(futures):
                 try:
                     payload = f.result()
@@ -244,7 +245,7 @@ def run_units(
         client = _dask_client(scheduler)
         try:
             futures = [
-                client.submit(run_unit, u, splits[u.posture], key=f"reachirl-{u.key}-{fp}", pure=False)
+                client.submit(run_unit, u, splits[u.split_key], key=f"reachirl-{u.key}-{fp}", pure=False)
                 for u, fp in todo
             ]
             try:
@@ -276,6 +277,7 @@ def reproduce(
     written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
     """
+    from .pairs import pair_splits, pair_training_subjects
     from .protocol import code_fingerprint, make_units, resolve_postures, resolve_train_subject, split_trials
 
     trials = list(dataset.trials)
@@ -285,7 +287,9 @@ def reproduce(
     subject = resolve_train_subject(trials, config)
     splits = {p: split_trials(trials, p, config) for p in postures}
     split_sizes = {s: {p: len(splits[p].sets()[s]) for p in postures} for s in ("train", "cv", "iscv")}
-    units = make_units(postures, config)
+    splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
+    units = [u for u in make_units(postures, config, pair_training_subjects(trials, config))
+             if u.split_key in splits]
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(out_dir)
@@ -300,6 +304,9 @@ def reproduce(
         on_start=on_start,
         on_done=on_done,
     )
+    main = {k: r for k, r in summary.results.items() if r["unit"].get("train_subject") is None}
+    pairs = {k: r for k, r in summary.results.items() if k not in main}
+    summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)
     run_info = {
         "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
         "n_units": len(units),
@@ -319,4 +326,5 @@ def reproduce(
         summary=summary,
         timing={"data_s": data_s, "units_wall_s": time.perf_counter() - t0},
         run_info=run_info,
+        pairs=pairs,
     )

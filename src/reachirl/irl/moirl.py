@@ -55,6 +55,11 @@ Options from the original MO-IRL (Mehrdad et al. 2025), all off by default so th
 ``l1`` (elastic-net λ), ``n_suffixes`` (suffix sub-sampling), ``acceptance="either"`` (also accept a step that
 decreases the feature mismatch, or the cost mismatch under Armijo and curvature conditions) and ``memory``
 (``x̄`` keeps the last ``memory`` trajectories; ``None`` keeps them all).
+
+``acceptance="multimodal"`` (the seed's future work) also looks at torque: a try is accepted when the state
+merit falls, or when the mean relative change of the state merit and of the torque merit (the rollout's
+``τ`` against the demonstrations' inverse-dynamics ``τ`` on the knots) is a fall (:func:`multimodal_accept`).
+As with "either", the fit returns the weights of the best state merit seen.
 """
 
 from __future__ import annotations
@@ -74,7 +79,8 @@ from ..features import N_FEATURES, feature_rates, window_index
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, merit, solve_delta, solve_step
 
-__all__ = ["FLAG_TEXT", "MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task"]
+__all__ = ["FLAG_TEXT", "MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
+           "multimodal_accept"]
 
 SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
 """Candidate ``λ`` of ``smoothness="cv"`` (per demonstration; ``λ → ∞`` would tie the windows into one)."""
@@ -199,8 +205,8 @@ class MOIRL(WeightEstimator):
         trials = self._check_trials(trials)
         if self.rollout not in ("mean", "per_demo"):
             raise ValueError(f"rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
-        if self.acceptance not in ("merit", "either"):
-            raise ValueError(f"acceptance must be 'merit' or 'either', got {self.acceptance!r}")
+        if self.acceptance not in ("merit", "either", "multimodal"):
+            raise ValueError(f"acceptance must be 'merit', 'either' or 'multimodal', got {self.acceptance!r}")
         if self.scaling not in ("demo", None):
             raise ValueError(f"scaling must be 'demo' or None, got {self.scaling!r}")
         if self.scaling == "demo" and (not self.use_gamma or self.l1):
@@ -364,6 +370,8 @@ class MOIRL(WeightEstimator):
         t_start = time.perf_counter()
         tasks = self._tasks(trials)
         x_demos = demonstration_states(trials, self.n_nodes)
+        self._tau_demos = np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self.acceptance == "multimodal" \
+            else None
         channels = channel_scale(x_demos) if self.merit == "normalised" else None
         guesses = [x_demos[:, :, :2].mean(axis=0)] if self.rollout == "mean" else list(x_demos[:, :, :2])
         starts = np.array([0]) if not self.n_suffixes else np.unique(
@@ -458,7 +466,8 @@ class MOIRL(WeightEstimator):
             failures += failed
             m_try = self._merit(x_demos, cand, channels)
             if m_try < m * (1.0 - self.tol) or (
-                failed == 0 and self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
+                failed == 0 and (self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
+                                 or self._accept_multimodal(m, m_try, sols, cand))
             ):
                 return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures, recovered)
             alpha *= self.shrink
@@ -491,6 +500,27 @@ class MOIRL(WeightEstimator):
         armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self.armijo_c1 * alpha * g0
         curvature = abs(g1) <= self.curvature_c2 * abs(g0)
         return bool(g0 < 0 and armijo and curvature)
+
+    def _accept_multimodal(self, m: float, m_try: float, old, new) -> bool:
+        """``acceptance="multimodal"``: :func:`multimodal_accept` on the state and torque merits."""
+        if self.acceptance != "multimodal" or self._tau_demos is None:
+            return False
+
+        def tau_merit(sols):
+            tau = sols[0].tau if self.rollout == "mean" else np.stack([s.tau for s in sols])
+            return merit(self._tau_demos, tau)
+
+        return multimodal_accept(m, m_try, tau_merit(old), tau_merit(new), self.tol)
+
+
+def multimodal_accept(m: float, m_try: float, t: float, t_try: float, tol: float = 0.0) -> bool:
+    """Multimodal step acceptance: the mean relative change of the state merit (``m → m_try``) and of a second
+    channel's merit (``t → t_try``, e.g. torque) is a fall by more than ``tol``:
+    ``½ (m_try/m + t_try/t) < 1 − tol``. False when a merit is not finite and positive."""
+    vals = np.array([m, m_try, t, t_try], dtype=float)
+    if not np.all(np.isfinite(vals)) or m <= 0 or t <= 0:
+        return False
+    return bool(0.5 * (m_try / m + t_try / t) < 1.0 - tol)
 
 
 def _is_rescale(w: np.ndarray, dw: np.ndarray, rtol: float = 1e-9) -> bool:

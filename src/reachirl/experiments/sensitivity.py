@@ -1,0 +1,635 @@
+"""Which costs does the data need? Occlusion, weight sensitivity and identifiability of a ``reproduce`` run's
+fits (``reachirl sensitivity RUN_DIR --out DIR``).
+
+For each chosen unit (by default: the run's first method, every posture, its largest section count):
+
+* **occlusion of a feature**: MO-IRL is refitted on the same training trials with feature ``j`` removed (its
+  weight is 0 in every window and never moves), and the training, CV and ISCV trials are predicted again; the
+  change in each trial's RMSE of q against the full fit's is reported as a mean with a paired 95 % bootstrap
+  interval over trials (seeded);
+* **freezing a window**: the same with window ``s``'s weights held at ω₀ (never learned) instead;
+* **weight sensitivity**: every weight ``ω_sj`` of the full fit is changed by ``±percent`` % and the training
+  trials are predicted again (DOCs warm-started from the full fit's predictions): the RMSE change for ``+`` and
+  ``−`` and how far the predicted path moves (RMSE between the perturbed and the unperturbed prediction, deg);
+* **identifiability** (:mod:`reachirl.irl.identifiability`): conditioning of the feature differences per window,
+  nearly collinear feature pairs, bootstrap intervals of the cost shares.
+
+A feature (or window) is **needed** when its occlusion raises the held-out RMSE (CV, else ISCV, else training)
+with a 95 % interval above 0; **better without** when the interval is below 0; otherwise **not needed** (the
+data cannot tell the fit with it from the fit without it). Rows of posture ``ALL`` pool the trials of every
+posture. Each refit is a pure function of its inputs, run in local processes with ``workers > 1``.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import json
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..features import FEATURES, N_FEATURES
+from ..io import atomic_write_json, atomic_write_text
+from ..irl.moirl import MOIRL
+from ..irl.objective import step_objective
+from .protocol import ProtocolConfig, Split, Unit, make_estimator, split_trials
+
+__all__ = [
+    "COLUMNS",
+    "MaskedMOIRL",
+    "SensitivityConfig",
+    "load_run",
+    "plot_sensitivity",
+    "run_sensitivity",
+    "write_sensitivity",
+]
+
+log = logging.getLogger(__name__)
+
+ALL = "ALL"
+COLUMNS = (
+    "method", "posture", "sections", "analysis", "feature", "window", "cost_share",
+    "train_delta_deg", "train_ci_lo", "train_ci_hi", "cv_delta_deg", "cv_ci_lo", "cv_ci_hi",
+    "iscv_delta_deg", "iscv_ci_lo", "iscv_ci_hi", "plus_delta_deg", "minus_delta_deg", "path_change_deg",
+    "verdict",
+)
+SETS = ("train", "cv", "iscv")
+
+
+@dataclass(frozen=True)
+class SensitivityConfig:
+    percent: float = 10.0
+    sections: int | None = None  # None: the run's largest
+    postures: tuple[str, ...] | None = None  # None: every posture of the run
+    method: str | None = None  # None: the run's first method
+    occlusion: bool = True
+    sensitivity: bool = True
+    n_boot: int = 2000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0 < float(self.percent) < 100:
+            raise InputError(f"--percent must be in (0, 100), got {self.percent}")
+        if self.sections is not None and int(self.sections) < 1:
+            raise InputError(f"--sections must be a positive integer, got {self.sections}")
+        if not (self.occlusion or self.sensitivity):
+            raise InputError("nothing to do: both the occlusion and the sensitivity analyses are switched off")
+
+
+# ---------------------------------------------------------------------- the run
+def load_run(run_dir: str | Path):
+    """``(dataset, config, results, train_subject)`` of a finished ``reproduce`` run folder. The data are loaded
+    again from where the run found them and must have the run's fingerprint."""
+    from .datasets import Dataset, fingerprint, load, preprocess_folder
+    from .results import load_unit
+
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise InputError("no such run folder (expected the --out folder of `reachirl reproduce`)", run_dir)
+    path = run_dir / "results.json"
+    if not path.is_file():
+        raise InputError("not a finished reproduce run: no results.json", run_dir)
+    try:
+        res = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise InputError(f"unreadable ({e})", path) from None
+    data, proto = res.get("data") or {}, res.get("protocol") or {}
+    kind, source = data.get("kind"), str(data.get("source", ""))
+    if kind == "builtin":
+        folder = Path(source.rsplit(": ", 1)[-1])
+        if not folder.is_dir():
+            raise InputError(f"the run's built-in data folder is gone ({folder}); rerun reproduce", path)
+        dataset = Dataset(tuple(preprocess_folder(folder)), source, "builtin")
+    elif kind in ("folder", "trials-file"):
+        dataset = load(source)
+    else:
+        raise InputError(f"the run's data ({kind or 'unknown'}: {source}) cannot be loaded again", path)
+    if data.get("fingerprint") and fingerprint(dataset.trials) != data["fingerprint"]:
+        raise InputError(f"the data at {source} are not the ones the run used (fingerprint differs)", path)
+    names = {f.name for f in fields(ProtocolConfig)}
+    kw = {k: v for k, v in proto.items() if k in names}
+    for k in ("sections", "postures", "methods"):
+        if kw.get(k) is not None:
+            kw[k] = tuple(kw[k])
+    kw["postures"] = tuple(proto.get("postures_run") or kw.get("postures") or ())
+    config = ProtocolConfig(**kw)
+    results = {}
+    for u in res.get("units", []):
+        r = load_unit(run_dir, u["key"])
+        if r is not None:
+            results[u["key"]] = r
+    return dataset, config, results, str(proto.get("train_subject"))
+
+
+# ---------------------------------------------------------------------- constrained MO-IRL
+class MaskedMOIRL(MOIRL):
+    """MO-IRL with some weights held fixed: ``removed`` features have weight 0 in every window; ``frozen``
+    windows keep ω₀. Set the two attributes after construction (the constructor is MOIRL's). Scale-free
+    (``scaling="demo"``) form only: the step is MOIRL's, with ``η = 0`` on the held entries."""
+
+    removed: tuple[int, ...] = ()
+    frozen: tuple[int, ...] = ()
+
+    def _held(self, shape) -> np.ndarray:
+        held = np.zeros(shape, dtype=bool)
+        held[:, list(self.removed)] = True
+        held[list(self.frozen), :] = True
+        return held
+
+    def _effective(self, w: np.ndarray) -> np.ndarray:
+        w = np.array(w, dtype=float)
+        w[:, list(self.removed)] = 0.0
+        return w
+
+    def _rollouts(self, tasks, w, warm, guesses):
+        return super()._rollouts(tasks, self._effective(w), warm, guesses)
+
+    def _step(self, w, sigma, phi_star, bank, starts, smoothness):
+        from scipy.optimize import minimize
+
+        if self.scaling != "demo":
+            raise ValueError("MaskedMOIRL needs scaling='demo'")
+        groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
+        w_eff = np.array(w, dtype=float)
+        w_eff[:, list(self.removed)] *= 1e-12  # absent from the likelihood, still > 0 for the log-step
+        theta = w_eff * sigma
+        held = self._held(w.shape).reshape(-1)
+        bound = float(np.log(self.max_ratio))
+        lam = smoothness * phi_star.shape[0]
+
+        def fun(x):
+            f, g = step_objective(x.reshape(w.shape), theta, groups, self.beta, lam, np.log(sigma))
+            return f, g.reshape(-1)
+
+        res = minimize(fun, np.zeros(w.size), jac=True, method="L-BFGS-B",
+                       bounds=[(0.0, 0.0) if h else (-bound, bound) for h in held],
+                       options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-12})
+        eta = np.clip(res.x.reshape(w.shape), -bound, bound)
+        eta[held.reshape(w.shape)] = 0.0
+        return w * np.expm1(eta), {"nit": int(res.nit)}
+
+    def _fit(self, trials, smoothness):
+        super()._fit(trials, smoothness)
+        self.weights_ = self._effective(self.weights_)
+
+
+# ---------------------------------------------------------------------- jobs (pure functions)
+def _per_trial(weights, trials, n_nodes, backend, warm=None):
+    from ..doc import ReachingTask, solve_doc
+    from ..evaluation import rmse_deg
+
+    out, sols = [], []
+    for i, t in enumerate(trials):
+        sol = solve_doc(ReachingTask.from_trial(t, n_nodes), weights, backend=backend,
+                        warm_start=None if warm is None else warm[i])
+        out.append(rmse_deg(sol.q, t.resample(n_nodes + 1).q)[2])
+        sols.append(sol)
+    return np.array(out), sols
+
+
+def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tuple[int, ...]) -> dict:
+    """Refit ``unit`` on ``split.train`` with features ``removed`` / windows ``frozen`` held and predict every
+    set: ``{"weights", "rmse": {set: [per trial]}, "flag"}``."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    base = make_estimator(unit)
+    est = MaskedMOIRL(**base.get_params())
+    est.removed, est.frozen = tuple(removed), tuple(frozen)
+    est.fit(list(split.train))
+    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend)[0].tolist()
+            for s, tr in split.sets().items()}
+    return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "flag": est.flag_}
+
+
+def sensitivity_job(weights: np.ndarray, trials: Sequence, n_nodes: int, backend: str, window: int,
+                    percent: float) -> dict:
+    """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − and the path
+    change (deg) against the unperturbed prediction."""
+    from ..evaluation import rmse_deg
+
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    w = np.asarray(weights, dtype=float)
+    base, sols = _per_trial(w, trials, n_nodes, backend)
+    out = {"base": base.tolist(), "features": []}
+    for j in range(N_FEATURES):
+        rec = {}
+        for sign, name in ((1, "plus"), (-1, "minus")):
+            wp = w.copy()
+            wp[window, j] *= 1 + sign * percent / 100.0
+            r, ps = _per_trial(wp, trials, n_nodes, backend, warm=sols)
+            rec[name] = r.tolist()
+            rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
+            if sign > 0:  # the direction the path moves in (every trial's knots, rad)
+                rec["displacement"] = np.concatenate([(a.q - b.q).ravel() for a, b in zip(ps, sols, strict=True)])
+        out["features"].append(rec)
+    return out
+
+
+# ---------------------------------------------------------------------- statistics
+def paired_interval(d: Sequence[float], n_boot: int = 2000, seed: int = 0) -> tuple[float, float, float]:
+    """Mean of the paired differences ``d`` and its 95 % bootstrap interval (seeded); NaNs without data."""
+    d = np.asarray(d, dtype=float)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return float("nan"), float("nan"), float("nan")
+    if d.size == 1:
+        return float(d[0]), float(d[0]), float(d[0])
+    rng = np.random.default_rng(seed)
+    boot = d[rng.integers(0, d.size, size=(int(n_boot), d.size))].mean(axis=1)
+    lo, hi = np.quantile(boot, [0.025, 0.975])
+    return float(d.mean()), float(lo), float(hi)
+
+
+def _verdict(row: dict) -> str:
+    for s in ("cv", "iscv", "train"):
+        lo, hi = row.get(f"{s}_ci_lo"), row.get(f"{s}_ci_hi")
+        if lo is None or not np.isfinite(lo):
+            continue
+        if lo > 0:
+            return f"needed ({s})"
+        if hi < 0:
+            return f"better without ({s})"
+        return f"not needed ({s})"
+    return ""
+
+
+# ---------------------------------------------------------------------- the analysis
+def _executor(workers: int):
+    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None, *, workers: int = 1,
+                    on_start: Callable[[int], None] | None = None,
+                    on_done: Callable[[str], None] | None = None) -> dict:
+    """Occlusion, sensitivity and identifiability of the chosen units of ``run_dir`` (module docstring). Returns
+    ``{"rows": [...], "identifiability": {...}, "units": [...], "config": {...}}``."""
+    from ..irl.identifiability import identifiability
+
+    config = config or SensitivityConfig()
+    dataset, pconfig, results, train_subject = load_run(run_dir)
+    method = config.method or pconfig.methods[0]
+    if method not in pconfig.methods:
+        raise InputError(f"--method {method!r} was not run; the run has {', '.join(pconfig.methods)}")
+    if config.occlusion and method != "moirl":
+        raise InputError(f"occlusion refits need MO-IRL; the run's method is {method!r} (use --no-occlusion)")
+    sections = int(config.sections or max(pconfig.sections))
+    if sections not in pconfig.sections:
+        raise InputError(f"--sections {sections} was not run; the run has {', '.join(map(str, pconfig.sections))}")
+    postures = list(config.postures or pconfig.postures)
+    unknown = [p for p in postures if p not in pconfig.postures]
+    if unknown:
+        raise InputError(f"posture(s) {', '.join(unknown)} were not run; the run has {', '.join(pconfig.postures)}")
+    trials = list(dataset.trials)
+    chosen = {}
+    for p in postures:
+        r = next((r for r in results.values() if r["unit"]["method"] == method and r["unit"]["posture"] == p
+                  and int(r["unit"]["sections"]) == sections and not r["unit"].get("train_subject")), None)
+        if r is None:
+            raise InputError(f"the run has no finished unit {method}, {p}, {sections} sections", run_dir)
+        split = split_trials(trials, p, pconfig)
+        if [t.id for t in split.train] != [e["id"] for e in r["sets"]["train"]["trials"]]:
+            raise InputError(f"{r['key']}: the training trials differ from the run's", run_dir)
+        u = r["unit"]
+        unit = Unit(u["method"], u["posture"], int(u["sections"]), u["seed"], u["n_nodes"], u["max_iter"], u["tol"],
+                    u["backend"], tuple(tuple(x) for x in u.get("estimator_options", ())))
+        chosen[p] = (unit, split, r)
+
+    jobs = []  # (name, fn, args)
+    for p, (unit, split, r) in chosen.items():
+        if config.occlusion:
+            for j in range(N_FEATURES):
+                jobs.append(((p, "occlude_feature", j), occlusion_job, (unit, split, (j,), ())))
+            if sections > 1:
+                for s in range(sections):
+                    jobs.append(((p, "freeze_window", s), occlusion_job, (unit, split, (), (s,))))
+        if config.sensitivity:
+            for s in range(sections):
+                jobs.append(((p, "sensitivity", s), sensitivity_job,
+                             (np.asarray(r["weights"]), list(split.train), unit.n_nodes, unit.backend, s,
+                              float(config.percent))))
+    if on_start:
+        on_start(len(jobs))
+    done: dict = {}
+    if workers <= 1:
+        for name, fn, args in jobs:
+            done[name] = fn(*args)
+            if on_done:
+                on_done(f"{name[0]} {name[1]} {name[2] + 1}")
+    else:
+        with _executor(min(workers, len(jobs))) as ex:
+            futs = {ex.submit(fn, *args): name for name, fn, args in jobs}
+            for f in cf.as_completed(futs):
+                name = futs[f]
+                done[name] = f.result()
+                if on_done:
+                    on_done(f"{name[0]} {name[1]} {name[2] + 1}")
+
+    rows, pooled, ident = [], {}, {}
+    for p, (unit, split, r) in chosen.items():
+        shares = np.asarray(r["cost_shares"])
+        base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
+        ident[p] = identifiability(np.asarray(r["weights"]), list(split.train), unit.n_nodes, seed=config.seed)
+        ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
+        ident[p]["key"] = r["key"]
+        ident[p]["flag"] = r.get("flag")
+        for kind in ("occlude_feature", "freeze_window"):
+            n_items = N_FEATURES if kind == "occlude_feature" else (sections if sections > 1 else 0)
+            for i in range(n_items):
+                res = done.get((p, kind, i))
+                if res is None:
+                    continue
+                row = _row(method, p, sections, kind, i, shares)
+                for s in SETS:
+                    d = np.asarray(res["rmse"][s]) - base[s]
+                    pooled.setdefault((kind, i, s), []).extend(d.tolist())
+                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
+                        d, config.n_boot, config.seed)
+                row["verdict"] = _verdict(row)
+                rows.append(row)
+        for s in range(sections):
+            res = done.get((p, "sensitivity", s))
+            if res is None:
+                continue
+            b = np.asarray(res["base"])
+            for j, rec in enumerate(res["features"]):
+                row = _row(method, p, sections, "sensitivity", j, shares, window=s)
+                row["plus_delta_deg"] = float(np.mean(np.asarray(rec["plus"]) - b))
+                row["minus_delta_deg"] = float(np.mean(np.asarray(rec["minus"]) - b))
+                row["path_change_deg"] = float(np.mean(rec["path_plus"] + rec["path_minus"]))
+                pooled.setdefault(("sensitivity", s, j), []).append(row)
+                rows.append(row)
+    if len(chosen) > 1:  # ALL: every posture's trials pooled
+        mean_shares = np.mean([np.asarray(r["cost_shares"]) for _, _, r in chosen.values()], axis=0)
+        for kind in ("occlude_feature", "freeze_window"):
+            for i in range(N_FEATURES if kind == "occlude_feature" else sections):
+                if (kind, i, "train") not in pooled:
+                    continue
+                row = _row(method, ALL, sections, kind, i, mean_shares)
+                for s in SETS:
+                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
+                        pooled[(kind, i, s)], config.n_boot, config.seed)
+                row["verdict"] = _verdict(row)
+                rows.append(row)
+        for s in range(sections):
+            for j in range(N_FEATURES):
+                per = pooled.get(("sensitivity", s, j))
+                if not per:
+                    continue
+                row = _row(method, ALL, sections, "sensitivity", j, mean_shares, window=s)
+                for k in ("plus_delta_deg", "minus_delta_deg", "path_change_deg"):
+                    row[k] = float(np.mean([x[k] for x in per]))
+                rows.append(row)
+    return {
+        "rows": rows,
+        "identifiability": ident,
+        "units": [r["key"] for _, _, r in chosen.values()],
+        "config": {"method": method, "sections": sections, "postures": postures, "percent": config.percent,
+                   "n_boot": config.n_boot, "seed": config.seed, "train_subject": train_subject},
+    }
+
+
+def _effect_collinearity(done: dict, posture: str, sections: int, threshold: float = 0.9) -> list[dict]:
+    """Per window, feature pairs whose +x % weight changes move the predicted paths in nearly the same (or the
+    opposite) direction: ``|cos| ≥ threshold`` between the displacements. Such weights trade off in their
+    effect on the reach even when their running rates are not correlated."""
+    out = []
+    for s in range(sections):
+        res = done.get((posture, "sensitivity", s))
+        if res is None:
+            continue
+        d = [np.asarray(f["displacement"], dtype=float) for f in res["features"]]
+        for i in range(N_FEATURES):
+            for j in range(i + 1, N_FEATURES):
+                ni, nj = np.linalg.norm(d[i]), np.linalg.norm(d[j])
+                if ni > 0 and nj > 0:
+                    c = float(d[i] @ d[j] / (ni * nj))
+                    if abs(c) >= threshold:
+                        out.append({"window": s + 1, "features": [FEATURES[i], FEATURES[j]], "cos": c})
+    return out
+
+
+def _row(method, posture, sections, kind, i, shares, window=None) -> dict:
+    row = {c: None for c in COLUMNS}
+    row.update(method=method, posture=posture, sections=sections, analysis=kind, verdict="")
+    if kind == "occlude_feature":
+        row.update(feature=FEATURES[i], window="all", cost_share=float(shares[:, i].mean()))
+    elif kind == "freeze_window":
+        row.update(feature="all", window=str(i + 1), cost_share=None)
+    else:
+        row.update(feature=FEATURES[i], window=str(window + 1), cost_share=float(shares[window, i]))
+    return row
+
+
+# ---------------------------------------------------------------------- outputs
+def _fmt(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if not np.isfinite(v) else f"{v:.4f}"
+    return str(v)
+
+
+def to_csv(rows: Sequence[dict]) -> str:
+    return "\n".join([",".join(COLUMNS), *(",".join(_fmt(r[c]) for c in COLUMNS) for r in rows)]) + "\n"
+
+
+def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str = ""):
+    """Three panels for ``posture``: occlusion of each feature and freezing of each window (RMSE change on the
+    held-out set with its 95 % interval, and on the training set), and the path change under ±x % of each
+    weight (window × feature)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .figures import SHORT
+
+    if axes is None:
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    fig = axes[0].figure
+    sel = [r for r in rows if r["posture"] == posture]
+    for ax, kind, label in ((axes[0], "occlude_feature", "feature removed"),
+                            (axes[1], "freeze_window", "window frozen at ω₀")):
+        rs = [r for r in sel if r["analysis"] == kind]
+        if not rs:
+            ax.set_axis_off()
+            continue
+        x = np.arange(len(rs))
+        for k, (s, c) in enumerate((("train", "tab:gray"), ("cv", "tab:blue"), ("iscv", "tab:orange"))):
+            m = np.array([np.nan if r[f"{s}_delta_deg"] is None else r[f"{s}_delta_deg"] for r in rs], float)
+            if not np.isfinite(m).any():
+                continue
+            lo = np.array([r[f"{s}_ci_lo"] for r in rs], float)
+            hi = np.array([r[f"{s}_ci_hi"] for r in rs], float)
+            ax.bar(x + (k - 1) * 0.27, m, 0.27, color=c, label=s.upper() if s != "train" else "training",
+                   yerr=np.vstack([m - lo, hi - m]), capsize=2, error_kw={"lw": 0.8})
+        ax.axhline(0, color="k", lw=0.6)
+        names = [SHORT.get(r["feature"], r["feature"]) if kind == "occlude_feature" else f"w{r['window']}"
+                 for r in rs]
+        ax.set_xticks(x)
+        ax.set_xticklabels(names, rotation=45 if kind == "occlude_feature" else 0, ha="right" if kind ==
+                           "occlude_feature" else "center", fontsize=8)
+        ax.set_ylabel("RMSE change of q (deg), refit − full fit")
+        ax.set_title(f"occlusion: {label}", fontsize=9)
+        ax.legend(fontsize=7)
+    rs = [r for r in sel if r["analysis"] == "sensitivity"]
+    if rs:
+        n_w = max(int(r["window"]) for r in rs)
+        m = np.full((n_w, N_FEATURES), np.nan)
+        for r in rs:
+            m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
+        im = axes[2].imshow(m.T, aspect="auto", cmap="viridis", interpolation="nearest",
+                            extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5))
+        axes[2].set_yticks(range(N_FEATURES))
+        axes[2].set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
+        axes[2].set_xticks(range(1, n_w + 1))
+        axes[2].set_xlabel("window")
+        axes[2].set_title("sensitivity: path change under ±x % of each weight (deg)", fontsize=9)
+        fig.colorbar(im, ax=axes[2], shrink=0.8)
+    else:
+        axes[2].set_axis_off()
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _markdown(out: dict) -> list[str]:
+    cfg, rows = out["config"], out["rows"]
+    post = ALL if any(r["posture"] == ALL for r in rows) else cfg["postures"][0]
+    lines = [f"# reachirl sensitivity: {cfg['method']}, {cfg['sections']} section(s), postures "
+             f"{', '.join(cfg['postures'])}", ""]
+    occ = sorted([r for r in rows if r["posture"] == post and r["analysis"] == "occlude_feature"],
+                 key=lambda r: -(r["cv_delta_deg"] if r["cv_delta_deg"] is not None and np.isfinite(
+                     r["cv_delta_deg"]) else r["train_delta_deg"] or 0.0))
+    if occ:
+        lines += [f"## Which costs the data needs (posture {post}; refit without each feature)", "",
+                  "| feature | mean cost share | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | "
+                  "Δ ISCV (deg) [95 % CI] | verdict |", "|---|---|---|---|---|---|"]
+        for r in occ:
+            lines.append(f"| {r['feature']} | {r['cost_share']:.2f} | " + " | ".join(
+                _ci(r, s) for s in SETS) + f" | {r['verdict']} |")
+        lines.append("")
+    fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
+    if fr:
+        lines += [f"## Which windows need learning (posture {post}; window frozen at ω₀)", "",
+                  "| window | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | Δ ISCV (deg) [95 % CI] | "
+                  "verdict |", "|---|---|---|---|---|"]
+        for r in fr:
+            lines.append(f"| {r['window']} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |")
+        lines.append("")
+    sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
+    if sens:
+        top = sorted(sens, key=lambda r: -r["path_change_deg"])[:5]
+        lines += [f"## Most sensitive weights (±{cfg['percent']:g} %, posture {post})", "",
+                  "| window | feature | cost share | path change (deg) | Δ RMSE + (deg) | Δ RMSE − (deg) |",
+                  "|---|---|---|---|---|---|"]
+        for r in top:
+            lines.append(f"| {r['window']} | {r['feature']} | {r['cost_share']:.2f} | {r['path_change_deg']:.3f} | "
+                         f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |")
+        lines.append("")
+    lines += ["## Identifiability", ""]
+    for p, d in out["identifiability"].items():
+        cond = [c["condition_number"] for c in d["conditioning"]]
+        pairs = ", ".join(f"{a}–{b} (r = {r:.2f})" for (a, b), r in
+                          ((c["features"], c["r"]) for c in d["collinear_pairs"])) or "none with |r| ≥ 0.9"
+        worst = d["conditioning"][int(np.argmax(cond))]
+        ranks = sorted({c["rank"] for c in d["conditioning"]})
+        lines.append(f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}, "
+                     f"{d['n_demonstrations']} demonstrations): rank of the normalised feature differences per "
+                     f"window {'/'.join(map(str, ranks))} of 7, condition number {min(cond):.3g}–{max(cond):.3g} "
+                     f"(worst: window "
+                     f"{worst['window']}, direction {' vs '.join(worst['worst_pair'])}); nearly collinear feature "
+                     f"rates: {pairs}; weights with nearly collinear effects on the path (|cos| ≥ 0.9, per window): "
+                     f"{_effects(d.get('effect_collinearity') or [])}.")
+    lines.append("")
+    return lines
+
+
+def identifiability_section(run, n_boot: int = 200) -> list[str]:
+    """``report.md`` lines beside the weights: for the main method's fits with the most sections, per posture, the
+    conditioning of the feature differences, the nearly collinear pairs and the bootstrap intervals of the first
+    and last windows' two largest cost shares (:mod:`reachirl.irl.identifiability`)."""
+    from ..irl.identifiability import identifiability
+
+    method, n = run.config.methods[0], max(run.config.sections)
+    by_id = {t.id: t for t in run.dataset.trials}
+    lines = [f"## Identifiability of the weights ({method}, {n} section(s))", "",
+             "How well the training demonstrations determine the weights: rank and condition number of the "
+             "normalised feature differences the subproblem sees (per window; rank < 7 or a large condition "
+             "number means some weight directions are not determined), feature pairs whose running rates are "
+             "nearly collinear (|r| ≥ 0.9), and 95 % bootstrap intervals of the cost shares over resampled "
+             "demonstrations (fixed ω). `reachirl sensitivity` adds occlusion refits.", "",
+             "| posture | rank per window | condition number (min–max) | worst-determined pair | collinear rates | "
+             "first window: top shares [95 % CI] | last window: top shares [95 % CI] |",
+             "|---|---|---|---|---|---|---|"]
+    for p in run.postures:
+        r = next((r for r in run.results.values() if r["unit"]["method"] == method and r["unit"]["posture"] == p
+                  and int(r["unit"]["sections"]) == n), None)
+        if r is None:
+            continue
+        train = [by_id[e["id"]] for e in r["sets"]["train"]["trials"] if e["id"] in by_id]
+        if len(train) < 2:
+            continue
+        d = identifiability(np.asarray(r["weights"]), train, int(r["unit"]["n_nodes"]), n_boot=n_boot)
+        cond = [c["condition_number"] for c in d["conditioning"]]
+        worst = d["conditioning"][int(np.argmax(cond))]
+        rank_list = [c["rank"] for c in d["conditioning"]]
+        ranks = "/".join(map(str, rank_list)) if n <= 8 else f"min {min(rank_list)}"
+        pairs = ", ".join(f"{a}–{b} ({rr:.2f})" for (a, b), rr in ((c["features"], c["r"])
+                                                                   for c in d["collinear_pairs"])) or "none"
+        b = d["bootstrap_shares"]
+
+        def top(s, b=b):
+            sh = np.asarray(b["shares"][s])
+            idx = np.argsort(-sh)[:2]
+            return ", ".join(f"{FEATURES[j]} {sh[j]:.2f} [{b['lo'][s][j]:.2f}, {b['hi'][s][j]:.2f}]" for j in idx)
+
+        flag = f" ({r['flag']})" if r.get("flag") else ""
+        lines.append(f"| {p}{flag} | {ranks} | {min(cond):.3g}–{max(cond):.3g} | {' vs '.join(worst['worst_pair'])} "
+                     f"(window {worst['window']}) | {pairs} | {top(0)} | {top(-1)} |")
+    lines.append("")
+    return lines
+
+
+def _effects(items: list[dict]) -> str:
+    if not items:
+        return "none (or no sensitivity run)"
+    count: dict[tuple, list] = {}
+    for e in items:
+        count.setdefault(tuple(e["features"]), []).append(e["window"])
+    top = sorted(count.items(), key=lambda kv: -len(kv[1]))[:4]
+    return ", ".join(f"{a}–{b} (windows {', '.join(map(str, w))})" for (a, b), w in top)
+
+
+def _ci(r, s) -> str:
+    m = r[f"{s}_delta_deg"]
+    if m is None or not np.isfinite(m):
+        return "—"
+    return f"{m:+.3f} [{r[f'{s}_ci_lo']:+.3f}, {r[f'{s}_ci_hi']:+.3f}]"
+
+
+def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
+    """``sensitivity.csv``, ``sensitivity.md``, ``identifiability.json`` and ``figures/sensitivity_<posture>.png``
+    under ``out_dir``; returns the paths."""
+    from .figures import save
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = [out_dir / "sensitivity.csv", out_dir / "sensitivity.md", out_dir / "identifiability.json"]
+    atomic_write_text(paths[0], to_csv(out["rows"]))
+    atomic_write_text(paths[1], "\n".join(_markdown(out)))
+    atomic_write_json(paths[2], {"config": out["config"], "units": out["units"], "postures": out["identifiability"]})
+    for p in sorted({r["posture"] for r in out["rows"]}):
+        fig = plot_sensitivity(out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} "
+                                                     f"section(s), posture {p}")
+        path = out_dir / "figures" / f"sensitivity_{p}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save(fig, path)
+        paths.append(path)
+    return paths

@@ -1,0 +1,31 @@
+"""MO-IRL's multimodal step acceptance (``acceptance="multimodal"``): state and torque merits together."""
+
+import numpy as np
+import pytest
+
+from reachirl import MOIRL
+from reachirl.experiments import datasets
+from reachirl.irl.moirl import multimodal_accept
+
+
+def test_rule():
+    assert multimodal_accept(1.0, 1.05, 1.0, 0.8)  # state 5 % worse, torque 20 % better: mean change −7.5 %
+    assert not multimodal_accept(1.0, 1.2, 1.0, 0.9)  # +20 %, −10 %: worse on average
+    assert not multimodal_accept(1.0, 0.99, 1.0, 1.0, tol=0.01)  # −0.5 % on average is below tol
+    assert not multimodal_accept(1.0, np.inf, 1.0, 0.1) and not multimodal_accept(0.0, 0.0, 1.0, 0.5)
+
+
+def test_fit_accepts_more_steps_than_state_only():
+    ds = datasets.toy(n_subjects=1, postures=("P2",), n_trials=3, n_nodes=20, seed=7)
+    kw = dict(n_nodes=20, max_iter=4, tol=1e-4)
+    state = MOIRL(2, acceptance="merit", **kw).fit(ds.trials)
+    multi = MOIRL(2, acceptance="multimodal", **kw).fit(ds.trials)
+    assert multi.weights_.shape == (2, 7) and np.all(multi.weights_ > 0)
+    acc = lambda est: sum(h["accepted"] for h in est.history_[1:])  # noqa: E731
+    assert acc(multi) >= acc(state)
+    # an accepted step either lowered the state merit or passed the multimodal rule
+    for prev, h in zip(multi.history_, multi.history_[1:], strict=False):
+        if h["accepted"] and h["merit"] >= prev["merit"] * (1 - 1e-4):
+            assert multi.acceptance == "multimodal"
+    with pytest.raises(ValueError, match="'merit', 'either' or 'multimodal'"):
+        MOIRL(2, acceptance="torque", **kw).fit(ds.trials)
