@@ -150,7 +150,7 @@ class MaskedMOIRL(MOIRL):
     def _rollouts(self, tasks, w, warm, guesses):
         return super()._rollouts(tasks, self._effective(w), warm, guesses)
 
-    def _step(self, w, sigma, phi_star, bank, starts, smoothness):
+    def _step(self, w, sigma, phi_star, bank, starts, smoothness, ratio=None):
         from scipy.optimize import minimize
 
         if self.scaling != "demo":
@@ -160,7 +160,7 @@ class MaskedMOIRL(MOIRL):
         w_eff[:, list(self.removed)] *= 1e-12  # absent from the likelihood, still > 0 for the log-step
         theta = w_eff * sigma
         held = self._held(w.shape).reshape(-1)
-        bound = float(np.log(self.max_ratio))
+        bound = float(np.log(self.max_ratio if ratio is None else ratio))
         lam = smoothness * phi_star.shape[0]
 
         def fun(x):
@@ -551,6 +551,11 @@ def _markdown(out: dict) -> list[str]:
     return lines
 
 
+def _cond_text(c: float) -> str:
+    """A condition number for the report: ``singular`` where it is infinite (a rank-deficient window)."""
+    return f"{c:.3g}" if np.isfinite(c) else "singular"
+
+
 def identifiability_section(run, n_boot: int = 200) -> list[str]:
     """``report.md`` lines beside the weights: for the main method's fits with the most sections, per posture, the
     conditioning of the feature differences, the nearly collinear pairs and the bootstrap intervals of the first
@@ -591,7 +596,7 @@ def identifiability_section(run, n_boot: int = 200) -> list[str]:
             return ", ".join(f"{FEATURES[j]} {sh[j]:.2f} [{b['lo'][s][j]:.2f}, {b['hi'][s][j]:.2f}]" for j in idx)
 
         flag = f" ({r['flag']})" if r.get("flag") else ""
-        lines.append(f"| {p}{flag} | {ranks} | {min(cond):.3g}–{max(cond):.3g} | {' vs '.join(worst['worst_pair'])} "
+        lines.append(f"| {p}{flag} | {ranks} | {_cond_text(min(cond))}–{_cond_text(max(cond))} | {' vs '.join(worst['worst_pair'])} "
                      f"(window {worst['window']}) | {pairs} | {top(0)} | {top(-1)} |")
     lines.append("")
     return lines
