@@ -596,7 +596,8 @@ def identifiability_section(run, n_boot: int = 200) -> list[str]:
             return ", ".join(f"{FEATURES[j]} {sh[j]:.2f} [{b['lo'][s][j]:.2f}, {b['hi'][s][j]:.2f}]" for j in idx)
 
         flag = f" ({r['flag']})" if r.get("flag") else ""
-        lines.append(f"| {p}{flag} | {ranks} | {_cond_text(min(cond))}–{_cond_text(max(cond))} | {' vs '.join(worst['worst_pair'])} "
+        span = f"{_cond_text(min(cond))}–{_cond_text(max(cond))}"
+        lines.append(f"| {p}{flag} | {ranks} | {span} | {' vs '.join(worst['worst_pair'])} "
                      f"(window {worst['window']}) | {pairs} | {top(0)} | {top(-1)} |")
     lines.append("")
     return lines
