@@ -44,8 +44,14 @@ def reference(data, tmp_path_factory) -> Path:
     return out
 
 
-def _start(data: Path, out: Path) -> psutil.Popen:
-    return psutil.Popen([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *ARGS],
+# A run long enough to be interrupted mid-way whatever the machine: bilevel units of 400 full-size DOC solves
+# (a few seconds each), beside MO-IRL ones (MO-IRL fits can end within a second)
+LONG_ARGS = ["--nodes", "100", "--max-iter", "10", "--sections", "1", "6", "--postures", "P1", "P2", "P3",
+             "--method", "bilevel", "moirl", "--workers", "2", "--no-progress"]
+
+
+def _start(data: Path, out: Path, args=ARGS) -> psutil.Popen:
+    return psutil.Popen([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *args],
                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
 
 
@@ -75,9 +81,10 @@ def _no_temporaries(out: Path) -> None:
 @pytest.mark.parametrize(("sig", "code"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_interrupt_ends_quickly_keeps_units_and_workers(data, tmp_path, sig, code):
     out = tmp_path / "run"
-    p = _start(data, out)
+    p = _start(data, out, LONG_ARGS)
     workers = _wait_for_workers(p)
     time.sleep(3.0)  # mid-run: some units done, others running
+    assert p.poll() is None, "the run ended before the signal: the test would test nothing"
     t0 = time.monotonic()
     p.send_signal(sig)
     rc = p.wait(timeout=30)
@@ -91,7 +98,7 @@ def test_interrupt_ends_quickly_keeps_units_and_workers(data, tmp_path, sig, cod
 
 
 def test_sigkill_of_the_main_process_leaves_no_worker(data, tmp_path):
-    p = _start(data, tmp_path / "run")
+    p = _start(data, tmp_path / "run", LONG_ARGS)
     workers = _wait_for_workers(p)
     time.sleep(1.0)
     p.kill()
