@@ -37,7 +37,7 @@ from ..errors import InputError
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, atomic_write_text
 from ..irl.moirl import MOIRL
-from ..irl.objective import step_objective
+from ..irl.objective import minimize_in_box, step_objective
 from .protocol import ProtocolConfig, Split, Unit, make_estimator, split_trials
 
 __all__ = [
@@ -151,28 +151,20 @@ class MaskedMOIRL(MOIRL):
         return super()._rollouts(tasks, self._effective(w), warm, guesses)
 
     def _step(self, w, sigma, phi_star, bank, starts, smoothness, ratio=None):
-        from scipy.optimize import minimize
-
         if self.scaling != "demo":
             raise ValueError("MaskedMOIRL needs scaling='demo'")
         groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
         w_eff = np.array(w, dtype=float)
         w_eff[:, list(self.removed)] *= 1e-12  # absent from the likelihood, still > 0 for the log-step
         theta = w_eff * sigma
-        held = self._held(w.shape).reshape(-1)
+        held = self._held(w.shape)
         bound = float(np.log(self.max_ratio if ratio is None else ratio))
         lam = smoothness * phi_star.shape[0]
-
-        def fun(x):
-            f, g = step_objective(x.reshape(w.shape), theta, groups, self.beta, lam, np.log(sigma))
-            return f, g.reshape(-1)
-
-        res = minimize(fun, np.zeros(w.size), jac=True, method="L-BFGS-B",
-                       bounds=[(0.0, 0.0) if h else (-bound, bound) for h in held],
-                       options={"maxiter": 500, "ftol": 1e-15, "gtol": 1e-12})
-        eta = np.clip(res.x.reshape(w.shape), -bound, bound)
-        eta[held.reshape(w.shape)] = 0.0
-        return w * np.expm1(eta), {"nit": int(res.nit)}
+        upper = np.where(held, 0.0, bound)  # held weights cannot move
+        eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, self.beta, lam, np.log(sigma)),
+                                    -upper, upper, 500)
+        eta = np.clip(eta, -upper, upper)
+        return w * np.expm1(eta), info
 
     def _fit(self, trials, smoothness):
         super()._fit(trials, smoothness)

@@ -39,6 +39,7 @@ __all__ = [
     "feature_scale",
     "gamma",
     "merit",
+    "minimize_in_box",
     "solve_delta",
     "solve_step",
     "step_objective",
@@ -123,11 +124,11 @@ def solve_delta(
     default.
     """
     lower = -(1.0 - min_ratio) * w
-    x, info = _lbfgsb(lambda d: subproblem_objective(d, w, groups, beta, use_gamma, l1), lower, None, max_iter)
+    x, info = minimize_in_box(lambda d: subproblem_objective(d, w, groups, beta, use_gamma, l1), lower, None, max_iter)
     return np.maximum(x, lower), info  # exact feasibility: ω + Δω > 0
 
 
-def _lbfgsb(fun, lower: np.ndarray, upper: np.ndarray | None, max_iter: int) -> tuple[np.ndarray, dict]:
+def minimize_in_box(fun, lower: np.ndarray, upper: np.ndarray | None, max_iter: int) -> tuple[np.ndarray, dict]:
     """Minimise ``fun(x) -> (value, gradient)`` over a matrix ``x`` of ``lower``'s shape within the bounds, from
     ``x = 0``, with scipy's L-BFGS-B. Returns ``x`` and the solver's report."""
     shape = lower.shape
@@ -246,6 +247,6 @@ def solve_step(
     theta = w * sigma
     log_sigma = np.log(sigma)
     bound = np.full(w.shape, float(np.log(max_ratio)))
-    eta, info = _lbfgsb(lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound,
+    eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound,
                         max_iter)
     return w * np.expm1(np.clip(eta, -bound, bound)), info
