@@ -50,7 +50,7 @@ import casadi as ca
 import numpy as np
 
 from ..features import N_FEATURES, trajectory_cost, window_index
-from .task import DocSolution, ReachingTask
+from .task import DocSolution, ReachingTask, rest_to_rest_knots
 
 __all__ = [
     "FATROP_OPTIONS", "FATROP_WARM_OPTIONS", "IPOPT_OPTIONS", "build_nlp", "guess_knots", "initial_guess",
@@ -299,10 +299,7 @@ def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
 
     ``q_0`` is set to ``task.q0`` and ``q_{N−1}`` to ``q_N`` (``q̇_0 = q̇_N = 0``)."""
     n, dt = task.n_nodes, task.dt
-    q = np.array(q, dtype=float)
-    q[0] = task.q0
-    q[-2] = q[-1]
-    q, qd, tau = _knots(task, q)
+    q, qd, tau = rest_to_rest_knots(task, q)
     e = np.sum(qd[:-1] * tau, axis=1)
     z = np.zeros((n + 1, NX + NU))
     z[:, 0:2], z[:, 2:4] = q, qd

@@ -64,7 +64,7 @@ import pinocchio as pin
 
 from ..arm import ArmModel
 from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
-from .task import DocSolution, ReachingTask
+from .task import DocSolution, ReachingTask, rest_to_rest_knots
 
 __all__ = [
     "CROCODDYL_COST_ITEMS", "CsqpOptions", "KnotModel", "ReachingProblem", "build_problem", "solve", "weight_scale",
@@ -568,17 +568,6 @@ def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return q, qd, tau
 
 
-def _path_knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(q, q̇, τ)`` of the semi-implicit Euler trajectory through a joint path (``q_0 = q0``, at rest at both
-    ends)."""
-    q = np.array(q, dtype=float)
-    q[0] = task.q0
-    q[-2] = q[-1]
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / task.dt])
-    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / task.dt)
-    return q, qd, tau
-
-
 def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list[np.ndarray]]:
     g0 = task.arm.gravity_torque(task.q0)  # at rest before the reach: τ_{−1} = g(q0)
     tau_prev = np.vstack([g0, tau])
@@ -650,7 +639,7 @@ def solve(
     weights = np.asarray(weights, dtype=float)
     n = task.n_nodes
     prob = build_problem(task.arm, n, weights.shape[0], options)
-    cold = _to_shooting(task, *(initial_guess(task) if guess is None else _path_knots(task, guess)))
+    cold = _to_shooting(task, *(initial_guess(task) if guess is None else rest_to_rest_knots(task, guess)))
     warm = warm_start.warm if warm_start is not None else None
     if warm and warm.get("backend") == "crocoddyl" and warm.get("task") == _task_key(task):
         xs, us = _to_shooting(

@@ -24,7 +24,7 @@ import numpy as np
 from ..arm import ArmModel
 from ..validation import check_arm, check_duration, check_n_nodes
 
-__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask"]
+__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "rest_to_rest_knots"]
 
 DEFAULT_Q_LOWER = (np.deg2rad(-150.0), np.deg2rad(-5.0))
 DEFAULT_Q_UPPER = (np.deg2rad(120.0), np.deg2rad(160.0))
@@ -127,3 +127,15 @@ class DocSolution:
     def state(self) -> np.ndarray:
         """Full state ``x = (q1, q2, q̇1, q̇2)`` at the knots, shape ``(N+1, 4)``."""
         return np.hstack([self.q, self.qd])
+
+
+def rest_to_rest_knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, q̇, τ)`` of the semi-implicit Euler trajectory through a joint path ``q (N+1, 2)``, moved to start at
+    ``task.q0`` and to end at rest (``q_{N−1} = q_N``, so ``q̇_0 = q̇_N = 0``): velocities by differences, torques
+    by inverse dynamics. Both backends start from it."""
+    q = np.array(q, dtype=float)
+    q[0] = task.q0
+    q[-2] = q[-1]
+    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / task.dt])
+    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / task.dt)
+    return q, qd, tau

@@ -79,7 +79,7 @@ from ..features import N_FEATURES, feature_rates, window_index
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, merit, solve_delta, solve_step
 
-__all__ = ["FLAG_TEXT", "MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
+__all__ = ["MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
            "multimodal_accept"]
 
 SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
@@ -537,9 +537,6 @@ def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
     if n_accepted == 1:
         return "one_step"
     return None
-
-
-FLAG_TEXT = {"w0": "never left w0 (not learned)", "one_step": "stopped after one step"}
 
 
 def fit_warnings(best_iteration: int, n_accepted: int, initial_merit: float, final_merit: float) -> list[str]:
