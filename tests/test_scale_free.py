@@ -209,7 +209,7 @@ def test_a_step_that_only_rescales_stops_the_fit_without_doc_solves(doc_demos, m
 
     _, _, _, demos = doc_demos
     monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (-0.9 * w, {"nit": 1}))
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=5).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=5, fallback=None).fit(demos)
     assert est.stop_reason_ == "step_only_rescales"
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]  # nothing spent on the null direction
     assert est.flag_ == "w0"
@@ -221,7 +221,7 @@ def test_the_line_search_spends_no_solve_on_steps_below_min_step(doc_demos, monk
     _, _, _, demos = doc_demos
     monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (5e-4 * w, {"nit": 1}))
     monkeypatch.setattr(moirl_module, "_is_rescale", lambda w, dw: False)
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, min_step=1e-3).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, min_step=1e-3, fallback=None).fit(demos)
     assert est.history_[1]["tries"] == 0 and est.stop_reason_ == "no_improving_step"
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]
     with pytest.raises(ValueError, match=r"min_step must be in \[0, 1\)"):

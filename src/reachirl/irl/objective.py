@@ -39,6 +39,7 @@ __all__ = [
     "feature_scale",
     "gamma",
     "merit",
+    "merit_model_step",
     "minimize_in_box",
     "solve_delta",
     "solve_step",
@@ -247,6 +248,27 @@ def solve_step(
     theta = w * sigma
     log_sigma = np.log(sigma)
     bound = np.full(w.shape, float(np.log(max_ratio)))
+
     eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound,
-                        max_iter)
+                                max_iter)
     return w * np.expm1(np.clip(eta, -bound, bound)), info
+
+
+def merit_model_step(m: float, m_plus: np.ndarray, m_minus: np.ndarray, h: float) -> np.ndarray:
+    """The log-step ``η (7,)`` of a per-feature quadratic model of the merit in ``log ω``.
+
+    ``m`` is the merit at ``ω``; ``m_plus[j]`` and ``m_minus[j]`` the merits with feature ``j``'s weights (in
+    every window) multiplied by ``e^{±h}``. Central differences give the slope ``g_j`` and curvature ``c_j``;
+    ``η_j = −g_j / c_j`` where the model is convex, ``−sign(g_j) h`` where it is not, bounded by ``|η_j| ≤ h``.
+    A feature whose probe failed (non-finite merit) is not moved.
+    """
+    m_plus, m_minus = np.asarray(m_plus, dtype=float), np.asarray(m_minus, dtype=float)
+    if not (np.isfinite(m) and h > 0):
+        raise ValueError(f"the merit model needs a finite merit at ω and h > 0, got {m} and {h}")
+    ok = np.isfinite(m_plus) & np.isfinite(m_minus)
+    mp, mm = np.where(ok, m_plus, m), np.where(ok, m_minus, m)
+    slope = (mp - mm) / (2.0 * h)
+    curv = (mp - 2.0 * m + mm) / h**2
+    convex = curv > 0
+    eta = np.where(convex, -slope / np.where(convex, curv, 1.0), -np.sign(slope) * h)
+    return np.clip(np.where(ok, eta, 0.0), -h, h)
