@@ -108,3 +108,21 @@ def test_the_model_step_refuses_a_point_without_a_merit():
         merit_model_step(np.inf, np.ones(7), np.ones(7), 0.1)
     with pytest.raises(ValueError, match="needs a finite merit at ω and h > 0"):
         merit_model_step(1.0, np.ones(7), np.ones(7), 0.0)
+
+
+def test_the_fallback_keeps_held_weights_where_they_are(dominated_demos, monkeypatch):
+    """Occlusion refits hold a removed feature and a frozen window: the merit fallback must not move them."""
+    from reachirl.experiments.sensitivity import MaskedMOIRL
+
+    monkeypatch.setattr(MaskedMOIRL, "_step", lambda self, w, *a, **k: (-0.5 * w, {"nit": 1}))  # always a rescale
+    est = MaskedMOIRL(2, n_nodes=N_NODES, max_iter=3)
+    est.removed, est.frozen = (4,), (0,)
+    est.fit(dominated_demos)
+    w0 = np.asarray(est.history_[0]["weights"])
+    moved = [np.asarray(h["weights"]) for h in est.history_[1:] if h["accepted"]]
+    assert moved, "the fallback must have made a step for this test to mean anything"
+    for w in moved:
+        np.testing.assert_array_equal(w[0], w0[0])  # the frozen window
+        np.testing.assert_array_equal(w[:, 4], w0[:, 4])  # the removed feature (0 in every rollout)
+    assert np.all(est.weights_[:, 4] == 0.0)
+    assert not np.allclose(moved[-1][1], w0[1])

@@ -142,6 +142,9 @@ class MaskedMOIRL(MOIRL):
         held[list(self.frozen), :] = True
         return held
 
+    def _movable(self, shape) -> np.ndarray:  # the merit fallback probes and moves these only
+        return ~self._held(shape)
+
     def _effective(self, w: np.ndarray) -> np.ndarray:
         w = np.array(w, dtype=float)
         w[:, list(self.removed)] = 0.0

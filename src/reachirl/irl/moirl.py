@@ -509,23 +509,28 @@ class MOIRL(WeightEstimator):
         quadratic model of the merit in ``log ω``; its minimiser, bounded by ``log ρ``, is line-searched as a
         likelihood step would be. Returns the line search's outcome, with the exploration's solves counted."""
         h = max(float(np.log(ratio)), float(np.log(1.1)))  # probes well above the DOC's repeatability
+        free = self._movable(w.shape)
         mp, mm = np.full(N_FEATURES, np.inf), np.full(N_FEATURES, np.inf)
         solves = failures = 0
-        for j in range(N_FEATURES):
+        for j in np.flatnonzero(free.any(axis=0)):
             for sign, out in ((1.0, mp), (-1.0, mm)):
                 wj = w.copy()
-                wj[:, j] *= np.exp(sign * h)
+                wj[free[:, j], j] *= np.exp(sign * h)
                 cand, runs, _ = self._rollouts(tasks, wj, sols, guesses)
                 solves += runs
                 failures += sum(not c.converged for c in cand)
                 out[j] = self._merit(x_demos, cand, channels)
-        eta = merit_model_step(m, mp, mm, h)
-        dw = w * np.expm1(np.broadcast_to(eta, w.shape))
+        eta = merit_model_step(m, mp, mm, h)  # features without a probe (nothing free) have η = 0
+        dw = np.where(free, w * np.expm1(np.broadcast_to(eta, w.shape)), 0.0)
         if _is_rescale(w, dw):
             return _Step(False, 0.0, 0, w, sols, m, solves, failures, 0)
         step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels,
                                  tol=max(self.tol, self.fallback_tol))
         return step._replace(solves=step.solves + solves, failures=step.failures + failures)
+
+    def _movable(self, shape: tuple[int, int]) -> np.ndarray:
+        """Which weights a step may change (all of them; a constrained subclass holds some)."""
+        return np.ones(shape, dtype=bool)
 
     def _notify(self, record: dict) -> None:
         log.info("iteration %d: merit %.5g alpha %.3g tries %d", record["iteration"], record["merit"],
