@@ -185,7 +185,10 @@ def plot_pair_matrix(subjects: Sequence[str], matrix: np.ndarray, ax=None, title
         for i in range(n):
             for j in range(n):
                 if np.isfinite(matrix[i, j]):
-                    ax.text(j, i, f"{matrix[i, j]:.1f}", ha="center", va="center", fontsize=7, color="tab:gray")
+                    r, g, b, _ = im.cmap(im.norm(matrix[i, j]))
+                    dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5  # white on dark cells, black on light ones
+                    ax.text(j, i, f"{matrix[i, j]:.1f}", ha="center", va="center", fontsize=7,
+                            color="white" if dark else "black")
     ax.set_title(title, fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8, label="RMSE of q (deg)")
     return fig

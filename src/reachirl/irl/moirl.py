@@ -600,10 +600,11 @@ def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
 
 def fit_warnings(best_iteration: int, n_accepted: int, initial_merit: float, final_merit: float) -> list[str]:
     """What a reader of a fit must be told: weights that are still ``ω₀`` (no step improved the merit) are not
-    learned; a fit that made one step only is barely learned."""
+    learned; a fit that made one step only was not refined (no second step lowered the merit)."""
     if best_iteration == 0:
         return ["never left the initial weights: no step lowered the merit, so these weights are w0, not learned"]
     if n_accepted == 1:
         gain = 100.0 * (1.0 - final_merit / initial_merit) if np.isfinite(initial_merit) and initial_merit else 0.0
-        return [f"stopped after one step (merit {gain:.1f} % below w0's): the weights are barely learned"]
+        return [f"stopped after one step (merit {gain:.1f} % below w0's): no second step lowered the merit, so "
+                "these weights were not refined"]
     return []
