@@ -126,3 +126,31 @@ def test_the_fallback_keeps_held_weights_where_they_are(dominated_demos, monkeyp
         np.testing.assert_array_equal(w[:, 4], w0[:, 4])  # the removed feature (0 in every rollout)
     assert np.all(est.weights_[:, 4] == 0.0)
     assert not np.allclose(moved[-1][1], w0[1])
+
+
+def test_fit_command_takes_the_fallback_switch(dominated_demos, tmp_path):
+    import json
+
+    from reachirl.cli import main
+    from reachirl.data.trial import save_trials
+
+    path = tmp_path / "trials.npz"
+    save_trials(path, dominated_demos)
+    flags = {}
+    for choice in ("merit", "none"):
+        model = tmp_path / f"{choice}.json"
+        assert main(["fit", str(path), "--sections", "1", "--nodes", str(N_NODES), "--fallback", choice,
+                     "--out", str(model)]) == 0
+        info = json.loads(model.read_text())["info"]
+        flags[choice] = (info["flag"], {h.get("step") for h in info["history"][1:]})
+    assert flags["none"][0] == "w0" and flags["none"][1] == {"likelihood"}
+    assert flags["merit"][0] != "w0" and "merit" in flags["merit"][1]
+
+
+def test_reproduce_refuses_an_unknown_fallback(capsys):
+    from reachirl.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--fallback", "gradient", "--out", "x"])
+    assert e.value.code == 2
+    assert "invalid choice: 'gradient'" in capsys.readouterr().err

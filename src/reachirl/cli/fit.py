@@ -41,6 +41,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
                    "(default mean)")
+    p.add_argument("--fallback", choices=("merit", "none"), default="merit",
+                   help="MO-IRL/MaxEnt: when the likelihood's step lowers no merit, step on a model of the merit "
+                   "(merit, default) or stop there (none: the seed's rule)")
     return p
 
 
@@ -72,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     if args.method in ("moirl", "maxent"):
-        kwargs.update(max_iter=args.max_iter, rollout=args.rollout)
+        kwargs.update(max_iter=args.max_iter, rollout=args.rollout,
+                      fallback=None if args.fallback == "none" else args.fallback)
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
         def progress(rec: dict) -> None:

@@ -102,6 +102,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=None,
         help="MO-IRL step acceptance: merit (the seed, default), either, or multimodal (state and torque merits)",
     )
+    g.add_argument(
+        "--fallback",
+        choices=("merit", "none"),
+        default=None,
+        help="MO-IRL/MaxEnt when the likelihood's step lowers no merit: step on a model of the merit (merit, "
+        "default) or stop (none: the seed's rule)",
+    )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
     g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
                    "(default: either arm; with --cv other-side, right)")
@@ -168,8 +175,18 @@ def _config(args):
         max_iter=args.max_iter or base["max_iter"],
         backend=args.backend,
         iscv=args.iscv,
-        estimator_options={"acceptance": args.acceptance} if args.acceptance else {},
+        estimator_options=_estimator_options(args),
     )
+
+
+def _estimator_options(args) -> dict:
+    """MO-IRL options set on the command line (only those given, so the default units keep their keys)."""
+    opts = {}
+    if args.acceptance:
+        opts["acceptance"] = args.acceptance
+    if args.fallback:
+        opts["fallback"] = None if args.fallback == "none" else args.fallback
+    return opts
 
 
 def _quick_postures(config, dataset):
