@@ -86,3 +86,28 @@ def test_fit_and_evaluate_on_the_crocoddyl_backend(arm, tmp_path, capsys, monkey
     assert main(["evaluate", "--model", str(model), str(path), "--out", str(metrics), "--backend", "crocoddyl"]) == 0
     s = json.loads(metrics.read_text())["summary"]
     assert s["n_trials"] == 2 and s["doc_failures"] == 0 and s["rmse_deg"]["q"]["mean"] < 10
+
+
+@pytest.mark.slow
+def test_a_stall_at_the_energys_kink_is_rescued_by_the_smoothing_continuation():
+    """A MaxEnt fit with the merit fallback (8 windows, built-in P4; ``benchmarks/learned_weights.json``) on which
+    CSQP stalled with KKT ~0.2 at ε = 1e-3 W, even with the exact energy Hessian: the continuation through
+    10 ε converges to CasADi's optimum, and turning it off brings the stall back."""
+    import json
+    from pathlib import Path
+
+    from reachirl import ArmModel
+
+    fits = json.loads((Path(__file__).resolve().parents[1] / "benchmarks" / "learned_weights.json").read_text())
+    fit = next(f for f in fits["fits"] if (f["source"], f["method"], f["posture"], f["sections"])
+               == ("builtin", "maxent", "P4", 8))
+    d = next(t for t in fit["trials"]["train"] if t["id"] == "S01/P4/right/S01_P4_T06")
+    task = ReachingTask(ArmModel(**d["arm"]), np.array(d["q0"]), d["target_x"], d["duration"], n_nodes=100)
+    w = np.array(fit["weights"])
+    ref = solve_doc(task, w)
+    sol = cb.solve(task, w)
+    assert ref.converged and sol.converged, sol.status
+    assert _rmse_deg(sol.q, ref.q) < 0.01
+    assert abs(sol.cost - ref.cost) / ref.cost < 1e-3
+    off = cb.solve(task, w, options=dataclasses.replace(cb.DEFAULT_OPTIONS, fallback_smoothing_factor=0.0))
+    assert not off.converged, "this case no longer needs the continuation: pick another one"
