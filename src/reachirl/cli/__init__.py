@@ -61,19 +61,6 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
-def console() -> None:
-    """The ``reachirl`` console script: :func:`main`, then exit with its code. After Ctrl-C or SIGTERM (130, 143),
-    once the workers are ended and the message is out, the process leaves at once: a worker killed while it
-    sent a result can leave the process pool's manager thread blocked on the pool's pipe, and Python would wait
-    for that thread at exit (a slow test caught a 17 s exit once)."""
-    code = main()
-    if code in (130, 143):
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    sys.exit(code)
-
-
 def _run(args) -> int:
     try:
         return int(args._run(args) or 0)
@@ -105,4 +92,4 @@ def _run(args) -> int:
 
 
 if __name__ == "__main__":
-    console()
+    sys.exit(main())
