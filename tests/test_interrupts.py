@@ -50,9 +50,15 @@ LONG_ARGS = ["--nodes", "100", "--max-iter", "10", "--sections", "1", "6", "--po
              "--method", "bilevel", "moirl", "--workers", "2", "--no-progress"]
 
 
+def _default_sigint() -> None:
+    # Ctrl-C reaches a foreground process; a background job of a non-interactive shell (a CI script started
+    # with `&`) inherits SIGINT ignored, and Python then never raises KeyboardInterrupt: restore the default
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(data: Path, out: Path, args=ARGS) -> psutil.Popen:
     return psutil.Popen([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *args],
-                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
 
 
 def _wait_for_workers(p: psutil.Popen, n: int = 2, timeout: float = 60.0) -> list[psutil.Process]:
