@@ -6,34 +6,31 @@ import argparse
 from collections.abc import Callable
 
 
-def int_at_least(lo: int) -> Callable[[str], int]:
-    """An integer ``>= lo``."""
+def _checked(convert: Callable[[str], float], ok: Callable[[float], bool], expected: str,
+             trim: int | None = None) -> Callable[[str], float]:
+    """A parser: ``convert(text)``, refused with ``expected {expected}, got …`` when it fails or ``ok`` is
+    False. The message echoes the value, or with ``trim`` the text cut to that many characters."""
 
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            v = int(text)
+            v = convert(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {text!r}") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {v}")
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text[:trim]!r}") from None
+        if not ok(v):  # False for NaN in every range below
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {v if trim is None else text[:trim]}")
         return v
 
     return parse
+
+
+def int_at_least(lo: int) -> Callable[[str], int]:
+    """An integer ``>= lo``."""
+    return _checked(int, lambda v: v >= lo, f"an integer >= {lo}")
 
 
 def float_in(lo: float, hi: float) -> Callable[[str], float]:
     """A number in ``[lo, hi)``."""
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number in [{lo}, {hi}), got {text!r}") from None
-        if not lo <= v < hi:
-            raise argparse.ArgumentTypeError(f"expected a number in [{lo}, {hi}), got {v}")
-        return v
-
-    return parse
+    return _checked(float, lambda v: lo <= v < hi, f"a number in [{lo}, {hi})")
 
 
 positive_int = int_at_least(1)
@@ -42,29 +39,9 @@ non_negative_int = int_at_least(0)
 
 def int_in(lo: int, hi: int) -> Callable[[str], int]:
     """An integer in ``[lo, hi]`` (the limits go in the option's help)."""
-
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {text[:40]!r}") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"expected an integer in [{lo}, {hi}], got {text[:40]}")
-        return v
-
-    return parse
+    return _checked(int, lambda v: lo <= v <= hi, f"an integer in [{lo}, {hi}]", trim=40)
 
 
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
     """A finite number in ``[lo, hi]`` (NaN and infinities are refused)."""
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number in [{lo:g}, {hi:g}], got {text[:40]!r}") from None
-        if not lo <= v <= hi:  # False for NaN
-            raise argparse.ArgumentTypeError(f"expected a number in [{lo:g}, {hi:g}], got {text[:40]}")
-        return v
-
-    return parse
+    return _checked(float, lambda v: lo <= v <= hi, f"a number in [{lo:g}, {hi:g}]", trim=40)
