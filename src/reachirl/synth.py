@@ -110,7 +110,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = 3  # bump whenever the generated files change for the same seed
+GENERATOR_VERSION = 4  # bump whenever the generated files change for the same seed
 FORMATS = ("trc", "c3d", "mot")
 POSTURES = ("P1", "P2", "P3", "P4", "P5")
 # Berret 2011: initial postures as (elbow, shoulder) in degrees, and movement durations (mean, SD) in seconds.

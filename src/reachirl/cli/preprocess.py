@@ -32,6 +32,13 @@ from ._args import int_in, number_in
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
 
 
+def _segment_cutoff(text: str) -> float | str | None:
+    """``auto``, or Hz in [0, 1000] (0: the --cutoff speed)."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    return number_in(0.0, 1000.0)(text) or None
+
+
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "preprocess",
@@ -93,6 +100,15 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="onset/offset at this fraction of the peak fingertip speed, 0.001 to 0.9 (default 0.05)",
     )
     g.add_argument(
+        "--segment-cutoff",
+        type=_segment_cutoff,
+        default=d.segment_cutoff_hz,
+        metavar="HZ|auto",
+        help="low-pass of the fingertip speed on which onset and offset are found: auto = only as low as the "
+        "markers' noise needs (clean data keep the --cutoff speed), a number of Hz (0 to 1000), or 0 for the "
+        f"--cutoff speed, as Berret (default {d.segment_cutoff_hz})",
+    )
+    g.add_argument(
         "--max-gap",
         type=int_in(0, 100000),
         default=d.max_gap_frames,
@@ -128,6 +144,7 @@ def _options(args) -> PreprocessOptions:
             cutoff_hz=args.cutoff or None,
             filter_order=args.filter_order,
             onset_threshold=args.threshold,
+            segment_cutoff_hz=args.segment_cutoff,
             plane=args.plane,
             up_axis=args.up_axis,
             forward_axis=args.forward_axis,

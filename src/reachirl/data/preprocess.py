@@ -16,7 +16,12 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
 6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
-   (5 %) of its peak, the first crossings before and after the main peak.
+   (5 %) of its peak, the first crossings before and after the main peak. With noisy markers that speed is
+   taken from the fingertip low-passed harder (``segment_cutoff_hz="auto"``, :func:`segmentation_cutoff`;
+   the angles keep ``cutoff_hz``): with 1–2 mm of marker noise the 10 Hz speed carries about 40 mm/s of
+   noise, as much as 5 % of a reach's peak, so onset and offset wandered by up to ±8 % of the reach, into the
+   rest or into the movement, and the DOC (at rest at both ends) was asked for another reach. Clean
+   recordings (UE-ADL: 0.06 mm) keep the 10 Hz speed. ``None`` always uses it, as Berret.
 7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
    joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
    gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
@@ -63,6 +68,8 @@ __all__ = [
     "calibrate_static",
     "cast_reconstruct",
     "detect_onset_offset",
+    "segmentation_cutoff",
+    "segmentation_speed",
     "estimate_lengths",
     "fill_gaps",
     "joint_centres",
@@ -92,6 +99,8 @@ class PreprocessOptions:
     cutoff_hz: float | None = 10.0  # None: no filtering
     filter_order: int = 5
     onset_threshold: float = 0.05  # fraction of the peak fingertip speed
+    segment_cutoff_hz: float | str | None = "auto"  # low-pass of the speed that finds onset/offset (Hz, or
+    # "auto": as low as the markers' noise needs, see segmentation_cutoff); None: cutoff_hz's speed (Berret)
     min_peak_speed: float = 0.05  # m/s; below it there is no movement
     plane: str = "pca"  # "pca" | "vertical" | "axes"
     up_axis: str | None = None  # lab axis opposite gravity, e.g. "+z"; None: the file format's convention
@@ -124,6 +133,9 @@ class PreprocessOptions:
             raise ValueError("max_gap_frames must be >= 0")
         if self.cutoff_hz is not None and self.cutoff_hz <= 0:
             raise ValueError("cutoff_hz must be > 0 or None")
+        fc = self.segment_cutoff_hz
+        if fc is not None and fc != "auto" and (isinstance(fc, str) or not fc > 0):
+            raise ValueError(f"segment_cutoff_hz must be 'auto', a number > 0 or None, got {fc!r}")
         if self.n_samples is not None and self.n_samples < 4:
             raise ValueError("n_samples must be >= 4")
 
@@ -293,6 +305,80 @@ def mirror(points: Mapping[str, np.ndarray], lateral: np.ndarray) -> dict[str, n
     lateral = np.asarray(lateral, dtype=float)
     P = np.eye(3) - 2 * np.outer(lateral, lateral)
     return {k: np.asarray(v) @ P.T for k, v in points.items()}
+
+
+SEGMENT_NOISE_FRACTION = 0.25  # "auto": the onset speed's marker noise at most this fraction of the threshold
+MIN_SEGMENT_CUTOFF_HZ = 3.0  # "auto" goes no lower: below it the filter reshapes a reach's speed profile
+
+
+def _noise_gains(rate: float, cutoff_hz: float, order: int) -> tuple[float, float]:
+    """For white noise of variance 1 on one axis: the variance left in ``x − lowpass(x)`` and the variance of
+    ``gradient(lowpass(x))`` (the zero-lag filter's power response is ``|H|⁴``, the central difference's
+    ``(rate · sin ω)²``)."""
+    sos = butter(order, cutoff_hz / (rate / 2.0), btype="low", output="sos")
+    w = np.linspace(0.0, np.pi, 4097)
+    h2 = np.abs(_sosfreqz(sos, w)) ** 2  # filtfilt's amplitude response
+    return float(np.mean((1.0 - h2) ** 2)), float(np.mean(h2**2 * (rate * np.sin(w)) ** 2))
+
+
+def _sosfreqz(sos: np.ndarray, w: np.ndarray) -> np.ndarray:
+    from scipy.signal import sosfreqz
+
+    return sosfreqz(sos, worN=w)[1]
+
+
+def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, options: PreprocessOptions,
+                        source: object | None = None) -> float | None:
+    """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
+    ``cutoff_hz`` speed (Berret's).
+
+    A number in ``options.segment_cutoff_hz`` is used as given (when below ``cutoff_hz``). ``"auto"`` measures
+    the markers' noise and lowers the cutoff only as far as it must: the noise is the RMS of ``points`` above
+    ``cutoff_hz`` (what the angles' filter removes, rescaled by the share of white noise it holds); from it
+    the filter's response predicts the RMS noise of the speed at each cutoff, and the highest cutoff (in
+    0.5 Hz steps, not below ``MIN_SEGMENT_CUTOFF_HZ``) whose noise is at most ``SEGMENT_NOISE_FRACTION`` of
+    the threshold speed (``onset_threshold`` × ``peak_speed``) is taken. Clean recordings keep the
+    ``cutoff_hz`` speed; 1.5 mm of noise on a 0.8 m/s reach at 100 Hz gives about 4 Hz."""
+    fc, base = options.segment_cutoff_hz, options.cutoff_hz
+    if fc is None or base is None:
+        return None
+    rate = 1.0 / float(np.median(np.diff(t)))
+    padlen = 3 * (2 * ((options.filter_order + 1) // 2) + 1)
+    if t.shape[0] <= padlen or base >= rate / 2:
+        return None
+    if fc != "auto":
+        return float(fc) if float(fc) < base else None
+    points = np.asarray(points, dtype=float).reshape(t.shape[0], -1)
+    residual_gain, _ = _noise_gains(rate, base, options.filter_order)
+    residual = points - lowpass(points, rate, base, options.filter_order, source)
+    noise_var = float(np.mean(residual**2)) / residual_gain  # per axis
+
+    def speed_noise(f: float) -> float:
+        return float(np.sqrt(points.shape[1] * noise_var * _noise_gains(rate, f, options.filter_order)[1]))
+
+    target = SEGMENT_NOISE_FRACTION * options.onset_threshold * peak_speed
+    if speed_noise(base) <= target:
+        return None
+    for f in np.arange(base - 0.5, MIN_SEGMENT_CUTOFF_HZ - 1e-9, -0.5):
+        if speed_noise(f) <= target:
+            return float(f)
+    log.warning("%s: the markers' noise (%.2g mm RMS) is large for a reach this slow; onset and offset are "
+                "found on a %g Hz speed and may still wander", source, np.sqrt(noise_var) * 1000,
+                MIN_SEGMENT_CUTOFF_HZ)
+    return MIN_SEGMENT_CUTOFF_HZ
+
+
+def segmentation_speed(t: np.ndarray, points: np.ndarray, speed: np.ndarray, options: PreprocessOptions,
+                       source: object | None = None) -> np.ndarray:
+    """The fingertip speed that onset and offset are found on: ``points`` ``(n, d)`` (the fingertip, before
+    the angles' filter) low-passed at :func:`segmentation_cutoff`, differentiated and normed; ``speed`` (the
+    ``cutoff_hz`` speed) as is when that is ``None``."""
+    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source)
+    if fc is None:
+        return speed
+    rate = 1.0 / float(np.median(np.diff(t)))
+    smooth = lowpass(points, rate, fc, options.filter_order, source)
+    return np.linalg.norm(np.gradient(smooth, t, axis=0), axis=1)
 
 
 def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05) -> tuple[int, int]:
@@ -518,6 +604,7 @@ def reconstruct_markers(
             raise InputError(
                 f"the {k} moves {raw[f] / md.rate * 1000:.0f} mm in one frame ({raw[f]:.3g} m/s, faster than any "
                 f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?", src, f"frame {f + 2}")
+    raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
         joints = {
             k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()
@@ -540,7 +627,8 @@ def reconstruct_markers(
             "markers swapped? (check --markers or the marker set)",
             src,
         )
-    onset, offset = detect_onset_offset(speed, options.onset_threshold)
+    onset, offset = detect_onset_offset(segmentation_speed(t, raw_fingertip, speed, options, src),
+                                        options.onset_threshold)
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if onset == 0 or offset == md.n_frames - 1:
@@ -685,6 +773,7 @@ def angles_to_trial(
         q = CubicSpline(t, q, axis=0)(t_u)
         t = t_u
     rate = 1.0 / float(np.median(np.diff(t)))
+    q_seen = q
     if options.cutoff_hz is not None:
         if options.cutoff_hz < rate / 2 and t.shape[0] > 3 * (2 * ((options.filter_order + 1) // 2) + 1):
             q = lowpass(q, rate, options.cutoff_hz, options.filter_order, src)
@@ -698,7 +787,8 @@ def angles_to_trial(
             f"(< {options.min_peak_speed:g} m/s)",
             src,
         )
-    onset, offset = detect_onset_offset(speed, options.onset_threshold)
+    onset, offset = detect_onset_offset(segmentation_speed(t, arm.fk(q_seen), speed, options, src),
+                                        options.onset_threshold)
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} samples", src)
     target_x = float(arm.fk(q[offset])[0])
