@@ -68,8 +68,6 @@ __all__ = [
     "calibrate_static",
     "cast_reconstruct",
     "detect_onset_offset",
-    "segmentation_cutoff",
-    "segmentation_speed",
     "estimate_lengths",
     "fill_gaps",
     "joint_centres",
@@ -80,6 +78,8 @@ __all__ = [
     "planar_ik_segments",
     "reconstruct_markers",
     "sagittal_basis",
+    "segmentation_cutoff",
+    "segmentation_speed",
 ]
 
 log = logging.getLogger(__name__)
