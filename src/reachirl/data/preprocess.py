@@ -46,6 +46,7 @@ Nothing here prints; problems are :class:`InputError` with the file and frame, n
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -311,6 +312,7 @@ SEGMENT_NOISE_FRACTION = 0.25  # "auto": the onset speed's marker noise at most 
 MIN_SEGMENT_CUTOFF_HZ = 3.0  # "auto" goes no lower: below it the filter reshapes a reach's speed profile
 
 
+@functools.lru_cache(maxsize=256)
 def _noise_gains(rate: float, cutoff_hz: float, order: int) -> tuple[float, float]:
     """For white noise of variance 1 on one axis: the variance left in ``x − lowpass(x)`` and the variance of
     ``gradient(lowpass(x))`` (the zero-lag filter's power response is ``|H|⁴``, the central difference's
@@ -349,12 +351,13 @@ def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, op
     if fc != "auto":
         return float(fc) if float(fc) < base else None
     points = np.asarray(points, dtype=float).reshape(t.shape[0], -1)
-    residual_gain, _ = _noise_gains(rate, base, options.filter_order)
+    rate = round(rate, 6)  # the cache key: a record's median frame interval
+    residual_gain, _ = _noise_gains(rate, float(base), options.filter_order)
     residual = points - lowpass(points, rate, base, options.filter_order, source)
     noise_var = float(np.mean(residual**2)) / residual_gain  # per axis
 
     def speed_noise(f: float) -> float:
-        return float(np.sqrt(points.shape[1] * noise_var * _noise_gains(rate, f, options.filter_order)[1]))
+        return float(np.sqrt(points.shape[1] * noise_var * _noise_gains(rate, float(f), options.filter_order)[1]))
 
     target = SEGMENT_NOISE_FRACTION * options.onset_threshold * peak_speed
     if speed_noise(base) <= target:
