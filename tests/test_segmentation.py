@@ -107,8 +107,11 @@ def test_the_cli_takes_the_segmentation_cutoff(tmp_path, capsys):
     # the DOC's reach, rest to rest, cut at 5 % of its peak speed: about 90 % of its horizon
     assert 0.85 < duration["auto"] / horizon < 0.95, duration["auto"] / horizon
     assert duration["0"] != duration["auto"]  # this recording's noise moves Berret's cut
-    with pytest.raises(SystemExit) as e:
-        main(["preprocess", str(data), "--segment-cutoff", "-1", "--out", str(tmp_path / "bad.npz")])
-    assert e.value.code == 2
-    assert "--segment-cutoff" in capsys.readouterr().err
+    capsys.readouterr()
+    for bad in ("-1", "fast", "1e9"):
+        with pytest.raises(SystemExit) as e:
+            main(["preprocess", str(data), "--segment-cutoff", bad, "--out", str(tmp_path / "bad.npz")])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--segment-cutoff: expected auto or a number of Hz in [0, 1000]" in err[0], err
     assert not (tmp_path / "bad.npz").exists()

@@ -36,7 +36,10 @@ def _segment_cutoff(text: str) -> float | str | None:
     """``auto``, or Hz in [0, 1000] (0: the --cutoff speed)."""
     if text.strip().lower() == "auto":
         return "auto"
-    return number_in(0.0, 1000.0)(text) or None
+    try:
+        return number_in(0.0, 1000.0)(text) or None
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected auto or a number of Hz in [0, 1000], got {text[:40]!r}") from None
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
