@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfiltfilt, sosfreqz
 
 from ..arm import DUMAS_2007, ArmModel
 from ..errors import InputError
@@ -187,6 +187,11 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
     return out.reshape(x.shape)
 
 
+def _filter_padlen(order: int) -> int:
+    """The edge padding of :func:`lowpass`'s ``sosfiltfilt`` (a record must be longer than this)."""
+    return 3 * (2 * ((order + 1) // 2) + 1)
+
+
 def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source: object | None = None):
     """Zero-lag Butterworth low-pass along axis 0 (``butter(order, cutoff)`` applied forward and backward)."""
     x = np.asarray(x, dtype=float)
@@ -198,7 +203,7 @@ def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source
             source,
         )
     sos = butter(order, cutoff_hz / nyq, btype="low", output="sos")
-    padlen = 3 * (2 * sos.shape[0] + 1)
+    padlen = _filter_padlen(order)
     if x.shape[0] <= padlen:
         raise InputError(f"too short to filter: {x.shape[0]} frames, need more than {padlen}", source)
     return sosfiltfilt(sos, x, axis=0)
@@ -319,18 +324,12 @@ def _noise_gains(rate: float, cutoff_hz: float, order: int) -> tuple[float, floa
     ``(rate · sin ω)²``)."""
     sos = butter(order, cutoff_hz / (rate / 2.0), btype="low", output="sos")
     w = np.linspace(0.0, np.pi, 4097)
-    h2 = np.abs(_sosfreqz(sos, w)) ** 2  # filtfilt's amplitude response
+    h2 = np.abs(sosfreqz(sos, worN=w)[1]) ** 2  # filtfilt's amplitude response
     return float(np.mean((1.0 - h2) ** 2)), float(np.mean(h2**2 * (rate * np.sin(w)) ** 2))
 
 
-def _sosfreqz(sos: np.ndarray, w: np.ndarray) -> np.ndarray:
-    from scipy.signal import sosfreqz
-
-    return sosfreqz(sos, worN=w)[1]
-
-
 def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, options: PreprocessOptions,
-                        source: object | None = None) -> float | None:
+                        source: object | None = None, filtered: np.ndarray | None = None) -> float | None:
     """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
     ``cutoff_hz`` speed (Berret's).
 
@@ -340,24 +339,24 @@ def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, op
     the filter's response predicts the RMS noise of the speed at each cutoff, and the highest cutoff (in
     0.5 Hz steps, not below ``MIN_SEGMENT_CUTOFF_HZ``) whose noise is at most ``SEGMENT_NOISE_FRACTION`` of
     the threshold speed (``onset_threshold`` × ``peak_speed``) is taken. Clean recordings keep the
-    ``cutoff_hz`` speed; 1.5 mm of noise on a 0.8 m/s reach at 100 Hz gives about 4 Hz."""
+    ``cutoff_hz`` speed; 1.5 mm of noise on a 0.8 m/s reach at 100 Hz gives about 4 Hz. ``filtered`` is
+    ``points`` already low-passed at ``cutoff_hz``, when the caller has it."""
     fc, base = options.segment_cutoff_hz, options.cutoff_hz
     if fc is None or base is None:
         return None
     rate = 1.0 / float(np.median(np.diff(t)))
-    padlen = 3 * (2 * ((options.filter_order + 1) // 2) + 1)
-    if t.shape[0] <= padlen or base >= rate / 2:
+    if t.shape[0] <= _filter_padlen(options.filter_order) or base >= rate / 2:
         return None
     if fc != "auto":
         return float(fc) if float(fc) < base else None
     points = np.asarray(points, dtype=float).reshape(t.shape[0], -1)
-    rate = round(rate, 6)  # the cache key: a record's median frame interval
-    residual_gain, _ = _noise_gains(rate, float(base), options.filter_order)
-    residual = points - lowpass(points, rate, base, options.filter_order, source)
-    noise_var = float(np.mean(residual**2)) / residual_gain  # per axis
+    if filtered is None:
+        filtered = lowpass(points, rate, base, options.filter_order, source)
+    gains = functools.partial(_noise_gains, round(rate, 6), order=options.filter_order)  # cached per rate
+    noise_var = float(np.mean((points - filtered.reshape(points.shape)) ** 2)) / gains(float(base))[0]  # per axis
 
     def speed_noise(f: float) -> float:
-        return float(np.sqrt(points.shape[1] * noise_var * _noise_gains(rate, float(f), options.filter_order)[1]))
+        return float(np.sqrt(points.shape[1] * noise_var * gains(float(f))[1]))
 
     target = SEGMENT_NOISE_FRACTION * options.onset_threshold * peak_speed
     if speed_noise(base) <= target:
@@ -372,11 +371,11 @@ def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, op
 
 
 def segmentation_speed(t: np.ndarray, points: np.ndarray, speed: np.ndarray, options: PreprocessOptions,
-                       source: object | None = None) -> np.ndarray:
+                       source: object | None = None, filtered: np.ndarray | None = None) -> np.ndarray:
     """The fingertip speed that onset and offset are found on: ``points`` ``(n, d)`` (the fingertip, before
     the angles' filter) low-passed at :func:`segmentation_cutoff`, differentiated and normed; ``speed`` (the
-    ``cutoff_hz`` speed) as is when that is ``None``."""
-    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source)
+    ``cutoff_hz`` speed) as is when that is ``None``. ``filtered``: see :func:`segmentation_cutoff`."""
+    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source, filtered)
     if fc is None:
         return speed
     rate = 1.0 / float(np.median(np.diff(t)))
@@ -630,8 +629,9 @@ def reconstruct_markers(
             "markers swapped? (check --markers or the marker set)",
             src,
         )
-    onset, offset = detect_onset_offset(segmentation_speed(t, raw_fingertip, speed, options, src),
-                                        options.onset_threshold)
+    onset, offset = detect_onset_offset(
+        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]),
+        options.onset_threshold)
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if onset == 0 or offset == md.n_frames - 1:
@@ -778,7 +778,7 @@ def angles_to_trial(
     rate = 1.0 / float(np.median(np.diff(t)))
     q_seen = q
     if options.cutoff_hz is not None:
-        if options.cutoff_hz < rate / 2 and t.shape[0] > 3 * (2 * ((options.filter_order + 1) // 2) + 1):
+        if options.cutoff_hz < rate / 2 and t.shape[0] > _filter_padlen(options.filter_order):
             q = lowpass(q, rate, options.cutoff_hz, options.filter_order, src)
         else:
             log.info("%s: %d samples at %.3g Hz, not filtered", src, t.shape[0], rate)

@@ -136,14 +136,11 @@ class MaskedMOIRL(MOIRL):
     removed: tuple[int, ...] = ()
     frozen: tuple[int, ...] = ()
 
-    def _held(self, shape) -> np.ndarray:
-        held = np.zeros(shape, dtype=bool)
-        held[:, list(self.removed)] = True
-        held[list(self.frozen), :] = True
-        return held
-
-    def _movable(self, shape) -> np.ndarray:  # the merit fallback probes and moves these only
-        return ~self._held(shape)
+    def _movable(self, shape) -> np.ndarray:  # every step, and the merit fallback's probes, move these only
+        free = np.ones(shape, dtype=bool)
+        free[:, list(self.removed)] = False
+        free[list(self.frozen), :] = False
+        return free
 
     def _effective(self, w: np.ndarray) -> np.ndarray:
         w = np.array(w, dtype=float)
@@ -160,7 +157,7 @@ class MaskedMOIRL(MOIRL):
         w_eff = np.array(w, dtype=float)
         w_eff[:, list(self.removed)] *= 1e-12  # absent from the likelihood, still > 0 for the log-step
         theta = w_eff * sigma
-        held = self._held(w.shape)
+        held = ~self._movable(w.shape)
         bound = float(np.log(self.max_ratio if ratio is None else ratio))
         lam = smoothness * phi_star.shape[0]
         upper = np.where(held, 0.0, bound)  # held weights cannot move
