@@ -227,7 +227,16 @@ def learned_sweep(stride: int = 1, path=None) -> dict:
 
 
 def run(n_repeats: int = 3, seed: int = 0, windows=(1, 8), learned_stride: int = 5) -> dict:
-    """Time both backends on the same problems; returns a JSON-able dict of figures."""
+    """Time both backends on the same problems; returns a JSON-able dict of figures. CasADi runs on its
+    virtual machine (``REACHIRL_COMPILE=off``), whatever the cache holds, so the ratios compare like with like
+    across machines (``bench doc`` reports the compiled solver's own figure)."""
+    from reachirl.doc.compiled import setting
+
+    with setting("off"):
+        return _run(n_repeats, seed, windows, learned_stride)
+
+
+def _run(n_repeats: int, seed: int, windows, learned_stride: int) -> dict:
     probs = problems(seed, windows)
     keys = ("cold_s", "cold_iter", "warm_s", "warm_iter", "cold_cpu_s", "warm_cpu_s", "cold2_cpu_s", "cold2_iter")
     per = {b: {**{k: [] for k in keys}, "converged": 0, "warm_converged": 0} for b in BACKENDS}

@@ -8,7 +8,10 @@ options.
 Figures (N = 100 knots, 8 windows, all seven features): median cold and warm solve times over 20 problems
 (5 postures × 4 weight draws), as CPU time (``time.process_time`` around the whole call; the machine may be
 shared, so prefer these and ``ratios_cpu``) and wall time, iteration counts, the convergence rate over a
-135-problem sweep, and the ratios.
+135-problem sweep, and the ratios. These run on CasADi's virtual machine (``REACHIRL_COMPILE=off``), whatever
+the cache holds; ``compiled`` times the same cold solves with the compiled solver of
+:mod:`reachirl.doc.compiled` (compiling it first if it is not cached, and saying how long that took) and checks
+that its solutions are bit-identical.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import numpy as np
 
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, guess_knots
+from reachirl.doc.compiled import setting as compile_mode
 from reachirl.features import N_FEATURES, trajectory_cost, window_index
 
 POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
@@ -103,8 +107,30 @@ class PlainDoc:
                 "converged": bool(st["success"]), "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
 
 
+def compiled_figures(problems, reference) -> dict:
+    """The cold solves of ``problems`` again with the compiled solver; ``reference`` holds the VM's solutions."""
+    with compile_mode("on"):
+        t0 = time.perf_counter()
+        solve_doc(problems[0][0], problems[0][1])  # compiles here unless cached
+        compile_s = time.perf_counter() - t0
+        cpu, identical = [], 0
+        for (task, w, _), ref in zip(problems, reference, strict=True):
+            c0 = time.process_time()
+            sol = solve_doc(task, w)
+            cpu.append(time.process_time() - c0)
+            identical += bool(np.array_equal(sol.q, ref.q) and sol.cost == ref.cost)
+    return {"cold_cpu_median_s": float(np.median(cpu)), "first_solve_s": compile_s,
+            "bit_identical": f"{identical}/{len(problems)}"}
+
+
 def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
     """Time both formulations on the same problems; returns the figures and their ratios."""
+    with compile_mode("off"):
+        out = _run(n_repeats, sweep, seed)
+    return out
+
+
+def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
     arm = ArmModel.from_anthropometrics(1.76, 70.0, "M")
     rng = np.random.default_rng(seed)
     n_windows, n_nodes = 8, 100
@@ -119,10 +145,11 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
     keys = ("cold", "warm", "cold_cpu", "warm_cpu", "cold_it", "warm_it")
     ours = {**{k: [] for k in keys}, "ok": 0, "n": 0}
     plain = {**{k: [] for k in keys}, "ok": 0, "n": 0}
-    agree_deg, agree_cost = [], []
+    agree_deg, agree_cost, colds = [], [], []
     for task, w, w2 in problems:
         c0 = time.process_time()
         cold = solve_doc(task, w)
+        colds.append(cold)
         c1 = time.process_time()
         warm = solve_doc(task, w2, warm_start=cold)
         c2 = time.process_time()
@@ -181,6 +208,8 @@ def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
         "warm_vs_plain_warm": r["warm_median_s"] / b["warm_median_s"],
         "cold_vs_plain_cold": r["cold_median_s"] / b["cold_median_s"],
     }
+    out["compiled"] = compiled_figures(problems, colds)
+    out["compiled"]["cold_cpu_vs_vm"] = out["compiled"]["cold_cpu_median_s"] / r["cold_cpu_median_s"]
     if sweep:
         out["convergence_sweep"] = convergence_sweep(arm, seed)
     return out

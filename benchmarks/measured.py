@@ -76,6 +76,9 @@ def bench_numbers(bench: dict) -> dict:
             "ratios_cpu": {k: round(v, 2) for k, v in doc.get("ratios_cpu", {}).items()},
             "agreement_q_deg": doc["agreement"]["q_rmse_deg_max"],
             "agreement_cost": doc["agreement"]["cost_rel_diff_max"],
+            "compiled_cold_cpu_ms": (round(1e3 * doc["compiled"]["cold_cpu_median_s"], 1)
+                                     if doc.get("compiled") else None),
+            "compiled_bit_identical": doc["compiled"]["bit_identical"] if doc.get("compiled") else None,
             "sweep_converged": (
                 f"{doc['convergence_sweep']['converged']}/{doc['convergence_sweep']['n_problems']}"
                 if doc.get("convergence_sweep") else None
@@ -145,6 +148,9 @@ def render(snap: dict) -> str:
             f"{d['agreement_cost']:.2g}.",
             "",
         ]
+        if d.get("compiled_cold_cpu_ms") is not None:
+            lines += [f"  The compiled solver (`reachirl.doc.compiled`): {d['compiled_cold_cpu_ms']} ms cold, "
+                      f"solutions bit-identical on {d['compiled_bit_identical']} problems.", ""]
     b = (snap.get("bench") or {}).get("backends")
     if b:
         lines += [f"- **Crocoddyl/CSQP** against CasADi (`make bench`, same run): {b['crocoddyl_vs_casadi_cold_cpu']}× "

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
+# no background compilation into the user's cache from a test run (tests/test_compiled.py sets its own)
+os.environ.setdefault("REACHIRL_COMPILE", "off")
 os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 

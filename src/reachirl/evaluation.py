@@ -49,8 +49,7 @@ def evaluate_trials(
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
         sol = solve_doc(ReachingTask.from_trial(trial, n_nodes), weights, backend=backend)
-        ref = trial.resample(n_nodes + 1)
-        e = TrialError(trial.id, *rmse_deg(sol.q, ref.q), converged=sol.converged, prediction=sol)
+        e = TrialError(trial.id, *rmse_deg(sol.q, trial.q_at(n_nodes + 1)), converged=sol.converged, prediction=sol)
         out.append(e)
         if on_trial is not None:
             on_trial(e)

@@ -18,11 +18,22 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "cache_root",
     "npz_bytes",
     "read_json",
     "read_text",
     "to_jsonable",
 ]
+
+
+def cache_root() -> Path:
+    """reachirl's cache folder: ``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
+    ``~/.cache/reachirl``."""
+    if os.environ.get("REACHIRL_CACHE"):
+        return Path(os.environ["REACHIRL_CACHE"])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]) / "reachirl"
+    return Path.home() / ".cache" / "reachirl"
 
 
 @contextlib.contextmanager

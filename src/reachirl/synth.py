@@ -80,7 +80,7 @@ from .data.trial import Trial, trial_from_knots
 from .data.writers import write_c3d, write_mot, write_trc
 from .doc import ReachingTask, solve_doc
 from .features import FEATURES, feature_rates, window_index
-from .io import atomic_write_json, atomic_write_text, to_jsonable
+from .io import atomic_write_json, atomic_write_text, cache_root, to_jsonable
 
 __all__ = [
     "BERRET_DURATIONS_S",
@@ -110,7 +110,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = 4  # bump whenever the generated files change for the same seed
+GENERATOR_VERSION = 5  # bump whenever the generated files change for the same seed
 FORMATS = ("trc", "c3d", "mot")
 POSTURES = ("P1", "P2", "P3", "P4", "P5")
 # Berret 2011: initial postures as (elbow, shoulder) in degrees, and movement durations (mean, SD) in seconds.
@@ -701,15 +701,6 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
 
 
 # ---------------------------------------------------------------------- the built-in data set (cached)
-def cache_root() -> Path:
-    """``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else ``~/.cache/reachirl``."""
-    if os.environ.get("REACHIRL_CACHE"):
-        return Path(os.environ["REACHIRL_CACHE"])
-    if os.environ.get("XDG_CACHE_HOME"):
-        return Path(os.environ["XDG_CACHE_HOME"]) / "reachirl"
-    return Path.home() / ".cache" / "reachirl"
-
-
 def _builtin_config(seed: int) -> SynthConfig:
     return SynthConfig(n_subjects=2, n_trials=20, seed=seed, fmt="trc", workers=2)
 

@@ -63,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args) -> int:
     try:
+        from ..doc.compiled import mode
+
+        mode()  # a bad REACHIRL_COMPILE is an input error, before any work
         return int(args._run(args) or 0)
     except InputError as e:
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)

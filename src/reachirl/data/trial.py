@@ -99,10 +99,15 @@ class Trial:
         """``(n, 4)`` state ``(q1, q2, q̇1, q̇2)``."""
         return np.hstack([self.q, self.qd])
 
+    def q_at(self, n_points: int) -> np.ndarray:
+        """The joint angles on ``n_points`` equally spaced samples (cubic spline), ``(n_points, 2)``: the ``q``
+        of :meth:`resample`, without its velocities and torques."""
+        return CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n_points))
+
     def resample(self, n_points: int) -> Trial:
         """The same reach on ``n_points`` equally spaced samples (cubic spline; torques re-derived)."""
         t_new = np.linspace(0.0, self.duration, n_points)
-        q = CubicSpline(self.t, self.q, axis=0)(t_new)
+        q = self.q_at(n_points)
         qd = CubicSpline(self.t, self.qd, axis=0)(t_new)
         qdd = CubicSpline(self.t, self.qdd, axis=0)(t_new)
         tau = self.arm.inverse_dynamics(q, qd, qdd)

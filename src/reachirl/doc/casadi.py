@@ -33,7 +33,10 @@ loaded 2-core machine; before this form, IPOPT on the positions-only form took 2
   stage-wise Hessian is ~4x cheaper to evaluate than the positions-only one. Cold: 18 iterations, 16 ms;
   warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
   multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
-  JIT-compiling the NLP functions halved their evaluation time but took ~40 s per shape; not used.
+  Its initial barrier parameter is 1e-4, not 0.1: 14 instead of 16 iterations (see :data:`FATROP_OPTIONS`).
+* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per shape and
+  machine, cached on disk): its function evaluations take about half the time, and a cold solve at N = 100
+  about 10 instead of 13 ms, with bit-identical results.
 * fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
   previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
 * **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved
@@ -50,6 +53,7 @@ import casadi as ca
 import numpy as np
 
 from ..features import N_FEATURES, trajectory_cost, window_index
+from . import compiled
 from .task import DocSolution, ReachingTask, rest_to_rest_knots
 
 __all__ = [
@@ -108,6 +112,11 @@ FATROP_OPTIONS: dict = {
     # solver stops only at the tolerance, one iteration later on those reaches
     "fatrop.tol_acceptable": 1e-6,
     "fatrop.mu_linear_decrease_factor": 0.1,
+    # a small initial barrier parameter (fatrop's default is 0.1): the minimum-jerk start is interior and close
+    # enough. On 612 predictions of the learned-weight sweep (benchmarks/learned_weights.json, every 3rd):
+    # 16.3 -> 13.8 iterations, 18.9 -> 16.0 ms, all converged, at the same optima (q within 0.02 deg, cost
+    # within 2e-5); 1e-5 and 1e-6 were no better
+    "fatrop.mu_init": 1e-4,
     "fatrop.max_iter": 200,
 }
 FATROP_WARM_OPTIONS: dict = {
@@ -215,15 +224,46 @@ class _Nlp:
         self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
         self._solvers: dict = {}
         self.lock = threading.Lock()
+        self._cold_solves = 0  # cold fatrop solves in this process, for :mod:`reachirl.doc.compiled`
+        self._compiled_path = None
+
+    def cold_solver_spec(self) -> tuple[str, str, dict]:
+        """``(name, plugin, options)`` of the cold fatrop solver (the one :mod:`.compiled` compiles)."""
+        return "doc_fatrop", "fatrop", {**FATROP_OPTIONS, "equality": [True] * self.n_g}
+
+    def _cold_fatrop(self):
+        """The cold fatrop solver: compiled when :mod:`.compiled` has (or makes) one, else CasADi's VM."""
+        if "fatrop_compiled" in self._solvers:
+            return self._solvers["fatrop_compiled"]
+        how = compiled.mode()
+        if how != "off":
+            self._cold_solves += 1
+            name, plugin, opts = self.cold_solver_spec()
+            if self._compiled_path is None:
+                self._compiled_path = compiled.cache_path(self.nlp, opts)
+            path = self._compiled_path
+            solver = None
+            if self._cold_solves == 1 or (
+                self._cold_solves > compiled.AUTO_AFTER and self._cold_solves % compiled.POLL_EVERY == 0
+            ):
+                solver = compiled.load(path)
+            if solver is None and how == "on" and self._cold_solves == 1:
+                solver = compiled.compile_or_wait(name, plugin, self.nlp, opts, path)  # None: the VM solves
+            if solver is None and how == "auto" and self._cold_solves == compiled.AUTO_AFTER:
+                compiled.start_background(self.n, self.n_windows, path)
+            if solver is not None:
+                self._solvers["fatrop_compiled"] = solver
+                return solver
+        return self.solver("fatrop")
 
     def solver(self, kind: str):
         """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"``; built on first use."""
         if kind not in self._solvers:
             if kind.startswith("fatrop"):
-                opts = {**FATROP_OPTIONS, "equality": [True] * self.n_g}
+                name, plugin, opts = self.cold_solver_spec()
                 if kind == "fatrop_warm":
-                    opts.update(FATROP_WARM_OPTIONS)
-                self._solvers[kind] = ca.nlpsol(f"doc_{kind}", "fatrop", self.nlp, opts)
+                    name, opts = "doc_fatrop_warm", {**opts, **FATROP_WARM_OPTIONS}
+                self._solvers[kind] = ca.nlpsol(name, plugin, self.nlp, opts)
             else:
                 opts = dict(IPOPT_OPTIONS)
                 if kind == "ipopt_warm":
@@ -338,7 +378,7 @@ def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> 
 
 def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[dict, dict, float]:
     with nlp.lock:  # an nlpsol instance is not re-entrant
-        solver = nlp.solver(kind)
+        solver = nlp._cold_fatrop() if kind == "fatrop" else nlp.solver(kind)
         t0 = time.perf_counter()
         out = solver(**args)
         elapsed = time.perf_counter() - t0

@@ -180,7 +180,7 @@ def _per_trial(weights, trials, n_nodes, backend, warm=None):
     for i, t in enumerate(trials):
         sol = solve_doc(ReachingTask.from_trial(t, n_nodes), weights, backend=backend,
                         warm_start=None if warm is None else warm[i])
-        out.append(rmse_deg(sol.q, t.resample(n_nodes + 1).q)[2])
+        out.append(rmse_deg(sol.q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
     return np.array(out), sols
 

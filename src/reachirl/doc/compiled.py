@@ -1,0 +1,208 @@
+"""Compiled DOC solvers: the cold fatrop solver of one NLP shape, compiled to C once and cached on disk.
+
+CasADi evaluates the NLP's functions (objective, constraints, their derivatives, the Lagrangian's Hessian) in
+its virtual machine. Compiled with the system C compiler (``gcc -O1``) they take about half that time, and the
+solver's results are bit-identical (the same operations in the same order; tested): a cold solve at N = 100
+goes from about 13 to 10 ms. Compiling one shape ``(N, n_windows)`` takes about 35 s of CPU and makes a file of
+about 25 MB, so it is done only where it pays off, which the environment variable ``REACHIRL_COMPILE`` decides:
+
+* ``auto`` (the default): a compiled solver already in the cache is used. A process that has solved
+  :data:`AUTO_AFTER` cold DOCs of one shape (a long run: an all-pairs study, a large evaluation) starts the
+  compilation in a background process, goes on solving meanwhile, and switches to the compiled solver when its
+  file appears. Other processes that need the same shape wait for that file instead of compiling it again.
+* ``on``: the first cold solve of a shape compiles it (and waits), unless it is cached.
+* ``off``: never compile, never load.
+
+The cache file is CasADi's own serialisation of the solver with the compiled library embedded (no pickle), in
+``<cache>/casadi-<version>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
+``~/.cache/reachirl``). Its name is a hash of the CasADi version, the NLP's own serialisation and the solver
+options, so a change of formulation or options never loads a stale solver. A file that does not load is
+ignored (the virtual machine solves instead), and so is a missing compiler.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..errors import InputError
+from ..io import cache_root
+
+__all__ = [
+    "AUTO_AFTER", "MODES", "cache_path", "compile_or_wait", "compile_solver", "load", "mode", "setting",
+    "start_background",
+]
+
+MODES = ("auto", "on", "off")
+AUTO_AFTER = 1000  # cold solves of one shape in one process before ``auto`` compiles it (~15 s of solving)
+JIT_FLAGS = ("-O1",)  # -O0 is slower than CasADi's virtual machine; -O2 compiles longer for no measured gain
+POLL_EVERY = 50  # after AUTO_AFTER, look for the background compilation's file every this many cold solves
+STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
+
+
+def mode() -> str:
+    """``REACHIRL_COMPILE``, one of :data:`MODES` (default ``auto``)."""
+    value = os.environ.get("REACHIRL_COMPILE", "auto").strip().lower() or "auto"
+    if value not in MODES:
+        raise InputError(f"environment variable REACHIRL_COMPILE={value!r}: expected one of {', '.join(MODES)}")
+    return value
+
+
+@contextlib.contextmanager
+def setting(value: str):
+    """``REACHIRL_COMPILE=value`` inside the block (benchmarks, tests), with the CasADi backend's NLPs rebuilt
+    on both sides (each holds its solvers)."""
+    from .casadi import build_nlp
+
+    before = os.environ.get("REACHIRL_COMPILE")
+    os.environ["REACHIRL_COMPILE"] = value
+    mode()
+    build_nlp.cache_clear()
+    try:
+        yield
+    finally:
+        build_nlp.cache_clear()
+        if before is None:
+            os.environ.pop("REACHIRL_COMPILE", None)
+        else:
+            os.environ["REACHIRL_COMPILE"] = before
+
+
+def _options(options: dict) -> dict:
+    # "link": the saved solver loads the library compiled beside it (kept: no clean-up); "embed" would write
+    # the library back to its first path at every load, from every process
+    return {**options, "jit": True, "compiler": "shell", "jit_serialize": "link",
+            "jit_options": {"flags": list(JIT_FLAGS), "verbose": False, "cleanup": False}}
+
+
+def cache_path(nlp: dict, options: dict) -> Path:
+    """Where the compiled solver of ``nlp`` (CasADi's NLP dict) under ``options`` is cached."""
+    import casadi as ca
+
+    f = ca.Function("nlp", [nlp["x"], nlp["p"]], [nlp["f"], nlp["g"]])
+    h = hashlib.sha256()
+    h.update(ca.__version__.encode())
+    h.update(f.serialize().encode())
+    h.update(json.dumps(_options(options), sort_keys=True, default=str).encode())
+    return cache_root() / f"casadi-{ca.__version__}" / f"doc-{h.hexdigest()[:24]}" / "solver.casadi"
+
+
+def load(path: Path):
+    """The cached solver at ``path`` (a ``casadi.Function``), or None when there is none or it does not load."""
+    import casadi as ca
+
+    try:
+        if not path.is_file():
+            return None
+        return ca.Function.load(str(path))
+    except Exception:
+        return None
+
+
+def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path):
+    """Compile ``nlpsol(name, solver, nlp, options)`` into the folder of ``path`` and save the solver at
+    ``path`` (last, atomically: a loader sees all or nothing); returns it.
+
+    The saved solver links to the compiled library beside it, by absolute path. Raises RuntimeError when there
+    is no working C compiler."""
+    import casadi as ca
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for stale in path.parent.glob("*"):  # an earlier, interrupted attempt's leftovers
+        if stale.is_file():
+            stale.unlink()
+    cwd = os.getcwd()
+    os.chdir(path.parent)  # CasADi writes the C source and the library into the working directory
+    try:
+        f = ca.nlpsol(name, solver, nlp, _options(options))
+    except Exception as e:
+        raise RuntimeError(f"compiling the DOC solver failed (is a C compiler installed?): {e}") from None
+    finally:
+        os.chdir(cwd)
+    for obj in path.parent.glob("*.o"):
+        obj.unlink()
+    fd, tmp_file = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        f.save(tmp_file)
+        os.replace(tmp_file, path)
+    finally:
+        if os.path.exists(tmp_file):
+            os.unlink(tmp_file)
+    return f
+
+
+def _lock(path: Path) -> Path:
+    return path.parent.with_name(path.parent.name + ".lock")
+
+
+def _acquire(path: Path) -> bool:
+    """Take the compilation lock of ``path`` (a file beside its folder); False when another process holds it
+    (or the cache is not writable). A lock older than :data:`STALE_LOCK_S` is taken over."""
+    lock = _lock(path)
+    try:
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        if lock.exists() and time.time() - lock.stat().st_mtime > STALE_LOCK_S:
+            lock.unlink(missing_ok=True)
+        os.close(os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        return True
+    except OSError:
+        return False
+
+
+def compile_or_wait(name: str, solver: str, nlp: dict, options: dict, path: Path):
+    """The solver at ``path``: compiled here, or, when another process is compiling it, loaded once that
+    process is done. None when it cannot be had (no compiler, unwritable cache, the other process failed)."""
+    if _acquire(path):
+        try:
+            return compile_solver(name, solver, nlp, options, path)
+        except (RuntimeError, OSError):
+            return None
+        finally:
+            _lock(path).unlink(missing_ok=True)
+    deadline = time.monotonic() + STALE_LOCK_S
+    while _lock(path).exists() and time.monotonic() < deadline:
+        time.sleep(0.5)
+    return load(path)
+
+
+def start_background(n: int, n_windows: int, path: Path) -> bool:
+    """Compile the shape ``(n, n_windows)`` in a detached process unless another process already is; True when
+    one was started here. The detached process releases the lock when done."""
+    if not _acquire(path):
+        return False
+    subprocess.Popen(
+        [sys.executable, "-m", "reachirl.doc.compiled", str(n), str(n_windows), str(path)],
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True, env={**os.environ, "REACHIRL_COMPILE": "off"},
+    )
+    return True
+
+
+def main(argv: list[str]) -> int:
+    """Background entry point: ``python -m reachirl.doc.compiled N N_WINDOWS PATH``."""
+    from .casadi import build_nlp
+
+    n, n_windows, path = int(argv[0]), int(argv[1]), Path(argv[2])
+    try:
+        nlp = build_nlp(n, n_windows)
+        name, solver, options = nlp.cold_solver_spec()
+        if cache_path(nlp.nlp, options) != path:  # another version of the code asked: do not cache under its name
+            return 1
+        compile_solver(name, solver, nlp.nlp, options, path)
+        return 0
+    except Exception:
+        return 1
+    finally:
+        _lock(path).unlink(missing_ok=True)
+
+
+if __name__ == "__main__":  # pragma: no cover - run as a detached process by start_background
+    sys.exit(main(sys.argv[1:]))

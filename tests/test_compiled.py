@@ -1,0 +1,122 @@
+"""The compiled DOC solver (reachirl.doc.compiled): same answers as CasADi's virtual machine, bit for bit, and
+never in the way (a broken cache file, no compiler, a bad setting)."""
+
+import time
+
+import numpy as np
+import pytest
+
+from reachirl.doc import ReachingTask, compiled, solve_doc
+from reachirl.doc import casadi as cas
+from reachirl.errors import InputError
+
+N = 12  # a small shape: it compiles in a few seconds
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path))
+    cas.build_nlp.cache_clear()  # the NLP objects hold their solvers and counters
+    yield tmp_path
+    cas.build_nlp.cache_clear()
+
+
+def _problems(arm):
+    w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5], [0.1, 0.2, 0.05, 1.0, 0.5, 0.05, 0.2]])
+    w = w / np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+    tasks = [ReachingTask(arm, np.deg2rad([a, 90.0]), 0.9 * arm.length, 0.7, n_nodes=N) for a in (-5.0, 0.0, 5.0)]
+    return tasks, w
+
+
+def _solve_all(tasks, w):
+    return [solve_doc(t, w) for t in tasks]
+
+
+def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm):
+    tasks, w = _problems(arm)
+    monkeypatch.setenv("REACHIRL_COMPILE", "off")
+    vm = _solve_all(tasks, w)
+    assert not list(cache.rglob("solver.casadi"))
+
+    cas.build_nlp.cache_clear()
+    monkeypatch.setenv("REACHIRL_COMPILE", "on")
+    first = _solve_all(tasks, w)  # compiles at the first solve
+    files = list(cache.rglob("solver.casadi"))
+    assert len(files) == 1 and list(files[0].parent.glob("*.so")), "the solver and its library are cached"
+    assert "fatrop_compiled" in cas.build_nlp(N, 2)._solvers
+
+    cas.build_nlp.cache_clear()
+    t0 = time.perf_counter()
+    again = _solve_all(tasks, w)  # loads the cached file, does not compile again
+    assert time.perf_counter() - t0 < 5.0
+    assert "fatrop_compiled" in cas.build_nlp(N, 2)._solvers
+    for a, b, c in zip(vm, first, again, strict=True):
+        assert a.converged and b.converged and c.converged
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.q, c.q)
+        assert a.cost == b.cost == c.cost and a.iterations == b.iterations == c.iterations
+
+
+def test_a_broken_cache_file_is_ignored(cache, monkeypatch, arm):
+    tasks, w = _problems(arm)
+    monkeypatch.setenv("REACHIRL_COMPILE", "off")
+    ref = solve_doc(tasks[0], w)
+    cas.build_nlp.cache_clear()
+    nlp = cas.build_nlp(N, 2)
+    _, _, opts = nlp.cold_solver_spec()
+    path = compiled.cache_path(nlp.nlp, opts)
+    path.parent.mkdir(parents=True)
+    path.write_bytes(b"not a CasADi file")
+    assert compiled.load(path) is None
+    monkeypatch.setenv("REACHIRL_COMPILE", "auto")
+    sol = solve_doc(tasks[0], w)
+    assert sol.converged and np.array_equal(sol.q, ref.q)
+    assert "fatrop_compiled" not in nlp._solvers
+
+
+def test_no_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch, arm):
+    tasks, w = _problems(arm)
+    monkeypatch.setenv("PATH", "")  # no gcc to be found
+    monkeypatch.setenv("REACHIRL_COMPILE", "on")
+    nlp = cas.build_nlp(N, 2)
+    name, plugin, opts = nlp.cold_solver_spec()
+    with pytest.raises(RuntimeError, match="compiling the DOC solver failed"):
+        compiled.compile_solver(name, plugin, nlp.nlp, opts, compiled.cache_path(nlp.nlp, opts))
+    sol = solve_doc(tasks[0], w)
+    assert sol.converged and "fatrop_compiled" not in nlp._solvers
+    assert not list(cache.rglob("*.lock")), "the lock is released after a failed compilation"
+
+
+def test_auto_compiles_in_the_background_after_many_solves(cache, monkeypatch, arm):
+    tasks, w = _problems(arm)
+    monkeypatch.setenv("REACHIRL_COMPILE", "auto")
+    monkeypatch.setattr(compiled, "AUTO_AFTER", 2)
+    monkeypatch.setattr(compiled, "POLL_EVERY", 1)
+    nlp = cas.build_nlp(N, 2)
+    solve_doc(tasks[0], w)
+    assert not list(cache.rglob("*.lock")), "one solve is not a long run"
+    solve_doc(tasks[1], w)  # the AUTO_AFTER-th cold solve starts the compilation
+    assert list(cache.rglob("*.lock")) or list(cache.rglob("solver.casadi"))
+    deadline = time.monotonic() + 120
+    while not list(cache.rglob("solver.casadi")) and time.monotonic() < deadline:
+        assert "fatrop_compiled" not in nlp._solvers
+        solve_doc(tasks[2], w)  # solving goes on meanwhile, on the virtual machine
+        time.sleep(0.2)
+    while list(cache.rglob("*.lock")) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert list(cache.rglob("solver.casadi")), "the background compilation finished"
+    sol = solve_doc(tasks[2], w)
+    assert sol.converged and "fatrop_compiled" in nlp._solvers
+
+
+def test_bad_setting_is_an_input_error(monkeypatch, cli, tiny_trials):
+    monkeypatch.setenv("REACHIRL_COMPILE", "fast")
+    with pytest.raises(InputError, match=r"REACHIRL_COMPILE='fast': expected one of auto, on, off"):
+        compiled.mode()
+    r = cli("evaluate", "--help")
+    assert r.returncode == 0
+    r = cli("preprocess", str(tiny_trials), "--out", str(tiny_trials.parent / "never.npz"))
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        "reachirl preprocess: error: environment variable REACHIRL_COMPILE='fast': expected one of auto, on, off"
+    ]
+    assert not (tiny_trials.parent / "never.npz").exists()
