@@ -43,13 +43,13 @@ def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm):
     first = _solve_all(tasks, w)  # compiles at the first solve
     files = list(cache.rglob("solver.casadi"))
     assert len(files) == 1 and list(files[0].parent.glob("*.so")), "the solver and its library are cached"
-    assert "fatrop_compiled" in cas.build_nlp(N, 2)._solvers
+    assert "fatrop_compiled" in cas.build_nlp(N)._solvers
 
     cas.build_nlp.cache_clear()
     t0 = time.perf_counter()
     again = _solve_all(tasks, w)  # loads the cached file, does not compile again
     assert time.perf_counter() - t0 < 5.0
-    assert "fatrop_compiled" in cas.build_nlp(N, 2)._solvers
+    assert "fatrop_compiled" in cas.build_nlp(N)._solvers
     for a, b, c in zip(vm, first, again, strict=True):
         assert a.converged and b.converged and c.converged
         assert np.array_equal(a.q, b.q) and np.array_equal(a.q, c.q)
@@ -61,7 +61,7 @@ def test_a_broken_cache_file_is_ignored(cache, monkeypatch, arm):
     monkeypatch.setenv("REACHIRL_COMPILE", "off")
     ref = solve_doc(tasks[0], w)
     cas.build_nlp.cache_clear()
-    nlp = cas.build_nlp(N, 2)
+    nlp = cas.build_nlp(N)
     _, _, opts = nlp.cold_solver_spec()
     path = compiled.cache_path(nlp.nlp, opts)
     path.parent.mkdir(parents=True)
@@ -77,7 +77,7 @@ def test_no_compiler_falls_back_to_the_virtual_machine(cache, monkeypatch, arm):
     tasks, w = _problems(arm)
     monkeypatch.setenv("PATH", "")  # no gcc to be found
     monkeypatch.setenv("REACHIRL_COMPILE", "on")
-    nlp = cas.build_nlp(N, 2)
+    nlp = cas.build_nlp(N)
     name, plugin, opts = nlp.cold_solver_spec()
     with pytest.raises(RuntimeError, match="compiling the DOC solver failed"):
         compiled.compile_solver(name, plugin, nlp.nlp, opts, compiled.cache_path(nlp.nlp, opts))
@@ -91,7 +91,7 @@ def test_auto_compiles_in_the_background_after_many_solves(cache, monkeypatch, a
     monkeypatch.setenv("REACHIRL_COMPILE", "auto")
     monkeypatch.setattr(compiled, "AUTO_AFTER", 2)
     monkeypatch.setattr(compiled, "POLL_EVERY", 1)
-    nlp = cas.build_nlp(N, 2)
+    nlp = cas.build_nlp(N)
     solve_doc(tasks[0], w)
     assert not list(cache.rglob("*.lock")), "one solve is not a long run"
     solve_doc(tasks[1], w)  # the AUTO_AFTER-th cold solve starts the compilation

@@ -17,7 +17,9 @@ Formulation (exactly the problem of :mod:`reachirl.doc.task`):
   the bar, ``P_x(q_N) = target``. Joint limits and the speed bound are variable bounds. No variable is fixed
   by equal bounds: fatrop needed 300 iterations with ``τ_{−1}`` and the slacks of interval 0 fixed that way.
 * The arm's parameters, ``q0``, the target, ``dt``, the objective scale and the weights are NLP *parameters*:
-  one NLP is built per ``(N, n_windows)`` shape, cached, and reused for every arm, task and weight.
+  one NLP is built per number of knots ``N``, cached, and reused for every arm, task and weight. The weights
+  enter per knot (``N × 7``, each knot's row its window's weights), so 1, 6 or 8 windows share one NLP (and one
+  compiled solver, :mod:`reachirl.doc.compiled`).
 * The objective is normalised by the cost of the starting point, so the solvers see an order-one objective
   (this took IPOPT from 75 % to 100 % convergence).
 * The returned trajectory is rebuilt from the knots ``q_k``: ``q̇`` by differences, ``τ`` by inverse dynamics,
@@ -34,7 +36,7 @@ loaded 2-core machine; before this form, IPOPT on the positions-only form took 2
   warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
   multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
   Its initial barrier parameter is 1e-4, not 0.1: 14 instead of 16 iterations (see :data:`FATROP_OPTIONS`).
-* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per shape and
+* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per number of knots and
   machine, cached on disk): its function evaluations take about half the time, and a cold solve at N = 100
   about 10 instead of 13 ms, with bit-identical results.
 * fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
@@ -161,16 +163,16 @@ def _fingertip(arm, q):
 
 
 class _Nlp:
-    """One NLP of a given shape, with its solvers (built lazily, each used under ``lock``)."""
+    """The NLP of a number of knots, with its solvers (built lazily, each used under ``lock``)."""
 
-    def __init__(self, n: int, n_windows: int):
-        self.n, self.n_windows = n, n_windows
+    def __init__(self, n: int):
+        self.n = n
         arm = ca.SX.sym("arm", len(_ARM_FIELDS))
         q0 = ca.SX.sym("q0", 2)
         target = ca.SX.sym("target")
         dt = ca.SX.sym("dt")
         fscale = ca.SX.sym("fscale")  # objective normalisation: 1 / (cost of the starting point)
-        w = ca.SX.sym("w", n_windows * N_FEATURES)  # row-major (window, feature)
+        w = ca.SX.sym("w", n * N_FEATURES)  # row-major (knot, feature): each knot's window's weights
         arm_l = [arm[i] for i in range(len(_ARM_FIELDS))]
         l1, l2 = arm_l[0], arm_l[1]
 
@@ -178,7 +180,6 @@ class _Nlp:
         xs = [None] + [ca.SX.sym(f"x{k}", NX) for k in range(1, n + 1)]
         us = [ca.SX.sym("u0", 2)] + [ca.SX.sym(f"u{k}", NU) for k in range(1, n)]
         z_blocks: list = [us[0]]
-        win = window_index(n, n_windows)
         obj = 0
         g: list = []
         for k in range(n):
@@ -202,7 +203,7 @@ class _Nlp:
                 ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
                 ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
             )
-            wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
+            wk = w[k * N_FEATURES : (k + 1) * N_FEATURES]
             rates = [
                 ca.sumsqr(jac @ qd),
                 sp + sm,
@@ -250,7 +251,7 @@ class _Nlp:
             if solver is None and how == "on" and self._cold_solves == 1:
                 solver = compiled.compile_or_wait(name, plugin, self.nlp, opts, path)  # None: the VM solves
             if solver is None and how == "auto" and self._cold_solves == compiled.AUTO_AFTER:
-                compiled.start_background(self.n, self.n_windows, path)
+                compiled.start_background(self.n, path)
             if solver is not None:
                 self._solvers["fatrop_compiled"] = solver
                 return solver
@@ -274,7 +275,8 @@ class _Nlp:
     def params(self, task: ReachingTask, weights: np.ndarray, fscale: float) -> np.ndarray:
         a = task.arm
         arm = [getattr(a, f) for f in _ARM_FIELDS]
-        return np.concatenate([arm, task.q0, [task.target_x, task.dt, fscale], weights.reshape(-1)])
+        per_knot = weights[window_index(self.n, weights.shape[0])]  # (N, 7)
+        return np.concatenate([arm, task.q0, [task.target_x, task.dt, fscale], per_knot.reshape(-1)])
 
     def bounds(self, task: ReachingTask) -> dict:
         inf = np.inf
@@ -286,9 +288,9 @@ class _Nlp:
 
 
 @functools.lru_cache(maxsize=16)
-def build_nlp(n: int, n_windows: int) -> _Nlp:
-    """The cached NLP of shape ``(n, n_windows)``."""
-    return _Nlp(n, n_windows)
+def build_nlp(n: int) -> _Nlp:
+    """The cached NLP of ``n`` knots (any number of windows)."""
+    return _Nlp(n)
 
 
 def _min_jerk(s: np.ndarray) -> np.ndarray:
@@ -418,7 +420,7 @@ def solve(
 
     ``iterations`` and ``solve_time`` count every attempt.
     """
-    nlp = build_nlp(task.n_nodes, weights.shape[0])
+    nlp = build_nlp(task.n_nodes)
     bounds = nlp.bounds(task)
     lbx, ubx = bounds["lbx"], bounds["ubx"]
     warm = warm_start.warm if warm_start is not None else None

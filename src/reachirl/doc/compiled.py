@@ -1,21 +1,23 @@
-"""Compiled DOC solvers: the cold fatrop solver of one NLP shape, compiled to C once and cached on disk.
+"""Compiled DOC solvers: the cold fatrop solver of one number of knots, compiled to C once and cached on disk.
 
 CasADi evaluates the NLP's functions (objective, constraints, their derivatives, the Lagrangian's Hessian) in
 its virtual machine. Compiled with the system C compiler (``gcc -O1``) they take about half that time, and the
 solver's results are bit-identical (the same operations in the same order; tested): a cold solve at N = 100
-goes from about 13 to 10 ms. Compiling one shape ``(N, n_windows)`` takes about 35 s of CPU and makes a file of
-about 25 MB, so it is done only where it pays off, which the environment variable ``REACHIRL_COMPILE`` decides:
+goes from about 13 to 10 ms. Compiling the solver of one number of knots ``N`` (it serves any number of
+windows) takes about 35 s of CPU and about 20 MB of disk, so it is done only where it pays off, which the
+environment variable ``REACHIRL_COMPILE`` decides:
 
 * ``auto`` (the default): a compiled solver already in the cache is used. A process that has solved
-  :data:`AUTO_AFTER` cold DOCs of one shape (a long run: an all-pairs study, a large evaluation) starts the
-  compilation in a background process, goes on solving meanwhile, and switches to the compiled solver when its
-  file appears. Other processes that need the same shape wait for that file instead of compiling it again.
-* ``on``: the first cold solve of a shape compiles it (and waits), unless it is cached.
+  :data:`AUTO_AFTER` cold DOCs of one number of knots (a long run: an all-pairs study, a large evaluation)
+  starts the compilation in a background process, goes on solving meanwhile, and switches to the compiled
+  solver when its file appears. Other processes that need the same solver wait for that file instead of
+  compiling it again.
+* ``on``: the first cold solve of a number of knots compiles it (and waits), unless it is cached.
 * ``off``: never compile, never load.
 
-The cache file is CasADi's own serialisation of the solver with the compiled library embedded (no pickle), in
-``<cache>/casadi-<version>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
-``~/.cache/reachirl``). Its name is a hash of the CasADi version, the NLP's own serialisation and the solver
+The cache holds CasADi's own serialisation of the solver (no pickle) beside the library it links to, in
+``<cache>/casadi-<version>/doc-<hash>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
+``~/.cache/reachirl``). The hash covers the CasADi version, the NLP's own serialisation and the solver
 options, so a change of formulation or options never loads a stale solver. A file that does not load is
 ignored (the virtual machine solves instead), and so is a missing compiler.
 """
@@ -41,7 +43,7 @@ __all__ = [
 ]
 
 MODES = ("auto", "on", "off")
-AUTO_AFTER = 1000  # cold solves of one shape in one process before ``auto`` compiles it (~15 s of solving)
+AUTO_AFTER = 1000  # cold solves of one NLP in one process before ``auto`` compiles it (~15 s of solving)
 JIT_FLAGS = ("-O1",)  # measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36
 POLL_EVERY = 50  # after AUTO_AFTER, look for the background compilation's file every this many cold solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
@@ -173,13 +175,13 @@ def compile_or_wait(name: str, solver: str, nlp: dict, options: dict, path: Path
     return load(path)
 
 
-def start_background(n: int, n_windows: int, path: Path) -> bool:
-    """Compile the shape ``(n, n_windows)`` in a detached process unless another process already is; True when
+def start_background(n: int, path: Path) -> bool:
+    """Compile the solver of ``n`` knots in a detached process unless another process already is; True when
     one was started here. The detached process releases the lock when done."""
     if not _acquire(path):
         return False
     subprocess.Popen(
-        [sys.executable, "-m", "reachirl.doc.compiled", str(n), str(n_windows), str(path)],
+        [sys.executable, "-m", "reachirl.doc.compiled", str(n), str(path)],
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True, env={**os.environ, "REACHIRL_COMPILE": "off"},
     )
@@ -187,12 +189,12 @@ def start_background(n: int, n_windows: int, path: Path) -> bool:
 
 
 def main(argv: list[str]) -> int:
-    """Background entry point: ``python -m reachirl.doc.compiled N N_WINDOWS PATH``."""
+    """Background entry point: ``python -m reachirl.doc.compiled N PATH``."""
     from .casadi import build_nlp
 
-    n, n_windows, path = int(argv[0]), int(argv[1]), Path(argv[2])
+    n, path = int(argv[0]), Path(argv[1])
     try:
-        nlp = build_nlp(n, n_windows)
+        nlp = build_nlp(n)
         name, solver, options = nlp.cold_solver_spec()
         if cache_path(nlp.nlp, options) != path:  # another version of the code asked: do not cache under its name
             return 1
