@@ -124,7 +124,7 @@ class Trial:
         """
         n = int(n_nodes)
         dt = self.duration / n
-        q = CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n + 1))
+        q = self.q_at(n + 1)
         qd = np.vstack([self.x0[2:], np.diff(q, axis=0) / dt])
         tau = self.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
         return q, qd, tau

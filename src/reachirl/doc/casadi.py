@@ -36,9 +36,9 @@ loaded 2-core machine; before this form, IPOPT on the positions-only form took 2
   warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
   multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
   Its initial barrier parameter is 1e-4, not 0.1: 14 instead of 16 iterations (see :data:`FATROP_OPTIONS`).
-* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per number of knots and
-  machine, cached on disk): its function evaluations take about half the time, and a cold solve at N = 100
-  about 10 instead of 13 ms, with bit-identical results.
+* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per number
+  of knots and machine, cached on disk): its function evaluations take about half the time, and a cold solve
+  at N = 100 about 10 instead of 13 ms, with bit-identical results.
 * fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
   previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
 * **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved
@@ -225,8 +225,7 @@ class _Nlp:
         self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
         self._solvers: dict = {}
         self.lock = threading.Lock()
-        self._cold_solves = 0  # cold fatrop solves in this process, for :mod:`reachirl.doc.compiled`
-        self._compiled_path = None
+        self.compiled_slot = compiled.Slot(n, self.nlp, self.cold_solver_spec())
 
     def cold_solver_spec(self) -> tuple[str, str, dict]:
         """``(name, plugin, options)`` of the cold fatrop solver (the one :mod:`.compiled` compiles)."""
@@ -234,34 +233,18 @@ class _Nlp:
 
     def _cold_fatrop(self):
         """The cold fatrop solver: compiled when :mod:`.compiled` has (or makes) one, else CasADi's VM."""
-        if "fatrop_compiled" in self._solvers:
-            return self._solvers["fatrop_compiled"]
-        how = compiled.mode()
-        if how != "off":
-            self._cold_solves += 1
-            name, plugin, opts = self.cold_solver_spec()
-            if self._compiled_path is None:
-                self._compiled_path = compiled.cache_path(self.nlp, opts)
-            path = self._compiled_path
-            solver = None
-            if self._cold_solves == 1 or (
-                self._cold_solves > compiled.AUTO_AFTER and self._cold_solves % compiled.POLL_EVERY == 0
-            ):
-                solver = compiled.load(path)
-            if solver is None and how == "on" and self._cold_solves == 1:
-                solver = compiled.compile_or_wait(name, plugin, self.nlp, opts, path)  # None: the VM solves
-            if solver is None and how == "auto" and self._cold_solves == compiled.AUTO_AFTER:
-                compiled.start_background(self.n, path)
-            if solver is not None:
-                self._solvers["fatrop_compiled"] = solver
-                return solver
-        return self.solver("fatrop")
+        if "fatrop_compiled" not in self._solvers:
+            solver = self.compiled_slot.get()
+            if solver is None:
+                return self.solver("fatrop")
+            self._solvers["fatrop_compiled"] = solver
+        return self._solvers["fatrop_compiled"]
 
     def solver(self, kind: str):
         """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"``; built on first use."""
         if kind not in self._solvers:
             if kind.startswith("fatrop"):
-                name, plugin, opts = self.cold_solver_spec()
+                name, plugin, opts = self.compiled_slot.spec
                 if kind == "fatrop_warm":
                     name, opts = "doc_fatrop_warm", {**opts, **FATROP_WARM_OPTIONS}
                 self._solvers[kind] = ca.nlpsol(name, plugin, self.nlp, opts)

@@ -13,6 +13,9 @@ environment variable ``REACHIRL_COMPILE`` decides:
   solver when its file appears. Other processes that need the same solver wait for that file instead of
   compiling it again.
 * ``on``: the first cold solve of a number of knots compiles it (and waits), unless it is cached.
+
+Compilation always runs in a process of its own (``python -m reachirl.doc.compiled``), because CasADi writes
+its sources into the working directory: the solving process never changes its own.
 * ``off``: never compile, never load.
 
 The cache holds CasADi's own serialisation of the solver (no pickle) beside the library it links to, in
@@ -30,15 +33,14 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import cache_root
+from ..io import atomic_path, cache_root
 
 __all__ = [
-    "AUTO_AFTER", "MODES", "cache_path", "compile_or_wait", "compile_solver", "load", "mode", "setting",
+    "AUTO_AFTER", "MODES", "Slot", "cache_path", "compile_or_wait", "compile_solver", "load", "mode", "setting",
     "start_background",
 ]
 
@@ -121,7 +123,8 @@ def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path)
         if stale.is_file():
             stale.unlink()
     cwd = os.getcwd()
-    os.chdir(path.parent)  # CasADi writes the C source and the library into the working directory
+    os.chdir(path.parent)  # CasADi writes the C source and the library into the working directory (hence a
+    # process of its own: see start_background)
     try:
         f = ca.nlpsol(name, solver, nlp, _options(options))
     except Exception as e:
@@ -130,14 +133,8 @@ def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path)
         os.chdir(cwd)
     for obj in path.parent.glob("*.o"):
         obj.unlink()
-    fd, tmp_file = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    try:
-        f.save(tmp_file)
-        os.replace(tmp_file, path)
-    finally:
-        if os.path.exists(tmp_file):
-            os.unlink(tmp_file)
+    with atomic_path(path) as tmp:
+        f.save(str(tmp))
     return f
 
 
@@ -159,19 +156,13 @@ def _acquire(path: Path) -> bool:
         return False
 
 
-def compile_or_wait(name: str, solver: str, nlp: dict, options: dict, path: Path):
-    """The solver at ``path``: compiled here, or, when another process is compiling it, loaded once that
-    process is done. None when it cannot be had (no compiler, unwritable cache, the other process failed)."""
-    if _acquire(path):
-        try:
-            return compile_solver(name, solver, nlp, options, path)
-        except (RuntimeError, OSError):
-            return None
-        finally:
-            _lock(path).unlink(missing_ok=True)
+def compile_or_wait(n: int, path: Path):
+    """The solver of ``n`` knots at ``path``, once compiled (by :func:`start_background`, or by the process
+    already compiling it). None when it cannot be had (no compiler, unwritable cache, that process failed)."""
+    start_background(n, path)
     deadline = time.monotonic() + STALE_LOCK_S
     while _lock(path).exists() and time.monotonic() < deadline:
-        time.sleep(0.5)
+        time.sleep(0.2)
     return load(path)
 
 
@@ -188,6 +179,32 @@ def start_background(n: int, path: Path) -> bool:
     return True
 
 
+class Slot:
+    """The compiled cold solver of one NLP in this process: when to load it and when to have it compiled (see
+    the module docstring). ``spec`` is ``(name, plugin, options)`` of the solver to compile."""
+
+    def __init__(self, n: int, nlp: dict, spec: tuple[str, str, dict]):
+        self.n, self.nlp, self.spec = n, nlp, spec
+        self.cold_solves = 0
+        self._path: Path | None = None
+
+    def get(self):
+        """The compiled solver (a ``casadi.Function``) for this cold solve, or None: solve on the VM."""
+        how = mode()
+        if how == "off":
+            return None
+        self.cold_solves += 1
+        if self._path is None:
+            self._path = cache_path(self.nlp, self.spec[2])
+        k = self.cold_solves
+        solver = load(self._path) if k == 1 or (k > AUTO_AFTER and k % POLL_EVERY == 0) else None
+        if solver is None and how == "on" and k == 1:
+            solver = compile_or_wait(self.n, self._path)
+        if solver is None and how == "auto" and k == AUTO_AFTER:
+            start_background(self.n, self._path)
+        return solver
+
+
 def main(argv: list[str]) -> int:
     """Background entry point: ``python -m reachirl.doc.compiled N PATH``."""
     from .casadi import build_nlp
@@ -195,7 +212,7 @@ def main(argv: list[str]) -> int:
     n, path = int(argv[0]), Path(argv[1])
     try:
         nlp = build_nlp(n)
-        name, solver, options = nlp.cold_solver_spec()
+        name, solver, options = nlp.compiled_slot.spec
         if cache_path(nlp.nlp, options) != path:  # another version of the code asked: do not cache under its name
             return 1
         compile_solver(name, solver, nlp.nlp, options, path)
