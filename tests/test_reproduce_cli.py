@@ -105,6 +105,21 @@ def test_local_processes_equal_in_process(trials_file, reference_run, tmp_path):
     _same_table(out, reference_run)
 
 
+def test_rollout_option_reaches_the_estimator(trials_file, reference_run, tmp_path):
+    """``--rollout per_demo`` gives each demonstration its own training rollout: the fit's first iteration
+    solves one DOC per training trial (the mean rollout solves one), and the unit records the option."""
+    out = tmp_path / "out"
+    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
+                 "--sections", "1", "--postures", "P2", "--rollout", "per_demo"]) == 0
+    (unit,) = json.loads((out / "results.json").read_text())["units"]
+    ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
+               if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
+    n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
+    assert n_train > 1
+    assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
+    assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
+
+
 @pytest.mark.parametrize(
     ("extra", "message"),
     [

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.trial import Trial
-from .doc import DocSolution, ReachingTask, solve_doc
+from .doc import DocSolution, solve_doc
+from .observation import observed_solution, observed_task
 
 __all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
 
@@ -44,11 +45,16 @@ def evaluate_trials(
     n_nodes: int = 100,
     backend: str = "casadi",
     on_trial: Callable[[TrialError], None] | None = None,
+    observe: bool = False,
 ) -> list[TrialError]:
-    """Predict every trial from its own initial state and measure the RMSE against it."""
+    """Predict every trial from its own initial state and measure the RMSE against it. With ``observe``, a trial
+    cut from its recording at a speed threshold (``Trial.onset_threshold``) is predicted as it was recorded
+    (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part."""
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
-        sol = solve_doc(ReachingTask.from_trial(trial, n_nodes), weights, backend=backend)
+        threshold = trial.onset_threshold if observe else None
+        task = observed_task(trial, n_nodes, threshold)
+        sol = observed_solution(solve_doc(task, weights, backend=backend), task, threshold)
         e = TrialError(trial.id, *rmse_deg(sol.q, trial.q_at(n_nodes + 1)), converged=sol.converged, prediction=sol)
         out.append(e)
         if on_trial is not None:

@@ -317,6 +317,9 @@ def check_model_dict(d, path) -> None:
     for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
         if key in d:
             _expect(isinstance(d[key], typ), f"field '{key}': expected {name}, found {_fmt(d[key])}", path)
+    observe = d.get("info", {}).get("observe")
+    _expect(observe is None or isinstance(observe, bool),
+            f"field 'info.observe': expected true or false, found {_fmt(observe)}", path)
 
 
 _META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
@@ -335,6 +338,9 @@ def check_trial_meta(m, i: int, path) -> None:
     tx = m["target_x"]
     _expect(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
             f"{where}: field 'target_x' must be a finite number (m), found {_fmt(tx)}", path)
+    th = m.get("onset_threshold")
+    _expect(th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
+            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {_fmt(th)}", path)
     arm = m["arm"]
     _expect(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {_fmt(arm)}", path)
     for k, v in arm.items():

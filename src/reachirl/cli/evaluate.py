@@ -64,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = evaluate_trials(model.weights, trials, n_nodes=model.n_nodes, backend=args.backend,
-                                 on_trial=lambda e: progress.advance(task))
+                                 on_trial=lambda e: progress.advance(task),
+                                 observe=bool(model.info.get("observe", False)))
     summary = summarise(errors, include_failed=args.include_failed)
     atomic_write_json(args.out, {"summary": summary, "trials": [e.to_dict() for e in errors]})
     r = summary["rmse_deg"]

@@ -41,6 +41,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
                    "(default mean)")
+    p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=True,
+                   help="MO-IRL/MaxEnt: see each rollout as the trials were recorded, between its own crossings of "
+                   "their onset threshold (default; `evaluate` then predicts the same way); --no-observe: whole "
+                   "rollouts, as the seed")
+    p.add_argument("--merit", choices=("state", "normalised"), default="normalised",
+                   help="MO-IRL/MaxEnt merit: each channel of (q, q̇) by the demonstrations' spread (normalised, "
+                   "default) or the seed's full-state error (state)")
     p.add_argument("--fallback", choices=("merit", "none"), default="merit",
                    help="MO-IRL/MaxEnt: when the likelihood's step lowers no merit, step on a model of the merit "
                    "(merit, default) or stop there (none: the seed's rule)")
@@ -75,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     if args.method in ("moirl", "maxent"):
-        kwargs.update(max_iter=args.max_iter, rollout=args.rollout,
+        kwargs.update(max_iter=args.max_iter, rollout=args.rollout, observe=args.observe, merit=args.merit,
                       fallback=None if args.fallback == "none" else args.fallback)
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
@@ -91,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
         "trials": str(args.trials),
         "n_trials": len(trials),
         "backend": args.backend,
+        "observe": bool(getattr(est, "observe", False)),  # `evaluate` predicts as the fit saw its rollouts
         "trial_ids": [t.id for t in trials],
         "n_iter": getattr(est, "n_iter_", None),
         "n_doc_solves": getattr(est, "n_doc_solves_", None),

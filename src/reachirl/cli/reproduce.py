@@ -103,6 +103,28 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="MO-IRL step acceptance: merit (the seed, default), either, or multimodal (state and torque merits)",
     )
     g.add_argument(
+        "--rollout",
+        choices=("mean", "per_demo"),
+        default=None,
+        help="MO-IRL's training rollout: one DOC from the demonstrations' mean start, target and duration (mean, "
+        "the seed, default) or one per demonstration, each compared with its own (per_demo)",
+    )
+    g.add_argument(
+        "--observe",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="predict each reach as it was recorded: the rest-to-rest DOC seen between its own crossings of the "
+        "trials' onset threshold, MO-IRL's rollouts too (default); --no-observe: the DOC over the trial's own "
+        "duration, as the seed (trials not cut at a threshold are always predicted whole)",
+    )
+    g.add_argument(
+        "--merit",
+        choices=("state", "normalised"),
+        default="normalised",
+        help="MO-IRL's merit: each channel of (q, q̇) divided by the demonstrations' spread (normalised, default) "
+        "or the seed's full-state error (state)",
+    )
+    g.add_argument(
         "--fallback",
         choices=("merit", "none"),
         default=None,
@@ -176,6 +198,8 @@ def _config(args):
         backend=args.backend,
         iscv=args.iscv,
         estimator_options=_estimator_options(args),
+        observe=args.observe,
+        merit=args.merit,
     )
 
 
@@ -184,6 +208,8 @@ def _estimator_options(args) -> dict:
     opts = {}
     if args.acceptance:
         opts["acceptance"] = args.acceptance
+    if args.rollout:
+        opts["rollout"] = args.rollout
     if args.fallback:
         opts["fallback"] = None if args.fallback == "none" else args.fallback
     return opts

@@ -696,6 +696,7 @@ def _to_trial(
             source,
         )
     tau = arm.inverse_dynamics(q[sl], qd[sl], qdd[sl])
+    cut = 0 < onset and offset < t.shape[0] - 1  # rest before and after: both ends are threshold crossings
     trial = Trial(
         subject=subject,
         posture=posture,
@@ -709,6 +710,7 @@ def _to_trial(
         arm=arm,
         side=side,
         source=source,
+        onset_threshold=options.onset_threshold if cut else None,
     )
     return trial.resample(options.n_samples) if options.n_samples else trial
 

@@ -31,6 +31,10 @@ _ARRAYS = ("t", "q", "qd", "qdd", "tau")
 class Trial:
     """One reach. Time ``t (n,)`` starts at 0 (the onset) and ends at ``duration`` (the offset).
 
+    ``onset_threshold`` says how the reach was cut from its recording: where the fingertip speed crosses that
+    fraction of its peak (:func:`reachirl.data.preprocess.detect_onset_offset`), so the trial starts and ends
+    moving; ``None`` for a trial that was not cut (a DOC solution, a file from before the field existed).
+
     ``q``, ``qd``, ``qdd``, ``tau`` have shape ``(n, 2)`` (rad, rad/s, rad/s², N·m; ``tau`` from inverse
     dynamics on ``arm``). ``x0 = (q1, q2, q̇1, q̇2)`` is the state at onset and ``target_x`` the fingertip's x at
     offset (m). ``side`` is the arm that moved (``"right"``/``"left"``); left arms are already mirrored into the
@@ -50,6 +54,7 @@ class Trial:
     side: str = "right"
     source: str = ""
     x0: np.ndarray = field(default=None)  # type: ignore[assignment]  # defaults to (q[0], qd[0])
+    onset_threshold: float | None = None  # cut where the fingertip speed crosses this × its peak; None: not cut
 
     def __post_init__(self) -> None:
         where = self.source or f"trial {self.subject}/{self.posture}/{self.trial_id}"
@@ -84,6 +89,11 @@ class Trial:
             raise InputError(f"side must be 'right' or 'left', got {self.side!r}", where)
         for name in ("subject", "posture", "trial_id", "source"):
             object.__setattr__(self, name, str(getattr(self, name)))
+        th = self.onset_threshold
+        if th is not None:
+            if isinstance(th, bool) or not isinstance(th, int | float | np.number) or not 0.0 < float(th) < 1.0:
+                raise InputError(f"onset_threshold must be a fraction in (0, 1) or None, got {th!r}", where)
+            object.__setattr__(self, "onset_threshold", float(th))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -181,6 +191,7 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
                 "source": tr.source,
                 "target_x": tr.target_x,
                 "arm": tr.arm.to_dict(),
+                "onset_threshold": tr.onset_threshold,
             }
         )
     header = {"format": TRIALS_FORMAT, "n_trials": len(trials), "trials": meta}
@@ -227,6 +238,7 @@ def load_trials(path: str | Path) -> list[Trial]:
                         target_x=m["target_x"],
                         arm=ArmModel.from_dict(m["arm"]),
                         x0=z[f"{i}/x0"],
+                        onset_threshold=m.get("onset_threshold"),
                         **{n: z[f"{i}/{n}"] for n in _ARRAYS},
                     )
                 )

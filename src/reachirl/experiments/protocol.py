@@ -72,6 +72,8 @@ class ProtocolConfig:
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
+    observe: bool = True  # predict (and fit) trials cut at a speed threshold as recorded (reachirl.observation)
+    merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
@@ -82,6 +84,10 @@ class ProtocolConfig:
         object.__setattr__(self, "sections", tuple(dict.fromkeys(secs)))
         if self.iscv not in ISCV_MODES:
             raise InputError(f"--iscv must be one of {', '.join(ISCV_MODES)}, got {self.iscv!r}")
+        if self.merit not in ("state", "normalised"):
+            raise InputError(f"--merit must be 'state' or 'normalised', got {self.merit!r}")
+        if self.observe not in (True, False):
+            raise InputError(f"observe must be true or false, got {self.observe!r}")
         if self.cv not in ("rest", "other-side"):
             raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
         for m in self.methods:
@@ -161,6 +167,7 @@ _CODE_COMMON = (
     "data/trial.py",
     "doc/__init__.py",
     "doc/task.py",
+    "observation.py",
     "irl/base.py",
     "irl/objective.py",
     "irl/moirl.py",
@@ -258,7 +265,8 @@ def make_units(postures: Sequence[str], config: ProtocolConfig,
                pair_subjects: Sequence[str] = ()) -> list[Unit]:
     """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing; with
     ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects."""
-    opts = tuple(sorted((str(k), v) for k, v in config.estimator_options.items()))
+    opts = {"observe": config.observe, "merit": config.merit, **config.estimator_options}
+    opts = tuple(sorted((str(k), v) for k, v in opts.items()))
     return [
         Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts, subj)
         for s in sorted(config.sections, reverse=True)
@@ -330,7 +338,8 @@ def run_unit(unit: Unit, split: Split) -> dict:
     eval_time, eval_fail, eval_solves = 0.0, 0, 0
     for name, trials in split.sets().items():
         t1 = time.perf_counter()
-        errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend)
+        errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend,
+                               observe=bool(dict(unit.estimator_options).get("observe", False)))
         eval_time += time.perf_counter() - t1
         eval_solves += len(errs)
         eval_fail += sum(not e.converged for e in errs)

@@ -9,6 +9,7 @@ from dataclasses import replace
 
 from ..data.trial import Trial
 from ..doc import DocSolution, ReachingTask, solve_doc
+from ..observation import observed_solution, observed_task
 
 __all__ = ["WeightEstimator"]
 
@@ -46,8 +47,15 @@ class WeightEstimator:
             raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
 
     def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
-        """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration."""
+        """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration. An
+        estimator with ``observe=True`` predicts a trial cut at a speed threshold as it was recorded
+        (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots."""
         self._check_fitted()
+        threshold = trial_or_task.onset_threshold if isinstance(trial_or_task, Trial) else None
+        if getattr(self, "observe", False) and threshold is not None:  # seen as it was recorded
+            task = observed_task(trial_or_task, self.n_nodes, threshold)
+            sol = solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start)
+            return observed_solution(sol, task, threshold)
         if isinstance(trial_or_task, Trial):
             task = ReachingTask.from_trial(trial_or_task, self.n_nodes)
         elif isinstance(trial_or_task, ReachingTask):

@@ -80,7 +80,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import fields
+from dataclasses import fields, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -89,6 +89,7 @@ from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..features import N_FEATURES, feature_rates, window_index
+from ..observation import MOVING_FRACTION, common_threshold, observe, observed_task
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, merit, merit_model_step, solve_delta, solve_step
 
@@ -186,6 +187,7 @@ class MOIRL(WeightEstimator):
         armijo_c1: float = 1e-4,
         curvature_c2: float = 0.9,
         backend: str = "casadi",
+        observe: bool = False,
         callback: Callable[[dict], None] | None = None,
     ):
         self.n_windows = n_windows
@@ -205,6 +207,7 @@ class MOIRL(WeightEstimator):
         self.merit = merit
         self.feature_cutoff = feature_cutoff
         self.rollout = rollout
+        self.observe = observe
         self.memory = memory
         self.use_gamma = use_gamma
         self.l1 = l1
@@ -232,6 +235,10 @@ class MOIRL(WeightEstimator):
             raise ValueError(f"scaling must be 'demo' or None, got {self.scaling!r}")
         if self.scaling == "demo" and (not self.use_gamma or self.l1):
             raise ValueError("use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None")
+        if self.observe not in (True, False):
+            raise ValueError(f"observe must be True or False, got {self.observe!r}")
+        if self.observe and self.acceptance == "multimodal":
+            raise ValueError("acceptance='multimodal' compares whole rollouts' torques: not with observe=True")
         if self.merit not in ("state", "normalised"):
             raise ValueError(f"merit must be 'state' or 'normalised', got {self.merit!r}")
         if self.memory is not None and self.memory < 1:
@@ -258,9 +265,22 @@ class MOIRL(WeightEstimator):
         return trials
 
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
+        """The rollouts' tasks; sets ``self._thresholds`` (each rollout's onset threshold, or ``None``)."""
         if self.rollout == "mean":
-            return [mean_task(trials, self.n_nodes)]
-        return [ReachingTask.from_trial(t, self.n_nodes) for t in trials]
+            task = mean_task(trials, self.n_nodes)
+            self._thresholds = [common_threshold(trials) if self.observe else None]
+            if self._thresholds[0] is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
+                task = replace(task, duration=task.duration / MOVING_FRACTION)
+            return [task]
+        self._thresholds = [t.onset_threshold if self.observe else None for t in trials]
+        return [observed_task(t, self.n_nodes, th) for t, th in zip(trials, self._thresholds, strict=True)]
+
+    def _seen(self, i: int, task: ReachingTask, sol: DocSolution) -> Trial:
+        """Rollout ``i`` as a trial, seen as the demonstrations were recorded: its onset-to-offset part when
+        they were cut at a threshold (:func:`reachirl.observation.observe`), all of it otherwise."""
+        if self._thresholds[i] is None:
+            return trial_from_solution(sol, task.arm, task.target_x)
+        return observe(sol, task, self._thresholds[i])
 
     def _rollout(self, task, w, warm: DocSolution | None, guess: np.ndarray) -> tuple[DocSolution, int]:
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
@@ -297,17 +317,20 @@ class MOIRL(WeightEstimator):
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
         return np.stack([
-            self._trajectory_features(trial_from_solution(sol, task.arm, task.target_x), starts)
-            for task, sol in zip(tasks, sols, strict=True)
+            self._trajectory_features(self._seen(i, task, sol), starts)
+            for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))
         ])
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 
-    def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None) -> float:
+    def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None,
+               tasks: Sequence[ReachingTask] = ()) -> float:
         if any(not s.converged for s in sols):
             return np.inf
-        x = sols[0].state if self.rollout == "mean" else np.stack([s.state for s in sols])
+        states = [s.state if self._thresholds[i] is None else self._seen(i, task, s).knot_state(self.n_nodes)
+                  for i, (task, s) in enumerate(zip(tasks, sols, strict=True))]
+        x = states[0] if self.rollout == "mean" else np.stack(states)
         return merit(x_demos, x, channels)
 
     def _subproblem_terms(self, phi_star: np.ndarray, bank: list[np.ndarray], starts: np.ndarray):
@@ -390,6 +413,12 @@ class MOIRL(WeightEstimator):
     def _fit(self, trials: list[Trial], smoothness: float) -> None:
         t_start = time.perf_counter()
         tasks = self._tasks(trials)
+        plain = None
+        if any(th is not None for th in self._thresholds):
+            # seen as recorded, the merit has a flatter, more winding landscape far from the optimum (measured:
+            # from ω₀ the fits stopped above the true weights' merit): start from the rest-to-rest fit's weights
+            plain = MOIRL(**{**self.get_params(), "observe": False, "callback": None})
+            plain._fit(trials, smoothness)
         x_demos = demonstration_states(trials, self.n_nodes)
         self._tau_demos = np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self.acceptance == "multimodal" \
             else None
@@ -405,10 +434,16 @@ class MOIRL(WeightEstimator):
             w = float(self.w0) / sigma  # every feature starts with the same share of each window's cost
         else:
             w = np.full((self.n_windows, N_FEATURES), float(self.w0))
+        if plain is not None:
+            w = plain.weights_
         sols, n_solves, _ = self._rollouts(tasks, w, None, guesses)
         n_fail = sum(not s.converged for s in sols)
         n_rescued = 0
-        m = self._merit(x_demos, sols, channels)
+        if plain is not None:  # its solves count, its steps too (its weights are learned ones)
+            n_solves += plain.n_doc_solves_
+            n_fail += plain.n_doc_failures_
+            n_rescued += plain.n_doc_recovered_
+        m = self._merit(x_demos, sols, channels, tasks)
         best = (m, w, sols, 0)  # the fit returns the best merit seen ("either" acceptance can raise it)
         bank = [self._features(tasks, sols, starts)]
         self.history_ = [
@@ -471,8 +506,19 @@ class MOIRL(WeightEstimator):
         self.n_doc_recovered_ = n_rescued
         self.n_iter_ = len(self.history_) - 1
         self.train_solutions_ = sols
-        self.flag_ = fit_flag(self.best_iteration_, n_accepted)
-        self.warnings_ = fit_warnings(self.best_iteration_, n_accepted, self.initial_merit_, m)
+        self.plain_fit_ = None
+        best_iteration, initial_merit = self.best_iteration_, self.initial_merit_
+        if plain is not None:
+            self.plain_fit_ = {"merit": plain.merit_, "initial_merit": plain.initial_merit_,
+                               "n_iter": plain.n_iter_, "n_accepted": plain.n_accepted_,
+                               "stop_reason": plain.stop_reason_, "weights": plain.weights_.tolist()}
+            # the flag judges both stages: ω₀ only if neither moved, one step only if they made one between them
+            n_accepted += plain.n_accepted_
+            self.n_accepted_ = n_accepted
+            best_iteration = self.best_iteration_ + plain.best_iteration_
+            initial_merit = plain.initial_merit_ if best_iteration == plain.best_iteration_ else initial_merit
+        self.flag_ = fit_flag(best_iteration, n_accepted)
+        self.warnings_ = fit_warnings(best_iteration, n_accepted, initial_merit, m)
         for msg in self.warnings_:
             log.warning(msg)
 
@@ -494,7 +540,7 @@ class MOIRL(WeightEstimator):
             recovered += rescued
             failed = sum(not s.converged for s in cand)
             failures += failed
-            m_try = self._merit(x_demos, cand, channels)
+            m_try = self._merit(x_demos, cand, channels, tasks)
             if m_try < m * (1.0 - tol) or (
                 failed == 0 and (self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
                                  or self._accept_multimodal(m, m_try, sols, cand))
@@ -519,7 +565,7 @@ class MOIRL(WeightEstimator):
                 cand, runs, _ = self._rollouts(tasks, wj, sols, guesses)
                 solves += runs
                 failures += sum(not c.converged for c in cand)
-                out[j] = self._merit(x_demos, cand, channels)
+                out[j] = self._merit(x_demos, cand, channels, tasks)
         eta = merit_model_step(m, mp, mm, h)  # features without a probe (nothing free) have η = 0
         dw = np.where(free, w * np.expm1(np.broadcast_to(eta, w.shape)), 0.0)
         if _is_rescale(w, dw):
