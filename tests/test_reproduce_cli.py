@@ -105,6 +105,31 @@ def test_local_processes_equal_in_process(trials_file, reference_run, tmp_path):
     _same_table(out, reference_run)
 
 
+def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file, reference_run):
+    """Virtual subjects: results.json holds, per posture and set, how far the 8-section fit's predictions lie
+    from the true weights' own; recomputed here from the unit's weights and the truth, DOC by DOC."""
+    from reachirl import ReachingTask, solve_doc
+    from reachirl.data.trial import load_trials
+
+    res = json.loads((reference_run / "results.json").read_text())
+    agree = res["truth_comparison"]["P2"]["predictions"]
+    assert set(agree) == {"train", "cv", "iscv"}
+    unit = next(u for u in res["units"] if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 8)
+    truth = json.loads(trials_file.with_name("truth.json").read_text())
+    w_true = np.array(truth["truth"]["nominal_weights"])
+    by_id = {t.id: t for t in load_trials(trials_file)}
+    n = unit["unit"]["n_nodes"]
+    for name, got in agree.items():
+        mine = []
+        for e in unit["sets"][name]["trials"]:
+            task = ReachingTask.from_trial(by_id[e["id"]], n)  # toy trials are DOC reaches: not cut, seen whole
+            a, b = solve_doc(task, np.array(unit["weights"])).q, solve_doc(task, w_true).q
+            mine.append(np.rad2deg(np.sqrt(np.mean((a - b) ** 2))))
+        assert got["n"] == len(mine)
+        assert got["learned_vs_true_deg"] == pytest.approx(np.mean(mine), abs=2e-3)
+    assert "from the true weights' own" in (reference_run / "table.md").read_text()
+
+
 def test_rollout_option_reaches_the_estimator(trials_file, reference_run, tmp_path):
     """``--rollout per_demo`` gives each demonstration its own training rollout: the fit's first iteration
     solves one DOC per training trial (the mean rollout solves one), and the unit records the option."""

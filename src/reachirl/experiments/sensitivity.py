@@ -172,17 +172,25 @@ class MaskedMOIRL(MOIRL):
 
 
 # ---------------------------------------------------------------------- jobs (pure functions)
-def _per_trial(weights, trials, n_nodes, backend, warm=None):
-    from ..doc import ReachingTask, solve_doc
+def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
+    """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
+    DOC solutions themselves (warm starts for the same tasks)."""
+    from ..doc import solve_doc
     from ..evaluation import rmse_deg
+    from ..observation import observed_solution, observed_task
 
     out, sols = [], []
     for i, t in enumerate(trials):
-        sol = solve_doc(ReachingTask.from_trial(t, n_nodes), weights, backend=backend,
-                        warm_start=None if warm is None else warm[i])
-        out.append(rmse_deg(sol.q, t.q_at(n_nodes + 1))[2])
+        threshold = t.onset_threshold if observe else None
+        task = observed_task(t, n_nodes, threshold)
+        sol = solve_doc(task, weights, backend=backend, warm_start=None if warm is None else warm[i])
+        out.append(rmse_deg(observed_solution(sol, task, threshold).q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
     return np.array(out), sols
+
+
+def _observes(unit: Unit) -> bool:
+    return bool(dict(unit.estimator_options).get("observe", False))
 
 
 def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tuple[int, ...]) -> dict:
@@ -193,27 +201,27 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
     est = MaskedMOIRL(**base.get_params())
     est.removed, est.frozen = tuple(removed), tuple(frozen)
     est.fit(list(split.train))
-    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend)[0].tolist()
+    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=_observes(unit))[0].tolist()
             for s, tr in split.sets().items()}
     return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "flag": est.flag_}
 
 
 def sensitivity_job(weights: np.ndarray, trials: Sequence, n_nodes: int, backend: str, window: int,
-                    percent: float) -> dict:
-    """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − and the path
-    change (deg) against the unperturbed prediction."""
+                    percent: float, observe: bool = False) -> dict:
+    """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − (predictions
+    seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one."""
     from ..evaluation import rmse_deg
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     w = np.asarray(weights, dtype=float)
-    base, sols = _per_trial(w, trials, n_nodes, backend)
+    base, sols = _per_trial(w, trials, n_nodes, backend, observe=observe)
     out = {"base": base.tolist(), "features": []}
     for j in range(N_FEATURES):
         rec = {}
         for sign, name in ((1, "plus"), (-1, "minus")):
             wp = w.copy()
             wp[window, j] *= 1 + sign * percent / 100.0
-            r, ps = _per_trial(wp, trials, n_nodes, backend, warm=sols)
+            r, ps = _per_trial(wp, trials, n_nodes, backend, warm=sols, observe=observe)
             rec[name] = r.tolist()
             rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
             if sign > 0:  # the direction the path moves in (every trial's knots, rad)
@@ -303,7 +311,7 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
             for s in range(sections):
                 jobs.append(((p, "sensitivity", s), sensitivity_job,
                              (np.asarray(r["weights"]), list(split.train), unit.n_nodes, unit.backend, s,
-                              float(config.percent))))
+                              float(config.percent), _observes(unit))))
     if on_start:
         on_start(len(jobs))
     done: dict = {}
