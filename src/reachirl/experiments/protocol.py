@@ -72,8 +72,8 @@ class ProtocolConfig:
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
-    observe: bool = True  # predict (and fit) trials cut at a speed threshold as recorded (reachirl.observation)
-    merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
+    observe: bool = False  # True: predict and fit trials cut at a speed threshold as recorded (reachirl.observation)
+    merit: str = "state"  # MO-IRL's merit: "state" (the seed's full-state error) | "normalised" (channels by spread)
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)

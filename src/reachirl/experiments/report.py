@@ -96,14 +96,20 @@ def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) ->
     return learned, true, metrics
 
 
+AGREEMENT_MAX_TRIALS = 40
+"""At most this many trials per set (evenly spaced in the set's order) are predicted again under the true
+weights, so that a Berret-size run spends seconds, not minutes, on the comparison."""
+
+
 def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
 
-    For each unit of ``method`` whose section count equals the truth's windows, every trial of every set is
-    predicted again under the nominal true weights (``truth.json``), exactly as the unit predicted it (same
-    knots, backend and ``observe``). Returns ``{posture: {set: {"n", "learned_vs_true_deg",
-    "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}`` (joint-angle RMSE in degrees, means over the trials
-    where both predictions converged); empty without a truth."""
+    For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
+    :data:`AGREEMENT_MAX_TRIALS`, evenly spaced) are predicted again under the nominal true weights
+    (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``). Returns
+    ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
+    (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
+    truth."""
     from ..evaluation import evaluate_trials, rmse_deg
 
     truth = run.dataset.truth or {}
@@ -125,13 +131,15 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
             if f"{name}/pred_q" not in arrays:
                 continue
             ids = [str(i) for i in arrays[f"{name}/ids"]]
+            rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
+            ids = [ids[k] for k in rows]
             recs = {e["id"]: e for e in r["sets"][name]["trials"]}
             trials = [by_id[i] for i in ids]
             true = evaluate_trials(w_true, trials, u["n_nodes"], backend=u["backend"], observe=observe)
             both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
             if not both:
                 continue
-            learned_q = arrays[f"{name}/pred_q"].astype(float)
+            learned_q = arrays[f"{name}/pred_q"][rows].astype(float)
             per_set[name] = {
                 "n": len(both),
                 "learned_vs_true_deg": float(np.mean([rmse_deg(learned_q[k], true[k].prediction.q)[2] for k in both])),
