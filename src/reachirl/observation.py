@@ -1,10 +1,11 @@
 """A DOC solution seen the way the recording saw the reach: cut at the same fingertip-speed threshold.
 
 A recorded trial runs from onset to offset, where the fingertip speed crosses a fraction of its peak (5 % in
-Berret et al. 2011, 3 % for UE-ADL), so it starts and ends *moving*. The seed's DOC starts and ends at rest. Solved
-over the trial's own duration, the DOC must squeeze a rest-to-rest reach into the moving part of one: on the
-built-in virtual subjects the true weights themselves then miss their own reaches by 1.4° (RMSE, every set), almost
-all of it from this mismatch (the recording and its processing account for about 0.25°).
+Berret et al. 2011 and in ``reachirl preprocess``; ``Trial.onset_threshold``), so it starts and ends *moving*.
+The seed's DOC starts and ends at rest. Solved over the trial's own duration, it must squeeze a rest-to-rest
+reach into the moving part of one: on the built-in virtual subjects the true weights themselves then miss their
+own reaches by 1.4° (RMSE, every set), almost all of it from this mismatch (the recording and its processing
+account for about 0.25°).
 
 With an onset threshold, the task and the comparison change, the DOC does not:
 
@@ -16,7 +17,9 @@ With an onset threshold, the task and the comparison change, the DOC does not:
   its features are computed exactly as a demonstration's.
 
 The true weights then predict the built-in reaches to 0.9° (train, CV and ISCV alike), and the result hardly
-depends on the fraction (0.88: 0.90°, 0.96: 0.90°), since both sides are compared on normalised time.
+depends on the fraction (0.88 or 0.96: within 0.02°), since both sides are compared on normalised time.
+``reproduce --observe`` and ``fit --observe`` use it (off by default; the README gives the held-out
+measurements and why).
 """
 
 from __future__ import annotations
