@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.trial import Trial
-from .doc import DocSolution, solve_doc
-from .observation import observed_solution, observed_task
+from .doc import DocSolution
+from .observation import predict
 
 __all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
 
@@ -52,9 +52,7 @@ def evaluate_trials(
     (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part."""
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
-        threshold = trial.onset_threshold if observe else None
-        task = observed_task(trial, n_nodes, threshold)
-        sol = observed_solution(solve_doc(task, weights, backend=backend), task, threshold)
+        _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend)
         e = TrialError(trial.id, *rmse_deg(sol.q, trial.q_at(n_nodes + 1)), converged=sol.converged, prediction=sol)
         out.append(e)
         if on_trial is not None:

@@ -25,15 +25,16 @@ measurements and why).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from .data.trial import Trial
-from .doc import DocSolution, ReachingTask
+from .doc import DocSolution, ReachingTask, solve_doc
 
 __all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_solution",
-           "observed_task"]
+           "observed_task", "predict", "rest_to_rest"]
 
 MOVING_FRACTION = 0.9
 """Share of a rest-to-rest reach's time above its onset threshold (the DOC horizon is the trial's duration over it)."""
@@ -62,12 +63,26 @@ def common_threshold(trials: Sequence[Trial]) -> float | None:
     return found.pop() if found else None
 
 
+def rest_to_rest(task: ReachingTask) -> ReachingTask:
+    """``task`` over ``duration / MOVING_FRACTION``: the whole rest-to-rest reach whose part above the onset
+    threshold lasts about ``task.duration``."""
+    return replace(task, duration=task.duration / MOVING_FRACTION)
+
+
 def observed_task(trial: Trial, n_nodes: int, threshold: float | None) -> ReachingTask:
     """The DOC task that predicts ``trial``: :meth:`ReachingTask.from_trial` without a threshold; with one, the
-    rest-to-rest reach from the trial's onset posture to its target over ``duration / MOVING_FRACTION``."""
-    if check_threshold(threshold) is None:
-        return ReachingTask.from_trial(trial, n_nodes)
-    return ReachingTask(trial.arm, trial.x0[:2], trial.target_x, trial.duration / MOVING_FRACTION, n_nodes=n_nodes)
+    rest-to-rest reach from the trial's onset posture to its target (:func:`rest_to_rest`)."""
+    task = ReachingTask.from_trial(trial, n_nodes)
+    return task if check_threshold(threshold) is None else rest_to_rest(task)
+
+
+def predict(trial: Trial, weights: np.ndarray, n_nodes: int, threshold: float | None, backend: str = "casadi",
+            warm_start: DocSolution | None = None) -> tuple[DocSolution, DocSolution]:
+    """``(solution, seen)``: the DOC of :func:`observed_task` under ``weights`` (``warm_start``: a solution of
+    that same task) and its :func:`observed_solution`; both are the same solution without a threshold."""
+    task = observed_task(trial, n_nodes, threshold)
+    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start)
+    return sol, observed_solution(sol, task, threshold)
 
 
 def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name: str = "prediction") -> Trial:
@@ -83,9 +98,9 @@ def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name:
         tf = np.linspace(a, b, _FINE * n + 1)
         speed = np.linalg.norm(arm.fingertip_velocity(spline(tf), spline(tf, 1)), axis=1)
         p = int(np.argmax(speed))
-        below_before = np.flatnonzero(speed[:p] < threshold * speed[p])
-        below_after = np.flatnonzero(speed[p:] < threshold * speed[p])
         thr = threshold * speed[p]
+        below_before = np.flatnonzero(speed[:p] < thr)
+        below_after = np.flatnonzero(speed[p:] < thr)
 
         def crossing(i: int, j: int) -> float:  # where the speed, linear between samples i and j, equals thr
             return float(tf[i] + (thr - speed[i]) / (speed[j] - speed[i]) * (tf[j] - tf[i]))

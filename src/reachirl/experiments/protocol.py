@@ -139,6 +139,11 @@ class Unit:
         return key if self.train_subject is None else f"{key}-t{_safe(self.train_subject)}"
 
     @property
+    def observe(self) -> bool:
+        """Whether the unit fits and predicts trials as they were recorded (its ``observe`` option)."""
+        return bool(dict(self.estimator_options).get("observe", False))
+
+    @property
     def split_key(self):
         """The key of this unit's :class:`Split` in the ``splits`` mapping: the posture, or (posture, subject)."""
         return self.posture if self.train_subject is None else (self.posture, self.train_subject)
@@ -339,7 +344,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     for name, trials in split.sets().items():
         t1 = time.perf_counter()
         errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend,
-                               observe=bool(dict(unit.estimator_options).get("observe", False)))
+                               observe=unit.observe)
         eval_time += time.perf_counter() - t1
         eval_solves += len(errs)
         eval_fail += sum(not e.converged for e in errs)

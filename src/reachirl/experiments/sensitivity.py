@@ -175,22 +175,16 @@ class MaskedMOIRL(MOIRL):
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
     DOC solutions themselves (warm starts for the same tasks)."""
-    from ..doc import solve_doc
     from ..evaluation import rmse_deg
-    from ..observation import observed_solution, observed_task
+    from ..observation import predict
 
     out, sols = [], []
     for i, t in enumerate(trials):
-        threshold = t.onset_threshold if observe else None
-        task = observed_task(t, n_nodes, threshold)
-        sol = solve_doc(task, weights, backend=backend, warm_start=None if warm is None else warm[i])
-        out.append(rmse_deg(observed_solution(sol, task, threshold).q, t.q_at(n_nodes + 1))[2])
+        sol, seen = predict(t, weights, n_nodes, t.onset_threshold if observe else None, backend,
+                            None if warm is None else warm[i])
+        out.append(rmse_deg(seen.q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
     return np.array(out), sols
-
-
-def _observes(unit: Unit) -> bool:
-    return bool(dict(unit.estimator_options).get("observe", False))
 
 
 def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tuple[int, ...]) -> dict:
@@ -201,7 +195,7 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
     est = MaskedMOIRL(**base.get_params())
     est.removed, est.frozen = tuple(removed), tuple(frozen)
     est.fit(list(split.train))
-    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=_observes(unit))[0].tolist()
+    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)[0].tolist()
             for s, tr in split.sets().items()}
     return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "flag": est.flag_}
 
@@ -311,7 +305,7 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
             for s in range(sections):
                 jobs.append(((p, "sensitivity", s), sensitivity_job,
                              (np.asarray(r["weights"]), list(split.train), unit.n_nodes, unit.backend, s,
-                              float(config.percent), _observes(unit))))
+                              float(config.percent), unit.observe)))
     if on_start:
         on_start(len(jobs))
     done: dict = {}

@@ -7,9 +7,9 @@ import inspect
 from collections.abc import Sequence
 from dataclasses import replace
 
+from .. import observation
 from ..data.trial import Trial
 from ..doc import DocSolution, ReachingTask, solve_doc
-from ..observation import observed_solution, observed_task
 
 __all__ = ["WeightEstimator"]
 
@@ -51,14 +51,12 @@ class WeightEstimator:
         estimator with ``observe=True`` predicts a trial cut at a speed threshold as it was recorded
         (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots."""
         self._check_fitted()
-        threshold = trial_or_task.onset_threshold if isinstance(trial_or_task, Trial) else None
-        if getattr(self, "observe", False) and threshold is not None:  # seen as it was recorded
-            task = observed_task(trial_or_task, self.n_nodes, threshold)
-            sol = solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start)
-            return observed_solution(sol, task, threshold)
         if isinstance(trial_or_task, Trial):
-            task = ReachingTask.from_trial(trial_or_task, self.n_nodes)
-        elif isinstance(trial_or_task, ReachingTask):
+            threshold = trial_or_task.onset_threshold if getattr(self, "observe", False) else None
+            _, seen = observation.predict(trial_or_task, self.weights_, self.n_nodes, threshold, self.backend,
+                                          warm_start)
+            return seen
+        if isinstance(trial_or_task, ReachingTask):
             task = trial_or_task
             if task.n_nodes != self.n_nodes:
                 task = replace(task, n_nodes=self.n_nodes)

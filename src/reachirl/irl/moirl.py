@@ -91,7 +91,7 @@ import copy
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import fields, replace
+from dataclasses import fields
 from typing import NamedTuple
 
 import numpy as np
@@ -100,7 +100,7 @@ from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..features import N_FEATURES, feature_rates, window_index
-from ..observation import MOVING_FRACTION, common_threshold, observe, observed_task
+from ..observation import common_threshold, observe, observed_task, rest_to_rest
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, merit, merit_model_step, solve_delta, solve_step
 
@@ -283,7 +283,7 @@ class MOIRL(WeightEstimator):
             task = mean_task(trials, self.n_nodes)
             self._thresholds = [common_threshold(trials) if self.observe else None]
             if self._thresholds[0] is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
-                task = replace(task, duration=task.duration / MOVING_FRACTION)
+                task = rest_to_rest(task)
             return [task]
         self._thresholds = [t.onset_threshold if self.observe else None for t in trials]
         return [observed_task(t, self.n_nodes, th) for t, th in zip(trials, self._thresholds, strict=True)]
