@@ -65,6 +65,21 @@ def test_units_order_and_keys():
     assert [u.key for u in units] == ["moirl-P2-s8", "moirl-P4-s8", "moirl-P2-s1", "moirl-P4-s1"]
 
 
+@pytest.mark.parametrize("observe", [True, False])
+def test_every_unit_predicts_as_its_estimator_fits(observe):
+    """A unit observes its trials exactly when its estimator fits observed rollouts: MO-IRL and MaxEnt take the
+    protocol's observe and merit; bilevel and KKT fit whole reaches, so their units predict whole reaches."""
+    from reachirl.experiments.protocol import make_estimator
+
+    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"), observe=observe, merit="state")
+    for unit in make_units(["P2"], cfg):
+        est = make_estimator(unit)
+        assert unit.observe is bool(getattr(est, "observe", False)), unit.key
+        assert unit.observe is (observe and unit.method in ("moirl", "maxent")), unit.key
+        if unit.method in ("moirl", "maxent"):
+            assert est.merit == "state"
+
+
 def test_run_unit_is_pure(toy):
     cfg = _config(sections=(2,), max_iter=2)
     split = split_trials(toy.trials, "P4", cfg)

@@ -41,13 +41,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
                    help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
                    "(default mean)")
-    p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=False,
+    p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=True,
                    help="MO-IRL/MaxEnt: see each rollout as the trials were recorded, between its own crossings of "
-                   "their onset threshold (`evaluate` then predicts the same way); default --no-observe: whole "
+                   "their onset threshold (default; `evaluate` then predicts the same way); --no-observe: whole "
                    "rollouts, as the seed")
-    p.add_argument("--merit", choices=("state", "normalised"), default="state",
-                   help="MO-IRL/MaxEnt merit: the seed's full-state error (state, default) or each channel of "
-                   "(q, q̇) by the demonstrations' spread (normalised)")
+    p.add_argument("--merit", choices=("state", "normalised"), default="normalised",
+                   help="MO-IRL/MaxEnt merit: each channel of (q, q̇) by the demonstrations' spread (normalised, "
+                   "default) or the seed's full-state error (state)")
     p.add_argument("--fallback", choices=("merit", "none"), default="merit",
                    help="MO-IRL/MaxEnt: when the likelihood's step lowers no merit, step on a model of the merit "
                    "(merit, default) or stop there (none: the seed's rule)")

@@ -112,17 +112,17 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--observe",
         action=argparse.BooleanOptionalAction,
-        default=False,
+        default=True,
         help="predict each reach as it was recorded: the rest-to-rest DOC seen between its own crossings of the "
-        "trials' onset threshold, MO-IRL's rollouts too (trials not cut at a threshold are predicted whole); "
-        "default --no-observe: the DOC over the trial's own duration, as the seed",
+        "trials' onset threshold, MO-IRL's rollouts too (trials not cut at a threshold are predicted whole; "
+        "default); --no-observe: the DOC over the trial's own duration, as the seed",
     )
     g.add_argument(
         "--merit",
         choices=("state", "normalised"),
-        default="state",
-        help="MO-IRL's merit: the seed's full-state (q, q̇) error (state, default) or each channel divided by the "
-        "demonstrations' spread (normalised)",
+        default="normalised",
+        help="MO-IRL's merit: each channel of (q, q̇) divided by the demonstrations' spread (normalised, default) "
+        "or the seed's full-state error (state)",
     )
     g.add_argument(
         "--fallback",

@@ -72,8 +72,9 @@ class ProtocolConfig:
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
-    observe: bool = False  # True: predict and fit trials cut at a speed threshold as recorded (reachirl.observation)
-    merit: str = "state"  # MO-IRL's merit: "state" (the seed's full-state error) | "normalised" (channels by spread)
+    observe: bool = True  # predict and fit trials cut at a speed threshold as recorded (reachirl.observation);
+    # False: the seed's DOC over the trial's own duration
+    merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
@@ -270,15 +271,27 @@ def make_units(postures: Sequence[str], config: ProtocolConfig,
                pair_subjects: Sequence[str] = ()) -> list[Unit]:
     """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing; with
     ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects."""
-    opts = {"observe": config.observe, "merit": config.merit, **config.estimator_options}
-    opts = tuple(sorted((str(k), v) for k, v in opts.items()))
+    opts = {m: _method_options(m, config) for m in config.methods}
     return [
-        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts, subj)
+        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m], subj)
         for s in sorted(config.sections, reverse=True)
         for subj in (None, *pair_subjects)
         for m in config.methods
         for p in postures
     ]
+
+
+def _method_options(method: str, config: ProtocolConfig) -> tuple:
+    """The unit options of ``method``: ``observe`` and ``merit`` for MO-IRL and the estimators built on it
+    (MaxEnt), so that a unit predicts its trials as its fit saw them (bilevel and KKT fit whole reaches), then
+    ``config.estimator_options``; sorted ``(key, value)`` pairs."""
+    from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.moirl import MOIRL
+
+    cls = AVAILABLE.get(method)
+    opts = {"observe": config.observe, "merit": config.merit} if cls is not None and issubclass(cls, MOIRL) else {}
+    opts.update(config.estimator_options)
+    return tuple(sorted((str(k), v) for k, v in opts.items()))
 
 
 def make_estimator(unit: Unit):
