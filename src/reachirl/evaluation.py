@@ -46,13 +46,19 @@ def evaluate_trials(
     backend: str = "casadi",
     on_trial: Callable[[TrialError], None] | None = None,
     observe: bool = False,
+    path: np.ndarray | None = None,
 ) -> list[TrialError]:
     """Predict every trial from its own initial state and measure the RMSE against it. With ``observe``, a trial
     cut from its recording at a speed threshold (``Trial.onset_threshold``) is predicted as it was recorded
-    (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part."""
+    (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part.
+
+    Each DOC starts cold: from the minimum-jerk path, or from ``path`` (``(n_nodes + 1, 2)``, a reach under
+    these weights on the same knots, such as the fit's own rollout) moved to the trial's start and bar
+    (:func:`reachirl.doc.task.moved_path`), which takes fewer iterations to the same optimum."""
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
-        _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend)
+        _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend,
+                         path=path)
         e = TrialError(trial.id, *rmse_deg(sol.q, trial.q_at(n_nodes + 1)), converged=sol.converged, prediction=sol)
         out.append(e)
         if on_trial is not None:

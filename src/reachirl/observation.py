@@ -32,6 +32,7 @@ from scipy.interpolate import CubicSpline
 
 from .data.trial import Trial
 from .doc import DocSolution, ReachingTask, solve_doc
+from .doc.task import moved_path
 
 __all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_solution",
            "observed_task", "predict", "rest_to_rest"]
@@ -77,11 +78,14 @@ def observed_task(trial: Trial, n_nodes: int, threshold: float | None) -> Reachi
 
 
 def predict(trial: Trial, weights: np.ndarray, n_nodes: int, threshold: float | None, backend: str = "casadi",
-            warm_start: DocSolution | None = None) -> tuple[DocSolution, DocSolution]:
+            warm_start: DocSolution | None = None, path: np.ndarray | None = None) -> tuple[DocSolution, DocSolution]:
     """``(solution, seen)``: the DOC of :func:`observed_task` under ``weights`` (``warm_start``: a solution of
-    that same task) and its :func:`observed_solution`; both are the same solution without a threshold."""
+    that same task; ``path``: a cold start, a similar reach's joint path on the same knots, moved to this task
+    by :func:`reachirl.doc.task.moved_path`) and its :func:`observed_solution`; both are the same solution
+    without a threshold."""
     task = observed_task(trial, n_nodes, threshold)
-    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start)
+    guess = None if path is None else moved_path(task, path)
+    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess)
     return sol, observed_solution(sol, task, threshold)
 
 

@@ -56,7 +56,7 @@ import numpy as np
 
 from ..features import N_FEATURES, trajectory_cost, window_index
 from . import compiled
-from .task import DocSolution, ReachingTask, rest_to_rest_knots
+from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots
 
 __all__ = [
     "FATROP_OPTIONS", "FATROP_WARM_OPTIONS", "IPOPT_OPTIONS", "build_nlp", "guess_knots", "initial_guess",
@@ -276,10 +276,6 @@ def build_nlp(n: int) -> _Nlp:
     return _Nlp(n)
 
 
-def _min_jerk(s: np.ndarray) -> np.ndarray:
-    return 10 * s**3 - 15 * s**4 + 6 * s**5
-
-
 def guess_knots(task: ReachingTask) -> np.ndarray:
     """The cold start's joint path, shape ``(N+1, 2)``: minimum jerk from ``q0`` to a posture with the
     fingertip on the bar, at the fingertip's starting height where reachable (within 98 % of the reach)."""
@@ -289,7 +285,7 @@ def guess_knots(task: ReachingTask) -> np.ndarray:
     y_lim = np.sqrt(max(r_max**2 - task.target_x**2, 0.0))
     qf = arm.ik(np.array([task.target_x, np.clip(y0, -y_lim, y_lim)]))
     qf = np.clip(qf, task.q_lower + 1e-3, task.q_upper - 1e-3)
-    s = _min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None]
+    s = min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None]
     q = task.q0 + s * (qf - task.q0)
     q[-1] = q[-2]
     return q
@@ -306,20 +302,6 @@ def _knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
     tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
     return q, qd, tau
-
-
-def _on_bar(task: ReachingTask, q: np.ndarray) -> np.ndarray:
-    """The final posture ``q (2,)`` moved onto the bar (``P_x = target``) by minimum-norm Newton steps.
-
-    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact."""
-    q = np.array(q, dtype=float)
-    for _ in range(3):
-        r = task.target_x - float(task.arm.fk(q)[0])
-        if abs(r) < 1e-15:
-            break
-        j = task.arm.jacobian(q)[0]
-        q += j * (r / float(j @ j))
-    return q
 
 
 def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
@@ -435,7 +417,7 @@ def solve(
             if ok:
                 break
     q = _unpack_q(task, np.asarray(out["x"]).reshape(-1))
-    q[-1] = _on_bar(task, q[-1])
+    q[-1] = on_bar(task, q[-1])
     z = _pack(task, q)
     q, qd, tau = _knots(task, _unpack_q(task, z))
     return DocSolution(

@@ -64,7 +64,7 @@ import pinocchio as pin
 
 from ..arm import ArmModel
 from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
-from .task import DocSolution, ReachingTask, rest_to_rest_knots
+from .task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots
 
 __all__ = [
     "CROCODDYL_COST_ITEMS", "CsqpOptions", "KnotModel", "ReachingProblem", "build_problem", "solve", "weight_scale",
@@ -550,10 +550,6 @@ def _cached_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions)
 
 
 # ---------------------------------------------------------------------- initial guess and solve
-def _min_jerk(s: np.ndarray) -> np.ndarray:
-    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
-
-
 def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A dynamically consistent cold start ``(q, q̇, τ)``: a minimum-jerk joint path from ``q0`` to the
     posture with the fingertip on the bar at (at most) its starting height, q̇ by Euler differences, τ by
@@ -567,7 +563,7 @@ def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarra
         task.q_lower + 1e-3,
         task.q_upper - 1e-3,
     )
-    q = task.q0 + _min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None] * (qf - task.q0)
+    q = task.q0 + min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None] * (qf - task.q0)
     q[-1] = q[-2]
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
     tau = arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
