@@ -12,8 +12,8 @@ from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.errors import InputError
 from reachirl.evaluation import evaluate_trials
-from reachirl.irl.moirl import MOIRL
-from reachirl.observation import MOVING_FRACTION, common_threshold, observe, observed_task
+from reachirl.irl.moirl import MOIRL, mean_task
+from reachirl.observation import MOVING_FRACTION, common_threshold, observe, observed_task, rest_to_rest
 from reachirl.synth import nominal_weights, posture_q
 
 N = 40
@@ -82,8 +82,10 @@ def test_observed_fit_counts_both_stages_and_predicts_as_it_fitted():
     assert est.n_doc_solves_ > plain.n_doc_solves_
     assert est.merit_ <= est.history_[0]["merit"]
     pred = est.predict(demos[0])
-    again = evaluate_trials(est.weights_, [demos[0]], N, observe=True)[0].prediction
-    np.testing.assert_allclose(pred.q, again.q, atol=1e-9)
+    again = evaluate_trials(est.weights_, [demos[0]], N, observe=True, path=est.rollout_path())[0].prediction
+    np.testing.assert_allclose(pred.q, again.q, atol=1e-9)  # predict starts from the fit's own rollout
+    cold = evaluate_trials(est.weights_, [demos[0]], N, observe=True)[0].prediction
+    assert np.degrees(np.max(np.abs(pred.q - cold.q))) < 1e-3  # and finds the minimum-jerk start's optimum
     assert pred.t[-1] == pytest.approx(demos[0].duration, rel=0.05)  # the observed part, not the whole horizon
 
 
@@ -157,10 +159,18 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
         assert json.loads(model.read_text())["info"]["observe"] is expect
         out = tmp_path / f"e{expect}.json"
         assert main(["evaluate", "--model", str(model), str(trials), "--out", str(out)]) == 0
-        weights = np.array(json.loads(model.read_text())["weights"])
-        want = evaluate_trials(weights, demos, N, observe=expect)
+        d = json.loads(model.read_text())
+        weights, rollout = np.array(d["weights"]), np.array(d["info"]["rollout_q"])
+        # the model keeps the fit's own reach: the DOC of the demonstrations' mean task (rest to rest when
+        # observed) under the learned weights, solved here from scratch
+        task = mean_task(demos, N)
+        own = solve_doc(rest_to_rest(task) if expect else task, weights)
+        assert np.degrees(np.max(np.abs(own.q - rollout))) < 0.01
+        want = evaluate_trials(weights, demos, N, observe=expect, path=rollout)  # evaluate starts from it
         got = json.loads(out.read_text())["trials"]
         np.testing.assert_allclose([g["rmse_deg"]["q"] for g in got], [w.rmse_q for w in want], rtol=1e-9)
+        cold = evaluate_trials(weights, demos, N, observe=expect)  # the same optimum from the minimum-jerk start
+        np.testing.assert_allclose([g["rmse_deg"]["q"] for g in got], [w.rmse_q for w in cold], atol=1e-3)
     d = json.loads((tmp_path / "mTrue.json").read_text())
     d["info"]["observe"] = "yes"
     bad = tmp_path / "bad.json"
@@ -170,3 +180,12 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "info.observe" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
+    for rollout, message in (([[0.1, 0.2]] * N, f"field 'info.rollout_q': expected {N + 1} rows of 2 joint angles"),
+                             ([[0.1, 0.2]] * N + [[0.1, None]], "field 'info.rollout_q', row 40: expected 2 finite")):
+        d = json.loads((tmp_path / "mTrue.json").read_text())
+        d["info"]["rollout_q"] = rollout
+        bad.write_text(json.dumps(d))
+        assert main(["evaluate", "--model", str(bad), str(trials), "--out", str(tmp_path / "x.json")]) == 2
+        err = capsys.readouterr().err
+        assert message in err and str(bad) in err and len(err.strip().splitlines()) == 1
+        assert not (tmp_path / "x.json").exists()

@@ -320,6 +320,15 @@ def check_model_dict(d, path) -> None:
     observe = d.get("info", {}).get("observe")
     _expect(observe is None or isinstance(observe, bool),
             f"field 'info.observe': expected true or false, found {_fmt(observe)}", path)
+    rollout = d.get("info", {}).get("rollout_q")
+    if rollout is not None:
+        ok = (isinstance(rollout, list) and len(rollout) == n_nodes + 1
+              and all(isinstance(r, list) and len(r) == 2 for r in rollout))
+        _expect(ok, f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
+                f"{_fmt(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}", path)
+        for i, r in enumerate(rollout):
+            _expect(all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
+                    f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {_fmt(r)}", path)
 
 
 _META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
@@ -61,11 +62,13 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     model = load_model_checked(args.model)
     trials = load_trials(args.trials)
+    rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
+    rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = evaluate_trials(model.weights, trials, n_nodes=model.n_nodes, backend=args.backend,
                                  on_trial=lambda e: progress.advance(task),
-                                 observe=bool(model.info.get("observe", False)))
+                                 observe=bool(model.info.get("observe", False)), path=rollout)
     summary = summarise(errors, include_failed=args.include_failed)
     atomic_write_json(args.out, {"summary": summary, "trials": [e.to_dict() for e in errors]})
     r = summary["rmse_deg"]

@@ -94,11 +94,13 @@ def run(args: argparse.Namespace) -> int:
             kwargs["callback"] = progress
         est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
+    path = est.rollout_path()
     info = {
         "trials": str(args.trials),
         "n_trials": len(trials),
         "backend": args.backend,
         "observe": bool(getattr(est, "observe", False)),  # `evaluate` predicts as the fit saw its rollouts
+        "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: `evaluate`'s cold start
         "trial_ids": [t.id for t in trials],
         "n_iter": getattr(est, "n_iter_", None),
         "n_doc_solves": getattr(est, "n_doc_solves_", None),

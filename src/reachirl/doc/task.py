@@ -24,8 +24,8 @@ import numpy as np
 from ..arm import ArmModel
 from ..validation import check_arm, check_duration, check_n_nodes
 
-__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk", "moved_path",
-           "on_bar", "rest_to_rest_knots"]
+__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk",
+           "moved_path", "on_bar", "rest_to_rest_knots"]
 
 DEFAULT_Q_LOWER = (np.deg2rad(-150.0), np.deg2rad(-5.0))
 DEFAULT_Q_UPPER = (np.deg2rad(120.0), np.deg2rad(160.0))

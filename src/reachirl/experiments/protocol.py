@@ -335,13 +335,6 @@ def _cost_shares(weights: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
 
 
-def rollout_path(est) -> np.ndarray | None:
-    """The joint path of the fit's own training rollouts under its weights (their mean; ``None`` for an
-    estimator without converged rollouts, e.g. KKT): the cold start of its predictions."""
-    sols = [s for s in getattr(est, "train_solutions_", None) or () if s.converged]
-    return np.mean([s.q for s in sols], axis=0) if sols else None
-
-
 def run_unit(unit: Unit, split: Split) -> dict:
     """Fit on ``split.train`` and predict every trial of every set. Pure: same inputs, same result.
 
@@ -358,7 +351,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     est.fit(list(split.train))
     fit_time = time.perf_counter() - t0
     w = np.asarray(est.weights_, dtype=float)
-    path = rollout_path(est)  # each prediction starts from the fit's own reach, moved to the trial
+    path = est.rollout_path()  # each prediction starts from the fit's own reach, moved to the trial
     phi = np.mean([t.features(unit.n_nodes, unit.sections) for t in split.train], axis=0)
     sets, arrays = {}, {}
     eval_time, eval_fail, eval_solves = 0.0, 0, 0

@@ -7,9 +7,12 @@ import inspect
 from collections.abc import Sequence
 from dataclasses import replace
 
+import numpy as np
+
 from .. import observation
 from ..data.trial import Trial
 from ..doc import DocSolution, ReachingTask, solve_doc
+from ..doc.task import moved_path
 
 __all__ = ["WeightEstimator"]
 
@@ -46,15 +49,25 @@ class WeightEstimator:
         if not hasattr(self, "weights_"):
             raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
 
+    def rollout_path(self) -> np.ndarray | None:
+        """The joint path ``(n_nodes + 1, 2)`` of the fit's own training rollouts under the learned weights (their
+        mean), or ``None`` when the estimator has no converged rollout (KKT makes none). Predictions start cold
+        from it, moved to each task (:func:`reachirl.doc.task.moved_path`)."""
+        self._check_fitted()
+        sols = [s for s in getattr(self, "train_solutions_", None) or () if s.converged]
+        return np.mean([s.q for s in sols], axis=0) if sols else None
+
     def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
         """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration. An
         estimator with ``observe=True`` predicts a trial cut at a speed threshold as it was recorded
-        (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots."""
+        (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots.
+        Without ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
         self._check_fitted()
+        path = self.rollout_path() if warm_start is None else None
         if isinstance(trial_or_task, Trial):
             threshold = trial_or_task.onset_threshold if getattr(self, "observe", False) else None
             _, seen = observation.predict(trial_or_task, self.weights_, self.n_nodes, threshold, self.backend,
-                                          warm_start)
+                                          warm_start, path)
             return seen
         if isinstance(trial_or_task, ReachingTask):
             task = trial_or_task
@@ -62,4 +75,5 @@ class WeightEstimator:
                 task = replace(task, n_nodes=self.n_nodes)
         else:
             raise TypeError(f"predict takes a Trial or a ReachingTask, got {type(trial_or_task).__name__}")
-        return solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start)
+        guess = None if path is None else moved_path(task, path)
+        return solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start, guess=guess)
