@@ -36,3 +36,27 @@ def test_reference_ignores_the_recordings_noise():
     assert noisy.features(40, w.shape[0])[:, tc].sum() > 10 * clean[:, tc].sum()
     ref = reference_features([noisy], w, 40)
     np.testing.assert_allclose(ref.sum(axis=0), clean.sum(axis=0), rtol=0.05)
+
+
+def test_reference_of_cut_trials_is_seen_as_they_were_recorded():
+    # a "recorded" reach: the rest-to-rest DOC under w, cut where the fingertip speed crosses 5 % of its peak.
+    # Seen the same way, the reference (rebuilt from the cut start, target and duration) has the recording's
+    # windows; the plain DOC over the cut duration does not
+    from dataclasses import replace
+
+    from reachirl.doc import ReachingTask, solve_doc
+    from reachirl.observation import observe, rest_to_rest
+
+    trial, w = _one_trial()
+    task = rest_to_rest(ReachingTask.from_trial(trial, 40))
+    sol = solve_doc(task, w)
+    assert sol.converged
+    cut = replace(observe(sol, task, 0.05), subject="S01", posture="P2", trial_id="T01", onset_threshold=0.05,
+                  target_x=task.target_x)
+    own = cut.features(40, w.shape[0])
+    seen = reference_features([cut], w, 40, observe=True)
+    whole = reference_features([cut], w, 40, observe=False)
+    err_seen = np.abs(seen - own).sum(axis=0) / own.sum(axis=0)
+    err_whole = np.abs(whole - own).sum(axis=0) / own.sum(axis=0)
+    assert np.all(err_seen < 0.25), err_seen
+    assert np.abs(seen - own).sum() < 0.5 * np.abs(whole - own).sum()

@@ -62,9 +62,13 @@ def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | N
     return None if nominal is None else np.asarray(nominal, dtype=float)
 
 
-def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi") -> np.ndarray | None:
-    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (whole reach, noise-free), on
-    which learned and true cost shares are compared; ``None`` if that DOC does not converge.
+def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
+                       observe: bool = False) -> np.ndarray | None:
+    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
+    and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
+    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
+    (:mod:`reachirl.observation`), as an observed unit predicts its trials, so its windows are the
+    demonstrations'; otherwise the DOC over the mean duration.
 
     Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
     of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
@@ -72,17 +76,28 @@ def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str =
     from ..data.trial import trial_from_solution
     from ..doc import solve_doc
     from ..irl.moirl import mean_task
+    from ..observation import common_threshold, rest_to_rest
+    from ..observation import observe as seen_as_recorded
 
     task = mean_task(trials, n_nodes)
+    try:
+        threshold = common_threshold(trials) if observe else None
+    except ValueError:  # cut at different thresholds: no one way to see the reach
+        threshold = None
+    if threshold is not None:
+        task = rest_to_rest(task)
     sol = solve_doc(task, weights, backend=backend)
     if not sol.converged:
         return None
-    return trial_from_solution(sol, task.arm, task.target_x).features(n_nodes, weights.shape[0])
+    reach = (seen_as_recorded(sol, task, threshold) if threshold is not None
+             else trial_from_solution(sol, task.arm, task.target_x))
+    return reach.features(n_nodes, weights.shape[0])
 
 
 def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
     """Learned vs true cost shares for the units whose section count equals the truth's windows, both on the
-    true weights' own noise-free reach (:func:`reference_features`; the demonstrations' Φ* if that DOC fails)."""
+    true weights' own noise-free reach, seen as the unit sees its trials (:func:`reference_features`; the
+    demonstrations' Φ* if that DOC fails)."""
     learned, true, metrics = {}, {}, {}
     if dataset.truth is None:
         return learned, true, metrics
@@ -96,7 +111,8 @@ def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) ->
         w_true = true_weights(dataset.truth, [t.trial_id for t in train])
         if w_true is None or w_true.shape != (n_true, len(FEATURES)) or not train:
             continue
-        phi = reference_features(train, w_true, u["n_nodes"], u["backend"])
+        observe = bool(dict(u.get("estimator_options", ())).get("observe", False))
+        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], observe)
         on = "true_rollout"
         if phi is None:
             phi, on = np.asarray(r["demo_features"]), "demonstrations"
