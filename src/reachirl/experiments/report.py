@@ -357,7 +357,9 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         figs["fig3_weights.png"] = {
             "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
             "section count (rows), each shown as the feature's share of its window's "
-            "cost at the training demonstrations (ω·Φ*, normalised per window)."
+            "cost at the training demonstrations (ω·Φ*, normalised per window). Recording noise, "
+            "differentiated, inflates the demonstrations' torque change (and joint acceleration), so those "
+            "shares read high."
         }
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
