@@ -57,6 +57,5 @@ def test_reference_of_cut_trials_is_seen_as_they_were_recorded():
     seen = reference_features([cut], w, 40, observe=True)
     whole = reference_features([cut], w, 40, observe=False)
     err_seen = np.abs(seen - own).sum(axis=0) / own.sum(axis=0)
-    err_whole = np.abs(whole - own).sum(axis=0) / own.sum(axis=0)
     assert np.all(err_seen < 0.25), err_seen
     assert np.abs(seen - own).sum() < 0.5 * np.abs(whole - own).sum()

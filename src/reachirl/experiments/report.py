@@ -62,6 +62,11 @@ def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | N
     return None if nominal is None else np.asarray(nominal, dtype=float)
 
 
+def _observes(unit: dict) -> bool:
+    """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
+    return bool(dict(unit.get("estimator_options", ())).get("observe", False))
+
+
 def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
                        observe: bool = False) -> np.ndarray | None:
     """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
@@ -108,11 +113,12 @@ def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) ->
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
         train = [by_id[t["id"]] for t in r["sets"]["train"]["trials"] if t["id"] in by_id]
-        w_true = true_weights(dataset.truth, [t.trial_id for t in train])
-        if w_true is None or w_true.shape != (n_true, len(FEATURES)) or not train:
+        if not train:
             continue
-        observe = bool(dict(u.get("estimator_options", ())).get("observe", False))
-        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], observe)
+        w_true = true_weights(dataset.truth, [t.trial_id for t in train])
+        if w_true is None or w_true.shape != (n_true, len(FEATURES)):
+            continue
+        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
         on = "true_rollout"
         if phi is None:
             phi, on = np.asarray(r["demo_features"]), "demonstrations"
@@ -165,7 +171,7 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
         arrays = load_unit_arrays(run.out_dir, r["key"])
-        observe = bool(dict((k, v) for k, v in u.get("estimator_options", ())).get("observe", False))
+        observe = _observes(u)
         per_set = {}
         for name in SETS:
             if f"{name}/pred_q" not in arrays:
