@@ -78,7 +78,7 @@ def test_the_fallback_probes_each_feature_both_ways_and_counts_its_solves(arm, m
         return real(self, tasks, weights, warm, guesses)
 
     monkeypatch.setattr(MOIRL, "_rollouts", spy)
-    est = MOIRL(1, n_nodes=N_NODES, max_iter=1, w0=0.05).fit(demos)
+    est = MOIRL(1, n_nodes=N_NODES, max_iter=1, w0=0.05, merit_model="probes").fit(demos)
     w_start = np.asarray(est.history_[0]["weights"])
     ratios = np.array([p / w_start for p in probes[1:15]])[:, 0]  # after the initial rollout: 14 probes
     # each probe moves one feature's weight, and each feature is probed by ρ and by 1/ρ

@@ -155,7 +155,7 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
     for flag, expect in (("--observe", True), ("--no-observe", False)):
         model = tmp_path / f"m{expect}.json"
         assert main(["fit", str(trials), "--sections", "1", "--nodes", str(N), "--max-iter", "2", flag,
-                     "--out", str(model)]) == 0
+                     "--rollout", "mean", "--out", str(model)]) == 0
         assert json.loads(model.read_text())["info"]["observe"] is expect
         out = tmp_path / f"e{expect}.json"
         assert main(["evaluate", "--model", str(model), str(trials), "--out", str(out)]) == 0

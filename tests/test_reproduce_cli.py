@@ -131,18 +131,19 @@ def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file,
 
 
 def test_rollout_option_reaches_the_estimator(trials_file, reference_run, tmp_path):
-    """``--rollout per_demo`` gives each demonstration its own training rollout: the fit's first iteration
-    solves one DOC per training trial (the mean rollout solves one), and the unit records the option."""
+    """``--rollout mean`` gives the fit the seed's single training rollout: its first iteration solves one DOC,
+    where the default (``per_demo``) solves one per training trial, and the unit records the option."""
     out = tmp_path / "out"
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
-                 "--sections", "1", "--postures", "P2", "--rollout", "per_demo"]) == 0
+                 "--sections", "1", "--postures", "P2", "--rollout", "mean"]) == 0
     (unit,) = json.loads((out / "results.json").read_text())["units"]
     ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
                if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
     n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
     assert n_train > 1
-    assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
-    assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
+    assert ["rollout", "mean"] in unit["unit"]["estimator_options"]
+    assert ["rollout", "per_demo"] in ref["unit"]["estimator_options"]
+    assert unit["history"][0]["doc_solves"] == 1 and ref["history"][0]["doc_solves"] == n_train
 
 
 @pytest.mark.parametrize(

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -35,7 +36,7 @@ from .doc import DocSolution, ReachingTask, solve_doc
 from .doc.task import moved_path
 
 __all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_solution",
-           "observed_task", "predict", "rest_to_rest"]
+           "observed_state_jacobian", "observed_task", "predict", "rest_to_rest"]
 
 MOVING_FRACTION = 0.9
 """Share of a rest-to-rest reach's time above its onset threshold (the DOC horizon is the trial's duration over it)."""
@@ -89,6 +90,48 @@ def predict(trial: Trial, weights: np.ndarray, n_nodes: int, threshold: float | 
     return sol, observed_solution(sol, task, threshold)
 
 
+class _Cut(NamedTuple):
+    """Where :func:`observe` cuts a solution: the crossings ``a``, ``b`` (s) and the speed samples they lie
+    between (``ia``/``ib``: the sample before each crossing, ``None`` where the solution is kept whole on that
+    side), the peak's sample ``peak``, the fine times ``tf`` and the knots' spline."""
+
+    spline: CubicSpline
+    tf: np.ndarray
+    speed: np.ndarray
+    peak: int
+    ia: int | None
+    ib: int | None
+    a: float
+    b: float
+
+
+def _cut(sol: DocSolution, task: ReachingTask, threshold: float | None) -> _Cut:
+    arm, n = task.arm, task.n_nodes
+    spline = CubicSpline(sol.t, sol.q, axis=0)
+    end = float(sol.t[-1])
+    if check_threshold(threshold) is None:
+        return _Cut(spline, np.array([0.0, end]), np.zeros(2), 0, None, None, 0.0, end)
+    tf = np.linspace(0.0, end, _FINE * n + 1)
+    speed = np.linalg.norm(arm.fingertip_velocity(spline(tf), spline(tf, 1)), axis=1)
+    p = int(np.argmax(speed))
+    thr = threshold * speed[p]
+    below_before = np.flatnonzero(speed[:p] < thr)
+    below_after = np.flatnonzero(speed[p:] < thr)
+
+    def crossing(i: int) -> float:  # where the speed, linear between samples i and i + 1, equals thr
+        return float(tf[i] + (thr - speed[i]) / (speed[i + 1] - speed[i]) * (tf[i + 1] - tf[i]))
+
+    # the crossings found on the samples, refined linearly between them, so that the cut moves continuously
+    # with the solution (a merit that jumped with the sampling would mislead MO-IRL's line search)
+    ia = int(below_before[-1]) if below_before.size else None
+    ib = p + int(below_after[0]) - 1 if below_after.size else None
+    a = crossing(ia) if ia is not None else 0.0
+    b = crossing(ib) if ib is not None else end
+    if b - a < 0.1 * end:  # no movement to speak of: keep the whole solution
+        return _Cut(spline, tf, speed, p, None, None, 0.0, end)
+    return _Cut(spline, tf, speed, p, ia, ib, a, b)
+
+
 def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name: str = "prediction") -> Trial:
     """The part of ``sol`` (a solution of ``task``) where the fingertip speed is above ``threshold`` × its peak,
     as a trial sampled on ``4 N + 1`` points from the knots' cubic spline (``q̇``, ``q̈`` its derivatives, ``τ``
@@ -96,29 +139,63 @@ def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name:
     around the peak where the speed crosses the threshold (as :func:`reachirl.data.preprocess.detect_onset_offset`
     finds them in a recording), refined linearly between the speed's samples."""
     arm, n = task.arm, task.n_nodes
-    spline = CubicSpline(sol.t, sol.q, axis=0)
-    a, b = 0.0, float(sol.t[-1])
-    if check_threshold(threshold) is not None:
-        tf = np.linspace(a, b, _FINE * n + 1)
-        speed = np.linalg.norm(arm.fingertip_velocity(spline(tf), spline(tf, 1)), axis=1)
-        p = int(np.argmax(speed))
-        thr = threshold * speed[p]
-        below_before = np.flatnonzero(speed[:p] < thr)
-        below_after = np.flatnonzero(speed[p:] < thr)
-
-        def crossing(i: int, j: int) -> float:  # where the speed, linear between samples i and j, equals thr
-            return float(tf[i] + (thr - speed[i]) / (speed[j] - speed[i]) * (tf[j] - tf[i]))
-
-        # the crossings found on the samples, refined linearly between them, so that the cut moves continuously
-        # with the solution (a merit that jumped with the sampling would mislead MO-IRL's line search)
-        a = crossing(int(below_before[-1]), int(below_before[-1]) + 1) if below_before.size else 0.0
-        b = crossing(p + int(below_after[0]) - 1, p + int(below_after[0])) if below_after.size else float(tf[-1])
-        if b - a < 0.1 * float(tf[-1]):  # no movement to speak of: keep the whole solution
-            a, b = 0.0, float(tf[-1])
-    t = np.linspace(a, b, 4 * n + 1)
-    q, qd, qdd = spline(t), spline(t, 1), spline(t, 2)
+    cut = _cut(sol, task, threshold)
+    t = np.linspace(cut.a, cut.b, 4 * n + 1)
+    q, qd, qdd = cut.spline(t), cut.spline(t, 1), cut.spline(t, 2)
     return Trial("model", "", name, t, q, qd, qdd, arm.inverse_dynamics(q, qd, qdd), float(arm.fk(q[-1])[0]),
                  arm, source=name)
+
+
+def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: float | None,
+                            dq: np.ndarray) -> np.ndarray:
+    """The derivative of the observed state (``observe(sol, task, threshold).knot_state(N)``, or ``sol.state``
+    without a threshold) along changes ``dq (N+1, 2, P)`` of the solution's knots: ``(N+1, 4, P)``.
+
+    The observed knots are the spline at ``t_k = a + k (b − a)/N``, their velocities Euler differences over
+    ``(b − a)/N`` (the first one the spline's slope at ``a``), so a change moves them directly and through the
+    crossings ``a`` and ``b``: ``s(a) = θ s(t_peak)`` with ``s`` the fingertip speed, linear between its samples
+    (the peak's sample held, as the envelope theorem allows). Tested against finite differences of
+    :func:`observe`."""
+    n = task.n_nodes
+    dq = np.asarray(dq, dtype=float)
+    if dq.ndim != 3 or dq.shape[:2] != (n + 1, 2):
+        raise ValueError(f"dq must have shape ({n + 1}, 2, P), got {dq.shape}")
+    n_dir = dq.shape[2]
+    if check_threshold(threshold) is None:
+        dqd = np.concatenate([np.zeros((1, 2, n_dir)), np.diff(dq, axis=0) / task.dt])
+        return np.concatenate([dq, dqd], axis=1)
+    cut = _cut(sol, task, threshold)
+    arm = task.arm
+    dspline = CubicSpline(sol.t, dq.reshape(n + 1, -1), axis=0)
+
+    def dspeed(i: int) -> np.ndarray:  # d s(tf[i]) along every direction, (P,)
+        t = cut.tf[i]
+        q, qd = cut.spline(t), cut.spline(t, 1)
+        d, dd = dspline(t).reshape(2, n_dir), dspline(t, 1).reshape(2, n_dir)
+        v = arm.fingertip_velocity(q, qd)
+        eps = 1e-7  # the fingertip velocity's directional derivative, central differences (exact to ~1e-9)
+        dv = (arm.fingertip_velocity(q + eps * d.T, qd + eps * dd.T)
+              - arm.fingertip_velocity(q - eps * d.T, qd - eps * dd.T)) / (2 * eps)
+        return dv @ v / max(float(np.linalg.norm(v)), 1e-300)
+
+    def dcrossing(i: int | None) -> np.ndarray:
+        if i is None:
+            return np.zeros(n_dir)
+        s0, s1, thr = cut.speed[i], cut.speed[i + 1], threshold * cut.speed[cut.peak]
+        d0, d1, dthr = dspeed(i), dspeed(i + 1), threshold * dspeed(cut.peak)
+        dt = cut.tf[i + 1] - cut.tf[i]
+        return ((dthr - d0) * (s1 - s0) - (thr - s0) * (d1 - d0)) / (s1 - s0) ** 2 * dt
+
+    da, db = dcrossing(cut.ia), dcrossing(cut.ib)
+    k = np.arange(n + 1)[:, None] / n
+    t = cut.a + k[:, 0] * (cut.b - cut.a)
+    h, dh = (cut.b - cut.a) / n, (db - da) / n
+    dtk = da[None, :] + k * (db - da)[None, :]  # (N+1, P)
+    q = cut.spline(t)
+    dqk = dspline(t).reshape(n + 1, 2, n_dir) + cut.spline(t, 1)[:, :, None] * dtk[:, None, :]
+    dqd0 = dspline(cut.a, 1).reshape(2, n_dir) + cut.spline(cut.a, 2)[:, None] * da[None, :]
+    dqd = np.diff(dqk, axis=0) / h - (np.diff(q, axis=0) / h**2)[:, :, None] * dh[None, None, :]
+    return np.concatenate([dqk, np.concatenate([dqd0[None], dqd])], axis=1)
 
 
 def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | None) -> DocSolution:

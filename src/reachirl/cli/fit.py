@@ -38,9 +38,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="DOC backend of the fit's solves (default: casadi)")
-    p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
-                   help="MO-IRL's training rollout from the demonstrations' mean start, or one per demonstration "
-                   "(default mean)")
+    p.add_argument("--rollout", choices=("mean", "per_demo"), default="per_demo",
+                   help="MO-IRL/MaxEnt training rollouts: one per demonstration, each compared with its own "
+                   "(per_demo, default), or one from the demonstrations' mean start, target and duration (mean, "
+                   "the seed; about a fifth of the fit time)")
     p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=True,
                    help="MO-IRL/MaxEnt: see each rollout as the trials were recorded, between its own crossings of "
                    "their onset threshold (default; `evaluate` then predicts the same way); --no-observe: whole "

@@ -105,9 +105,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--rollout",
         choices=("mean", "per_demo"),
-        default=None,
-        help="MO-IRL's training rollout: one DOC from the demonstrations' mean start, target and duration (mean, "
-        "the seed, default) or one per demonstration, each compared with its own (per_demo)",
+        default="per_demo",
+        help="MO-IRL's training rollouts: one per demonstration, from its own start, target and duration, each "
+        "compared with its own (per_demo, default), or one DOC from the demonstrations' mean start, target and "
+        "duration (mean, the seed: about a fifth of the fit time)",
     )
     g.add_argument(
         "--observe",
@@ -200,6 +201,7 @@ def _config(args):
         estimator_options=_estimator_options(args),
         observe=args.observe,
         merit=args.merit,
+        rollout=args.rollout,
     )
 
 
@@ -208,8 +210,6 @@ def _estimator_options(args) -> dict:
     opts = {}
     if args.acceptance:
         opts["acceptance"] = args.acceptance
-    if args.rollout:
-        opts["rollout"] = args.rollout
     if args.fallback:
         opts["fallback"] = None if args.fallback == "none" else args.fallback
     return opts

@@ -227,6 +227,23 @@ class _Nlp:
         self.lock = threading.Lock()
         self.compiled_slot = compiled.Slot(n, self.nlp, self.cold_solver_spec())
 
+    def kkt_functions(self) -> dict:
+        """CasADi functions of the KKT conditions (built on first use, for :mod:`reachirl.doc.sensitivity`):
+        ``grad(z, p)`` = ∇_z f, ``A(z, p)`` = ∂g/∂z, ``H(z, p, λ)`` = ∇²_zz (f + λᵀg) and ``B(z, p)`` =
+        ∂(∇_z f)/∂w (the per-knot weights, ``N × 7`` in row-major order)."""
+        if "kkt" not in self._solvers:
+            z, p, f, g = self.nlp["x"], self.nlp["p"], self.nlp["f"], self.nlp["g"]
+            lam = ca.SX.sym("lam", g.numel())
+            w = p[p.numel() - self.n * N_FEATURES :]
+            grad = ca.gradient(f, z)
+            self._solvers["kkt"] = {
+                "grad": ca.Function("kkt_grad", [z, p], [grad]),
+                "A": ca.Function("kkt_A", [z, p], [ca.jacobian(g, z)]),
+                "H": ca.Function("kkt_H", [z, p, lam], [ca.hessian(f + ca.dot(lam, g), z)[0]]),
+                "B": ca.Function("kkt_B", [z, p], [ca.jacobian(grad, w)]),
+            }
+        return self._solvers["kkt"]
+
     def cold_solver_spec(self) -> tuple[str, str, dict]:
         """``(name, plugin, options)`` of the cold fatrop solver (the one :mod:`.compiled` compiles)."""
         return "doc_fatrop", "fatrop", {**FATROP_OPTIONS, "equality": [True] * self.n_g}

@@ -68,13 +68,14 @@ class ProtocolConfig:
     n_iscv: int | None = None  # None: all of them (per posture)
     n_nodes: int = 100
     max_iter: int = 30
-    tol: float = 1e-5
+    tol: float = 1e-4  # a step must lower the merit by more than the DOCs' repeatability (see MOIRL)
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
     observe: bool = True  # predict and fit trials cut at a speed threshold as recorded (reachirl.observation);
     # False: the seed's DOC over the trial's own duration
     merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
+    rollout: str = "per_demo"  # MO-IRL's rollouts: one per demonstration | "mean" (the seed's single rollout)
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
@@ -87,6 +88,8 @@ class ProtocolConfig:
             raise InputError(f"--iscv must be one of {', '.join(ISCV_MODES)}, got {self.iscv!r}")
         if self.merit not in ("state", "normalised"):
             raise InputError(f"--merit must be 'state' or 'normalised', got {self.merit!r}")
+        if self.rollout not in ("mean", "per_demo"):
+            raise InputError(f"--rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
         if self.observe not in (True, False):
             raise InputError(f"observe must be true or false, got {self.observe!r}")
         if self.cv not in ("rest", "other-side"):
@@ -282,14 +285,15 @@ def make_units(postures: Sequence[str], config: ProtocolConfig,
 
 
 def _method_options(method: str, config: ProtocolConfig) -> tuple:
-    """The unit options of ``method``: ``observe`` and ``merit`` for MO-IRL and the estimators built on it
+    """The unit options of ``method``: ``observe``, ``merit`` and ``rollout`` for MO-IRL and the estimators built on it
     (MaxEnt), so that a unit predicts its trials as its fit saw them (bilevel and KKT fit whole reaches), then
     ``config.estimator_options``; sorted ``(key, value)`` pairs."""
     from ..irl.methods import METHODS as AVAILABLE
     from ..irl.moirl import MOIRL
 
     cls = AVAILABLE.get(method)
-    opts = {"observe": config.observe, "merit": config.merit} if cls is not None and issubclass(cls, MOIRL) else {}
+    opts = ({"observe": config.observe, "merit": config.merit, "rollout": config.rollout}
+            if cls is not None and issubclass(cls, MOIRL) else {})
     opts.update(config.estimator_options)
     return tuple(sorted((str(k), v) for k, v in opts.items()))
 

@@ -29,7 +29,7 @@ Changing a feature's unit rescales its weight and leaves every step, in ω-space
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import lsq_linear, minimize
 from scipy.special import logsumexp, softmax
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "cost_mismatch",
     "feature_scale",
     "gamma",
+    "gauss_newton_step",
     "merit",
     "merit_model_step",
     "minimize_in_box",
@@ -272,3 +273,29 @@ def merit_model_step(m: float, m_plus: np.ndarray, m_minus: np.ndarray, h: float
     convex = curv > 0
     eta = np.where(convex, -slope / np.where(convex, curv, 1.0), -np.sign(slope) * h)
     return np.clip(np.where(ok, eta, 0.0), -h, h)
+
+
+def gauss_newton_step(residuals: np.ndarray, jacobians: np.ndarray, bound: float, ridge: float = 1e-6) -> np.ndarray:
+    """The log-step ``η (P,)`` of the Gauss-Newton model of a least-squares merit, in a box.
+
+    ``residuals (D, M)`` are each demonstration's weighted errors ``r_d = √c (x_d − x*_d)`` (the merit is
+    ``(1/D) Σ_d ‖r_d‖²``) and ``jacobians (D, M, P)`` their derivatives ``∂x_d/∂η`` (same weighting) along the
+    ``P`` log-weight directions. Returns ``argmin_{|η| ≤ bound} (1/D) Σ_d ‖r_d + J_d η‖² + ρ ‖η‖²`` with
+    ``ρ = ridge · tr(JᵀJ)/(D P)``: the damping settles the directions the merit cannot see (scaling every weight
+    by one factor changes no reach) at zero. Solved by scipy's bounded linear least squares.
+    """
+    r = np.asarray(residuals, dtype=float)
+    jac = np.asarray(jacobians, dtype=float)
+    if r.ndim != 2 or jac.shape[:2] != r.shape or jac.ndim != 3:
+        raise ValueError(f"residuals (D, M) and jacobians (D, M, P) do not match: {r.shape} and {jac.shape}")
+    if not (np.isfinite(bound) and bound > 0):
+        raise ValueError(f"the step bound must be a number > 0, got {bound}")
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(jac))):
+        raise ValueError("the Gauss-Newton model needs finite residuals and Jacobians")
+    d, _, n_dir = jac.shape
+    a = jac.reshape(-1, n_dir) / np.sqrt(d)
+    rho = ridge * max(float(np.sum(a * a)) / n_dir, 1e-300)
+    a = np.vstack([a, np.sqrt(rho) * np.eye(n_dir)])
+    b = np.concatenate([-r.reshape(-1) / np.sqrt(d), np.zeros(n_dir)])
+    res = lsq_linear(a, b, bounds=(-bound, bound), method="bvls")
+    return np.clip(res.x, -bound, bound)
