@@ -130,20 +130,24 @@ def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file,
     assert "from the true weights' own" in (reference_run / "table.md").read_text()
 
 
-def test_rollout_option_reaches_the_estimator(trials_file, reference_run, tmp_path):
-    """``--rollout mean`` gives the fit the seed's single training rollout: its first iteration solves one DOC,
-    where the default (``per_demo``) solves one per training trial, and the unit records the option."""
+def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, reference_run, tmp_path):
+    """``--rollout per_demo`` gives each demonstration its own training rollout: the fit's first iteration
+    solves one DOC per training trial (the mean rollout, the default, solves one); the unit records it and
+    ``--merit-model``."""
     out = tmp_path / "out"
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
-                 "--sections", "1", "--postures", "P2", "--rollout", "mean"]) == 0
+                 "--sections", "1", "--postures", "P2", "--rollout", "per_demo", "--merit-model", "gauss-newton",
+                 "--tol", "1e-4"]) == 0
     (unit,) = json.loads((out / "results.json").read_text())["units"]
     ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
                if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
     n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
     assert n_train > 1
-    assert ["rollout", "mean"] in unit["unit"]["estimator_options"]
-    assert ["rollout", "per_demo"] in ref["unit"]["estimator_options"]
-    assert unit["history"][0]["doc_solves"] == 1 and ref["history"][0]["doc_solves"] == n_train
+    assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
+    assert ["merit_model", "gauss-newton"] in unit["unit"]["estimator_options"]
+    assert unit["unit"]["tol"] == 1e-4 and ref["unit"]["tol"] == 1e-5
+    assert ["rollout", "mean"] in ref["unit"]["estimator_options"]
+    assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
 
 
 @pytest.mark.parametrize(
@@ -179,3 +183,11 @@ def test_quick_on_builtin_data(tmp_path):
     res = json.loads((out / "results.json").read_text())
     assert res["data"]["kind"] == "builtin" and res["protocol"]["postures_run"] == ["P2", "P4"]
     assert (out / "figures" / "weights_vs_truth.png").exists()
+
+
+def test_a_bad_tol_is_refused_before_any_work(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--tol", "0.7", "--out", str(tmp_path / "o")])
+    assert e.value.code == 2
+    assert "--tol: expected a number in [0, 0.5], got 0.7" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

@@ -38,10 +38,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="DOC backend of the fit's solves (default: casadi)")
-    p.add_argument("--rollout", choices=("mean", "per_demo"), default="per_demo",
-                   help="MO-IRL/MaxEnt training rollouts: one per demonstration, each compared with its own "
-                   "(per_demo, default), or one from the demonstrations' mean start, target and duration (mean, "
-                   "the seed; about a fifth of the fit time)")
+    p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
+                   help="MO-IRL/MaxEnt training rollouts: one from the demonstrations' mean start, target and "
+                   "duration (mean, the seed, default), or one per demonstration, each compared with its own "
+                   "(per_demo: about five times the fit time)")
     p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=True,
                    help="MO-IRL/MaxEnt: see each rollout as the trials were recorded, between its own crossings of "
                    "their onset threshold (default; `evaluate` then predicts the same way); --no-observe: whole "
@@ -52,6 +52,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--fallback", choices=("merit", "none"), default="merit",
                    help="MO-IRL/MaxEnt: when the likelihood's step lowers no merit, step on a model of the merit "
                    "(merit, default) or stop there (none: the seed's rule)")
+    p.add_argument("--merit-model", choices=("probes", "gauss-newton"), default="probes",
+                   help="MO-IRL/MaxEnt's model of the merit for those steps: 14 probe solves per rollout (probes, "
+                   "default) or Gauss-Newton from the DOC's sensitivities (gauss-newton: no solve; also tried when the "
+                   "likelihood's step gains less than 1 %%)")
     return p
 
 
@@ -84,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     if args.method in ("moirl", "maxent"):
         kwargs.update(max_iter=args.max_iter, rollout=args.rollout, observe=args.observe, merit=args.merit,
-                      fallback=None if args.fallback == "none" else args.fallback)
+                      fallback=None if args.fallback == "none" else args.fallback, merit_model=args.merit_model)
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
         def progress(rec: dict) -> None:

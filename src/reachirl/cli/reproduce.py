@@ -20,7 +20,7 @@ import time
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, positive_int
+from ._args import int_in, non_negative_int, number_in, positive_int
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
@@ -105,10 +105,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--rollout",
         choices=("mean", "per_demo"),
-        default="per_demo",
-        help="MO-IRL's training rollouts: one per demonstration, from its own start, target and duration, each "
-        "compared with its own (per_demo, default), or one DOC from the demonstrations' mean start, target and "
-        "duration (mean, the seed: about a fifth of the fit time)",
+        default="mean",
+        help="MO-IRL's training rollouts: one DOC from the demonstrations' mean start, target and duration (mean, "
+        "the seed, default) or one per demonstration, each compared with its own (per_demo: about five times the "
+        "fit time; see the README for what it changes)",
     )
     g.add_argument(
         "--observe",
@@ -132,6 +132,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="MO-IRL/MaxEnt when the likelihood's step lowers no merit: step on a model of the merit (merit, "
         "default) or stop (none: the seed's rule)",
     )
+    g.add_argument(
+        "--merit-model",
+        choices=("probes", "gauss-newton"),
+        default=None,
+        help="MO-IRL/MaxEnt's model of the merit for those steps: 14 probe solves per rollout (probes, default) or "
+        "Gauss-Newton from the DOC's sensitivities (gauss-newton, no solve; also tried when the likelihood's step "
+        "gains less than 1 %%)",
+    )
     g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
     g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
                    "(default: either arm; with --cv other-side, right)")
@@ -153,6 +161,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help=f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100, as the DOC; --quick 40)")
     g.add_argument("--max-iter", type=int_in(1, MAX_ITER), metavar="N",
                    help=f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30)")
+    g.add_argument("--tol", type=number_in(0.0, 0.5), metavar="X",
+                   help="MO-IRL: a step must lower the merit by more than this fraction, 0 to 0.5 (default 1e-5)")
     g.add_argument(
         "--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set (default 0)"
     )
@@ -196,6 +206,7 @@ def _config(args):
         n_iscv=pick("n_iscv", "n_iscv"),
         n_nodes=args.nodes or base["nodes"],
         max_iter=args.max_iter or base["max_iter"],
+        **({} if args.tol is None else {"tol": args.tol}),
         backend=args.backend,
         iscv=args.iscv,
         estimator_options=_estimator_options(args),
@@ -212,6 +223,8 @@ def _estimator_options(args) -> dict:
         opts["acceptance"] = args.acceptance
     if args.fallback:
         opts["fallback"] = None if args.fallback == "none" else args.fallback
+    if args.merit_model:
+        opts["merit_model"] = args.merit_model
     return opts
 
 

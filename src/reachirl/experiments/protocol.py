@@ -68,14 +68,14 @@ class ProtocolConfig:
     n_iscv: int | None = None  # None: all of them (per posture)
     n_nodes: int = 100
     max_iter: int = 30
-    tol: float = 1e-4  # a step must lower the merit by more than the DOCs' repeatability (see MOIRL)
+    tol: float = 1e-5
     backend: str = "casadi"
     estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
     observe: bool = True  # predict and fit trials cut at a speed threshold as recorded (reachirl.observation);
     # False: the seed's DOC over the trial's own duration
     merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
-    rollout: str = "per_demo"  # MO-IRL's rollouts: one per demonstration | "mean" (the seed's single rollout)
+    rollout: str = "mean"  # MO-IRL's rollouts: "mean" (the seed's single rollout) | "per_demo" (one per demonstration)
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
