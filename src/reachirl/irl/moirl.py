@@ -366,12 +366,18 @@ class MOIRL(WeightEstimator):
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 
+    def _state(self, i: int, task: ReachingTask, sol: DocSolution) -> np.ndarray:
+        """Rollout ``i``'s state on the knots as the merit compares it, ``(N+1, 4)``: seen as the demonstrations
+        were recorded (:meth:`_seen`), or the DOC's own knots."""
+        if self._thresholds[i] is None:
+            return sol.state
+        return self._seen(i, task, sol).knot_state(self.n_nodes)
+
     def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None,
                tasks: Sequence[ReachingTask]) -> float:
         if any(not s.converged for s in sols):
             return np.inf
-        states = [s.state if self._thresholds[i] is None else self._seen(i, task, s).knot_state(self.n_nodes)
-                  for i, (task, s) in enumerate(zip(tasks, sols, strict=True))]
+        states = [self._state(i, task, s) for i, (task, s) in enumerate(zip(tasks, sols, strict=True))]
         x = states[0] if self.rollout == "mean" else np.stack(states)
         return merit(x_demos, x, channels)
 
@@ -603,7 +609,8 @@ class MOIRL(WeightEstimator):
         return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures, recovered)
 
     def _merit_step(self, w, m, sols, tasks, x_demos, phi_star, starts, guesses, channels, ratio) -> _Step:
-        """The fallback when the likelihood's step lowers no merit: a step from a local model of the merit,
+        """The step when the likelihood's lowers no merit (or, with the Gauss-Newton model, less than
+        ``fallback_tol``): a step from a local model of the merit,
         bounded by ``log ρ`` in log-weights (``ρ`` the trust region's ratio, at least 1.1), line-searched as a
         likelihood step would be. The model (``merit_model``):
 
@@ -654,9 +661,8 @@ class MOIRL(WeightEstimator):
             except ValueError as e:
                 log.info("no Gauss-Newton model (%s): probing the merit instead", e)
                 return None
-            threshold = self._thresholds[i]
-            states.append(sol.state if threshold is None else self._seen(i, task, sol).knot_state(self.n_nodes))
-            jacs.append((observed_state_jacobian(sol, task, threshold, dq) * scale[None, :, None])
+            states.append(self._state(i, task, sol))
+            jacs.append((observed_state_jacobian(sol, task, self._thresholds[i], dq) * scale[None, :, None])
                         .reshape(-1, cols.size))
         if self.rollout == "mean":  # one rollout against every demonstration
             states, jacs = [states[0]] * x_demos.shape[0], [jacs[0]] * x_demos.shape[0]
