@@ -9,9 +9,9 @@ Figures (N = 100 knots, 8 windows, all seven features): median cold and warm sol
 (5 postures × 4 weight draws), as CPU time (``time.process_time`` around the whole call; the machine may be
 shared, so prefer these and ``ratios_cpu``) and wall time, iteration counts, the convergence rate over a
 135-problem sweep, and the ratios. These run on CasADi's virtual machine (``REACHIRL_COMPILE=off``), whatever
-the cache holds; ``compiled`` times the same cold solves with the compiled solver of
-:mod:`reachirl.doc.compiled` (compiling it first if it is not cached, and saying how long that took) and checks
-that its solutions are bit-identical.
+the cache holds; ``compiled`` times the same cold and warm solves with the compiled solvers of
+:mod:`reachirl.doc.compiled` (compiling them first if they are not cached, and saying how long that took) and
+checks that their solutions are bit-identical.
 """
 
 from __future__ import annotations
@@ -107,20 +107,30 @@ class PlainDoc:
                 "converged": bool(st["success"]), "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
 
 
-def compiled_figures(problems, reference) -> dict:
-    """The cold solves of ``problems`` again with the compiled solver; ``reference`` holds the VM's solutions."""
+def compiled_figures(problems, reference, reference_warm) -> dict:
+    """The cold and warm solves of ``problems`` again with the compiled solvers; ``reference`` and
+    ``reference_warm`` hold the VM's solutions."""
     with compile_mode("on"):
         t0 = time.perf_counter()
-        solve_doc(problems[0][0], problems[0][1])  # compiles here unless cached
+        cold = solve_doc(problems[0][0], problems[0][1])  # compiles the cold solver here unless cached
         compile_s = time.perf_counter() - t0
-        cpu, identical = [], 0
-        for (task, w, _), ref in zip(problems, reference, strict=True):
+        t0 = time.perf_counter()
+        solve_doc(problems[0][0], problems[0][2], warm_start=cold)  # and the warm one
+        compile_warm_s = time.perf_counter() - t0
+        cpu, cpu_warm, identical = [], [], 0
+        for (task, w, w2), ref, ref_warm in zip(problems, reference, reference_warm, strict=True):
             c0 = time.process_time()
             sol = solve_doc(task, w)
-            cpu.append(time.process_time() - c0)
+            c1 = time.process_time()
+            warm = solve_doc(task, w2, warm_start=sol)
+            c2 = time.process_time()
+            cpu.append(c1 - c0)
+            cpu_warm.append(c2 - c1)
             identical += bool(np.array_equal(sol.q, ref.q) and sol.cost == ref.cost)
-    return {"cold_cpu_median_s": float(np.median(cpu)), "first_solve_s": compile_s,
-            "bit_identical": f"{identical}/{len(problems)}"}
+            identical += bool(np.array_equal(warm.q, ref_warm.q) and warm.cost == ref_warm.cost)
+    return {"cold_cpu_median_s": float(np.median(cpu)), "warm_cpu_median_s": float(np.median(cpu_warm)),
+            "first_solve_s": compile_s, "first_warm_solve_s": compile_warm_s,
+            "bit_identical": f"{identical}/{2 * len(problems)}"}
 
 
 def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
@@ -145,7 +155,7 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
     keys = ("cold", "warm", "cold_cpu", "warm_cpu", "cold_it", "warm_it")
     ours = {**{k: [] for k in keys}, "ok": 0, "n": 0}
     plain = {**{k: [] for k in keys}, "ok": 0, "n": 0}
-    agree_deg, agree_cost, colds = [], [], []
+    agree_deg, agree_cost, colds, warms = [], [], [], []
     for task, w, w2 in problems:
         c0 = time.process_time()
         cold = solve_doc(task, w)
@@ -153,6 +163,7 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
         c1 = time.process_time()
         warm = solve_doc(task, w2, warm_start=cold)
         c2 = time.process_time()
+        warms.append(warm)
         ours["cold"].append(cold.solve_time)
         ours["warm"].append(warm.solve_time)
         ours["cold_cpu"].append(c1 - c0)  # the whole solve_doc call: initial guess, solver, post-processing
@@ -208,8 +219,9 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
         "warm_vs_plain_warm": r["warm_median_s"] / b["warm_median_s"],
         "cold_vs_plain_cold": r["cold_median_s"] / b["cold_median_s"],
     }
-    out["compiled"] = compiled_figures(problems, colds)
+    out["compiled"] = compiled_figures(problems, colds, warms)
     out["compiled"]["cold_cpu_vs_vm"] = out["compiled"]["cold_cpu_median_s"] / r["cold_cpu_median_s"]
+    out["compiled"]["warm_cpu_vs_vm"] = out["compiled"]["warm_cpu_median_s"] / r["warm_cpu_median_s"]
     if sweep:
         out["convergence_sweep"] = convergence_sweep(arm, seed)
     return out

@@ -13,8 +13,9 @@ start and duration). For each method and 1 and 8 windows:
 
 A reference DOC (cold, 100 knots, true weights, on the training reaches' mean task) is timed in the same
 run so the fit times can be read as ratios on a shared, noisy machine. The full run also sweeps MO-IRL's
-options (8 windows) and measures KKT and MO-IRL under angle noise. ``run(quick=True)`` uses 5 + 5 reaches,
-a smaller bilevel budget and skips both.
+options (8 windows), measures KKT and MO-IRL under angle noise, and times the protocol's own 8-window fits
+(:func:`protocol_fit_cpu`: ``make run``'s reaches, which are cut and observed, on CasADi's virtual machine and
+compiled). ``run(quick=True)`` uses 5 + 5 reaches, a smaller bilevel budget and skips all three.
 
 Bilevel runs to convergence or to 20× MO-IRL's DOC solves (at least 200), whichever comes first; the table
 gives each method's budget and stop reason. A † marks a fit that never left its initial weights.
@@ -156,6 +157,49 @@ def _reference_doc_time(task: ReachingTask, weights: np.ndarray, repeats: int = 
     return float(np.median(walls)), float(np.median(cpus))
 
 
+def protocol_fit_cpu(seed: int = 0, sections: int = 8) -> dict:
+    """CPU time of the protocol's own MO-IRL fits (``make run``'s: built-in virtual subjects, 10 training
+    reaches cut from their recordings, observed, normalised merit), one per posture, on CasADi's virtual
+    machine and with the compiled solvers of :mod:`reachirl.doc.compiled` (compiled first if not cached), with
+    a cold reference DOC timed the same way; the weights must be the same both ways."""
+    from reachirl.doc.compiled import setting as compile_mode
+    from reachirl.experiments import datasets
+    from reachirl.experiments.protocol import (
+        ProtocolConfig,
+        make_estimator,
+        make_units,
+        resolve_postures,
+        split_trials,
+    )
+
+    config = ProtocolConfig(sections=(sections,))
+    trials = list(datasets.load(None, seed=seed).trials)
+    units = make_units(resolve_postures(trials, config), config)
+    out: dict = {"sections": sections, "n_train": None, "postures": [u.posture for u in units]}
+    weights = {}
+    for mode in ("off", "on"):
+        with compile_mode(mode):
+            make_estimator(units[0]).fit(list(split_trials(trials, units[0].posture, config).train))  # builds
+            task = mean_task(list(split_trials(trials, units[0].posture, config).train), N_NODES)
+            _, ref_cpu = _reference_doc_time(task, np.full((sections, 7), 1.0))
+            cpus, solves = [], []
+            for u in units:
+                train = list(split_trials(trials, u.posture, config).train)
+                est = make_estimator(u)
+                c0 = time.process_time()
+                est.fit(train)
+                cpus.append(time.process_time() - c0)
+                solves.append(int(est.n_doc_solves_))
+                weights.setdefault(u.posture, []).append(est.weights_)
+                out["n_train"] = len(train)
+        key = "vm" if mode == "off" else "compiled"
+        out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "doc_solves": solves,
+                    "reference_doc_cpu_s": ref_cpu, "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}
+    out["same_weights"] = all(np.array_equal(a, b) for a, b in weights.values())
+    out["compiled_vs_vm"] = out["compiled"]["fit_cpu_median_s"] / out["vm"]["fit_cpu_median_s"]
+    return out
+
+
 # ---------------------------------------------------------------------- the benchmark
 def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
     """Run the IRL benchmark; returns the results and, with ``out_dir``, writes ``bench_irl.json`` and
@@ -234,6 +278,7 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
                     "train_rmse_deg_vs_clean": _rmse_summary(est.weights_, train)["mean"],
                     "doc_solves": int(est.n_doc_solves_),
                 }
+    protocol_fits = None if quick else protocol_fit_cpu(seed)
     targets = _targets(rows, curves, ref_doc)
     result = {
         "benchmark": "irl",
@@ -263,6 +308,7 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
         "rows": rows,
         "merit_curves": curves,
         "moirl_options": options,
+        "protocol_fits": protocol_fits,
         "targets": targets,
         "elapsed_s": time.perf_counter() - t_start,
     }
@@ -390,6 +436,21 @@ def markdown(result: dict) -> str:
                 f"| {r['truth_agreement_deg']:.2f} | {r['doc_solves']} | {r['fit_time_s']:.2f} "
                 f"| {r['fit_cpu_s']:.2f} | {r['iterations']} | {r['stop_reason']} |"
             )
+    pf = result.get("protocol_fits")
+    if pf:
+        lines += [
+            "",
+            f"The protocol's own fits (`make run`'s reaches, {pf['sections']} sections, {pf['n_train']} training "
+            f"reaches cut from their recordings and observed), CPU seconds per posture ({', '.join(pf['postures'])}):",
+            "",
+            "| solver | fit CPU (s) | median | DOC solves | median / ref DOC CPU |",
+            "|---|---|---|---|---|",
+        ]
+        for key, label in (("vm", "CasADi virtual machine"), ("compiled", "compiled (`reachirl.doc.compiled`)")):
+            r = pf[key]
+            lines.append(f"| {label} | {', '.join(f'{c:.2f}' for c in r['fit_cpu_s'])} | {r['fit_cpu_median_s']:.2f} "
+                         f"| {', '.join(map(str, r['doc_solves']))} | {r['fit_in_reference_docs']:.0f} |")
+        lines += ["", f"Compiled / VM: {pf['compiled_vs_vm']:.2f}; the same weights both ways: {pf['same_weights']}."]
     for name, e in result.get("extra", {}).items():
         shown = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in e.items()}
         lines += ["", f"`{name}`: {shown}"]

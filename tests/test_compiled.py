@@ -29,10 +29,17 @@ def _problems(arm):
 
 
 def _solve_all(tasks, w):
-    return [solve_doc(t, w) for t in tasks]
+    """A cold solve of each task, then a warm one under weights 10 % off (as MO-IRL's line search makes)."""
+    out = []
+    for t in tasks:
+        cold = solve_doc(t, w)
+        out += [cold, solve_doc(t, w * np.array([1.1, 0.9, 1.0, 1.1, 0.9, 1.0, 1.1]), warm_start=cold)]
+    return out
 
 
-def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm):
+def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm, tmp_path_factory):
+    workdir = tmp_path_factory.mktemp("cwd")
+    monkeypatch.chdir(workdir)  # nothing may be written here: CasADi's temporary files go to the cache
     tasks, w = _problems(arm)
     monkeypatch.setenv("REACHIRL_COMPILE", "off")
     vm = _solve_all(tasks, w)
@@ -40,16 +47,19 @@ def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm):
 
     cas.build_nlp.cache_clear()
     monkeypatch.setenv("REACHIRL_COMPILE", "on")
-    first = _solve_all(tasks, w)  # compiles at the first solve
+    first = _solve_all(tasks, w)  # compiles the cold solver at the first cold solve, the warm one at the first warm
     files = list(cache.rglob("solver.casadi"))
-    assert len(files) == 1 and list(files[0].parent.glob("*.so")), "the solver and its library are cached"
-    assert "fatrop_compiled" in cas.build_nlp(N)._solvers
+    assert len(files) == 2 and all(list(f.parent.glob("*.so")) for f in files), "solvers and libraries cached"
+    assert {"fatrop_compiled", "fatrop_warm_compiled"} <= set(cas.build_nlp(N)._solvers)
 
     cas.build_nlp.cache_clear()
     t0 = time.perf_counter()
-    again = _solve_all(tasks, w)  # loads the cached file, does not compile again
+    again = _solve_all(tasks, w)  # loads the cached files, does not compile again
     assert time.perf_counter() - t0 < 5.0
-    assert "fatrop_compiled" in cas.build_nlp(N)._solvers
+    assert {"fatrop_compiled", "fatrop_warm_compiled"} <= set(cas.build_nlp(N)._solvers)
+    assert not list(workdir.iterdir()), "compiling and loading leave nothing in the working directory"
+    assert not [p for p in cache.rglob("jit_tmp*.c") if p.stat().st_size == 0], "nor empty files in the cache"
+    assert [s.attempts for s in vm[1::2]] == [1] * len(tasks), "the warm solves converged warm (no cold retry)"
     for a, b, c in zip(vm, first, again, strict=True):
         assert a.converged and b.converged and c.converged
         assert np.array_equal(a.q, b.q) and np.array_equal(a.q, c.q)

@@ -36,9 +36,9 @@ loaded 2-core machine; before this form, IPOPT on the positions-only form took 2
   warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
   multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
   Its initial barrier parameter is 1e-4, not 0.1: 14 instead of 16 iterations (see :data:`FATROP_OPTIONS`).
-* The cold fatrop solver is compiled to C on long runs (:mod:`reachirl.doc.compiled`: ~35 s once per number
-  of knots and machine, cached on disk): its function evaluations take about half the time, and a cold solve
-  at N = 100 about 10 instead of 13 ms, with bit-identical results.
+* The cold and the warm fatrop solvers are compiled to C on long runs (:mod:`reachirl.doc.compiled`: 35-50 s
+  each, once per number of knots and machine, cached on disk): their function evaluations take about half the
+  time, with bit-identical results.
 * fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
   previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
 * **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved
@@ -226,6 +226,8 @@ class _Nlp:
         self._solvers: dict = {}
         self.lock = threading.Lock()
         self.compiled_slot = compiled.Slot(n, self.nlp, self.cold_solver_spec())
+        self.slots = {"cold": self.compiled_slot,
+                      "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm")}
 
     def kkt_functions(self) -> dict:
         """CasADi functions of the KKT conditions (built on first use, for :mod:`reachirl.doc.sensitivity`):
@@ -248,22 +250,27 @@ class _Nlp:
         """``(name, plugin, options)`` of the cold fatrop solver (the one :mod:`.compiled` compiles)."""
         return "doc_fatrop", "fatrop", {**FATROP_OPTIONS, "equality": [True] * self.n_g}
 
-    def _cold_fatrop(self):
-        """The cold fatrop solver: compiled when :mod:`.compiled` has (or makes) one, else CasADi's VM."""
-        if "fatrop_compiled" not in self._solvers:
-            solver = self.compiled_slot.get()
+    def warm_solver_spec(self) -> tuple[str, str, dict]:
+        """``(name, plugin, options)`` of the warm fatrop solver (the cold one's, with :data:`FATROP_WARM_OPTIONS`)."""
+        _, plugin, opts = self.cold_solver_spec()
+        return "doc_fatrop_warm", plugin, {**opts, **FATROP_WARM_OPTIONS}
+
+    def fatrop(self, kind: str):
+        """The ``"fatrop"`` (cold) or ``"fatrop_warm"`` solver: compiled when :mod:`.compiled` has (or makes)
+        one, else CasADi's VM."""
+        key = f"{kind}_compiled"
+        if key not in self._solvers:
+            solver = self.slots["cold" if kind == "fatrop" else "warm"].get()
             if solver is None:
-                return self.solver("fatrop")
-            self._solvers["fatrop_compiled"] = solver
-        return self._solvers["fatrop_compiled"]
+                return self.solver(kind)
+            self._solvers[key] = solver
+        return self._solvers[key]
 
     def solver(self, kind: str):
-        """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"``; built on first use."""
+        """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"`` on CasADi's VM; built on first use."""
         if kind not in self._solvers:
             if kind.startswith("fatrop"):
-                name, plugin, opts = self.compiled_slot.spec
-                if kind == "fatrop_warm":
-                    name, opts = "doc_fatrop_warm", {**opts, **FATROP_WARM_OPTIONS}
+                name, plugin, opts = self.cold_solver_spec() if kind == "fatrop" else self.warm_solver_spec()
                 self._solvers[kind] = ca.nlpsol(name, plugin, self.nlp, opts)
             else:
                 opts = dict(IPOPT_OPTIONS)
@@ -362,7 +369,7 @@ def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> 
 
 def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[dict, dict, float]:
     with nlp.lock:  # an nlpsol instance is not re-entrant
-        solver = nlp._cold_fatrop() if kind == "fatrop" else nlp.solver(kind)
+        solver = nlp.fatrop(kind) if kind.startswith("fatrop") else nlp.solver(kind)
         t0 = time.perf_counter()
         out = solver(**args)
         elapsed = time.perf_counter() - t0

@@ -1,18 +1,21 @@
-"""Compiled DOC solvers: the cold fatrop solver of one number of knots, compiled to C once and cached on disk.
+"""Compiled DOC solvers: the fatrop solvers of one number of knots (the cold one, and the warm one MO-IRL's line
+searches use), compiled to C once and cached on disk.
 
 CasADi evaluates the NLP's functions (objective, constraints, their derivatives, the Lagrangian's Hessian) in
 its virtual machine. Compiled with the system C compiler (``gcc -O1``) they take about half that time, and the
-solver's results are bit-identical (the same operations in the same order; tested): a cold solve at N = 100
-goes from about 13 to 10 ms. Compiling the solver of one number of knots ``N`` (it serves any number of
-windows) takes about 35 s of CPU and about 20 MB of disk, so it is done only where it pays off, which the
-environment variable ``REACHIRL_COMPILE`` decides:
+solver's results are bit-identical (the same operations in the same order; tested): at N = 100 a cold solve
+goes from about 26 to 15 ms of CPU, and an 8-window MO-IRL fit of the protocol, whose solves are nearly all
+warm, from 1.6-2.7 to 1.2-2.0 s (the same weights, merits and solve counts). Compiling one solver of one
+number of knots ``N`` (it serves any number of windows) takes 35-50 s of CPU and about 20 MB of disk, so it
+is done only where it pays off, which the environment variable ``REACHIRL_COMPILE`` decides:
 
 * ``auto`` (the default): a compiled solver already in the cache is used. A process that has solved
-  :data:`AUTO_AFTER` cold DOCs of one number of knots (a long run: an all-pairs study, a large evaluation)
-  starts the compilation in a background process, goes on solving meanwhile, and switches to the compiled
-  solver when its file appears. Other processes that need the same solver wait for that file instead of
-  compiling it again.
-* ``on``: the first cold solve of a number of knots compiles it (and waits), unless it is cached.
+  :data:`AUTO_AFTER` cold (or :data:`AUTO_AFTER_WARM` warm) DOCs of one number of knots (a long run: an
+  all-pairs study, a large evaluation) starts that solver's compilation in a background process, goes on
+  solving meanwhile, and switches to the compiled solver when its file appears. Other processes that need the
+  same solver wait for that file instead of compiling it again.
+* ``on``: the first cold (warm) solve of a number of knots compiles the cold (warm) solver (and waits),
+  unless it is cached.
 
 Compilation always runs in a process of its own (``python -m reachirl.doc.compiled``), because CasADi writes
 its sources into the working directory: the solving process never changes its own.
@@ -40,12 +43,14 @@ from ..errors import InputError
 from ..io import atomic_path, cache_root
 
 __all__ = [
-    "AUTO_AFTER", "MODES", "Slot", "cache_path", "compile_or_wait", "compile_solver", "load", "mode", "setting",
-    "start_background",
+    "AUTO_AFTER", "AUTO_AFTER_WARM", "KINDS", "MODES", "Slot", "cache_path", "compile_or_wait", "compile_solver",
+    "load", "mode", "setting", "start_background",
 ]
 
 MODES = ("auto", "on", "off")
-AUTO_AFTER = 1000  # cold solves of one NLP in one process before ``auto`` compiles it (~15 s of solving)
+AUTO_AFTER = 1000  # cold solves of one NLP in one process before ``auto`` compiles it (~25 s of solving)
+AUTO_AFTER_WARM = 3000  # warm solves likewise (~50 s of solving; `make run` makes about 1000 per process)
+KINDS = ("cold", "warm")
 JIT_FLAGS = ("-O1",)  # measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36
 POLL_EVERY = 50  # after AUTO_AFTER, look for the background compilation's file every this many cold solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
@@ -79,11 +84,13 @@ def setting(value: str):
             os.environ["REACHIRL_COMPILE"] = before
 
 
-def _options(options: dict) -> dict:
+def _options(options: dict, folder: Path | str = "<cache folder>") -> dict:
     # "link": the saved solver loads the library compiled beside it (kept: no clean-up); "embed" would write
-    # the library back to its first path at every load, from every process
+    # the library back to its first path at every load, from every process. "directory": where CasADi puts its
+    # temporary files, also the empty one it creates at every load (in the working directory by default)
     return {**options, "jit": True, "compiler": "shell", "jit_serialize": "link",
-            "jit_options": {"flags": list(JIT_FLAGS), "verbose": False, "cleanup": False}}
+            "jit_options": {"flags": list(JIT_FLAGS), "verbose": False, "cleanup": False,
+                            "directory": os.path.join(str(folder), "")}}
 
 
 def cache_path(nlp: dict, options: dict) -> Path:
@@ -105,7 +112,13 @@ def load(path: Path):
     try:
         if not path.is_file():
             return None
-        return ca.Function.load(str(path))
+        before = set(path.parent.glob("jit_tmp*.c"))
+        solver = ca.Function.load(str(path))
+        for new in set(path.parent.glob("jit_tmp*.c")) - before:  # the empty temporary file each load creates
+            with contextlib.suppress(OSError):
+                if new.stat().st_size == 0:
+                    new.unlink()
+        return solver
     except Exception:
         return None
 
@@ -126,7 +139,7 @@ def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path)
     os.chdir(path.parent)  # CasADi writes the C source and the library into the working directory (hence a
     # process of its own: see start_background)
     try:
-        f = ca.nlpsol(name, solver, nlp, _options(options))
+        f = ca.nlpsol(name, solver, nlp, _options(options, path.parent))
     except Exception as e:
         raise RuntimeError(f"compiling the DOC solver failed (is a C compiler installed?): {e}") from None
     finally:
@@ -156,23 +169,26 @@ def _acquire(path: Path) -> bool:
         return False
 
 
-def compile_or_wait(n: int, path: Path):
-    """The solver of ``n`` knots at ``path``, once compiled (by :func:`start_background`, or by the process
-    already compiling it). None when it cannot be had (no compiler, unwritable cache, that process failed)."""
-    start_background(n, path)
+def compile_or_wait(n: int, path: Path, kind: str = "cold"):
+    """The ``kind`` solver of ``n`` knots at ``path``, once compiled (by :func:`start_background`, or by the
+    process already compiling it). None when it cannot be had (no compiler, unwritable cache, that process
+    failed)."""
+    start_background(n, path, kind)
     deadline = time.monotonic() + STALE_LOCK_S
     while _lock(path).exists() and time.monotonic() < deadline:
         time.sleep(0.2)
     return load(path)
 
 
-def start_background(n: int, path: Path) -> bool:
-    """Compile the solver of ``n`` knots in a detached process unless another process already is; True when
-    one was started here. The detached process releases the lock when done."""
+def start_background(n: int, path: Path, kind: str = "cold") -> bool:
+    """Compile the ``kind`` solver (one of :data:`KINDS`) of ``n`` knots in a detached process unless another
+    process already is; True when one was started here. The detached process releases the lock when done."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     if not _acquire(path):
         return False
     subprocess.Popen(
-        [sys.executable, "-m", "reachirl.doc.compiled", str(n), str(path)],
+        [sys.executable, "-m", "reachirl.doc.compiled", str(n), kind, str(path)],
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True, env={**os.environ, "REACHIRL_COMPILE": "off"},
     )
@@ -180,39 +196,42 @@ def start_background(n: int, path: Path) -> bool:
 
 
 class Slot:
-    """The compiled cold solver of one NLP in this process: when to load it and when to have it compiled (see
-    the module docstring). ``spec`` is ``(name, plugin, options)`` of the solver to compile."""
+    """The compiled ``kind`` solver (``"cold"`` or ``"warm"``) of one NLP in this process: when to load it and
+    when to have it compiled (see the module docstring). ``spec`` is ``(name, plugin, options)`` of the solver
+    to compile."""
 
-    def __init__(self, n: int, nlp: dict, spec: tuple[str, str, dict]):
-        self.n, self.nlp, self.spec = n, nlp, spec
-        self.cold_solves = 0
+    def __init__(self, n: int, nlp: dict, spec: tuple[str, str, dict], kind: str = "cold"):
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        self.n, self.nlp, self.spec, self.kind = n, nlp, spec, kind
+        self.solves = 0
         self._path: Path | None = None
 
     def get(self):
-        """The compiled solver (a ``casadi.Function``) for this cold solve, or None: solve on the VM."""
+        """The compiled solver (a ``casadi.Function``) for this solve, or None: solve on the VM."""
         how = mode()
         if how == "off":
             return None
-        self.cold_solves += 1
+        self.solves += 1
         if self._path is None:
             self._path = cache_path(self.nlp, self.spec[2])
-        k = self.cold_solves
-        solver = load(self._path) if k == 1 or (k > AUTO_AFTER and k % POLL_EVERY == 0) else None
+        k, after = self.solves, AUTO_AFTER if self.kind == "cold" else AUTO_AFTER_WARM
+        solver = load(self._path) if k == 1 or (k > after and k % POLL_EVERY == 0) else None
         if solver is None and how == "on" and k == 1:
-            solver = compile_or_wait(self.n, self._path)
-        if solver is None and how == "auto" and k == AUTO_AFTER:
-            start_background(self.n, self._path)
+            solver = compile_or_wait(self.n, self._path, self.kind)
+        if solver is None and how == "auto" and k == after:
+            start_background(self.n, self._path, self.kind)
         return solver
 
 
 def main(argv: list[str]) -> int:
-    """Background entry point: ``python -m reachirl.doc.compiled N PATH``."""
+    """Background entry point: ``python -m reachirl.doc.compiled N KIND PATH``."""
     from .casadi import build_nlp
 
-    n, path = int(argv[0]), Path(argv[1])
+    n, kind, path = int(argv[0]), argv[1], Path(argv[2])
     try:
         nlp = build_nlp(n)
-        name, solver, options = nlp.compiled_slot.spec
+        name, solver, options = nlp.slots[kind].spec
         if cache_path(nlp.nlp, options) != path:  # another version of the code asked: do not cache under its name
             return 1
         compile_solver(name, solver, nlp.nlp, options, path)
