@@ -58,7 +58,6 @@ def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm, tm
     assert time.perf_counter() - t0 < 5.0
     assert {"fatrop_compiled", "fatrop_warm_compiled"} <= set(cas.build_nlp(N)._solvers)
     assert not list(workdir.iterdir()), "compiling and loading leave nothing in the working directory"
-    assert not [p for p in cache.rglob("jit_tmp*.c") if p.stat().st_size == 0], "nor empty files in the cache"
     assert [s.attempts for s in vm[1::2]] == [1] * len(tasks), "the warm solves converged warm (no cold retry)"
     for a, b, c in zip(vm, first, again, strict=True):
         assert a.converged and b.converged and c.converged

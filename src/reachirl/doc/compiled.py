@@ -54,6 +54,7 @@ KINDS = ("cold", "warm")
 JIT_FLAGS = ("-O1",)  # measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36
 POLL_EVERY = 50  # after AUTO_AFTER, look for the background compilation's file every this many cold solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
+STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died
 
 
 def mode() -> str:
@@ -112,13 +113,14 @@ def load(path: Path):
     try:
         if not path.is_file():
             return None
-        before = set(path.parent.glob("jit_tmp*.c"))
-        solver = ca.Function.load(str(path))
-        for new in set(path.parent.glob("jit_tmp*.c")) - before:  # the empty temporary file each load creates
+        # each load creates an empty temporary file beside the solver, which CasADi removes when the process
+        # unloads it; a process that ends abruptly (a killed worker) leaves it: remove those a day old
+        for old in path.parent.glob("jit_tmp*.c"):
             with contextlib.suppress(OSError):
-                if new.stat().st_size == 0:
-                    new.unlink()
-        return solver
+                st = old.stat()
+                if st.st_size == 0 and time.time() - st.st_mtime > STALE_TMP_S:
+                    old.unlink()
+        return ca.Function.load(str(path))
     except Exception:
         return None
 

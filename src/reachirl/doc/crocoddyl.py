@@ -157,6 +157,16 @@ class CsqpOptions:
       from CasADi's exact optimum. So a failed solve is solved once more with ε × ``fallback_smoothing_factor``
       (cold) and refined at ε from that solution: 368/368 converged, q within 0.063° and cost within 0.021 %
       of CasADi's (``reachirl bench backends``' learned-weights sweep, every 5th prediction).
+
+    Measured and not taken (speed and the quick-table agreement of issue 11):
+
+    * mim_solvers' ``SolverPROXQP`` (the whole horizon's QP solved by sparse ProxQP at every SQP iteration,
+      exact QPs instead of inexact ADMM ones): 6-9 QP iterations, but ~16 ms per SQP iteration at N = 100
+      (ADMM here: ~110 µs per iteration, ~340 per QP, ~38 ms per SQP iteration), and on the 10 benchmark
+      problems it reported a non-finite KKT residual (the problem's infinite bounds) and ran to ``max_iter``.
+    * a KKT tolerance ten times tighter (5e-4): ``reproduce --quick --backend crocoddyl`` ran 1.8× longer and
+      stayed as far from the CasADi table (largest cell gap 0.35° against 0.38°): the gap comes from
+      5-iteration fits that part ways on differences far below the DOCs' agreement, not from the DOCs.
     """
 
     max_iter: int = 200
