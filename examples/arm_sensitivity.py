@@ -1,0 +1,76 @@
+"""Why learned weights transfer to another subject less well than the truth: the arm model, or the reach?
+
+For each posture of a `reachirl reproduce` run on virtual subjects, the learned and the true weights predict
+the training subject's mean reach (rest to rest, seen from onset to offset as the reaches were recorded) on
+the subject's own arm, on that arm with its masses and inertias off by 10-15 % (or its forearm's centre of
+mass moved), and on the other subject's arm. Printed per posture, in degrees (RMSE of q): how far each arm
+moves the learned weights' prediction (dL) and the true weights' (dT), and how far apart the two predictions
+are on that arm (L-T).
+
+    reachirl reproduce --data-seed 2 --sections 1 8 --out s2
+    python examples/arm_sensitivity.py s2 --data-seed 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from reachirl.doc import solve_doc
+from reachirl.experiments import datasets
+from reachirl.experiments.protocol import ProtocolConfig, split_trials
+from reachirl.irl.moirl import mean_task
+from reachirl.observation import common_threshold, observe, rest_to_rest
+
+
+def _rmse_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.rad2deg(np.sqrt(np.mean((a - b) ** 2))))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run", type=Path, help="output folder of `reachirl reproduce` on built-in virtual subjects")
+    parser.add_argument("--data-seed", type=int, default=0, help="the run's --data-seed")
+    parser.add_argument("--sections", type=int, default=8)
+    args = parser.parse_args(argv)
+
+    data = datasets.load(None, seed=args.data_seed)
+    truth = np.asarray(data.truth["truth"]["nominal_weights"], dtype=float)
+    units = json.loads((args.run / "results.json").read_text())["units"]
+    learned = {u["unit"]["posture"]: np.asarray(u["weights"]) for u in units
+               if u["unit"]["sections"] == args.sections and u["unit"]["method"] == "moirl"}
+    config = ProtocolConfig(sections=(args.sections,))
+    trials = list(data.trials)
+    for posture, w in learned.items():
+        split = split_trials(trials, posture, config)
+        train = list(split.train)
+        task, threshold = rest_to_rest(mean_task(train, config.n_nodes)), common_threshold(train)
+        a = task.arm
+        arms = {
+            "own arm": a,
+            "masses +10 %": replace(a, m1=1.1 * a.m1, m2=1.1 * a.m2, i1=1.1 * a.i1, i2=1.1 * a.i2),
+            "forearm -15 %": replace(a, m2=0.85 * a.m2, i2=0.85 * a.i2),
+            "forearm CoM +10 %": replace(a, c2=min(1.1 * a.c2, a.l2)),
+            "other subject's arm": mean_task(list(split.iscv), config.n_nodes).arm,
+        }
+
+        def predict(weights, arm):
+            t = replace(task, arm=arm)
+            return observe(solve_doc(t, weights), t, threshold).knot_state(config.n_nodes)[:, :2]
+
+        own_l, own_t = predict(w, a), predict(truth, a)
+        cells = []
+        for name, arm in arms.items():
+            q_l, q_t = predict(w, arm), predict(truth, arm)
+            cells.append(f"{name}: dL {_rmse_deg(q_l, own_l):.2f} dT {_rmse_deg(q_t, own_t):.2f} "
+                         f"L-T {_rmse_deg(q_l, q_t):.2f}")
+        print(f"{posture} | " + " | ".join(cells))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
