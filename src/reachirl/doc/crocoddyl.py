@@ -117,6 +117,14 @@ class CsqpOptions:
       QP solved with the wrong ρ, and the SQP crawled (median 69 iterations on the learned-weight sample
       below, against 29 without the reset). ``adaptive_rho_tolerance`` lets ADMM change ρ only when its
       estimate is 20× off.
+    * ``admm_relaxation = 1`` (ADMM without over-relaxation; CSQP's default α is 1.6). On the 10 benchmark
+      problems of ``reachirl bench backends``: warm solves after a 10 % weight change 2.2 s in all against
+      5.0 s (median 159 against 313 ms), cold 9.6 against 10.2 s, 77 147 against 86 475 ADMM iterations, 10/10
+      converged either way, q within 0.025° of CasADi's against 0.075°; 0.8, 1.2 and 1.4 gave warm medians of
+      456, 396 and 334 ms. On the learned-weight sweep (368 predictions, every 5th): 368/368 converged, q within
+      0.057° and cost within 0.020 % of CasADi's (0.062° and 0.020 % with 1.6), median 1.45 against 1.72 s. And
+      ``reproduce --quick --backend crocoddyl`` came within 0.27° of the CasADi table in every cell, against
+      0.38° with 1.6.
     * ``rho_update_interval`` (CSQP's default 25) is also how often ADMM tests its residuals, so a QP takes at
       least that many iterations; 10 or 15 cut the QPs too short (2–4 of the 10 benchmark problems failed).
     * when CSQP stops early (no acceptable step along an inexact QP direction) it is restarted from where it
@@ -164,9 +172,11 @@ class CsqpOptions:
       exact QPs instead of inexact ADMM ones): 6-9 QP iterations, but ~16 ms per SQP iteration at N = 100
       (ADMM here: ~110 µs per iteration, ~340 per QP, ~38 ms per SQP iteration), and on the 10 benchmark
       problems it reported a non-finite KKT residual (the problem's infinite bounds) and ran to ``max_iter``.
-    * a KKT tolerance ten times tighter (5e-4): ``reproduce --quick --backend crocoddyl`` ran 1.8× longer and
-      stayed as far from the CasADi table (largest cell gap 0.35° against 0.38°): the gap comes from
-      5-iteration fits that part ways on differences far below the DOCs' agreement, not from the DOCs.
+    * a KKT tolerance ten times tighter (5e-4, with ADMM's α at 1.6): ``reproduce --quick --backend crocoddyl``
+      ran 1.8× longer and stayed as far from the CasADi table (largest cell gap 0.35° against 0.38°). That
+      table's 5-iteration fits part ways on small differences between the backends' solutions, which ADMM
+      without over-relaxation (above) narrowed and the tolerance did not; one run each, so read them as
+      indications.
     """
 
     max_iter: int = 200
@@ -182,6 +192,7 @@ class CsqpOptions:
     qp_stall_ratio: float = 0.5  # KKT not below this × the last qp_stall_window: tighten the QP tolerance cap
     qp_stall_window: int = 2
     reset_rho: bool = False
+    admm_relaxation: float = 1.0  # ADMM's over-relaxation α (CSQP's default 1.6)
     rho_update_interval: int = 25
     adaptive_rho_tolerance: int = 20
     merit_penalty: float = 10.0
@@ -473,6 +484,7 @@ class ReachingProblem:
         solver.eps_abs = eps
         solver.eps_rel = 0.0
         solver.reset_rho = o.reset_rho
+        solver.alpha = o.admm_relaxation
         solver.rho_update_interval = o.rho_update_interval
         solver.adaptive_rho_tolerance = o.adaptive_rho_tolerance
         solver.mu_dynamic = solver.mu_constraint = o.merit_penalty
