@@ -31,6 +31,12 @@ def _rmse_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.rad2deg(np.sqrt(np.mean((a - b) ** 2))))
 
 
+def _predict(task, threshold: float, weights: np.ndarray, arm) -> np.ndarray:
+    """q on the knots of the DOC of ``task`` on ``arm``, seen from onset to offset as the reaches were."""
+    t = replace(task, arm=arm)
+    return observe(solve_doc(t, weights), t, threshold).knot_state(t.n_nodes)[:, :2]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="output folder of `reachirl reproduce` on built-in virtual subjects")
@@ -57,15 +63,10 @@ def main(argv: list[str] | None = None) -> int:
             "forearm CoM +10 %": replace(a, c2=min(1.1 * a.c2, a.l2)),
             "other subject's arm": mean_task(list(split.iscv), config.n_nodes).arm,
         }
-
-        def predict(weights, arm):
-            t = replace(task, arm=arm)
-            return observe(solve_doc(t, weights), t, threshold).knot_state(config.n_nodes)[:, :2]
-
-        own_l, own_t = predict(w, a), predict(truth, a)
+        own_l, own_t = _predict(task, threshold, w, a), _predict(task, threshold, truth, a)
         cells = []
         for name, arm in arms.items():
-            q_l, q_t = predict(w, arm), predict(truth, arm)
+            q_l, q_t = _predict(task, threshold, w, arm), _predict(task, threshold, truth, arm)
             cells.append(f"{name}: dL {_rmse_deg(q_l, own_l):.2f} dT {_rmse_deg(q_t, own_t):.2f} "
                          f"L-T {_rmse_deg(q_l, q_t):.2f}")
         print(f"{posture} | " + " | ".join(cells))
