@@ -175,23 +175,22 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8) -> dict:
     config = ProtocolConfig(sections=(sections,))
     trials = list(datasets.load(None, seed=seed).trials)
     units = make_units(resolve_postures(trials, config), config)
-    out: dict = {"sections": sections, "n_train": None, "postures": [u.posture for u in units]}
+    train = {u.posture: list(split_trials(trials, u.posture, config).train) for u in units}
+    first = train[units[0].posture]
+    out: dict = {"sections": sections, "n_train": len(first), "postures": [u.posture for u in units]}
     weights = {}
     for mode in ("off", "on"):
         with compile_mode(mode):
-            make_estimator(units[0]).fit(list(split_trials(trials, units[0].posture, config).train))  # builds
-            task = mean_task(list(split_trials(trials, units[0].posture, config).train), N_NODES)
-            _, ref_cpu = _reference_doc_time(task, np.full((sections, 7), 1.0))
+            make_estimator(units[0]).fit(first)  # builds the NLP (and loads or compiles the solvers)
+            _, ref_cpu = _reference_doc_time(mean_task(first, N_NODES), np.full((sections, 7), 1.0))
             cpus, solves = [], []
             for u in units:
-                train = list(split_trials(trials, u.posture, config).train)
                 est = make_estimator(u)
                 c0 = time.process_time()
-                est.fit(train)
+                est.fit(train[u.posture])
                 cpus.append(time.process_time() - c0)
                 solves.append(int(est.n_doc_solves_))
                 weights.setdefault(u.posture, []).append(est.weights_)
-                out["n_train"] = len(train)
         key = "vm" if mode == "off" else "compiled"
         out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "doc_solves": solves,
                     "reference_doc_cpu_s": ref_cpu, "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}

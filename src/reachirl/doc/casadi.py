@@ -127,6 +127,7 @@ FATROP_WARM_OPTIONS: dict = {
     "fatrop.bound_frac": 1e-7,
     "fatrop.max_iter": 60,  # a warm start that has not converged by then is worse than a cold one
 }
+_FATROP_SLOT = {"fatrop": "cold", "fatrop_warm": "warm"}  # each fatrop solver's compiled slot (reachirl.doc.compiled)
 
 _ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
 
@@ -225,8 +226,7 @@ class _Nlp:
         self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
         self._solvers: dict = {}
         self.lock = threading.Lock()
-        self.compiled_slot = compiled.Slot(n, self.nlp, self.cold_solver_spec())
-        self.slots = {"cold": self.compiled_slot,
+        self.slots = {"cold": compiled.Slot(n, self.nlp, self.cold_solver_spec(), kind="cold"),
                       "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm")}
 
     def kkt_functions(self) -> dict:
@@ -260,7 +260,7 @@ class _Nlp:
         one, else CasADi's VM."""
         key = f"{kind}_compiled"
         if key not in self._solvers:
-            solver = self.slots["cold" if kind == "fatrop" else "warm"].get()
+            solver = self.slots[_FATROP_SLOT[kind]].get()
             if solver is None:
                 return self.solver(kind)
             self._solvers[key] = solver
@@ -270,7 +270,7 @@ class _Nlp:
         """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"`` on CasADi's VM; built on first use."""
         if kind not in self._solvers:
             if kind.startswith("fatrop"):
-                name, plugin, opts = self.cold_solver_spec() if kind == "fatrop" else self.warm_solver_spec()
+                name, plugin, opts = self.slots[_FATROP_SLOT[kind]].spec
                 self._solvers[kind] = ca.nlpsol(name, plugin, self.nlp, opts)
             else:
                 opts = dict(IPOPT_OPTIONS)

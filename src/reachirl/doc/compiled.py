@@ -171,6 +171,11 @@ def _acquire(path: Path) -> bool:
         return False
 
 
+def _check_kind(kind: str) -> None:
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+
+
 def compile_or_wait(n: int, path: Path, kind: str = "cold"):
     """The ``kind`` solver of ``n`` knots at ``path``, once compiled (by :func:`start_background`, or by the
     process already compiling it). None when it cannot be had (no compiler, unwritable cache, that process
@@ -185,8 +190,7 @@ def compile_or_wait(n: int, path: Path, kind: str = "cold"):
 def start_background(n: int, path: Path, kind: str = "cold") -> bool:
     """Compile the ``kind`` solver (one of :data:`KINDS`) of ``n`` knots in a detached process unless another
     process already is; True when one was started here. The detached process releases the lock when done."""
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    _check_kind(kind)
     if not _acquire(path):
         return False
     subprocess.Popen(
@@ -203,8 +207,7 @@ class Slot:
     to compile."""
 
     def __init__(self, n: int, nlp: dict, spec: tuple[str, str, dict], kind: str = "cold"):
-        if kind not in KINDS:
-            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        _check_kind(kind)
         self.n, self.nlp, self.spec, self.kind = n, nlp, spec, kind
         self.solves = 0
         self._path: Path | None = None
