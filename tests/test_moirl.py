@@ -98,6 +98,28 @@ def test_subproblem_is_stable_for_large_cost_mismatch():
     assert np.isfinite(f) and np.all(np.isfinite(g))
 
 
+@pytest.mark.parametrize("offset", [0.0, 1000.0, -1000.0])
+def test_subproblem_value_and_gradient_against_the_written_out_log_sum_exp(offset):
+    """Two trajectories, one demonstration, one window, the mismatches ``C_i`` set to ``(0.3, −0.5) − offset``:
+    ``f = log(1 + e^{−C_1} + e^{−C_2})`` written out with the largest logit taken out by hand, and
+    ``∂f/∂ω = −Σ_i p_i (Φ_i − Φ*)`` with ``p_i = e^{−C_i} / (1 + Σ e^{−C})``; finite at ±1000, where
+    ``e^{−C}`` alone overflows or vanishes."""
+    phi_star = np.zeros((1, 1, 7))
+    phi_i = np.zeros((2, 1, 7))
+    phi_i[:, 0, 0] = [0.3 - offset, -0.5 - offset]  # with ω = e_0 and Δω = 0: C_i = Φ_i[0]
+    w = np.zeros((1, 7))
+    w[0, 0] = 1.0
+    c = phi_i[:, 0, 0]
+    top = max(0.0, *(-c))
+    z = np.exp(-top) + np.exp(-c[0] - top) + np.exp(-c[1] - top)
+    f, g = subproblem_objective(np.zeros((1, 7)), w, [(phi_i, phi_star, np.ones(1))], beta=0.0)
+    assert f == pytest.approx(top + np.log(z), rel=1e-12, abs=1e-12)
+    p = np.exp(-c - top) / z
+    expected = np.zeros((1, 7))
+    expected[0, 0] = -(p[0] * c[0] + p[1] * c[1])
+    np.testing.assert_allclose(g, expected, rtol=1e-12, atol=1e-300)
+
+
 # ---------------------------------------------------------------------- fitting
 def test_reported_merit_is_the_seeds_merit_of_the_returned_weights(fitted, demos):
     """m(x) = (1/D) Σ_d (1/N) ‖x*_d − x‖² recomputed by hand: the mean task's rollout under ``weights_``

@@ -137,7 +137,7 @@ def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, refere
     out = tmp_path / "out"
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
                  "--sections", "1", "--postures", "P2", "--rollout", "per_demo", "--merit-model", "gauss-newton",
-                 "--tol", "1e-4"]) == 0
+                 "--tol", "3e-4"]) == 0
     (unit,) = json.loads((out / "results.json").read_text())["units"]
     ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
                if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
@@ -145,7 +145,7 @@ def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, refere
     assert n_train > 1
     assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
     assert ["merit_model", "gauss-newton"] in unit["unit"]["estimator_options"]
-    assert unit["unit"]["tol"] == 1e-4 and ref["unit"]["tol"] == 1e-5
+    assert unit["unit"]["tol"] == 3e-4 and ref["unit"]["tol"] == 1e-4
     assert ["rollout", "mean"] in ref["unit"]["estimator_options"]
     assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
 

@@ -162,7 +162,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument("--max-iter", type=int_in(1, MAX_ITER), metavar="N",
                    help=f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30)")
     g.add_argument("--tol", type=number_in(0.0, 0.5), metavar="X",
-                   help="MO-IRL: a step must lower the merit by more than this fraction, 0 to 0.5 (default 1e-5)")
+                   help="MO-IRL: a step must lower the merit by more than this fraction, 0 to 0.5 (default 1e-4)")
     g.add_argument(
         "--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set (default 0)"
     )
