@@ -51,8 +51,15 @@ __all__ = [
 def cost_mismatch(delta_w: np.ndarray, phi_i: np.ndarray, phi_star: np.ndarray) -> np.ndarray:
     """``C(x_i, Δω) = Σ_s Δω_sᵀ (Φ_{s,i} − Φ*_{s,d})`` for every pair: ``phi_i (I, S, 7)``, ``phi_star (D, S, 7)``
     → ``(D, I)``."""
-    diff = phi_i[None, :, :, :] - phi_star[:, None, :, :]
-    return np.einsum("sj,disj->di", delta_w, diff)
+    return _mismatch(delta_w, phi_i, phi_star)[1]
+
+
+def _mismatch(delta_w: np.ndarray, phi_i: np.ndarray, phi_star: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The differences ``Φ_i − Φ*_d`` of every pair, flattened to ``(D·I, S·7)``, and ``C(x_i, Δω)``, ``(D, I)``:
+    one matrix-vector product (on these tiny arrays ``einsum`` costs several times the arithmetic)."""
+    n_d, n_i = phi_star.shape[0], phi_i.shape[0]
+    diff = (phi_i[None, :, :, :] - phi_star[:, None, :, :]).reshape(n_d * n_i, -1)
+    return diff, (diff @ delta_w.reshape(-1)).reshape(n_d, n_i)
 
 
 def gamma(w: np.ndarray, phi_i: np.ndarray, phi_star: np.ndarray) -> np.ndarray:
@@ -68,11 +75,10 @@ def _log_partition(shift: np.ndarray, group: Group) -> tuple[float, np.ndarray]:
     """``Σ_d c_d log(1 + Σ_i exp(−C(x_i, shift)))`` and its gradient in ``shift`` (a stable log-sum-exp).
 
     Written with plain array products: the solver of the subproblem calls it ~20 times per MO-IRL iteration on
-    tiny arrays, where scipy's ``logsumexp``/``softmax`` and ``einsum`` cost several times the arithmetic."""
+    tiny arrays, where scipy's ``logsumexp``/``softmax`` cost several times the arithmetic."""
     phi_i, phi_star, cd = group
-    n_d, n_i = phi_star.shape[0], phi_i.shape[0]
-    diff = (phi_i[None, :, :, :] - phi_star[:, None, :, :]).reshape(n_d * n_i, -1)  # (D·I, S·7)
-    neg = -(diff @ shift.reshape(-1)).reshape(n_d, n_i)  # −C(x_i, shift), (D, I)
+    diff, c = _mismatch(shift, phi_i, phi_star)
+    neg = -c  # the logits −C(x_i, shift), (D, I)
     top = np.maximum(neg.max(axis=1), 0.0)  # the largest of the logits [0, −C(x_i, shift)]
     e = np.exp(neg - top[:, None])
     z = np.exp(-top) + e.sum(axis=1)  # Σ exp(logit − top), the leading 1 included
