@@ -3,6 +3,7 @@ failures inside a fit, bad parameters."""
 
 import itertools
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -177,6 +178,43 @@ def test_predict_plans_each_trials_own_reach(fitted, demos):
     # a task on another discretisation is moved onto the model's
     task = ReachingTask.from_trial(demos[0], N_NODES + 10)
     assert fitted.predict(task).q.shape == (N_NODES + 1, 2)
+
+
+def _scripted_search(monkeypatch, merits):
+    """The line search on a scripted merit: the try at ``α = 0.25**k`` gets ``merits[k]`` (``inf``: its DOC
+    failed). Returns the search's outcome and the ``α`` it tried."""
+    tried = []
+
+    def rollouts(self, tasks, w, warm, guesses):
+        tried.append(float(w[0, 0] - 1.0))  # ω = 1 + α (Δω = 1)
+        sol = SimpleNamespace(converged=np.isfinite(merits[len(tried) - 1]))
+        return [sol], 1, 0
+
+    monkeypatch.setattr(MOIRL, "_rollouts", rollouts)
+    monkeypatch.setattr(MOIRL, "_merit", lambda self, x, sols, ch, tasks: merits[len(tried) - 1])
+    est = MOIRL(1, max_tries=len(merits))
+    w = np.ones((1, 7))
+    step = est._line_search(w, np.ones((1, 7)), 1.0, [None], [None], None, None, None, [None], None)
+    return step, tried
+
+
+def test_the_line_search_stops_when_a_shorter_try_does_no_better(monkeypatch):
+    """Along a unimodal merit, a try no better than the longer one before it means the best step is longer:
+    the search ends there (the scripted fourth try, which would pass, is never made)."""
+    step, tried = _scripted_search(monkeypatch, [1.3, 1.05, 1.08, 0.5])
+    assert not step.accepted and step.tries == 3 and step.merit == 1.0
+    np.testing.assert_allclose(tried, [1.0, 0.25, 0.0625])
+    # merits still falling as α shrinks: the search goes on and takes the first try that passes
+    step, tried = _scripted_search(monkeypatch, [1.3, 1.05, 1.01, 0.5])
+    assert step.accepted and step.tries == 4 and step.alpha == pytest.approx(0.25**3)
+
+
+def test_a_failed_try_never_ends_the_line_search_by_comparison(monkeypatch):
+    """A try whose DOC failed has no merit to compare: the next try is judged against nothing, and the failure
+    is counted."""
+    step, tried = _scripted_search(monkeypatch, [1.1, np.inf, 1.2, 0.9])
+    assert step.accepted and step.tries == 4 and step.failures == 1
+    assert len(tried) == 4
 
 
 def test_a_failed_warm_try_is_retried_before_it_counts(demos, monkeypatch):

@@ -9,11 +9,18 @@ import pytest
 
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.cli import main
-from reachirl.data.trial import load_trials, save_trials
+from reachirl.data.trial import load_trials, save_trials, trial_from_solution
 from reachirl.errors import InputError
 from reachirl.evaluation import evaluate_trials
 from reachirl.irl.moirl import MOIRL, mean_task
-from reachirl.observation import MOVING_FRACTION, common_threshold, observe, observed_task, rest_to_rest
+from reachirl.observation import (
+    MOVING_FRACTION,
+    common_threshold,
+    observe,
+    observed_knots,
+    observed_task,
+    rest_to_rest,
+)
 from reachirl.synth import nominal_weights, posture_q
 
 N = 40
@@ -42,6 +49,26 @@ def test_the_cut_is_where_the_speed_crosses_the_threshold():
     np.testing.assert_allclose(ends, 0.05 * peak, rtol=2e-3)
     assert 0.8 < trial.duration / task.duration < 0.97  # a bell-shaped reach: most of it above 5 %
     assert trial.x0[2:] @ trial.x0[2:] > 0  # it starts moving, as a recorded trial does
+
+
+def test_observed_knots_are_the_knots_of_the_observed_trial():
+    """MO-IRL reads each rollout's knots off the solution's spline; they must be those of the trial that
+    :func:`observe` makes, read as a demonstration is (:meth:`Trial.knots`), and the whole solution's own
+    knots without a threshold."""
+    _, sol, task = _recorded()
+    for threshold in (0.05, 0.2):
+        seen = observe(sol, task, threshold)
+        q, qd, tau, dt = observed_knots(sol, task, threshold)
+        q_ref, qd_ref, tau_ref = seen.knots(N)
+        np.testing.assert_allclose(q, q_ref, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(qd, qd_ref, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(tau, tau_ref, rtol=0, atol=1e-6 * np.max(np.abs(tau_ref)))
+        assert dt == pytest.approx(seen.duration / N, rel=1e-12)
+    whole = trial_from_solution(sol, ARM, task.target_x)
+    *knots, dt = observed_knots(sol, task, None)
+    for mine, ref in zip(knots, whole.knots(N), strict=True):
+        np.testing.assert_allclose(mine, ref, rtol=0, atol=1e-9 * max(1.0, np.max(np.abs(ref))))
+    assert dt == pytest.approx(whole.duration / N, rel=1e-12)
 
 
 def test_seen_as_recorded_the_true_weights_reproduce_their_reach():

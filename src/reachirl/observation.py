@@ -35,7 +35,7 @@ from .data.trial import Trial
 from .doc import DocSolution, ReachingTask, solve_doc
 from .doc.task import moved_path
 
-__all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_solution",
+__all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_knots", "observed_solution",
            "observed_state_jacobian", "observed_task", "predict", "rest_to_rest"]
 
 MOVING_FRACTION = 0.9
@@ -198,13 +198,31 @@ def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: flo
     return np.concatenate([dqk, np.concatenate([dqd0[None], dqd])], axis=1)
 
 
+def observed_knots(sol: DocSolution, task: ReachingTask,
+                   threshold: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``(q (N+1, 2), q̇ (N+1, 2), τ (N, 2), dt)``: the observed part of ``sol`` on the DOC's ``N`` intervals, as
+    :meth:`Trial.knots` computes a demonstration's (``observe(sol, task, threshold).knots(N)``), read straight
+    off the solution's spline: ``q_k`` at ``t_k = a + k (b − a)/N``, ``q̇_0`` its slope at ``a``, Euler
+    differences, inverse-dynamics torques, ``dt = (b − a)/N``. (The trial of :func:`observe` is sampled on a grid
+    that contains the ``t_k``, so its own spline passes through the same values: equal to rounding, tested.)
+    The solution's own knots without a threshold. MO-IRL reads every rollout this way."""
+    n = task.n_nodes
+    if check_threshold(threshold) is None:
+        return sol.q, sol.qd, sol.tau, task.dt
+    cut = _cut(sol, task, threshold)
+    dt = (cut.b - cut.a) / n
+    q = cut.spline(np.linspace(cut.a, cut.b, n + 1))
+    qd = np.vstack([cut.spline(cut.a, 1), np.diff(q, axis=0) / dt])
+    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
+    return q, qd, tau, dt
+
+
 def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | None) -> DocSolution:
     """``sol`` replaced by its observed part (:func:`observe`) on ``N + 1`` equally spaced knots (time from 0,
-    ``q̇`` and ``τ`` as :meth:`Trial.knots` computes a demonstration's), so that it is compared with a trial
-    resampled on the same knots; ``sol`` itself without a threshold."""
+    ``q̇`` and ``τ`` as :meth:`Trial.knots` computes a demonstration's: :func:`observed_knots`), so that it is
+    compared with a trial resampled on the same knots; ``sol`` itself without a threshold."""
     if check_threshold(threshold) is None:
         return sol
-    seen = observe(sol, task, threshold)
-    q, qd, tau = seen.knots(task.n_nodes)
-    return DocSolution(np.linspace(0.0, seen.duration, task.n_nodes + 1), q, qd, tau, sol.cost, sol.converged,
+    q, qd, tau, dt = observed_knots(sol, task, threshold)
+    return DocSolution(np.linspace(0.0, dt * task.n_nodes, task.n_nodes + 1), q, qd, tau, sol.cost, sol.converged,
                        sol.iterations, sol.solve_time, sol.status, sol.backend, sol.attempts, warm=None)

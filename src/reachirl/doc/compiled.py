@@ -51,7 +51,9 @@ MODES = ("auto", "on", "off")
 AUTO_AFTER = 1000  # cold solves of one NLP in one process before ``auto`` compiles it (~25 s of solving)
 AUTO_AFTER_WARM = 3000  # warm solves likewise (~50 s of solving; `make run` makes about 1000 per process)
 KINDS = ("cold", "warm")
-JIT_FLAGS = ("-O1",)  # measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36
+# measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36; -O2 and -O3
+# compile 80 s, not 49, and solve no faster (warm 10.9 ms with each of -O1, -O2, -O3, interleaved in one process)
+JIT_FLAGS = ("-O1",)
 POLL_EVERY = 50  # past its threshold, a slot looks for the background compilation's file every this many solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
 STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died

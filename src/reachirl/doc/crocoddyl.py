@@ -124,8 +124,9 @@ class CsqpOptions:
       456, 396 and 334 ms. On the learned-weight sweep (368 predictions, every 5th): 368/368 converged, q within
       0.057° and cost within 0.020 % of CasADi's (0.062° and 0.020 % with 1.6), median 1.45 against 1.72 s. And
       ``reproduce --quick --backend crocoddyl`` came within 0.27° of the CasADi table in every cell, against
-      0.38° with 1.6 (both with the protocol's former acceptance threshold 1e-5; with 1e-4, 0.42°: the fits of
-      one cell part at a step whose gain sits at the threshold, README).
+      0.38° with 1.6 (both with the protocol's former acceptance threshold 1e-5; with 1e-4, 0.42-0.52°: at the
+      quick fits' first weights CSQP's solutions lie 0.006° from a tight IPOPT optimum, fatrop's 0.0002°, and
+      the two backends' merits differ by up to 8e-4, more than the threshold, so the fits part, README).
     * ``rho_update_interval`` (CSQP's default 25) is also how often ADMM tests its residuals, so a QP takes at
       least that many iterations; 10 or 15 cut the QPs too short (2–4 of the 10 benchmark problems failed).
     * when CSQP stops early (no acceptable step along an inexact QP direction) it is restarted from where it

@@ -26,6 +26,9 @@ Choices the seed leaves open, fixed here (each an option):
   A try is accepted only if it lowers the merit by more than ``tol`` (relative), well above the DOC's own
   repeatability (warm against cold solves of the same weights differ by ~2e-5), and the search ends once a try
   would move no weight by more than ``min_step`` (relative): such a try cannot move the merit beyond that noise.
+  It also ends when a try's merit is no lower than the longer try's before it: along a merit that is unimodal on
+  the step, the best step is then longer than both, and no shorter try can pass (measured on seven virtual
+  populations: 129 → 124 DOC solves per 8-window protocol fit, every held-out RMSE within 0.01°).
   A step that scales every weight by one factor changes no DOC, so no solve is spent on it. This happens when
   the demonstrations cost more than the rollout on every feature, as one window often finds on time-varying
   data: the likelihood's only advice is then to lower the temperature (see the merit fallback below). A fit
@@ -124,8 +127,15 @@ from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
 from ..doc.sensitivity import weight_jacobian
-from ..features import N_FEATURES, feature_rates, window_index
-from ..observation import common_threshold, observe, observed_state_jacobian, observed_task, rest_to_rest
+from ..features import N_FEATURES, feature_rates, window_index, windowed_features
+from ..observation import (
+    common_threshold,
+    observe,
+    observed_knots,
+    observed_state_jacobian,
+    observed_task,
+    rest_to_rest,
+)
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 
@@ -350,28 +360,30 @@ class MOIRL(WeightEstimator):
         low-pass filter, so the filter's own distortions cancel in ``Φ_i − Φ*``."""
         if self.feature_cutoff is not None:
             trial = trial.lowpass(self.feature_cutoff)
-        if not self.n_suffixes:
-            return trial.features(self.n_nodes, self.n_windows)
         q, qd, tau = trial.knots(self.n_nodes)
-        dt = trial.duration / self.n_nodes
-        return _suffix_features(feature_rates(trial.arm, q, qd, tau, dt), dt, self.n_windows, starts)
+        return self._knot_features(trial.arm, q, qd, tau, trial.duration / self.n_nodes, starts)
+
+    def _knot_features(self, arm: ArmModel, q, qd, tau, dt: float, starts: np.ndarray) -> np.ndarray:
+        if not self.n_suffixes:
+            return windowed_features(arm, q, qd, tau, dt, self.n_windows)
+        return _suffix_features(feature_rates(arm, q, qd, tau, dt), dt, self.n_windows, starts)
 
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
-        return np.stack([
-            self._trajectory_features(self._seen(i, task, sol), starts)
-            for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))
-        ])
+        if self.feature_cutoff is not None:  # the filter needs the rollout as a recording
+            return np.stack([self._trajectory_features(self._seen(i, task, sol), starts)
+                             for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))])
+        return np.stack([self._knot_features(task.arm, *observed_knots(sol, task, self._thresholds[i]), starts)
+                         for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))])
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 
     def _state(self, i: int, task: ReachingTask, sol: DocSolution) -> np.ndarray:
         """Rollout ``i``'s state on the knots as the merit compares it, ``(N+1, 4)``: seen as the demonstrations
-        were recorded (:meth:`_seen`), or the DOC's own knots."""
-        if self._thresholds[i] is None:
-            return sol.state
-        return self._seen(i, task, sol).knot_state(self.n_nodes)
+        were recorded (:func:`reachirl.observation.observed_knots`), or the DOC's own knots."""
+        q, qd, _, _ = observed_knots(sol, task, self._thresholds[i])
+        return np.hstack([q, qd])
 
     def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None,
                tasks: Sequence[ReachingTask]) -> float:
@@ -586,10 +598,13 @@ class MOIRL(WeightEstimator):
         """``α = α0, α0·shrink, …`` (at most ``max_tries``): the first ``ω + αΔω`` whose DOC rollout lowers the
         merit by more than ``tol`` (relative; or passes the "either" test) is accepted. A try whose DOC fails
         even after the cold and demonstration-path retries counts as a failure and is rejected.
-        ``ω + αΔω > 0`` since ``Δω > −ω``."""
+        ``ω + αΔω > 0`` since ``Δω > −ω``. The search ends when a try would move no weight by ``min_step``, and
+        (merit acceptance) when a try's merit is no lower than the longer try's before it: along a unimodal
+        merit no shorter step can then pass (a failed try, whose merit is unknown, does not end it)."""
         alpha, solves, failures, recovered = self.alpha0, 0, 0, 0
         tol = self.tol if tol is None else tol
         rel = float(np.max(np.abs(dw / w)))
+        m_prev = np.inf  # the previous (longer) try's merit
         for tries in range(1, self.max_tries + 1):
             if alpha * rel < self.min_step:  # no weight moves by min_step: the merit cannot move beyond noise
                 return _Step(False, 0.0, tries - 1, w, sols, m, solves, failures, recovered)
@@ -605,6 +620,11 @@ class MOIRL(WeightEstimator):
                                  or self._accept_multimodal(m, m_try, sols, cand))
             ):
                 return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures, recovered)
+            if self.acceptance == "merit" and np.isfinite(m_try) and m_try >= m_prev:
+                # this shorter try did no better than the longer one: along a unimodal merit the best step is
+                # longer than this one, so no shorter try can pass where these two did not
+                return _Step(False, 0.0, tries, w, sols, m, solves, failures, recovered)
+            m_prev = m_try
             alpha *= self.shrink
         return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures, recovered)
 
