@@ -28,7 +28,8 @@ Choices the seed leaves open, fixed here (each an option):
   would move no weight by more than ``min_step`` (relative): such a try cannot move the merit beyond that noise.
   It also ends when a try's merit is no lower than the longer try's before it: along a merit that is unimodal on
   the step, the best step is then longer than both, and no shorter try can pass (measured on seven virtual
-  populations: 129 → 124 DOC solves per 8-window protocol fit, every held-out RMSE within 0.01°).
+  populations: 129 → 124 DOC solves per 8-window protocol fit, every held-out RMSE over all postures within
+  0.01°).
   A step that scales every weight by one factor changes no DOC, so no solve is spent on it. This happens when
   the demonstrations cost more than the rollout on every feature, as one window often finds on time-varying
   data: the likelihood's only advice is then to lower the temperature (see the merit fallback below). A fit
