@@ -34,6 +34,7 @@ from scipy.interpolate import CubicSpline
 from .data.trial import Trial
 from .doc import DocSolution, ReachingTask, solve_doc
 from .doc.task import moved_path
+from .features import euler_knots
 
 __all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_knots", "observed_solution",
            "observed_state_jacobian", "observed_task", "predict", "rest_to_rest"]
@@ -148,8 +149,8 @@ def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name:
 
 def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: float | None,
                             dq: np.ndarray) -> np.ndarray:
-    """The derivative of the observed state (``observe(sol, task, threshold).knot_state(N)``, or ``sol.state``
-    without a threshold) along changes ``dq (N+1, 2, P)`` of the solution's knots: ``(N+1, 4, P)``.
+    """The derivative of the observed state (``q`` and ``q̇`` of :func:`observed_knots`, ``sol.state`` without a
+    threshold) along changes ``dq (N+1, 2, P)`` of the solution's knots: ``(N+1, 4, P)``.
 
     The observed knots are the spline at ``t_k = a + k (b − a)/N``, their velocities Euler differences over
     ``(b − a)/N`` (the first one the spline's slope at ``a``), so a change moves them directly and through the
@@ -211,10 +212,7 @@ def observed_knots(sol: DocSolution, task: ReachingTask,
         return sol.q, sol.qd, sol.tau, task.dt
     cut = _cut(sol, task, threshold)
     dt = (cut.b - cut.a) / n
-    q = cut.spline(np.linspace(cut.a, cut.b, n + 1))
-    qd = np.vstack([cut.spline(cut.a, 1), np.diff(q, axis=0) / dt])
-    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
-    return q, qd, tau, dt
+    return (*euler_knots(task.arm, cut.spline(np.linspace(cut.a, cut.b, n + 1)), dt, cut.spline(cut.a, 1)), dt)
 
 
 def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | None) -> DocSolution:

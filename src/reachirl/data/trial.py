@@ -19,6 +19,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from ..arm import ArmModel
 from ..errors import InputError
+from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
 
 __all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "trial_from_knots", "trial_from_solution"]
@@ -134,10 +135,7 @@ class Trial:
         """
         n = int(n_nodes)
         dt = self.duration / n
-        q = self.q_at(n + 1)
-        qd = np.vstack([self.x0[2:], np.diff(q, axis=0) / dt])
-        tau = self.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
-        return q, qd, tau
+        return euler_knots(self.arm, self.q_at(n + 1), dt, self.x0[2:])
 
     def lowpass(self, cutoff_hz: float, order: int = 4) -> Trial:
         """The same reach with its angles low-passed again (zero-lag Butterworth of ``order`` at ``cutoff_hz``,

@@ -54,7 +54,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from ..features import N_FEATURES, trajectory_cost, window_index
+from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
 from . import compiled
 from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots
 
@@ -320,14 +320,6 @@ def initial_guess(task: ReachingTask) -> np.ndarray:
     return _pack(task, guess_knots(task))
 
 
-def _knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``q, q̇, τ`` of the semi-implicit Euler trajectory through the knots ``q (N+1, 2)`` (``q̇_0 = 0``)."""
-    dt = task.dt
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
-    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
-    return q, qd, tau
-
-
 def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     """Decision vector of the trajectory through the knots ``q (N+1, 2)``, slacks ``s± = max(±q̇ᵀτ, 0)``.
 
@@ -362,7 +354,7 @@ def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> 
     No floor: a floor (it was 1e-8) made the objective of small weights tiny next to the solver's tolerance,
     and the solver then stopped "converged" far from the optimum. :func:`reachirl.doc.solve_doc` passes weights
     normalised to a maximum of 1, so the cost here is a physical quantity of order 1e-3 to 1e3."""
-    q, qd, tau = _knots(task, _unpack_q(task, z))
+    q, qd, tau = euler_knots(task.arm, _unpack_q(task, z), task.dt)
     cost = trajectory_cost(task.arm, q, qd, tau, task.dt, weights)
     return 1.0 / cost if np.isfinite(cost) and cost > 1e-300 else 1.0
 
@@ -443,7 +435,7 @@ def solve(
     q = _unpack_q(task, np.asarray(out["x"]).reshape(-1))
     q[-1] = on_bar(task, q[-1])
     z = _pack(task, q)
-    q, qd, tau = _knots(task, _unpack_q(task, z))
+    q, qd, tau = euler_knots(task.arm, _unpack_q(task, z), task.dt)
     return DocSolution(
         t=task.t,
         q=q,

@@ -63,7 +63,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..arm import ArmModel
-from ..features import FEATURES, N_FEATURES, trajectory_cost, window_index
+from ..features import FEATURES, N_FEATURES, euler_knots, trajectory_cost, window_index
 from .task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots
 
 __all__ = [
@@ -589,9 +589,7 @@ def initial_guess(task: ReachingTask) -> tuple[np.ndarray, np.ndarray, np.ndarra
     )
     q = task.q0 + min_jerk(np.linspace(0.0, 1.0, n + 1))[:, None] * (qf - task.q0)
     q[-1] = q[-2]
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
-    tau = arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
-    return q, qd, tau
+    return euler_knots(arm, q, dt)
 
 
 def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list[np.ndarray]]:

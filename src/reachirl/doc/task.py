@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..arm import ArmModel
+from ..features import euler_knots
 from ..validation import check_arm, check_duration, check_n_nodes
 
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk",
@@ -137,9 +138,7 @@ def rest_to_rest_knots(task: ReachingTask, q: np.ndarray) -> tuple[np.ndarray, n
     q = np.array(q, dtype=float)
     q[0] = task.q0
     q[-2] = q[-1]
-    qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / task.dt])
-    tau = task.arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / task.dt)
-    return q, qd, tau
+    return euler_knots(task.arm, q, task.dt)
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:
