@@ -54,6 +54,14 @@ def test_jacobian_matches_finite_differences(arm, rng):
         np.testing.assert_allclose(arm.jacobian(q), fd, atol=1e-8)
 
 
+def test_fingertip_speed_is_the_rate_of_the_fingertip_position(arm, rng):
+    q, qd, _ = random_states(rng)
+    h = 1e-6  # the fingertip's displacement along q̇, by central differences of fk
+    fd = np.linalg.norm((arm.fk(q + h * qd) - arm.fk(q - h * qd)) / (2 * h), axis=1)
+    np.testing.assert_allclose(arm.fingertip_speed(q, qd), fd, rtol=1e-7)
+    np.testing.assert_allclose(arm.fingertip_speed(q[0], np.zeros(2)), 0.0, atol=0.0)
+
+
 def test_ik_round_trip_elbow_flexed(arm, rng):
     q = np.column_stack([rng.uniform(-2.0, 1.5, 50), rng.uniform(0.05, 2.6, 50)])
     np.testing.assert_allclose(arm.ik(arm.fk(q)), q, atol=1e-9)

@@ -24,8 +24,9 @@ Formulation (exactly the problem of :mod:`reachirl.doc.task`):
   (this took IPOPT from 75 % to 100 % convergence).
 * The returned trajectory is rebuilt from the knots ``q_k``: ``q̇`` by differences, ``τ`` by inverse dynamics,
   the final posture moved onto the bar to machine precision (the solvers meet constraints to their
-  feasibility tolerance), and the cost is the NLP objective there with exact slacks. It equals
-  :func:`reachirl.features.trajectory_cost` of the returned trajectory.
+  feasibility tolerance), and the cost is :func:`reachirl.features.trajectory_cost` of the returned
+  trajectory: the NLP objective there with exact slacks (tested against an independent Pinocchio
+  computation), without a second evaluation of the symbolic objective.
 
 Solvers, and why (CPU time, N = 100, 8 windows, 7 features, 20 problems of ``benchmarks/bench_doc.py``, on a
 loaded 2-core machine; before this form, IPOPT on the positions-only form took 29 ms and 16 iterations cold,
@@ -225,6 +226,7 @@ class _Nlp:
         self.nlp = {"x": z, "p": self.p, "f": fscale * obj, "g": gg}
         self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
         self._solvers: dict = {}
+        self._bounds: dict = {}
         self.lock = threading.Lock()
         self.slots = {"cold": compiled.Slot(n, self.nlp, self.cold_solver_spec(), kind="cold"),
                       "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm")}
@@ -286,12 +288,20 @@ class _Nlp:
         return np.concatenate([arm, task.q0, [task.target_x, task.dt, fscale], per_knot.reshape(-1)])
 
     def bounds(self, task: ReachingTask) -> dict:
-        inf = np.inf
-        lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
-        ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
-        lbx = np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]]
-        ubx = np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]]
-        return {"lbx": lbx, "ubx": ubx, "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
+        """The variable and constraint bounds of ``task`` (read-only arrays, shared by every solve of the same
+        joint limits and speed bound)."""
+        key = (tuple(task.q_lower), tuple(task.q_upper), tuple(task.qd_max))
+        if key not in self._bounds:
+            inf = np.inf
+            lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
+            ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
+            out = {"lbx": np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]],
+                   "ubx": np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]],
+                   "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
+            for a in out.values():
+                a.setflags(write=False)
+            self._bounds[key] = out
+        return self._bounds[key]
 
 
 @functools.lru_cache(maxsize=16)
@@ -324,8 +334,12 @@ def _pack(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     """Decision vector of the trajectory through the knots ``q (N+1, 2)``, slacks ``s± = max(±q̇ᵀτ, 0)``.
 
     ``q_0`` is set to ``task.q0`` and ``q_{N−1}`` to ``q_N`` (``q̇_0 = q̇_N = 0``)."""
+    return _pack_knots(task, *rest_to_rest_knots(task, q))
+
+
+def _pack_knots(task: ReachingTask, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Decision vector of the knots ``(q, q̇, τ)`` of :func:`reachirl.doc.task.rest_to_rest_knots`."""
     n, dt = task.n_nodes, task.dt
-    q, qd, tau = rest_to_rest_knots(task, q)
     e = np.sum(qd[:-1] * tau, axis=1)
     z = np.zeros((n + 1, NX + NU))
     z[:, 0:2], z[:, 2:4] = q, qd
@@ -359,14 +373,15 @@ def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> 
     return 1.0 / cost if np.isfinite(cost) and cost > 1e-300 else 1.0
 
 
-def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[dict, dict, float]:
+def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[np.ndarray, dict, float]:
+    """The solver's primal solution (a flat array), its stats and its wall time."""
     with nlp.lock:  # an nlpsol instance is not re-entrant
         solver = nlp.fatrop(kind) if kind.startswith("fatrop") else nlp.solver(kind)
         t0 = time.perf_counter()
         out = solver(**args)
         elapsed = time.perf_counter() - t0
         stats = solver.stats()
-    return out, stats, elapsed
+    return out["x"].full().reshape(-1), stats, elapsed
 
 
 # fatrop's return flag, reported by CasADi as a number; only 0 is a success (see FATROP_OPTIONS)
@@ -407,7 +422,7 @@ def solve(
     warm = warm_start.warm if warm_start is not None else None
     key = _task_key(task)
     iterations, elapsed, attempts = 0, 0.0, 0
-    out = stats = None
+    x = stats = None
     ok = False
     same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
     if same_task and len(warm["x"]) == nlp.n_z:
@@ -415,38 +430,37 @@ def solve(
         fscale = warm["fscale"]
         args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}
         kind = "fatrop_warm"
-        out, stats, elapsed = _run(nlp, kind, args)
+        x, stats, elapsed = _run(nlp, kind, args)
         iterations, attempts = int(stats.get("iter_count", 0)), 1
-        ok = _converged(stats, np.asarray(out["x"]))
-    if out is None or (retry_cold and not ok):
+        ok = _converged(stats, x)
+    if x is None or (retry_cold and not ok):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
         # change of weights
         x0 = np.clip(initial_guess(task) if guess is None else _pack(task, guess), lbx, ubx)
         fscale = _objective_scale(task, weights, x0)
         args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
         for kind in ("fatrop", "ipopt"):
-            out, stats, t = _run(nlp, kind, args)
+            x, stats, t = _run(nlp, kind, args)
             iterations += int(stats.get("iter_count", 0))
             attempts += 1
             elapsed += t
-            ok = _converged(stats, np.asarray(out["x"]))
+            ok = _converged(stats, x)
             if ok:
                 break
-    q = _unpack_q(task, np.asarray(out["x"]).reshape(-1))
+    q = _unpack_q(task, x)
     q[-1] = on_bar(task, q[-1])
-    z = _pack(task, q)
-    q, qd, tau = euler_knots(task.arm, _unpack_q(task, z), task.dt)
+    q, qd, tau = rest_to_rest_knots(task, q)
     return DocSolution(
         t=task.t,
         q=q,
         qd=qd,
         tau=tau,
-        cost=float(nlp.objective(z, args["p"])) / fscale,
+        cost=trajectory_cost(task.arm, q, qd, tau, task.dt, weights),
         converged=ok,
         iterations=iterations,
         solve_time=elapsed,
         attempts=attempts,
         status=_status(kind, stats),
         backend="casadi",
-        warm={"backend": "casadi", "task": key, "fscale": fscale, "x": z},
+        warm={"backend": "casadi", "task": key, "fscale": fscale, "x": _pack_knots(task, q, qd, tau)},
     )
