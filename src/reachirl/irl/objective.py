@@ -29,7 +29,7 @@ Changing a feature's unit rescales its weight and leaves every step, in ω-space
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import lsq_linear, minimize
+from scipy.optimize import Bounds, lsq_linear, minimize
 
 __all__ = [
     "Group",
@@ -146,7 +146,6 @@ def minimize_in_box(fun, lower: np.ndarray, upper: np.ndarray | None, max_iter: 
     """Minimise ``fun(x) -> (value, gradient)`` over a matrix ``x`` of ``lower``'s shape within the bounds, from
     ``x = 0``, with scipy's L-BFGS-B. Returns ``x`` and the solver's report."""
     shape = lower.shape
-    upper_flat = [None] * lower.size if upper is None else upper.reshape(-1)
 
     def flat(x: np.ndarray) -> tuple[float, np.ndarray]:
         f, g = fun(x.reshape(shape))
@@ -157,7 +156,7 @@ def minimize_in_box(fun, lower: np.ndarray, upper: np.ndarray | None, max_iter: 
         np.zeros(lower.size),
         jac=True,
         method="L-BFGS-B",
-        bounds=list(zip(lower.reshape(-1), upper_flat, strict=True)),
+        bounds=Bounds(lower.reshape(-1), np.inf if upper is None else upper.reshape(-1)),
         options={"maxiter": max_iter, "ftol": 1e-15, "gtol": 1e-12},
     )
     info = {"fun": float(res.fun), "nit": int(res.nit), "success": bool(res.success), "message": str(res.message)}
