@@ -157,11 +157,15 @@ def _reference_doc_time(task: ReachingTask, weights: np.ndarray, repeats: int = 
     return float(np.median(walls)), float(np.median(cpus))
 
 
-def protocol_fit_cpu(seed: int = 0, sections: int = 8) -> dict:
+def protocol_fit_cpu(seed: int = 0, sections: int = 8, repeats: int = 3) -> dict:
     """CPU time of the protocol's own MO-IRL fits (``make run``'s: built-in virtual subjects, 10 training
     reaches cut from their recordings, observed, normalised merit), one per posture, on CasADi's virtual
     machine and with the compiled solvers of :mod:`reachirl.doc.compiled` (compiled first if not cached), with
-    a cold reference DOC timed the same way; the weights must be the same both ways."""
+    a cold reference DOC timed the same way; the weights must be the same both ways.
+
+    Each fit runs ``repeats`` times and counts with its least CPU time (as ``timeit`` advises: on a shared
+    machine the other tenants only ever add time; on this one a fit's CPU time varied by up to 30 % from run
+    to run); every repeat must give the same weights, and ``fit_cpu_runs_s`` keeps all the times."""
     from reachirl.doc.compiled import setting as compile_mode
     from reachirl.experiments import datasets
     from reachirl.experiments.protocol import (
@@ -183,18 +187,22 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8) -> dict:
         with compile_mode(mode):
             make_estimator(units[0]).fit(first)  # builds the NLP (and loads or compiles the solvers)
             _, ref_cpu = _reference_doc_time(mean_task(first, N_NODES), np.full((sections, 7), 1.0))
-            cpus, solves = [], []
-            for u in units:
-                est = make_estimator(u)
-                c0 = time.process_time()
-                est.fit(train[u.posture])
-                cpus.append(time.process_time() - c0)
-                solves.append(int(est.n_doc_solves_))
-                weights.setdefault(u.posture, []).append(est.weights_)
+            runs, solves = [[] for _ in units], {}
+            for _ in range(repeats):
+                for u, times in zip(units, runs, strict=True):
+                    est = make_estimator(u)
+                    c0 = time.process_time()
+                    est.fit(train[u.posture])
+                    times.append(time.process_time() - c0)
+                    solves.setdefault(u.posture, int(est.n_doc_solves_))
+                    weights.setdefault(u.posture, []).append(est.weights_)
+            cpus = [min(times) for times in runs]
+            solves = list(solves.values())
         key = "vm" if mode == "off" else "compiled"
-        out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "doc_solves": solves,
-                    "reference_doc_cpu_s": ref_cpu, "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}
-    out["same_weights"] = all(np.array_equal(a, b) for a, b in weights.values())
+        out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "fit_cpu_runs_s": runs,
+                    "repeats": repeats, "doc_solves": solves, "reference_doc_cpu_s": ref_cpu,
+                    "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}
+    out["same_weights"] = all(np.array_equal(w[0], b) for w in weights.values() for b in w[1:])
     out["compiled_vs_vm"] = out["compiled"]["fit_cpu_median_s"] / out["vm"]["fit_cpu_median_s"]
     return out
 
@@ -279,6 +287,10 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
                 }
     protocol_fits = None if quick else protocol_fit_cpu(seed)
     targets = _targets(rows, curves, ref_doc)
+    if protocol_fits is not None:  # issue 10: an 8-window fit of 10 recorded reaches takes at most 1 s of CPU
+        median = protocol_fits["compiled"]["fit_cpu_median_s"]
+        targets["protocol_fit_le_1s_cpu"] = {"median_cpu_s": median, "per_posture_cpu_s":
+                                             protocol_fits["compiled"]["fit_cpu_s"], "met": median <= 1.0}
     result = {
         "benchmark": "irl",
         "quick": quick,
@@ -440,7 +452,9 @@ def markdown(result: dict) -> str:
         lines += [
             "",
             f"The protocol's own fits (`make run`'s reaches, {pf['sections']} sections, {pf['n_train']} training "
-            f"reaches cut from their recordings and observed), CPU seconds per posture ({', '.join(pf['postures'])}):",
+            f"reaches cut from their recordings and observed), CPU seconds per posture ({', '.join(pf['postures'])}), "
+            f"each the least of {pf['compiled'].get('repeats', 1)} runs (every run gave the same weights: "
+            f"{pf['same_weights']}):",
             "",
             "| solver | fit CPU (s) | median | DOC solves | median / ref DOC CPU |",
             "|---|---|---|---|---|",
