@@ -135,6 +135,25 @@ def test_the_casadi_objective_is_the_seeds_objective_away_from_the_optimum(arm, 
     assert value > sol.cost
 
 
+def test_casadi_bounds_follow_each_tasks_own_limits(arm):
+    """The bounds an NLP keeps per set of joint limits: a task with limits of its own gets its own, a task of
+    the first limits gets the first ones back, and nobody can write into the shared arrays."""
+    import dataclasses
+
+    from reachirl.doc import casadi as backend
+
+    task = make_task(arm, TEST_POSTURES_DEG[1], n_nodes=40)
+    narrower = dataclasses.replace(task, q_upper=task.q_upper - 0.1)
+    slower = dataclasses.replace(task, qd_max=task.qd_max * 0.5)
+    nlp = backend.build_nlp(task.n_nodes)
+    for t in (task, narrower, slower, task):
+        ub = nlp.bounds(t)["ubx"][2:-6].reshape(task.n_nodes - 1, -1)  # the inner knots' (x, u) rows
+        np.testing.assert_array_equal(ub[:, 0:2], np.tile(t.q_upper, (task.n_nodes - 1, 1)))
+        np.testing.assert_array_equal(ub[:, 2:4], np.tile(t.qd_max, (task.n_nodes - 1, 1)))
+    with pytest.raises(ValueError, match="read-only"):
+        nlp.bounds(task)["lbx"][0] = 0.0
+
+
 def test_the_returned_torques_drive_the_arm_onto_the_bar_at_rest(any_backend):
     """The terminal constraints met by the motion the torques produce, not only by the returned knots:
     integrate ``sol.tau`` from (q0, 0) with Pinocchio's ABA (semi-implicit Euler, the DOC's dynamics)."""

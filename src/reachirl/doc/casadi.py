@@ -131,6 +131,7 @@ FATROP_WARM_OPTIONS: dict = {
 _FATROP_SLOT = {"fatrop": "cold", "fatrop_warm": "warm"}  # each fatrop solver's compiled slot (reachirl.doc.compiled)
 
 _ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
+_BOUNDS_KEPT = 32  # sets of joint limits whose bounds an NLP keeps (~16 kB each at N = 100)
 
 
 def _inverse_dynamics(arm, q, qd, qdd):
@@ -289,9 +290,11 @@ class _Nlp:
 
     def bounds(self, task: ReachingTask) -> dict:
         """The variable and constraint bounds of ``task`` (read-only arrays, shared by every solve of the same
-        joint limits and speed bound)."""
+        joint limits and speed bound; the last :data:`_BOUNDS_KEPT` sets of limits are kept)."""
         key = (tuple(task.q_lower), tuple(task.q_upper), tuple(task.qd_max))
         if key not in self._bounds:
+            if len(self._bounds) >= _BOUNDS_KEPT:  # tasks with limits of their own: forget the oldest
+                self._bounds.pop(next(iter(self._bounds)))
             inf = np.inf
             lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
             ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
