@@ -292,19 +292,22 @@ class _Nlp:
         """The variable and constraint bounds of ``task`` (read-only arrays, shared by every solve of the same
         joint limits and speed bound; the last :data:`_BOUNDS_KEPT` sets of limits are kept)."""
         key = (tuple(task.q_lower), tuple(task.q_upper), tuple(task.qd_max))
-        if key not in self._bounds:
+        found = self._bounds.get(key)
+        if found is not None:
+            return found
+        inf = np.inf
+        lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
+        ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
+        out = {"lbx": np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]],
+               "ubx": np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]],
+               "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
+        for a in out.values():
+            a.setflags(write=False)
+        with self.lock:  # threads may share the NLP
             if len(self._bounds) >= _BOUNDS_KEPT:  # tasks with limits of their own: forget the oldest
                 self._bounds.pop(next(iter(self._bounds)))
-            inf = np.inf
-            lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
-            ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
-            out = {"lbx": np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]],
-                   "ubx": np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]],
-                   "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
-            for a in out.values():
-                a.setflags(write=False)
             self._bounds[key] = out
-        return self._bounds[key]
+        return out
 
 
 @functools.lru_cache(maxsize=16)
