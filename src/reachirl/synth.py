@@ -436,7 +436,7 @@ def _reach_kinematics(arm: ArmModel, t_knots, q_knots, rate: float = 1000.0):
     t = np.arange(0.0, t_knots[-1], 1.0 / rate)
     q, qd = spline(t), spline(t, 1)
     p = arm.fk(q)
-    v = np.linalg.norm(arm.fingertip_velocity(q, qd), axis=1)
+    v = arm.fingertip_speed(q, qd)
     return t, p, v
 
 

@@ -181,7 +181,7 @@ def _expand(inputs: list[str]) -> list[Path]:
 
 
 def _summary(tr: Trial) -> str:
-    speed = np.linalg.norm(tr.arm.fingertip_velocity(tr.q, tr.qd), axis=1)
+    speed = tr.arm.fingertip_speed(tr.q, tr.qd)
     q = np.degrees(tr.q)
     return (
         f"{tr.id}: {tr.duration:.2f} s, peak fingertip speed {speed.max():.2f} m/s, "

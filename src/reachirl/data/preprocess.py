@@ -785,7 +785,7 @@ def angles_to_trial(
         else:
             log.info("%s: %d samples at %.3g Hz, not filtered", src, t.shape[0], rate)
     qd, qdd = _derivatives(t, q)
-    speed = np.linalg.norm(arm.fingertip_velocity(q, qd), axis=1)
+    speed = arm.fingertip_speed(q, qd)
     if speed.max() < options.min_peak_speed:
         raise InputError(
             f"no movement detected: the fingertip's peak speed is {speed.max():.3g} m/s "
