@@ -63,9 +63,10 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     it with the five built-in features (``inner_*``), the custom terms' arithmetic (energy, torque change) in
     Python scalars, an empty Python action model (the floor of any Python knot: the C++ → Python call), and a
     CasADi ``Function`` of the custom terms called from Python (the compiled-derivatives route). Per solve
-    (ms): the SQP iterations × (calc + calcDiff of the 100 knots), the line-search rollouts (one calc per SQP
-    iteration at least), and CSQP's ADMM iterations (× the time of one, from ``computeDirection``), against the
-    measured solve time; the rest is Python in the monitor callback and bookkeeping.
+    (ms): the SQP iterations × the calcDiff of the 100 knots, the rollouts × their calc (one per SQP iteration and
+    one per line-search try, counted in a second, identical solve), and CSQP's ADMM iterations (× the time of
+    one, from ``computeDirection``, with the bounds the solve had), against the measured solve time; the rest is
+    the monitor callback, the line search's and the QPs' other work, and bookkeeping.
     """
     import math
 
@@ -126,8 +127,24 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     sol = solve_doc(task, w, backend="crocoddyl")
     iters = sol.iterations
     qp_iters = int(sol.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in sol.status else 0
+    # the same solve again (deterministic), counting the rollouts: one per SQP iteration and one per line-search
+    # try (the terminal knot's calc runs once per rollout)
+    rollouts = [0]
+    calc = cb.KnotModel.calc
+
+    def counting_calc(self, data, x, u=None):
+        rollouts[0] += self.terminal
+        return calc(self, data, x, u)
+
+    cb.KnotModel.calc = counting_calc
+    try:
+        again = solve_doc(task, w, backend="crocoddyl")
+    finally:
+        cb.KnotModel.calc = calc
+    assert again.iterations == iters
     xs, us = cb._to_shooting(task, sol.q, sol.qd, sol.tau)
-    prob.update(task, w * scale)
+    # the ADMM iterations are timed with the bounds the solve had (the running ones screened out, by default)
+    prob.update(task, w * scale, running_bounds=not (cb.DEFAULT_OPTIONS.screen_bounds and sol.attempts == 1))
     t_calc = _time(lambda: prob.problem.calc(xs, us), 20)
     t_diff = _time(lambda: prob.problem.calcDiff(xs, us), 20)
 
@@ -140,7 +157,7 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     total = sol.solve_time
     pieces = {
         "knot_models_calcdiff_ms": 1e3 * iters * t_diff,
-        "knot_models_calc_ms": 1e3 * iters * t_calc,  # at least one line-search rollout per iteration
+        "knot_models_calc_ms": 1e3 * rollouts[0] * t_calc,  # each SQP iteration's and each line-search try's
         "admm_ms": 1e3 * qp_iters * t_qp,
     }
     pieces["rest_ms"] = 1e3 * total - sum(pieces.values())
@@ -152,7 +169,8 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
             "problem_calc_ms": 1e3 * t_calc,
             "problem_calcdiff_ms": 1e3 * t_diff,
             "admm_iteration_us": 1e6 * t_qp,
-            "solve": {"time_ms": 1e3 * total, "sqp_iterations": iters, "admm_iterations": qp_iters, **pieces},
+            "solve": {"time_ms": 1e3 * total, "sqp_iterations": iters, "rollouts": rollouts[0],
+                      "admm_iterations": qp_iters, "attempts": sol.attempts, **pieces},
             "python_share_of_knot_time": python_share,
         }
     )

@@ -6,6 +6,7 @@
 ``docs/measured.json`` (a snapshot: the protocol table of ``make run``, the benchmark figures of ``make bench``,
 the machine and the wall times seen) and rewrites the README between ``<!-- measured:begin -->`` and
 ``<!-- measured:end -->`` from that snapshot. Parts whose file is not given keep their previous snapshot.
+Benchmark suites missing from the bench file keep theirs too (one machine label covers them all).
 Times are given as ranges over the runs recorded and as ratios to a baseline timed in the same run, with the
 machine named, since a shared machine's absolute times vary. ``tests/test_readme_measured.py`` fails when the
 README differs from the snapshot, or when ``results/results.json`` holds other numbers than the snapshot.
@@ -94,7 +95,7 @@ def bench_numbers(bench: dict) -> dict:
             "crocoddyl_vs_casadi_warm_cpu": round(c["warm_cpu_median_s"] / a["warm_cpu_median_s"], 1),
             "crocoddyl_converged": c["converged"],
             "agreement_q_deg_max": round(bk["agreement"]["q_rmse_deg_max"], 3),
-            "agreement_cost_pct_max": round(bk["agreement"]["cost_diff_pct_max_abs"], 3),
+            "agreement_cost_pct_max": float(f'{bk["agreement"]["cost_diff_pct_max_abs"]:.2g}'),  # 2 significant
         }
     return out
 
@@ -186,7 +187,8 @@ def main(argv: list[str] | None = None) -> int:
             times.append(round(res["timing"]["total_s"], 1))
             del times[:-MAX_TIMES]
     if args.bench:
-        snap["bench"] = bench_numbers(json.loads(args.bench.read_text(encoding="utf-8")))
+        # suites the file does not hold (``reachirl bench backends --out F``) keep their previous snapshot
+        snap["bench"] = {**snap.get("bench", {}), **bench_numbers(json.loads(args.bench.read_text(encoding="utf-8")))}
         snap["bench_machine"] = machine()
     text = README.read_text(encoding="utf-8")
     new = text.replace(readme_block(text), render(snap))

@@ -217,3 +217,49 @@ def test_backends_agree_sweep(arm, posture, n_windows):
     assert b.converged, b.status
     assert rmse_deg(a.q, b.q) < 0.5
     assert abs(b.cost - a.cost) / a.cost < 0.01
+
+
+def test_bounds_left_out_of_the_first_solve_come_back_when_violated(arm):
+    """The first CSQP solve leaves the running knots' joint-limit and speed bounds out (``screen_bounds``).
+    On a reach whose free optimum exceeds the speed bound, the returned trajectory must still respect it, and
+    land on CasADi's solution (which always carries the bound); on a reach where the bounds are inactive the
+    screened solve is the full problem's solution.
+    """
+    rng = np.random.default_rng(11)
+    task = make_task(arm, "P2")
+    w = random_weights(rng, 1)
+    free = solve_doc(task, w, backend="crocoddyl")
+    full = cb.solve(task, w, options=cb.CsqpOptions(screen_bounds=False))
+    assert free.converged and full.converged and free.attempts == 1
+    assert rmse_deg(free.q, full.q) < 0.01
+    peak = np.abs(free.qd).max(axis=0)
+    slow = ReachingTask(task.arm, task.q0, task.target_x, task.duration, task.n_nodes, qd_max=0.8 * peak)
+    a = solve_doc(slow, w, backend="casadi")
+    b = solve_doc(slow, w, backend="crocoddyl")
+    assert a.converged and b.converged, (a.status, b.status)
+    assert b.attempts >= 2  # the screened solution broke the bound and was solved again with it
+    tol = cb.DEFAULT_OPTIONS.feasibility_tolerance
+    assert np.all(np.abs(b.qd) <= slow.qd_max + tol)
+    assert np.any(np.abs(b.qd) >= slow.qd_max - 1e-3)  # the bound is active
+    assert rmse_deg(a.q, b.q) < 0.05
+    assert abs(b.cost - a.cost) / a.cost < 1e-3
+
+
+def test_a_failed_screened_solve_is_solved_again_with_every_bound_from_the_same_start(arm, monkeypatch):
+    rng = np.random.default_rng(12)
+    task = make_task(arm, "P4")
+    w = random_weights(rng, 1)
+    real, calls = cb._attempt, []
+
+    def screened_fails(prob, task_, weights, xs, us, tol, options, running_bounds=True):
+        calls.append((running_bounds, np.array(xs)))
+        out = real(prob, task_, weights, xs, us, tol, options, running_bounds)
+        return (False, *out[1:]) if not running_bounds else out
+
+    monkeypatch.setattr(cb, "_attempt", screened_fails)
+    sol = solve_doc(task, w, backend="crocoddyl")
+    assert [c[0] for c in calls] == [False, True]
+    np.testing.assert_array_equal(calls[1][1], calls[0][1])  # not from the failed solve's end point
+    assert sol.converged and sol.attempts == 2
+    tol = cb.DEFAULT_OPTIONS.feasibility_tolerance
+    assert abs(arm.fk(sol.q[-1])[0] - task.target_x) <= tol

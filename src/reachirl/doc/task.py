@@ -115,7 +115,9 @@ class DocSolution:
     solve_time: float
     status: str = ""
     backend: str = ""
-    attempts: int = 1  # solver runs behind this solution (a failed warm or fatrop start is retried)
+    # solver runs behind this solution (a failed warm or fatrop start is retried; a Crocoddyl solve without the
+    # running bounds that breaks one is solved again with them)
+    attempts: int = 1
     # Solver state for warm starts (primal/dual vectors); opaque, not part of the public result.
     warm: dict | None = field(default=None, repr=False, compare=False)
 
