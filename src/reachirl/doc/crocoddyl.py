@@ -176,14 +176,15 @@ class CsqpOptions:
       profiled solve), and those rows, inactive on almost every reach, slowed its convergence: 688 against 350
       ADMM iterations per warm solve (median of the 10 benchmark problems). A screened solution that meets
       every bound (to ``feasibility_tolerance``) is a KKT point of the full problem as well, with zero
-      multipliers on the bounds, so the answer is the same one; one that breaks a bound is solved again with every bound, warm from there, and a screened solve
-      that fails is solved again with every bound from the original start (``DocSolution.attempts`` counts
-      both). Measured on the learned-weight sweep (every 10th of its predictions, 184, cold): 184/184 converged
-      either way, q within 0.025° of CasADi's (0.028° unscreened), median CPU per prediction 0.73 against
-      1.82 s (all of them 364 against 529 s); on the 10 benchmark problems cold 374 against 1323 ms and warm
-      122 against 226 ms (CPU medians, one run; ``reachirl bench backends``: 15.4× CasADi's cold CPU time and
-      7.3× its warm, against 43.5× and 13.3×); ``merit_penalty_factor`` 1.05 instead of 1.2 saved
-      SQP iterations there but not time on the sweep (median 0.88 s), so it stays.
+      multipliers on the bounds, so the answer is the same one; one that breaks a bound is solved again with
+      every bound, warm from there, and a screened solve that fails is solved again with every bound from the
+      original start (``DocSolution.attempts`` counts both). Measured on the learned-weight sweep (every 10th
+      of its predictions, 184, cold): 184/184 converged either way, q within 0.025° of CasADi's (0.028°
+      unscreened), median CPU per prediction 0.73 against 1.82 s (all of them 364 against 529 s); on the 10
+      benchmark problems cold 374 against 1323 ms and warm 122 against 226 ms (CPU medians, one run;
+      ``reachirl bench backends``: 15.4× CasADi's cold CPU time and 7.3× its warm, against 43.5× and 13.3×);
+      ``merit_penalty_factor`` 1.05 instead of 1.2 saved SQP iterations there but not time on the sweep
+      (median 0.88 s), so it stays.
 
     Measured and not taken (speed and the quick-table agreement of issue 11):
 
@@ -712,23 +713,18 @@ def solve(
     scale, j0 = weight_scale(task, weights, options, cold)
     # the tolerance depends on the task and the weights only (the cold guess's cost), not on the warm start
     tol = options.termination_tolerance * j0 * scale / n
-    if options.screen_bounds:
-        # the joint limits and the speed bound are inactive on almost every reach, but each of their 400 rows
-        # slows CSQP's ADMM: solve without them first. A solution that meets them all is a KKT point of the
-        # full problem too (their multipliers are zero); one that violates one is solved again with every
-        # bound, warm from there.
-        ok, X, U, monitor, iterations, elapsed = _attempt(
-            prob, task, weights * scale, xs, us, tol, options, running_bounds=False)
-        attempts = 1
-        if ok and _bound_violation(task, X) > options.feasibility_tolerance:
-            ok, X, U, monitor, it1, el1 = _attempt(prob, task, weights * scale, list(X), list(U), tol, options)
-            iterations, elapsed, attempts = iterations + it1, elapsed + el1, 2
-        elif not ok:
-            ok, X, U, monitor, it1, el1 = _attempt(prob, task, weights * scale, xs, us, tol, options)
-            iterations, elapsed, attempts = iterations + it1, elapsed + el1, 2
-    else:
-        ok, X, U, monitor, iterations, elapsed = _attempt(prob, task, weights * scale, xs, us, tol, options)
-        attempts = 1
+    # The joint limits and the speed bound are inactive on almost every reach, but each of their 400 rows slows
+    # CSQP's ADMM: with screen_bounds, solve without them first. A solution that meets them all is a KKT point of
+    # the full problem too (their multipliers are zero); one that breaks one is solved again with every bound,
+    # warm from there, and a failed screened solve again from the same start.
+    screened = options.screen_bounds
+    ok, X, U, monitor, iterations, elapsed = _attempt(
+        prob, task, weights * scale, xs, us, tol, options, running_bounds=not screened)
+    attempts = 1
+    if screened and not (ok and _bound_violation(task, X) <= options.feasibility_tolerance):
+        start = (list(X), list(U)) if ok else (xs, us)
+        ok, X, U, monitor, it1, el1 = _attempt(prob, task, weights * scale, *start, tol, options)
+        iterations, elapsed, attempts = iterations + it1, elapsed + el1, 2
     if not ok and options.fallback_exact_hessian and np.any(weights[:, _J_ENERGY] > 0):
         # the Gauss-Newton model of the energy can make the SQP cycle: solve again, cold, with its full Hessian
         fallback = replace(options, energy_exact_hessian=True, fallback_exact_hessian=False)
