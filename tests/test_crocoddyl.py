@@ -268,21 +268,24 @@ def test_a_failed_screened_solve_is_solved_again_with_every_bound_from_the_same_
 def test_a_held_back_line_search_reaches_the_same_optimum_in_fewer_iterations():
     """``line_search_growth``: after α = 1 the line search halves from twice the last accepted step instead of
     from ½. On this reach (``bench backends``' fifth problem) CSQP's greedy search takes long steps that it
-    then undoes (58 SQP iterations); held back, it reaches the same optimum as CasADi in far fewer. Warm
-    starts keep CSQP's own search."""
+    then undoes (58 SQP iterations); held back (the default), it reaches the same optimum as CasADi in far
+    fewer. Warm starts keep CSQP's own search."""
     from reachirl import ArmModel
 
     arm = ArmModel.from_anthropometrics(1.76, 70.0, "M")
     task = ReachingTask(arm, np.deg2rad([30.0, 120.0]), 0.95 * arm.length, 0.6644573449479664, 100)
     w = np.array([[3.7566, 0.16801, 2.3031, 0.013074, 0.010436, 0.12960, 0.019143]])
     ref = solve_doc(task, w, backend="casadi")
-    greedy = cb.solve(task, w)
-    held = cb.solve(task, w, options=cb.CsqpOptions(line_search_growth=2.0))
+    greedy_options = cb.CsqpOptions(line_search_growth=0.0)  # CSQP's own line search
+    greedy = cb.solve(task, w, options=greedy_options)
+    held = cb.solve(task, w)  # the default: growth 2
+    assert cb.DEFAULT_OPTIONS.line_search_growth == 2.0
     assert ref.converged and greedy.converged and held.converged
     assert rmse_deg(held.q, ref.q) < 0.03 and abs(held.cost - ref.cost) / ref.cost < 1e-3
+    assert rmse_deg(greedy.q, ref.q) < 0.03
     assert held.iterations < greedy.iterations / 2, (held.iterations, greedy.iterations)
-    # a warm start ignores the option: the same iterates as the default's
+    # a warm start ignores the option: the same iterates as CSQP's own search
     w2 = 1.1 * w
-    a = cb.solve(task, w2, warm_start=greedy)
-    b = cb.solve(task, w2, warm_start=greedy, options=cb.CsqpOptions(line_search_growth=2.0))
-    assert a.iterations == b.iterations and np.array_equal(a.q, b.q)
+    a = cb.solve(task, w2, warm_start=held, options=greedy_options)
+    b = cb.solve(task, w2, warm_start=held)
+    assert a.converged and a.iterations == b.iterations and np.array_equal(a.q, b.q)

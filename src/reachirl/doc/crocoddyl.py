@@ -259,7 +259,7 @@ class CsqpOptions:
     fallback_exact_hessian: bool = True  # a failed solve is solved again, cold, with energy_exact_hessian
     fallback_smoothing_factor: float = 10.0  # then with ε × this (cold), refined at ε from there; 0: off
     screen_bounds: bool = True  # first solve without the running knots' joint-limit and speed bounds
-    line_search_growth: float = 0.0  # >0: after α = 1, the line search starts at min(½, this × the last α)
+    line_search_growth: float = 2.0  # >0: after α = 1, a cold line search starts at min(½, this × last α)
 
 
 DEFAULT_OPTIONS = CsqpOptions()
