@@ -186,19 +186,20 @@ class CsqpOptions:
       ``merit_penalty_factor`` 1.05 instead of 1.2 saved SQP iterations there but not time on the sweep
       (median 0.88 s), so it stays.
 
-    Holding back the line search (an option, off by default):
+    Holding back a cold line search (speed, issue 11):
 
-    * ``line_search_growth`` > 0: after α = 1, CSQP's line search halves from min(½, growth × the last
+    * ``line_search_growth`` (2): after α = 1, CSQP's line search halves from min(½, growth × the last
       accepted α) instead of from ½ (the monitor sets ``alphas`` before each search, and reads the last α off
       the controls' move along the last QP's direction). From a cold start the greedy search takes long steps
-      that later iterations undo; held back (growth 2), on the 10 problems of ``bench backends`` (same run):
-      cold 2.59 against 3.69 s in all, median 188 against 288 ms (one problem 58 → 13 SQP iterations, another
-      177 → 109), all converged, q within 0.022° of CasADi's. On warm starts it did not pay (warm median 123
-      against 89 ms, although 1.13 against 1.26 s in all), so warm starts, and every retry, keep CSQP's own
-      search. On the learned-weight sweep (every 10th prediction, 184, cold): 184/184 converged, q within
-      0.027° of CasADi's, median 0.34 s (the default: 0.48 s, another run); applied to the retries as well,
-      one prediction failed (183/184). Not the default yet: it changes every Crocoddyl result, and the
-      protocol run on this stack (``reproduce --backend crocoddyl``) has not been measured with it.
+      that later iterations undo. Measured against CSQP's own search (growth 0), same runs: on the
+      learned-weight sweep (every 10th prediction, 184, cold) 184/184 converged either way, CPU 155 against
+      241 s in all, median 0.34 against 0.52 s, 6 against 16 predictions needing a retry, q within 0.027° of
+      CasADi's against 0.025°; on the 10 problems of ``bench backends`` cold 2.59 against 3.69 s in all,
+      median 188 against 288 ms (one problem 58 → 13 SQP iterations, another 177 → 109).
+      ``reproduce --quick --backend crocoddyl``: 47 s of wall time against 73 s before (another run), its
+      table 0.57° from CasADi's in the farthest cell against 0.52° (see below). Warm starts keep CSQP's own
+      search: held back, their median was 123 against 89 ms (1.13 against 1.26 s in all); so does every retry
+      (held back there too, one of the 184 predictions failed).
 
     Measured and not taken (speed and the quick-table agreement of issue 11):
 
