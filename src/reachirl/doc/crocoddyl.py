@@ -197,7 +197,10 @@ class CsqpOptions:
       CasADi's against 0.025°; on the 10 problems of ``bench backends`` cold 2.59 against 3.69 s in all,
       median 188 against 288 ms (one problem 58 → 13 SQP iterations, another 177 → 109).
       ``reproduce --quick --backend crocoddyl``: 47 s of wall time against 73 s before (another run), its
-      table 0.57° from CasADi's in the farthest cell against 0.52° (see below). Warm starts keep CSQP's own
+      table 0.57° from CasADi's in the farthest cell against 0.52° (see below); the whole protocol
+      (``reproduce --backend crocoddyl``, run the same day): 10 min 23 s against 13 min 56 s, 0.50° against
+      0.40° from CasADi's table in the farthest cell (the fits part on small solver differences; 0 of 600
+      predictions failed either way). Warm starts keep CSQP's own
       search: held back, their median was 123 against 89 ms (1.13 against 1.26 s in all); so does every retry
       (held back there too, one of the 184 predictions failed).
 
