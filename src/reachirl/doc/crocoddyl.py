@@ -44,7 +44,8 @@ and the weights are updated in place before each solve (weights through ``costs.
 * **Solver**: mim_solvers CSQP (Gauss-Newton SQP, each QP solved by ADMM with Riccati sweeps, ~75 µs per
   ADMM iteration here), merit line search. A Python callback (``_Monitor``) replaces CSQP's stopping test by
   a KKT test with a separate absolute feasibility tolerance and an IPOPT-like "acceptable level", and sets
-  each QP's tolerance from the last KKT residual (inexact SQP). Why each option is what it is:
+  each QP's tolerance from the last KKT residual (inexact SQP); on a cold start it holds the line search back
+  (after α = 1, halving from twice the last accepted step). Why each option is what it is:
   :class:`CsqpOptions`.
 """
 
@@ -565,7 +566,8 @@ class _Monitor(mim_solvers.CallbackAbstract):
     """CSQP's callback, run after each QP just before CSQP's own test ``KKT <= termination_tolerance``.
 
     It replaces that test by the one of :class:`CsqpOptions` (setting ``termination_tolerance`` to the KKT
-    residual to stop, to −1 to go on) and sets the next QP's tolerance.
+    residual to stop, to −1 to go on), sets the next QP's tolerance and, with ``line_search_growth``, the next line
+    search's step lengths.
     """
 
     def __init__(self, tol: float, options: CsqpOptions):
