@@ -265,14 +265,11 @@ def test_a_failed_screened_solve_is_solved_again_with_every_bound_from_the_same_
     assert abs(arm.fk(sol.q[-1])[0] - task.target_x) <= tol
 
 
-def test_a_held_back_line_search_reaches_the_same_optimum_in_fewer_iterations():
+def test_a_held_back_line_search_reaches_the_same_optimum_in_fewer_iterations(arm):
     """``line_search_growth``: after α = 1 the line search halves from twice the last accepted step instead of
     from ½. On this reach (``bench backends``' fifth problem) CSQP's greedy search takes long steps that it
     then undoes (58 SQP iterations); held back (the default), it reaches the same optimum as CasADi in far
     fewer. Warm starts keep CSQP's own search."""
-    from reachirl import ArmModel
-
-    arm = ArmModel.from_anthropometrics(1.76, 70.0, "M")
     task = ReachingTask(arm, np.deg2rad([30.0, 120.0]), 0.95 * arm.length, 0.6644573449479664, 100)
     w = np.array([[3.7566, 0.16801, 2.3031, 0.013074, 0.010436, 0.12960, 0.019143]])
     ref = solve_doc(task, w, backend="casadi")

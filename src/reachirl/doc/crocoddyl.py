@@ -189,21 +189,21 @@ class CsqpOptions:
 
     Holding back a cold line search (speed, issue 11):
 
-    * ``line_search_growth`` (2): after α = 1, CSQP's line search halves from min(½, growth × the last
-      accepted α) instead of from ½ (the monitor sets ``alphas`` before each search, and reads the last α off
-      the controls' move along the last QP's direction). From a cold start the greedy search takes long steps
-      that later iterations undo. Measured against CSQP's own search (growth 0), same runs: on the
-      learned-weight sweep (every 10th prediction, 184, cold) 184/184 converged either way, CPU 155 against
-      241 s in all, median 0.34 against 0.52 s, 6 against 16 predictions needing a retry, q within 0.027° of
-      CasADi's against 0.025°; on the 10 problems of ``bench backends`` cold 2.59 against 3.69 s in all,
-      median 188 against 288 ms (one problem 58 → 13 SQP iterations, another 177 → 109).
-      ``reproduce --quick --backend crocoddyl``: 47 s of wall time against 73 s before (another run), its
-      table 0.57° from CasADi's in the farthest cell against 0.52° (see below); the whole protocol
+    * ``line_search_growth`` (2): after α = 1, CSQP's line search halves from min(½, growth × the last accepted α),
+      rounded down to a power of two, instead of from ½ (the monitor sets ``alphas`` before each search, and
+      reads the last α off the controls' move along the last QP's direction). From a cold start the greedy
+      search takes long steps that later iterations undo. Measured against CSQP's own search (growth 0), same
+      runs: on the learned-weight sweep (every 10th prediction, 184, cold) 184/184 converged either way, CPU 155
+      against 241 s in all, median 0.34 against 0.52 s, 6 against 16 predictions needing a retry, q within
+      0.027° of CasADi's against 0.025°; on the 10 problems of ``bench backends`` cold 2.59 against 3.69 s in
+      all, median 188 against 288 ms (one problem 58 → 13 SQP iterations, another 177 → 109).
+      ``reproduce --quick --backend crocoddyl``: 47 s of wall time against 73 s before (another run), its table
+      0.57° from CasADi's in the farthest cell against 0.52° (see below); the whole protocol
       (``reproduce --backend crocoddyl``, run the same day): 10 min 23 s against 13 min 56 s, 0.50° against
       0.40° from CasADi's table in the farthest cell (the fits part on small solver differences; 0 of 600
-      predictions failed either way). Warm starts keep CSQP's own
-      search: held back, their median was 123 against 89 ms (1.13 against 1.26 s in all); so does every retry
-      (held back there too, one of the 184 predictions failed).
+      predictions failed either way). Warm starts keep CSQP's own search: held back, their median was 123
+      against 89 ms (1.13 against 1.26 s in all); so does every retry (held back there too, one of the 184
+      predictions failed).
 
     Measured and not taken (speed and the quick-table agreement of issue 11):
 
@@ -627,8 +627,9 @@ class _Monitor(mim_solvers.CallbackAbstract):
             self._set_step_lengths(solver)
 
     def _set_step_lengths(self, solver) -> None:
-        """The next line search tries α = 1, then halves from min(½, growth × the last accepted α) (which the
-        controls' move along the last QP's direction gives: ``us`` and ``du`` move together)."""
+        """The next line search tries α = 1, then halves from min(½, growth × the last accepted α), rounded down
+        to a power of two (the last α is the controls' move along the last QP's direction: ``us`` and ``du``
+        move together)."""
         u, du = np.concatenate(solver.us), np.concatenate(solver.du)
         start = 0.5
         if self._last_step is not None:
