@@ -96,3 +96,71 @@ def test_usage_error_exits_2(capsys):
         main(["fit"])
     assert e.value.code == 2
     assert "required" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def mixed_file(tmp_path_factory, trials_file, arm):
+    """The four P2 reaches of subject S1, and two reaches of another posture by subject S2."""
+    from reachirl.data.trial import load_trials
+
+    w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5]]) / FEATURE_SCALE
+    trials = load_trials(trials_file)
+    for i, q0 in enumerate(([-60.0, 100.0], [-55.0, 95.0])):
+        task = ReachingTask(arm, np.deg2rad(q0), 0.9 * arm.length, 0.7, n_nodes=40)
+        sol = solve_doc(task, w)
+        assert sol.converged
+        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S2", posture="P4", trial_id=str(i)))
+    path = tmp_path_factory.mktemp("mixed") / "mixed.npz"
+    save_trials(path, trials)
+    return path
+
+
+def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, capsys):
+    model = tmp_path / "p2.json"
+    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "2", "--posture", "P2",
+                 "--out", str(model)]) == 0
+    info = json.loads(model.read_text())["info"]
+    assert info["trial_ids"] == [f"S1/P2/right/{i}" for i in range(4)]
+    assert info["selection"] == {"subjects": None, "postures": ["P2"], "sides": None}
+    assert not any("postures" in w for w in info["warnings"])
+    metrics = tmp_path / "m.json"
+    assert main(["evaluate", "--model", str(model), str(mixed_file), "--subject", "S2", "--side", "right",
+                 "--out", str(metrics)]) == 0
+    out = json.loads(metrics.read_text())
+    assert [t["id"] for t in out["trials"]] == ["S2/P4/right/0", "S2/P4/right/1"]
+    assert out["selection"] == {"subjects": ["S2"], "postures": None, "sides": ["right"]}
+
+
+def test_fit_warns_when_one_mean_rollout_would_stand_for_several_postures(mixed_file, tmp_path, capsys):
+    model = tmp_path / "all.json"
+    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1",
+                 "--out", str(model)]) == 0
+    info = json.loads(model.read_text())["info"]
+    assert info["selection"] is None and len(info["trial_ids"]) == 6
+    assert any("span 2 postures (P2, P4)" in w for w in info["warnings"]), info["warnings"]
+    assert "span 2 postures" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("selection", "match"),
+    [
+        (["--posture", "P9"], r"mixed\.npz: no trial of posture P9; they have posture P2, P4$"),
+        (["--subject", "S2", "--posture", "P2"],
+         r"mixed\.npz: no trial of posture P2 among those of subject S2; they have posture P4$"),
+        (["--subject", "S1", "S3"], r"mixed\.npz: no trial of subject S3; they have subject S1, S2$"),
+        (["--side", "left"], r"mixed\.npz: no trial of side left; they have side right$"),
+    ],
+)
+@pytest.mark.parametrize("command", ["fit", "evaluate"])
+def test_a_selection_no_trial_matches_exits_2_naming_the_file(mixed_file, tmp_path, capsys, selection, match,
+                                                              command):
+    from reachirl.irl.model import LearnedModel, save_model
+
+    model = tmp_path / "model.json"
+    save_model(model, LearnedModel(weights=np.ones((1, 7)), n_nodes=40, method="moirl", info={}))
+    args = (["fit", str(mixed_file), "--sections", "1", "--out", str(tmp_path / "m.json")] if command == "fit"
+            else ["evaluate", "--model", str(model), str(mixed_file), "--out", str(tmp_path / "m.json")])
+    assert main([*args, *selection]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(match, err), err
+    assert not (tmp_path / "m.json").exists()

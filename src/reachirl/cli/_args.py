@@ -45,3 +45,20 @@ def int_in(lo: int, hi: int) -> Callable[[str], int]:
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
     """A finite number in ``[lo, hi]`` (NaN and infinities are refused)."""
     return _checked(float, lambda v: lo <= v <= hi, f"a number in [{lo:g}, {hi:g}]", trim=40)
+
+
+def add_selection(p: argparse.ArgumentParser, what: str) -> None:
+    """``--subject``, ``--posture`` and ``--side``: which trials of the trials file ``what`` (e.g. "fit")."""
+    p.add_argument("--subject", nargs="+", metavar="ID", default=None,
+                   help=f"{what} only these subjects' trials (default: every subject)")
+    p.add_argument("--posture", nargs="+", metavar="NAME", default=None,
+                   help=f"{what} only the trials of these postures (default: every posture)")
+    p.add_argument("--side", choices=("right", "left"), default=None,
+                   help=f"{what} only the trials of this arm (default: both)")
+
+
+def selection(args: argparse.Namespace) -> dict | None:
+    """The ``--subject/--posture/--side`` choices as :func:`reachirl.data.trial.select_trials`' keywords, or
+    ``None`` when none was given."""
+    chosen = {"subjects": args.subject, "postures": args.posture, "sides": None if args.side is None else [args.side]}
+    return chosen if any(v is not None for v in chosen.values()) else None

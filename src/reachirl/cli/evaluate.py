@@ -9,11 +9,12 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
-from ..data.trial import load_trials
+from ..data.trial import load_trials, select_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
 from ..validation import check_output_file, load_model_checked
+from ._args import add_selection, selection
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -36,6 +37,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
                    "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
                    "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)")
+    add_selection(p, "predict")
     return p
 
 
@@ -62,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     model = load_model_checked(args.model)
     trials = load_trials(args.trials)
+    chosen = selection(args)
+    if chosen is not None:
+        trials = select_trials(trials, **chosen, path=args.trials)
     rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
     rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
@@ -70,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
                                  on_trial=lambda e: progress.advance(task),
                                  observe=bool(model.info.get("observe", False)), path=rollout)
     summary = summarise(errors, include_failed=args.include_failed)
-    atomic_write_json(args.out, {"summary": summary, "trials": [e.to_dict() for e in errors]})
+    atomic_write_json(args.out, {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
     r = summary["rmse_deg"]
     fails = summary["doc_failures"]
     how = "included in" if args.include_failed else "left out of"

@@ -7,11 +7,11 @@ from pathlib import Path
 
 from rich.console import Console
 
-from ..data.trial import load_trials
+from ..data.trial import load_trials, select_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
-from ._args import int_in
+from ._args import add_selection, int_in, selection
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -56,6 +56,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="MO-IRL/MaxEnt's model of the merit for those steps: 14 probe solves per rollout (probes, "
                    "default) or Gauss-Newton from the DOC's sensitivities (gauss-newton: no solve; also tried when the "
                    "likelihood's step gains less than 1 %%)")
+    add_selection(p, "learn from")
     return p
 
 
@@ -83,6 +84,9 @@ def run(args: argparse.Namespace) -> int:
     console = Console(stderr=True)
     check_output_file(args.out)
     trials = load_trials(args.trials)
+    chosen = selection(args)
+    if chosen is not None:
+        trials = select_trials(trials, **chosen, path=args.trials)
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
@@ -103,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     info = {
         "trials": str(args.trials),
         "n_trials": len(trials),
+        "selection": chosen,  # --subject/--posture/--side (None: every trial of the file)
         "backend": args.backend,
         "observe": bool(getattr(est, "observe", False)),  # `evaluate` predicts as the fit saw its rollouts
         "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: `evaluate`'s cold start

@@ -22,7 +22,8 @@ from ..errors import InputError
 from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
 
-__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "trial_from_knots", "trial_from_solution"]
+__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "select_trials", "trial_from_knots",
+           "trial_from_solution"]
 
 TRIALS_FORMAT = "reachirl-trials/1"
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
@@ -252,6 +253,29 @@ def load_trials(path: str | Path) -> list[Trial]:
         check_trial_physics(tr, i, path)
     return out
 
+
+
+def select_trials(trials: Sequence[Trial], *, subjects: Sequence[str] | None = None,
+                  postures: Sequence[str] | None = None, sides: Sequence[str] | None = None,
+                  path: object | None = None) -> list[Trial]:
+    """The trials of the given subjects, postures and arms (``None``: any), in their order.
+
+    A value no trial has, or a combination that leaves no trial, raises :class:`InputError` naming ``path`` (the
+    trials file) and what the trials hold."""
+    out, applied = list(trials), []
+    for field_name, values in (("subject", subjects), ("posture", postures), ("side", sides)):
+        if values is None:
+            continue
+        have = sorted({getattr(t, field_name) for t in out})
+        unknown = [v for v in dict.fromkeys(values) if v not in have]
+        if unknown:
+            among = f" among those of {' and '.join(applied)}" if applied else ""
+            shown = ", ".join(h if h else "''" for h in have)
+            raise InputError(f"no trial of {field_name} {', '.join(unknown)}{among}; they have {field_name} {shown}",
+                             path)
+        out = [t for t in out if getattr(t, field_name) in set(values)]
+        applied.append(f"{field_name} {', '.join(dict.fromkeys(values))}")
+    return out
 
 
 def trial_from_knots(arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, subject: str = "virtual",

@@ -141,7 +141,7 @@ from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 
 __all__ = ["MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
-           "multimodal_accept"]
+           "mixed_postures_warning", "multimodal_accept"]
 
 SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
 """Candidate ``λ`` of ``smoothness="cv"`` (per demonstration; ``λ → ∞`` would tie the windows into one)."""
@@ -441,6 +441,10 @@ class MOIRL(WeightEstimator):
             smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
+        msg = mixed_postures_warning(trials) if self.rollout == "mean" else None
+        if msg is not None:
+            self.warnings_ = [*self.warnings_, msg]
+            log.warning(msg)
         self.fit_time_ = time.perf_counter() - t_start
         return self
 
@@ -750,6 +754,16 @@ def _is_rescale(w: np.ndarray, dw: np.ndarray, rtol: float = 1e-9) -> bool:
     """Whether ``ω + Δω`` is ``ω`` times one common factor (a step the DOC cannot see)."""
     ratio = (w + dw) / w
     return bool(np.ptp(ratio) <= rtol * np.max(np.abs(ratio)))
+
+
+def mixed_postures_warning(trials: Sequence[Trial]) -> str | None:
+    """The warning for demonstrations of several postures fitted through one mean-task rollout, or ``None``."""
+    postures = sorted({t.posture for t in trials})
+    if len(postures) < 2:
+        return None
+    return (f"the demonstrations span {len(postures)} postures ({', '.join(postures)}): the one training rollout "
+            "starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
+            "--posture), or use one rollout per demonstration")
 
 
 def fit_flag(best_iteration: int, n_accepted: int) -> str | None:

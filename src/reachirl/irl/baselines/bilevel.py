@@ -24,7 +24,7 @@ from ...data.trial import Trial
 from ...doc import DocSolution, solve_doc
 from ...features import N_FEATURES
 from ..base import WeightEstimator
-from ..moirl import demonstration_states, mean_task
+from ..moirl import demonstration_states, mean_task, mixed_postures_warning
 from ..objective import merit
 
 __all__ = ["BilevelIOC"]
@@ -157,5 +157,6 @@ class BilevelIOC(WeightEstimator):
         self.n_iter_ = n_iter
         self.fit_time_ = time.perf_counter() - t_start
         self.train_solutions_ = [sol_best] if sol_best is not None else []
+        self.warnings_ = [msg] if (msg := mixed_postures_warning(trials)) is not None else []
         return self
 
