@@ -13,6 +13,14 @@ from reachirl.data.trial import save_trials, trial_from_solution
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
 
 
+def _reach(arm, q0, duration, weights, subject, posture, i):
+    """The DOC's reach from ``q0`` (rad) to the bar at 90 % of the arm's length, as a trial."""
+    task = ReachingTask(arm, q0, 0.9 * arm.length, duration, n_nodes=40)
+    sol = solve_doc(task, weights)
+    assert sol.converged
+    return trial_from_solution(sol, arm, task.target_x, subject=subject, posture=posture, trial_id=str(i))
+
+
 @pytest.fixture(scope="module")
 def trials_file(tmp_path_factory, arm):
     rng = np.random.default_rng(0)
@@ -21,10 +29,8 @@ def trials_file(tmp_path_factory, arm):
     trials = []
     for i in range(4):
         q0 = np.deg2rad([0.0, 90.0]) + np.deg2rad(rng.normal(0, 2, 2))
-        task = ReachingTask(arm, q0, 0.9 * arm.length, 0.7 + 0.03 * rng.normal(), n_nodes=40)
-        sol = solve_doc(task, w_true * np.exp(0.1 * rng.normal(size=w_true.shape)))
-        assert sol.converged
-        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S1", posture="P2", trial_id=str(i)))
+        duration = 0.7 + 0.03 * rng.normal()
+        trials.append(_reach(arm, q0, duration, w_true * np.exp(0.1 * rng.normal(size=w_true.shape)), "S1", "P2", i))
     path = tmp_path_factory.mktemp("cli") / "trials.npz"
     save_trials(path, trials)
     return path
@@ -106,10 +112,7 @@ def mixed_file(tmp_path_factory, trials_file, arm):
     w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5]]) / FEATURE_SCALE
     trials = load_trials(trials_file)
     for i, q0 in enumerate(([-60.0, 100.0], [-55.0, 95.0])):
-        task = ReachingTask(arm, np.deg2rad(q0), 0.9 * arm.length, 0.7, n_nodes=40)
-        sol = solve_doc(task, w)
-        assert sol.converged
-        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S2", posture="P4", trial_id=str(i)))
+        trials.append(_reach(arm, np.deg2rad(q0), 0.7, w, "S2", "P4", i))
     path = tmp_path_factory.mktemp("mixed") / "mixed.npz"
     save_trials(path, trials)
     return path

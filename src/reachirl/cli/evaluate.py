@@ -9,12 +9,11 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
-from ..data.trial import load_trials, select_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
 from ..validation import check_output_file, load_model_checked
-from ._args import add_selection, selection
+from ._args import add_selection, load_chosen_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -63,10 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     model = load_model_checked(args.model)
-    trials = load_trials(args.trials)
-    chosen = selection(args)
-    if chosen is not None:
-        trials = select_trials(trials, **chosen, path=args.trials)
+    trials, chosen = load_chosen_trials(args)
     rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
     rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:

@@ -260,21 +260,23 @@ def select_trials(trials: Sequence[Trial], *, subjects: Sequence[str] | None = N
                   path: object | None = None) -> list[Trial]:
     """The trials of the given subjects, postures and arms (``None``: any), in their order.
 
-    A value no trial has, or a combination that leaves no trial, raises :class:`InputError` naming ``path`` (the
-    trials file) and what the trials hold."""
+    A value that none of the trials left by the choices before it has (subject, then posture, then side) raises
+    :class:`InputError` naming ``path`` (the trials file) and what those trials hold, so the result is never
+    empty."""
     out, applied = list(trials), []
     for field_name, values in (("subject", subjects), ("posture", postures), ("side", sides)):
         if values is None:
             continue
+        wanted = list(dict.fromkeys(values))
         have = sorted({getattr(t, field_name) for t in out})
-        unknown = [v for v in dict.fromkeys(values) if v not in have]
+        unknown = [v for v in wanted if v not in have]
         if unknown:
             among = f" among those of {' and '.join(applied)}" if applied else ""
             shown = ", ".join(h if h else "''" for h in have)
             raise InputError(f"no trial of {field_name} {', '.join(unknown)}{among}; they have {field_name} {shown}",
                              path)
-        out = [t for t in out if getattr(t, field_name) in set(values)]
-        applied.append(f"{field_name} {', '.join(dict.fromkeys(values))}")
+        out = [t for t in out if getattr(t, field_name) in wanted]
+        applied.append(f"{field_name} {', '.join(wanted)}")
     return out
 
 

@@ -41,7 +41,8 @@ class BilevelIOC(WeightEstimator):
 
     Fitted attributes: ``weights_`` (the best evaluated), ``merit_``, ``history_`` (one record per evaluation:
     merit, converged, weights, cumulative DOC solves, wall time), ``n_doc_solves_``, ``n_doc_failures_``,
-    ``n_iter_`` (outer iterations of the direct search), ``fit_time_``, ``stop_reason_``.
+    ``n_iter_`` (outer iterations of the direct search), ``fit_time_``, ``stop_reason_``, ``warnings_`` (demonstrations
+    of several postures behind the one mean-task rollout: :func:`reachirl.irl.moirl.mixed_postures_warning`).
     """
 
     def __init__(
