@@ -57,12 +57,11 @@ def add_selection(p: argparse.ArgumentParser, what: str) -> None:
                    help=f"{what} only the trials of this arm (default: both)")
 
 
-def load_chosen_trials(args: argparse.Namespace) -> tuple[list, dict | None]:
-    """The trials of ``args.trials`` that ``--subject/--posture/--side`` choose (:func:`reachirl.data.trial
-    .select_trials`), and those choices as its keywords (``None`` when none was given: every trial)."""
-    from ..data.trial import load_trials, select_trials
+def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | None]:
+    """The trials (read from ``args.trials``) that ``--subject/--posture/--side`` choose (:func:`reachirl.data
+    .trial.select_trials`), and those choices as its keywords (``None`` when none was given: every trial)."""
+    from ..data.trial import select_trials
 
-    trials = load_trials(args.trials)
     chosen = {"subjects": args.subject, "postures": args.posture, "sides": None if args.side is None else [args.side]}
     if not any(v is not None for v in chosen.values()):
         return trials, None

@@ -9,11 +9,12 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
+from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
 from ..validation import check_output_file, load_model_checked
-from ._args import add_selection, load_chosen_trials
+from ._args import add_selection, chosen_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -62,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     model = load_model_checked(args.model)
-    trials, chosen = load_chosen_trials(args)
+    trials, chosen = chosen_trials(args, load_trials(args.trials))
     rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
     rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:

@@ -7,10 +7,11 @@ from pathlib import Path
 
 from rich.console import Console
 
+from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
-from ._args import add_selection, int_in, load_chosen_trials
+from ._args import add_selection, chosen_trials, int_in
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     console = Console(stderr=True)
     check_output_file(args.out)
-    trials, chosen = load_chosen_trials(args)
+    trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
