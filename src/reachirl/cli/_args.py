@@ -58,11 +58,12 @@ def add_selection(p: argparse.ArgumentParser, what: str) -> None:
 
 
 def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | None]:
-    """The trials (read from ``args.trials``) that ``--subject/--posture/--side`` choose (:func:`reachirl.data
-    .trial.select_trials`), and those choices as its keywords (``None`` when none was given: every trial)."""
+    """Those of ``trials`` (read from the file ``args.trials``, which an error names) that ``--subject/--posture
+    /--side`` choose (:func:`reachirl.data.trial.select_trials`), and those choices as its keywords (``None``
+    when none was given: every trial)."""
     from ..data.trial import select_trials
 
     chosen = {"subjects": args.subject, "postures": args.posture, "sides": None if args.side is None else [args.side]}
-    if not any(v is not None for v in chosen.values()):
+    if all(v is None for v in chosen.values()):
         return trials, None
     return select_trials(trials, **chosen, path=args.trials), chosen
