@@ -10,6 +10,7 @@ from rich.console import Console
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
+from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
 from ._args import add_selection, chosen_trials, int_in
 
@@ -38,89 +39,85 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="DOC backend of the fit's solves (default: casadi)")
-    p.add_argument("--rollout", choices=("mean", "per_demo"), default="mean",
-                   help="MO-IRL/MaxEnt training rollouts: one from the demonstrations' mean start, target and "
-                   "duration (mean, the seed, default), or one per demonstration, each compared with its own "
-                   "(per_demo: about five times the fit time)")
-    p.add_argument("--observe", action=argparse.BooleanOptionalAction, default=True,
-                   help="MO-IRL/MaxEnt: see each rollout as the trials were recorded, between its own crossings of "
-                   "their onset threshold (default; `evaluate` then predicts the same way); --no-observe: whole "
-                   "rollouts, as the seed")
-    p.add_argument("--merit", choices=("state", "normalised"), default="normalised",
-                   help="MO-IRL/MaxEnt merit: each channel of (q, q̇) by the demonstrations' spread (normalised, "
-                   "default) or the seed's full-state error (state)")
-    p.add_argument("--fallback", choices=("merit", "none"), default="merit",
-                   help="MO-IRL/MaxEnt: when the likelihood's step lowers no merit, step on a model of the merit "
-                   "(merit, default) or stop there (none: the seed's rule)")
-    p.add_argument("--merit-model", choices=("probes", "gauss-newton"), default="probes",
-                   help="MO-IRL/MaxEnt's model of the merit for those steps: 14 probe solves per rollout (probes, "
-                   "default) or Gauss-Newton from the DOC's sensitivities (gauss-newton: no solve; also tried when the "
-                   "likelihood's step gains less than 1 %%)")
-    add_selection(p, "learn from")
+    p.add_argument("--rollout", choices=ROLLOUTS, default="per_task",
+                   help="MO-IRL/MaxEnt training rollouts: one per task (subject, posture) from its trials' mean start, "
+                   "target and duration (per_task, default: several postures or subjects learn one shared cost), "
+                   "one per trial (per_demo: about five times the fit time), or one for all trials (mean)")
+    p.add_argument("--seed-form", action="store_true",
+                   help="MO-IRL/MaxEnt: the seed paper's method exactly as written (raw subproblem with beta, its "
+                   "alpha search and stopping rule, the DOC over each trial's duration, the full-state merit); "
+                   "docs/method.md lists what the default adds")
+    p.add_argument("--uncertainty", type=int_in(20, 1000), nargs="?", const=40, default=None, metavar="K",
+                   help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) that the "
+                   "training trials cannot tell apart from the fit, and each window's cost-share intervals "
+                   "(MODEL.json 'uncertainty'; about 4x the fit's time)")
+    p.add_argument("--seed", type=int_in(0, 2**32 - 1), default=0, metavar="N",
+                   help="seed of the uncertainty's random samples (default 0)")
+    p.add_argument("--config", type=Path, metavar="RUN.toml",
+                   help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md)")
+    add_selection(p, "learn from (several postures or subjects: one shared cost)")
     return p
 
 
-def _accepts(method: str, name: str) -> bool:
-    """Whether ``method``'s estimator takes the keyword ``name``, following ``**kwargs`` up to the base classes
-    (``MaxEntIRL(**kwargs)`` passes them on to ``MOIRL``)."""
-    import inspect
+def _experimental(path: Path | None) -> dict | None:
+    """The ``[experimental]`` table of ``--config`` (checked where the options are defined)."""
+    if path is None:
+        return None
+    from ..irl.options import resolve_options
+    from ..runfile import read_run_file
 
-    from ..irl.methods import METHODS as CLASSES
-
-    for cls in CLASSES[method].__mro__:
-        if "__init__" not in cls.__dict__ or cls is object:
-            continue
-        params = inspect.signature(cls.__init__).parameters
-        if name in params:
-            return True
-        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
-            return False
-    return False
+    table = read_run_file(path).get("experimental", {})
+    if not isinstance(table, dict):
+        raise InputError("[experimental] must be a table of MO-IRL options", path)
+    try:
+        resolve_options(False, table)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"[experimental]: {e}", path) from None
+    return table
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..irl.methods import METHODS as CLASSES
     from ..irl.methods import make_estimator
+    from ..irl.moirl import MOIRL
+    from ..irl.provenance import estimator_info
 
     console = Console(stderr=True)
     check_output_file(args.out)
+    experimental = _experimental(args.config)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
-    if args.method in ("moirl", "maxent"):
-        kwargs.update(max_iter=args.max_iter, rollout=args.rollout, observe=args.observe, merit=args.merit,
-                      fallback=None if args.fallback == "none" else args.fallback, merit_model=args.merit_model)
+    is_moirl = issubclass(CLASSES[args.method], MOIRL)
+    if is_moirl:
+        kwargs.update(max_iter=args.max_iter, rollout=args.rollout, seed_form=args.seed_form,
+                      uncertainty=args.uncertainty, random_state=args.seed, experimental=experimental)
+    elif args.seed_form or args.uncertainty is not None or experimental:
+        raise InputError(f"--seed-form, --uncertainty and --config apply to moirl and maxent, not {args.method}")
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
         def progress(rec: dict) -> None:
             status.update(f"{args.method}: iteration {rec.get('iteration', '?')}, merit {rec.get('merit', '?')}, "
                           f"{rec.get('doc_solves', '?')} DOC solves")
 
-        if _accepts(args.method, "callback"):  # the baselines take no progress callback
+        if is_moirl:  # the baselines take no progress callback
             kwargs["callback"] = progress
         est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
-    path = est.rollout_path()
-    info = {
-        "trials": str(args.trials),
-        "n_trials": len(trials),
-        "selection": chosen,  # --subject/--posture/--side (None: every trial of the file)
-        "backend": args.backend,
-        "observe": bool(getattr(est, "observe", False)),  # `evaluate` predicts as the fit saw its rollouts
-        "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: `evaluate`'s cold start
-        "trial_ids": [t.id for t in trials],
-        "n_iter": getattr(est, "n_iter_", None),
-        "n_doc_solves": getattr(est, "n_doc_solves_", None),
-        "fit_time_s": getattr(est, "fit_time_", None),
-        "stop_reason": getattr(est, "stop_reason_", None),
-        "flag": getattr(est, "flag_", None),
-        "warnings": list(getattr(est, "warnings_", [])),
-        "history": getattr(est, "history_", []),
-    }
-    save_model(args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info))
+    info = estimator_info(est, args.method, trials)
+    unc = info.pop("uncertainty", None)
+    info.update({"trials": str(args.trials), "selection": chosen, "backend": args.backend})
+    save_model(args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info,
+                                      uncertainty=unc))
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
-    print(f"wrote {args.out}: {args.method}, {args.sections} section(s), {info['n_iter']} iterations, "
-          f"{info['n_doc_solves']} DOC solves ({args.backend})"
-          + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else ""))
+    extra = ""
+    if unc is not None:
+        det = unc["determination"]
+        extra = (f"; {unc['n_samples']} indistinguishable weight samples, {det['n_determined']} of "
+                 f"{det['n_directions']} weight directions determined by the trials")
+    print(f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
+          f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
+          + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "") + extra)
     return 0

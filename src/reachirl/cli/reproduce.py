@@ -17,215 +17,178 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, number_in, positive_int
+from ._args import int_in, non_negative_int
+
+MAX_SUBJECTS = 200
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
+
+RUN_KEYS = {
+    # key: (what it is, check) -- the keys of a run file (--config RUN.toml, --set KEY=VALUE) beside the flags
+    "postures": ("postures to run (default: every posture of the data)", "names"),
+    "methods": ("moirl (default) and/or baselines maxent, bilevel, kkt; the first is the main table", "names"),
+    "train_subject": ("subject to learn from (default: the first one)", "str"),
+    "train_side": ("learn from this arm's reaches only: right or left (default: either)", "str"),
+    "cv": ("rest (the subject's other trials; default) or other-side (its other arm, mirrored)", "str"),
+    "n_train": ("training trials per posture (default 10; 0: all)", "count"),
+    "n_cv": ("CV trials per posture (default: all; 0: all)", "count"),
+    "n_iscv": ("ISCV trials per posture (default: all; 0: all)", "count"),
+    "nodes": (f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100; --quick 40)", "nodes"),
+    "max_iter": (f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
+    "tol": ("MO-IRL acceptance threshold, 0 to 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
+    "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
+    "data_seed": ("seed of the built-in data set (default 0)", "count"),
+    "markers": ("shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder", "str"),
+    "max_units": ("stop after N new units; rerun into the same --out to resume (default: no limit)", "count"),
+    "progress": ("show a progress bar (default true)", "bool"),
+}
+"""Run-file keys; an ``[experimental]`` table holds MO-IRL's :class:`reachirl.irl.options.Options` fields."""
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "reproduce",
         help="run the seed paper's protocol and write its table and figures",
-        description=__doc__.replace("``", ""),
+        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml or --set KEY=VALUE):\n"
+        + "\n".join(f"  {k}: {v[0]}" for k, v in RUN_KEYS.items())
+        + "\n  [experimental]: MO-IRL options (docs/usage.md)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "--data",
-        metavar="PATH",
-        help="trials file (.npz from `reachirl preprocess`) or a folder with manifest.csv "
-        "[+ subjects.csv]; default: the built-in virtual subjects",
-    )
-    p.add_argument(
-        "--sections",
-        type=int_in(1, NODES_RANGE[1]),
-        nargs="+",
-        default=[1, 6, 8],
-        metavar="N",
-        help="numbers of weight sections, each 1 to --nodes (default: 1 6 8)",
-    )
+    p.add_argument("--data", metavar="PATH",
+                   help="trials file (.npz from `reachirl preprocess`) or a folder with manifest.csv [+ subjects.csv]; "
+                   "default: the built-in virtual subjects")
+    p.add_argument("--sections", type=int_in(1, NODES_RANGE[1]), nargs="+", default=None, metavar="N",
+                   help="numbers of weight sections, each 1 to the DOC's knots (default: 1 6 8)")
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
-    p.add_argument(
-        "--workers",
-        type=int_in(1, 256),
-        default=None,
-        metavar="N",
-        help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)",
-    )
-    p.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="run the units on this Dask scheduler (tcp://HOST:PORT) (default: local processes)",
-    )
-    p.add_argument(
-        "--seed", type=non_negative_int, default=0, metavar="N", help="seed of the random training trials (default 0)"
-    )
-    p.add_argument(
-        "--quick",
-        action="store_true",
-        help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations",
-    )
-    p.add_argument(
-        "--subjects",
-        type=positive_int,
-        metavar="N",
-        help="make N built-in virtual subjects (default 2; 20 is Berret 2011's design); not with --data",
-    )
-    p.add_argument(
-        "--iscv",
-        choices=("one", "all-pairs"),
-        default="one",
-        help="one: learn from the training subject only (the seed); all-pairs: learn from every subject in turn "
-        "and predict every other one, writing iscv_pairs.csv and its heatmaps (default one)",
-    )
-    g = p.add_argument_group("protocol options")
-    g.add_argument("--postures", nargs="+", metavar="NAME", help="postures to run (default: all in the data)")
-    g.add_argument(
-        "--method",
-        nargs="+",
-        default=["moirl"],
-        metavar="NAME",
-        help="moirl (default) and/or baselines (maxent, bilevel, kkt); the first one is the main table",
-    )
-    g.add_argument(
-        "--backend",
-        choices=("casadi", "crocoddyl"),
-        default="casadi",
-        help="DOC backend of every fit and prediction (default: casadi)",
-    )
-    g.add_argument(
-        "--acceptance",
-        choices=("merit", "either", "multimodal"),
-        default=None,
-        help="MO-IRL step acceptance: merit (the seed, default), either, or multimodal (state and torque merits)",
-    )
-    g.add_argument(
-        "--rollout",
-        choices=("mean", "per_demo"),
-        default="mean",
-        help="MO-IRL's training rollouts: one DOC from the demonstrations' mean start, target and duration (mean, "
-        "the seed, default) or one per demonstration, each compared with its own (per_demo: about five times the "
-        "fit time; see the README for what it changes)",
-    )
-    g.add_argument(
-        "--observe",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="predict each reach as it was recorded: the rest-to-rest DOC seen between its own crossings of the "
-        "trials' onset threshold, MO-IRL's rollouts too (trials not cut at a threshold are predicted whole; "
-        "default); --no-observe: the DOC over the trial's own duration, as the seed",
-    )
-    g.add_argument(
-        "--merit",
-        choices=("state", "normalised"),
-        default="normalised",
-        help="MO-IRL's merit: each channel of (q, q̇) divided by the demonstrations' spread (normalised, default) "
-        "or the seed's full-state error (state)",
-    )
-    g.add_argument(
-        "--fallback",
-        choices=("merit", "none"),
-        default=None,
-        help="MO-IRL/MaxEnt when the likelihood's step lowers no merit: step on a model of the merit (merit, "
-        "default) or stop (none: the seed's rule)",
-    )
-    g.add_argument(
-        "--merit-model",
-        choices=("probes", "gauss-newton"),
-        default=None,
-        help="MO-IRL/MaxEnt's model of the merit for those steps: 14 probe solves per rollout (probes, default) or "
-        "Gauss-Newton from the DOC's sensitivities (gauss-newton, no solve; also tried when the likelihood's step "
-        "gains less than 1 %%)",
-    )
-    g.add_argument("--train-subject", metavar="ID", help="subject to learn from (default: the first one)")
-    g.add_argument("--train-side", choices=("right", "left"), help="learn from this arm's reaches only "
-                   "(default: either arm; with --cv other-side, right)")
-    g.add_argument(
-        "--cv",
-        choices=("rest", "other-side"),
-        default="rest",
-        help="cross-validate on the subject's other trials (rest; the seed) or on its other arm "
-        "(other-side; UE-ADL: learn right, validate on the mirrored left) (default rest)",
-    )
-    g.add_argument(
-        "--n-train", type=non_negative_int, metavar="N", help="training trials per posture (default 10; 0: all)"
-    )
-    g.add_argument("--n-cv", type=non_negative_int, metavar="N", help="CV trials per posture (default: all; 0: all)")
-    g.add_argument(
-        "--n-iscv", type=non_negative_int, metavar="N", help="ISCV trials per posture (default: all; 0: all)"
-    )
-    g.add_argument("--nodes", type=int_in(*NODES_RANGE), metavar="N",
-                   help=f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100, as the DOC; --quick 40)")
-    g.add_argument("--max-iter", type=int_in(1, MAX_ITER), metavar="N",
-                   help=f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30)")
-    g.add_argument("--tol", type=number_in(0.0, 0.5), metavar="X",
-                   help="MO-IRL: a step must lower the merit by more than this fraction, 0 to 0.5 (default 1e-4)")
-    g.add_argument(
-        "--data-seed", type=non_negative_int, default=0, metavar="N", help="seed of the built-in data set (default 0)"
-    )
-    g.add_argument(
-        "--markers", metavar="MAP",
-        help="shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder (default: truth.json's markers, else "
-        "the built-in marker sets)"
-    )
-    g.add_argument(
-        "--max-units",
-        type=positive_int,
-        metavar="N",
-        help="stop after N new units (resume later into the same --out) (default: no limit)",
-    )
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--workers", type=int_in(1, 256), default=None, metavar="N",
+                   help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the units on this Dask scheduler (tcp://HOST:PORT) (default: local processes)")
+    p.add_argument("--seed", type=non_negative_int, default=None, metavar="N",
+                   help="seed of the random training trials and of the uncertainty's samples (default 0)")
+    p.add_argument("--quick", action="store_true",
+                   help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations")
+    p.add_argument("--subjects", type=int_in(1, MAX_SUBJECTS), metavar="N",
+                   help=f"make N built-in virtual subjects, 1 to {MAX_SUBJECTS} (default 2; 20 is Berret 2011's "
+                   "design); not with --data")
+    p.add_argument("--iscv", choices=("one", "all-pairs"), default=None,
+                   help="one: learn from the training subject only (the seed; default); all-pairs: learn from every "
+                   "subject in turn and predict every other one (iscv_pairs.csv and its heatmaps)")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default=None,
+                   help="DOC backend of every fit and prediction (default: casadi)")
+    p.add_argument("--seed-form", action="store_true", default=None,
+                   help="MO-IRL as the seed paper wrote it (docs/method.md lists what the default adds)")
+    p.add_argument("--posture-transfer", action="store_true", default=None,
+                   help="also learn one cost on every posture but one and predict the held-out one "
+                   "(posture_transfer.csv)")
+    p.add_argument("--uncertainty", type=int_in(20, 1000), nargs="?", const=40, default=None, metavar="K",
+                   help="K weight samples per MO-IRL fit that the training trials cannot tell apart (20 to 1000, "
+                   "default 40 when given), in each model and the report")
+    p.add_argument("--config", type=Path, metavar="RUN.toml",
+                   help="a run file (every run writes its own as DIR/run.toml); flags given override it")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="assignments",
+                   help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side")
     return p
 
 
-def _config(args):
+FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "posture_transfer", "uncertainty")
+
+
+def run_options(args) -> dict:
+    """The run's options: the run file, then ``--set``, then the flags given; every key checked (exit 2 naming the
+    key or the file). ``experimental`` is a table."""
+    from ..runfile import parse_assignment, read_run_file
+
+    opts: dict = {}
+    where = None
+    if args.config is not None:
+        opts.update(read_run_file(args.config))
+        where = args.config
+    for text in args.assignments:
+        try:
+            key, value = parse_assignment(text)
+        except ValueError as e:
+            raise InputError(f"--set: {e}") from None
+        opts[key] = value
+        where = where or "--set"
+    for key in FLAG_KEYS:
+        v = getattr(args, key)
+        if v is not None:
+            opts[key] = list(v) if isinstance(v, list) else v
+    known = {*RUN_KEYS, *FLAG_KEYS, "experimental", "quick", "data", "scheduler", "workers", "out"}
+    unknown = sorted(set(opts) - known)
+    if unknown:
+        raise InputError(f"unknown run option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}",
+                         where)
+    for key in ("postures", "methods"):
+        v = opts.get(key)
+        if isinstance(v, str):
+            opts[key] = [x for x in v.split(",") if x]
+        if opts.get(key) is not None and not (isinstance(opts[key], list)
+                                              and all(isinstance(x, str) and x for x in opts[key])):
+            raise InputError(f"{key}: expected a list of names, got {opts[key]!r}", where)
+    if isinstance(opts.get("sections"), int):
+        opts["sections"] = [opts["sections"]]
+    exp = opts.get("experimental", {})
+    if not isinstance(exp, dict):
+        raise InputError("experimental: expected a table of MO-IRL options", where)
+    for key, (_, kind) in RUN_KEYS.items():
+        if key in opts and not _valid(kind, opts[key]):
+            raise InputError(f"{key}: {RUN_KEYS[key][0]}; got {opts[key]!r}", where)
+    return opts
+
+
+def _valid(kind: str, v) -> bool:
+    num = isinstance(v, int) and not isinstance(v, bool)
+    return {
+        "names": isinstance(v, list),
+        "str": isinstance(v, str),
+        "count": num and 0 <= v <= 10**6,
+        "nodes": num and NODES_RANGE[0] <= v <= NODES_RANGE[1],
+        "iters": num and 1 <= v <= MAX_ITER,
+        "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= 0.5,
+        "bool": isinstance(v, bool),
+    }[kind]
+
+
+def _config(args, opts: dict):
     from ..experiments.protocol import ProtocolConfig
 
     base = QUICK if args.quick else FULL
 
-    def pick(name, arg):
-        v = getattr(args, arg)
+    def pick(name):
+        v = opts.get(name)
         if v is None:
             return base[name]
         return None if v == 0 else v
 
-    postures = args.postures
     return ProtocolConfig(
-        sections=tuple(args.sections),
-        postures=tuple(postures) if postures else None,
-        methods=tuple(args.method),
-        seed=args.seed,
-        train_subject=args.train_subject,
-        train_side=args.train_side,
-        n_train=pick("n_train", "n_train"),
-        cv=args.cv,
-        n_cv=pick("n_cv", "n_cv"),
-        n_iscv=pick("n_iscv", "n_iscv"),
-        n_nodes=args.nodes or base["nodes"],
-        max_iter=args.max_iter or base["max_iter"],
-        **({} if args.tol is None else {"tol": args.tol}),
-        backend=args.backend,
-        iscv=args.iscv,
-        estimator_options=_estimator_options(args),
-        observe=args.observe,
-        merit=args.merit,
-        rollout=args.rollout,
+        sections=tuple(opts.get("sections") or (1, 6, 8)),
+        postures=tuple(opts["postures"]) if opts.get("postures") else None,
+        methods=tuple(opts.get("methods") or ("moirl",)),
+        seed=int(opts.get("seed", 0)),
+        train_subject=opts.get("train_subject"),
+        train_side=opts.get("train_side"),
+        n_train=pick("n_train"),
+        cv=opts.get("cv", "rest"),
+        n_cv=pick("n_cv"),
+        n_iscv=pick("n_iscv"),
+        n_nodes=opts.get("nodes") or base["nodes"],
+        max_iter=opts.get("max_iter") or base["max_iter"],
+        tol=opts.get("tol"),
+        backend=opts.get("backend", "casadi"),
+        iscv=opts.get("iscv", "one"),
+        seed_form=bool(opts.get("seed_form", False)),
+        rollout=opts.get("rollout", "per_task"),
+        experimental=dict(opts.get("experimental", {})),
+        uncertainty=opts.get("uncertainty"),
+        posture_transfer=bool(opts.get("posture_transfer", False)),
     )
-
-
-def _estimator_options(args) -> dict:
-    """MO-IRL options set on the command line (only those given, so the default units keep their keys)."""
-    opts = {}
-    if args.acceptance:
-        opts["acceptance"] = args.acceptance
-    if args.fallback:
-        opts["fallback"] = None if args.fallback == "none" else args.fallback
-    if args.merit_model:
-        opts["merit_model"] = args.merit_model
-    return opts
 
 
 def _quick_postures(config, dataset):
@@ -280,6 +243,43 @@ def _check_scheduler(address: str | None) -> None:
         )
 
 
+def _write_run_file(out, args, opts: dict, config) -> None:
+    """``DIR/run.toml``: every option the run used, so that ``reproduce --config DIR/run.toml`` repeats it."""
+    from .. import __version__
+    from ..runfile import write_run_file
+
+    resolved = {
+        "data": None if args.data is None else str(Path(args.data).resolve()),
+        "quick": bool(args.quick),
+        "sections": list(config.sections),
+        "postures": None if config.postures is None else list(config.postures),
+        "methods": list(config.methods),
+        "seed": config.seed,
+        "data_seed": int(opts.get("data_seed", 0)),
+        "subjects": opts.get("subjects"),
+        "markers": opts.get("markers"),
+        "train_subject": config.train_subject,
+        "train_side": config.train_side,
+        "cv": config.cv,
+        "n_train": config.n_train or 0,
+        "n_cv": config.n_cv or 0,
+        "n_iscv": config.n_iscv or 0,
+        "nodes": config.n_nodes,
+        "max_iter": config.max_iter,
+        "tol": config.tol,
+        "backend": config.backend,
+        "iscv": config.iscv,
+        "seed_form": config.seed_form,
+        "rollout": config.rollout,
+        "posture_transfer": config.posture_transfer,
+        "uncertainty": config.uncertainty,
+        "experimental": dict(config.experimental),
+    }
+    write_run_file(out / "run.toml", resolved,
+                   header=f"reachirl {__version__} reproduce: the options of this run; repeat it with "
+                   f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`")
+
+
 def run(args) -> int:
     from rich.console import Console
     from rich.progress import (
@@ -300,7 +300,13 @@ def run(args) -> int:
 
     out = check_output_dir(args.out)
     _check_scheduler(args.scheduler)
-    config = _config(args)
+    opts = run_options(args)
+    args.quick = bool(args.quick or opts.get("quick", False))
+    if args.data is None and opts.get("data") is not None:
+        args.data = str(opts["data"])
+    if opts.get("subjects") is not None and args.data is not None:
+        raise InputError("--subjects makes built-in virtual subjects: not with --data")
+    config = _config(args, opts)
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
@@ -316,7 +322,8 @@ def run(args) -> int:
     t0 = time.perf_counter()
     if args.data is None:
         err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
-    dataset = datasets.load(args.data, seed=args.data_seed, marker_map=args.markers, n_subjects=args.subjects)
+    dataset = datasets.load(args.data, seed=int(opts.get("data_seed", 0)), marker_map=opts.get("markers"),
+                            n_subjects=opts.get("subjects"))
     if args.quick:
         config = _quick_postures(config, dataset)
     data_s = time.perf_counter() - t0
@@ -330,11 +337,11 @@ def run(args) -> int:
         TextColumn("left"),
         TimeRemainingColumn(),
         console=err,
-        disable=args.no_progress or not err.is_terminal,
+        disable=not opts.get("progress", True) or not err.is_terminal,
         transient=False,
     )
     state = {"done": 0, "total": 0}
-    log_lines = not args.no_progress and not err.is_terminal  # e.g. a log file: one line per unit
+    log_lines = opts.get("progress", True) and not err.is_terminal  # e.g. a log file: one line per unit
 
     def on_start(total, reused):
         state["task"] = progress.add_task("reproduce", total=total)
@@ -360,7 +367,7 @@ def run(args) -> int:
             out,
             workers=workers,
             scheduler=args.scheduler,
-            max_units=args.max_units,
+            max_units=opts.get("max_units") or None,
             data_s=data_s,
             on_start=on_start,
             on_done=on_done,
@@ -372,6 +379,7 @@ def run(args) -> int:
             file=sys.stderr,
         )
         return 0
+    _write_run_file(out, args, opts, config)
     outputs = write_outputs(result)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:

@@ -16,8 +16,6 @@ true weights when the data are virtual subjects (``truth.json`` beside the manif
 
 from __future__ import annotations
 
-import hashlib
-import json
 import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -27,6 +25,7 @@ import numpy as np
 
 from ..data.trial import Trial, load_trials
 from ..errors import InputError
+from ..irl.provenance import fingerprint
 
 __all__ = ["Dataset", "fingerprint", "load", "preprocess_folder", "toy"]
 
@@ -68,16 +67,6 @@ class Dataset:
             "has_truth": self.truth is not None,
             "fingerprint": fingerprint(self.trials),
         }
-
-
-def fingerprint(trials: Sequence[Trial]) -> str:
-    """A short hash of the trials' identities, arms and arrays (what a unit's result depends on)."""
-    h = hashlib.sha256()
-    for t in trials:
-        h.update(json.dumps([t.id, t.target_x, t.arm.to_dict()], sort_keys=True).encode())
-        for a in (t.t, t.q, t.qd, t.qdd, t.tau, t.x0):
-            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
-    return h.hexdigest()[:16]
 
 
 def _find(folder: Path, names: Sequence[str]) -> Path | None:

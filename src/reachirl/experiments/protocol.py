@@ -68,14 +68,14 @@ class ProtocolConfig:
     n_iscv: int | None = None  # None: all of them (per posture)
     n_nodes: int = 100
     max_iter: int = 30
-    tol: float = 1e-4  # a step must lower the merit by more than the DOC's repeatability (~2e-5): MOIRL's own
+    tol: float | None = None  # None: MOIRL's own (1e-4; 0 in the seed's form)
     backend: str = "casadi"
-    estimator_options: dict = field(default_factory=dict)
     iscv: str = "one"  # "one": learn from train_subject only | "all-pairs": learn from every subject in turn
-    observe: bool = True  # predict and fit trials cut at a speed threshold as recorded (reachirl.observation);
-    # False: the seed's DOC over the trial's own duration
-    merit: str = "normalised"  # MO-IRL's merit: "normalised" (each channel by its spread) | "state" (the seed's)
-    rollout: str = "mean"  # MO-IRL's rollouts: "mean" (the seed's single rollout) | "per_demo" (one per demonstration)
+    seed_form: bool = False  # the paper's MO-IRL exactly as written (reachirl.irl.options.SEED_FORM)
+    rollout: str = "per_task"  # MO-IRL's rollouts (reachirl.irl.options.ROLLOUTS)
+    experimental: dict = field(default_factory=dict)  # Options fields over the method's (reachirl.irl.options)
+    uncertainty: int | None = None  # weight samples per MO-IRL fit (reachirl.irl.uncertainty), or None
+    posture_transfer: bool = False  # also learn on every posture but one and predict the held-out one
 
     def __post_init__(self) -> None:
         secs = tuple(int(s) for s in self.sections)
@@ -86,12 +86,18 @@ class ProtocolConfig:
         object.__setattr__(self, "sections", tuple(dict.fromkeys(secs)))
         if self.iscv not in ISCV_MODES:
             raise InputError(f"--iscv must be one of {', '.join(ISCV_MODES)}, got {self.iscv!r}")
-        if self.merit not in ("state", "normalised"):
-            raise InputError(f"--merit must be 'state' or 'normalised', got {self.merit!r}")
-        if self.rollout not in ("mean", "per_demo"):
-            raise InputError(f"--rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
-        if self.observe not in (True, False):
-            raise InputError(f"observe must be true or false, got {self.observe!r}")
+        from ..irl.options import ROLLOUTS, resolve_options
+
+        if self.rollout not in ROLLOUTS:
+            raise InputError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
+        try:  # the method's options are checked where they are defined
+            resolve_options(self.seed_form, self.experimental)
+        except (ValueError, TypeError) as e:
+            raise InputError(f"experimental: {e}") from None
+        if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):
+            raise InputError(f"tol must be a number in [0, 0.5), got {self.tol!r}")
+        if self.uncertainty is not None and not (isinstance(self.uncertainty, int) and 20 <= self.uncertainty <= 1000):
+            raise InputError(f"uncertainty must be a number of samples from 20 to 1000, got {self.uncertainty!r}")
         if self.cv not in ("rest", "other-side"):
             raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
         for m in self.methods:
@@ -139,13 +145,17 @@ class Unit:
 
     @property
     def key(self) -> str:
+        if self.held_out_posture is not None:
+            return f"{self.method}-xfer-{_safe(self.held_out_posture)}-s{self.sections}"
         key = f"{self.method}-{_safe(self.posture)}-s{self.sections}"
         return key if self.train_subject is None else f"{key}-t{_safe(self.train_subject)}"
 
+    held_out_posture: str | None = None  # a posture-transfer unit: learn on every other posture, predict this one
+
     @property
     def observe(self) -> bool:
-        """Whether the unit fits and predicts trials as they were recorded (its ``observe`` option)."""
-        return bool(dict(self.estimator_options).get("observe", False))
+        """Whether the unit fits and predicts trials as they were recorded (its estimator's ``observe``)."""
+        return unit_observes(self.method, self.estimator_options)
 
     @property
     def split_key(self):
@@ -158,7 +168,8 @@ class Unit:
             {
                 "v": RESULT_VERSION,
                 "code": code_fingerprint(self.method, self.backend),
-                "unit": {k: v for k, v in asdict(self).items() if not (k == "train_subject" and v is None)},
+                "unit": {k: v for k, v in asdict(self).items()
+                         if not (k in ("train_subject", "held_out_posture") and v is None)},
                 "data": {k: fingerprint(v) for k, v in split.sets().items()},
                 "ids": {k: [t.id for t in v] for k, v in split.sets().items()},
             },
@@ -285,17 +296,45 @@ def make_units(postures: Sequence[str], config: ProtocolConfig,
 
 
 def _method_options(method: str, config: ProtocolConfig) -> tuple:
-    """The unit options of ``method``: ``observe``, ``merit`` and ``rollout`` for MO-IRL and the estimators built on it
-    (MaxEnt), so that a unit predicts its trials as its fit saw them (bilevel and KKT fit whole reaches), then
-    ``config.estimator_options``; sorted ``(key, value)`` pairs."""
+    """The unit options of ``method``: ``rollout``, ``seed_form``, ``experimental`` and ``uncertainty`` for MO-IRL
+    and the estimators built on it (MaxEnt); bilevel and KKT fit whole reaches with their own defaults. Sorted
+    ``(key, value)`` pairs, ``experimental`` as sorted pairs too (hashable)."""
     from ..irl.methods import METHODS as AVAILABLE
     from ..irl.moirl import MOIRL
 
     cls = AVAILABLE.get(method)
-    opts = ({"observe": config.observe, "merit": config.merit, "rollout": config.rollout}
-            if cls is not None and issubclass(cls, MOIRL) else {})
-    opts.update(config.estimator_options)
-    return tuple(sorted((str(k), v) for k, v in opts.items()))
+    if cls is None or not issubclass(cls, MOIRL):
+        return ()
+    opts = {"rollout": config.rollout, "seed_form": config.seed_form,
+            "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in config.experimental.items()))}
+    if config.uncertainty is not None:
+        opts["uncertainty"] = int(config.uncertainty)
+    return tuple(sorted(opts.items()))
+
+
+def _hashable(v):
+    return tuple(_hashable(x) for x in v) if isinstance(v, list | tuple) else v
+
+
+def estimator_kwargs(options) -> dict:
+    """A unit's ``estimator_options`` (pairs, or a dict from results.json) as the estimator's keyword arguments."""
+    opts = dict(options)
+    if "experimental" in opts:
+        opts["experimental"] = {str(k): v for k, v in opts["experimental"]}
+    return opts
+
+
+def unit_observes(method: str, estimator_options) -> bool:
+    """Whether a unit of ``method`` with these options fits and predicts trials as they were recorded."""
+    from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.moirl import MOIRL
+    from ..irl.options import resolve_options
+
+    cls = AVAILABLE.get(method)
+    if cls is None or not issubclass(cls, MOIRL):
+        return False
+    opts = estimator_kwargs(estimator_options)
+    return bool(resolve_options(opts.get("seed_form", False), opts.get("experimental"), cls._option_defaults).observe)
 
 
 def make_estimator(unit: Unit):
@@ -312,9 +351,9 @@ def make_estimator(unit: Unit):
     wanted = {
         "n_nodes": unit.n_nodes,
         "max_iter": unit.max_iter,
-        "tol": unit.tol,
         "backend": unit.backend,
-        **dict(unit.estimator_options),
+        **({} if unit.tol is None else {"tol": unit.tol}),
+        **estimator_kwargs(unit.estimator_options),
     }
     params = inspect.signature(AVAILABLE[unit.method].__init__).parameters
     if not any(p.kind is p.VAR_KEYWORD for p in params.values()):

@@ -64,7 +64,9 @@ def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | N
 
 def _observes(unit: dict) -> bool:
     """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
-    return bool(dict(unit.get("estimator_options", ())).get("observe", False))
+    from .protocol import unit_observes
+
+    return unit_observes(unit["method"], unit.get("estimator_options", ()))
 
 
 def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
@@ -596,7 +598,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         )
         + ".",
         f"- **Method:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
-        f"at most {config.max_iter} MO-IRL iterations (tol {config.tol:g}); seed defaults otherwise "
+        f"at most {config.max_iter} MO-IRL iterations (tol {'default' if config.tol is None else format(config.tol, 'g')}); seed defaults otherwise "
         "(β = 1e-10, ω₀ = 0.05, α = 1 shrinking by 0.25, at most 10 tries).",
         "",
         "## Results: RMSE of the joint angles (deg), seed Table II layout",

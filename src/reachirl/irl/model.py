@@ -25,6 +25,7 @@ class LearnedModel:
     n_nodes: int = 100
     method: str = "moirl"
     info: dict = field(default_factory=dict)
+    uncertainty: dict | None = None  # weight samples the training data cannot tell apart (reachirl.irl.uncertainty)
 
     def __post_init__(self) -> None:
         w = np.asarray(self.weights, dtype=float)
@@ -50,6 +51,7 @@ def save_model(path: str | Path, model: LearnedModel) -> Path:
             "features": list(FEATURES),
             "weights": model.weights,
             "info": model.info,
+            **({} if model.uncertainty is None else {"uncertainty": model.uncertainty}),
         },
     )
     return Path(path)
@@ -69,6 +71,7 @@ def load_model(path: str | Path) -> LearnedModel:
             n_nodes=int(d.get("n_nodes", 100)),
             method=str(d.get("method", "moirl")),
             info=dict(d.get("info", {})),
+            uncertainty=d.get("uncertainty") if isinstance(d.get("uncertainty"), dict) else None,
         )
     except (KeyError, TypeError, ValueError) as e:
         raise InputError(f"malformed model ({e})", path) from None

@@ -1,116 +1,29 @@
-"""MO-IRL with time-varying weights (the seed paper's extended form), as a scikit-learn-style estimator.
+"""MO-IRL with time-varying weights (the seed paper's extended form, §II-C), as a scikit-learn-style estimator.
 
-One iteration (seed §II-C):
+One iteration:
 
-1. Features ``Φ_i`` of the generated trajectories in ``x̄`` (only the latest one, by default) and ``Φ*_d`` of the
-   demonstrations, per window.
-2. ``Δω*`` from the subproblem (:func:`reachirl.irl.objective.solve_delta`).
-3. Line search: ``ω_α = ω + αΔω*`` with ``α = 1, 0.25, 0.25², …`` (at most ``max_tries``); each try solves the
-   DOC and is accepted when the merit ``m(x) = (1/D) Σ_d (1/N) ‖x*_d − x‖²`` over ``(q1, q2, q̇1, q̇2)``
-   decreases. The accepted rollout replaces ``x̄``. No accepted try ends the fit.
+1. Features ``Φ_i`` of the generated trajectories in ``x̄`` (the latest rollouts) and ``Φ*_d`` of the
+   demonstrations, per window (:func:`reachirl.features.windowed_features`).
+2. ``Δω*`` from the subproblem, seed Eq. 4 (:func:`reachirl.irl.objective.solve_step`, or
+   :func:`~reachirl.irl.objective.solve_delta` in the seed's raw coordinates).
+3. Line search ``ω_α = ω + αΔω*``, ``α = 1, 0.25, 0.25², …``: each try solves the DOC of every rollout and is
+   accepted when the merit ``m(x) = (1/D) Σ_d (1/N) ‖x*_d − x_d‖²`` over ``(q1, q2, q̇1, q̇2)`` falls by more
+   than ``tol``. The accepted rollouts replace ``x̄``; no accepted try ends the fit.
 
-Choices the seed leaves open, fixed here (each an option):
+The method's other choices are :class:`reachirl.irl.options.Options`: reachirl's defaults (observed rollouts, the
+normalised merit, scale-free steps with a trust region, the merit fallback), or the seed's form exactly as written
+(``seed_form=True``). ``docs/method.md`` states each departure from the paper with its evidence.
 
-* **Scale-free steps** (``scaling="demo"``, the default): the subproblem is solved in normalised coordinates
-  (features divided by the demonstrations' per-(window, feature) mean, weights multiplied by it) with a
-  multiplicative step ``ω ⊙ exp(η)``, ``|η| ≤ log(max_ratio)`` (:func:`reachirl.irl.objective.solve_step`), and
-  the initial weights are ``w0`` in those coordinates (every feature starts with the same share of each window's
-  cost). The step, in ω-space, does not depend on the features' units, and one iteration moves a weight by at
-  most ``max_ratio``. The trust region adapts: after an accepted step, the next may go 4× as far in
-  log-weights (never beyond ``max_ratio``); measured on the built-in data and UE-ADL, this took a third fewer
-  DOC solves for the same held-out RMSE (8 windows: ISCV 1.90° vs 1.91°, UE-ADL 4.10° vs 4.06°).
-  ``scaling=None`` is the seed's raw form: ``Δω ≥ −(1 − 10⁻³)ω`` on SI features, ``w0`` uniform
-  (:func:`reachirl.irl.objective.solve_delta`).
-* **Line search that judges steps, not solver failures**: a try whose warm-started DOC fails is solved again
-  cold, then from the demonstrations' mean path; only a try that still fails is rejected as a failure (counted).
-  A try is accepted only if it lowers the merit by more than ``tol`` (relative), well above the DOC's own
-  repeatability (warm against cold solves of the same weights differ by ~2e-5), and the search ends once a try
-  would move no weight by more than ``min_step`` (relative): such a try cannot move the merit beyond that noise.
-  It also ends when a try's merit is no lower than the longer try's before it: along a merit that is unimodal on
-  the step, the best step is then longer than both, and no shorter try can pass (measured on seven virtual
-  populations: 129 → 124 DOC solves per 8-window protocol fit, every held-out RMSE over all postures within
-  0.01°).
-  A step that scales every weight by one factor changes no DOC, so no solve is spent on it. This happens when
-  the demonstrations cost more than the rollout on every feature, as one window often finds on time-varying
-  data: the likelihood's only advice is then to lower the temperature (see the merit fallback below). A fit
-  that ends on such a step reports ``stop_reason_ = "step_only_rescales"``.
-* **A merit fallback when the likelihood has nothing to say** (``fallback="merit"``, the default). When the
-  demonstrations cost more than every rollout on every feature (Pareto-dominated: one window on time-varying
-  data is the typical case, even on noise-free reaches), the likelihood's only advice is a lower temperature,
-  and its step is a pure rescale or lowers no merit. The fit then steps on a local model of the merit itself,
-  line-searched like a likelihood step and accepted only if it lowers the merit by ``fallback_tol`` (1 %); every
-  iteration records which kind of step it took (``history_[i]["step"]``). ``fallback=None`` is the seed's rule.
-  The model (``merit_model``):
+**Rollouts** (``rollout``): each demonstration is compared with the rollout of its task. ``"per_task"`` (the
+default) solves one DOC per (subject, posture) of the demonstrations, from their mean arm, start, target and
+duration, so that demonstrations of several postures (and subjects) learn one cost shared by all of them;
+``"per_demo"`` solves one per demonstration, from its own start; ``"mean"`` one from the mean of all
+demonstrations (the seed's, identical to ``"per_task"`` on one task).
 
-  - ``"probes"`` (the default): ``2 × 7`` rollouts with each feature's weights (in every window) scaled by
-    ``ρ^{±1}`` (``ρ`` the trust region's ratio) give a per-feature quadratic model
-    (:func:`reachirl.irl.objective.merit_model_step`): 14 solves per rollout, and the windows of a feature move
-    together.
-  - ``"gauss-newton"``: each rollout's derivative in every log-weight, by the implicit function theorem on the
-    DOC's KKT conditions (:func:`reachirl.doc.sensitivity.weight_jacobian`, ~20 ms, about two warm solves),
-    seen as the demonstrations were recorded (:func:`reachirl.observation.observed_state_jacobian`), gives the
-    Gauss-Newton model of the merit in all ``S × 7`` log-weights; its bounded minimiser
-    (:func:`reachirl.irl.objective.gauss_newton_step`) is the step. No DOC is solved for the model, so the
-    merit step is also tried when the likelihood's step lowers the merit by less than ``fallback_tol``, and
-    replaces it when accepted (each iteration then gains more, and the fit's path no longer hinges on which
-    side of that threshold a step falls).
-
-  Measured (8 windows, the protocol's options; the fits' predictions against the true weights' own, train / CV
-  / ISCV): on the mean rollout, 0.81 / 0.87 / 1.21° against the probes' 0.92 / 0.97 / 1.19° (four virtual
-  populations, 5 postures each) with 20 % fewer solves; with one rollout per demonstration (built-in data, both
-  stages per demonstration), 0.53 / 0.52 / 0.52° against 0.71 / 0.68 / 0.69° in the same CPU time. On real
-  data (UE-ADL, every ordered pair of subjects) the Gauss-Newton fits transfer worse to another subject (ISCV
-  5.58 / 5.60° per demonstration / mean rollout, against the probes' 4.97 / 5.08°): the README says why the
-  probes stay the default.
-* **Merit**: ``merit="state"`` (the seed's full-state ``(q, q̇)`` error) or ``"normalised"`` (each channel
-  divided by the demonstrations' variance of it, :func:`reachirl.irl.objective.channel_scale`). With
-  ``observe=True`` it brings the fits closest to the true weights' predictions, and the protocol and the CLI
-  use both by default (measured in the README on seven virtual populations; the estimator's own defaults stay
-  the seed's, since ``observe`` needs demonstrations cut at a threshold).
-* **Rollouts seen as the demonstrations were recorded** (``observe=True``; :mod:`reachirl.observation`). For
-  demonstrations cut from their recordings at a fingertip-speed threshold (``Trial.onset_threshold``), each
-  rollout is the rest-to-rest DOC over ``duration / MOVING_FRACTION`` and enters the merit and the features
-  through its own onset-to-offset part, as the demonstrations did. From ``ω₀`` this merit's landscape stopped
-  the fits well above the true weights' merit on the virtual subjects (P3: 0.57 against 0.35), so the fit first
-  runs without it (same options) and goes on from those weights; both stages' solves are counted, the flag
-  judges both (``plain_fit_`` summarises the first). Demonstrations that were not cut are fitted as without
-  ``observe``; ``predict`` sees a cut trial the same way.
-* **Smoothness prior** across adjacent windows (``smoothness``): ``λ/2 Σ (log ω_{s+1,j} − log ω_{s,j})²`` per
-  demonstration in the subproblem; ``smoothness="cv"`` chooses ``λ`` from :data:`SMOOTHNESS_GRID` by
-  ``cv_folds``-fold cross-validation on the training demonstrations (never on held-out data).
-
-* **The training rollout** (``rollout="mean"``, the seed's): one DOC from the demonstrations' mean initial
-  posture, mean target and mean duration, on their mean arm, compared with every demonstration.
-  ``rollout="per_demo"`` solves one DOC per demonstration from its own start, target and duration; each
-  demonstration is then compared with its own rollout, in the subproblem and in the merit, exactly as a
-  prediction is compared with its trial. Ten reaches from ten starts then constrain the weights where one mean
-  reach lets several weight sets fit equally well. With ``merit_model="gauss-newton"``, measured on six
-  held-out virtual populations (README): train and CV RMSE lower on every one, the fits' predictions within
-  0.64 / 0.66 / 1.11° of the true weights' own (train / CV / ISCV, mean) against 0.85-0.98 / 0.83-1.17 (seeds
-  0-3) / 1.23° with the mean rollout and probes; ISCV RMSE better on four, worse on two, and worse on real
-  data; about five times the fit time (one solve per demonstration per try). With ``observe``, the first stage
-  still uses the mean rollout: it only brings the weights near (measured: the same agreement as
-  per-demonstration rollouts in both stages, 0.54 against 0.53°, for 60 % of the time).
-* **Time normalisation**: every demonstration is resampled to the DOC's ``N + 1`` knots over its own duration, so
-  trials of different durations are compared at the same normalised times.
-* **Demonstration features** are computed exactly as the DOC computes its own (:meth:`Trial.knots`: the same
-  knots, Euler ``q̈``, inverse-dynamics ``τ`` and ``τ̇``, with ``τ_{−1} = g(q_0)``), from the trial's filtered
-  angles; rollouts go through the very same function. ``feature_cutoff`` (Hz) low-passes both sides once more
-  (:meth:`Trial.lowpass`), so the filter's distortions cancel: quadratic features of second and third
-  derivatives turn the noise a 10 Hz position filter leaves into a bias (on the virtual subjects the
-  demonstrations' torque change is 10-100× a DOC's). Held-out RMSEs were no better with it (8 windows, ALL
-  postures: virtual ISCV 2.01° at 6 Hz, 1.91° without; UE-ADL 4.15° at 6 Hz, 4.06° without), so it is off by
-  default.
-
-Options from the original MO-IRL (Mehrdad et al. 2025), all off by default so the seed's form is the default:
-``l1`` (elastic-net λ), ``n_suffixes`` (suffix sub-sampling), ``acceptance="either"`` (also accept a step that
-decreases the feature mismatch, or the cost mismatch under Armijo and curvature conditions) and ``memory``
-(``x̄`` keeps the last ``memory`` trajectories; ``None`` keeps them all).
-
-``acceptance="multimodal"`` (the seed's future work) also looks at torque: a try is accepted when the state
-merit falls, or when the mean relative change of the state merit and of the torque merit (the rollout's
-``τ`` against the demonstrations' inverse-dynamics ``τ`` on the knots) is a fall (:func:`multimodal_accept`).
-As with "either", the fit returns the weights of the best state merit seen.
+**Observed rollouts** (``Options.observe``): for demonstrations cut at a fingertip-speed threshold
+(``Trial.onset_threshold``), a rollout is the rest-to-rest DOC over ``duration / MOVING_FRACTION`` and enters the
+merit and the features through its own onset-to-offset part (:mod:`reachirl.observation`). The fit first runs on
+whole rollouts (same options) and goes on from those weights; both stages' solves are counted.
 """
 
 from __future__ import annotations
@@ -119,8 +32,8 @@ import copy
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import fields
-from typing import NamedTuple
+from dataclasses import fields, replace
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -139,9 +52,14 @@ from ..observation import (
 )
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
+from .options import ROLLOUTS, Options, resolve_options
 
 __all__ = ["MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
            "mixed_postures_warning", "multimodal_accept"]
+
+DEFAULT_TOL = 1e-4
+"""The acceptance threshold: well above the DOC's own repeatability (warm and cold solves of the same weights give
+merits ~2e-5 apart), so that solver noise is not taken for progress."""
 
 SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
 """Candidate ``λ`` of ``smoothness="cv"`` (per demonstration; ``λ → ∞`` would tie the windows into one)."""
@@ -191,142 +109,163 @@ class _Step(NamedTuple):
 class MOIRL(WeightEstimator):
     """Minimal Observation IRL with ``n_windows`` time windows of weights.
 
-    Seed parameters: ``w0=0.05``, ``alpha0=1``, ``shrink=0.25``, ``max_tries=10``; ``beta=1e-10`` is the
-    seed's and acts on ``η`` (the log-step) with ``scaling="demo"``. ``callback(iteration_record)`` is called
-    after every iteration (for progress bars). The fit makes no random choice: the same demonstrations give the
-    same weights (the protocol's trial split, and the folds of ``smoothness="cv"``, are deterministic).
+    Parameters:
 
-    Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``history_`` (one dict per
-    iteration: merit, alpha, tries, weights, DOC solves (every solver run), failures (tries whose DOC failed
-    after every retry), recovered (tries a retry rescued), wall time), ``merit_``, ``initial_merit_``,
-    ``best_iteration_``, ``n_doc_solves_``, ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``,
-    ``smoothness_`` (the ``λ`` used), ``cv_scores_`` (with ``smoothness="cv"``), ``plain_fit_`` (with
-    ``observe=True`` on cut demonstrations: the first stage's merit, steps and weights; else ``None``) and
-    ``warnings_`` (a fit that never left ``ω₀``, or made a single step, says so: its weights are not learned
-    ones).
+    * ``n_windows``: windows of weights over the reach (interval ``k`` of ``N`` is in window ``⌊k N_w / N⌋``).
+    * ``rollout``: ``"per_task"``, ``"per_demo"`` or ``"mean"`` (module docstring).
+    * ``max_iter``, ``tol``: iterations at most; a step must lower the merit by more than ``tol`` (relative;
+      ``None``: 1e-4, or 0 with ``seed_form``).
+    * ``n_nodes``, ``backend``: the DOC's knots and solver stack (``"casadi"`` or ``"crocoddyl"``).
+    * ``seed_form``: the paper's method exactly as written (:data:`reachirl.irl.options.SEED_FORM`).
+    * ``uncertainty``: a number ``K ≥ 20`` of weight samples the training data cannot tell apart from the fit
+      (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``.
+    * ``random_state``: the seed of every random choice (the uncertainty's samples).
+    * ``feature_mask``: ``(7,)`` or ``(n_windows, 7)`` booleans; a ``False`` feature is left out of the cost
+      (weight 0, never learned). ``None``: every feature.
+    * ``experimental``: a mapping of :class:`~reachirl.irl.options.Options` fields that override the method's.
+    * ``callback(iteration_record)``: called after every iteration (progress).
+
+    The fit makes no random choice: the same demonstrations give the same weights.
+
+    Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``options_`` (the
+    :class:`~reachirl.irl.options.Options` used), ``history_`` (one dict per iteration: merit, step kind, alpha,
+    tries, weights, DOC solves, failures (tries whose DOC failed after every retry), recovered (tries a retry
+    rescued), wall time), ``merit_``, ``initial_merit_``, ``best_iteration_``, ``n_doc_solves_``,
+    ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``, ``smoothness_``, ``cv_scores_``, ``plain_fit_`` (the
+    whole-rollout first stage of an observed fit, else ``None``), ``tasks_`` (the rollouts' tasks),
+    ``train_solutions_``, ``task_of_demo_`` (each demonstration's rollout), ``uncertainty_`` (with
+    ``uncertainty``) and ``warnings_`` (a fit that never left ``ω₀``, or made a single step, says so).
     """
+
+    _option_defaults: ClassVar[dict] = {}  # subclasses' own Options defaults (MaxEnt keeps every trajectory)
 
     def __init__(
         self,
         n_windows: int = 8,
         *,
-        n_nodes: int = 100,
+        rollout: str = "per_task",
         max_iter: int = 30,
-        tol: float = 1e-4,
-        beta: float = 1e-10,
-        w0: float = 0.05,
-        alpha0: float = 1.0,
-        shrink: float = 0.25,
-        max_tries: int = 10,
-        scaling: str | None = "demo",
-        max_ratio: float = 10.0,
-        min_step: float = 1e-3,
-        smoothness: float | str = 0.0,
-        cv_folds: int = 3,
-        merit: str = "state",
-        feature_cutoff: float | None = None,
-        rollout: str = "mean",
-        memory: int | None = 1,
-        use_gamma: bool = True,
-        l1: float = 0.0,
-        n_suffixes: int = 0,
-        acceptance: str = "merit",
-        fallback: str | None = "merit",
-        fallback_tol: float = 0.01,
-        merit_model: str = "probes",
-        armijo_c1: float = 1e-4,
-        curvature_c2: float = 0.9,
+        tol: float | None = None,
+        n_nodes: int = 100,
         backend: str = "casadi",
-        observe: bool = False,
+        seed_form: bool = False,
+        uncertainty: int | None = None,
+        random_state: int = 0,
+        feature_mask: np.ndarray | None = None,
+        experimental: dict | None = None,
         callback: Callable[[dict], None] | None = None,
     ):
         self.n_windows = n_windows
-        self.n_nodes = n_nodes
+        self.rollout = rollout
         self.max_iter = max_iter
         self.tol = tol
-        self.beta = beta
-        self.w0 = w0
-        self.alpha0 = alpha0
-        self.shrink = shrink
-        self.max_tries = max_tries
-        self.scaling = scaling
-        self.max_ratio = max_ratio
-        self.min_step = min_step
-        self.smoothness = smoothness
-        self.cv_folds = cv_folds
-        self.merit = merit
-        self.feature_cutoff = feature_cutoff
-        self.rollout = rollout
-        self.observe = observe
-        self.memory = memory
-        self.use_gamma = use_gamma
-        self.l1 = l1
-        self.n_suffixes = n_suffixes
-        self.acceptance = acceptance
-        self.fallback = fallback
-        self.fallback_tol = fallback_tol
-        self.merit_model = merit_model
-        self.armijo_c1 = armijo_c1
-        self.curvature_c2 = curvature_c2
+        self.n_nodes = n_nodes
         self.backend = backend
+        self.seed_form = seed_form
+        self.uncertainty = uncertainty
+        self.random_state = random_state
+        self.feature_mask = feature_mask
+        self.experimental = experimental
         self.callback = callback
+
+    @property
+    def _o(self) -> Options:
+        """The resolved method options (checked)."""
+        opts = self.__dict__.get("_options")
+        if opts is None:
+            opts = resolve_options(self.seed_form, self.experimental, self._option_defaults)
+            self.__dict__["_options"] = opts
+        return opts
+
+    @property
+    def observe(self) -> bool:
+        """Whether trials cut at a speed threshold are fitted and predicted as they were recorded."""
+        return bool(self._o.observe)
+
+    @property
+    def tol_(self) -> float:
+        """The acceptance threshold in force: ``tol``, or the method's default."""
+        if self.tol is not None:
+            return float(self.tol)
+        return 0.0 if self.seed_form else DEFAULT_TOL
+
+    def set_params(self, **params) -> MOIRL:
+        """Set constructor parameters (scikit-learn style); the resolved options follow."""
+        for k, v in params.items():
+            if k not in self.get_params():
+                raise ValueError(f"unknown parameter {k!r} of {type(self).__name__}")
+            setattr(self, k, v)
+        self.__dict__.pop("_options", None)
+        return self
 
     # ------------------------------------------------------------------ helpers
     def _check_params(self, trials: Sequence[Trial]) -> list[Trial]:
+        self.__dict__.pop("_options", None)
+        try:
+            self.options_ = self._o
+        except TypeError as e:
+            raise ValueError(f"experimental: {e}") from None
         trials = self._check_trials(trials)
-        if self.rollout not in ("mean", "per_demo"):
-            raise ValueError(f"rollout must be 'mean' or 'per_demo', got {self.rollout!r}")
-        if self.fallback not in ("merit", None):
-            raise ValueError(f"fallback must be 'merit' or None, got {self.fallback!r}")
-        if self.merit_model not in ("gauss-newton", "probes"):
-            raise ValueError(f"merit_model must be 'gauss-newton' or 'probes', got {self.merit_model!r}")
-        if not (np.isfinite(self.fallback_tol) and 0 <= self.fallback_tol < 1):
-            raise ValueError(f"fallback_tol must be in [0, 1), got {self.fallback_tol}")
-        if self.acceptance not in ("merit", "either", "multimodal"):
-            raise ValueError(f"acceptance must be 'merit', 'either' or 'multimodal', got {self.acceptance!r}")
-        if self.scaling not in ("demo", None):
-            raise ValueError(f"scaling must be 'demo' or None, got {self.scaling!r}")
-        if self.scaling == "demo" and (not self.use_gamma or self.l1):
-            raise ValueError("use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None")
-        if self.observe not in (True, False):
-            raise ValueError(f"observe must be True or False, got {self.observe!r}")
-        if self.observe and self.acceptance == "multimodal":
-            raise ValueError("acceptance='multimodal' compares whole rollouts' torques: not with observe=True")
-        if self.merit not in ("state", "normalised"):
-            raise ValueError(f"merit must be 'state' or 'normalised', got {self.merit!r}")
-        if self.memory is not None and self.memory < 1:
-            raise ValueError(f"memory must be >= 1 or None, got {self.memory}")
-        if not 0 < self.shrink < 1 or self.max_tries < 1:
-            raise ValueError(f"need 0 < shrink < 1 and max_tries >= 1, got {self.shrink} and {self.max_tries}")
-        if not self.w0 > 0 or not 0 < self.alpha0 <= 1:
-            raise ValueError(f"need w0 > 0 and 0 < alpha0 <= 1 (weights stay > 0), got {self.w0} and {self.alpha0}")
-        if not self.max_ratio > 1:
-            raise ValueError(f"max_ratio must be > 1, got {self.max_ratio}")
-        if not (np.isfinite(self.min_step) and 0 <= self.min_step < 1):
-            raise ValueError(f"min_step must be in [0, 1), got {self.min_step}")
+        if self.rollout not in ROLLOUTS:
+            raise ValueError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
         if not (isinstance(self.max_iter, int | np.integer) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
-        if not (np.isfinite(self.tol) and self.tol >= 0):
-            raise ValueError(f"tol must be a number >= 0, got {self.tol}")
-        if isinstance(self.smoothness, str):
-            if self.smoothness != "cv":
-                raise ValueError(f"smoothness must be a number >= 0 or 'cv', got {self.smoothness!r}")
-            if int(self.cv_folds) < 2:
-                raise ValueError(f"cv_folds must be >= 2, got {self.cv_folds}")
-        elif not (np.isfinite(self.smoothness) and self.smoothness >= 0):
-            raise ValueError(f"smoothness must be a number >= 0 or 'cv', got {self.smoothness!r}")
+        if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
+            raise ValueError(f"tol must be a number in [0, 1), got {self.tol}")
+        if self.uncertainty is not None and not (isinstance(self.uncertainty, int | np.integer)
+                                                 and 20 <= self.uncertainty <= 1000):
+            raise ValueError(f"uncertainty must be a number of samples from 20 to 1000, or None, got "
+                             f"{self.uncertainty!r}")
+        if any(k >= self.n_windows for k in self._o.frozen_windows):
+            raise ValueError(f"frozen_windows {self._o.frozen_windows} must be windows 0 to {self.n_windows - 1}")
+        self._mask = self._feature_mask()
         return trials
 
-    def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
-        """The rollouts' tasks; sets ``self._thresholds`` (each rollout's onset threshold, or ``None``)."""
+    def _feature_mask(self) -> np.ndarray:
+        """``(n_windows, 7)`` booleans: the features in the cost."""
+        if self.feature_mask is None:
+            return np.ones((self.n_windows, N_FEATURES), dtype=bool)
+        m = np.asarray(self.feature_mask)
+        if m.dtype != bool or m.shape not in ((N_FEATURES,), (self.n_windows, N_FEATURES)):
+            raise ValueError(f"feature_mask must be booleans of shape ({N_FEATURES},) or ({self.n_windows}, "
+                             f"{N_FEATURES}), got {m.dtype} {m.shape}")
+        m = np.broadcast_to(m, (self.n_windows, N_FEATURES)).copy()
+        if not m.any(axis=1).all():
+            raise ValueError("feature_mask leaves a window without any feature")
+        return m
+
+    def _effective(self, w: np.ndarray) -> np.ndarray:
+        """The weights the DOC sees: removed features at 0."""
+        return np.where(self._mask, w, 0.0)
+
+    def _groups(self, trials: Sequence[Trial]) -> np.ndarray:
+        """Each demonstration's rollout index, ``(D,)``."""
         if self.rollout == "mean":
-            task = mean_task(trials, self.n_nodes)
-            self._thresholds = [common_threshold(trials) if self.observe else None]
-            if self._thresholds[0] is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
+            return np.zeros(len(trials), dtype=int)
+        if self.rollout == "per_demo":
+            return np.arange(len(trials))
+        keys = list(dict.fromkeys((t.subject, t.posture) for t in trials))
+        return np.array([keys.index((t.subject, t.posture)) for t in trials])
+
+
+    def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
+        """The rollouts' tasks; sets ``self._thresholds`` (each rollout's onset threshold, or ``None``) and
+        ``self._of`` (each demonstration's rollout)."""
+        self._of = self._groups(trials)
+        if self.rollout == "per_demo":
+            self._thresholds = [t.onset_threshold if self._o.observe else None for t in trials]
+            return [observed_task(t, self.n_nodes, th) for t, th in zip(trials, self._thresholds, strict=True)]
+        tasks, self._thresholds = [], []
+        for r in range(int(self._of.max()) + 1):
+            group = [t for t, g in zip(trials, self._of, strict=True) if g == r]
+            task = mean_task(group, self.n_nodes)
+            th = common_threshold(group) if self._o.observe else None
+            if th is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
                 task = rest_to_rest(task)
-            return [task]
-        self._thresholds = [t.onset_threshold if self.observe else None for t in trials]
-        return [observed_task(t, self.n_nodes, th) for t, th in zip(trials, self._thresholds, strict=True)]
+            tasks.append(task)
+            self._thresholds.append(th)
+        return tasks
+
 
     def _seen(self, i: int, task: ReachingTask, sol: DocSolution) -> Trial:
         """Rollout ``i`` as a trial, seen as the demonstrations were recorded: its onset-to-offset part when
@@ -338,6 +277,7 @@ class MOIRL(WeightEstimator):
     def _rollout(self, task, w, warm: DocSolution | None, guess: np.ndarray) -> tuple[DocSolution, int]:
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
         Returns the solution and the number of solver runs behind it."""
+        w = self._effective(w)
         sol = solve_doc(task, w, backend=self.backend, warm_start=warm)
         runs = sol.attempts
         if not sol.converged:
@@ -359,19 +299,19 @@ class MOIRL(WeightEstimator):
         """Φ of one trajectory, demonstration or rollout alike: ``(n_windows, 7)``, or with suffixes
         ``(1 + n_suffixes, n_windows, 7)``. With ``feature_cutoff`` both sides are seen through the same
         low-pass filter, so the filter's own distortions cancel in ``Φ_i − Φ*``."""
-        if self.feature_cutoff is not None:
-            trial = trial.lowpass(self.feature_cutoff)
+        if self._o.feature_cutoff is not None:
+            trial = trial.lowpass(self._o.feature_cutoff)
         q, qd, tau = trial.knots(self.n_nodes)
         return self._knot_features(trial.arm, q, qd, tau, trial.duration / self.n_nodes, starts)
 
     def _knot_features(self, arm: ArmModel, q, qd, tau, dt: float, starts: np.ndarray) -> np.ndarray:
-        if not self.n_suffixes:
+        if not self._o.n_suffixes:
             return windowed_features(arm, q, qd, tau, dt, self.n_windows)
         return _suffix_features(feature_rates(arm, q, qd, tau, dt), dt, self.n_windows, starts)
 
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
-        if self.feature_cutoff is not None:  # the filter needs the rollout as a recording
+        if self._o.feature_cutoff is not None:  # the filter needs the rollout as a recording
             return np.stack([self._trajectory_features(self._seen(i, task, sol), starts)
                              for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))])
         return np.stack([self._knot_features(task.arm, *observed_knots(sol, task, self._thresholds[i]), starts)
@@ -391,57 +331,58 @@ class MOIRL(WeightEstimator):
         if any(not s.converged for s in sols):
             return np.inf
         states = [self._state(i, task, s) for i, (task, s) in enumerate(zip(tasks, sols, strict=True))]
-        x = states[0] if self.rollout == "mean" else np.stack(states)
+        x = states[0] if len(states) == 1 else np.stack([states[r] for r in self._of])
         return merit(x_demos, x, channels)
 
     def _subproblem_terms(self, phi_star: np.ndarray, bank: list[np.ndarray], starts: np.ndarray):
-        """Stack (demonstration, trajectory) pairs into the arrays the subproblem takes.
+        """Stack (demonstration, trajectory) pairs into the arrays the subproblem takes: each demonstration with
+        the trajectories of its own rollout.
 
         Returns a list of ``(phi_i (I,S,7), phi_star (D',S,7), term_weights (D',))`` groups.
         """
-        n_demo = phi_star.shape[0]
         suffix_w = None
-        if self.n_suffixes:
+        if self._o.n_suffixes:
             T = self.n_nodes
             suffix_w = (T - starts + 1) / (T + 1)
         groups = []
-        if self.rollout == "mean":
-            phi_i = np.stack([b[0] for b in bank])  # (I, [K,] S, 7)
-            if self.n_suffixes:
+        for r in range(bank[0].shape[0]):
+            demos = np.flatnonzero(self._of == r)
+            phi_i = np.stack([b[r] for b in bank])  # (I, [K,] S, 7)
+            if self._o.n_suffixes:
                 for k in range(len(starts)):
-                    groups.append((phi_i[:, k], phi_star[:, k], np.full(n_demo, suffix_w[k])))
+                    groups.append((phi_i[:, k], phi_star[demos, k], np.full(demos.size, suffix_w[k])))
             else:
-                groups.append((phi_i, phi_star, np.ones(n_demo)))
-        else:
-            for d in range(n_demo):
-                phi_i = np.stack([b[d] for b in bank])
-                if self.n_suffixes:
-                    for k in range(len(starts)):
-                        groups.append((phi_i[:, k], phi_star[d : d + 1, k], np.array([suffix_w[k]])))
-                else:
-                    groups.append((phi_i, phi_star[d : d + 1], np.ones(1)))
+                groups.append((phi_i, phi_star[demos], np.ones(demos.size)))
         return groups
 
     def _step(self, w, sigma, phi_star, bank, starts, smoothness, ratio) -> tuple[np.ndarray, dict]:
-        """``Δω*`` of seed Eq. 4: scale-free (``scaling="demo"``) or in the seed's raw coordinates."""
-        if self.scaling is None:
-            return solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self.beta, self.use_gamma,
-                               self.l1)
+        """``Δω*`` of seed Eq. 4: scale-free (``scaling="demo"``) or in the seed's raw coordinates. Weights that
+        may not move (:meth:`_movable`) keep their value; removed features are absent from the likelihood."""
+        free = self._movable(w.shape)
+        if self._o.scaling is None:
+            dw, info = solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self._o.beta,
+                                   self._o.use_gamma, self._o.l1)
+            return np.where(free, dw, 0.0), info
         groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
         n_demo = phi_star.shape[0]
-        return solve_step(w, sigma, groups, self.beta, ratio, smoothness * n_demo)
+        return solve_step(w, sigma, groups, self._o.beta, ratio, smoothness * n_demo,
+                          free=free, present=self._mask)
 
     # ------------------------------------------------------------------ fit / predict
     def fit(self, trials: Sequence[Trial]) -> MOIRL:
         trials = self._check_params(trials)
         t_start = time.perf_counter()
-        smoothness = self.smoothness
+        smoothness = self._o.smoothness
         self.cv_scores_ = None
         if smoothness == "cv":
             smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
         msg = mixed_postures_warning(trials) if self.rollout == "mean" else None
+        if self.uncertainty is not None:
+            from .uncertainty import weight_uncertainty
+
+            self.uncertainty_ = weight_uncertainty(self, trials, int(self.uncertainty), self.random_state)
         if msg is not None:
             self.warnings_ = [*self.warnings_, msg]
             log.warning(msg)
@@ -454,7 +395,7 @@ class MOIRL(WeightEstimator):
         Ties go to the smoother model. The folds interleave the trials in their given order."""
         from ..evaluation import rmse_deg
 
-        k = min(int(self.cv_folds), len(trials))
+        k = min(int(self._o.cv_folds), len(trials))
         if k < 2:
             return 0.0
         folds = [list(range(i, len(trials), k)) for i in range(k)]
@@ -463,7 +404,9 @@ class MOIRL(WeightEstimator):
             errs = []
             for held in folds:
                 train = [t for i, t in enumerate(trials) if i not in held]
-                est = MOIRL(**{**self.get_params(), "smoothness": lam, "callback": None})
+                est = type(self)(**{**self.get_params(), "callback": None, "uncertainty": None,
+                                    "experimental": {**dict(self.experimental or {}), "smoothness": lam}})
+                est._check_params(train)
                 est._fit(train, lam)
                 for i in held:
                     sol = est.predict(trials[i])
@@ -483,26 +426,30 @@ class MOIRL(WeightEstimator):
             # seen as recorded, the merit has a flatter, more winding landscape far from the optimum (measured:
             # from ω₀ the fits stopped above the true weights' merit): start from the rest-to-rest fit's weights
             plain = copy.copy(self)  # the same estimator (a subclass keeps its own state, e.g. held weights)
-            plain.observe, plain.callback, plain._first_stage = False, None, True
-            plain.rollout = "mean"  # it only brings the weights near: one rollout, not one per demonstration
+            plain.__dict__["_options"] = replace(self._o, observe=False)
+            plain.callback, plain._first_stage = None, True
+            # it only brings the weights near: one rollout per task, not one per demonstration
+            plain.rollout = "mean" if self.rollout == "mean" else "per_task"
             plain._fit(trials, smoothness)
         x_demos = demonstration_states(trials, self.n_nodes)
-        self._tau_demos = np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self.acceptance == "multimodal" \
+        self._tau_demos = np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self._o.acceptance == "multimodal" \
             else None
-        channels = channel_scale(x_demos) if self.merit == "normalised" else None
-        guesses = [x_demos[:, :, :2].mean(axis=0)] if self.rollout == "mean" else list(x_demos[:, :, :2])
-        starts = np.array([0]) if not self.n_suffixes else np.unique(
-            np.linspace(0, self.n_nodes * 0.9, self.n_suffixes + 1).astype(int)
+        channels = channel_scale(x_demos) if self._o.merit == "normalised" else None
+        guesses = [x_demos[self._of == r, :, :2].mean(axis=0) for r in range(len(tasks))]
+        starts = np.array([0]) if not self._o.n_suffixes else np.unique(
+            np.linspace(0, self.n_nodes * 0.9, self._o.n_suffixes + 1).astype(int)
         )
         phi_star = self._demo_features(trials, starts)
         sigma = None
-        if self.scaling == "demo":
-            sigma = feature_scale(phi_star[:, 0] if self.n_suffixes else phi_star)
-            w = float(self.w0) / sigma  # every feature starts with the same share of each window's cost
+        if self._o.scaling == "demo":
+            sigma = feature_scale(phi_star[:, 0] if self._o.n_suffixes else phi_star)
+            w = float(self._o.w0) / sigma  # every feature starts with the same share of each window's cost
         else:
-            w = np.full((self.n_windows, N_FEATURES), float(self.w0))
+            w = np.full((self.n_windows, N_FEATURES), float(self._o.w0))
         if plain is not None:
-            w = plain.weights_
+            w = plain._w_fit
+        elif getattr(self, "_w_init", None) is not None:  # a restart from given weights (reachirl.irl.uncertainty)
+            w = np.array(self._w_init, dtype=float)
         sols, n_solves, _ = self._rollouts(tasks, w, None, guesses)
         n_fail = sum(not s.converged for s in sols)
         n_rescued = 0
@@ -522,7 +469,7 @@ class MOIRL(WeightEstimator):
             log.warning("the DOC at the initial weights did not converge")
         self.stop_reason_ = "max_iter"
         n_accepted = 0
-        ratio = float(self.max_ratio)
+        ratio = float(self._o.max_ratio)
         for it in range(1, self.max_iter + 1):
             # Δω* from the subproblem (seed Eq. 4), then ω ← ω + αΔω* with α from the line search on the merit
             dw, info = self._step(w, sigma, phi_star, bank, starts, smoothness, ratio)
@@ -533,9 +480,9 @@ class MOIRL(WeightEstimator):
                     self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels))
             kind = "likelihood"
             # the Gauss-Newton model costs no solve: it is also tried when the likelihood's step gains little
-            small = not step.accepted or (self.merit_model == "gauss-newton"
-                                          and step.merit > m * (1.0 - self.fallback_tol))
-            if self.fallback == "merit" and np.isfinite(m) and small:
+            small = not step.accepted or (self._o.merit_model == "gauss-newton"
+                                          and step.merit > m * (1.0 - self._o.fallback_tol))
+            if self._o.fallback == "merit" and np.isfinite(m) and small:
                 # the likelihood's step lowers the merit by less than a merit step must (or not at all): a step
                 # from a local model of the merit itself, taken when it is accepted (it then lowers the merit by
                 # at least fallback_tol, more than the likelihood's step did)
@@ -560,19 +507,22 @@ class MOIRL(WeightEstimator):
                 break
             n_accepted += 1
             # trust region: the next step may go 4× as far (in log-weights) as this accepted one, up to max_ratio
-            ratio = float(np.clip(np.exp(4.0 * np.max(np.abs(np.log(step.weights / w)))), 1.0 + self.min_step,
-                                  self.max_ratio))
+            ratio = float(np.clip(np.exp(4.0 * np.max(np.abs(np.log(step.weights / w)))), 1.0 + self._o.min_step,
+                                  self._o.max_ratio))
             w, sols, m = step.weights, step.solutions, step.merit
             if m < best[0]:
                 best = (m, w, sols, it)
             bank.append(self._features(tasks, sols, starts))
-            if self.memory is not None:
-                bank = bank[-self.memory :]
+            if self._o.memory is not None:
+                bank = bank[-self._o.memory :]
             record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
             self.history_.append(record)
             self._notify(record)
         m, w, sols, self.best_iteration_ = best
-        self.weights_ = w
+        self._w_fit = w  # removed features keep a weight > 0 here, for the multiplicative step
+        self.weights_ = self._effective(w)
+        self.tasks_, self.task_of_demo_, self._channels = tasks, self._of.copy(), channels
+        self._x_demos, self._guesses = x_demos, guesses
         self.merit_ = m
         self.initial_merit_ = self.history_[0]["merit"]
         self.n_accepted_ = n_accepted
@@ -606,12 +556,12 @@ class MOIRL(WeightEstimator):
         ``ω + αΔω > 0`` since ``Δω > −ω``. The search ends when a try would move no weight by ``min_step``, and
         (merit acceptance) when a try's merit is no lower than the longer try's before it: along a unimodal
         merit no shorter step can then pass (a failed try, whose merit is unknown, does not end it)."""
-        alpha, solves, failures, recovered = self.alpha0, 0, 0, 0
-        tol = self.tol if tol is None else tol
+        alpha, solves, failures, recovered = self._o.alpha0, 0, 0, 0
+        tol = self.tol_ if tol is None else tol
         rel = float(np.max(np.abs(dw / w)))
         m_prev = np.inf  # the previous (longer) try's merit
-        for tries in range(1, self.max_tries + 1):
-            if alpha * rel < self.min_step:  # no weight moves by min_step: the merit cannot move beyond noise
+        for tries in range(1, self._o.max_tries + 1):
+            if alpha * rel < self._o.min_step:  # no weight moves by min_step: the merit cannot move beyond noise
                 return _Step(False, 0.0, tries - 1, w, sols, m, solves, failures, recovered)
             w_try = w + alpha * dw
             cand, runs, rescued = self._rollouts(tasks, w_try, sols, guesses)
@@ -625,13 +575,13 @@ class MOIRL(WeightEstimator):
                                  or self._accept_multimodal(m, m_try, sols, cand))
             ):
                 return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures, recovered)
-            if self.acceptance == "merit" and np.isfinite(m_try) and m_try >= m_prev:
+            if self._o.line_search_stop and self._o.acceptance == "merit" and np.isfinite(m_try) and m_try >= m_prev:
                 # this shorter try did no better than the longer one: along a unimodal merit the best step is
                 # longer than this one, so no shorter try can pass where these two did not
                 return _Step(False, 0.0, tries, w, sols, m, solves, failures, recovered)
             m_prev = m_try
-            alpha *= self.shrink
-        return _Step(False, 0.0, self.max_tries, w, sols, m, solves, failures, recovered)
+            alpha *= self._o.shrink
+        return _Step(False, 0.0, self._o.max_tries, w, sols, m, solves, failures, recovered)
 
     def _merit_step(self, w, m, sols, tasks, x_demos, phi_star, starts, guesses, channels, ratio) -> _Step:
         """The step when the likelihood's lowers no merit (or, with the Gauss-Newton model, less than
@@ -651,7 +601,7 @@ class MOIRL(WeightEstimator):
         h = max(float(np.log(ratio)), float(np.log(1.1)))  # probes well above the DOC's repeatability
         free = self._movable(w.shape)
         eta = self._gauss_newton(w, sols, tasks, x_demos, channels, h, free) \
-            if self.merit_model == "gauss-newton" else None
+            if self._o.merit_model == "gauss-newton" else None
         solves = failures = 0
         if eta is None:
             mp, mm = np.full(N_FEATURES, np.inf), np.full(N_FEATURES, np.inf)
@@ -668,7 +618,7 @@ class MOIRL(WeightEstimator):
         if _is_rescale(w, dw):
             return _Step(False, 0.0, 0, w, sols, m, solves, failures, 0)
         step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels,
-                                 tol=max(self.tol, self.fallback_tol))
+                                 tol=max(self.tol_, self._o.fallback_tol))
         return step._replace(solves=step.solves + solves, failures=step.failures + failures)
 
     def _gauss_newton(self, w, sols, tasks, x_demos, channels, h, free) -> np.ndarray | None:
@@ -689,16 +639,17 @@ class MOIRL(WeightEstimator):
             states.append(self._state(i, task, sol))
             jacs.append((observed_state_jacobian(sol, task, self._thresholds[i], dq) * scale[None, :, None])
                         .reshape(-1, cols.size))
-        if self.rollout == "mean":  # one rollout against every demonstration
-            states, jacs = [states[0]] * x_demos.shape[0], [jacs[0]] * x_demos.shape[0]
+        states, jacs = [states[r] for r in self._of], [jacs[r] for r in self._of]  # each demonstration's rollout
         residuals = np.stack([((x - xd) * scale).reshape(-1) for x, xd in zip(states, x_demos, strict=True)])
         eta = np.zeros(w.size)
         eta[cols] = gauss_newton_step(residuals, np.stack(jacs), h)
         return eta.reshape(w.shape)
 
     def _movable(self, shape: tuple[int, int]) -> np.ndarray:
-        """Which weights a step may change (all of them; a constrained subclass holds some)."""
-        return np.ones(shape, dtype=bool)
+        """Which weights a step may change: those of the features in the cost, outside the frozen windows."""
+        free = self._mask.copy()
+        free[list(self._o.frozen_windows), :] = False
+        return free
 
     def _notify(self, record: dict) -> None:
         log.info("iteration %d: merit %.5g alpha %.3g tries %d", record["iteration"], record["merit"],
@@ -708,11 +659,11 @@ class MOIRL(WeightEstimator):
 
     def _accept_either(self, w, dw, alpha, tasks, old, new, phi_star, starts) -> bool:
         """``acceptance="either"``: feature mismatch decreased, or cost mismatch under Armijo + curvature."""
-        if self.acceptance != "either":
+        if self._o.acceptance != "either":
             return False
         f_old = self._features(tasks, old, starts)
         f_new = self._features(tasks, new, starts)
-        if self.n_suffixes:
+        if self._o.n_suffixes:
             f_old, f_new, ps = f_old[:, 0], f_new[:, 0], phi_star[:, 0]
         else:
             ps = phi_star
@@ -724,20 +675,20 @@ class MOIRL(WeightEstimator):
         d_new = np.sum(w_new * (target - f_new.mean(axis=0)))
         g0 = d_old * np.sum(dw * (target - f_old.mean(axis=0)))  # d/dα of ½(ωᵀ(Φ*−Φ̃))² at α = 0, Φ̃ held
         g1 = d_new * np.sum(dw * (target - f_new.mean(axis=0)))
-        armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self.armijo_c1 * alpha * g0
-        curvature = abs(g1) <= self.curvature_c2 * abs(g0)
+        armijo = 0.5 * d_new**2 <= 0.5 * d_old**2 + self._o.armijo_c1 * alpha * g0
+        curvature = abs(g1) <= self._o.curvature_c2 * abs(g0)
         return bool(g0 < 0 and armijo and curvature)
 
     def _accept_multimodal(self, m: float, m_try: float, old, new) -> bool:
         """``acceptance="multimodal"``: :func:`multimodal_accept` on the state and torque merits."""
-        if self.acceptance != "multimodal" or self._tau_demos is None:
+        if self._o.acceptance != "multimodal" or self._tau_demos is None:
             return False
 
         def tau_merit(sols):
-            tau = sols[0].tau if self.rollout == "mean" else np.stack([s.tau for s in sols])
+            tau = sols[0].tau if len(sols) == 1 else np.stack([sols[r].tau for r in self._of])
             return merit(self._tau_demos, tau)
 
-        return multimodal_accept(m, m_try, tau_merit(old), tau_merit(new), self.tol)
+        return multimodal_accept(m, m_try, tau_merit(old), tau_merit(new), self.tol_)
 
 
 def multimodal_accept(m: float, m_try: float, t: float, t_try: float, tol: float = 0.0) -> bool:

@@ -244,13 +244,16 @@ def solve_step(
     max_ratio: float = 10.0,
     smoothness: float = 0.0,
     max_iter: int = 500,
+    free: np.ndarray | None = None,
+    present: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict]:
     """The scale-free MO-IRL step: ``Δω = ω ⊙ (exp(η*) − 1)`` with
     ``η* = argmin_{|η| ≤ log(max_ratio)} f(η)`` (:func:`step_objective`, L-BFGS-B from ``η = 0``).
 
     ``w (S, 7)`` are the current weights (> 0), ``sigma (S, 7)`` the scale of :func:`feature_scale`, and
     ``groups`` hold features already divided by ``sigma``. ``Δω > −ω`` holds strictly, and no weight moves by
-    more than a factor ``max_ratio``.
+    more than a factor ``max_ratio``. ``free (S, 7)``: the weights that may move (``η = 0`` elsewhere);
+    ``present (S, 7)``: the features in the cost (the others are left out of the likelihood).
     """
     w = np.asarray(w, dtype=float)
     if np.any(w <= 0):
@@ -258,8 +261,12 @@ def solve_step(
     if not max_ratio > 1:
         raise ValueError(f"max_ratio must be > 1, got {max_ratio}")
     theta = w * sigma
+    if present is not None:
+        theta = np.where(present, theta, 1e-12 * theta)  # absent from the likelihood, still > 0 for the log-step
     log_sigma = np.log(sigma)
     bound = np.full(w.shape, float(np.log(max_ratio)))
+    if free is not None:
+        bound = np.where(free, bound, 0.0)
 
     eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound,
                                 max_iter)

@@ -9,14 +9,15 @@ only in the sample set: MO-IRL keeps the latest rollout, MaxEnt all of them.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from ..moirl import MOIRL
 
 __all__ = ["MaxEntIRL"]
 
 
 class MaxEntIRL(MOIRL):
-    """:class:`MOIRL` with ``memory=None`` (every sampled trajectory in the partition function) by default; any
-    other MOIRL option passes through."""
+    """:class:`MOIRL` that keeps every sampled trajectory in the partition function (``memory=None``, which
+    ``experimental`` may override); every other parameter is MOIRL's."""
 
-    def __init__(self, n_windows: int = 8, *, memory: int | None = None, **kwargs):
-        super().__init__(n_windows, memory=memory, **kwargs)
+    _option_defaults: ClassVar[dict] = {"memory": None}

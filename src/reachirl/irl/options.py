@@ -1,0 +1,182 @@
+"""MO-IRL's method options: one frozen set, checked in one place.
+
+:class:`MOIRL` takes a dozen parameters a researcher sets. Everything else about the method is an
+:class:`Options` field: the defaults are reachirl's method (what ``reachirl fit``, ``reachirl reproduce`` and
+``MOIRL()`` learn), :data:`SEED_FORM` is the seed paper's method exactly as written, and ``experimental``
+(a mapping of field names to values, on the estimator or in a run file's ``[experimental]`` table) overrides
+single fields. ``docs/method.md`` gives each departure from the paper with its evidence; ``docs/design-notes.md``
+the measurements behind the variants that stay off.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+__all__ = ["ROLLOUTS", "SEED_FORM", "Options", "departures", "resolve_options"]
+
+ROLLOUTS = ("per_task", "per_demo", "mean")
+"""``per_task``: one rollout per (subject, posture) of the demonstrations, from their mean start, target and
+duration; ``per_demo``: one per demonstration; ``mean``: one for all of them (the seed's, for one task)."""
+
+
+@dataclass(frozen=True)
+class Options:
+    """Every choice of the MO-IRL iteration that :class:`~reachirl.irl.moirl.MOIRL` does not take as a parameter.
+
+    * ``observe``: rollouts of demonstrations cut at a fingertip-speed threshold are the rest-to-rest DOC seen
+      between their own threshold crossings (:mod:`reachirl.observation`); ``False``: the DOC over the trial's
+      duration, at rest at both ends (the seed).
+    * ``merit``: ``"normalised"`` divides each state channel by the demonstrations' spread; ``"state"`` is the
+      seed's full-state error.
+    * ``scaling``: ``"demo"`` solves the subproblem in normalised coordinates with a bounded multiplicative step
+      (trust region ``max_ratio``); ``None`` is the seed's raw subproblem (``Δω ≥ −(1 − 10⁻³) ω``, ``β``).
+    * ``beta``, ``w0``, ``alpha0``, ``shrink``, ``max_tries``: the seed's regulariser, initial weight and α
+      line search.
+    * ``min_step``: no DOC is solved for a try that moves no weight by this fraction; ``line_search_stop``: the
+      search ends after a try no better than the longer one before it.
+    * ``fallback`` (``"merit"`` or ``None``), ``fallback_tol``, ``merit_model`` (``"probes"`` or
+      ``"gauss-newton"``): the step on a model of the merit when the likelihood's lowers none.
+    * ``frozen_windows``: windows whose weights stay at ``ω₀`` (occlusion).
+    * Variants measured and kept off: ``smoothness`` (a number or ``"cv"``), ``cv_folds``, ``feature_cutoff``,
+      ``memory``, ``use_gamma``, ``l1``, ``n_suffixes``, ``acceptance`` (``"merit"``, ``"either"``,
+      ``"multimodal"``), ``armijo_c1``, ``curvature_c2``.
+    """
+
+    observe: bool = True
+    merit: str = "normalised"
+    scaling: str | None = "demo"
+    beta: float = 1e-10
+    w0: float = 0.05
+    alpha0: float = 1.0
+    shrink: float = 0.25
+    max_tries: int = 10
+    max_ratio: float = 10.0
+    min_step: float = 1e-3
+    line_search_stop: bool = True
+    fallback: str | None = "merit"
+    fallback_tol: float = 0.01
+    merit_model: str = "probes"
+    frozen_windows: tuple[int, ...] = ()
+    smoothness: float | str = 0.0
+    cv_folds: int = 3
+    feature_cutoff: float | None = None
+    memory: int | None = 1
+    use_gamma: bool = True
+    l1: float = 0.0
+    n_suffixes: int = 0
+    acceptance: str = "merit"
+    armijo_c1: float = 1e-4
+    curvature_c2: float = 0.9
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "frozen_windows", tuple(int(k) for k in self.frozen_windows))
+        _check(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def resolve_options(seed_form: bool = False, experimental: Mapping[str, Any] | None = None,
+                    defaults: Mapping[str, Any] | None = None) -> Options:
+    """The options of a fit: reachirl's method (or :data:`SEED_FORM`), then a class's ``defaults`` (MaxEnt keeps
+    every trajectory), then ``experimental``. Unknown names raise ``ValueError`` naming the valid ones."""
+    if seed_form not in (True, False):
+        raise ValueError(f"seed_form must be True or False, got {seed_form!r}")
+    base = SEED_FORM if seed_form else Options()
+    changes = {**dict(defaults or {}), **dict(experimental or {})}
+    unknown = sorted(set(changes) - set(FIELDS))
+    if unknown:
+        raise ValueError(f"unknown experimental option(s) {', '.join(unknown)}; valid: {', '.join(FIELDS)}")
+    return replace(base, **changes) if changes else base
+
+
+def departures(options: Options, rollout: str, tol: float) -> list[str]:
+    """Each way the fit's method departs from the seed paper's, in words (empty for the seed's form)."""
+    out = []
+    if options.observe:
+        out.append("observed rollouts: each rollout is the rest-to-rest DOC seen between its own crossings of the "
+                   "demonstrations' onset threshold, as they were recorded")
+    if options.merit == "normalised":
+        out.append("normalised merit: each state channel divided by the demonstrations' spread")
+    if options.scaling == "demo":
+        out.append(f"scale-free steps: the subproblem in normalised coordinates, a multiplicative step with a trust "
+                   f"region of at most x{options.max_ratio:g} per iteration")
+    if options.fallback == "merit":
+        out.append(f"merit fallback: when the likelihood's step lowers no merit, a step on a {options.merit_model} "
+                   f"model of the merit, accepted if it gains {100 * options.fallback_tol:g} %")
+    if tol > 0:
+        out.append(f"acceptance threshold: a step must lower the merit by more than {tol:g} (relative)")
+    if options.min_step > 0 or options.line_search_stop:
+        out.append("shorter line search: no solve for a try that moves no weight by "
+                   f"{100 * options.min_step:g} %, and the search ends after a try no better than the longer one")
+    if rollout == "per_task":
+        out.append("one rollout per task (subject, posture) from the task's mean start, target and duration")
+    elif rollout == "per_demo":
+        out.append("one rollout per demonstration, from its own start, target and duration")
+    base = Options() if options.scaling == "demo" else SEED_FORM
+    for name in ("smoothness", "feature_cutoff", "memory", "use_gamma", "l1", "n_suffixes", "acceptance",
+                 "frozen_windows"):
+        if getattr(options, name) != getattr(base, name):
+            out.append(f"experimental {name} = {getattr(options, name)!r}")
+    return out
+
+
+def _check(o: Options) -> None:
+    """Every option's range; ``ValueError`` names the option, the expected values and the value given."""
+    def need(ok: bool, msg: str) -> None:
+        if not ok:
+            raise ValueError(msg)
+
+    need(o.observe in (True, False), f"observe must be True or False, got {o.observe!r}")
+    need(o.merit in ("state", "normalised"), f"merit must be 'state' or 'normalised', got {o.merit!r}")
+    need(o.scaling in ("demo", None), f"scaling must be 'demo' or None, got {o.scaling!r}")
+    need(o.fallback in ("merit", None), f"fallback must be 'merit' or None, got {o.fallback!r}")
+    need(o.merit_model in ("gauss-newton", "probes"),
+         f"merit_model must be 'gauss-newton' or 'probes', got {o.merit_model!r}")
+    need(o.acceptance in ("merit", "either", "multimodal"),
+         f"acceptance must be 'merit', 'either' or 'multimodal', got {o.acceptance!r}")
+    need(_finite(o.fallback_tol) and 0 <= o.fallback_tol < 1, f"fallback_tol must be in [0, 1), got {o.fallback_tol}")
+    need(not (o.scaling == "demo" and (not o.use_gamma or o.l1)),
+         "use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None")
+    need(not (o.observe and o.acceptance == "multimodal"),
+         "acceptance='multimodal' compares whole rollouts' torques: not with observe=True")
+    need(o.memory is None or (isinstance(o.memory, int) and o.memory >= 1),
+         f"memory must be >= 1 or None, got {o.memory}")
+    need(_finite(o.shrink) and 0 < o.shrink < 1, f"shrink must be in (0, 1), got {o.shrink}")
+    need(isinstance(o.max_tries, int) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
+    need(_finite(o.w0) and o.w0 > 0, f"w0 must be > 0 (weights stay > 0), got {o.w0}")
+    need(_finite(o.alpha0) and 0 < o.alpha0 <= 1, f"alpha0 must be in (0, 1], got {o.alpha0}")
+    need(_finite(o.beta) and o.beta >= 0, f"beta must be >= 0, got {o.beta}")
+    need(_finite(o.max_ratio) and o.max_ratio > 1, f"max_ratio must be > 1, got {o.max_ratio}")
+    need(_finite(o.min_step) and 0 <= o.min_step < 1, f"min_step must be in [0, 1), got {o.min_step}")
+    need(o.line_search_stop in (True, False), f"line_search_stop must be True or False, got {o.line_search_stop!r}")
+    need(all(k >= 0 for k in o.frozen_windows), f"frozen_windows must be window indices >= 0, got {o.frozen_windows}")
+    if isinstance(o.smoothness, str):
+        need(o.smoothness == "cv", f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
+    else:
+        need(_finite(o.smoothness) and o.smoothness >= 0,
+             f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
+    need(isinstance(o.cv_folds, int) and o.cv_folds >= 2, f"cv_folds must be an integer >= 2, got {o.cv_folds}")
+    need(o.feature_cutoff is None or (_finite(o.feature_cutoff) and o.feature_cutoff > 0),
+         f"feature_cutoff must be a frequency > 0 (Hz) or None, got {o.feature_cutoff}")
+    need(isinstance(o.n_suffixes, int) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")
+    need(_finite(o.l1) and o.l1 >= 0, f"l1 must be >= 0, got {o.l1}")
+    need(o.use_gamma in (True, False), f"use_gamma must be True or False, got {o.use_gamma!r}")
+
+
+def _finite(x) -> bool:
+    try:
+        return bool(np.isfinite(float(x)))
+    except (TypeError, ValueError):
+        return False
+
+
+SEED_FORM = Options(observe=False, merit="state", scaling=None, min_step=0.0, line_search_stop=False, fallback=None)
+"""The seed paper's MO-IRL as written: the raw subproblem with ``β``, ``ω₀ = 0.05``, the α search (1, ×0.25,
+10 tries) accepting any fall of the full-state merit, no other step, the DOC over each trial's duration."""
+
+FIELDS = tuple(f.name for f in fields(Options))

@@ -1,0 +1,92 @@
+"""What a MODEL.json records of how its weights were learned: every option, the versions, the trials."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections.abc import Sequence
+from importlib import metadata
+
+import numpy as np
+
+from ..data.trial import Trial
+
+__all__ = ["estimator_info", "fingerprint", "versions"]
+
+_PACKAGES = ("reachirl", "numpy", "scipy", "casadi", "crocoddyl", "pin", "mim-solvers")
+
+
+def fingerprint(trials: Sequence[Trial]) -> str:
+    """A short hash of the trials' identities, arms and arrays (what a fit's result depends on)."""
+    h = hashlib.sha256()
+    for t in trials:
+        h.update(json.dumps([t.id, t.target_x, t.arm.to_dict()], sort_keys=True).encode())
+        for a in (t.t, t.q, t.qd, t.qdd, t.tau, t.x0):
+            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def versions() -> dict[str, str | None]:
+    """The installed versions of reachirl and the solvers (``None`` where a package is missing)."""
+    out = {}
+    for name in _PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def _jsonable(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
+    """The provenance of a fitted estimator: ``method``, ``parameters`` (its constructor's, callback left out),
+    for MO-IRL ``options`` (every :class:`~reachirl.irl.options.Options` field in force), ``tol`` and
+    ``departures`` (each way the method departs from the seed paper's), ``observe``, ``versions``,
+    ``trials_fingerprint``, the trial ids, counts, the history and the fit's warnings, and ``uncertainty``
+    when it was computed."""
+    from .options import departures
+
+    params = {k: _jsonable(v) for k, v in est.get_params().items() if k != "callback"}
+    info = {
+        "method": method,
+        "parameters": params,
+        "observe": bool(getattr(est, "observe", False)),
+        "versions": versions(),
+        "trials_fingerprint": fingerprint(trials),
+        "trial_ids": [t.id for t in trials],
+        "n_trials": len(trials),
+        "postures": sorted({t.posture for t in trials}),
+        "subjects": sorted({t.subject for t in trials}),
+    }
+    options = getattr(est, "options_", None)
+    if options is not None:
+        info["options"] = _jsonable(options.to_dict())
+        info["tol"] = est.tol_
+        info["departures"] = departures(options, est.rollout, est.tol_)
+        info["seed_form"] = bool(est.seed_form)
+    path = est.rollout_path()
+    info.update({
+        "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: a prediction's cold start
+        "n_iter": getattr(est, "n_iter_", None),
+        "n_doc_solves": getattr(est, "n_doc_solves_", None),
+        "n_doc_failures": getattr(est, "n_doc_failures_", None),
+        "fit_time_s": getattr(est, "fit_time_", None),
+        "stop_reason": getattr(est, "stop_reason_", None),
+        "flag": getattr(est, "flag_", None),
+        "warnings": list(getattr(est, "warnings_", [])),
+        "history": _jsonable(getattr(est, "history_", [])),
+    })
+    if getattr(est, "uncertainty_", None) is not None:
+        info["uncertainty"] = _jsonable(est.uncertainty_)
+    return info
