@@ -7,12 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from conftest import whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.doc.sensitivity import weight_jacobian
-from reachirl.irl.moirl import MOIRL
+from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import gauss_newton_step
 from reachirl.observation import observe, observed_state_jacobian, rest_to_rest
 from reachirl.synth import knot_trials
+
+MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 
 N_NODES = 40
 
@@ -146,7 +149,7 @@ def test_gauss_newton_merit_steps_lower_the_merit_without_probing(dominated_demo
     """One window on time-varying reaches: the likelihood has nothing to say, so the progress comes from the
     Gauss-Newton merit steps, each a line-search try or a few, never the 14 probes per rollout of the
     per-feature model."""
-    est = MOIRL(1, n_nodes=N_NODES, rollout=rollout, max_iter=4, merit_model="gauss-newton").fit(dominated_demos)
+    est = MOIRL(1, n_nodes=N_NODES, rollout=rollout, max_iter=4, experimental={"merit_model": "gauss-newton"}).fit(dominated_demos)
     steps = [h for h in est.history_[1:] if h["step"] == "merit" and h["accepted"]]
     assert steps and est.merit_ < 0.9 * est.initial_merit_
     per_try = 1 if rollout == "mean" else len(dominated_demos)
@@ -158,4 +161,4 @@ def test_gauss_newton_merit_steps_lower_the_merit_without_probing(dominated_demo
 
 def test_merit_model_is_validated(dominated_demos):
     with pytest.raises(ValueError, match="merit_model must be 'gauss-newton' or 'probes'"):
-        MOIRL(1, n_nodes=N_NODES, merit_model="newton").fit(dominated_demos)
+        MOIRL(1, n_nodes=N_NODES, experimental={"merit_model": "newton"}).fit(dominated_demos)

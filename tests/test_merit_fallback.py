@@ -4,12 +4,15 @@ rollout on every feature), MO-IRL probes the merit and steps on a per-feature qu
 import numpy as np
 import pytest
 
+from conftest import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.irl import moirl as moirl_module
-from reachirl.irl.moirl import MOIRL
+from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import merit_model_step
 from reachirl.synth import knot_trials
+
+MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 
 N_NODES = 40
 
@@ -50,7 +53,7 @@ def dominated_demos():
 
 
 def test_one_window_on_time_varying_reaches_learns_through_the_merit_fallback(dominated_demos):
-    seed_rule = MOIRL(1, n_nodes=N_NODES, fallback=None).fit(dominated_demos)
+    seed_rule = MOIRL(1, n_nodes=N_NODES, experimental={"fallback": None}).fit(dominated_demos)
     assert seed_rule.flag_ == "w0" and seed_rule.stop_reason_ == "step_only_rescales"
 
     est = MOIRL(1, n_nodes=N_NODES).fit(dominated_demos)
@@ -71,14 +74,14 @@ def test_the_fallback_probes_each_feature_both_ways_and_counts_its_solves(arm, m
     # a likelihood with nothing to say: every step a pure rescale
     monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (-0.5 * w, {"nit": 1}))
     probes = []
-    real = MOIRL._rollouts
+    real = _MOIRL._rollouts
 
     def spy(self, tasks, weights, warm, guesses):
         probes.append(np.asarray(weights).copy())
         return real(self, tasks, weights, warm, guesses)
 
-    monkeypatch.setattr(MOIRL, "_rollouts", spy)
-    est = MOIRL(1, n_nodes=N_NODES, max_iter=1, w0=0.05, merit_model="probes").fit(demos)
+    monkeypatch.setattr(_MOIRL, "_rollouts", spy)
+    est = MOIRL(1, n_nodes=N_NODES, max_iter=1, experimental={"w0": 0.05, "merit_model": "probes"}).fit(demos)
     w_start = np.asarray(est.history_[0]["weights"])
     ratios = np.array([p / w_start for p in probes[1:15]])[:, 0]  # after the initial rollout: 14 probes
     # each probe moves one feature's weight, and each feature is probed by ρ and by 1/ρ
@@ -100,7 +103,7 @@ def test_the_fallback_probes_each_feature_both_ways_and_counts_its_solves(arm, m
 )
 def test_bad_fallback_options_are_refused(dominated_demos, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        MOIRL(1, n_nodes=N_NODES, **kwargs).fit(dominated_demos)
+        MOIRL(1, n_nodes=N_NODES, **moirl_params(kwargs)).fit(dominated_demos)
 
 
 def test_the_model_step_refuses_a_point_without_a_merit():
@@ -112,18 +115,17 @@ def test_the_model_step_refuses_a_point_without_a_merit():
 
 def test_the_fallback_keeps_held_weights_where_they_are(dominated_demos, monkeypatch):
     """Occlusion refits hold a removed feature and a frozen window: the merit fallback must not move them."""
-    from reachirl.experiments.sensitivity import MaskedMOIRL
-
-    monkeypatch.setattr(MaskedMOIRL, "_step", lambda self, w, *a, **k: (-0.5 * w, {"nit": 1}))  # always a rescale
-    est = MaskedMOIRL(2, n_nodes=N_NODES, max_iter=3)
-    est.removed, est.frozen = (4,), (0,)
+    monkeypatch.setattr(_MOIRL, "_step", lambda self, w, *a, **k: (-0.5 * w, {"nit": 1}))  # always a rescale
+    mask = np.ones((2, 7), dtype=bool)
+    mask[:, 4] = False
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, feature_mask=mask, experimental={"frozen_windows": (0,)})
     est.fit(dominated_demos)
     w0 = np.asarray(est.history_[0]["weights"])
     moved = [np.asarray(h["weights"]) for h in est.history_[1:] if h["accepted"]]
     assert moved, "the fallback must have made a step for this test to mean anything"
     for w in moved:
         np.testing.assert_array_equal(w[0], w0[0])  # the frozen window
-        np.testing.assert_array_equal(w[:, 4], w0[:, 4])  # the removed feature (0 in every rollout)
+        np.testing.assert_array_equal(w[:, 4], w0[:, 4])  # the removed feature (held, 0 in every rollout)
     assert np.all(est.weights_[:, 4] == 0.0)
     assert not np.allclose(moved[-1][1], w0[1])
 
@@ -139,8 +141,12 @@ def test_fit_command_takes_the_fallback_switch(dominated_demos, tmp_path):
     flags = {}
     for choice in ("merit", "none"):
         model = tmp_path / f"{choice}.json"
-        assert main(["fit", str(path), "--sections", "1", "--nodes", str(N_NODES), "--fallback", choice,
-                     "--out", str(model)]) == 0
+        run = tmp_path / f"{choice}.toml"
+        fallback = '"merit"' if choice == "merit" else "false"  # TOML has no null: false means None
+        run.write_text(f'[experimental]\nobserve = false\nmerit = "state"\n'
+                       + ('' if choice == "merit" else 'fallback = ""\n'))
+        assert main(["fit", str(path), "--sections", "1", "--nodes", str(N_NODES), "--config", str(run),
+                     "--out", str(model)]) == 0, fallback
         info = json.loads(model.read_text())["info"]
         flags[choice] = (info["flag"], {h.get("step") for h in info["history"][1:]})
     assert flags["none"][0] == "w0" and flags["none"][1] == {"likelihood"}
@@ -150,7 +156,5 @@ def test_fit_command_takes_the_fallback_switch(dominated_demos, tmp_path):
 def test_reproduce_refuses_an_unknown_fallback(capsys):
     from reachirl.cli import main
 
-    with pytest.raises(SystemExit) as e:
-        main(["reproduce", "--fallback", "gradient", "--out", "x"])
-    assert e.value.code == 2
-    assert "invalid choice: 'gradient'" in capsys.readouterr().err
+    assert main(["reproduce", "--set", 'experimental={fallback = "gradient"}', "--out", "x"]) == 2
+    assert "fallback must be 'merit' or None, got 'gradient'" in capsys.readouterr().err

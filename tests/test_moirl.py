@@ -8,12 +8,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from conftest import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.evaluation import evaluate_trials
 from reachirl.irl import moirl as moirl_module
-from reachirl.irl.moirl import MOIRL
+from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import subproblem_objective
+
+MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 
 # Typical size of each Φ over a whole reach; true weights are relative importances divided by it.
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
@@ -190,9 +193,9 @@ def _scripted_search(monkeypatch, merits):
         sol = SimpleNamespace(converged=np.isfinite(merits[len(tried) - 1]))
         return [sol], 1, 0
 
-    monkeypatch.setattr(MOIRL, "_rollouts", rollouts)
-    monkeypatch.setattr(MOIRL, "_merit", lambda self, x, sols, ch, tasks: merits[len(tried) - 1])
-    est = MOIRL(1, max_tries=len(merits))
+    monkeypatch.setattr(_MOIRL, "_rollouts", rollouts)
+    monkeypatch.setattr(_MOIRL, "_merit", lambda self, x, sols, ch, tasks: merits[len(tried) - 1])
+    est = MOIRL(1, experimental={"max_tries": len(merits)})
     w = np.ones((1, 7))
     step = est._line_search(w, np.ones((1, 7)), 1.0, [None], [None], None, None, None, [None], None)
     return step, tried
@@ -263,7 +266,7 @@ def test_failed_initial_doc_does_not_crash_and_is_flagged(demos, monkeypatch):
         return replace(real(task, weights, **kw), converged=False)
 
     monkeypatch.setattr(moirl_module, "solve_doc", always_fail)
-    est = MOIRL(1, n_nodes=N_NODES, max_iter=2, max_tries=2).fit(demos[:2])
+    est = MOIRL(1, n_nodes=N_NODES, max_iter=2, experimental={"max_tries": 2}).fit(demos[:2])
     assert est.stop_reason_ == "no_improving_step"
     assert est.n_doc_failures_ == 1 + 2  # the initial rollout and both tries, each after its retries
     np.testing.assert_array_equal(est.weights_, np.asarray(est.history_[0]["weights"]))
@@ -273,7 +276,7 @@ def test_failed_initial_doc_does_not_crash_and_is_flagged(demos, monkeypatch):
 def test_no_weight_reaches_zero(demos):
     # Regression: with the bound Δω ≥ −ω, beta=1e-4 zeroed every weight of window 1 here, which left the DOC's
     # trajectory there undetermined (32° between a cold and a warm-started prediction under those weights).
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=20, beta=1e-4).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=20, experimental={"beta": 1e-4}).fit(demos)
     assert np.all(est.weights_ > 0)
     for rec in est.history_:
         assert np.min(rec["weights"]) > 0
@@ -296,7 +299,7 @@ def test_no_weight_reaches_zero(demos):
 def test_bad_parameters_raise(demos, params, match):
     params = {"n_windows": 2, **params}
     with pytest.raises(ValueError, match=match):
-        MOIRL(n_nodes=N_NODES, **params).fit(demos)
+        MOIRL(n_nodes=N_NODES, **moirl_params(params)).fit(demos)
 
 
 def test_empty_trials_and_wrong_types_raise():
@@ -342,7 +345,7 @@ def test_eight_windows_fit_a_virtual_subject_within_two_degrees():
 def test_either_acceptance_returns_the_best_merit_seen(demos):
     """"either" may accept a step that raises the merit (on feature mismatch); the fit must go on from there and
     return the weights of the best merit, never worse than the start."""
-    est = MOIRL(n_windows=2, n_nodes=N_NODES, acceptance="either", max_iter=6).fit(demos)
+    est = MOIRL(n_windows=2, n_nodes=N_NODES, max_iter=6, experimental={"acceptance": "either"}).fit(demos)
     merits = [h["merit"] for h in est.history_ if h["accepted"]]
     assert est.merit_ == pytest.approx(min(merits))
     assert est.merit_ <= est.history_[0]["merit"]

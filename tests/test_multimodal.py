@@ -3,9 +3,12 @@
 import numpy as np
 import pytest
 
-from reachirl import MOIRL
+from conftest import whole_rollout_moirl
+from reachirl import MOIRL as _MOIRL
 from reachirl.experiments import datasets
 from reachirl.irl.moirl import multimodal_accept
+
+MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 
 
 def test_rule():
@@ -18,8 +21,8 @@ def test_rule():
 def test_fit_accepts_more_steps_than_state_only():
     ds = datasets.toy(n_subjects=1, postures=("P2",), n_trials=3, n_nodes=20, seed=7)
     kw = dict(n_nodes=20, max_iter=4, tol=1e-4)
-    state = MOIRL(2, acceptance="merit", **kw).fit(ds.trials)
-    multi = MOIRL(2, acceptance="multimodal", **kw).fit(ds.trials)
+    state = MOIRL(2, **kw, experimental={"acceptance": "merit"}).fit(ds.trials)
+    multi = MOIRL(2, **kw, experimental={"acceptance": "multimodal"}).fit(ds.trials)
     assert multi.weights_.shape == (2, 7) and np.all(multi.weights_ > 0)
     acc = lambda est: sum(h["accepted"] for h in est.history_[1:])  # noqa: E731
     assert acc(multi) >= acc(state)
@@ -28,4 +31,4 @@ def test_fit_accepts_more_steps_than_state_only():
         if h["accepted"] and h["merit"] >= prev["merit"] * (1 - 1e-4):
             assert multi.acceptance == "multimodal"
     with pytest.raises(ValueError, match="'merit', 'either' or 'multimodal'"):
-        MOIRL(2, acceptance="torque", **kw).fit(ds.trials)
+        MOIRL(2, **kw, experimental={"acceptance": "torque"}).fit(ds.trials)

@@ -94,7 +94,7 @@ def test_uncut_trials_are_predicted_whole_and_fits_ignore_observe():
     demos = [replace(_recorded((d, -d), 0.75 + 0.02 * d)[0], onset_threshold=None, trial_id=f"T{d}")
              for d in (-2.0, 0.0, 2.0)]
     fit = dict(n_nodes=N, max_iter=3, tol=1e-5)
-    w_obs = MOIRL(2, observe=True, **fit).fit(demos)
+    w_obs = MOIRL(2, **fit, experimental={"observe": True}).fit(demos)
     w_plain = MOIRL(2, **fit).fit(demos)
     np.testing.assert_array_equal(w_obs.weights_, w_plain.weights_)
     assert w_obs.plain_fit_ is None
@@ -102,9 +102,9 @@ def test_uncut_trials_are_predicted_whole_and_fits_ignore_observe():
 
 def test_observed_fit_counts_both_stages_and_predicts_as_it_fitted():
     demos = [replace(_recorded((d, -d), 0.75 + 0.02 * d)[0], trial_id=f"T{d}") for d in (-2.0, 0.0, 2.0)]
-    est = MOIRL(2, observe=True, n_nodes=N, max_iter=3, tol=1e-5).fit(demos)
+    est = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5, experimental={"observe": True}).fit(demos)
     assert est.plain_fit_ is not None
-    plain = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5).fit(demos)
+    plain = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5, experimental={"observe": False}).fit(demos)
     np.testing.assert_allclose(est.plain_fit_["weights"], plain.weights_)
     assert est.n_doc_solves_ > plain.n_doc_solves_
     assert est.merit_ <= est.history_[0]["merit"]
@@ -122,15 +122,15 @@ def test_trials_cut_at_different_thresholds_cannot_share_a_rollout():
     assert common_threshold([a, a]) == 0.05
     assert common_threshold([a, replace(a, onset_threshold=None)]) is None
     with pytest.raises(ValueError, match="different onset thresholds"):
-        MOIRL(1, observe=True, n_nodes=N, max_iter=1).fit([a, b])
+        MOIRL(1, n_nodes=N, max_iter=1, experimental={"observe": True}).fit([a, b])
 
 
 def test_bad_options_are_refused():
     a = _recorded()[0]
     with pytest.raises(ValueError, match="observe must be True or False"):
-        MOIRL(1, observe="yes", n_nodes=N).fit([a])
+        MOIRL(1, n_nodes=N, experimental={"observe": "yes"}).fit([a])
     with pytest.raises(ValueError, match="multimodal"):
-        MOIRL(1, observe=True, acceptance="multimodal", n_nodes=N).fit([a])
+        MOIRL(1, n_nodes=N, experimental={"observe": True, "acceptance": "multimodal"}).fit([a])
     with pytest.raises(InputError, match="onset_threshold must be a fraction"):
         replace(a, onset_threshold=1.5)
 
@@ -179,10 +179,12 @@ def test_preprocessing_records_the_threshold_only_where_it_cut():
 def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
     demos = [replace(_recorded((d, -d), 0.75 + 0.02 * d)[0], trial_id=f"T{d}") for d in (-2.0, 0.0, 2.0)]
     trials = save_trials(tmp_path / "t.npz", demos)
-    for flag, expect in (("--observe", True), ("--no-observe", False)):
+    for expect in (True, False):
         model = tmp_path / f"m{expect}.json"
-        assert main(["fit", str(trials), "--sections", "1", "--nodes", str(N), "--max-iter", "2", flag,
-                     "--rollout", "mean", "--out", str(model)]) == 0
+        run = tmp_path / f"r{expect}.toml"
+        run.write_text(f"[experimental]\nobserve = {str(expect).lower()}\n")
+        assert main(["fit", str(trials), "--sections", "1", "--nodes", str(N), "--max-iter", "2", "--config",
+                     str(run), "--rollout", "mean", "--out", str(model)]) == 0
         assert json.loads(model.read_text())["info"]["observe"] is expect
         out = tmp_path / f"e{expect}.json"
         assert main(["evaluate", "--model", str(model), str(trials), "--out", str(out)]) == 0

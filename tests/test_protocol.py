@@ -71,7 +71,7 @@ def test_every_unit_predicts_as_its_estimator_fits(observe):
     protocol's observe and merit; bilevel and KKT fit whole reaches, so their units predict whole reaches."""
     from reachirl.experiments.protocol import make_estimator
 
-    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"), observe=observe, merit="state")
+    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"), experimental={"observe": observe, "merit": "state"})
     for unit in make_units(["P2"], cfg):
         est = make_estimator(unit)
         assert unit.observe is bool(getattr(est, "observe", False)), unit.key

@@ -7,11 +7,15 @@ import itertools
 import numpy as np
 import pytest
 
+from conftest import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.features import windowed_features
-from reachirl.irl.moirl import MOIRL, mean_task
+from reachirl.irl.moirl import MOIRL as _MOIRL
+from reachirl.irl.moirl import mean_task
 from reachirl.irl.objective import channel_scale, feature_scale, merit, solve_step, step_objective
+
+MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 
 N_NODES = 40
 
@@ -147,7 +151,7 @@ def test_the_true_weights_are_a_fixed_point_of_the_first_step(doc_demos, cutoff)
     """From the true weights, the rollout is the demonstration itself: the step must not move the weights
     by more than a few percent (with the default feature filter, which smooths the DOC's own path a little)."""
     w, task, _, demos = doc_demos
-    est = MOIRL(2, n_nodes=N_NODES, feature_cutoff=cutoff)
+    est = MOIRL(2, n_nodes=N_NODES, experimental={"feature_cutoff": cutoff})
     starts = np.array([0])
     phi_star = est._demo_features(demos, starts)
     sigma = feature_scale(phi_star)
@@ -167,7 +171,7 @@ def test_fit_records_and_flags_what_it_did(doc_demos):
     accepted = [h for h in est.history_[1:] if h["accepted"]]
     prev = est.history_[0]["merit"]
     for h in accepted:
-        assert h["merit"] < prev * (1 - est.tol)
+        assert h["merit"] < prev * (1 - est.tol_)
         prev = h["merit"]
     # the first step is a bounded multiplicative one: no weight moved by more than max_ratio
     w0, w1 = np.asarray(est.history_[0]["weights"]), np.asarray(est.history_[1]["weights"])
@@ -190,12 +194,12 @@ def test_fit_records_and_flags_what_it_did(doc_demos):
 )
 def test_bad_options_are_refused(doc_demos, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        MOIRL(2, n_nodes=N_NODES, **kwargs).fit(doc_demos[3])
+        MOIRL(2, n_nodes=N_NODES, **moirl_params(kwargs)).fit(doc_demos[3])
 
 
 def test_smoothness_cv_chooses_from_the_grid_on_the_training_demonstrations(doc_demos):
     _, _, _, demos = doc_demos
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=2, smoothness="cv", cv_folds=3).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=2, experimental={"smoothness": "cv", "cv_folds": 3}).fit(demos)
     from reachirl.irl.moirl import SMOOTHNESS_GRID
 
     assert set(est.cv_scores_) == set(SMOOTHNESS_GRID)
@@ -209,7 +213,7 @@ def test_a_step_that_only_rescales_stops_the_fit_without_doc_solves(doc_demos, m
 
     _, _, _, demos = doc_demos
     monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (-0.9 * w, {"nit": 1}))
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=5, fallback=None).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=5, experimental={"fallback": None}).fit(demos)
     assert est.stop_reason_ == "step_only_rescales"
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]  # nothing spent on the null direction
     assert est.flag_ == "w0"
@@ -221,11 +225,11 @@ def test_the_line_search_spends_no_solve_on_steps_below_min_step(doc_demos, monk
     _, _, _, demos = doc_demos
     monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (5e-4 * w, {"nit": 1}))
     monkeypatch.setattr(moirl_module, "_is_rescale", lambda w, dw: False)
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, min_step=1e-3, fallback=None).fit(demos)
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=3, experimental={"min_step": 1e-3, "fallback": None}).fit(demos)
     assert est.history_[1]["tries"] == 0 and est.stop_reason_ == "no_improving_step"
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]
     with pytest.raises(ValueError, match=r"min_step must be in \[0, 1\)"):
-        MOIRL(2, n_nodes=N_NODES, min_step=1.5).fit(demos)
+        MOIRL(2, n_nodes=N_NODES, experimental={"min_step": 1.5}).fit(demos)
 
 
 def test_the_trust_region_follows_the_accepted_steps(doc_demos):

@@ -159,8 +159,16 @@ class Unit:
 
     @property
     def split_key(self):
-        """The key of this unit's :class:`Split` in the ``splits`` mapping: the posture, or (posture, subject)."""
+        """The key of this unit's :class:`Split` in the ``splits`` mapping: the posture, (posture, subject), or
+        ("xfer", held-out posture)."""
+        if self.held_out_posture is not None:
+            return ("xfer", self.held_out_posture)
         return self.posture if self.train_subject is None else (self.posture, self.train_subject)
+
+    @property
+    def is_main(self) -> bool:
+        """Whether the unit is one of the main table's (not an all-pairs or posture-transfer unit)."""
+        return self.train_subject is None and self.held_out_posture is None
 
     def fingerprint(self, split: Split) -> str:
         """What the unit's result depends on: its parameters and its trials."""
@@ -284,15 +292,35 @@ def split_trials(trials: Sequence[Trial], posture: str, config: ProtocolConfig) 
 def make_units(postures: Sequence[str], config: ProtocolConfig,
                pair_subjects: Sequence[str] = ()) -> list[Unit]:
     """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing; with
-    ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects."""
+    ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects; with
+    ``config.posture_transfer`` (and several postures), one unit per held-out posture."""
     opts = {m: _method_options(m, config) for m in config.methods}
-    return [
+    units = [
         Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m], subj)
         for s in sorted(config.sections, reverse=True)
         for subj in (None, *pair_subjects)
         for m in config.methods
         for p in postures
     ]
+    if config.posture_transfer and len(postures) > 1:
+        units += [Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m],
+                       None, p)
+                  for s in sorted(config.sections, reverse=True) for m in config.methods for p in postures]
+    return units
+
+
+def transfer_splits(splits: dict, postures: Sequence[str]) -> dict:
+    """Leave-one-posture-out splits, keyed ``("xfer", posture)``: learn on the training trials of every other
+    posture (one cost shared by all), predict the held-out posture's trials of the training subject (``cv``: its
+    training and CV trials) and of the other subjects (``iscv``)."""
+    out = {}
+    if len(postures) < 2:
+        return out
+    for held in postures:
+        train = tuple(t for p in postures if p != held for t in splits[p].train)
+        own = (*splits[held].train, *splits[held].cv)
+        out[("xfer", held)] = Split(held, train, own, splits[held].iscv)
+    return out
 
 
 def _method_options(method: str, config: ProtocolConfig) -> tuple:
@@ -406,7 +434,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
         eval_solves += len(errs)
         eval_fail += sum(not e.converged for e in errs)
         sets[name] = {"trials": [e.to_dict() for e in errs], "summary": summarise(errs) if errs else None}
-        if errs and unit.train_subject is None:  # all-pairs units keep their RMSEs only
+        if errs and unit.is_main:  # all-pairs and posture-transfer units keep their RMSEs only
             demos = [t.resample(unit.n_nodes + 1) for t in trials]
             arrays[f"{name}/t"] = np.stack([e.prediction.t for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)
@@ -417,8 +445,17 @@ def run_unit(unit: Unit, split: Split) -> dict:
             arrays[f"{name}/demo_tau"] = np.stack([d.tau[:-1] for d in demos]).astype(np.float32)
             arrays[f"{name}/ids"] = np.array([t.id for t in trials], dtype=str)
             arrays[f"{name}/sides"] = np.array([t.side for t in trials], dtype=str)
+    model_info = None
+    if hasattr(est, "get_params"):
+        from ..irl.provenance import estimator_info
+
+        model_info = estimator_info(est, unit.method, list(split.train))
+        model_info.pop("history", None)  # the result's own history, below
+        model_info.pop("uncertainty", None)  # the result's own, below
     result = {
         "key": unit.key,
+        "model_info": model_info,
+        "uncertainty": getattr(est, "uncertainty_", None),
         "unit": asdict(unit),
         "fingerprint": unit.fingerprint(split),
         "weights": w.tolist(),

@@ -534,9 +534,11 @@ def write_outputs(run: RunResult) -> dict:
     md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
     t_fig = time.perf_counter()
     figs = write_figures(run, tables, truth)
-    from .sensitivity import identifiability_section
+    from .cost import cost_section, write_models, write_posture_transfer
 
-    extra_md: list[str] = identifiability_section(run)
+    write_models(run)
+    extra_md: list[str] = cost_section(run, truth[1] or None)
+    extra_md += write_posture_transfer(run)
     if run.config.iscv == "all-pairs":
         from .pairs import write_pairs
 
@@ -560,6 +562,10 @@ def write_outputs(run: RunResult) -> dict:
     write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
+
+
+def _tol_text(tol) -> str:
+    return "default" if tol is None else format(tol, "g")
 
 
 def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
@@ -598,7 +604,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         )
         + ".",
         f"- **Method:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
-        f"at most {config.max_iter} MO-IRL iterations (tol {'default' if config.tol is None else format(config.tol, 'g')}); seed defaults otherwise "
+        f"at most {config.max_iter} MO-IRL iterations (tol {_tol_text(config.tol)}); seed defaults otherwise "
         "(β = 1e-10, ω₀ = 0.05, α = 1 shrinking by 0.25, at most 10 tries).",
         "",
         "## Results: RMSE of the joint angles (deg), seed Table II layout",

@@ -46,6 +46,7 @@ class RunResult:
     timing: dict = field(default_factory=dict)
     run_info: dict = field(default_factory=dict)
     pairs: dict[str, dict] = field(default_factory=dict)  # --iscv all-pairs: the other subjects' units, by key
+    transfer: dict[str, dict] = field(default_factory=dict)  # --posture-transfer: the held-out postures' units
 
     @property
     def stopped(self) -> bool:

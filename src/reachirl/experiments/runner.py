@@ -278,7 +278,14 @@ def reproduce(
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
     """
     from .pairs import pair_splits, pair_training_subjects
-    from .protocol import code_fingerprint, make_units, resolve_postures, resolve_train_subject, split_trials
+    from .protocol import (
+        code_fingerprint,
+        make_units,
+        resolve_postures,
+        resolve_train_subject,
+        split_trials,
+        transfer_splits,
+    )
 
     trials = list(dataset.trials)
     if not trials:
@@ -288,6 +295,8 @@ def reproduce(
     splits = {p: split_trials(trials, p, config) for p in postures}
     split_sizes = {s: {p: len(splits[p].sets()[s]) for p in postures} for s in ("train", "cv", "iscv")}
     splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
+    if config.posture_transfer:
+        splits.update(transfer_splits(splits, postures))
     units = [u for u in make_units(postures, config, pair_training_subjects(trials, config))
              if u.split_key in splits]
     out_dir = Path(out_dir)
@@ -304,8 +313,10 @@ def reproduce(
         on_start=on_start,
         on_done=on_done,
     )
-    main = {k: r for k, r in summary.results.items() if r["unit"].get("train_subject") is None}
-    pairs = {k: r for k, r in summary.results.items() if k not in main}
+    main = {k: r for k, r in summary.results.items()
+            if r["unit"].get("train_subject") is None and r["unit"].get("held_out_posture") is None}
+    transfer = {k: r for k, r in summary.results.items() if r["unit"].get("held_out_posture") is not None}
+    pairs = {k: r for k, r in summary.results.items() if k not in main and k not in transfer}
     summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)
     run_info = {
         "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
@@ -327,4 +338,5 @@ def reproduce(
         timing={"data_s": data_s, "units_wall_s": time.perf_counter() - t0},
         run_info=run_info,
         pairs=pairs,
+        transfer=transfer,
     )

@@ -37,12 +37,10 @@ from ..errors import InputError
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, atomic_write_text
 from ..irl.moirl import MOIRL
-from ..irl.objective import minimize_in_box, step_objective
 from .protocol import ProtocolConfig, Split, Unit, make_estimator, split_trials
 
 __all__ = [
     "COLUMNS",
-    "MaskedMOIRL",
     "SensitivityConfig",
     "load_run",
     "plot_sensitivity",
@@ -128,49 +126,6 @@ def load_run(run_dir: str | Path):
 
 
 # ---------------------------------------------------------------------- constrained MO-IRL
-class MaskedMOIRL(MOIRL):
-    """MO-IRL with some weights held fixed: ``removed`` features have weight 0 in every window; ``frozen``
-    windows keep ω₀. Set the two attributes after construction (the constructor is MOIRL's). Scale-free
-    (``scaling="demo"``) form only: the step is MOIRL's, with ``η = 0`` on the held entries."""
-
-    removed: tuple[int, ...] = ()
-    frozen: tuple[int, ...] = ()
-
-    def _movable(self, shape) -> np.ndarray:  # every step, and the merit fallback's probes, move these only
-        free = np.ones(shape, dtype=bool)
-        free[:, list(self.removed)] = False
-        free[list(self.frozen), :] = False
-        return free
-
-    def _effective(self, w: np.ndarray) -> np.ndarray:
-        w = np.array(w, dtype=float)
-        w[:, list(self.removed)] = 0.0
-        return w
-
-    def _rollouts(self, tasks, w, warm, guesses):
-        return super()._rollouts(tasks, self._effective(w), warm, guesses)
-
-    def _step(self, w, sigma, phi_star, bank, starts, smoothness, ratio=None):
-        if self.scaling != "demo":
-            raise ValueError("MaskedMOIRL needs scaling='demo'")
-        groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
-        w_eff = np.array(w, dtype=float)
-        w_eff[:, list(self.removed)] *= 1e-12  # absent from the likelihood, still > 0 for the log-step
-        theta = w_eff * sigma
-        held = ~self._movable(w.shape)
-        bound = float(np.log(self.max_ratio if ratio is None else ratio))
-        lam = smoothness * phi_star.shape[0]
-        upper = np.where(held, 0.0, bound)  # held weights cannot move
-        eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, self.beta, lam, np.log(sigma)),
-                                    -upper, upper, 500)
-        eta = np.clip(eta, -upper, upper)
-        return w * np.expm1(eta), info
-
-    def _fit(self, trials, smoothness):
-        super()._fit(trials, smoothness)
-        self.weights_ = self._effective(self.weights_)
-
-
 # ---------------------------------------------------------------------- jobs (pure functions)
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
@@ -192,8 +147,12 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
     set: ``{"weights", "rmse": {set: [per trial]}, "flag"}``."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     base = make_estimator(unit)
-    est = MaskedMOIRL(**base.get_params())
-    est.removed, est.frozen = tuple(removed), tuple(frozen)
+    params = base.get_params()
+    mask = np.ones((unit.sections, N_FEATURES), dtype=bool)
+    mask[:, list(removed)] = False
+    experimental = {**dict(params.get("experimental") or {}), "frozen_windows": tuple(frozen)}
+    est = type(base)(**{**params, "feature_mask": mask if removed else None, "experimental": experimental,
+                        "uncertainty": None})
     est.fit(list(split.train))
     rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)[0].tolist()
             for s, tr in split.sets().items()}
@@ -262,7 +221,6 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
                     on_done: Callable[[str], None] | None = None) -> dict:
     """Occlusion, sensitivity and identifiability of the chosen units of ``run_dir`` (module docstring). Returns
     ``{"rows": [...], "identifiability": {...}, "units": [...], "config": {...}}``."""
-    from ..irl.identifiability import identifiability
 
     config = config or SensitivityConfig()
     dataset, pconfig, results, train_subject = load_run(run_dir)
@@ -327,7 +285,7 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
     for p, (unit, split, r) in chosen.items():
         shares = np.asarray(r["cost_shares"])
         base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
-        ident[p] = identifiability(np.asarray(r["weights"]), list(split.train), unit.n_nodes, seed=config.seed)
+        ident[p] = _determination(unit, split)
         ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
         ident[p]["key"] = r["key"]
         ident[p]["flag"] = r.get("flag")
@@ -527,74 +485,37 @@ def _markdown(out: dict) -> list[str]:
             lines.append(f"| {r['window']} | {r['feature']} | {r['cost_share']:.2f} | {r['path_change_deg']:.3f} | "
                          f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |")
         lines.append("")
-    lines += ["## Identifiability", ""]
+    lines += ["## What the training data determines", ""]
     for p, d in out["identifiability"].items():
-        cond = [c["condition_number"] for c in d["conditioning"]]
-        pairs = ", ".join(f"{a}–{b} (r = {r:.2f})" for (a, b), r in
-                          ((c["features"], c["r"]) for c in d["collinear_pairs"])) or "none with |r| ≥ 0.9"
-        worst = d["conditioning"][int(np.argmax(cond))]
-        ranks = sorted({c["rank"] for c in d["conditioning"]})
-        lines.append(f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}, "
-                     f"{d['n_demonstrations']} demonstrations): rank of the normalised feature differences per "
-                     f"window {'/'.join(map(str, ranks))} of 7, condition number {min(cond):.3g}–{max(cond):.3g} "
-                     f"(worst: window "
-                     f"{worst['window']}, direction {' vs '.join(worst['worst_pair'])}); nearly collinear feature "
-                     f"rates: {pairs}; weights with nearly collinear effects on the path (|cos| ≥ 0.9, per window): "
-                     f"{_effects(d.get('effect_collinearity') or [])}.")
+        det = d.get("determination")
+        head = f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}): "
+        if det is None:
+            lines.append(head + "no sensitivity of this method's fit (only MO-IRL and MaxEnt make rollouts).")
+            continue
+        lines.append(head + f"{det['n_determined']} of {det['n_directions']} weight directions determined "
+                     f"(most determined: {det['determined'][0] if det['determined'] else 'none'}; least: "
+                     f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); weights with nearly collinear "
+                     f"effects on the path (|cos| ≥ 0.9, per window): {_effects(d.get('effect_collinearity') or [])}.")
     lines.append("")
     return lines
 
 
-def _cond_text(c: float) -> str:
-    """A condition number for the report: ``singular`` where it is infinite (a rank-deficient window)."""
-    return f"{c:.3g}" if np.isfinite(c) else "singular"
+def _determination(unit, split) -> dict:
+    """The unit's fit again (deterministic: the run's weights) and what its training trials determine
+    (:func:`reachirl.irl.uncertainty.determination`); ``None`` for a method without rollouts."""
+    from ..irl.uncertainty import determination, residuals_and_jacobian
 
-
-def identifiability_section(run, n_boot: int = 200) -> list[str]:
-    """``report.md`` lines beside the weights: for the main method's fits with the most sections, per posture, the
-    conditioning of the feature differences, the nearly collinear pairs and the bootstrap intervals of the first
-    and last windows' two largest cost shares (:mod:`reachirl.irl.identifiability`)."""
-    from ..irl.identifiability import identifiability
-
-    method, n = run.config.methods[0], max(run.config.sections)
-    by_id = {t.id: t for t in run.dataset.trials}
-    lines = [f"## Identifiability of the weights ({method}, {n} section(s))", "",
-             "How well the training demonstrations determine the weights: rank and condition number of the "
-             "normalised feature differences the subproblem sees (per window; rank < 7 or a large condition "
-             "number means some weight directions are not determined), feature pairs whose running rates are "
-             "nearly collinear (|r| ≥ 0.9), and 95 % bootstrap intervals of the cost shares over resampled "
-             "demonstrations (fixed ω). `reachirl sensitivity` adds occlusion refits.", "",
-             "| posture | rank per window | condition number (min–max) | worst-determined pair | collinear rates | "
-             "first window: top shares [95 % CI] | last window: top shares [95 % CI] |",
-             "|---|---|---|---|---|---|---|"]
-    for p in run.postures:
-        r = next((r for r in run.results.values() if r["unit"]["method"] == method and r["unit"]["posture"] == p
-                  and int(r["unit"]["sections"]) == n), None)
-        if r is None:
-            continue
-        train = [by_id[e["id"]] for e in r["sets"]["train"]["trials"] if e["id"] in by_id]
-        if len(train) < 2:
-            continue
-        d = identifiability(np.asarray(r["weights"]), train, int(r["unit"]["n_nodes"]), n_boot=n_boot)
-        cond = [c["condition_number"] for c in d["conditioning"]]
-        worst = d["conditioning"][int(np.argmax(cond))]
-        rank_list = [c["rank"] for c in d["conditioning"]]
-        ranks = "/".join(map(str, rank_list)) if n <= 8 else f"min {min(rank_list)}"
-        pairs = ", ".join(f"{a}–{b} ({rr:.2f})" for (a, b), rr in ((c["features"], c["r"])
-                                                                   for c in d["collinear_pairs"])) or "none"
-        b = d["bootstrap_shares"]
-
-        def top(s, b=b):
-            sh = np.asarray(b["shares"][s])
-            idx = np.argsort(-sh)[:2]
-            return ", ".join(f"{FEATURES[j]} {sh[j]:.2f} [{b['lo'][s][j]:.2f}, {b['hi'][s][j]:.2f}]" for j in idx)
-
-        flag = f" ({r['flag']})" if r.get("flag") else ""
-        span = f"{_cond_text(min(cond))}–{_cond_text(max(cond))}"
-        lines.append(f"| {p}{flag} | {ranks} | {span} | {' vs '.join(worst['worst_pair'])} "
-                     f"(window {worst['window']}) | {pairs} | {top(0)} | {top(-1)} |")
-    lines.append("")
-    return lines
+    est = make_estimator(unit)
+    if not isinstance(est, MOIRL):
+        return {"determination": None}
+    est.set_params(uncertainty=None)
+    est.fit(list(split.train))
+    free = est._movable(est._w_fit.shape)
+    try:
+        r, J = residuals_and_jacobian(est, free)
+    except ValueError:  # an unconverged or degenerate rollout: no sensitivity
+        return {"determination": None}
+    return {"determination": determination(r, J, free).to_dict()}
 
 
 def _effects(items: list[dict]) -> str:

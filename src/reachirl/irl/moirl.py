@@ -52,6 +52,7 @@ from ..observation import (
 )
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
+from .options import FIELDS as _OPTION_FIELDS
 from .options import ROLLOUTS, Options, resolve_options
 
 __all__ = ["MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
@@ -177,6 +178,12 @@ class MOIRL(WeightEstimator):
             self.__dict__["_options"] = opts
         return opts
 
+    def __getattr__(self, name: str):
+        """An :class:`~reachirl.irl.options.Options` field reads as the option in force (``est.merit``)."""
+        if name in _OPTION_FIELDS:
+            return getattr(self._o, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     @property
     def observe(self) -> bool:
         """Whether trials cut at a speed threshold are fitted and predicted as they were recorded."""
@@ -211,7 +218,7 @@ class MOIRL(WeightEstimator):
         if not (isinstance(self.max_iter, int | np.integer) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
         if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
-            raise ValueError(f"tol must be a number in [0, 1), got {self.tol}")
+            raise ValueError(f"tol must be a number >= 0 and < 1, got {self.tol}")
         if self.uncertainty is not None and not (isinstance(self.uncertainty, int | np.integer)
                                                  and 20 <= self.uncertainty <= 1000):
             raise ValueError(f"uncertainty must be a number of samples from 20 to 1000, or None, got "

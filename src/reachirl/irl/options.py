@@ -88,6 +88,9 @@ def resolve_options(seed_form: bool = False, experimental: Mapping[str, Any] | N
         raise ValueError(f"seed_form must be True or False, got {seed_form!r}")
     base = SEED_FORM if seed_form else Options()
     changes = {**dict(defaults or {}), **dict(experimental or {})}
+    for key in ("fallback", "feature_cutoff", "memory", "scaling"):  # TOML has no null: "" stands for None
+        if changes.get(key) == "":
+            changes[key] = None
     unknown = sorted(set(changes) - set(FIELDS))
     if unknown:
         raise ValueError(f"unknown experimental option(s) {', '.join(unknown)}; valid: {', '.join(FIELDS)}")
@@ -148,8 +151,8 @@ def _check(o: Options) -> None:
          f"memory must be >= 1 or None, got {o.memory}")
     need(_finite(o.shrink) and 0 < o.shrink < 1, f"shrink must be in (0, 1), got {o.shrink}")
     need(isinstance(o.max_tries, int) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
-    need(_finite(o.w0) and o.w0 > 0, f"w0 must be > 0 (weights stay > 0), got {o.w0}")
-    need(_finite(o.alpha0) and 0 < o.alpha0 <= 1, f"alpha0 must be in (0, 1], got {o.alpha0}")
+    need(_finite(o.w0) and o.w0 > 0, f"need w0 > 0 (weights stay > 0), got {o.w0}")
+    need(_finite(o.alpha0) and 0 < o.alpha0 <= 1, f"need 0 < alpha0 <= 1, got {o.alpha0}")
     need(_finite(o.beta) and o.beta >= 0, f"beta must be >= 0, got {o.beta}")
     need(_finite(o.max_ratio) and o.max_ratio > 1, f"max_ratio must be > 1, got {o.max_ratio}")
     need(_finite(o.min_step) and 0 <= o.min_step < 1, f"min_step must be in [0, 1), got {o.min_step}")
@@ -160,7 +163,7 @@ def _check(o: Options) -> None:
     else:
         need(_finite(o.smoothness) and o.smoothness >= 0,
              f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
-    need(isinstance(o.cv_folds, int) and o.cv_folds >= 2, f"cv_folds must be an integer >= 2, got {o.cv_folds}")
+    need(isinstance(o.cv_folds, int) and o.cv_folds >= 2, f"cv_folds must be >= 2 (an integer), got {o.cv_folds}")
     need(o.feature_cutoff is None or (_finite(o.feature_cutoff) and o.feature_cutoff > 0),
          f"feature_cutoff must be a frequency > 0 (Hz) or None, got {o.feature_cutoff}")
     need(isinstance(o.n_suffixes, int) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")

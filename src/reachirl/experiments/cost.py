@@ -1,0 +1,140 @@
+"""What a run says about the learned cost: each unit's model, what the training data determines, the weights it
+cannot tell apart, the paper's claim tested at that uncertainty, and leave-one-posture-out transfer."""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..features import FEATURES
+from ..io import atomic_write_text
+from ..irl.model import LearnedModel, save_model
+from ..irl.uncertainty import UNDETERMINED_WIDTH
+
+__all__ = ["claim_verdict", "cost_section", "write_models", "write_posture_transfer"]
+
+ACC = FEATURES.index("joint_acceleration")
+
+
+def write_models(run) -> list[Path]:
+    """``RUN_DIR/models/<unit key>.json``: each unit's model as ``reachirl fit`` writes it, for ``evaluate``,
+    ``plot`` and ``simulate``."""
+    out = []
+    every = {**run.results, **run.pairs, **run.transfer}
+    for key, r in sorted(every.items()):
+        info = dict(r.get("model_info") or {"method": r["unit"]["method"]})
+        info.update({"unit": key, "backend": r["unit"]["backend"], "history": r.get("history", []),
+                     "run": str(run.out_dir)})
+        model = LearnedModel(weights=np.asarray(r["weights"], dtype=float), n_nodes=int(r["unit"]["n_nodes"]),
+                             method=r["unit"]["method"], info=info, uncertainty=r.get("uncertainty"))
+        out.append(save_model(Path(run.out_dir) / "models" / f"{key}.json", model))
+    return out
+
+
+def claim_verdict(share_samples: np.ndarray) -> dict:
+    """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
+    weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
+    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise; with the fraction of samples where
+    it holds. Onset and end are the first and last windows, mid-reach the others' mean."""
+    sh = np.asarray(share_samples, dtype=float)
+    if sh.ndim != 3 or sh.shape[1] < 3:
+        return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
+    acc = sh[:, :, ACC]
+    holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
+    frac = float(holds.mean())
+    verdict = "supported" if frac == 1.0 else "contradicted" if frac == 0.0 else "undetermined"
+    return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0])}
+
+
+def _truth_coverage(unc: dict, true_shares: np.ndarray) -> dict:
+    lo, hi = np.asarray(unc["share_intervals"]["low"]), np.asarray(unc["share_intervals"]["high"])
+    inside = (true_shares >= lo - 0.005) & (true_shares <= hi + 0.005)  # the shares' printed precision
+    return {"coverage": float(inside.mean()), "mean_width": float((hi - lo).mean())}
+
+
+def cost_section(run, true_shares: dict | None = None) -> list[str]:
+    """``report.md``'s section on the learned cost: per MO-IRL fit with weight samples, the determined weight
+    directions in words, the share intervals (how many are undetermined), the claim's verdict and, on virtual
+    subjects (``true_shares`` by posture), how often the intervals contain the truth's shares."""
+    lines = ["## What the data determines about the cost", "",
+             "The learned weights are one cost among several that explain the training reaches equally well. "
+             "Below, for each fit with weight samples (`--uncertainty`), the weight directions the training data "
+             "determines (moving the log-weights along them by log 2 raises the merit by more than the "
+             "demonstrations can tell from noise) and the rest; the range of each cost share over the samples the "
+             f"data cannot tell apart from the fit (a share whose range is wider than {UNDETERMINED_WIDTH} is "
+             "undetermined, not a finding); and the paper's claim, joint acceleration's share higher at onset and "
+             "end than mid-reach, tested on those samples.", ""]
+    rows = [r for r in run.results.values() if r.get("uncertainty")]
+    if not rows:
+        return [*lines, "No fit of this run has weight samples: rerun with `--uncertainty` to quote a share.", ""]
+    lines += ["| unit | determined directions | shares undetermined | claim | most determined direction |"
+              + (" truth's shares inside | mean width |" if true_shares else ""),
+              "|---|---|---|---|---|" + ("---|---|" if true_shares else "")]
+    for r in sorted(rows, key=lambda r: r["key"]):
+        u = r["uncertainty"]
+        det = u["determination"]
+        und = 1.0 - float(np.mean(u["share_intervals"]["determined"]))
+        claim = claim_verdict(np.asarray(u["share_samples"]))
+        frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of samples)"
+        top = det["determined"][0] if det["determined"] else "none"
+        row = (f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
+               f"{claim['verdict']}{frac} | {top} |")
+        p = r["unit"]["posture"]
+        if true_shares:
+            ts = true_shares.get(p)
+            if ts is not None and np.shape(ts) == np.shape(u["share_intervals"]["low"]):
+                c = _truth_coverage(u, np.asarray(ts))
+                row += f" {100 * c['coverage']:.0f} % | {c['mean_width']:.2f} |"
+            else:
+                row += " — | — |"
+        lines.append(row)
+    lines.append("")
+    return lines
+
+
+def write_posture_transfer(run) -> list[str]:
+    """``posture_transfer.csv`` (method, sections, held_out_posture, RMSE of q as mean, SD, n for the training
+    subject's trials of the held-out posture, then iscv_mean, iscv_sd, iscv_n for the other subjects') and the
+    report's lines; nothing without ``--posture-transfer``."""
+    if not run.transfer:
+        return []
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["method", "sections", "held_out_posture", "mean", "sd", "n", "iscv_mean", "iscv_sd", "iscv_n",
+                "per_posture_fit_mean"])
+    lines = ["## Posture transfer (leave one posture out)", "",
+             "One cost learned on the training trials of every other posture (one rollout per posture), predicting "
+             "the held-out posture's reaches of the training subject and of the other subjects, beside the fit of "
+             "that posture's own training trials (the main table's CV and training trials).", "",
+             "| method | sections | held-out posture | RMSE of q, same subject (deg) | other subjects (deg) | "
+             "per-posture fit, same trials (deg) |", "|---|---|---|---|---|---|"]
+
+    def stats(trials):
+        v = [t["rmse_deg"]["q"] for t in trials if t.get("converged", True)]
+        return (float(np.mean(v)), float(np.std(v)), len(v)) if v else (None, None, 0)
+
+    for _key, r in sorted(run.transfer.items()):
+        u = r["unit"]
+        own = stats(r["sets"]["cv"]["trials"])
+        iscv = stats(r["sets"]["iscv"]["trials"])
+        main = next((m for m in run.results.values() if m["unit"]["method"] == u["method"]
+                     and m["unit"]["posture"] == u["held_out_posture"]
+                     and m["unit"]["sections"] == u["sections"]), None)
+        base = stats([*main["sets"]["train"]["trials"], *main["sets"]["cv"]["trials"]]) if main else (None, None, 0)
+        w.writerow([u["method"], u["sections"], u["held_out_posture"], *_fmt_row(own), *_fmt_row(iscv),
+                    "" if base[0] is None else f"{base[0]:.4f}"])
+
+        def cell(s):
+            return "—" if s[0] is None else f"{s[0]:.2f} ± {s[1]:.2f} (n = {s[2]})"
+
+        lines.append(f"| {u['method']} | {u['sections']} | {u['held_out_posture']} | {cell(own)} | {cell(iscv)} | "
+                     f"{cell(base)} |")
+    atomic_write_text(Path(run.out_dir) / "posture_transfer.csv", buf.getvalue())
+    return [*lines, ""]
+
+
+def _fmt_row(s) -> list:
+    return ["", "", 0] if s[0] is None else [f"{s[0]:.4f}", f"{s[1]:.4f}", s[2]]
