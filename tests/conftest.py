@@ -59,25 +59,3 @@ def tiny_trials(tmp_path_factory, arm):
     save_trials(path, trials)
     return path
 
-
-def moirl_params(params: dict) -> dict:
-    """``params`` with the fields of :class:`reachirl.irl.options.Options` moved into ``experimental``."""
-    from reachirl.irl.options import FIELDS
-
-    exp = {k: v for k, v in params.items() if k in FIELDS}
-    rest = {k: v for k, v in params.items() if k not in FIELDS}
-    if exp:
-        rest["experimental"] = {**rest.get("experimental", {}), **exp}
-    return rest
-
-
-def whole_rollout_moirl(cls):
-    """``cls`` with whole rollouts and the full-state merit unless a test says otherwise: the setting of the
-    tests of MO-IRL's iteration (the line search, the fallback, the scale-free step) on DOC-made reaches."""
-
-    def make(*args, **kwargs):
-        kwargs = moirl_params(kwargs)
-        kwargs["experimental"] = {"observe": False, "merit": "state", **(kwargs.get("experimental") or {})}
-        return cls(*args, **kwargs)
-
-    return make

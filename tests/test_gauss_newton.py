@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import whole_rollout_moirl
+from moirl_settings import whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.doc.sensitivity import weight_jacobian
 from reachirl.irl.moirl import MOIRL as _MOIRL

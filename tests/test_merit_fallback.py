@@ -4,7 +4,7 @@ rollout on every feature), MO-IRL probes the merit and steps on a per-feature qu
 import numpy as np
 import pytest
 
-from conftest import moirl_params, whole_rollout_moirl
+from moirl_settings import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.irl import moirl as moirl_module

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import moirl_params, whole_rollout_moirl
+from moirl_settings import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.evaluation import evaluate_trials

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from conftest import whole_rollout_moirl
+from moirl_settings import whole_rollout_moirl
 from reachirl import MOIRL as _MOIRL
 from reachirl.experiments import datasets
 from reachirl.irl.moirl import multimodal_accept

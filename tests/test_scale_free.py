@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from conftest import moirl_params, whole_rollout_moirl
+from moirl_settings import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.features import windowed_features

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int
+from ._args import int_in, non_negative_int, number_in
 
 MAX_SUBJECTS = 200
 
@@ -54,7 +54,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "reproduce",
         help="run the seed paper's protocol and write its table and figures",
-        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml or --set KEY=VALUE):\n"
+        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml, --set KEY=VALUE, or the flag "
+        "--key-name VALUE; progress: --no-progress; methods: --method):\n"
         + "\n".join(f"  {k}: {v[0]}" for k, v in RUN_KEYS.items())
         + "\n  [experimental]: MO-IRL options (docs/usage.md)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -93,7 +94,21 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="a run file (every run writes its own as DIR/run.toml); flags given override it")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="assignments",
                    help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side")
+    # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
+    for key, (_, kind) in RUN_KEYS.items():
+        name = "method" if key == "methods" else key.replace("_", "-")
+        flag = "--no-progress" if key == "progress" else f"--{name}"
+        if kind == "bool":
+            p.add_argument(flag, dest=f"key_{key}", action="store_false", default=None, help=argparse.SUPPRESS)
+        elif kind == "names":
+            p.add_argument(flag, dest=f"key_{key}", nargs="+", default=None, help=argparse.SUPPRESS)
+        else:
+            p.add_argument(flag, dest=f"key_{key}", type=KEY_TYPES[kind], default=None, help=argparse.SUPPRESS)
     return p
+
+
+KEY_TYPES = {"str": str, "count": int_in(0, 10**6), "nodes": int_in(*NODES_RANGE), "iters": int_in(1, MAX_ITER),
+             "tol": number_in(0.0, 0.5)}
 
 
 FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "posture_transfer", "uncertainty")
@@ -118,6 +133,10 @@ def run_options(args) -> dict:
         where = where or "--set"
     for key in FLAG_KEYS:
         v = getattr(args, key)
+        if v is not None:
+            opts[key] = list(v) if isinstance(v, list) else v
+    for key in RUN_KEYS:
+        v = getattr(args, f"key_{key}", None)
         if v is not None:
             opts[key] = list(v) if isinstance(v, list) else v
     known = {*RUN_KEYS, *FLAG_KEYS, "experimental", "quick", "data", "scheduler", "workers", "out"}

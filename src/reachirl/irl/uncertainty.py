@@ -50,13 +50,12 @@ log = logging.getLogger(__name__)
 UNDETERMINED_WIDTH = 0.25
 """A share whose interval is wider than this is shown as undetermined, not as a finding."""
 
-PRIOR_LOG_RATIO = float(np.log(10.0))
-"""Undetermined directions: the samples move the log-weights along them by at most this (a factor 10)."""
+PRIOR_LOG_SD = float(np.log(10.0))
+"""The prior's standard deviation of each log-weight around ``ω₀``: a factor 10."""
 
-METHOD = ("indistinguishable costs: refits from random costs (other basins) and samples around the fit (Gauss-Newton "
-          "model in the determined directions, a uniform prior of a factor 10 in the undetermined ones), each "
-          "solved by the DOC and kept when a one-sided paired t-test over the demonstrations (5 %) does not find "
-          "its reaches worse than the fit's")
+METHOD = ("laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit "
+          "(likelihood scale: the merit rise the demonstrations can tell from noise) and a prior centred on equal "
+          "cost shares with a factor-10 standard deviation")
 
 
 @dataclass(frozen=True)
@@ -168,9 +167,10 @@ def _ranges(ws: list[int]) -> str:
 
 
 def share_intervals(shares: np.ndarray) -> dict:
-    """Per window and feature, the range of the samples' cost shares ``shares (K, S, 7)`` and whether it is
-    determined (narrower than :data:`UNDETERMINED_WIDTH`): ``{"low", "high", "determined"}``, each ``S × 7``."""
-    lo, hi = shares.min(axis=0), shares.max(axis=0)
+    """Per window and feature, the 95 % interval (2.5 and 97.5 percentiles) of the cost shares ``shares (K, S, 7)``
+    and whether it is determined (narrower than :data:`UNDETERMINED_WIDTH`): ``{"low", "high", "determined"}``,
+    each ``S × 7``."""
+    lo, hi = np.percentile(shares, 2.5, axis=0), np.percentile(shares, 97.5, axis=0)
     return {"low": lo.tolist(), "high": hi.tolist(), "determined": ((hi - lo) <= UNDETERMINED_WIDTH).tolist()}
 
 
@@ -180,107 +180,76 @@ def _shares(w: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
 
 
-def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, restarts: int = 4,
-                       restart_iter: int = 10, max_solves_per_sample: int = 4) -> dict:
-    """Weight samples the training data cannot tell apart from ``est``'s fit (module docstring).
+def laplace_posterior(r: np.ndarray, J: np.ndarray, eta_hat: np.ndarray, eta_prior: np.ndarray,
+                      prior_sd: float = PRIOR_LOG_SD) -> tuple[np.ndarray, np.ndarray, float]:
+    """The Gauss-Newton (Laplace) posterior of the free log-weights: ``(mean (P,), covariance (P, P), τ)``.
 
-    Two kinds of sample, each kept only when :func:`indistinguishable` from the fit on real DOC solves:
+    The likelihood is ``exp(−(m(η) − m̂) / (2τ))`` with the merit's Gauss-Newton model ``m(η) − m̂ ≈
+    (η − η̂)ᵀ A (η − η̂)``, ``A = Σ_d J_dᵀJ_d / D``, and ``τ = δm / 4`` (:func:`merit_noise`), so that a move to the
+    edge of a direction's 95 % interval raises the merit by ``δm``, what the demonstrations can tell from noise;
+    the prior is ``N(η_prior, prior_sd² I)``."""
+    D = r.shape[0]
+    A = np.einsum("dmp,dmq->pq", J, J) / D
+    tau = merit_noise(np.sum(r**2, axis=1)) / 4.0
+    precision = A / tau + np.eye(A.shape[0]) / prior_sd**2
+    cov = np.linalg.inv(precision)
+    cov = 0.5 * (cov + cov.T)
+    mean = cov @ (A @ eta_hat / tau + eta_prior / prior_sd**2)
+    return mean, cov, tau
 
-    * ``restarts`` refits (at most ``restart_iter`` iterations each) from random costs, every window's cost
-      shares drawn uniformly on the simplex: other basins of the merit that explain the reaches as well;
-    * samples around the fit from the Gauss-Newton model (determined directions) and a uniform prior
-      (undetermined ones), their scales halved after three rejections in a row.
 
-    Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``K × S × 7``, in the units
-    of ``weights``; the fit itself first), ``share_samples``, ``share_intervals``, ``determination``
-    (:meth:`Determination.to_dict`), ``modes`` (restarts kept / tried), ``candidates``, ``doc_solves`` and
-    ``doc_failures``; ``complete`` is False when fewer than ``n_samples`` were accepted within
-    ``max_solves_per_sample × n_samples`` local candidates."""
+def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_check: int = 10,
+                       n_interval: int = 4000) -> dict:
+    """Weight samples of the Gauss-Newton (Laplace) posterior of ``est``'s fit (module docstring).
+
+    The prior centres every free log-weight on ``ω₀`` (every feature with the same share of each window's
+    demonstrated cost), with a standard deviation of a factor 10 (:data:`PRIOR_LOG_SD`); the data's likelihood is
+    the merit's Gauss-Newton model at the fit. ``n_check`` samples are solved by the DOC and tested with
+    :func:`indistinguishable` (``checked``: how many pass: the model is linear, the DOC is not).
+
+    Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
+    units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
+    ``n_interval`` draws, on the fit's own reach, and whether each is determined), ``share_samples``,
+    ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked`` and ``doc_solves``."""
     rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED]))
     free = est._movable(est._w_fit.shape)
-    w_hat = est._w_fit
+    cols = np.flatnonzero(free.reshape(-1))
     r, J = residuals_and_jacobian(est, free)
     det = determination(r, J, free)
+    eta_hat = np.log(est._w_fit).reshape(-1)
+    eta_prior = np.log(est._w_start).reshape(-1)
+    eta_prior = eta_prior - eta_prior[cols].mean() + eta_hat[cols].mean()  # the same overall scale (no effect)
+    mean, cov, tau = laplace_posterior(r, J, eta_hat[cols], eta_prior[cols])
+    L = np.linalg.cholesky(cov + 1e-12 * np.eye(cov.shape[0]))
+
+    def draw(n: int) -> np.ndarray:
+        eta = np.tile(eta_hat, (n, 1))
+        eta[:, cols] = mean + (L @ rng.standard_normal((cols.size, n))).T
+        return est._effective(np.exp(eta).reshape(n, *est._w_fit.shape))
+
+    phi = np.mean(est._features(est.tasks_, est.train_solutions_, np.array([0])), axis=0)
+    samples = draw(n_samples)
+    shares = _shares(draw(n_interval), phi)
     errors_fit = np.sum(r**2, axis=1)
-    starts = np.array([0])
-    sols = est.train_solutions_
-    fit_phi = np.mean(est._features(est.tasks_, sols, starts), axis=0)
-    samples = [est._effective(w_hat)]
-    share_samples = [_shares(samples[0], fit_phi)]
-    solves = failures = 0
-
-    def keep(w: np.ndarray, cand) -> bool:
-        """Whether the rollouts ``cand`` under ``w`` are indistinguishable from the fit's; keeps the sample."""
-        nonlocal failures
-        if any(not c.converged for c in cand):
-            failures += 1
-            return False
-        states = [est._state(i, t, c) for i, (t, c) in enumerate(zip(est.tasks_, cand, strict=True))]
-        if not indistinguishable(_errors(est, states), errors_fit):
-            return False
-        we = est._effective(w)
-        samples.append(we)
-        share_samples.append(_shares(we, np.mean(est._features(est.tasks_, cand, starts), axis=0)))
-        return True
-
-    # other basins: short refits from random costs (shares uniform on each window's simplex)
-    totals = (samples[0] * fit_phi).sum(axis=1, keepdims=True)
-    kept_modes = 0
-    for _ in range(restarts):
-        shares = rng.dirichlet(np.ones(N_FEATURES), size=w_hat.shape[0])
-        w0 = np.where(free, shares * totals / np.maximum(fit_phi, 1e-300), w_hat)
-        refit = type(est)(**{**est.get_params(), "uncertainty": None, "callback": None, "max_iter": restart_iter})
-        refit._w_init = np.maximum(w0, 1e-12 * w_hat)
-        refit.fit(list(trials))
-        solves += refit.n_doc_solves_
-        cand, runs, _ = est._rollouts(est.tasks_, refit._w_fit, None, est._guesses)  # on the fit's own tasks
+    passed = solves = 0
+    for w in samples[:n_check]:
+        cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
         solves += runs
-        kept_modes += keep(refit._w_fit, cand)
-
-    # around the fit: Gauss-Newton in the determined directions, a uniform prior in the others
-    s = det.singular_values
-    vt = det.directions.reshape(det.directions.shape[0], -1)[:, free.reshape(-1)]
-    k = det.n_determined
-    cols = np.flatnonzero(free.reshape(-1))
-    rho_d, rho_u = 1.0, PRIOR_LOG_RATIO
-    candidates = streak = 0
-    budget = max_solves_per_sample * n_samples
-    while len(samples) < n_samples and candidates < budget:
-        candidates += 1
-        eta = np.zeros(cols.size)
-        if k:  # determined: the linearised merit rises by about δm · |z|² / k
-            z = rng.standard_normal(k)
-            eta += vt[:k].T @ (z * np.sqrt(det.threshold / k) / np.maximum(s[:k], 1e-300)) * rho_d
-        if k < cols.size:  # undetermined: uniform, at most rho_u along each direction
-            eta += vt[k:].T @ rng.uniform(-1.0, 1.0, cols.size - k) * rho_u
-        w = w_hat.copy().reshape(-1)
-        w[cols] *= np.exp(eta)
-        w = w.reshape(w_hat.shape)
-        cand, runs, _ = est._rollouts(est.tasks_, w, sols, est._guesses)
-        solves += runs
-        if keep(w, cand):
-            streak = 0
-        else:
-            streak += 1
-            if streak >= 3:  # the region is smaller than the proposal: shrink it
-                rho_d, rho_u, streak = rho_d * 0.5, rho_u * 0.5, 0
-    shares = np.stack(share_samples)
-    if len(samples) < n_samples:
-        log.warning("uncertainty: %d of %d samples accepted within %d candidates", len(samples), n_samples,
-                    candidates)
+        if all(c.converged for c in cand):
+            states = [est._state(i, t, c) for i, (t, c) in enumerate(zip(est.tasks_, cand, strict=True))]
+            passed += indistinguishable(_errors(est, states), errors_fit)
     return {
         "method": METHOD,
-        "n_samples": len(samples),
-        "complete": len(samples) >= n_samples,
-        "weight_samples": np.stack(samples).tolist(),
-        "share_samples": shares.tolist(),
+        "n_samples": int(n_samples),
+        "weight_samples": samples.tolist(),
+        "share_samples": _shares(samples, phi).tolist(),
         "share_intervals": share_intervals(shares),
         "determination": det.to_dict(),
-        "modes": {"kept": kept_modes, "tried": restarts},
-        "local_scale_final": rho_u,
-        "candidates": candidates,
-        "doc_solves": solves,
-        "doc_failures": failures,
+        "prior": {"center": "w0: every feature with the same share of each window's demonstrated cost",
+                  "log_sd": PRIOR_LOG_SD},
+        "likelihood_tau": float(tau),
+        "checked": {"solved": min(n_check, n_samples), "indistinguishable": int(passed)},
+        "doc_solves": int(solves),
     }
 
 
