@@ -60,9 +60,11 @@ def _options(parser: argparse.ArgumentParser) -> list[str]:
     fmt = _formatter(parser.prog)
     out: list[str] = []
     for group in parser._action_groups:
-        actions = [a for a in group._group_actions
-                   if a.help is not argparse.SUPPRESS and not isinstance(a, argparse._HelpAction)
-                   and a.dest != "verbose"]
+        actions = [
+            a
+            for a in group._group_actions
+            if a.help is not argparse.SUPPRESS and not isinstance(a, argparse._HelpAction) and a.dest != "verbose"
+        ]
         if not actions:
             continue
         out += ["", f"*{group.title}*", "", "| argument | description |", "|---|---|"]
@@ -95,8 +97,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         current = args.out.read_text(encoding="utf-8") if args.out.is_file() else ""
         if current != text:
-            print(f"{args.out} differs from the parsers; run `python -m reachirl.cli.docs --out {args.out}`",
-                  file=sys.stderr)
+            print(
+                f"{args.out} differs from the parsers; run `python -m reachirl.cli.docs --out {args.out}`",
+                file=sys.stderr,
+            )
             return 1
         return 0
     args.out.write_text(text, encoding="utf-8")
