@@ -7,7 +7,7 @@ export MUJOCO_GL ?= osmesa
 export PYOPENGL_PLATFORM ?= osmesa
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: install run test test-slow bench measured lint clean system-deps
+.PHONY: install run test test-slow bench measured docs lint clean system-deps
 
 install: $(STAMP)
 
@@ -40,9 +40,14 @@ test-slow: install
 bench: install
 	$(VENV)/bin/reachirl bench --out bench.json
 
-# the README's Measured section and docs/measured.json, from the outputs of `make run` and `make bench`
+# docs/benchmarks.md's Measured section and docs/measured.json, from the outputs of `make run` and `make bench`
 measured: run bench
 	$(PY) benchmarks/measured.py --results results/results.json --bench bench.json
+
+# the generated parts of docs/: docs/cli.md from the parsers, and the Measured section from docs/measured.json
+docs: install
+	$(PY) -m reachirl.cli.docs --out docs/cli.md
+	$(PY) benchmarks/measured.py
 
 lint: install
 	$(VENV)/bin/ruff check src tests benchmarks examples

@@ -287,7 +287,7 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
                 }
     protocol_fits = None if quick else protocol_fit_cpu(seed)
     targets = _targets(rows, curves, ref_doc)
-    if protocol_fits is not None:  # issue 10: an 8-window fit of 10 recorded reaches takes at most 1 s of CPU
+    if protocol_fits is not None:  # target: an 8-window fit of 10 recorded reaches takes at most 1 s of CPU
         median = protocol_fits["compiled"]["fit_cpu_median_s"]
         targets["protocol_fit_le_1s_cpu"] = {"median_cpu_s": median, "per_posture_cpu_s":
                                              protocol_fits["compiled"]["fit_cpu_s"], "met": median <= 1.0}

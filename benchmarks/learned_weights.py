@@ -1,5 +1,5 @@
 """The weights that fits really produce, and the reaches they are used on: the sweep behind ``reachirl bench
-backends`` (issue 11).
+backends``.
 
 ``python benchmarks/learned_weights.py [--quick]`` fits MO-IRL, MaxEnt and bilevel at 1/6/8 windows on each
 posture of the built-in virtual subjects (training split of :func:`reachirl.experiments.protocol.split_trials`)

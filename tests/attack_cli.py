@@ -1,5 +1,5 @@
 # ruff: noqa: E501, E731  (a table of attacks, one per line)
-"""Attack harness of issue 12: run the real console script on bad inputs of every kind and classify each outcome
+"""Attack harness: run the real console script on bad inputs of every kind and classify each outcome
 (exit 0 or 2, no traceback, no internal error, one error line, no temporary file, no NaN or bare null in what
 it wrote, an answer within the timeout).
 

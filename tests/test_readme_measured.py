@@ -1,6 +1,6 @@
-"""The README's measured numbers cannot drift: its Measured section is generated from docs/measured.json
-(written by `make measured` from the outputs of `make run` and `make bench`), and the snapshot must hold what
-the current `make run` output holds."""
+"""The measured numbers cannot drift: docs/benchmarks.md's Measured section is generated from docs/measured.json
+(written by `make measured` from the outputs of `make run` and `make bench`), the snapshot must hold what the
+current `make run` output holds, and the README quotes no measured number of its own."""
 
 import importlib.util
 import json
@@ -25,24 +25,24 @@ def _section(text: str, heading: str) -> str:
     return text[start : end if end > 0 else None]
 
 
-def test_readme_measured_block_is_the_snapshot_rendered():
+def test_measured_block_is_the_snapshot_rendered():
     m = _measured()
     snap = json.loads((ROOT / "docs" / "measured.json").read_text(encoding="utf-8"))
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert m.readme_block(readme) == m.render(snap), "README's Measured section was edited by hand or is stale: " \
-        "run `make measured`"
+    page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+    assert m.measured_block(page) == m.render(snap), "docs/benchmarks.md's Measured section was edited by hand " \
+        "or is stale: run `make docs` (re-render docs/measured.json) or `make measured` (new numbers)"
 
 
 def test_no_number_in_the_measured_section_outside_the_generated_block():
     m = _measured()
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    rest = _section(readme, "Measured").replace(m.readme_block(readme), "")
+    page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
+    rest = _section(page, "Measured").replace(m.measured_block(page), "")
     rest = re.sub(r"`[^`]*`", "", rest)  # commands may hold numbers (options)
     assert not re.findall(r"\d+(?:\.\d+)?\s*(?:°|%|ms|s\b|×)", rest), "quote measured numbers only in the block"
 
 
 def test_snapshot_matches_the_current_make_run_output():
-    """After `make run`, results/results.json must hold the numbers the README quotes."""
+    """After `make run`, results/results.json must hold the numbers docs/benchmarks.md quotes."""
     path = ROOT / "results" / "results.json"
     if not path.is_file():
         pytest.skip("no results/results.json (run `make run` first)")
@@ -55,7 +55,7 @@ def test_snapshot_matches_the_current_make_run_output():
     m = _measured()
     snap = json.loads((ROOT / "docs" / "measured.json").read_text(encoding="utf-8"))
     assert m.protocol_numbers(res)["all_q_rmse_deg"] == snap["protocol"]["all_q_rmse_deg"], \
-        "README's protocol table differs from results/results.json: run `make measured`"
+        "docs/benchmarks.md's protocol table differs from results/results.json: run `make measured`"
 
 
 def test_render_quotes_the_snapshot_numbers():
@@ -66,3 +66,9 @@ def test_render_quotes_the_snapshot_numbers():
             "run_wall_s": {"a 2-core box": [100.0, 163.0]}}
     text = m.render(snap)
     assert "| 1 | 3.41° | 3.40° | 3.45° |" in text and "1.7 min–2.7 min over 2 run(s) on a 2-core box" in text
+
+
+def test_the_readme_has_no_measured_block():
+    m = _measured()
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert m.BEGIN not in readme and m.END not in readme, "the Measured section lives in docs/benchmarks.md"

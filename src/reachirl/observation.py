@@ -3,9 +3,7 @@
 A recorded trial runs from onset to offset, where the fingertip speed crosses a fraction of its peak (5 % in
 Berret et al. 2011 and in ``reachirl preprocess``; ``Trial.onset_threshold``), so it starts and ends *moving*.
 The seed's DOC starts and ends at rest. Solved over the trial's own duration, it must squeeze a rest-to-rest
-reach into the moving part of one: on the built-in virtual subjects the true weights themselves then miss their
-own reaches by 1.4° (RMSE, every set), almost all of it from this mismatch (the recording and its processing
-account for about 0.25°).
+reach into the moving part of one.
 
 With an onset threshold, the task and the comparison change, the DOC does not:
 
@@ -16,10 +14,9 @@ With an onset threshold, the task and the comparison change, the DOC does not:
   times its peak, as a :class:`~reachirl.data.trial.Trial`. It is compared with the trial on normalised time, and
   its features are computed exactly as a demonstration's.
 
-The true weights then predict the built-in reaches to 0.9° (train, CV and ISCV alike), and the result hardly
-depends on the fraction (0.88 or 0.96: within 0.02°), since both sides are compared on normalised time.
-``reproduce`` and ``fit`` use it by default (``--no-observe`` for the seed's DOC over the trial's own duration);
-the README gives the held-out measurements on seven virtual populations and UE-ADL, and what it costs.
+Both sides are compared on normalised time, so the result hardly depends on the fraction. ``reproduce`` and
+``fit`` use it by default (``--seed-form`` for the seed's DOC over the trial's own duration);
+``docs/method.md`` gives the held-out measurements and what it costs.
 """
 
 from __future__ import annotations

@@ -12,34 +12,27 @@ Formulation (exactly the problem of :mod:`reachirl.doc.task`):
   in :mod:`reachirl.features`).
 * The constraints of stage ``k`` are, in this order, the gap
   ``x_{k+1} = (q_k + dt(q̇_k + dt q̈_k), q̇_k + dt q̈_k, τ_k)`` (first: fatrop detects the stages from it)
-  and the exact slack form of the energy ``|q̇_kᵀτ_k|``: ``q̇_kᵀτ_k − s⁺_k + s⁻_k = 0``, ``s± ≥ 0`` (a
-  smoothed absolute value made IPOPT stall). The terminal constraints are ``q̇_N = 0`` and the fingertip on
-  the bar, ``P_x(q_N) = target``. Joint limits and the speed bound are variable bounds. No variable is fixed
-  by equal bounds: fatrop needed 300 iterations with ``τ_{−1}`` and the slacks of interval 0 fixed that way.
+  and the exact slack form of the energy ``|q̇_kᵀτ_k|``: ``q̇_kᵀτ_k − s⁺_k + s⁻_k = 0``, ``s± ≥ 0``. The terminal
+  constraints are ``q̇_N = 0`` and the fingertip on the bar, ``P_x(q_N) = target``. Joint limits and the speed
+  bound are variable bounds. No variable is fixed by equal bounds (fatrop's stage detection would then need
+  far more iterations).
 * The arm's parameters, ``q0``, the target, ``dt``, the objective scale and the weights are NLP *parameters*:
   one NLP is built per number of knots ``N``, cached, and reused for every arm, task and weight. The weights
   enter per knot (``N × 7``, each knot's row its window's weights), so 1, 6 or 8 windows share one NLP (and one
   compiled solver, :mod:`reachirl.doc.compiled`).
-* The objective is normalised by the cost of the starting point, so the solvers see an order-one objective
-  (this took IPOPT from 75 % to 100 % convergence).
+* The objective is normalised by the cost of the starting point, so the solvers see an order-one objective.
 * The returned trajectory is rebuilt from the knots ``q_k``: ``q̇`` by differences, ``τ`` by inverse dynamics,
   the final posture moved onto the bar to machine precision (the solvers meet constraints to their
   feasibility tolerance), and the cost is :func:`reachirl.features.trajectory_cost` of the returned
   trajectory: the NLP objective there with exact slacks (tested against an independent Pinocchio
   computation), without a second evaluation of the symbolic objective.
 
-Solvers, and why (CPU time, N = 100, 8 windows, 7 features, 20 problems of ``benchmarks/bench_doc.py``, on a
-loaded 2-core machine; before this form, IPOPT on the positions-only form took 29 ms and 16 iterations cold,
-15 ms and 8.5 iterations warm):
+Solvers (the measurements behind the choice are in ``docs/design-notes.md``, "DOC solvers"):
 
-* **fatrop** (``structure_detection="auto"``) exploits the stage structure with a Riccati recursion, and the
-  stage-wise Hessian is ~4x cheaper to evaluate than the positions-only one. Cold: 18 iterations, 16 ms;
-  warm: 12 iterations, 12-13 ms. IPOPT on the same stage-wise NLP takes fewer iterations (14 cold, 7 warm with
-  multipliers) but more time (24 ms cold, 13.5 ms warm): MUMPS costs ~1.3 ms per iteration, fatrop ~0.4 ms.
-  Its initial barrier parameter is 1e-4, not 0.1: 14 instead of 16 iterations (see :data:`FATROP_OPTIONS`).
-* The cold and the warm fatrop solvers are compiled to C on long runs (:mod:`reachirl.doc.compiled`: 35-50 s
-  each, once per number of knots and machine, cached on disk): their function evaluations take about half the
-  time, with bit-identical results.
+* **fatrop** (``structure_detection="auto"``) exploits the stage structure with a Riccati recursion; its initial
+  barrier parameter is 1e-4 (:data:`FATROP_OPTIONS`).
+* The cold and the warm fatrop solvers are compiled to C on long runs (:mod:`reachirl.doc.compiled`, once per
+  number of knots and machine, cached on disk), with bit-identical results.
 * fatrop takes no initial multipliers (CasADi passes it the primal point only), so a warm start is the
   previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
 * **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved

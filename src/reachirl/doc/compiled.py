@@ -3,11 +3,9 @@ searches use), compiled to C once and cached on disk.
 
 CasADi evaluates the NLP's functions (objective, constraints, their derivatives, the Lagrangian's Hessian) in
 its virtual machine. Compiled with the system C compiler (``gcc -O1``) they take about half that time, and the
-solver's results are bit-identical (the same operations in the same order; tested): at N = 100 a cold solve
-goes from about 26 to 15 ms of CPU, and an 8-window MO-IRL fit of the protocol, whose solves are nearly all
-warm, from 1.6-2.7 to 1.2-2.0 s (the same weights, merits and solve counts). Compiling one solver of one
-number of knots ``N`` (it serves any number of windows) takes 35-50 s of CPU and about 20 MB of disk, so it
-is done only where it pays off, which the environment variable ``REACHIRL_COMPILE`` decides:
+solver's results are bit-identical (the same operations in the same order; tested). Compiling one solver of
+one number of knots ``N`` (it serves any number of windows) takes tens of seconds of CPU and about 20 MB of
+disk, so it is done only where it pays off, which the environment variable ``REACHIRL_COMPILE`` decides:
 
 * ``auto`` (the default): a compiled solver already in the cache is used. A process that has solved
   :data:`AUTO_AFTER` cold (or :data:`AUTO_AFTER_WARM` warm) DOCs of one number of knots (a long run: an

@@ -88,155 +88,67 @@ _NX, _NU = 6, 2  # augmented state (q, q̇, τ_prev) and control τ
 
 @dataclass(frozen=True)
 class CsqpOptions:
-    """CSQP settings (tuned on the benchmark problems, see ``benchmarks/bench_backends.py``).
+    """CSQP settings of the Crocoddyl backend (tuned on the problems of ``benchmarks/bench_backends.py``; the
+    measurements behind each value are in ``docs/design-notes.md``, "CSQP settings").
 
-    Convergence (tested after each QP by :class:`_Monitor`, which replaces CSQP's own test):
+    Convergence, tested after each QP by :class:`_Monitor` (which replaces CSQP's own test):
 
-    * ``termination_tolerance``: CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics gaps
-      and the constraint violation) must fall below it, relative to the cold initial guess's cost per knot
-      ``J(guess) / N`` so that it does not depend on the overall scale of the weights (nor on a warm start).
+    * ``termination_tolerance``: CSQP's KKT residual (max-norm of the Lagrangian gradient, the dynamics gaps and
+      the constraint violation) must fall below it, relative to the cold initial guess's cost per knot
+      ``J(guess) / N``, so that it depends neither on the scale of the weights nor on a warm start.
     * ``feasibility_tolerance`` (absolute: rad, rad/s, N·m, m): the gaps' max-norm and the constraints' summed
-      violation must also fall below it. CSQP's own test holds them to the cost-relative tolerance above
-      (~1e-4 to 1e-3), which, once the QPs were cut short, let points with gaps of 4e-4 count as converged.
-    * ``acceptable_*``: like IPOPT's (and :mod:`reachirl.doc.casadi`'s) "solved to an acceptable level", a
-      feasible point whose KKT residual stays within ``acceptable_factor`` × the tolerance for
+      violation must also fall below it.
+    * ``acceptable_factor``, ``acceptable_iter``, ``acceptable_cost_change``: as IPOPT's "solved to an acceptable
+      level", a feasible point whose KKT residual stays within ``acceptable_factor`` × the tolerance for
       ``acceptable_iter`` iterations while the cost moves by less than ``acceptable_cost_change`` (relative)
-      also counts as converged, and so does an acceptable point where no descent step exists even along a
-      tight-QP direction. CSQP's QPs are ADMM solves whose multipliers are only as accurate as their
-      tolerance, so its final convergence is linear and slow: without this test a reach 0.03° and 5e-6 (cost)
-      from IPOPT's optimum ran to ``max_iter``.
+      counts as converged, and so does an acceptable point where no descent step exists even along a tight-QP
+      direction (ADMM's multipliers are only as accurate as its tolerance, so CSQP's final convergence is
+      linear).
+    * ``max_iter``: SQP iterations at most.
 
     QPs (ADMM):
 
-    * inexact SQP: the tolerance of each QP (``eps_abs``, absolute; ``eps_rel = 0``) follows the last KKT
-      residual, ``clip(qp_forcing · KKT, qp_eps_min · tol, qp_eps_max)``. With a fixed tolerance above the
-      KKT tolerance (as before: 1e-4 absolute + 1e-4 relative) the QP multipliers could never make the KKT
-      residual small enough.
-    * ``reset_rho = False``: ADMM's penalty ρ carries over from one QP to the next (it settles at 2–10 on the
-      scaled objective). Resetting it to CSQP's base 0.1 before each QP (as before) left every QP at ρ = 0.1
-      for its first 25 iterations, after which the loose early QPs stopped: each SQP step then came from a
-      QP solved with the wrong ρ, and the SQP crawled (median 69 iterations on the learned-weight sample
-      below, against 29 without the reset). ``adaptive_rho_tolerance`` lets ADMM change ρ only when its
-      estimate is 20× off.
-    * ``admm_relaxation = 1`` (ADMM without over-relaxation; CSQP's default α is 1.6). On the 10 benchmark
-      problems of ``reachirl bench backends``: warm solves after a 10 % weight change 2.2 s in all against
-      5.0 s (median 159 against 313 ms), cold 9.6 against 10.2 s, 77 147 against 86 475 ADMM iterations, 10/10
-      converged either way, q within 0.025° of CasADi's against 0.075°; 0.8, 1.2 and 1.4 gave warm medians of
-      456, 396 and 334 ms. On the learned-weight sweep (368 predictions, every 5th): 368/368 converged, q within
-      0.057° and cost within 0.020 % of CasADi's (0.062° and 0.020 % with 1.6), median 1.45 against 1.72 s. And
-      ``reproduce --quick --backend crocoddyl`` came within 0.27° of the CasADi table in every cell, against
-      0.38° with 1.6 (both with the protocol's former acceptance threshold 1e-5; with 1e-4, 0.42-0.52°: at the
-      quick fits' first weights CSQP's solutions lie 0.006° from a tight IPOPT optimum, fatrop's 0.0002°, and
-      the two backends' merits differ by up to 8e-4, more than the threshold, so the fits part, README).
-    * ``rho_update_interval`` (CSQP's default 25) is also how often ADMM tests its residuals, so a QP takes at
-      least that many iterations; 10 or 15 cut the QPs too short (2–4 of the 10 benchmark problems failed).
+    * inexact SQP: each QP's tolerance (``eps_abs``; ``eps_rel = 0``) follows the last KKT residual,
+      ``clip(qp_forcing · KKT, qp_eps_min · tol, qp_eps_max)``; ``max_qp_iters`` bounds a QP's iterations.
+    * ``reset_rho = False``: ADMM's penalty ρ carries over from one QP to the next; ``adaptive_rho_tolerance``
+      lets ADMM change ρ only when its estimate is that many times off.
+    * ``admm_relaxation``: ADMM's over-relaxation α (1: none; CSQP's default is 1.6).
+    * ``rho_update_interval``: how often ADMM updates ρ, which is also how often it tests its residuals, so a QP
+      takes at least that many iterations.
     * when CSQP stops early (no acceptable step along an inexact QP direction) it is restarted from where it
       stopped with the tightest QP tolerance.
-    * ``qp_stall_ratio``/``qp_stall_window``: ADMM's stopping test compares ρ × the change of its iterates
-      with ``eps_abs``; at a small ρ it passes after 25 iterations with multipliers still far off, and the SQP
-      then cycled at the optimum (q within 0.004° of CasADi's) with a KKT residual stuck at ~1e-2 (2 of 172
-      learned-weight predictions). When the KKT residual has not halved over ``qp_stall_window`` QPs, the cap
-      on the QP tolerance is cut tenfold (down to ``qp_eps_min · tol``). Both then converged, and so did a
-      third that a window of 5 QPs left cycling.
-    * ``energy_exact_hessian`` (off): adding the energy's ``d1·∂²r/∂q̇∂τ`` term to the Gauss-Newton Hessian cut
-      the median iterations on 20 learned-weight problems from 36 to 21.5 but lost one of them (19/20); on
-      the other hand a reach of ``reproduce --quick`` (N = 40, P4, ω₀) cycles with period 2 under the
-      Gauss-Newton model (KKT 0.5 for 200 iterations, at the optimum within 0.006°, ADMM's tolerance does not
-      matter) and converges with the full one. Hence ``fallback_exact_hessian``: a failed solve is solved
-      again, cold, with the full Hessian (``DocSolution.attempts`` = 2; iterations and time add up), as the
-      CasADi backend falls back from fatrop to IPOPT.
+    * ``qp_stall_ratio``, ``qp_stall_window``: when the KKT residual has not fallen below ``qp_stall_ratio`` × its
+      value ``qp_stall_window`` QPs before, the cap on the QP tolerance is cut tenfold (down to
+      ``qp_eps_min · tol``).
 
-    Scale and merit (issue 11: CSQP stalled on learned weights; measured on 54 predictions, one trial of each
-    fit of ``benchmarks/learned_weights.json``: 46/54 converged before, 54/54 after):
+    Scale and merit:
 
-    * ``objective_scale``: CSQP is not scale-invariant: its merit penalty, its ADMM penalty ρ and the QP and
-      feasibility tolerances are absolute numbers, while the scale-free MO-IRL (and MaxEnt, bilevel) return
-      weights whose cold-guess cost ranges from 0.25 to 5e4. The weights are multiplied by
-      ``objective_scale / J(cold guess)`` inside the solver (the minimiser does not change; the reported
-      ``cost`` is the unscaled one). The same problem at 1×, 10×, 100× and 1000× its weights converged only
-      at 10× before.
-    * ``merit_penalty_factor``: CSQP's line search uses the ℓ1 merit ``J + μ_dyn‖gaps‖₁ + μ_c‖violation‖₁``,
-      which is an exact penalty only when μ exceeds the multipliers. With CSQP's fixed μ = 10 the
-      terminal-constraint multipliers of the learned-weight problems reached 120 (at a cost of 10): the merit
-      then rejected the steps to the optimum and CSQP stopped or cycled with KKT ~1e-2. The monitor raises
-      μ_dyn and μ_c (never lowers them) to ``merit_penalty_factor`` × the largest dynamics and constraint
-      multipliers of the last QP. CSQP's own adaptive rule (negative penalties: 10 × the largest
-      multiplier) is too large a factor and took tiny steps (8/54 converged); the filter line search cycled.
-    * the energy smoothing ε (1e-3, 1e-2, 1e-1 W) made no difference to convergence then. Later, on the weights
-      of fits with MO-IRL's merit fallback, 7 of 368 predictions (all of one MaxEnt fit) stalled with KKT ~0.2
-      at ε = 1e-3 W, exact energy Hessian or not. ε = 1e-2 W converged all 368, but moved 14 costs by 0.1-0.2 %
-      from CasADi's exact optimum. So a failed solve is solved once more with ε × ``fallback_smoothing_factor``
-      (cold) and refined at ε from that solution: 368/368 converged, q within 0.063° and cost within 0.021 %
-      of CasADi's (``reachirl bench backends``' learned-weights sweep, every 5th prediction).
+    * ``objective_scale``: CSQP is not scale-invariant (its merit penalty, ADMM's ρ and its tolerances are
+      absolute numbers), so the weights are multiplied by ``objective_scale / J(cold guess)`` inside the solver;
+      the minimiser does not change, and the reported ``cost`` is the unscaled one.
+    * ``merit_penalty``, ``merit_penalty_factor``: the line search's ℓ1 merit ``J + μ_dyn‖gaps‖₁ +
+      μ_c‖violation‖₁`` is an exact penalty only when μ exceeds the multipliers; the monitor raises μ_dyn and μ_c
+      (never lowers them) from ``merit_penalty`` to ``merit_penalty_factor`` × the largest dynamics and
+      constraint multipliers of the last QP. ``use_filter_line_search`` selects CSQP's filter line search
+      instead.
+    * ``energy_smoothing``: ε of the smooth energy ``√(r² + ε²) − ε``, in W.
+    * ``energy_exact_hessian``: add the energy's ``d1·∂²r/∂q̇∂τ`` term to the Gauss-Newton Hessian.
+    * ``fallback_exact_hessian``: a failed solve is solved again, cold, with the exact energy Hessian
+      (``DocSolution.attempts`` = 2; iterations and time add up), as the CasADi backend falls back from fatrop
+      to IPOPT; ``fallback_smoothing_factor``: a solve that still fails is solved once more, cold, with ε × this
+      factor and refined at ε from that solution (0: off).
 
-    Screening the bounds (speed, issue 11):
+    Speed:
 
-    * ``screen_bounds``: the joint limits and the speed bound of the running knots (400 rows at N = 100) are
-      left out of the first solve: their rows get infinite bounds, which CSQP's ADMM gives its minimal penalty
-      and never projects. ADMM's iterations were most of a CSQP solve (1.4 of 1.85 s in ``bench backends``'
-      profiled solve), and those rows, inactive on almost every reach, slowed its convergence: 688 against 350
-      ADMM iterations per warm solve (median of the 10 benchmark problems). A screened solution that meets
-      every bound (to ``feasibility_tolerance``) is a KKT point of the full problem as well, with zero
-      multipliers on the bounds, so the answer is the same one; one that breaks a bound is solved again with
-      every bound, warm from there, and a screened solve that fails is solved again with every bound from the
-      original start (``DocSolution.attempts`` counts both). Measured on the learned-weight sweep (every 10th
-      of its predictions, 184, cold): 184/184 converged either way, q within 0.025° of CasADi's (0.028°
-      unscreened), median CPU per prediction 0.73 against 1.82 s (all of them 364 against 529 s); on the 10
-      benchmark problems cold 374 against 1323 ms and warm 122 against 226 ms (CPU medians, one run;
-      ``reachirl bench backends``: 15.4× CasADi's cold CPU time and 7.3× its warm, against 43.5× and 13.3×);
-      ``merit_penalty_factor`` 1.05 instead of 1.2 saved SQP iterations there but not time on the sweep
-      (median 0.88 s), so it stays.
-
-    Holding back a cold line search (speed, issue 11):
-
-    * ``line_search_growth`` (2): after α = 1, CSQP's line search halves from min(½, growth × the last accepted α),
-      rounded down to a power of two, instead of from ½ (the monitor sets ``alphas`` before each search, and
-      reads the last α off the controls' move along the last QP's direction). From a cold start the greedy
-      search takes long steps that later iterations undo. Measured against CSQP's own search (growth 0), same
-      runs: on the learned-weight sweep (every 10th prediction, 184, cold) 184/184 converged either way, CPU 155
-      against 241 s in all, median 0.34 against 0.52 s, 6 against 16 predictions needing a retry, q within
-      0.027° of CasADi's against 0.025°; on the 10 problems of ``bench backends`` cold 2.59 against 3.69 s in
-      all, median 188 against 288 ms (one problem 58 → 13 SQP iterations, another 177 → 109).
-      ``reproduce --quick --backend crocoddyl``: 47 s of wall time against 73 s before (another run), its table
-      0.57° from CasADi's in the farthest cell against 0.52° (see below); the whole protocol
-      (``reproduce --backend crocoddyl``, run the same day): 10 min 23 s against 13 min 56 s, 0.50° against
-      0.40° from CasADi's table in the farthest cell (the fits part on small solver differences; 0 of 600
-      predictions failed either way). Warm starts keep CSQP's own search: held back, their median was 123
-      against 89 ms (1.13 against 1.26 s in all); so does every retry (held back there too, one of the 184
-      predictions failed).
-
-    Measured and not taken (speed and the quick-table agreement of issue 11):
-
-    * a KKT tolerance ten times tighter with the bounds screened (5e-4): ``reproduce --quick --backend
-      crocoddyl`` took twice as long (2 min 35 s against 1 min 13 s) and came no closer to the CasADi table
-      (largest cell gap 0.74° against 0.52°).
-    * the acceleration as the control (Crocoddyl's ``DifferentialActionModelFreeInvDynamics``: ``τ = RNEA(q, q̇,
-      q̈)`` with its derivatives in the knot's data, augmented state ``(q, q̇, q̈_prev)``, the previous torque
-      rebuilt from the knot's state by running the Euler step backwards). The dynamics are then linear and a
-      full step opens no gap, but the line search still made 3.6 rollouts per SQP iteration against 4.1 (the
-      costs and the fingertip constraint are nonlinear too; P1 and P2 of ``bench backends``, cold), the Python
-      knot's derivatives took 120 µs against about 45 (Jacobian products of τ), and the KKT test, in q̈'s
-      units, stopped farther from CasADi's optimum. On the 10 benchmark problems, same run, CPU medians: cold
-      417 against 299 ms, warm 137 against 124 ms, q within 0.125° of CasADi's against 0.024°; all 20 solves
-      converged either way. (With crocoddyl 3.2.1 an ``IntegratedActionModelEuler`` of that model reports
-      uninitialised ``g_lb``/``g_ub``: its bounds must come from a Python knot, as here.)
-    * tighter QPs for the line search's sake. Warm solves of 20-28 SQP iterations spend most of their time in
-      rollouts (P7: 129 rollouts for 28 iterations): α settles at 1/32-1/128 while the ℓ1 merit weighs cost
-      decreases of ~1e-5 against penalised gaps and terminal-constraint violations of the same size, a
-      Maratos-like effect of the exact-penalty line search. It is not the QPs' inexactness: ``qp_forcing`` 0.01
-      or 0.001 with ``qp_eps_max`` 1e-4 or 1e-5 left the iterations unchanged (every QP already stops at
-      ADMM's first test, 25 iterations) and the warm median at 104-121 against 95 ms (same run). Nor the
-      energy's kink: ε = 1e-2 W gave 109 ms; without the energy term at all, 67 ms.
-
-    * mim_solvers' ``SolverPROXQP`` (the whole horizon's QP solved by sparse ProxQP at every SQP iteration,
-      exact QPs instead of inexact ADMM ones): 6-9 QP iterations, but ~16 ms per SQP iteration at N = 100
-      (ADMM here: ~110 µs per iteration, ~340 per QP, ~38 ms per SQP iteration), and on the 10 benchmark
-      problems it reported a non-finite KKT residual (the problem's infinite bounds) and ran to ``max_iter``.
-    * a KKT tolerance ten times tighter (5e-4, with ADMM's α at 1.6): ``reproduce --quick --backend crocoddyl``
-      ran 1.8× longer and stayed as far from the CasADi table (largest cell gap 0.35° against 0.38°). That
-      table's 5-iteration fits part ways on small differences between the backends' solutions, which ADMM
-      without over-relaxation (above) narrowed and the tolerance did not; one run each, so read them as
-      indications.
+    * ``screen_bounds``: the running knots' joint limits and speed bound (400 rows at N = 100) are left out of
+      the first solve (infinite bounds, which ADMM never projects). A screened solution that meets every bound
+      (to ``feasibility_tolerance``) is a KKT point of the full problem as well, with zero multipliers on the
+      bounds; one that breaks a bound is solved again with every bound, warm from there, and a screened solve
+      that fails is solved again with every bound from the original start (``DocSolution.attempts`` counts
+      both).
+    * ``line_search_growth``: after α = 1, a cold solve's line search halves from min(½, growth × the last
+      accepted α), rounded down to a power of two, instead of from ½ (the monitor sets ``alphas`` before each
+      search); 0 keeps CSQP's own search, which warm starts and retries always use.
     """
 
     max_iter: int = 200

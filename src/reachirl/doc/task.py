@@ -167,8 +167,8 @@ def moved_path(task: ReachingTask, path: np.ndarray) -> np.ndarray:
     """A joint path ``(N+1, 2)`` of a similar reach (another task on the same knots, e.g. a fit's own rollout)
     moved to ``task``: the offset to ``task.q0`` fades out and the offset onto ``task``'s bar fades in, each
     along a minimum-jerk profile, so the path keeps its shape and its rest at both ends. A cold start for the
-    solvers: measured on the built-in reaches predicted under their fits' weights, it needs 11.0 interior-point
-    iterations against the minimum-jerk path's 14.6, and reaches the same optimum (within 0.001°)."""
+    solvers, which need fewer iterations from it than from the minimum-jerk path and reach the same optimum
+    (``docs/method.md``)."""
     path = np.asarray(path, dtype=float)
     if path.shape != (task.n_nodes + 1, 2) or not np.all(np.isfinite(path)):
         raise ValueError(f"path must be a finite joint path of shape {(task.n_nodes + 1, 2)}, got {path.shape}")
