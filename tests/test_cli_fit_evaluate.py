@@ -136,12 +136,25 @@ def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, caps
 
 def test_fit_warns_when_one_mean_rollout_would_stand_for_several_postures(mixed_file, tmp_path, capsys):
     model = tmp_path / "all.json"
-    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1",
+    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1", "--rollout", "mean",
                  "--out", str(model)]) == 0
     info = json.loads(model.read_text())["info"]
     assert info["selection"] is None and len(info["trial_ids"]) == 6
     assert any("span 2 postures (P2, P4)" in w for w in info["warnings"]), info["warnings"]
     assert "span 2 postures" in capsys.readouterr().err
+
+
+def test_fit_of_several_tasks_learns_one_cost_with_a_rollout_per_task(mixed_file, tmp_path, capsys):
+    """The default fit of trials of two postures (and two subjects) solves one rollout per (subject, posture):
+    its first iteration solves as many DOCs as there are tasks, and no warning is needed."""
+    model = tmp_path / "all.json"
+    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1",
+                 "--out", str(model)]) == 0
+    info = json.loads(model.read_text())["info"]
+    tasks = {tuple(i.split("/")[:2]) for i in info["trial_ids"]}
+    assert len(tasks) > 1 and info["postures"] == ["P2", "P4"]
+    assert info["history"][0]["doc_solves"] == len(tasks)
+    assert not any("postures" in w for w in info["warnings"])
 
 
 @pytest.mark.parametrize(

@@ -113,7 +113,9 @@ def test_observed_fit_counts_both_stages_and_predicts_as_it_fitted():
     np.testing.assert_allclose(pred.q, again.q, atol=1e-9)  # predict starts from the fit's own rollout
     cold = evaluate_trials(est.weights_, [demos[0]], N, observe=True)[0].prediction
     assert np.degrees(np.max(np.abs(pred.q - cold.q))) < 1e-3  # and finds the minimum-jerk start's optimum
-    assert pred.t[-1] == pytest.approx(demos[0].duration, rel=0.05)  # the observed part, not the whole horizon
+    horizon = demos[0].duration / MOVING_FRACTION
+    assert pred.t[-1] == pytest.approx(demos[0].duration, rel=0.08)  # the observed part,
+    assert pred.t[-1] < 0.97 * horizon  # not the whole horizon
 
 
 def test_trials_cut_at_different_thresholds_cannot_share_a_rollout():

@@ -37,7 +37,8 @@ def documented() -> dict[str, list[str]]:
 def written(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("outputs")
     model = d / "model.json"
-    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--out", model)
+    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--uncertainty", "20",
+               "--out", model)
     assert proc.returncode == 0, proc.stderr
     proc = cli("evaluate", "--model", model, tiny_trials, "--out", d / "metrics.json", "--predictions", d / "pred")
     assert proc.returncode == 0, proc.stderr
@@ -69,6 +70,7 @@ def actual(d: Path) -> dict[str, list[str]]:
     return {
         "MODEL.json": list(model),
         "MODEL.json info": list(model["info"]),
+        "MODEL.json uncertainty": list(model["uncertainty"]),
         "MODEL.json info.history[] moirl": list(dict.fromkeys(k for h in model["info"]["history"] for k in h)),
         "METRICS.json": list(metrics),
         "METRICS.json summary": list(metrics["summary"]),

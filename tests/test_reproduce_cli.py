@@ -131,22 +131,23 @@ def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file,
 
 
 def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, reference_run, tmp_path):
-    """``--rollout per_demo`` gives each demonstration its own training rollout: the fit's first iteration
-    solves one DOC per training trial (the mean rollout, the default, solves one); the unit records it and
-    ``--merit-model``."""
+    """``rollout = per_demo`` gives each demonstration its own training rollout: the fit's first iteration
+    solves one DOC per training trial (one task's rollout, the default, solves one); the unit records it and the
+    run file's ``[experimental]`` merit model."""
     out = tmp_path / "out"
+    run = tmp_path / "run.toml"
+    run.write_text('rollout = "per_demo"\ntol = 3e-4\n\n[experimental]\nmerit_model = "gauss-newton"\n')
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
-                 "--sections", "1", "--postures", "P2", "--rollout", "per_demo", "--merit-model", "gauss-newton",
-                 "--tol", "3e-4"]) == 0
+                 "--sections", "1", "--postures", "P2", "--config", str(run)]) == 0
     (unit,) = json.loads((out / "results.json").read_text())["units"]
     ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
                if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
     n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
     assert n_train > 1
     assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
-    assert ["merit_model", "gauss-newton"] in unit["unit"]["estimator_options"]
-    assert unit["unit"]["tol"] == 3e-4 and ref["unit"]["tol"] == 1e-4
-    assert ["rollout", "mean"] in ref["unit"]["estimator_options"]
+    assert ["experimental", [["merit_model", "gauss-newton"]]] in unit["unit"]["estimator_options"]
+    assert unit["unit"]["tol"] == 3e-4 and ref["unit"]["tol"] is None
+    assert ["rollout", "per_task"] in ref["unit"]["estimator_options"]
     assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
 
 

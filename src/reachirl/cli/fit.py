@@ -54,7 +54,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int_in(0, 2**32 - 1), default=0, metavar="N",
                    help="seed of the uncertainty's random samples (default 0)")
     p.add_argument("--config", type=Path, metavar="RUN.toml",
-                   help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md)")
+                   help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md; default: none)")
     add_selection(p, "learn from (several postures or subjects: one shared cost)")
     return p
 
@@ -115,8 +115,8 @@ def run(args: argparse.Namespace) -> int:
     extra = ""
     if unc is not None:
         det = unc["determination"]
-        extra = (f"; {unc['n_samples']} indistinguishable weight samples, {det['n_determined']} of "
-                 f"{det['n_directions']} weight directions determined by the trials")
+        extra = (f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
+                 "directions determined by the trials")
     print(f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
           f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
           + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "") + extra)

@@ -91,9 +91,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="K weight samples per MO-IRL fit that the training trials cannot tell apart (20 to 1000, "
                    "default 40 when given), in each model and the report")
     p.add_argument("--config", type=Path, metavar="RUN.toml",
-                   help="a run file (every run writes its own as DIR/run.toml); flags given override it")
+                   help="a run file (every run writes its own as DIR/run.toml); flags given override it (default: none)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="assignments",
-                   help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side")
+                   help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side (default: none)")
     # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
     for key, (_, kind) in RUN_KEYS.items():
         name = "method" if key == "methods" else key.replace("_", "-")
@@ -323,8 +323,6 @@ def run(args) -> int:
     args.quick = bool(args.quick or opts.get("quick", False))
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
-    if opts.get("subjects") is not None and args.data is not None:
-        raise InputError("--subjects makes built-in virtual subjects: not with --data")
     config = _config(args, opts)
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
