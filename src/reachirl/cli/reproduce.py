@@ -87,11 +87,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--posture-transfer", action="store_true", default=None,
                    help="also learn one cost on every posture but one and predict the held-out one "
                    "(posture_transfer.csv)")
-    p.add_argument("--uncertainty", type=int_in(20, 1000), nargs="?", const=40, default=None, metavar="K",
-                   help="K weight samples per MO-IRL fit that the training trials cannot tell apart (20 to 1000, "
-                   "default 40 when given), in each model and the report")
+    p.add_argument("--uncertainty", type=int_in(0, 1000), default=None, metavar="K",
+                   help="weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40): "
+                   "the cost-share intervals of the models, figures and report")
     p.add_argument("--config", type=Path, metavar="RUN.toml",
-                   help="a run file (every run writes its own as DIR/run.toml); flags given override it (default: none)")
+                   help="a run file (every run writes its own as DIR/run.toml); flags given override it "
+                   "(default: none)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="assignments",
                    help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side (default: none)")
     # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
@@ -205,7 +206,7 @@ def _config(args, opts: dict):
         seed_form=bool(opts.get("seed_form", False)),
         rollout=opts.get("rollout", "per_task"),
         experimental=dict(opts.get("experimental", {})),
-        uncertainty=opts.get("uncertainty"),
+        uncertainty=int(opts.get("uncertainty", 40)),
         posture_transfer=bool(opts.get("posture_transfer", False)),
     )
 

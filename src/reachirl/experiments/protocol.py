@@ -74,7 +74,7 @@ class ProtocolConfig:
     seed_form: bool = False  # the paper's MO-IRL exactly as written (reachirl.irl.options.SEED_FORM)
     rollout: str = "per_task"  # MO-IRL's rollouts (reachirl.irl.options.ROLLOUTS)
     experimental: dict = field(default_factory=dict)  # Options fields over the method's (reachirl.irl.options)
-    uncertainty: int | None = None  # weight samples per MO-IRL fit (reachirl.irl.uncertainty), or None
+    uncertainty: int = 40  # weight samples per main MO-IRL fit (reachirl.irl.uncertainty); 0: none
     posture_transfer: bool = False  # also learn on every posture but one and predict the held-out one
 
     def __post_init__(self) -> None:
@@ -96,8 +96,9 @@ class ProtocolConfig:
             raise InputError(f"experimental: {e}") from None
         if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):
             raise InputError(f"tol must be a number in [0, 0.5), got {self.tol!r}")
-        if self.uncertainty is not None and not (isinstance(self.uncertainty, int) and 20 <= self.uncertainty <= 1000):
-            raise InputError(f"uncertainty must be a number of samples from 20 to 1000, got {self.uncertainty!r}")
+        if not (isinstance(self.uncertainty, int) and (self.uncertainty == 0 or 20 <= self.uncertainty <= 1000)):
+            raise InputError(f"uncertainty must be 0 (none) or a number of samples from 20 to 1000, got "
+                             f"{self.uncertainty!r}")
         if self.cv not in ("rest", "other-side"):
             raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
         for m in self.methods:
@@ -295,8 +296,10 @@ def make_units(postures: Sequence[str], config: ProtocolConfig,
     ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects; with
     ``config.posture_transfer`` (and several postures), one unit per held-out posture."""
     opts = {m: _method_options(m, config) for m in config.methods}
+    main = {m: _with_uncertainty(opts[m], config) for m in config.methods}  # the main units' fits only
     units = [
-        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m], subj)
+        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend,
+             main[m] if subj is None else opts[m], subj)
         for s in sorted(config.sections, reverse=True)
         for subj in (None, *pair_subjects)
         for m in config.methods
@@ -335,9 +338,15 @@ def _method_options(method: str, config: ProtocolConfig) -> tuple:
         return ()
     opts = {"rollout": config.rollout, "seed_form": config.seed_form,
             "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in config.experimental.items()))}
-    if config.uncertainty is not None:
-        opts["uncertainty"] = int(config.uncertainty)
     return tuple(sorted(opts.items()))
+
+
+def _with_uncertainty(options: tuple, config: ProtocolConfig) -> tuple:
+    """A MO-IRL unit's options with ``uncertainty`` (and its seed) when the run asks for weight samples."""
+    if not options or not config.uncertainty:
+        return options
+    return tuple(sorted({**dict(options), "uncertainty": int(config.uncertainty),
+                         "random_state": int(config.seed)}.items()))
 
 
 def _hashable(v):
