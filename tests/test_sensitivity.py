@@ -1,6 +1,7 @@
 """``reachirl sensitivity`` and its parts: masked MO-IRL refits, weight sensitivity, identifiability."""
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -17,7 +18,6 @@ from reachirl.experiments.sensitivity import (
     sensitivity_job,
 )
 from reachirl.features import FEATURES
-from reachirl.irl.identifiability import bootstrap_shares, collinear_pairs, difference_conditioning
 
 
 @pytest.fixture(scope="module")
@@ -54,35 +54,12 @@ def test_sensitivity_grows_with_the_change(toy):
     assert 0 < s < b and 4 < b / s < 16  # roughly linear in the change
 
 
-def test_identifiability_parts():
-    rng = np.random.default_rng(0)
-    phi = rng.lognormal(size=(12, 2, 7))
-    phi[:, :, 4] = 3.0 * phi[:, :, 3]  # torque change proportional to joint acceleration
-    cond = difference_conditioning(phi)
-    assert [c["rank"] for c in cond] == [6, 6] and np.isinf(cond[0]["condition_number"])
-    assert set(cond[0]["worst_pair"]) == {"joint_acceleration", "torque_change"}
-    phi[:, :, 4] = rng.lognormal(size=(12, 2))
-    assert all(np.isfinite(c["condition_number"]) and c["rank"] == 7 for c in difference_conditioning(phi))
-    w = np.ones((2, 7))
-    b = bootstrap_shares(w, phi, n_boot=100, seed=1)
-    sh, lo, hi = (np.asarray(b[k]) for k in ("shares", "lo", "hi"))
-    assert np.all(lo <= sh + 1e-12) and np.all(sh <= hi + 1e-12) and np.allclose(sh.sum(axis=1), 1)
-    same = bootstrap_shares(w, np.repeat(phi[:1], 5, axis=0), n_boot=50)
-    np.testing.assert_allclose(same["lo"], same["hi"])
-
-
-def test_collinear_pairs_on_a_reach(toy):
-    pairs = collinear_pairs(toy.trials[:3], 20, threshold=0.0)
-    assert len(pairs) == 21 and all(-1 <= p["r"] <= 1 for p in pairs)
-    assert abs(pairs[0]["r"]) >= abs(pairs[-1]["r"])
-
-
 @pytest.fixture(scope="module")
-def small_run(toy, tmp_path_factory, cli):
+def small_run(recorded, tmp_path_factory, cli):
+    """A reproduce run on recorded trials (cut at a speed threshold, as real recordings are)."""
     d = tmp_path_factory.mktemp("sens")
-    save_trials(d / "trials.npz", toy.trials)
-    proc = cli("reproduce", "--data", d / "trials.npz", "--sections", "1", "2", "--nodes", "20", "--max-iter", "3",
-               "--n-train", "3", "--workers", "1", "--no-progress", "--out", d / "run")
+    proc = cli("reproduce", "--data", recorded / "trials.npz", "--sections", "1", "2", "--postures", "P2", "--nodes",
+               "40", "--max-iter", "3", "--n-train", "3", "--workers", "1", "--no-progress", "--out", d / "run")
     assert proc.returncode == 0, proc.stderr
     return d / "run"
 
@@ -105,7 +82,11 @@ def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
         else:
             assert float(r["path_change_deg"]) >= 0
     assert (out / "identifiability.json").is_file() and (out / "figures" / "sensitivity_P2.png").is_file()
-    assert "Which costs the data needs" in (out / "sensitivity.md").read_text()
+    ident = json.loads((out / "identifiability.json").read_text())["postures"]["P2"]
+    assert ident["determination"]["n_directions"] == 14  # what the training trials determine, not fixed weights
+    md = (out / "sensitivity.md").read_text()
+    assert "Which costs the data needs" in md and "weight directions determined" in md
+    assert "bootstrap" not in md and "fixed" not in md
 
 
 def test_bad_options(small_run, tmp_path, cli):

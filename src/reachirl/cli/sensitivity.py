@@ -3,8 +3,8 @@
 For the fits of a ``reachirl reproduce`` run (by default its first method, every posture, its largest section
 count): refit with each feature removed and with each window's weights frozen at ω₀ (occlusion: the change in
 training, CV and ISCV RMSE, with a paired 95 % interval over trials), change each weight by ±x % (sensitivity:
-DOC re-solves of the training trials), and measure how well the demonstrations determine the weights
-(identifiability). Writes DIR/sensitivity.csv (one row per feature, and per window where it applies),
+DOC re-solves of the training trials), and say which weight directions the training trials determine (from the
+Jacobian of the observed rollouts). Writes DIR/sensitivity.csv (one row per feature, and per window where it applies),
 DIR/sensitivity.md, DIR/identifiability.json and DIR/figures/sensitivity_<posture>.png.
 """
 
@@ -38,7 +38,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-occlusion", action="store_true", help="skip the occlusion refits")
     p.add_argument("--no-sensitivity", action="store_true", help="skip the ±X %% weight changes")
     p.add_argument("--seed", type=non_negative_int, default=0, metavar="N",
-                   help="seed of the bootstrap intervals (default 0)")
+                   help="seed of the occlusion's paired bootstrap intervals over trials (default 0)")
     p.add_argument("--workers", type=positive_int, default=None, metavar="N",
                    help="local worker processes (default: all cores; 1 runs in this process)")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")

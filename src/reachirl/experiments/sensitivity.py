@@ -11,8 +11,8 @@ For each chosen unit (by default: the run's first method, every posture, its lar
 * **weight sensitivity**: every weight ``ω_sj`` of the full fit is changed by ``±percent`` % and the training
   trials are predicted again (DOCs warm-started from the full fit's predictions): the RMSE change for ``+`` and
   ``−`` and how far the predicted path moves (RMSE between the perturbed and the unperturbed prediction, deg);
-* **identifiability** (:mod:`reachirl.irl.identifiability`): conditioning of the feature differences per window,
-  nearly collinear feature pairs, bootstrap intervals of the cost shares.
+* **what the training data determines** (:func:`reachirl.irl.uncertainty.determination`): the weight directions
+  that move the training reaches beyond the demonstrations' noise, from the Jacobian of the observed rollouts.
 
 A feature (or window) is **needed** when its occlusion raises the held-out RMSE (CV, else ISCV, else training)
 with a 95 % interval above 0; **better without** when the interval is below 0; otherwise **not needed** (the
