@@ -149,7 +149,8 @@ def test_gauss_newton_merit_steps_lower_the_merit_without_probing(dominated_demo
     """One window on time-varying reaches: the likelihood has nothing to say, so the progress comes from the
     Gauss-Newton merit steps, each a line-search try or a few, never the 14 probes per rollout of the
     per-feature model."""
-    est = MOIRL(1, n_nodes=N_NODES, rollout=rollout, max_iter=4, experimental={"merit_model": "gauss-newton"}).fit(dominated_demos)
+    est = MOIRL(1, n_nodes=N_NODES, rollout=rollout, max_iter=4, experimental={"merit_model": "gauss-newton"})
+    est.fit(dominated_demos)
     steps = [h for h in est.history_[1:] if h["step"] == "merit" and h["accepted"]]
     assert steps and est.merit_ < 0.9 * est.initial_merit_
     per_try = 1 if rollout == "mean" else len(dominated_demos)

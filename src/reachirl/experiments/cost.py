@@ -37,8 +37,8 @@ def write_models(run) -> list[Path]:
 def claim_verdict(share_samples: np.ndarray) -> dict:
     """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
     weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
-    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with the fraction of samples where
-    it holds. Onset and end are the first and last windows, mid-reach the others' mean."""
+    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
+    the fraction of samples where it holds. Onset and end are the first and last windows, mid-reach the others' mean."""
     sh = np.asarray(share_samples, dtype=float)
     if sh.ndim != 3 or sh.shape[1] < 3:
         return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}

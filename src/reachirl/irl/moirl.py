@@ -429,7 +429,7 @@ class MOIRL(WeightEstimator):
         t_start = time.perf_counter()
         tasks = self._tasks(trials)
         plain = None
-        if any(th is not None for th in self._thresholds) and getattr(self, "_w_init", None) is None:
+        if any(th is not None for th in self._thresholds):
             # seen as recorded, the merit has a flatter, more winding landscape far from the optimum (measured:
             # from ω₀ the fits stopped above the true weights' merit): start from the rest-to-rest fit's weights
             plain = copy.copy(self)  # the same estimator (a subclass keeps its own state, e.g. held weights)
@@ -457,8 +457,6 @@ class MOIRL(WeightEstimator):
         self._w_start = float(self._o.w0) / feature_scale(phi_star[:, 0] if self._o.n_suffixes else phi_star)
         if plain is not None:
             w = plain._w_fit
-        elif getattr(self, "_w_init", None) is not None:  # a restart from given weights (reachirl.irl.uncertainty)
-            w = np.array(self._w_init, dtype=float)
         sols, n_solves, _ = self._rollouts(tasks, w, None, guesses)
         n_fail = sum(not s.converged for s in sols)
         n_rescued = 0
