@@ -191,3 +191,19 @@ def test_cv_and_iscv_trials_never_reach_a_fit(recorded, monkeypatch):
         run_unit(unit, split)
         train = {t.id for t in split.train}
         assert set(seen) == train and not train & {t.id for t in (*split.cv, *split.iscv)}
+
+
+def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out_one(recorded, tmp_path):
+    run = tmp_path / "run"
+    assert main(["reproduce", "--data", str(recorded / "trials.npz"), "--out", str(run), "--sections", "2",
+                 *FAST_ARGS, "--n-train", "2", "--workers", "1", "--no-progress", "--uncertainty", "0",
+                 "--posture-transfer"]) == 0
+    rows = (run / "posture_transfer.csv").read_text().splitlines()
+    assert rows[0].split(",")[:6] == ["method", "sections", "held_out_posture", "mean", "sd", "n"]
+    assert sorted(r.split(",")[2] for r in rows[1:]) == ["P2", "P4"]
+    for held, other in (("P2", "P4"), ("P4", "P2")):
+        model = json.loads((run / "models" / f"moirl-xfer-{held}-s2.json").read_text())
+        assert model["info"]["postures"] == [other]  # learned on the other posture only
+        row = next(r.split(",") for r in rows[1:] if r.split(",")[2] == held)
+        assert int(row[5]) == 4 and int(row[8]) == 4  # S01's and S02's reaches of the held-out posture
+    assert "## Posture transfer" in (run / "report.md").read_text()
