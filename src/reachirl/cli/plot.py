@@ -1,7 +1,8 @@
 """``reachirl plot --model MODEL.json TRIALS --out DIR`` or ``reachirl plot RUN_DIR --out DIR``: figures as PNG
 and PDF.
 
-With a model: each trial is predicted from its own start (as ``evaluate`` does) and DIR gets
+With a model: each trial is predicted from its own start exactly as ``evaluate`` predicts it (the same function,
+so the same RMSE), ``--subject/--posture/--side`` choose the trials, and DIR gets
 ``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
 feature's share of its window's cost at the trials) and ``convergence.png`` (the fit's merit per iteration, when
 the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
@@ -15,6 +16,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from ._args import add_selection, chosen_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -36,6 +38,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="with --model: DOC backend of the predictions (default casadi)")
     p.add_argument("--no-pdf", action="store_true", help="write PNG only (default: PNG and PDF)")
+    add_selection(p, "with --model: plot")
     return p
 
 
@@ -53,12 +56,11 @@ def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool =
     """The figures of a learned model on trials (see the module docstring); returns the files written."""
     import numpy as np
 
-    from ..evaluation import evaluate_trials
     from ..experiments import figures as fg
 
     n, n_nodes = model.n_windows, model.n_nodes
     written: list[Path] = []
-    errors = evaluate_trials(model.weights, trials, n_nodes=n_nodes, backend=backend)
+    errors = model.evaluate(trials, backend=backend)
     demos = [t.resample(n_nodes + 1) for t in trials]
     arrays = {
         "trials/t": np.stack([e.prediction.t for e in errors]),
@@ -128,8 +130,13 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("is a folder; with --model, give a trials file", args.source)
         model = load_model(args.model)
         trials = _select(load_trials(args.source), args.trial, args.source)
+        trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
         written = model_figures(model, trials, out, backend=args.backend, pdf=not args.no_pdf)
     else:
+        given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]
+        if given:
+            raise InputError(f"--{given[0]} chooses trials, so it needs --model MODEL.json and a trials file",
+                             args.source)
         if not args.source.is_dir():
             raise InputError("expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials "
                              "file)", args.source)
