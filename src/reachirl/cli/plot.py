@@ -83,7 +83,12 @@ def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool =
           out, "weights", pdf, written)
     history = model.info.get("history") or []
     if any(h.get("merit") is not None for h in history):
-        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence"),
+        from ..experiments.method import convergence_text
+
+        options = model.info.get("options")  # every option in force, when the model file records them
+        words = convergence_text(options if isinstance(options, dict) else {"observe": model.info.get("observe")})
+        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence",
+                                  merit_label=words["merit_label"], start=words["start"]),
               out, "convergence", pdf, written)
     return written
 

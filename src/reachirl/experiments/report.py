@@ -24,6 +24,7 @@ from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
 from . import tables as tb
 from .datasets import Dataset
+from .method import convergence_text, method_lines, unit_method
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
 from .results import RunResult, load_unit_arrays
@@ -43,6 +44,7 @@ __all__ = [
 ]
 
 RESULTS_FORMAT = "reachirl-reproduce/1"
+TORQUE_CHANGE, JOINT_ACCELERATION = FEATURES.index("torque_change"), FEATURES.index("joint_acceleration")
 
 
 def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
@@ -110,7 +112,7 @@ def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) ->
         return learned, true, metrics
     n_true = int(dataset.truth.get("n_windows", 0) or 0)
     by_id = {t.id: t for t in dataset.trials}
-    for r in results.values():
+    for r in sorted(results.values(), key=lambda r: tb.natural_key(r["unit"]["posture"])):
         u = r["unit"]
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
@@ -230,34 +232,40 @@ def _fmt(c: dict | None) -> str:
 
 
 def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: int, hi: int,
-                      postures: Sequence[str], n_boot: int = 2000, seed: int = 0) -> dict | None:
-    """``hi`` against ``lo`` sections on the same trials (paired by trial id, pooled over ``postures``): the
-    mean difference of the per-trial RMSE of q (deg; negative: ``hi`` is lower), its 95 % bootstrap interval
-    (``n_boot`` resamples of the trials, seeded) and the two-sided Wilcoxon signed-rank p-value. ``None``
-    with fewer than 2 paired trials."""
+                      postures: Sequence[str]) -> dict | None:
+    """``hi`` against ``lo`` sections, paired by posture. Each posture has one fit per section count, and the
+    trials a fit predicts share its weights, so they are not independent samples: the unit compared is the
+    posture, through its mean RMSE of q over the trials both fits predicted.
+
+    Returns ``{"n"`` (postures), ``"per_posture"`` (the differences, deg; negative: ``hi`` is lower),
+    ``"mean_diff_deg"``, ``"n_lower"`` (postures where ``hi`` is lower), ``"wilcoxon_p"`` (exact two-sided
+    signed-rank p over the postures; with ``n`` postures it is never below ``2 / 2ⁿ``), ``"min_p"``, ``"test"}``;
+    ``None`` with fewer than 2 postures that both fits predicted."""
     from scipy.stats import wilcoxon
 
-    def per_trial(n):
-        out = {}
+    def per_posture(n):
+        out: dict = {}
         for r in results.values():
             u = r["unit"]
             if u["method"] == method and u["sections"] == n and u["posture"] in postures:
-                for t in r["sets"][set_name]["trials"]:
-                    out[(u["posture"], t["id"])] = t["rmse_deg"]["q"]
+                out[u["posture"]] = {t["id"]: t["rmse_deg"]["q"] for t in r["sets"][set_name]["trials"]
+                                     if t["rmse_deg"]["q"] is not None}
         return out
 
-    a, b = per_trial(lo), per_trial(hi)
-    keys = sorted(set(a) & set(b))
-    if len(keys) < 2:
+    a, b = per_posture(lo), per_posture(hi)
+    diffs = {}
+    for p in sorted(set(a) & set(b), key=tb.natural_key):
+        ids = sorted(set(a[p]) & set(b[p]))
+        if ids:
+            diffs[p] = float(np.mean([b[p][i] for i in ids]) - np.mean([a[p][i] for i in ids]))
+    if len(diffs) < 2:
         return None
-    d = np.array([b[k] - a[k] for k in keys], dtype=float)
-    rng = np.random.default_rng(seed)
-    boot = d[rng.integers(0, d.size, size=(n_boot, d.size))].mean(axis=1)
-    lo_ci, hi_ci = np.quantile(boot, [0.025, 0.975])
-    p = float(wilcoxon(d).pvalue) if np.any(d != 0) else 1.0
-    return {"n": int(d.size), "mean_diff_deg": float(d.mean()), "ci95_deg": [float(lo_ci), float(hi_ci)],
-            "wilcoxon_p": p, "test": "two-sided Wilcoxon signed-rank over paired trials; 95 % bootstrap CI of "
-            "the mean difference"}
+    d = np.array(list(diffs.values()))
+    p_value = float(wilcoxon(d, method="exact").pvalue) if np.any(d != 0) else 1.0
+    return {"n": len(d), "per_posture": diffs, "mean_diff_deg": float(d.mean()), "n_lower": int(np.sum(d < 0)),
+            "wilcoxon_p": p_value, "min_p": 2.0 / 2 ** len(d),
+            "test": "exact two-sided Wilcoxon signed-rank over postures (one fit each), on each posture's mean "
+                    "RMSE of q over the trials both fits predicted"}
 
 
 def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
@@ -318,6 +326,23 @@ def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, no
     return md_tables
 
 
+def weights_caption(shares: dict) -> str:
+    """Fig. 3's caption: what it shows, and which features take the largest and which the smallest shares on
+    average over its panels (``shares[(posture, sections)] = (n_windows, 7)`` cost shares)."""
+    mean = np.mean([np.asarray(s, dtype=float).mean(axis=0) for s in shares.values()], axis=0)
+    order = np.argsort(mean)[::-1]
+    name = {f: f.replace("_", " ") for f in FEATURES}
+
+    def listed(idx) -> str:
+        return ", ".join(f"{name[FEATURES[i]]} {100 * mean[i]:.0f} %" for i in idx)
+
+    return ("Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
+            "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
+            f"window). Mean shares over the panels: largest {listed(order[:2])}; smallest "
+            f"{listed(order[::-1][:2])}; the two that recording noise, differentiated, would inflate: "
+            f"{listed([TORQUE_CHANGE, JOINT_ACCELERATION])}.")
+
+
 def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
     if pdf:
         fg.save(fig, fig_dir / f"{Path(name).stem}.pdf", close=False)
@@ -362,13 +387,7 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
                  for r in results.values() if r["unit"]["method"] == main}
         _save_figure(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir, "fig3_weights.png", pdf)
-        figs["fig3_weights.png"] = {
-            "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
-            "section count (rows), each shown as the feature's share of its window's "
-            "cost at the training demonstrations (ω·Φ*, normalised per window). Recording noise, "
-            "differentiated, inflates the demonstrations' torque change (and joint acceleration), so those "
-            "shares read high."
-        }
+        figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
     for p in iscv_postures:
@@ -392,11 +411,12 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         if r["unit"]["method"] == main
     }
     if hist:
-        _save_figure(fg.plot_convergence(hist, sections), fig_dir, "convergence.png", pdf)
-        figs["convergence.png"] = {
-            "caption": "Merit m(x) of every fit at each accepted iteration (iteration 0: "
-            "the initial weights ω₀)."
-        }
+        first = next(r["unit"] for r in results.values() if r["unit"]["method"] == main)
+        described = unit_method(main, first.get("estimator_options"), first.get("tol"), tasks=1)
+        words = convergence_text(described["options"] if described else None)
+        _save_figure(fg.plot_convergence(hist, sections, merit_label=words["merit_label"], start=words["start"]),
+                     fig_dir, "convergence.png", pdf)
+        figs["convergence.png"] = {"caption": words["caption"]}
     learned, true, truth_metrics = truth
     if learned:
         n_true = next(iter(truth_metrics.values()))["sections"]
@@ -458,6 +478,16 @@ def _comparisons(run: RunResult) -> dict:
     return out
 
 
+def _methods_run(run: RunResult) -> dict:
+    """Per method, what its units ran (:func:`reachirl.experiments.method.unit_method`; None for a baseline)."""
+    out: dict = {}
+    for r in sorted(run.results.values(), key=lambda r: r["key"]):
+        u = r["unit"]
+        if u["method"] not in out:
+            out[u["method"]] = unit_method(u["method"], u.get("estimator_options"), u.get("tol"), tasks=1)
+    return out
+
+
 def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: dict, notes: list[str],
                        doc: dict, comparisons: dict) -> Path:
     """``results.json`` (schema: docs/outputs.md)."""
@@ -478,6 +508,7 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
         "format": RESULTS_FORMAT,
         "data": run.dataset.describe(),
         "protocol": config.to_dict() | {"train_subject": run.train_subject, "postures_run": list(run.postures)},
+        "method": _methods_run(run),
         "split_sizes": run.split_sizes,
         "tables": tables,
         "headline": {m: tb.headline(tables[m], sections) for m in config.methods},
@@ -564,10 +595,6 @@ def write_outputs(run: RunResult) -> dict:
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
-def _tol_text(tol) -> str:
-    return "default" if tol is None else format(tol, "g")
-
-
 def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
     dataset, config, postures = run.dataset, run.config, run.postures
     train_subject, split_sizes, timing, run_info = run.train_subject, run.split_sizes, run.timing, run.run_info
@@ -603,9 +630,9 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS
         )
         + ".",
-        f"- **Method:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
-        f"at most {config.max_iter} MO-IRL iterations (tol {_tol_text(config.tol)}); seed defaults otherwise "
-        "(β = 1e-10, ω₀ = 0.05, α = 1 shrinking by 0.25, at most 10 tries).",
+        f"- **Methods:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
+        f"at most {config.max_iter} iterations.",
+        *method_lines([r["unit"] for r in run.results.values()]),
         "",
         "## Results: RMSE of the joint angles (deg), seed Table II layout",
         "",
@@ -613,16 +640,16 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
     lines += md_tables
     lines += [f"- {n}" for n in notes] + [""]
     lines += [
-        "### Headline (ALL postures, q): ours beside the seed's (different data)",
+        "### Headline (ALL postures, q), and the seed's numbers measured on its own subjects",
         "",
-        "The seed's columns are **its results on other data and another task** (Berret et al.'s human "
-        "reaches to a bar, 2 subjects, 10/10/20 trials); ours are on "
+        "The seed's columns were **measured on the paper's own subjects** (Berret et al.'s human reaches to a "
+        "bar, 2 subjects, 10/10/20 trials), not on the data of this run ("
         + ("virtual subjects" if virtual else dataset.source)
         + (", cross-validated on the other arm" if config.cv == "other-side" else "")
-        + ", so the comparison is of magnitudes and trends, not number for number.",
+        + "): they are **not comparable** with ours, and are shown only as the paper's own figures.",
         "",
         "| sections | "
-        + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed, other data)" for s in SETS)
+        + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed's subjects, not comparable)" for s in SETS)
         + " |",
         "|---|" + "---|" * (2 * len(SETS)),
     ]
@@ -640,15 +667,15 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         a, b = tab[tb.ALL][s].get(lo, {}).get("q"), tab[tb.ALL][s].get(hi, {}).get("q")
         if not (a and b and a.get("mean") is not None and b.get("mean") is not None):
             continue
-        if c["wilcoxon_p"] < 0.05:
-            verdict = "lower" if c["mean_diff_deg"] < 0 else "higher"
+        if c["min_p"] >= 0.05:
+            test = f"too few postures for a test: p ≥ {c['min_p']:.2g} whatever the data"
         else:
-            verdict = "no significant difference"
+            verdict = ("significantly " + ("lower" if c["mean_diff_deg"] < 0 else "higher")
+                       if c["wilcoxon_p"] < 0.05 else "no significant difference")
+            test = f"{verdict}: Wilcoxon signed-rank p = {c['wilcoxon_p']:.2g} over the postures, one fit each"
         says.append(
-            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo} "
-            f"({verdict}: paired difference {c['mean_diff_deg']:+.2f}°, 95 % bootstrap CI "
-            f"[{c['ci95_deg'][0]:+.2f}, {c['ci95_deg'][1]:+.2f}]°, Wilcoxon signed-rank p = "
-            f"{c['wilcoxon_p']:.2g}, n = {c['n']} trials)."
+            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo}, lower in "
+            f"{c['n_lower']} of {c['n']} postures (mean paired difference {c['mean_diff_deg']:+.2f}°; {test})."
         )
     per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
     per_p = {p: v for p, v in per_p.items() if v is not None}
