@@ -41,6 +41,19 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
+def summary_line(summary: dict, backend: str) -> str:
+    """One line of :func:`reachirl.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
+    and the DOC failures."""
+    r, fails = summary["rmse_deg"], summary["doc_failures"]
+    how = "included in" if summary["failures_included"] else "left out of"
+    note = f"; {fails} DOC failure(s) ({backend}), {how} the RMSE" if fails else ""
+    if r["q"]["mean"] is None:
+        return f"{summary['n_trials']} trials: no prediction converged ({backend}); no RMSE"
+    return (f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
+            f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
+            f" over {summary['n_included']} prediction(s){note}")
+
+
 def prediction_exports(trials, errors, set_name: str = ""):
     """One :class:`~reachirl.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
     knots beside the prediction."""
@@ -69,16 +82,7 @@ def run(args: argparse.Namespace) -> int:
         errors = model.evaluate(trials, backend=args.backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
     atomic_write_json(args.out, {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
-    r = summary["rmse_deg"]
-    fails = summary["doc_failures"]
-    how = "included in" if args.include_failed else "left out of"
-    note = f"; {fails} DOC failure(s) ({args.backend}), {how} the RMSE" if fails else ""
-    if r["q"]["mean"] is None:
-        print(f"{summary['n_trials']} trials: no prediction converged ({args.backend}); no RMSE")
-    else:
-        print(f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
-              f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
-              f" over {summary['n_included']} prediction(s){note}")
+    print(summary_line(summary, args.backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:
         from ..exports import export_trajectories

@@ -52,15 +52,16 @@ def _save(fig, out: Path, stem: str, pdf: bool, written: list[Path]) -> None:
     written.append(out / f"{stem}.png")
 
 
-def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool = True) -> list[Path]:
-    """The figures of a learned model on trials (see the module docstring); returns the files written."""
+def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Path]:
+    """The figures of a learned model on trials, whose predictions and errors are ``errors``
+    (:meth:`reachirl.irl.model.LearnedModel.evaluate`; see the module docstring); returns the files written."""
     import numpy as np
 
+    from ..evaluation import summarise
     from ..experiments import figures as fg
 
     n, n_nodes = model.n_windows, model.n_nodes
     written: list[Path] = []
-    errors = model.evaluate(trials, backend=backend)
     demos = [t.resample(n_nodes + 1) for t in trials]
     arrays = {
         "trials/t": np.stack([e.prediction.t for e in errors]),
@@ -69,9 +70,9 @@ def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool =
         "trials/demo_q": np.stack([d.q for d in demos]),
         "trials/demo_qd": np.stack([d.qd for d in demos]),
     }
-    rmse = np.mean([e.rmse_q for e in errors])
+    rmse = summarise(errors)["rmse_deg"]["q"]["mean"]  # as `evaluate` reports it
     title = (f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
-             f"predictions (solid); mean RMSE of q {rmse:.2f}°")
+             "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°"))
     _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     phi = np.mean([t.features(n_nodes, n) for t in trials], axis=0)
     c = model.weights * phi
@@ -136,7 +137,12 @@ def run(args: argparse.Namespace) -> int:
         model = load_model(args.model)
         trials = _select(load_trials(args.source), args.trial, args.source)
         trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
-        written = model_figures(model, trials, out, backend=args.backend, pdf=not args.no_pdf)
+        from ..evaluation import summarise
+        from .evaluate import summary_line
+
+        errors = model.evaluate(trials, backend=args.backend)
+        print(summary_line(summarise(errors), args.backend))
+        written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)
     else:
         given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]
         if given:
