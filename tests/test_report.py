@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from reachirl.experiments import figures as fg
+from reachirl.experiments.analysis import paired_comparison
 from reachirl.experiments.method import convergence_text, method_lines
-from reachirl.experiments.report import paired_comparison, weights_caption
+from reachirl.experiments.report import weights_caption
 from reachirl.features import FEATURES
 
 
