@@ -1,8 +1,9 @@
 """``reachirl plot --model MODEL.json TRIALS --out DIR`` or ``reachirl plot RUN_DIR --out DIR``: figures as PNG
 and PDF.
 
-With a model: each trial is predicted from its own start exactly as ``evaluate`` predicts it (the same function,
-so the same RMSE), ``--subject/--posture/--side`` choose the trials, and DIR gets
+With a model: ``--subject/--posture/--side`` (and ``--trial``) choose the trials; each is predicted from its own
+start exactly as ``evaluate`` predicts it (the same function: the same RMSE, printed as ``evaluate`` prints it),
+and DIR gets
 ``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
 feature's share of its window's cost at the trials) and ``convergence.png`` (the fit's merit per iteration, when
 the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
@@ -130,16 +131,15 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --out needs a folder", out)
     if args.model is not None:
         from ..data.trial import load_trials
+        from ..evaluation import summarise
         from ..irl.model import load_model
+        from .evaluate import summary_line
 
         if args.source.is_dir():
             raise InputError("is a folder; with --model, give a trials file", args.source)
         model = load_model(args.model)
         trials = _select(load_trials(args.source), args.trial, args.source)
         trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
-        from ..evaluation import summarise
-        from .evaluate import summary_line
-
         errors = model.evaluate(trials, backend=args.backend)
         print(summary_line(summarise(errors), args.backend))
         written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)
