@@ -8,7 +8,7 @@ import pytest
 from reachirl.experiments import figures as fg
 from reachirl.experiments.analysis import paired_comparison
 from reachirl.experiments.method import convergence_text, method_lines
-from reachirl.experiments.report import weights_caption
+from reachirl.experiments.report import prediction_note, weights_caption
 from reachirl.features import FEATURES
 
 
@@ -103,3 +103,12 @@ def test_weights_vs_truth_orders_postures_naturally():
     shares = {p: np.full((2, 7), 1 / 7) for p in ("P2", "P10", "P1", "P3")}
     fig = fg.plot_truth(shares, shares)
     assert [ax.get_title() for ax in fig.axes[:4]] == ["P1", "P2", "P3", "P10"]
+
+
+def test_the_rmse_note_says_how_each_methods_predictions_were_made():
+    observed = {"seed_form": False, "rollout": "per_task", "experimental": {}}
+    assert prediction_note([_unit(observed)]).startswith("each prediction is the rest-to-rest DOC")
+    assert prediction_note([_unit({"seed_form": True, "rollout": "mean"})]).startswith(
+        "each prediction is the DOC from the trial's own initial state")
+    mixed = prediction_note([_unit(observed), _unit({}, method="kkt")])
+    assert mixed.startswith("the predictions of moirl are the rest-to-rest DOC") and "those of kkt, the DOC" in mixed

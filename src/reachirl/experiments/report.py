@@ -28,11 +28,12 @@ from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .method import convergence_text, method_lines, unit_method
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
-from .protocol import SET_LABELS, SETS, ProtocolConfig
+from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .results import RunResult, load_unit_arrays
 
 __all__ = [
     "RESULTS_FORMAT",
+    "prediction_note",
     "weights_caption",
     "write_figures",
     "write_outputs",
@@ -76,6 +77,25 @@ def _fmt(c: dict | None) -> str:
     return "—" if not c or c.get("mean") is None else f"{c['mean']:.2f} ± {c['std']:.2f}"
 
 
+OBSERVED = ("the rest-to-rest DOC from the trial's onset posture to its target, seen between its own crossings of "
+            "the onset threshold the trial was cut at, as the reach was recorded (reachirl.observation; a trial not "
+            "cut at a threshold: the DOC over its own duration)")
+WHOLE = "the DOC from the trial's own initial state, target and duration"
+
+
+def prediction_note(units) -> str:
+    """How the units' predictions were made, from their records (``method``, ``estimator_options``): seen as
+    the reach was recorded by the units that observe, the DOC over the trial by the others."""
+    observing = {u["method"]: unit_observes(u["method"], u.get("estimator_options", ())) for u in units}
+    seen = sorted(m for m, o in observing.items() if o)
+    whole = sorted(m for m, o in observing.items() if not o)
+    if not whole:
+        return f"each prediction is {OBSERVED}"
+    if not seen:
+        return f"each prediction is {WHOLE}"
+    return f"the predictions of {', '.join(seen)} are {OBSERVED}; those of {', '.join(whole)}, {WHOLE}"
+
+
 def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
     fit_solves = sum(r["fit"]["doc_solves"] for r in results.values())
     fit_fail = sum(r["fit"]["doc_failures"] for r in results.values())
@@ -96,12 +116,7 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
             )
         )
         + f" (at most {config.max_iter} iterations).",
-        "RMSE in degrees, mean ± population SD over trials; "
-        + ("each prediction is the rest-to-rest DOC from the trial's onset posture to its target, seen between "
-           "its own crossings of the onset threshold the trial was cut at, as the reach was recorded "
-           "(reachirl.observation; a trial not cut at a threshold: the DOC over its own duration)"
-           if getattr(config, "observe", False) else
-           "each prediction is the DOC from the trial's own initial state, target and duration")
+        "RMSE in degrees, mean ± population SD over trials; " + prediction_note([r["unit"] for r in results.values()])
         + ", compared on normalised time.",
     ]
     flagged = sorted(f"{r['key']} ({r['flag']})" for r in results.values() if r.get("flag"))
