@@ -89,14 +89,19 @@ def test_convergence_axes_name_the_merit_and_where_iteration_0_is():
     assert "q in rad" in seed["merit_label"] and seed["start"] == "the initial weights ω₀"
 
 
-def test_fig3_caption_states_the_shares_the_figure_shows():
-    low = np.full((2, 7), 0.19)
-    low[:, FEATURES.index("torque_change")] = 0.02
-    low[:, FEATURES.index("joint_acceleration")] = 0.03
-    low[:, FEATURES.index("joint_torque")] = 0.05
-    caption = weights_caption({("P1", 2): low, ("P2", 2): low})
-    assert "torque change 2 %, joint acceleration 3 %" in caption and "read high" not in caption
-    assert "smallest torque change 2 %, joint acceleration 3 %" in caption
+def test_fig3_caption_states_the_shares_the_figure_shows_per_row():
+    one = np.zeros((1, 7))
+    one[0, FEATURES.index("torque_change")] = 0.7
+    one[0, FEATURES.index("joint_torque")] = 0.3
+    eight = np.full((8, 7), 0.02)
+    eight[:, FEATURES.index("joint_torque")] = 0.5
+    eight[:, FEATURES.index("joint_velocity")] = 0.4
+    caption = weights_caption({("P1", 1): one, ("P2", 1): one, ("P1", 8): eight, ("P2", 8): eight})
+    assert "1 section: largest torque change 70 %, joint torque 30 %; torque change 70 %, joint acceleration 0 %" \
+        in caption
+    assert "8 sections: largest joint torque 50 %, joint velocity 40 %; torque change 2 %, joint acceleration 2 %" \
+        in caption
+    assert "read high" not in caption
 
 
 def test_weights_vs_truth_orders_postures_naturally():

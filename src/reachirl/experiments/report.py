@@ -150,20 +150,22 @@ def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, no
 
 
 def weights_caption(shares: dict) -> str:
-    """Fig. 3's caption: what it shows, and which features take the largest and which the smallest shares on
-    average over its panels (``shares[(posture, sections)] = (n_windows, 7)`` cost shares)."""
-    mean = np.mean([np.asarray(s, dtype=float).mean(axis=0) for s in shares.values()], axis=0)
-    order = np.argsort(mean)[::-1]
+    """Fig. 3's caption: what it shows and, per section count (a row of panels), the two features with the
+    largest mean share and the shares of torque change and joint acceleration, averaged over the row's postures
+    and windows (``shares[(posture, sections)] = (n_windows, 7)`` cost shares)."""
     name = {f: f.replace("_", " ") for f in FEATURES}
 
-    def listed(idx) -> str:
+    def listed(mean, idx) -> str:
         return ", ".join(f"{name[FEATURES[i]]} {100 * mean[i]:.0f} %" for i in idx)
 
+    rows = []
+    for n in sorted({n for _, n in shares}):
+        mean = np.mean([np.asarray(v, dtype=float).mean(axis=0) for (_, k), v in shares.items() if k == n], axis=0)
+        rows.append(f"{n} section{'s' if n > 1 else ''}: largest {listed(mean, np.argsort(mean)[::-1][:2])}; "
+                    f"{listed(mean, [TORQUE_CHANGE, JOINT_ACCELERATION])}")
     return ("Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
             "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
-            f"window). Mean shares over the panels: largest {listed(order[:2])}; smallest "
-            f"{listed(order[::-1][:2])}; the two that recording noise, differentiated, would inflate: "
-            f"{listed([TORQUE_CHANGE, JOINT_ACCELERATION])}.")
+            "window). Mean shares per row: " + ". ".join(rows) + ".")
 
 
 def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
