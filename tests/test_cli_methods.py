@@ -54,11 +54,14 @@ def test_reproduce_every_method(tiny_trials, tmp_path, cli):
     res = json.loads((out / "results.json").read_text())
     assert sorted({u["unit"]["method"] for u in res["units"]}) == sorted(METHODS)
     assert len(res["units"]) == 2 * len(METHODS)
-    # the report: differences only with a paired test, the seed's numbers labelled as other data
+    # the report: the method run and its departures, the seed's numbers labelled as its own subjects'; one
+    # posture gives no paired comparison of section counts (the postures are its samples, not the trials)
     report = (out / "report.md").read_text()
-    assert "Wilcoxon signed-rank p =" in report and "better" not in report
-    assert "(seed, other data)" in report and "chosen at random (seed 0)" in report
-    assert set(res["comparisons"]["moirl"]) == {"train", "iscv"}  # CV has 1 trial: nothing to pair
+    assert "seed defaults otherwise" not in report and "departure(s) from the paper:" in report
+    assert "- **kkt:** a baseline" in report
+    assert "(seed's subjects, not comparable)" in report and "chosen at random (seed 0)" in report
+    assert res["comparisons"] == {} and "What they show" not in report
+    assert res["method"]["moirl"]["departures"] and res["method"]["kkt"] is None
     # every trial of every set of every unit is exported (docs/outputs.md)
     for u in res["units"]:
         index = (out / "predictions" / u["key"] / "index.csv").read_text().splitlines()

@@ -3,8 +3,8 @@
 import numpy as np
 
 from reachirl.data.trial import trial_from_knots
+from reachirl.experiments.analysis import reference_features, true_weights
 from reachirl.experiments.datasets import toy
-from reachirl.experiments.report import reference_features, true_weights
 
 
 def _one_trial():

@@ -21,8 +21,8 @@ from reachirl.data.readers import AngleData, read_c3d
 from reachirl.data.trial import load_trials, save_trials, trial_from_solution
 from reachirl.errors import InputError
 from reachirl.io import read_json, read_text
-from reachirl.irl.model import LearnedModel, save_model
-from reachirl.validation import check_output_dir, check_output_file, load_model_checked
+from reachirl.irl.model import LearnedModel, load_model, save_model
+from reachirl.validation import check_output_dir, check_output_file
 
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
 
@@ -142,7 +142,7 @@ def test_model_fields_are_checked(files, change, match):
     d = json.loads((files / "model.json").read_text())
     (files / "m.json").write_text(json.dumps({**d, **change}))
     with pytest.raises(InputError, match=r"m\.json: " + match):
-        load_model_checked(files / "m.json")
+        load_model(files / "m.json")
 
 
 @pytest.mark.parametrize(

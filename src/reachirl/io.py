@@ -14,16 +14,24 @@ from pathlib import Path
 import numpy as np
 
 __all__ = [
+    "MAX_FILE_BYTES",
+    "MAX_JSON_DEPTH",
     "atomic_path",
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
     "cache_root",
+    "json_depth",
     "npz_bytes",
     "read_json",
     "read_text",
     "to_jsonable",
 ]
+
+#: no input file of reachirl is anywhere near this size; a read stops here (a TRC from /dev/zero never ends)
+MAX_FILE_BYTES = 512 * 1024**2
+#: JSON nesting deeper than this is not a reachirl file
+MAX_JSON_DEPTH = 64
 
 
 def cache_root() -> Path:
@@ -90,7 +98,6 @@ def read_text(path: str | os.PathLike) -> str:
     """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
     :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
     from .errors import InputError
-    from .validation import MAX_FILE_BYTES
 
     p = Path(path)
     try:
@@ -122,8 +129,6 @@ def read_json(path: str | os.PathLike):
 
     p = Path(path)
     text = read_text(p)
-    from .validation import MAX_JSON_DEPTH, json_depth
-
     try:
         obj = json.loads(text)
     except json.JSONDecodeError as e:
@@ -135,6 +140,21 @@ def read_json(path: str | os.PathLike):
     if json_depth(obj) > MAX_JSON_DEPTH:
         raise InputError(f"JSON nested more than {MAX_JSON_DEPTH} levels deep", p)
     return obj
+
+
+def json_depth(obj, limit: int = MAX_JSON_DEPTH) -> int:
+    """Nesting depth of a parsed JSON value (stops counting past ``limit``)."""
+    depth, level = 0, [obj]
+    while level and depth <= limit:
+        depth += 1
+        nxt = []
+        for v in level:
+            if isinstance(v, dict):
+                nxt.extend(v.values())
+            elif isinstance(v, list):
+                nxt.extend(v)
+        level = nxt
+    return depth
 
 
 def npz_bytes(arrays: dict[str, np.ndarray]) -> bytes:

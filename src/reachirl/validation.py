@@ -1,5 +1,6 @@
 """Validation at the doors: the physical ranges of a reach, the limits of every number a user can type, output
-paths, and the checks of the trials and model files before anything uses them.
+paths, and the checks of a trials file before anything uses it. (A model file is checked by its loader,
+:func:`reachirl.irl.model.load_model`; the limits of every file read, by :mod:`reachirl.io`.)
 
 Every check raises :class:`~reachirl.errors.InputError` with one line that names the file (and field) and says
 what was expected and what was found, which the command line turns into exit code 2.
@@ -19,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 from .errors import InputError
+from .io import MAX_FILE_BYTES
 
 __all__ = [
     "ARM_RANGES",
@@ -27,16 +30,17 @@ __all__ = [
     "MAX_FILE_BYTES",
     "MAX_NPZ_ENTRY_BYTES",
     "NODES_RANGE",
+    "brief",
     "check_arm",
     "check_duration",
-    "check_model_dict",
+    "check_file_size",
     "check_n_nodes",
     "check_npz_file",
     "check_output_dir",
     "check_output_file",
     "check_trial_meta",
     "check_trial_physics",
-    "load_model_checked",
+    "require",
 ]
 
 # ---------------------------------------------------------------------- physical and numerical ranges
@@ -56,17 +60,13 @@ ARM_RANGES = {
     "i2": (1e-8, 10.0),
     "gravity": (0.0, 100.0),
 }
-#: no input file of reachirl is anywhere near this size; a read stops here (a TRC from /dev/zero never ends)
-MAX_FILE_BYTES = 512 * 1024**2
 #: one array of a trials or unit NPZ (a trial of 10⁶ samples is 16 MB per array)
 MAX_NPZ_ENTRY_BYTES = 256 * 1024**2
-#: JSON nesting deeper than this is not a reachirl file
-MAX_JSON_DEPTH = 64
 #: iterations of an iterative learner (MO-IRL, MaxEnt)
 MAX_ITER = 10000
 
 
-def _fmt(v) -> str:
+def brief(v) -> str:
     """A number for a message: short, never 80 digits."""
     if isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating):
         s = repr(v)
@@ -80,9 +80,9 @@ def check_n_nodes(n, where: object | None = None, name: str = "n_nodes") -> int:
     """``n`` as an int in :data:`NODES_RANGE`."""
     lo, hi = NODES_RANGE
     if isinstance(n, bool) or not isinstance(n, int | float | np.integer | np.floating):
-        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {_fmt(n)}", where)
+        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {brief(n)}", where)
     if not math.isfinite(float(n)) or float(n) != int(n) or not lo <= int(n) <= hi:
-        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {_fmt(n)}", where)
+        raise InputError(f"{name} must be an integer in [{lo}, {hi}], got {brief(n)}", where)
     return int(n)
 
 
@@ -91,9 +91,10 @@ def check_duration(duration, where: object | None = None) -> float:
     try:
         d = float(duration)
     except (TypeError, ValueError):
-        raise InputError(f"duration must be a number of seconds in [{lo}, {hi}], got {_fmt(duration)}", where) from None
+        raise InputError(f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}",
+                         where) from None
     if not (math.isfinite(d) and lo <= d <= hi):
-        raise InputError(f"duration {_fmt(d)} s is outside the range of a reach, [{lo}, {hi}] s", where)
+        raise InputError(f"duration {brief(d)} s is outside the range of a reach, [{lo}, {hi}] s", where)
     return d
 
 
@@ -102,7 +103,7 @@ def check_arm(arm, where: object | None = None) -> None:
     for name, (lo, hi) in ARM_RANGES.items():
         v = getattr(arm, name)
         if not lo <= v <= hi:
-            raise InputError(f"arm {name} = {_fmt(v)} is outside the physical range [{lo:g}, {hi:g}]", where)
+            raise InputError(f"arm {name} = {brief(v)} is outside the physical range [{lo:g}, {hi:g}]", where)
 
 
 # ---------------------------------------------------------------------- output paths
@@ -235,7 +236,7 @@ def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
                     n_bytes = int(np.prod([int(s) for s in shape], dtype=object) or 0) * dtype.itemsize
                     if n_bytes > max_entry or n_bytes > info.file_size:
                         raise InputError(
-                            f"entry {info.filename} declares shape {tuple(shape)} ({_fmt(n_bytes)} bytes) but holds "
+                            f"entry {info.filename} declares shape {tuple(shape)} ({brief(n_bytes)} bytes) but holds "
                             f"{info.file_size} bytes", path
                         )
             bad = zf.testzip()  # decompresses every entry and checks its CRC
@@ -254,81 +255,11 @@ def _short(e: BaseException) -> str:
     return s if len(s) <= 120 else s[:117] + "..."
 
 
-# ---------------------------------------------------------------------- JSON content
-def json_depth(obj, limit: int = MAX_JSON_DEPTH) -> int:
-    """Nesting depth of a parsed JSON value (stops counting past ``limit``)."""
-    depth, level = 0, [obj]
-    while level and depth <= limit:
-        depth += 1
-        nxt = []
-        for v in level:
-            if isinstance(v, dict):
-                nxt.extend(v.values())
-            elif isinstance(v, list):
-                nxt.extend(v)
-        level = nxt
-    return depth
-
-
-def _expect(cond: bool, message: str, where) -> None:
+# ---------------------------------------------------------------------- file content
+def require(cond: bool, message: str, where) -> None:
+    """Raise :class:`~reachirl.errors.InputError` (``message`` at ``where``) unless ``cond``."""
     if not cond:
         raise InputError(message, where)
-
-
-def check_model_dict(d, path) -> None:
-    """The content of a MODEL.json, field by field, before the model is built from it."""
-    from .features import FEATURES
-    from .irl.model import MODEL_FORMAT
-
-    _expect(isinstance(d, dict), f"expected a JSON object (a reachirl model), found a {type(d).__name__}", path)
-    _expect(d.get("format") == MODEL_FORMAT, f"not a reachirl model file (expected format {MODEL_FORMAT!r})", path)
-    feats = d.get("features")
-    _expect(
-        isinstance(feats, list) and all(isinstance(f, str) for f in feats),
-        f"field 'features': expected a list of the {len(FEATURES)} feature names, found {_fmt(feats)}",
-        path,
-    )
-    if "n_nodes" in d:
-        check_n_nodes(d["n_nodes"], path, "field 'n_nodes'")
-    n_nodes = int(d.get("n_nodes", 100))
-    w = d.get("weights")
-    _expect(isinstance(w, list) and len(w) > 0, f"field 'weights': expected a list of rows, found {_fmt(w)}", path)
-    for i, row in enumerate(w):
-        _expect(
-            isinstance(row, list)
-            and len(row) == len(FEATURES)
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in row),
-            f"field 'weights', row {i}: expected {len(FEATURES)} numbers, found {_fmt(row)}",
-            path,
-        )
-        for j, v in enumerate(row):
-            _expect(
-                math.isfinite(float(v)) and float(v) >= 0,
-                f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {_fmt(v)}",
-                path,
-            )
-    _expect(any(float(v) > 0 for row in w for v in row),
-            "field 'weights': all weights are zero, so the DOC would have no cost to minimise", path)
-    _expect(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals",
-            path)
-    if "n_windows" in d:
-        _expect(d["n_windows"] == len(w), f"field 'n_windows' = {_fmt(d['n_windows'])} but 'weights' has "
-                f"{len(w)} rows", path)
-    for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
-        if key in d:
-            _expect(isinstance(d[key], typ), f"field '{key}': expected {name}, found {_fmt(d[key])}", path)
-    observe = d.get("info", {}).get("observe")
-    _expect(observe is None or isinstance(observe, bool),
-            f"field 'info.observe': expected true or false, found {_fmt(observe)}", path)
-    rollout = d.get("info", {}).get("rollout_q")
-    if rollout is not None:
-        ok = (isinstance(rollout, list) and len(rollout) == n_nodes + 1
-              and all(isinstance(r, list) and len(r) == 2 for r in rollout))
-        _expect(ok, f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
-                f"{_fmt(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}", path)
-        for i, r in enumerate(rollout):
-            _expect(all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
-                    f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {_fmt(r)}", path)
 
 
 _META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
@@ -337,31 +268,29 @@ _META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "so
 def check_trial_meta(m, i: int, path) -> None:
     """One trial's entry in a trials file's ``meta.json``."""
     where = f"trial {i}"
-    _expect(isinstance(m, dict), f"{where}: expected an object, found {_fmt(m)}", path)
+    require(isinstance(m, dict), f"{where}: expected an object, found {brief(m)}", path)
     for key in ("subject", "posture", "trial_id", "target_x", "arm"):
-        _expect(key in m, f"{where}: field '{key}' is missing", path)
+        require(key in m, f"{where}: field '{key}' is missing", path)
     for key, typ in _META_TYPES.items():
         if key in m:
-            _expect(isinstance(m[key], typ | int) and not isinstance(m[key], bool),
-                    f"{where}: field '{key}' must be a string, found {_fmt(m[key])}", path)
+            require(isinstance(m[key], typ | int) and not isinstance(m[key], bool),
+                    f"{where}: field '{key}' must be a string, found {brief(m[key])}", path)
     tx = m["target_x"]
-    _expect(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
-            f"{where}: field 'target_x' must be a finite number (m), found {_fmt(tx)}", path)
+    require(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
+            f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}", path)
     th = m.get("onset_threshold")
-    _expect(th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
-            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {_fmt(th)}", path)
+    require(th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
+            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}", path)
     arm = m["arm"]
-    _expect(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {_fmt(arm)}", path)
+    require(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
     for k, v in arm.items():
-        _expect(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
-                f"{where}: field 'arm.{k}' must be a finite number, found {_fmt(v)}", path)
+        require(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
+                f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}", path)
 
 
 def check_trial_physics(trial, i: int, path) -> None:
     """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
     limits."""
-    from .doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
-
     where = f"trial {i} ({trial.id})"
     try:
         check_arm(trial.arm, where)
@@ -377,14 +306,3 @@ def check_trial_physics(trial, i: int, path) -> None:
             f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
             path, where,
         )
-
-
-def load_model_checked(path):
-    """:func:`reachirl.irl.model.load_model` after checking the file's size and every field of its content."""
-    from .io import read_json
-    from .irl.model import load_model
-
-    p = Path(path)
-    check_file_size(p, 64 * 1024**2)
-    check_model_dict(read_json(p), p)
-    return load_model(p)

@@ -5,15 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
 from ..data.trial import load_trials
 from ..errors import InputError
-from ..evaluation import evaluate_trials, summarise
+from ..evaluation import summarise
 from ..io import atomic_write_json
-from ..validation import check_output_file, load_model_checked
+from ..irl.model import load_model
+from ..validation import check_output_file
 from ._args import add_selection, chosen_trials
 
 
@@ -41,6 +41,19 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
+def summary_line(summary: dict, backend: str) -> str:
+    """One line of :func:`reachirl.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
+    and the DOC failures."""
+    r, fails = summary["rmse_deg"], summary["doc_failures"]
+    how = "included in" if summary["failures_included"] else "left out of"
+    note = f"; {fails} DOC failure(s) ({backend}), {how} the RMSE" if fails else ""
+    if r["q"]["mean"] is None:
+        return f"{summary['n_trials']} trials: no prediction converged ({backend}); no RMSE"
+    return (f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
+            f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
+            f" over {summary['n_included']} prediction(s){note}")
+
+
 def prediction_exports(trials, errors, set_name: str = ""):
     """One :class:`~reachirl.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
     knots beside the prediction."""
@@ -62,27 +75,14 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out)
     if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
-    model = load_model_checked(args.model)
+    model = load_model(args.model)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
-    rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
-    rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
-        errors = evaluate_trials(model.weights, trials, n_nodes=model.n_nodes, backend=args.backend,
-                                 on_trial=lambda e: progress.advance(task),
-                                 observe=bool(model.info.get("observe", False)), path=rollout)
+        errors = model.evaluate(trials, backend=args.backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
     atomic_write_json(args.out, {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
-    r = summary["rmse_deg"]
-    fails = summary["doc_failures"]
-    how = "included in" if args.include_failed else "left out of"
-    note = f"; {fails} DOC failure(s) ({args.backend}), {how} the RMSE" if fails else ""
-    if r["q"]["mean"] is None:
-        print(f"{summary['n_trials']} trials: no prediction converged ({args.backend}); no RMSE")
-    else:
-        print(f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
-              f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
-              f" over {summary['n_included']} prediction(s){note}")
+    print(summary_line(summary, args.backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:
         from ..exports import export_trajectories

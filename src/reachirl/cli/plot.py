@@ -1,7 +1,9 @@
 """``reachirl plot --model MODEL.json TRIALS --out DIR`` or ``reachirl plot RUN_DIR --out DIR``: figures as PNG
 and PDF.
 
-With a model: each trial is predicted from its own start (as ``evaluate`` does) and DIR gets
+With a model: ``--subject/--posture/--side`` (and ``--trial``) choose the trials; each is predicted from its own
+start exactly as ``evaluate`` predicts it (the same function: the same RMSE, printed as ``evaluate`` prints it),
+and DIR gets
 ``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
 feature's share of its window's cost at the trials) and ``convergence.png`` (the fit's merit per iteration, when
 the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
@@ -15,6 +17,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from ._args import add_selection, chosen_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -36,6 +39,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
                    help="with --model: DOC backend of the predictions (default casadi)")
     p.add_argument("--no-pdf", action="store_true", help="write PNG only (default: PNG and PDF)")
+    add_selection(p, "with --model: plot")
     return p
 
 
@@ -49,16 +53,16 @@ def _save(fig, out: Path, stem: str, pdf: bool, written: list[Path]) -> None:
     written.append(out / f"{stem}.png")
 
 
-def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool = True) -> list[Path]:
-    """The figures of a learned model on trials (see the module docstring); returns the files written."""
+def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Path]:
+    """The figures of a learned model on trials, whose predictions and errors are ``errors``
+    (:meth:`reachirl.irl.model.LearnedModel.evaluate`; see the module docstring); returns the files written."""
     import numpy as np
 
-    from ..evaluation import evaluate_trials
+    from ..evaluation import summarise
     from ..experiments import figures as fg
 
     n, n_nodes = model.n_windows, model.n_nodes
     written: list[Path] = []
-    errors = evaluate_trials(model.weights, trials, n_nodes=n_nodes, backend=backend)
     demos = [t.resample(n_nodes + 1) for t in trials]
     arrays = {
         "trials/t": np.stack([e.prediction.t for e in errors]),
@@ -67,9 +71,9 @@ def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool =
         "trials/demo_q": np.stack([d.q for d in demos]),
         "trials/demo_qd": np.stack([d.qd for d in demos]),
     }
-    rmse = np.mean([e.rmse_q for e in errors])
+    rmse = summarise(errors)["rmse_deg"]["q"]["mean"]  # as `evaluate` reports it
     title = (f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
-             f"predictions (solid); mean RMSE of q {rmse:.2f}°")
+             "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°"))
     _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     phi = np.mean([t.features(n_nodes, n) for t in trials], axis=0)
     c = model.weights * phi
@@ -81,7 +85,12 @@ def model_figures(model, trials, out: Path, backend: str = "casadi", pdf: bool =
           out, "weights", pdf, written)
     history = model.info.get("history") or []
     if any(h.get("merit") is not None for h in history):
-        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence"),
+        from ..experiments.method import convergence_text
+
+        options = model.info.get("options")  # every option in force, when the model file records them
+        words = convergence_text(options if isinstance(options, dict) else {"observe": model.info.get("observe")})
+        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence",
+                                  merit_label=words["merit_label"], start=words["start"]),
               out, "convergence", pdf, written)
     return written
 
@@ -122,14 +131,23 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --out needs a folder", out)
     if args.model is not None:
         from ..data.trial import load_trials
+        from ..evaluation import summarise
         from ..irl.model import load_model
+        from .evaluate import summary_line
 
         if args.source.is_dir():
             raise InputError("is a folder; with --model, give a trials file", args.source)
         model = load_model(args.model)
         trials = _select(load_trials(args.source), args.trial, args.source)
-        written = model_figures(model, trials, out, backend=args.backend, pdf=not args.no_pdf)
+        trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
+        errors = model.evaluate(trials, backend=args.backend)
+        print(summary_line(summarise(errors), args.backend))
+        written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)
     else:
+        given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]
+        if given:
+            raise InputError(f"--{given[0]} chooses trials, so it needs --model MODEL.json and a trials file",
+                             args.source)
         if not args.source.is_dir():
             raise InputError("expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials "
                              "file)", args.source)

@@ -83,9 +83,10 @@ def run(args: argparse.Namespace) -> int:
 
     from ..data.trial import load_trials
     from ..io import atomic_write_json
+    from ..irl.model import load_model
     from ..sim import simulate as sim
     from ..sim.render import osmesa_available
-    from ..validation import check_output_file, load_model_checked
+    from ..validation import check_output_file
 
     if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
         raise InputError("the animation must end in .gif or .mp4", args.render)
@@ -96,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
         ok, why = osmesa_available()
         if not ok:
             raise RuntimeError(f"cannot render offscreen: {why}")
-    model = load_model_checked(args.model)
+    model = load_model(args.model)
     trials = _select(load_trials(args.trials), args.trial, args.trials)
     if args.render is not None:  # every frame is held in memory until the file is written
         n_frames = sum(int(tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)

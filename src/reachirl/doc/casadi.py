@@ -309,6 +309,9 @@ def build_nlp(n: int) -> _Nlp:
     return _Nlp(n)
 
 
+compiled.on_setting(build_nlp.cache_clear)  # each NLP holds its solvers: a change of compile mode drops them
+
+
 def guess_knots(task: ReachingTask) -> np.ndarray:
     """The cold start's joint path, shape ``(N+1, 2)``: minimum jerk from ``q0`` to a posture with the
     fingertip on the bar, at the fingertip's starting height where reachable (within 98 % of the reach)."""

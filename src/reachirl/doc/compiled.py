@@ -15,7 +15,7 @@ disk, so it is done only where it pays off, which the environment variable ``REA
 * ``on``: the first cold (warm) solve of a number of knots compiles the cold (warm) solver (and waits),
   unless it is cached.
 
-Compilation always runs in a process of its own (``python -m reachirl.doc.compiled``), because CasADi writes
+Compilation always runs in a process of its own (``python -m reachirl.doc.compile_job``), because CasADi writes
 its sources into the working directory: the solving process never changes its own.
 * ``off``: never compile, never load.
 
@@ -35,6 +35,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
@@ -42,7 +43,7 @@ from ..io import atomic_path, cache_root
 
 __all__ = [
     "AUTO_AFTER", "AUTO_AFTER_WARM", "KINDS", "MODES", "Slot", "cache_path", "compile_or_wait", "compile_solver",
-    "load", "mode", "setting", "start_background",
+    "load", "mode", "on_setting", "release", "setting", "start_background",
 ]
 
 MODES = ("auto", "on", "off")
@@ -55,6 +56,7 @@ JIT_FLAGS = ("-O1",)
 POLL_EVERY = 50  # past its threshold, a slot looks for the background compilation's file every this many solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
 STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died
+_ON_SETTING: list[Callable[[], None]] = []  # what setting() calls on both sides of its block (see on_setting)
 
 
 def mode() -> str:
@@ -65,20 +67,28 @@ def mode() -> str:
     return value
 
 
+def on_setting(forget: Callable[[], None]) -> Callable[[], None]:
+    """Have :func:`setting` call ``forget`` on both sides of its block: a backend that holds solvers (the CasADi
+    backend's cached NLPs) drops them, so the block's solves, and those after it, follow the mode in force.
+    Returns ``forget``."""
+    _ON_SETTING.append(forget)
+    return forget
+
+
 @contextlib.contextmanager
 def setting(value: str):
-    """``REACHIRL_COMPILE=value`` inside the block (benchmarks, tests), with the CasADi backend's NLPs rebuilt
-    on both sides (each holds its solvers)."""
-    from .casadi import build_nlp
-
+    """``REACHIRL_COMPILE=value`` inside the block (benchmarks, tests), with the solvers that backends hold
+    dropped on both sides (:func:`on_setting`)."""
     before = os.environ.get("REACHIRL_COMPILE")
     os.environ["REACHIRL_COMPILE"] = value
     mode()
-    build_nlp.cache_clear()
+    for forget in _ON_SETTING:
+        forget()
     try:
         yield
     finally:
-        build_nlp.cache_clear()
+        for forget in _ON_SETTING:
+            forget()
         if before is None:
             os.environ.pop("REACHIRL_COMPILE", None)
         else:
@@ -157,6 +167,11 @@ def _lock(path: Path) -> Path:
     return path.parent.with_name(path.parent.name + ".lock")
 
 
+def release(path: Path) -> None:
+    """Release the compilation lock of ``path`` (taken by :func:`start_background`)."""
+    _lock(path).unlink(missing_ok=True)
+
+
 def _acquire(path: Path) -> bool:
     """Take the compilation lock of ``path`` (a file beside its folder); False when another process holds it
     (or the cache is not writable). A lock older than :data:`STALE_LOCK_S` is taken over."""
@@ -194,7 +209,7 @@ def start_background(n: int, path: Path, kind: str = "cold") -> bool:
     if not _acquire(path):
         return False
     subprocess.Popen(
-        [sys.executable, "-m", "reachirl.doc.compiled", str(n), kind, str(path)],
+        [sys.executable, "-m", "reachirl.doc.compile_job", str(n), kind, str(path)],
         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True, env={**os.environ, "REACHIRL_COMPILE": "off"},
     )
@@ -227,25 +242,3 @@ class Slot:
         if solver is None and how == "auto" and k == after:
             start_background(self.n, self._path, self.kind)
         return solver
-
-
-def main(argv: list[str]) -> int:
-    """Background entry point: ``python -m reachirl.doc.compiled N KIND PATH``."""
-    from .casadi import build_nlp
-
-    n, kind, path = int(argv[0]), argv[1], Path(argv[2])
-    try:
-        nlp = build_nlp(n)
-        name, solver, options = nlp.slots[kind].spec
-        if cache_path(nlp.nlp, options) != path:  # another version of the code asked: do not cache under its name
-            return 1
-        compile_solver(name, solver, nlp.nlp, options, path)
-        return 0
-    except Exception:
-        return 1
-    finally:
-        _lock(path).unlink(missing_ok=True)
-
-
-if __name__ == "__main__":  # pragma: no cover - run as a detached process by start_background
-    sys.exit(main(sys.argv[1:]))

@@ -9,10 +9,11 @@ The problem, on ``N = n_nodes`` Euler intervals of ``dt = duration / N``::
             P_x(q_N) = target_x                                   fingertip on the vertical bar
             q_lower ≤ q_k ≤ q_upper,   |q̇_k| ≤ qd_max (per joint)
 
-Default bounds (documented choices; the seed gives none): the shoulder ``q1 ∈ [-150°, 120°]`` (full extension
-behind the body to well overhead), the elbow ``q2 ∈ [-5°, 160°]`` (slight hyper-extension to full flexion), and a
-joint speed of at most 10 rad/s (about 570 °/s, above human reaching peaks of 3-6 rad/s, so it binds only on
-outlandish weights). The speed bound is per joint (the seed writes ``‖q̇‖ ≤ q̇⁺`` with a vector ``q̇⁺``).
+Default bounds (documented choices; the seed gives none): the joint ranges of :mod:`reachirl.arm`, the shoulder
+``q1 ∈ [-150°, 120°]`` (full extension behind the body to well overhead) and the elbow ``q2 ∈ [-5°, 160°]`` (slight
+hyper-extension to full flexion), and a joint speed of at most 10 rad/s (about 570 °/s, above human reaching peaks
+of 3-6 rad/s, so it binds only on outlandish weights). The speed bound is per joint (the seed writes ``‖q̇‖ ≤ q̇⁺``
+with a vector ``q̇⁺``).
 """
 
 from __future__ import annotations
@@ -21,15 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..arm import ArmModel
+from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, ArmModel
 from ..features import euler_knots
 from ..validation import check_arm, check_duration, check_n_nodes
 
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk",
            "moved_path", "on_bar", "rest_to_rest_knots"]
 
-DEFAULT_Q_LOWER = (np.deg2rad(-150.0), np.deg2rad(-5.0))
-DEFAULT_Q_UPPER = (np.deg2rad(120.0), np.deg2rad(160.0))
 DEFAULT_QD_MAX = (10.0, 10.0)
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..features import FEATURES
 from .protocol import SET_LABELS, SETS
+from .tables import natural_key
 
 __all__ = [
     "plot_convergence",
@@ -191,10 +192,13 @@ def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
     return fig
 
 
-def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title: str = ""):
-    """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration."""
+def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title: str = "",
+                     merit_label: str = "merit m(x)", start: str = "the initial weights ω₀"):
+    """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration.
+    ``merit_label`` names the merit and its units on the y axis; ``start`` says what the weights of iteration 0
+    are (the x axis)."""
     fig, axes = _grid(axes, 1, len(sections), (3.6 * len(sections) + 0.6, 3.2))
-    postures = sorted({p for p, _ in histories})
+    postures = sorted({p for p, _ in histories}, key=natural_key)
     colours = plt.get_cmap("tab10")
     for c, n in enumerate(sections):
         ax = axes[0, c]
@@ -208,10 +212,10 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax.set_title(f"{n} section{'s' if n > 1 else ''}", fontsize=10)
         ax.tick_params(labelsize=9)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
-        ax.set_xlabel("iteration")
+        ax.set_xlabel(f"iteration (0: {start})", fontsize=9)
         ax.grid(alpha=0.3, which="both")
         if c == 0:
-            ax.set_ylabel("merit m(x) = mean ‖x* − x‖²\n(x = q in rad, q̇ in rad/s)", fontsize=9)
+            ax.set_ylabel(merit_label, fontsize=9)
     if axes[0, 0].get_legend_handles_labels()[0]:  # a one-shot baseline has no iterations to plot
         axes[0, 0].legend(fontsize=8)
     fig.suptitle(title or "MO-IRL convergence (accepted steps)")
@@ -221,8 +225,9 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
 
 def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None):
     """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
-    (bottom). ``flags[posture]`` marks learned panels whose fit never left ω₀ or made one step."""
-    postures = [p for p in learned if p in true]
+    (bottom), postures in natural order (P2 before P10). ``flags[posture]`` marks learned panels whose fit
+    never left ω₀ or made one step."""
+    postures = sorted((p for p in learned if p in true), key=natural_key)
     fig, axes = _grid(axes, 2, max(1, len(postures)), (2.5 * max(1, len(postures)) + 1.5, 5.2))
     im = None
     for c, p in enumerate(postures):

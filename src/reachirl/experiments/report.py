@@ -6,7 +6,9 @@
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
 
-:func:`write_outputs` calls them in turn on the :class:`~reachirl.experiments.results.RunResult` that
+What they state is computed by :mod:`reachirl.experiments.analysis` (and the method's words by
+:mod:`reachirl.experiments.method`); here it is only put into words, tables and figures. :func:`write_outputs`
+calls them in turn on the :class:`~reachirl.experiments.results.RunResult` that
 :func:`reachirl.experiments.runner.reproduce` returns (the command line calls both). Predictions are read back
 from the units' NPZ checkpoints, so a resumed run writes the same files as an uninterrupted one.
 """
@@ -23,17 +25,16 @@ from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
 from . import tables as tb
-from .datasets import Dataset
+from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
+from .method import convergence_text, method_lines, unit_method
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
-from .protocol import SET_LABELS, SETS, ProtocolConfig, _cost_shares
+from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .results import RunResult, load_unit_arrays
 
 __all__ = [
     "RESULTS_FORMAT",
-    "paired_comparison",
-    "prediction_agreement",
-    "reference_features",
-    "true_weights",
+    "prediction_note",
+    "weights_caption",
     "write_figures",
     "write_outputs",
     "write_predictions",
@@ -43,160 +44,7 @@ __all__ = [
 ]
 
 RESULTS_FORMAT = "reachirl-reproduce/1"
-
-
-def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
-    """Mean true weights ``(n_windows, 7)`` of the given trials (``truth.json`` of virtual subjects), matched
-    on the trial file's stem; the nominal weights when none match; ``None`` without truth."""
-    if not truth:
-        return None
-    by_stem = {}
-    for subj in (truth.get("subjects") or {}).values():
-        for recs in (subj.get("trials") or {}).values():
-            for r in recs:
-                by_stem[Path(str(r.get("file", ""))).stem] = r.get("weights")
-    ws = [by_stem[i] for i in trial_ids if by_stem.get(i) is not None]
-    if ws:
-        return np.mean(np.asarray(ws, dtype=float), axis=0)
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    return None if nominal is None else np.asarray(nominal, dtype=float)
-
-
-def _observes(unit: dict) -> bool:
-    """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
-    from .protocol import unit_observes
-
-    return unit_observes(unit["method"], unit.get("estimator_options", ()))
-
-
-def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
-                       observe: bool = False) -> np.ndarray | None:
-    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
-    and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
-    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.observation`), as an observed unit predicts its trials, so its windows are the
-    demonstrations'; otherwise the DOC over the mean duration.
-
-    Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
-    of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
-    shares on Φ* credit the true weights with costs that hardly shape their own reach."""
-    from ..data.trial import trial_from_solution
-    from ..doc import solve_doc
-    from ..irl.moirl import mean_task
-    from ..observation import common_threshold, rest_to_rest
-    from ..observation import observe as seen_as_recorded
-
-    task = mean_task(trials, n_nodes)
-    try:
-        threshold = common_threshold(trials) if observe else None
-    except ValueError:  # cut at different thresholds: no one way to see the reach
-        threshold = None
-    if threshold is not None:
-        task = rest_to_rest(task)
-    sol = solve_doc(task, weights, backend=backend)
-    if not sol.converged:
-        return None
-    reach = (seen_as_recorded(sol, task, threshold) if threshold is not None
-             else trial_from_solution(sol, task.arm, task.target_x))
-    return reach.features(n_nodes, weights.shape[0])
-
-
-def _truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
-    """Learned vs true cost shares for the units whose section count equals the truth's windows, both on the
-    true weights' own noise-free reach, seen as the unit sees its trials (:func:`reference_features`; the
-    demonstrations' Φ* if that DOC fails)."""
-    learned, true, metrics = {}, {}, {}
-    if dataset.truth is None:
-        return learned, true, metrics
-    n_true = int(dataset.truth.get("n_windows", 0) or 0)
-    by_id = {t.id: t for t in dataset.trials}
-    for r in results.values():
-        u = r["unit"]
-        if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
-            continue
-        train = [by_id[t["id"]] for t in r["sets"]["train"]["trials"] if t["id"] in by_id]
-        if not train:
-            continue
-        w_true = true_weights(dataset.truth, [t.trial_id for t in train])
-        if w_true is None or w_true.shape != (n_true, len(FEATURES)):
-            continue
-        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
-        on = "true_rollout"
-        if phi is None:
-            phi, on = np.asarray(r["demo_features"]), "demonstrations"
-        s_true = _cost_shares(w_true, phi)
-        s_learned = _cost_shares(np.asarray(r["weights"], dtype=float), phi)
-        p = u["posture"]
-        learned[p], true[p] = s_learned, s_true
-        tv = 0.5 * np.abs(s_learned - s_true).sum(axis=1)  # total variation per window, in [0, 1]
-        a, b = s_learned.ravel() - s_learned.mean(), s_true.ravel() - s_true.mean()
-        corr = float(a @ b / np.sqrt((a @ a) * (b @ b))) if (a @ a) > 0 and (b @ b) > 0 else None
-        dom_l, dom_t = s_learned.argmax(axis=1), s_true.argmax(axis=1)
-        metrics[p] = {
-            "sections": n_true,
-            "shares_on": on,
-            "mean_total_variation": float(tv.mean()),
-            "share_correlation": corr,
-            "dominant_feature_agreement": float(np.mean(dom_l == dom_t)),
-            "learned_dominant": [FEATURES[i] for i in dom_l],
-            "true_dominant": [FEATURES[i] for i in dom_t],
-        }
-    return learned, true, metrics
-
-
-AGREEMENT_MAX_TRIALS = 40
-"""At most this many trials per set (evenly spaced in the set's order) are predicted again under the true
-weights, so that a Berret-size run spends seconds, not minutes, on the comparison."""
-
-
-def prediction_agreement(run: RunResult, method: str, postures) -> dict:
-    """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
-
-    For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
-    :data:`AGREEMENT_MAX_TRIALS`, evenly spaced) are predicted again under the nominal true weights
-    (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``). Returns
-    ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
-    (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
-    truth."""
-    from ..evaluation import evaluate_trials, rmse_deg
-
-    truth = run.dataset.truth or {}
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    n_true = int(truth.get("n_windows", 0) or 0)
-    if nominal is None:
-        return {}
-    w_true = np.asarray(nominal, dtype=float)
-    by_id = {t.id: t for t in run.dataset.trials}
-    out: dict = {}
-    for r in run.results.values():
-        u = r["unit"]
-        if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
-            continue
-        arrays = load_unit_arrays(run.out_dir, r["key"])
-        observe = _observes(u)
-        per_set = {}
-        for name in SETS:
-            if f"{name}/pred_q" not in arrays:
-                continue
-            ids = [str(i) for i in arrays[f"{name}/ids"]]
-            rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
-            ids = [ids[k] for k in rows]
-            recs = {e["id"]: e for e in r["sets"][name]["trials"]}
-            trials = [by_id[i] for i in ids]
-            true = evaluate_trials(w_true, trials, u["n_nodes"], backend=u["backend"], observe=observe)
-            both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
-            if not both:
-                continue
-            learned_q = arrays[f"{name}/pred_q"][rows].astype(float)
-            per_set[name] = {
-                "n": len(both),
-                "learned_vs_true_deg": float(np.mean([rmse_deg(learned_q[k], true[k].prediction.q)[2] for k in both])),
-                "true_vs_recorded_deg": float(np.mean([true[k].rmse_q for k in both])),
-                "learned_vs_recorded_deg": float(np.mean([recs[ids[k]]["rmse_deg"]["q"] for k in both])),
-            }
-        if per_set:
-            out[u["posture"]] = per_set
-    return out
+TORQUE_CHANGE, JOINT_ACCELERATION = FEATURES.index("torque_change"), FEATURES.index("joint_acceleration")
 
 
 def _agreement_note(agreement: dict, n_true: int) -> str:
@@ -229,35 +77,23 @@ def _fmt(c: dict | None) -> str:
     return "—" if not c or c.get("mean") is None else f"{c['mean']:.2f} ± {c['std']:.2f}"
 
 
-def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: int, hi: int,
-                      postures: Sequence[str], n_boot: int = 2000, seed: int = 0) -> dict | None:
-    """``hi`` against ``lo`` sections on the same trials (paired by trial id, pooled over ``postures``): the
-    mean difference of the per-trial RMSE of q (deg; negative: ``hi`` is lower), its 95 % bootstrap interval
-    (``n_boot`` resamples of the trials, seeded) and the two-sided Wilcoxon signed-rank p-value. ``None``
-    with fewer than 2 paired trials."""
-    from scipy.stats import wilcoxon
+OBSERVED = ("the rest-to-rest DOC from the trial's onset posture to its target, seen between its own crossings of "
+            "the onset threshold the trial was cut at, as the reach was recorded (reachirl.observation; a trial not "
+            "cut at a threshold: the DOC over its own duration)")
+WHOLE = "the DOC from the trial's own initial state, target and duration"
 
-    def per_trial(n):
-        out = {}
-        for r in results.values():
-            u = r["unit"]
-            if u["method"] == method and u["sections"] == n and u["posture"] in postures:
-                for t in r["sets"][set_name]["trials"]:
-                    out[(u["posture"], t["id"])] = t["rmse_deg"]["q"]
-        return out
 
-    a, b = per_trial(lo), per_trial(hi)
-    keys = sorted(set(a) & set(b))
-    if len(keys) < 2:
-        return None
-    d = np.array([b[k] - a[k] for k in keys], dtype=float)
-    rng = np.random.default_rng(seed)
-    boot = d[rng.integers(0, d.size, size=(n_boot, d.size))].mean(axis=1)
-    lo_ci, hi_ci = np.quantile(boot, [0.025, 0.975])
-    p = float(wilcoxon(d).pvalue) if np.any(d != 0) else 1.0
-    return {"n": int(d.size), "mean_diff_deg": float(d.mean()), "ci95_deg": [float(lo_ci), float(hi_ci)],
-            "wilcoxon_p": p, "test": "two-sided Wilcoxon signed-rank over paired trials; 95 % bootstrap CI of "
-            "the mean difference"}
+def prediction_note(units) -> str:
+    """How the units' predictions were made, from their records (``method``, ``estimator_options``): seen as
+    the reach was recorded by the units that observe, the DOC over the trial by the others."""
+    observing = {u["method"]: unit_observes(u["method"], u.get("estimator_options", ())) for u in units}
+    seen = sorted(m for m, o in observing.items() if o)
+    whole = sorted(m for m, o in observing.items() if not o)
+    if not whole:
+        return f"each prediction is {OBSERVED}"
+    if not seen:
+        return f"each prediction is {WHOLE}"
+    return f"the predictions of {', '.join(seen)} are {OBSERVED}; those of {', '.join(whole)}, {WHOLE}"
 
 
 def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
@@ -280,12 +116,7 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
             )
         )
         + f" (at most {config.max_iter} iterations).",
-        "RMSE in degrees, mean ± population SD over trials; "
-        + ("each prediction is the rest-to-rest DOC from the trial's onset posture to its target, seen between "
-           "its own crossings of the onset threshold the trial was cut at, as the reach was recorded "
-           "(reachirl.observation; a trial not cut at a threshold: the DOC over its own duration)"
-           if getattr(config, "observe", False) else
-           "each prediction is the DOC from the trial's own initial state, target and duration")
+        "RMSE in degrees, mean ± population SD over trials; " + prediction_note([r["unit"] for r in results.values()])
         + ", compared on normalised time.",
     ]
     flagged = sorted(f"{r['key']} ({r['flag']})" for r in results.values() if r.get("flag"))
@@ -316,6 +147,25 @@ def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, no
     csv = tb.to_csv(tables, postures, sections)
     atomic_write_text(out / "table.csv", csv_with_reasons(csv, reasons) if reasons is not None else csv)
     return md_tables
+
+
+def weights_caption(shares: dict) -> str:
+    """Fig. 3's caption: what it shows and, per section count (a row of panels), the two features with the
+    largest mean share and the shares of torque change and joint acceleration, averaged over the row's postures
+    and windows (``shares[(posture, sections)] = (n_windows, 7)`` cost shares)."""
+    name = {f: f.replace("_", " ") for f in FEATURES}
+
+    def listed(mean, idx) -> str:
+        return ", ".join(f"{name[FEATURES[i]]} {100 * mean[i]:.0f} %" for i in idx)
+
+    rows = []
+    for n in sorted({n for _, n in shares}):
+        mean = np.mean([np.asarray(v, dtype=float).mean(axis=0) for (_, k), v in shares.items() if k == n], axis=0)
+        rows.append(f"{n} section{'s' if n > 1 else ''}: largest {listed(mean, np.argsort(mean)[::-1][:2])}; "
+                    f"{listed(mean, [TORQUE_CHANGE, JOINT_ACCELERATION])}")
+    return ("Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
+            "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
+            "window). Mean shares per row: " + ". ".join(rows) + ".")
 
 
 def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
@@ -362,13 +212,7 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
                  for r in results.values() if r["unit"]["method"] == main}
         _save_figure(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir, "fig3_weights.png", pdf)
-        figs["fig3_weights.png"] = {
-            "caption": "Seed Fig. 3 equivalent: learned weights per posture (columns) and "
-            "section count (rows), each shown as the feature's share of its window's "
-            "cost at the training demonstrations (ω·Φ*, normalised per window). Recording noise, "
-            "differentiated, inflates the demonstrations' torque change (and joint acceleration), so those "
-            "shares read high."
-        }
+        figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
     for p in iscv_postures:
@@ -392,11 +236,12 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         if r["unit"]["method"] == main
     }
     if hist:
-        _save_figure(fg.plot_convergence(hist, sections), fig_dir, "convergence.png", pdf)
-        figs["convergence.png"] = {
-            "caption": "Merit m(x) of every fit at each accepted iteration (iteration 0: "
-            "the initial weights ω₀)."
-        }
+        first = next(r["unit"] for r in results.values() if r["unit"]["method"] == main)
+        described = unit_method(main, first.get("estimator_options"), first.get("tol"), tasks=1)
+        words = convergence_text(described["options"] if described else None)
+        _save_figure(fg.plot_convergence(hist, sections, merit_label=words["merit_label"], start=words["start"]),
+                     fig_dir, "convergence.png", pdf)
+        figs["convergence.png"] = {"caption": words["caption"]}
     learned, true, truth_metrics = truth
     if learned:
         n_true = next(iter(truth_metrics.values()))["sections"]
@@ -443,21 +288,6 @@ def write_predictions(run: RunResult) -> list[Path]:
     return written
 
 
-def _comparisons(run: RunResult) -> dict:
-    """Paired comparisons of the most against the fewest sections, per set, for every method."""
-    sections = list(run.config.sections)
-    lo, hi = min(sections), max(sections)
-    if lo == hi:
-        return {}
-    out = {}
-    for m in run.config.methods:
-        for s in SETS:
-            c = paired_comparison(run.results, m, s, lo, hi, run.postures)
-            if c is not None:
-                out.setdefault(m, {})[s] = {"sections": [lo, hi], **c}
-    return out
-
-
 def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: dict, notes: list[str],
                        doc: dict, comparisons: dict) -> Path:
     """``results.json`` (schema: docs/outputs.md)."""
@@ -478,6 +308,7 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
         "format": RESULTS_FORMAT,
         "data": run.dataset.describe(),
         "protocol": config.to_dict() | {"train_subject": run.train_subject, "postures_run": list(run.postures)},
+        "method": methods_run(run),
         "split_sizes": run.split_sizes,
         "tables": tables,
         "headline": {m: tb.headline(tables[m], sections) for m in config.methods},
@@ -524,7 +355,7 @@ def write_outputs(run: RunResult) -> dict:
     if empty:  # the table shows "—" there; say why
         reasons = split_reasons(config)
         notes.append("— means no data: " + "; ".join(reasons[s] for s in empty) + ".")
-    truth = _truth_comparison(run.dataset, results, methods[0], postures)
+    truth = truth_comparison(run.dataset, results, methods[0], postures)
     agreement = prediction_agreement(run, methods[0], postures)
     if agreement:
         notes.append(_agreement_note(agreement, int(run.dataset.truth.get("n_windows", 0))))
@@ -558,14 +389,10 @@ def write_outputs(run: RunResult) -> dict:
     timing["report_s"] = time.perf_counter() - t0
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
-    comparisons = _comparisons(run)
+    comparisons = section_comparisons(run)
     write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
-
-
-def _tol_text(tol) -> str:
-    return "default" if tol is None else format(tol, "g")
 
 
 def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
@@ -603,9 +430,9 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS
         )
         + ".",
-        f"- **Method:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
-        f"at most {config.max_iter} MO-IRL iterations (tol {_tol_text(config.tol)}); seed defaults otherwise "
-        "(β = 1e-10, ω₀ = 0.05, α = 1 shrinking by 0.25, at most 10 tries).",
+        f"- **Methods:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
+        f"at most {config.max_iter} iterations.",
+        *method_lines([r["unit"] for r in run.results.values()]),
         "",
         "## Results: RMSE of the joint angles (deg), seed Table II layout",
         "",
@@ -613,16 +440,16 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
     lines += md_tables
     lines += [f"- {n}" for n in notes] + [""]
     lines += [
-        "### Headline (ALL postures, q): ours beside the seed's (different data)",
+        "### Headline (ALL postures, q), and the seed's numbers measured on its own subjects",
         "",
-        "The seed's columns are **its results on other data and another task** (Berret et al.'s human "
-        "reaches to a bar, 2 subjects, 10/10/20 trials); ours are on "
+        "The seed's columns were **measured on the paper's own subjects** (Berret et al.'s human reaches to a "
+        "bar, 2 subjects, 10/10/20 trials), not on the data of this run ("
         + ("virtual subjects" if virtual else dataset.source)
         + (", cross-validated on the other arm" if config.cv == "other-side" else "")
-        + ", so the comparison is of magnitudes and trends, not number for number.",
+        + "): they are **not comparable** with ours, and are shown only as the paper's own figures.",
         "",
         "| sections | "
-        + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed, other data)" for s in SETS)
+        + " | ".join(f"{SET_LABELS[s]} (ours) | {SET_LABELS[s]} (seed's subjects, not comparable)" for s in SETS)
         + " |",
         "|---|" + "---|" * (2 * len(SETS)),
     ]
@@ -640,15 +467,15 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         a, b = tab[tb.ALL][s].get(lo, {}).get("q"), tab[tb.ALL][s].get(hi, {}).get("q")
         if not (a and b and a.get("mean") is not None and b.get("mean") is not None):
             continue
-        if c["wilcoxon_p"] < 0.05:
-            verdict = "lower" if c["mean_diff_deg"] < 0 else "higher"
+        if c["min_p"] >= 0.05:
+            test = f"too few postures for a test: p ≥ {c['min_p']:.2g} whatever the data"
         else:
-            verdict = "no significant difference"
+            verdict = ("significantly " + ("lower" if c["mean_diff_deg"] < 0 else "higher")
+                       if c["wilcoxon_p"] < 0.05 else "no significant difference")
+            test = f"{verdict}: Wilcoxon signed-rank p = {c['wilcoxon_p']:.2g} over the postures, one fit each"
         says.append(
-            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo} "
-            f"({verdict}: paired difference {c['mean_diff_deg']:+.2f}°, 95 % bootstrap CI "
-            f"[{c['ci95_deg'][0]:+.2f}, {c['ci95_deg'][1]:+.2f}]°, Wilcoxon signed-rank p = "
-            f"{c['wilcoxon_p']:.2g}, n = {c['n']} trials)."
+            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo}, lower in "
+            f"{c['n_lower']} of {c['n']} postures (mean paired difference {c['mean_diff_deg']:+.2f}°; {test})."
         )
     per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
     per_p = {p: v for p, v in per_p.items() if v is not None}

@@ -1,19 +1,27 @@
-"""The learned-model file (``MODEL.json``) that ``fit`` writes and ``evaluate``/``simulate`` read."""
+"""The learned-model file (``MODEL.json``) that ``fit`` writes and ``evaluate``, ``plot`` and ``simulate`` read:
+the model, its one loader (which checks the file field by field before building the model), and its
+predictions of trials."""
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..evaluation import TrialError, evaluate_trials
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, read_json
+from ..validation import brief, check_file_size, check_n_nodes, require
 
-__all__ = ["MODEL_FORMAT", "LearnedModel", "load_model", "save_model"]
+__all__ = ["MODEL_FORMAT", "LearnedModel", "check_model_dict", "load_model", "save_model"]
 
 MODEL_FORMAT = "reachirl-model/1"
+#: a MODEL.json is a few kB (a history and a rollout at most a few MB); a larger file is not one
+MAX_MODEL_BYTES = 64 * 1024**2
 
 
 @dataclass(frozen=True)
@@ -39,6 +47,25 @@ class LearnedModel:
     def n_windows(self) -> int:
         return self.weights.shape[0]
 
+    @property
+    def observe(self) -> bool:
+        """Whether the fit compared its rollouts as recorded (cut at the trials' speed threshold); its predictions
+        are then cut the same way."""
+        return bool(self.info.get("observe", False))
+
+    @property
+    def rollout_q(self) -> np.ndarray | None:
+        """The fit's own reach ``(n_nodes + 1, 2)`` (rad), each prediction's cold start; None when not recorded."""
+        r = self.info.get("rollout_q")
+        return None if r is None else np.asarray(r, dtype=float)
+
+    def evaluate(self, trials: Sequence, backend: str = "casadi",
+                 on_trial: Callable[[TrialError], None] | None = None) -> list[TrialError]:
+        """Each trial predicted from its own start as the model was fitted (:attr:`observe`, from
+        :attr:`rollout_q`), with its RMSE: :func:`reachirl.evaluation.evaluate_trials` under this model."""
+        return evaluate_trials(self.weights, trials, n_nodes=self.n_nodes, backend=backend, on_trial=on_trial,
+                               observe=self.observe, path=self.rollout_q)
+
 
 def save_model(path: str | Path, model: LearnedModel) -> Path:
     atomic_write_json(
@@ -57,14 +84,68 @@ def save_model(path: str | Path, model: LearnedModel) -> Path:
     return Path(path)
 
 
+def check_model_dict(d, path) -> None:
+    """The content of a MODEL.json, field by field, before the model is built from it; raises
+    :class:`~reachirl.errors.InputError` naming the file and the field."""
+    require(isinstance(d, dict), f"expected a JSON object (a reachirl model), found a {type(d).__name__}", path)
+    require(d.get("format") == MODEL_FORMAT, f"not a reachirl model file (expected format {MODEL_FORMAT!r})", path)
+    feats = d.get("features")
+    require(
+        isinstance(feats, list) and all(isinstance(f, str) for f in feats),
+        f"field 'features': expected a list of the {len(FEATURES)} feature names, found {brief(feats)}",
+        path,
+    )
+    require(list(feats) == list(FEATURES), f"feature list {feats} differs from {list(FEATURES)}", path)
+    if "n_nodes" in d:
+        check_n_nodes(d["n_nodes"], path, "field 'n_nodes'")
+    n_nodes = int(d.get("n_nodes", 100))
+    w = d.get("weights")
+    require(isinstance(w, list) and len(w) > 0, f"field 'weights': expected a list of rows, found {brief(w)}", path)
+    for i, row in enumerate(w):
+        require(
+            isinstance(row, list)
+            and len(row) == len(FEATURES)
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in row),
+            f"field 'weights', row {i}: expected {len(FEATURES)} numbers, found {brief(row)}",
+            path,
+        )
+        for j, v in enumerate(row):
+            require(
+                math.isfinite(float(v)) and float(v) >= 0,
+                f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {brief(v)}",
+                path,
+            )
+    require(any(float(v) > 0 for row in w for v in row),
+            "field 'weights': all weights are zero, so the DOC would have no cost to minimise", path)
+    require(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals",
+            path)
+    if "n_windows" in d:
+        require(d["n_windows"] == len(w), f"field 'n_windows' = {brief(d['n_windows'])} but 'weights' has "
+                f"{len(w)} rows", path)
+    for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
+        if key in d:
+            require(isinstance(d[key], typ), f"field '{key}': expected {name}, found {brief(d[key])}", path)
+    observe = d.get("info", {}).get("observe")
+    require(observe is None or isinstance(observe, bool),
+            f"field 'info.observe': expected true or false, found {brief(observe)}", path)
+    rollout = d.get("info", {}).get("rollout_q")
+    if rollout is not None:
+        ok = (isinstance(rollout, list) and len(rollout) == n_nodes + 1
+              and all(isinstance(r, list) and len(r) == 2 for r in rollout))
+        require(ok, f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
+                f"{brief(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}", path)
+        for i, r in enumerate(rollout):
+            require(all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
+                    f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}", path)
+
+
 def load_model(path: str | Path) -> LearnedModel:
-    d = read_json(path)
-    if not isinstance(d, dict) or d.get("format") != MODEL_FORMAT:
-        raise InputError(f"not a reachirl model file (expected format {MODEL_FORMAT!r})", path)
-    if "features" not in d or "weights" not in d:
-        raise InputError("model lacks its 'features' or 'weights' entry", path)
-    if list(d["features"]) != list(FEATURES):
-        raise InputError(f"feature list {d.get('features')} differs from {list(FEATURES)}", path)
+    """The model in the MODEL.json at ``path``, once the file's size and every field of its content are checked
+    (:func:`check_model_dict`); any problem is an :class:`~reachirl.errors.InputError` naming the file."""
+    p = Path(path)
+    check_file_size(p, MAX_MODEL_BYTES)
+    d = read_json(p)
+    check_model_dict(d, p)
     try:
         return LearnedModel(
             weights=np.asarray(d["weights"], dtype=float),

@@ -1,0 +1,249 @@
+"""What a finished run's results say, computed and never written (:mod:`reachirl.experiments.report` writes it):
+
+* :func:`truth_comparison` and :func:`prediction_agreement` — virtual subjects: the learned weights against the
+  true ones, as cost shares on the true weights' own reach and as predictions (these solve DOCs);
+* :func:`paired_comparison` and :func:`section_comparisons` — the most against the fewest sections, paired by
+  posture;
+* :func:`methods_run` — what each method's units ran (:func:`reachirl.experiments.method.unit_method`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..features import FEATURES
+from .datasets import Dataset
+from .method import unit_method
+from .protocol import SETS, _cost_shares
+from .results import RunResult, load_unit_arrays
+from .tables import natural_key
+
+__all__ = [
+    "AGREEMENT_MAX_TRIALS",
+    "methods_run",
+    "paired_comparison",
+    "prediction_agreement",
+    "reference_features",
+    "section_comparisons",
+    "true_weights",
+    "truth_comparison",
+]
+
+
+def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
+    """Mean true weights ``(n_windows, 7)`` of the given trials (``truth.json`` of virtual subjects), matched
+    on the trial file's stem; the nominal weights when none match; ``None`` without truth."""
+    if not truth:
+        return None
+    by_stem = {}
+    for subj in (truth.get("subjects") or {}).values():
+        for recs in (subj.get("trials") or {}).values():
+            for r in recs:
+                by_stem[Path(str(r.get("file", ""))).stem] = r.get("weights")
+    ws = [by_stem[i] for i in trial_ids if by_stem.get(i) is not None]
+    if ws:
+        return np.mean(np.asarray(ws, dtype=float), axis=0)
+    nominal = (truth.get("truth") or {}).get("nominal_weights")
+    return None if nominal is None else np.asarray(nominal, dtype=float)
+
+
+def _observes(unit: dict) -> bool:
+    """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
+    from .protocol import unit_observes
+
+    return unit_observes(unit["method"], unit.get("estimator_options", ()))
+
+
+def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
+                       observe: bool = False) -> np.ndarray | None:
+    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
+    and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
+    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
+    (:mod:`reachirl.observation`), as an observed unit predicts its trials, so its windows are the
+    demonstrations'; otherwise the DOC over the mean duration.
+
+    Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
+    of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
+    shares on Φ* credit the true weights with costs that hardly shape their own reach."""
+    from ..data.trial import trial_from_solution
+    from ..doc import solve_doc
+    from ..irl.moirl import mean_task
+    from ..observation import common_threshold, rest_to_rest
+    from ..observation import observe as seen_as_recorded
+
+    task = mean_task(trials, n_nodes)
+    try:
+        threshold = common_threshold(trials) if observe else None
+    except ValueError:  # cut at different thresholds: no one way to see the reach
+        threshold = None
+    if threshold is not None:
+        task = rest_to_rest(task)
+    sol = solve_doc(task, weights, backend=backend)
+    if not sol.converged:
+        return None
+    reach = (seen_as_recorded(sol, task, threshold) if threshold is not None
+             else trial_from_solution(sol, task.arm, task.target_x))
+    return reach.features(n_nodes, weights.shape[0])
+
+
+def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
+    """Learned vs true cost shares for the units whose section count equals the truth's windows, both on the
+    true weights' own noise-free reach, seen as the unit sees its trials (:func:`reference_features`; the
+    demonstrations' Φ* if that DOC fails)."""
+    learned, true, metrics = {}, {}, {}
+    if dataset.truth is None:
+        return learned, true, metrics
+    n_true = int(dataset.truth.get("n_windows", 0) or 0)
+    by_id = {t.id: t for t in dataset.trials}
+    for r in sorted(results.values(), key=lambda r: natural_key(r["unit"]["posture"])):
+        u = r["unit"]
+        if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
+            continue
+        train = [by_id[t["id"]] for t in r["sets"]["train"]["trials"] if t["id"] in by_id]
+        if not train:
+            continue
+        w_true = true_weights(dataset.truth, [t.trial_id for t in train])
+        if w_true is None or w_true.shape != (n_true, len(FEATURES)):
+            continue
+        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
+        on = "true_rollout"
+        if phi is None:
+            phi, on = np.asarray(r["demo_features"]), "demonstrations"
+        s_true = _cost_shares(w_true, phi)
+        s_learned = _cost_shares(np.asarray(r["weights"], dtype=float), phi)
+        p = u["posture"]
+        learned[p], true[p] = s_learned, s_true
+        tv = 0.5 * np.abs(s_learned - s_true).sum(axis=1)  # total variation per window, in [0, 1]
+        a, b = s_learned.ravel() - s_learned.mean(), s_true.ravel() - s_true.mean()
+        corr = float(a @ b / np.sqrt((a @ a) * (b @ b))) if (a @ a) > 0 and (b @ b) > 0 else None
+        dom_l, dom_t = s_learned.argmax(axis=1), s_true.argmax(axis=1)
+        metrics[p] = {
+            "sections": n_true,
+            "shares_on": on,
+            "mean_total_variation": float(tv.mean()),
+            "share_correlation": corr,
+            "dominant_feature_agreement": float(np.mean(dom_l == dom_t)),
+            "learned_dominant": [FEATURES[i] for i in dom_l],
+            "true_dominant": [FEATURES[i] for i in dom_t],
+        }
+    return learned, true, metrics
+
+
+AGREEMENT_MAX_TRIALS = 40
+"""At most this many trials per set (evenly spaced in the set's order) are predicted again under the true
+weights, so that a Berret-size run spends seconds, not minutes, on the comparison."""
+
+
+def prediction_agreement(run: RunResult, method: str, postures) -> dict:
+    """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
+
+    For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
+    :data:`AGREEMENT_MAX_TRIALS`, evenly spaced) are predicted again under the nominal true weights
+    (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``). Returns
+    ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
+    (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
+    truth."""
+    from ..evaluation import evaluate_trials, rmse_deg
+
+    truth = run.dataset.truth or {}
+    nominal = (truth.get("truth") or {}).get("nominal_weights")
+    n_true = int(truth.get("n_windows", 0) or 0)
+    if nominal is None:
+        return {}
+    w_true = np.asarray(nominal, dtype=float)
+    by_id = {t.id: t for t in run.dataset.trials}
+    out: dict = {}
+    for r in run.results.values():
+        u = r["unit"]
+        if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
+            continue
+        arrays = load_unit_arrays(run.out_dir, r["key"])
+        observe = _observes(u)
+        per_set = {}
+        for name in SETS:
+            if f"{name}/pred_q" not in arrays:
+                continue
+            ids = [str(i) for i in arrays[f"{name}/ids"]]
+            rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
+            ids = [ids[k] for k in rows]
+            recs = {e["id"]: e for e in r["sets"][name]["trials"]}
+            trials = [by_id[i] for i in ids]
+            true = evaluate_trials(w_true, trials, u["n_nodes"], backend=u["backend"], observe=observe)
+            both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
+            if not both:
+                continue
+            learned_q = arrays[f"{name}/pred_q"][rows].astype(float)
+            per_set[name] = {
+                "n": len(both),
+                "learned_vs_true_deg": float(np.mean([rmse_deg(learned_q[k], true[k].prediction.q)[2] for k in both])),
+                "true_vs_recorded_deg": float(np.mean([true[k].rmse_q for k in both])),
+                "learned_vs_recorded_deg": float(np.mean([recs[ids[k]]["rmse_deg"]["q"] for k in both])),
+            }
+        if per_set:
+            out[u["posture"]] = per_set
+    return out
+
+
+def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: int, hi: int,
+                      postures: Sequence[str]) -> dict | None:
+    """``hi`` against ``lo`` sections, paired by posture. Each posture has one fit per section count, and the
+    trials a fit predicts share its weights, so they are not independent samples: the unit compared is the
+    posture, through its mean RMSE of q over the trials both fits predicted.
+
+    Returns ``{"n"`` (postures), ``"per_posture"`` (the differences, deg; negative: ``hi`` is lower),
+    ``"mean_diff_deg"``, ``"n_lower"`` (postures where ``hi`` is lower), ``"wilcoxon_p"`` (exact two-sided
+    signed-rank p over the postures; with ``n`` postures it is never below ``2 / 2ⁿ``), ``"min_p"``, ``"test"}``;
+    ``None`` with fewer than 2 postures that both fits predicted."""
+    from scipy.stats import wilcoxon
+
+    def per_posture(n):
+        out: dict = {}
+        for r in results.values():
+            u = r["unit"]
+            if u["method"] == method and u["sections"] == n and u["posture"] in postures:
+                out[u["posture"]] = {t["id"]: t["rmse_deg"]["q"] for t in r["sets"][set_name]["trials"]
+                                     if t["rmse_deg"]["q"] is not None}
+        return out
+
+    a, b = per_posture(lo), per_posture(hi)
+    diffs = {}
+    for p in sorted(set(a) & set(b), key=natural_key):
+        ids = sorted(set(a[p]) & set(b[p]))
+        if ids:
+            diffs[p] = float(np.mean([b[p][i] for i in ids]) - np.mean([a[p][i] for i in ids]))
+    if len(diffs) < 2:
+        return None
+    d = np.array(list(diffs.values()))
+    p_value = float(wilcoxon(d, method="exact").pvalue) if np.any(d != 0) else 1.0
+    return {"n": len(d), "per_posture": diffs, "mean_diff_deg": float(d.mean()), "n_lower": int(np.sum(d < 0)),
+            "wilcoxon_p": p_value, "min_p": 2.0 / 2 ** len(d),
+            "test": "exact two-sided Wilcoxon signed-rank over postures (one fit each), on each posture's mean "
+                    "RMSE of q over the trials both fits predicted"}
+
+
+def section_comparisons(run: RunResult) -> dict:
+    """Paired comparisons of the most against the fewest sections, per set, for every method."""
+    sections = list(run.config.sections)
+    lo, hi = min(sections), max(sections)
+    if lo == hi:
+        return {}
+    out = {}
+    for m in run.config.methods:
+        for s in SETS:
+            c = paired_comparison(run.results, m, s, lo, hi, run.postures)
+            if c is not None:
+                out.setdefault(m, {})[s] = {"sections": [lo, hi], **c}
+    return out
+
+
+def methods_run(run: RunResult) -> dict:
+    """Per method, what its units ran (:func:`reachirl.experiments.method.unit_method`; None for a baseline)."""
+    out: dict = {}
+    for r in sorted(run.results.values(), key=lambda r: r["key"]):
+        u = r["unit"]
+        if u["method"] not in out:
+            out[u["method"]] = unit_method(u["method"], u.get("estimator_options"), u.get("tol"), tasks=1)
+    return out
