@@ -27,7 +27,7 @@ def test_every_option_has_help_with_its_default(name):
     assert sp.description, f"{name} has no description"
     assert "``" not in sp.format_help()
     for a in sp._actions:
-        if isinstance(a, argparse._HelpAction):
+        if isinstance(a, argparse._HelpAction) or a.help == argparse.SUPPRESS:  # run-file keys: the description
             continue
         assert a.help, f"{name} {a.option_strings or a.dest} has no help"
         if a.option_strings and not a.required and not isinstance(a, argparse._StoreTrueAction):

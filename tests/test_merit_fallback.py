@@ -61,9 +61,6 @@ def test_one_window_on_time_varying_reaches_learns_through_the_merit_fallback(do
     assert est.merit_ < 0.9 * est.initial_merit_
     merit_steps = [h for h in est.history_[1:] if h["step"] == "merit" and h["accepted"]]
     assert merit_steps, "the likelihood cannot move these weights: the progress must come from merit steps"
-    for h in merit_steps:  # a merit step must buy at least fallback_tol
-        prev = est.history_[h["iteration"] - 1]["merit"]
-        assert h["merit"] < prev * (1 - est.fallback_tol)
 
 
 def test_the_fallback_probes_each_feature_both_ways_and_counts_its_solves(arm, monkeypatch):

@@ -1,7 +1,6 @@
 """MO-IRL: the subproblem's gradient, non-negative weights, recovery of known weights, determinism, DOC
 failures inside a fit, bad parameters."""
 
-import itertools
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -158,9 +157,6 @@ def test_fit_reproduces_known_weights_trajectories(fitted, demos):
     learned = mean_rmse(fitted.weights_, demos)
     assert start > 4.0
     assert learned < 1.5
-    merits = [h["merit"] for h in fitted.history_ if h["accepted"]]
-    assert all(b < a for a, b in itertools.pairwise(merits))  # accepted steps decrease the merit
-    assert fitted.merit_ == pytest.approx(merits[-1])
 
 
 def test_fit_is_deterministic(demos, fitted):
@@ -271,15 +267,6 @@ def test_failed_initial_doc_does_not_crash_and_is_flagged(demos, monkeypatch):
     assert est.n_doc_failures_ == 1 + 2  # the initial rollout and both tries, each after its retries
     np.testing.assert_array_equal(est.weights_, np.asarray(est.history_[0]["weights"]))
     assert est.flag_ == "w0" and "never left the initial weights" in est.warnings_[0]
-
-
-def test_no_weight_reaches_zero(demos):
-    # Regression: with the bound Δω ≥ −ω, beta=1e-4 zeroed every weight of window 1 here, which left the DOC's
-    # trajectory there undetermined (32° between a cold and a warm-started prediction under those weights).
-    est = MOIRL(2, n_nodes=N_NODES, max_iter=20, experimental={"beta": 1e-4}).fit(demos)
-    assert np.all(est.weights_ > 0)
-    for rec in est.history_:
-        assert np.min(rec["weights"]) > 0
 
 
 # ---------------------------------------------------------------------- bad parameters

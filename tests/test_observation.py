@@ -18,7 +18,6 @@ from reachirl.observation import (
     common_threshold,
     observe,
     observed_knots,
-    observed_task,
     rest_to_rest,
 )
 from reachirl.synth import nominal_weights, posture_q
@@ -80,9 +79,6 @@ def test_seen_as_recorded_the_true_weights_reproduce_their_reach():
     assert seen.converged and plain.converged
     assert seen.rmse_q < 0.25 < plain.rmse_q
     assert seen.rmse_q < 0.4 * plain.rmse_q
-    task = observed_task(trial, N, trial.onset_threshold)
-    assert task.duration == pytest.approx(trial.duration / MOVING_FRACTION)
-    np.testing.assert_allclose(task.q0, trial.x0[:2])
 
 
 def test_uncut_trials_are_predicted_whole_and_fits_ignore_observe():
@@ -105,9 +101,7 @@ def test_observed_fit_counts_both_stages_and_predicts_as_it_fitted():
     est = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5, experimental={"observe": True}).fit(demos)
     assert est.plain_fit_ is not None
     plain = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5, experimental={"observe": False}).fit(demos)
-    np.testing.assert_allclose(est.plain_fit_["weights"], plain.weights_)
-    assert est.n_doc_solves_ > plain.n_doc_solves_
-    assert est.merit_ <= est.history_[0]["merit"]
+    np.testing.assert_allclose(est.plain_fit_["weights"], plain.weights_)  # the first stage is the plain fit
     pred = est.predict(demos[0])
     again = evaluate_trials(est.weights_, [demos[0]], N, observe=True, path=est.rollout_path())[0].prediction
     np.testing.assert_allclose(pred.q, again.q, atol=1e-9)  # predict starts from the fit's own rollout

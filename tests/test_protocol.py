@@ -71,7 +71,8 @@ def test_every_unit_predicts_as_its_estimator_fits(observe):
     protocol's observe and merit; bilevel and KKT fit whole reaches, so their units predict whole reaches."""
     from reachirl.experiments.protocol import make_estimator
 
-    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"), experimental={"observe": observe, "merit": "state"})
+    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"),
+                  experimental={"observe": observe, "merit": "state"})
     for unit in make_units(["P2"], cfg):
         est = make_estimator(unit)
         assert unit.observe is bool(getattr(est, "observe", False)), unit.key
@@ -90,10 +91,6 @@ def test_run_unit_is_pure(toy):
     assert [t["rmse_deg"] for t in ra["sets"]["iscv"]["trials"]] == [
         t["rmse_deg"] for t in rb["sets"]["iscv"]["trials"]
     ]
-    assert np.asarray(ra["weights"]).shape == (2, 7)
-    assert np.allclose(np.sum(ra["cost_shares"], axis=1), 1.0)
-    assert a["arrays"]["train/pred_q"].shape == (3, 41, 2) and a["arrays"]["train/pred_q"].dtype == np.float32
-    assert ra["fit"]["doc_solves"] >= 1 and ra["history"][0]["iteration"] == 0
 
 
 def test_seed_all_row_convention():

@@ -6,7 +6,6 @@ import json
 import numpy as np
 import pytest
 
-from reachirl.data.trial import save_trials
 from reachirl.errors import InputError
 from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, make_units, split_trials

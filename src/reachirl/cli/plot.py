@@ -80,7 +80,10 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     tot = c.sum(axis=1, keepdims=True)
     shares = np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
     label = f"at {len(trials)} trial(s)"
-    _save(fg.plot_weights({(label, n): shares}, [label], [n],
+    unc = model.uncertainty
+    undetermined = None if unc is None else {
+        (label, n): ~np.asarray(unc["share_intervals"]["determined"], dtype=bool)}
+    _save(fg.plot_weights({(label, n): shares}, [label], [n], undetermined=undetermined,
                           title=f"{model.method}: each feature's share of its window's cost"),
           out, "weights", pdf, written)
     history = model.info.get("history") or []

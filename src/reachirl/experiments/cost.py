@@ -14,7 +14,7 @@ from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
 from ..irl.uncertainty import UNDETERMINED_WIDTH
 
-__all__ = ["claim_verdict", "cost_section", "write_models", "write_posture_transfer"]
+__all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
 
 ACC = FEATURES.index("joint_acceleration")
 
@@ -47,6 +47,15 @@ def claim_verdict(share_samples: np.ndarray) -> dict:
     frac = float(holds.mean())
     verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
     return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0])}
+
+
+def uncertainty_summary(unc: dict | None) -> dict | None:
+    """A unit's ``uncertainty`` for results.json: its method, intervals, what the data determines, the check and
+    the claim's verdict (the samples themselves are in the unit's model, ``models/<key>.json``)."""
+    if not unc:
+        return None
+    keep = ("method", "n_samples", "share_intervals", "determination", "prior", "checked")
+    return {k: unc[k] for k in keep if k in unc} | {"claim": claim_verdict(np.asarray(unc["share_samples"]))}
 
 
 def _truth_coverage(unc: dict, true_shares: np.ndarray) -> dict:

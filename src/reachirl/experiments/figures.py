@@ -51,11 +51,23 @@ PRED_COLOUR, DEMO_COLOUR = "tab:blue", "tab:orange"
 
 
 
-def _share_heatmap(ax, shares, feature_labels: bool):
-    """Cost shares ``(n_windows, 7)`` as a window × feature heatmap on ``ax``; returns the image."""
+CAVEAT = ("Learned weights are one cost among several that explain the reaches; hatched: undetermined (95 % "
+          "interval of the share wider than 0.25), not a finding.")
+NO_SAMPLES = "No weight samples (fit --uncertainty): no share here is a finding."
+
+
+def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
+    """Cost shares ``(n_windows, 7)`` as a window × feature heatmap on ``ax``, the ``undetermined`` cells (booleans
+    of the same shape) hatched; returns the image."""
+    from matplotlib.patches import Rectangle
+
     s = np.asarray(shares)
     im = ax.imshow(s.T, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest",
                    extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5))
+    if undetermined is not None:
+        for w, j in zip(*np.nonzero(np.asarray(undetermined, dtype=bool)), strict=True):
+            ax.add_patch(Rectangle((w + 0.5, j - 0.5), 1, 1, fill=False, hatch="///", edgecolor="white",
+                                   linewidth=0, alpha=0.6))
     ax.set_xticks(range(1, s.shape[0] + 1))
     ax.tick_params(labelsize=9)
     ax.set_yticks(range(len(FEATURES)))
@@ -125,10 +137,11 @@ def _mark_flag(ax, flag: str | None) -> None:
 
 
 def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = "",
-                 flags: dict | None = None):
+                 flags: dict | None = None, undetermined: dict | None = None):
     """``shares[(posture, sections)] = (n_windows, 7)`` cost shares; one heatmap per posture (columns) and
     section count (rows): features on the y axis, windows on the x axis. ``flags[(posture, sections)]`` marks
-    fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``)."""
+    fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``); ``undetermined[(posture, sections)]``
+    (booleans ``(n_windows, 7)``) hatches the shares whose interval is wide. The caveat is written under it."""
     fig, axes = _grid(
         axes, len(sections), len(postures), (2.4 * len(postures) + 2.2, 2.6 * len(sections) + 0.8)
     )
@@ -140,7 +153,7 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
             if s is None:
                 ax.set_axis_off()
                 continue
-            im = _share_heatmap(ax, s, feature_labels=c == 0)
+            im = _share_heatmap(ax, s, feature_labels=c == 0, undetermined=(undetermined or {}).get((p, n)))
             _mark_flag(ax, (flags or {}).get((p, n)))
             if r == 0:
                 ax.set_title(p, fontsize=10)
@@ -153,6 +166,7 @@ def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int],
         cb.set_label("share of the window's cost", fontsize=10)
         cb.ax.tick_params(labelsize=9)
     fig.suptitle(title or "Learned weights (each feature's share of its window's cost)", fontsize=11)
+    fig.text(0.01, 0.0, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
     return fig
 
 
@@ -223,17 +237,20 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
     return fig
 
 
-def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None):
+def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None,
+               undetermined: dict | None = None):
     """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
     (bottom), postures in natural order (P2 before P10). ``flags[posture]`` marks learned panels whose fit
-    never left ω₀ or made one step."""
+    never left ω₀ or made one step; ``undetermined[posture]`` hatches the learned shares whose interval is
+    wide."""
     postures = sorted((p for p in learned if p in true), key=natural_key)
     fig, axes = _grid(axes, 2, max(1, len(postures)), (2.5 * max(1, len(postures)) + 1.5, 5.2))
     im = None
     for c, p in enumerate(postures):
         for r, (label, d) in enumerate((("learned", learned), ("true", true))):
             ax = axes[r, c]
-            im = _share_heatmap(ax, d[p], feature_labels=c == 0)
+            im = _share_heatmap(ax, d[p], feature_labels=c == 0,
+                                undetermined=(undetermined or {}).get(p) if r == 0 else None)
             if r == 0:
                 ax.set_title(p, fontsize=9)
                 _mark_flag(ax, (flags or {}).get(p))
@@ -244,6 +261,7 @@ def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dic
     if im is not None:
         fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
     fig.suptitle(title or "Virtual subjects: learned vs true weights (cost shares)")
+    fig.text(0.01, 0.0, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
     return fig
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
+from .cost import uncertainty_summary
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .method import convergence_text, method_lines, unit_method
@@ -211,7 +212,10 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
     if shares:
         flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
                  for r in results.values() if r["unit"]["method"] == main}
-        _save_figure(fg.plot_weights(shares, postures, sections, flags=flags), fig_dir, "fig3_weights.png", pdf)
+        undetermined = {(r["unit"]["posture"], r["unit"]["sections"]): _undetermined(r)
+                        for r in results.values() if r["unit"]["method"] == main and r.get("uncertainty")}
+        _save_figure(fg.plot_weights(shares, postures, sections, flags=flags, undetermined=undetermined or None),
+                     fig_dir, "fig3_weights.png", pdf)
         figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
@@ -247,9 +251,12 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         n_true = next(iter(truth_metrics.values()))["sections"]
         truth_flags = {r["unit"]["posture"]: r.get("flag") for r in results.values()
                        if r["unit"]["method"] == main and r["unit"]["sections"] == n_true}
+        truth_undetermined = {r["unit"]["posture"]: _undetermined(r) for r in results.values()
+                              if r["unit"]["method"] == main and r["unit"]["sections"] == n_true
+                              and r.get("uncertainty")}
         _save_figure(fg.plot_truth(learned, true, title=f"Virtual subjects, {n_true} sections: learned vs true "
-                                   "weights (cost shares)", flags=truth_flags), fig_dir, "weights_vs_truth.png",
-                     pdf)
+                                   "weights (cost shares)", flags=truth_flags,
+                                   undetermined=truth_undetermined or None), fig_dir, "weights_vs_truth.png", pdf)
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
             "both on the features of the true weights' own noise-free reach; true weights = mean of the "
@@ -302,6 +309,8 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
                     s: {"summary": r["sets"][s]["summary"], "trials": r["sets"][s]["trials"]} for s in SETS
                 },
                 "predictions": f"units/{r['key']}.npz",
+                "model": f"models/{r['key']}.json",
+                "uncertainty": uncertainty_summary(r.get("uncertainty")),
             }
         )
     results_json = {
@@ -558,3 +567,8 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         "",
     ]
     return "\n".join(lines)
+
+
+def _undetermined(result: dict) -> np.ndarray:
+    """The shares of a unit's fit whose 95 % interval is wide (``uncertainty.share_intervals.determined``)."""
+    return ~np.asarray(result["uncertainty"]["share_intervals"]["determined"], dtype=bool)
