@@ -149,3 +149,14 @@ def test_coverage_of_the_true_shares_on_a_small_virtual_set(recorded):
         hi = np.array(est.uncertainty_["share_intervals"]["high"])
         cover.append(np.mean((true >= lo - 0.005) & (true <= hi + 0.005)))
     assert np.mean(cover) >= 0.75, cover
+
+
+def test_a_pooled_fit_says_how_much_pooling_narrows_the_intervals(recorded):
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"])
+    est = MOIRL(2, n_nodes=40, max_iter=2, uncertainty=20).fit(trials)
+    pooling = est.uncertainty_["pooling"]
+    assert sorted(pooling["per_task"]) == ["S01/P2", "S01/P4"]
+    for rec in (pooling["pooled"], *pooling["per_task"].values()):
+        assert 0 <= rec["mean_width"] <= 1 and 0 <= rec["undetermined_fraction"] <= 1
+    # more demonstrations determine at least as much: the pooled Gauss-Newton model adds the tasks' curvatures
+    assert pooling["pooled"]["n_determined"] >= min(r["n_determined"] for r in pooling["per_task"].values())

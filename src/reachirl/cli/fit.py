@@ -117,6 +117,11 @@ def run(args: argparse.Namespace) -> int:
         det = unc["determination"]
         extra = (f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
                  "directions determined by the trials")
+        if unc.get("pooling"):
+            alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]
+            pooled = unc["pooling"]["pooled"]["mean_width"]
+            extra += (f"; pooling {len(alone)} tasks: mean share-interval width {pooled:.2f} against "
+                      f"{min(alone):.2f}-{max(alone):.2f} from each task alone")
     print(f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
           f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
           + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "") + extra)

@@ -210,7 +210,9 @@ def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_che
     Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
     units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
     ``n_interval`` draws, on the fit's own reach, and whether each is determined), ``share_samples``,
-    ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked`` and ``doc_solves``."""
+    ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked``, ``doc_solves`` and, for several
+    tasks, ``pooling``: the same intervals' mean width and determined directions from each task's demonstrations
+    alone beside the pooled ones (how much pooling narrows them)."""
     rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED]))
     free = est._movable(est._w_fit.shape)
     cols = np.flatnonzero(free.reshape(-1))
@@ -230,6 +232,18 @@ def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_che
     phi = np.mean(est._features(est.tasks_, est.train_solutions_, np.array([0])), axis=0)
     samples = draw(n_samples)
     shares = _shares(draw(n_interval), phi)
+    pooling = None
+    if len(est.tasks_) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
+        pooling = {"pooled": _width_record(det, share_intervals(shares)), "per_task": {}}
+        for g, task_trials in _task_names(est, trials).items():
+            rows = est.task_of_demo_ == g
+            det_g = determination(r[rows], J[rows], free)
+            mean_g, cov_g, _ = laplace_posterior(r[rows], J[rows], eta_hat[cols], eta_prior[cols])
+            Lg = np.linalg.cholesky(cov_g + 1e-12 * np.eye(cov_g.shape[0]))
+            eta = np.tile(eta_hat, (n_interval, 1))
+            eta[:, cols] = mean_g + (Lg @ rng.standard_normal((cols.size, n_interval))).T
+            w_g = est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape))
+            pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(_shares(w_g, phi)))
     errors_fit = np.sum(r**2, axis=1)
     passed = solves = 0
     for w in samples[:n_check]:
@@ -250,7 +264,22 @@ def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_che
         "likelihood_tau": float(tau),
         "checked": {"solved": min(n_check, n_samples), "indistinguishable": int(passed)},
         "doc_solves": int(solves),
+        "pooling": pooling,
     }
+
+
+def _width_record(det: Determination, intervals: dict) -> dict:
+    width = np.asarray(intervals["high"]) - np.asarray(intervals["low"])
+    return {"n_determined": int(det.n_determined), "mean_width": float(width.mean()),
+            "undetermined_fraction": float(1.0 - np.mean(intervals["determined"]))}
+
+
+def _task_names(est, trials) -> dict[int, str]:
+    """Each rollout's task as ``subject/posture`` (``per_demo``: the trial's id)."""
+    names = {}
+    for t, g in zip(trials, est.task_of_demo_, strict=True):
+        names.setdefault(int(g), t.id if est.rollout == "per_demo" else f"{t.subject}/{t.posture}")
+    return names
 
 
 def _errors(est, states: list[np.ndarray]) -> np.ndarray:
