@@ -38,7 +38,12 @@ def cache_root() -> Path:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it is removed."""
+    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it is removed.
+
+    Nothing is replaced once the command has been interrupted (:func:`reachirl.errors.raise_if_signalled`): work
+    finished after a Ctrl-C or SIGTERM that compiled code swallowed never becomes an output or a checkpoint."""
+    from .errors import raise_if_signalled
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
@@ -49,6 +54,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a result file gets the usual permissions
     try:
         yield tmp
+        raise_if_signalled()
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
