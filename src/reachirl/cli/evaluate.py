@@ -9,12 +9,13 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
+from ..data.checks import check_model_rollout
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
 from ..io import atomic_write_json
-from ..validation import check_output_file, load_model_checked
-from ._args import add_selection, chosen_trials
+from ..validation import check_output_dir, check_output_file, load_model_checked
+from ._args import add_selection, chosen_trials, export_names, output_folder_files, refuse_overwrite
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -60,10 +61,17 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 def run(args: argparse.Namespace) -> int:
     check_output_file(args.out)
-    if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
-        raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
+    if args.predictions is not None:
+        if args.predictions.exists() and not args.predictions.is_dir():
+            raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
+        check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
+    refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
     model = load_model_checked(args.model)
+    check_model_rollout(model, args.model)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
+    if args.predictions is not None:
+        names = export_names(tr.id for tr in trials)
+        output_folder_files(args.predictions, names, [args.model, args.trials, args.out], "--predictions")
     rollout = model.info.get("rollout_q")  # the fit's own reach, each prediction's cold start
     rollout = None if rollout is None else np.asarray(rollout, dtype=float)
     with Progress(transient=True, console=Console(stderr=True)) as progress:

@@ -11,7 +11,7 @@ from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
-from ._args import add_selection, chosen_trials, int_in
+from ._args import add_selection, chosen_trials, int_in, refuse_overwrite
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -83,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
 
     console = Console(stderr=True)
     check_output_file(args.out)
+    refuse_overwrite({"--out": args.out}, [args.trials])
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")

@@ -20,7 +20,7 @@ import time
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, number_in, positive_int
+from ._args import int_in, non_negative_int, number_in, positive_int, refuse_overwrite
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
@@ -299,6 +299,7 @@ def run(args) -> int:
     from ..validation import check_output_dir
 
     out = check_output_dir(args.out)
+    refuse_overwrite({"--out": out}, [args.data])
     _check_scheduler(args.scheduler)
     config = _config(args)
     too_many = [n for n in config.sections if n > config.n_nodes]

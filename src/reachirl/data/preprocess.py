@@ -644,6 +644,11 @@ def reconstruct_markers(
     basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
 
+    if subject_info is not None:  # lengths given in the subject info must agree with the markers'
+        from .checks import check_segment_lengths
+
+        ua, fa, hand = info.lengths(side)
+        check_segment_lengths({"upper_arm_m": ua, "forearm_m": fa, "hand_m": hand}, lengths, src, info.subject)
     arm = build_arm(info, side, lengths)
     if options.ik == "segments":
         q = planar_ik_segments(planar["elbow"], planar[options.distal])
