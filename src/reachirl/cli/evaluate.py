@@ -13,6 +13,7 @@ from ..data.checks import check_model_rollout
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise
+from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..validation import check_output_dir, check_output_file, load_model_checked
 from ._args import add_selection, chosen_trials, export_names, output_folder_files, refuse_overwrite
@@ -80,7 +81,9 @@ def run(args: argparse.Namespace) -> int:
                                  on_trial=lambda e: progress.advance(task),
                                  observe=bool(model.info.get("observe", False)), path=rollout)
     summary = summarise(errors, include_failed=args.include_failed)
-    atomic_write_json(args.out, {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
+    # a mean that cannot be computed (every DOC failed) is written with its reason, never a bare null
+    atomic_write_json(args.out, annotate_no_data(
+        {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]}))
     r = summary["rmse_deg"]
     fails = summary["doc_failures"]
     how = "included in" if args.include_failed else "left out of"

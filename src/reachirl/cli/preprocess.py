@@ -141,6 +141,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _options(args) -> PreprocessOptions:
+    up, fwd = (a.strip().lower().lstrip("+-") if a else None for a in (args.up_axis, args.forward_axis))
+    if up is not None and up == fwd:
+        raise InputError(f"--up-axis {args.up_axis} and --forward-axis {args.forward_axis} are the same lab axis; the "
+                         "forward axis must be horizontal, e.g. --up-axis +y --forward-axis +x")
     try:
         return PreprocessOptions(
             max_gap_frames=args.max_gap,

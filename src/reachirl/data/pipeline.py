@@ -45,9 +45,10 @@ def preprocess_entries(
     side: str | None = None,
     on_trial: Callable[[Trial], None] | None = None,
 ) -> list[Trial]:
-    """One :class:`Trial` per entry. Without ``subject_info``, Berret 2011's mean subject is used (logged)."""
+    """One :class:`Trial` per entry. Without ``subject_info``, Berret 2011's mean subject is used (logged at INFO;
+    ``reachirl preprocess`` notes it once it has written the trials)."""
     if subject_info is None:
-        log.warning("no subject info: masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)")
+        log.info("no subject info: masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)")
     statics: dict[Path, MarkerData] = {}
     trials: list[Trial] = []
     for e in entries:

@@ -449,6 +449,9 @@ def sagittal_basis(
             fwd[k] = 1.0
         else:
             fwd = forward - (forward @ up) * up
+            if np.linalg.norm(fwd) < 0.5:  # ±x, ±y, ±z: the same axis as up, or its opposite
+                raise InputError("--forward-axis is the up axis (or its opposite); with --plane axes it must be "
+                                 "a horizontal lab axis, e.g. --up-axis +y --forward-axis +x", source)
         fwd /= np.linalg.norm(fwd)
     if fwd @ displacement < 0:
         fwd = -fwd

@@ -536,7 +536,8 @@ def _markdown(out: dict) -> list[str]:
         ranks = sorted({c["rank"] for c in d["conditioning"]})
         lines.append(f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}, "
                      f"{d['n_demonstrations']} demonstrations): rank of the normalised feature differences per "
-                     f"window {'/'.join(map(str, ranks))} of 7, condition number {min(cond):.3g}–{max(cond):.3g} "
+                     f"window {'/'.join(map(str, ranks))} of 7, condition number "
+                     f"{_cond_text(min(cond))}–{_cond_text(max(cond))} "
                      f"(worst: window "
                      f"{worst['window']}, direction {' vs '.join(worst['worst_pair'])}); nearly collinear feature "
                      f"rates: {pairs}; weights with nearly collinear effects on the path (|cos| ≥ 0.9, per window): "
