@@ -70,9 +70,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--subjects",
-        type=positive_int,
+        type=int_in(2, 100),
         metavar="N",
-        help="make N built-in virtual subjects (default 2; 20 is Berret 2011's design); not with --data",
+        help="make N built-in virtual subjects, 2 to 100 (default 2; 20 is Berret 2011's design); not with --data",
     )
     p.add_argument(
         "--iscv",

@@ -27,6 +27,7 @@ import csv
 import io
 import logging
 import math
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -755,9 +756,15 @@ def read_manifest(path: str | Path) -> list[ManifestEntry]:
     path = Path(path)
     rows = _csv_dicts(path, ("file", "subject", "posture"))
     out = []
+    seen: dict[str, int] = {}
     for line, r in rows:
         if not r["file"]:
             raise InputError("empty file name", path, f"line {line}")
+        key = os.path.normpath(r["file"])
+        if key in seen:  # the same recording twice would be one reach counted twice
+            raise InputError(f"file {r['file']!r} is listed twice (lines {seen[key]} and {line})", path,
+                             f"line {line}")
+        seen[key] = line
         side = r.get("side", "").lower() or None
         if side is not None and side not in ("right", "left", "r", "l"):
             raise InputError(f"side must be right or left, got {r['side']!r}", path, f"line {line}")
