@@ -342,7 +342,7 @@ def test_a_folder_in_a_checkpoint_s_place_is_named(tmp_path):
         load_unit(tmp_path, "u", "f")
 
 
-def test_a_set_whose_dOCs_all_failed_says_so():
+def test_a_set_whose_docs_all_failed_says_so():
     from reachirl.experiments.no_data import annotate_no_data
 
     out = annotate_no_data({"train": {"summary": {"n_trials": 3, "doc_failures": 3,
