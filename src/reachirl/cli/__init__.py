@@ -1,7 +1,9 @@
 """The ``reachirl`` command line: parse, call the library, print.
 
 Each subcommand lives in its own module of this package with ``add_parser(subparsers)`` and ``run(args) -> int``.
-Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error.
+Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error;
+130 on Ctrl-C and 143 on SIGTERM, also when compiled code swallowed the interrupt (the signal is recorded, and
+nothing is written after it).
 """
 
 from __future__ import annotations
