@@ -55,10 +55,10 @@ def world(tmp_path_factory) -> Path:
     p = subprocess.run([REACHIRL, "reproduce", "--data", str(d / "trials.npz"), "--out", str(d / "run"), *RUN_ARGS],
                        capture_output=True, text=True, timeout=600, env=ENV)
     assert p.returncode == 0, p.stderr
-    many = d / "many_trc"  # 60 recordings for a preprocess long enough to interrupt
+    many = d / "many_trc"  # 600 recordings (symlinks) for a preprocess long enough to interrupt (~5 s)
     many.mkdir()
-    for k in range(60):
-        (many / f"R{k:02d}.trc").symlink_to(d / "syn" / "S01_P2_T01.trc")
+    for k in range(600):
+        (many / f"R{k:03d}.trc").symlink_to(d / "syn" / "S01_P2_T01.trc")
     return d
 
 
