@@ -39,7 +39,7 @@ _caught: list[int] = []
 # every SIGINT/SIGTERM of the command so far (note_signal), whatever code was running when it arrived
 _signalled: list[int] = []
 _tracking: list[bool] = []
-_GUARDED = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
+_GUARDED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGALRM") if hasattr(signal, n))
 
 
 def track_signals(on: bool) -> None:
@@ -112,6 +112,16 @@ class _MutedAfter:
         return getattr(self._stream, name)
 
 
+def _block():
+    """Block the guarded signals (where the platform can); returns the mask to restore."""
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _GUARDED) if hasattr(signal, "pthread_sigmask") else None
+
+
+def _unblock(mask) -> None:
+    if mask is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
 @contextlib.contextmanager
 def solver_interrupts(stop_solver: bool = True) -> Iterator[None]:
     """Around a call into a compiled solver: a signal that arrives meanwhile is raised when the call returns,
@@ -137,24 +147,24 @@ def solver_interrupts(stop_solver: bool = True) -> Iterator[None]:
         if stop_solver and len(caught) == 1:
             raise KeyboardInterrupt
 
-    mask = signal.pthread_sigmask(signal.SIG_BLOCK, _GUARDED)
+    mask = _block()
     try:
         previous = {sig: signal.signal(sig, handler) for sig in _GUARDED if _guarded(sig)}
         outer, stderr = list(_caught), sys.stderr
         _caught.clear()
         sys.stderr = _MutedAfter(stderr, caught)  # CasADi prints the swallowed "KeyboardInterrupt" there
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        _unblock(mask)
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_BLOCK, _GUARDED)
+        _block()
         try:
             sys.stderr = stderr
             for sig, old in previous.items():
                 signal.signal(sig, old)
             _caught[:] = outer
         finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+            _unblock(mask)
         if caught:
             _redeliver(caught[0], previous[caught[0]])
