@@ -293,6 +293,32 @@ def attacks():
     A["reproduce:method-bogus"] = lambda: RQ("rm", "--method", "bogus")
     A["reproduce:sections-huge"] = lambda: RQ("rsh", "--sections", "500")
     A["reproduce:data-missing"] = lambda: [R, "reproduce", "--quick", "--data", str(W / "nope"), "--out", str(W / "rx")]
+    # ---- issue 34: outputs over inputs, FIFOs, truncated recordings, inconsistent inputs (tests/test_nothing_lost*.py)
+    def victim(src, name):
+        p = W / name
+        shutil.copy(src, p)
+        return str(p)
+    def fifo(name):
+        p = W / name
+        if not p.exists():
+            os.mkfifo(p)
+        return str(p)
+    A["preprocess:out-is-recording"] = lambda: (lambda v: [R, "preprocess", v, "--markers", MK, "--out", v])(victim(trc, "v.trc"))
+    A["fit:out-is-trials"] = lambda: (lambda v: [R, "fit", v, "--sections", "1", "--nodes", "30", "--out", v])(victim(T, "v.npz"))
+    A["evaluate:out-is-model"] = lambda: (lambda v: [R, "evaluate", "--model", v, T, "--out", v])(victim(M, "v.json"))
+    A["evaluate:predictions-under-file"] = lambda: ev(M, T, "--predictions", str(W / "afile" / "p"))
+    A["preprocess:fifo"] = lambda: pre(fifo("f.trc"))
+    A["evaluate:fifo-trials"] = lambda: ev(M, fifo("f.npz"))
+    A["preprocess:mot-cut-at-row"] = lambda: [R, "preprocess", mktrc2(mot, "cut.mot", lambda L: L[:100]), "--out", str(W / "p.npz")]
+    A["preprocess:mot-nrows-huge"] = lambda: [R, "preprocess", mktrc2(mot, "nr.mot", lambda L: ["nRows=999999999" if x.startswith("nRows") else x for x in L]), "--out", str(W / "p.npz")]
+    A["preprocess:trc-cut-at-row"] = lambda: pre(mktrc("cut.trc", lambda L: L[:90]))
+    A["simulate:pd-gains-huge"] = lambda: sim("--mode", "pd", "--kp", "100000", "--kd", "10000")
+    A["evaluate:npz-target-negative"] = lambda: ev(M, npz_mut("tneg.npz", meta_mut(lambda m: {**m, "trials": [{**t, "target_x": -0.3} for t in m["trials"]]})))
+    A["evaluate:npz-target-zero"] = lambda: ev(M, npz_mut("tzero.npz", meta_mut(lambda m: {**m, "trials": [{**t, "target_x": 0.0} for t in m["trials"]]})))
+    A["evaluate:npz-start-velocity-1e6"] = lambda: ev(M, npz_mut("qd0.npz", arr_mut("0/x0.npy", lambda a: np.r_[a[:2], 1e6, 0.0])))
+    A["evaluate:model-rollout-1e6"] = lambda: ev(wmodel("ro.json", model(info={**model()["info"], "rollout_q": [[1e6, 1.0]] * 31})))
+    A["sensitivity:workers-huge"] = lambda: [R, "sensitivity", str(W), "--out", str(W / "s"), "--workers", "10000"]
+    A["reproduce:subjects-huge"] = lambda: [R, "reproduce", "--quick", "--subjects", "100000", "--out", str(W / "rsub")]
     return A
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "cache_root",
+    "check_regular_file",
     "json_depth",
     "npz_bytes",
     "read_json",
@@ -46,7 +47,12 @@ def cache_root() -> Path:
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it is removed."""
+    """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it is removed.
+
+    Nothing is replaced once the command has been interrupted (:func:`reachirl.errors.raise_if_signalled`): work
+    finished after a Ctrl-C or SIGTERM that compiled code swallowed never becomes an output or a checkpoint."""
+    from .errors import raise_if_signalled
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
@@ -57,6 +63,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a result file gets the usual permissions
     try:
         yield tmp
+        raise_if_signalled()
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -94,14 +101,39 @@ def atomic_write_json(path: str | os.PathLike, obj, indent: int | None = 2) -> N
     atomic_write_text(path, json.dumps(to_jsonable(obj), indent=indent, sort_keys=False) + "\n")
 
 
+def check_regular_file(path: str | os.PathLike, option: str | None = None) -> Path:
+    """``path`` as a :class:`Path` if it is an existing regular file (symlinks followed); else
+    :class:`~reachirl.errors.InputError` naming it (and ``option``): missing, a folder, or a FIFO, device or
+    socket, which reachirl never reads (a FIFO blocks until a writer comes, a device never ends)."""
+    import stat
+
+    from .errors import InputError
+
+    p = Path(path)
+    pre = f"{option}: " if option else ""
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise InputError(f"{pre}file not found", p) from None
+    except OSError as e:
+        raise InputError(f"{pre}cannot read ({e.strerror or e})", p) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputError(f"{pre}is a directory, expected a file", p)
+    if not stat.S_ISREG(st.st_mode):
+        raise InputError(f"{pre}is not a regular file (a FIFO, device or socket); reachirl reads regular files "
+                         f"only", p)
+    return p
+
+
 def read_text(path: str | os.PathLike) -> str:
     """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
     :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
     from .errors import InputError
 
     p = Path(path)
+    check_regular_file(p)  # a FIFO would block the open() until a writer comes, a device never end
     try:
-        with open(p, "rb") as fh:  # bounded: a device such as /dev/zero never ends
+        with open(p, "rb") as fh:  # bounded
             raw = fh.read(65536)
             if b"\0" not in raw:
                 raw += fh.read(MAX_FILE_BYTES + 1 - len(raw))

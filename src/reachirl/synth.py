@@ -576,9 +576,31 @@ def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
     ctx = multiprocessing.get_context(
         "fork" if "fork" in methods and threading.active_count() == 1 else "spawn"
     )
-    with cf.ProcessPoolExecutor(max_workers=min(workers, len(groups)), mp_context=ctx) as ex:
+    ex = cf.ProcessPoolExecutor(max_workers=min(workers, len(groups)), mp_context=ctx, initializer=_worker_signals)
+    try:
         futures = [ex.submit(_simulate_group, s, p, config) for s, p in groups]
-        return [tr for f in futures for tr in f.result()]
+        trials = [tr for f in futures for tr in f.result()]
+    except BaseException:  # Ctrl-C, SIGTERM or an error: end the workers now, not after their groups
+        procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
+        ex.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=2.0)
+            if proc.is_alive():
+                proc.kill()
+        raise
+    ex.shutdown(wait=True)
+    return trials
+
+
+def _worker_signals() -> None:
+    """A generation worker: Ctrl-C is the parent's business (it ends the workers), SIGTERM ends it at once."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthResult:

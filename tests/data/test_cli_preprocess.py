@@ -152,7 +152,8 @@ def _bad_files(tmp_path, reach, synth):
         "gap_too_long": (synth.vicon_text(gap), [], r"marker EL is missing for 20 frames \(41-60\)"),
         "no_movement": (synth.vicon_text(still), [], r"no movement detected"),
         "units_wrong": (synth.vicon_text(tiny), [], r"units look wrong: .* absurdly small"),
-        "unreachable": (synth.vicon_text(good), ["--subject-info", "SHORT"], r"unreachable by the arm"),
+        "unreachable": (synth.vicon_text(good), ["--subject-info", "SHORT"],
+                        r"subject-info upper_arm_m = 0\.150 m but the markers measure 0\.300 m"),
         "unknown_subject": (
             synth.vicon_text(good),
             ["--subject-info", "OTHER"],

@@ -220,16 +220,16 @@ def test_units_look_wrong(reach, synth):
         _rec(reach, synth, markers=tiny)
 
 
-def test_unreachable_target(reach, synth):
+def test_subject_info_too_short_for_the_markers(reach, synth):
+    """Segments half the markers' lengths would make the target unreachable: refused, naming the field."""
     short = SubjectInfo("S1", "M", 1.76, 70.0, upper_arm_m=0.15, forearm_m=0.12, hand_m=0.08)
     md = MarkerData(100.0, reach.markers, source="s.trc")
-    with pytest.raises(
-        InputError, match=r"s\.trc: the target .* is unreachable by the arm \(0\.150 \+ 0\.200"
-    ):
+    too_short = r"s\.trc: subject S1: subject-info upper_arm_m = 0\.150 m but the markers measure 0\.300 m"
+    with pytest.raises(InputError, match=too_short):
         markers_to_trial(
             md, parse_marker_map(synth.MAP), subject="S1", posture="P", trial_id="1", subject_info=short
         )
-    with pytest.raises(InputError, match=r"fingertip IK failed: fingertip out of reach"):
+    with pytest.raises(InputError, match=too_short):
         markers_to_trial(
             md,
             parse_marker_map(synth.MAP),

@@ -1,7 +1,9 @@
 """The ``reachirl`` command line: parse, call the library, print.
 
 Each subcommand lives in its own module of this package with ``add_parser(subparsers)`` and ``run(args) -> int``.
-Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error.
+Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error;
+130 on Ctrl-C and 143 on SIGTERM, also when compiled code swallowed the interrupt (the signal is recorded, and
+nothing is written after it).
 """
 
 from __future__ import annotations
@@ -13,17 +15,23 @@ import os
 import signal
 import sys
 
-from ..errors import InputError
+from .. import errors
+from ..errors import InputError, Terminated
 
 COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench", "sensitivity")
 
 
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised like Ctrl-C so that every ``finally`` runs (workers ended, finished units kept)."""
+_Terminated = Terminated
 
 
 def _on_sigterm(signum, frame):
-    raise _Terminated()
+    errors.note_signal(signum)
+    raise Terminated()
+
+
+def _on_sigint(signum, frame):
+    errors.note_signal(signum)
+    raise KeyboardInterrupt
 
 
 class _Parser(argparse.ArgumentParser):
@@ -50,30 +58,56 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    except ValueError:  # not the main thread (main() called from a thread): leave SIGTERM alone
-        previous = None
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # an ignored Ctrl-C stays ignored
+            previous[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
+    except ValueError:  # not the main thread (main() called from a thread): leave the signals alone
+        pass
+    errors.track_signals(bool(previous))
     try:
         return _run(args)
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        errors.track_signals(False)
+
+
+def _interrupted(args, terminated: bool) -> int:
+    print(f"reachirl {args.command}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+    return 143 if terminated else 130
 
 
 def _run(args) -> int:
+    try:
+        code = _run_command(args)
+    except (Exception, KeyboardInterrupt):
+        # a signal swallowed by compiled code (a CasADi call returns a failed result, the next step fails): the
+        # error is the interrupt's consequence; report the interrupt
+        if errors.signalled() is None:
+            raise
+        code = 0
+    if errors.signalled() is not None:
+        return _interrupted(args, errors.signalled() == signal.SIGTERM)
+    return code
+
+
+def _run_command(args) -> int:
     try:
         from ..doc.compiled import mode
 
         mode()  # a bad REACHIRL_COMPILE is an input error, before any work
         return int(args._run(args) or 0)
     except InputError as e:
+        if errors.signalled() is not None:
+            raise
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
         return 2
     except OSError as e:  # a path the user gave cannot be read or written (checked up front where possible)
         from ..validation import PATH_ERRNOS
 
-        if args.verbose:
+        if args.verbose or errors.signalled() is not None:
             raise
         if e.errno in PATH_ERRNOS:
             where = e.filename if e.filename is not None else "a file"
@@ -83,11 +117,11 @@ def _run(args) -> int:
               file=sys.stderr)
         return 1
     except KeyboardInterrupt as e:
-        terminated = isinstance(e, _Terminated)
-        print(f"reachirl {args.command}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
-        return 143 if terminated else 130
+        if errors.signalled() is not None:
+            raise
+        return _interrupted(args, isinstance(e, Terminated))
     except Exception as e:  # an internal error: say so in one line; -v for the traceback
-        if args.verbose:
+        if args.verbose or errors.signalled() is not None:
             raise
         print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
               file=sys.stderr)

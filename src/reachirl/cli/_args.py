@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import InputError
 
 
 def _checked(convert: Callable[[str], float], ok: Callable[[float], bool], expected: str,
@@ -67,3 +71,60 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
     if all(v is None for v in chosen.values()):
         return trials, None
     return select_trials(trials, **chosen, path=args.trials), chosen
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):  # either does not exist (yet), or cannot be examined
+        return False
+
+
+def refuse_overwrite(outputs: dict[str, object], inputs) -> None:
+    """Before any work: no output path (``{option: path}``; ``None`` values skipped) resolves to one of
+    ``inputs`` (paths; ``None`` skipped) — the same path, a symlink to it or a hard link (the same inode) — so
+    that a command never replaces a file it reads. Raises :class:`~reachirl.errors.InputError` naming the file."""
+    ins = [Path(p) for p in inputs if p is not None and str(p) != ""]
+    for option, out in outputs.items():
+        if out is None or str(out) == "":
+            continue
+        out = Path(out)
+        for inp in ins:
+            if _same(out, inp) or out.absolute() == inp.absolute():
+                what = "folder" if inp.is_dir() else "file"
+                raise InputError(f"{option} is the input {what} {inp}; it would be overwritten (choose another "
+                                 f"output path)", out)
+
+
+def output_folder_files(folder: object, names, inputs, option: str) -> None:
+    """Before any work: none of the files ``names`` that a command will write into ``folder`` is one of
+    ``inputs`` (as :func:`refuse_overwrite`)."""
+    if folder is None:
+        return
+    refuse_overwrite({f"{option} ({Path(folder) / n})": Path(folder) / n for n in names}, inputs)
+
+
+def export_names(ids) -> list[str]:
+    """The files that :func:`reachirl.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
+    ``<name>.mot`` per id (a repeated name gets ``-2``, ``-3`` …) and ``index.csv``."""
+    from ..exports import safe_name
+
+    used: set[str] = set()
+    names = ["index.csv"]
+    for i in ids:
+        base = safe_name(i)
+        name, k = base, 1
+        while name in used:
+            k += 1
+            name = f"{base}-{k}"
+        used.add(name)
+        names += [f"{name}.csv", f"{name}.mot"]
+    return names
+
+
+def regular_input(path: object, option: str | None = None) -> Path:
+    """Before reading: ``path`` is an existing regular file (a FIFO, a device or a socket would block or never
+    end; a folder is not a file). Raises :class:`~reachirl.errors.InputError` naming it (and ``option``)."""
+    from ..io import check_regular_file
+
+    return check_regular_file(path, option)

@@ -8,13 +8,15 @@ from pathlib import Path
 from rich.console import Console
 from rich.progress import Progress
 
+from ..data.checks import check_model_rollout
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import summarise
+from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
-from ..validation import check_output_file
-from ._args import add_selection, chosen_trials
+from ..validation import check_output_dir, check_output_file
+from ._args import add_selection, chosen_trials, export_names, output_folder_files, refuse_overwrite
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -73,15 +75,24 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 def run(args: argparse.Namespace) -> int:
     check_output_file(args.out)
-    if args.predictions is not None and args.predictions.exists() and not args.predictions.is_dir():
-        raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
+    if args.predictions is not None:
+        if args.predictions.exists() and not args.predictions.is_dir():
+            raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
+        check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
+    refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
     model = load_model(args.model)
+    check_model_rollout(model, args.model)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
+    if args.predictions is not None:
+        names = export_names(tr.id for tr in trials)
+        output_folder_files(args.predictions, names, [args.model, args.trials, args.out], "--predictions")
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=args.backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
-    atomic_write_json(args.out, {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
+    # a mean that cannot be computed (every DOC failed) is written with its reason, never a bare null
+    atomic_write_json(args.out, annotate_no_data(
+        {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]}))
     print(summary_line(summary, args.backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
-from ._args import add_selection, chosen_trials, int_in
+from ._args import add_selection, chosen_trials, int_in, refuse_overwrite
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -84,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
 
     console = Console(stderr=True)
     check_output_file(args.out)
+    refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
     experimental = _experimental(args.config)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:

@@ -27,7 +27,7 @@ from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_i
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
-from ._args import int_in, number_in
+from ._args import export_names, int_in, number_in, output_folder_files, refuse_overwrite, regular_input
 
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
 
@@ -141,6 +141,10 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _options(args) -> PreprocessOptions:
+    up, fwd = (a.strip().lower().lstrip("+-") if a else None for a in (args.up_axis, args.forward_axis))
+    if up is not None and up == fwd:
+        raise InputError(f"--up-axis {args.up_axis} and --forward-axis {args.forward_axis} are the same lab axis; the "
+                         "forward axis must be horizontal, e.g. --up-axis +y --forward-axis +x")
     try:
         return PreprocessOptions(
             max_gap_frames=args.max_gap,
@@ -211,6 +215,19 @@ def _folder_defaults(args) -> None:
             args.markers = ",".join(f"{k}={v}" for k, v in m.items())
 
 
+def _refuse_overwrite(args, out: Path, entries: list[ManifestEntry]) -> list:
+    """No output (the trials file, the --export files) is one of the files read: the recordings and their static
+    trials, the manifest, the subject info, the marker set, the static trial. Returns those inputs."""
+    inputs = [e.file for e in entries] + [e.static for e in entries if e.static is not None]
+    inputs += [args.manifest, args.subject_info, args.static]
+    if args.markerset and Path(args.markerset).is_file():
+        inputs.append(args.markerset)
+    refuse_overwrite({"--out": out}, inputs)
+    if args.export is not None:
+        refuse_overwrite({"--export": args.export}, inputs)
+    return inputs
+
+
 def run(args) -> int:
     from ..validation import check_output_file
 
@@ -233,6 +250,9 @@ def run(args) -> int:
         if not args.inputs:
             raise InputError("no INPUT files (or give --manifest)")
         entries = [ManifestEntry(file=p, subject="", posture="") for p in _expand(args.inputs)]
+    if args.static:
+        regular_input(args.static, "--static")  # given, so it must exist, whether or not the marker set needs it
+    inputs = _refuse_overwrite(args, out, entries)
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (
         parse_marker_map(args.markers)
@@ -252,6 +272,8 @@ def run(args) -> int:
         side=args.side,
         on_trial=lambda tr: lines.append(_summary(tr)),
     )
+    if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
+        output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export")
     save_trials(out, trials)
     if args.export is not None:
         from ..exports import TrajectoryExport, export_trajectories

@@ -21,9 +21,9 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, number_in
+from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
-MAX_SUBJECTS = 200
+MAX_SUBJECTS = 100
 
 QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
@@ -74,8 +74,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                    help="seed of the random training trials and of the uncertainty's samples (default 0)")
     p.add_argument("--quick", action="store_true",
                    help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations")
-    p.add_argument("--subjects", type=int_in(1, MAX_SUBJECTS), metavar="N",
-                   help=f"make N built-in virtual subjects, 1 to {MAX_SUBJECTS} (default 2; 20 is Berret 2011's "
+    p.add_argument("--subjects", type=int_in(2, MAX_SUBJECTS), metavar="N",
+                   help=f"make N built-in virtual subjects, 2 to {MAX_SUBJECTS} (default 2; 20 is Berret 2011's "
                    "design); not with --data")
     p.add_argument("--iscv", choices=("one", "all-pairs"), default=None,
                    help="one: learn from the training subject only (the seed; default); all-pairs: learn from every "
@@ -319,11 +319,13 @@ def run(args) -> int:
     from ..validation import check_output_dir
 
     out = check_output_dir(args.out)
+    refuse_overwrite({"--out": out}, [args.data])
     _check_scheduler(args.scheduler)
     opts = run_options(args)
     args.quick = bool(args.quick or opts.get("quick", False))
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
+    refuse_overwrite({"--out": out}, [args.data, args.config])
     config = _config(args, opts)
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:

@@ -17,7 +17,11 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import non_negative_int, positive_int
+from ..validation import NODES_RANGE
+from ._args import int_in, non_negative_int, number_in, refuse_overwrite
+
+#: local worker processes at most (as reproduce's --workers)
+MAX_WORKERS = 256
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -29,18 +33,18 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("run_dir", metavar="RUN_DIR", help="the --out folder of `reachirl reproduce`")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--percent", type=float, default=10.0, metavar="X",
-                   help="change each weight by ±X %% for the sensitivity (default 10)")
-    p.add_argument("--sections", type=positive_int, metavar="N", help="section count to analyse (default: the "
-                   "run's largest)")
+    p.add_argument("--percent", type=number_in(0.001, 99.0), default=10.0, metavar="X",
+                   help="change each weight by ±X %% for the sensitivity, 0.001 to 99 (default 10)")
+    p.add_argument("--sections", type=int_in(1, NODES_RANGE[1]), metavar="N", help="section count to analyse, "
+                   f"1 to {NODES_RANGE[1]} (default: the run's largest)")
     p.add_argument("--postures", nargs="+", metavar="NAME", help="postures to analyse (default: all of the run)")
     p.add_argument("--method", metavar="NAME", help="method to analyse (default: the run's first)")
     p.add_argument("--no-occlusion", action="store_true", help="skip the occlusion refits")
     p.add_argument("--no-sensitivity", action="store_true", help="skip the ±X %% weight changes")
     p.add_argument("--seed", type=non_negative_int, default=0, metavar="N",
                    help="seed of the occlusion's paired bootstrap intervals over trials (default 0)")
-    p.add_argument("--workers", type=positive_int, default=None, metavar="N",
-                   help="local worker processes (default: all cores; 1 runs in this process)")
+    p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None, metavar="N",
+                   help=f"local worker processes, 1 to {MAX_WORKERS} (default: all cores; 1 runs in this process)")
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     return p
 
@@ -52,6 +56,7 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder; --out needs a folder", out)
+    refuse_overwrite({"--out": out}, [args.run_dir])
     cfg = SensitivityConfig(
         percent=args.percent,
         sections=args.sections,

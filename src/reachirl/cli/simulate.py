@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import int_in, number_in
+from ._args import int_in, number_in, refuse_overwrite
 
 BACKENDS = ("casadi", "crocoddyl")
 MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
@@ -45,8 +45,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
     p.add_argument("--substeps", type=int_in(1, 1000), default=10,
                    help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)")
-    p.add_argument("--kp", type=number_in(0.0, 1e5), default=50.0, help="PD stiffness, N·m/rad, 0 to 1e5 (default 50)")
-    p.add_argument("--kd", type=number_in(0.0, 1e4), default=5.0, help="PD damping, N·m·s/rad, 0 to 1e4 (default 5)")
+    p.add_argument("--kp", type=number_in(0.0, 1e5), default=50.0,
+                   help="PD stiffness, N·m/rad, 0 to 1e5 and at most I/h² for MuJoCo's step h and the arm's "
+                   "smallest inertia I (stated when exceeded) (default 50)")
+    p.add_argument("--kd", type=number_in(0.0, 1e4), default=5.0,
+                   help="PD damping, N·m·s/rad, 0 to 1e4 and at most I/h (stated when exceeded) (default 5)")
     p.add_argument(
         "--fps", type=number_in(1.0, 120.0), default=30.0,
         help="animation frames per second of reach time, 1 to 120 (default 30)"
@@ -78,9 +81,24 @@ def _select(trials, keys, path):
     return chosen
 
 
+def _check_gains(args, trials, n_nodes: int) -> None:
+    """PD gains that MuJoCo's explicit step integrates stably on these arms
+    (:func:`reachirl.data.checks.pd_gain_limits`); larger ones make the playback diverge."""
+    from ..data.checks import pd_gain_limits
+
+    kp_max, kd_max, h, inertia = pd_gain_limits(trials, n_nodes, args.substeps)
+    why = (f"the largest that MuJoCo's step of {1000 * h:.3g} ms integrates stably on this arm (smallest inertia "
+           f"{inertia:.3g} kg·m²); lower it or raise --substeps")
+    if args.kd > kd_max:
+        raise InputError(f"--kd {args.kd:g} N·m·s/rad is outside [0, {kd_max:.3g}], {why}", args.trials)
+    if args.kp > kp_max:
+        raise InputError(f"--kp {args.kp:g} N·m/rad is outside [0, {kp_max:.3g}], {why}", args.trials)
+
+
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from ..data.checks import check_model_rollout
     from ..data.trial import load_trials
     from ..io import atomic_write_json
     from ..irl.model import load_model
@@ -93,12 +111,18 @@ def run(args: argparse.Namespace) -> int:
     for opt, path in (("--out", args.out), ("--render", args.render)):
         if path is not None:
             check_output_file(path, opt)
+    refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
+    if args.out is not None and args.render is not None:
+        refuse_overwrite({"--render": args.render}, [args.out])
     if args.render is not None:
         ok, why = osmesa_available()
         if not ok:
             raise RuntimeError(f"cannot render offscreen: {why}")
     model = load_model(args.model)
+    check_model_rollout(model, args.model)
     trials = _select(load_trials(args.trials), args.trial, args.trials)
+    if args.mode == "pd":
+        _check_gains(args, trials, model.n_nodes)
     if args.render is not None:  # every frame is held in memory until the file is written
         n_frames = sum(int(tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
         n_bytes = n_frames * args.size * args.size * 3

@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ..errors import InputError
+from .checks import check_trial_posture
 from .markersets import MarkerSet, load_markerset, resolve_name
 from .preprocess import DEFAULT_SUBJECT, PreprocessOptions, angles_to_trial, markers_to_trial
 from .readers import ManifestEntry, MarkerData, SubjectInfo, read_file, read_manifest, read_subject_info
@@ -44,9 +45,10 @@ def preprocess_entries(
     side: str | None = None,
     on_trial: Callable[[Trial], None] | None = None,
 ) -> list[Trial]:
-    """One :class:`Trial` per entry. Without ``subject_info``, Berret 2011's mean subject is used (logged)."""
+    """One :class:`Trial` per entry. Without ``subject_info``, Berret 2011's mean subject is used (logged at INFO;
+    ``reachirl preprocess`` notes it once it has written the trials)."""
     if subject_info is None:
-        log.warning("no subject info: masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)")
+        log.info("no subject info: masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)")
     statics: dict[Path, MarkerData] = {}
     trials: list[Trial] = []
     for e in entries:
@@ -81,6 +83,7 @@ def preprocess_entries(
             tr = markers_to_trial(data, mset, static=static_md, **common)
         else:
             tr = angles_to_trial(data, **common)
+        check_trial_posture(tr, e.file)  # a mirrored or backwards recording is caught here, where it can be fixed
         trials.append(tr)
         if on_trial is not None:
             on_trial(tr)

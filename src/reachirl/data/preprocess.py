@@ -449,6 +449,9 @@ def sagittal_basis(
             fwd[k] = 1.0
         else:
             fwd = forward - (forward @ up) * up
+            if np.linalg.norm(fwd) < 0.5:  # ±x, ±y, ±z: the same axis as up, or its opposite
+                raise InputError("--forward-axis is the up axis (or its opposite); with --plane axes it must be "
+                                 "a horizontal lab axis, e.g. --up-axis +y --forward-axis +x", source)
         fwd /= np.linalg.norm(fwd)
     if fwd @ displacement < 0:
         fwd = -fwd
@@ -644,6 +647,11 @@ def reconstruct_markers(
     basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
 
+    if subject_info is not None:  # lengths given in the subject info must agree with the markers'
+        from .checks import check_segment_lengths
+
+        ua, fa, hand = info.lengths(side)
+        check_segment_lengths({"upper_arm_m": ua, "forearm_m": fa, "hand_m": hand}, lengths, src, info.subject)
     arm = build_arm(info, side, lengths)
     if options.ik == "segments":
         q = planar_ik_segments(planar["elbow"], planar[options.distal])

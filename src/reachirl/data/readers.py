@@ -27,6 +27,7 @@ import csv
 import io
 import logging
 import math
+import os
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -211,6 +212,36 @@ def _unit_scale(unit: str, path: Path, where: str) -> float:
     return _UNIT_SCALE[key]
 
 
+# ---------------------------------------------------------------------- header row counts
+#: rows (frames, samples) a recording may declare: 10⁷ is 2.8 h at 1 kHz, more than any reach's recording
+MAX_ROWS = 10_000_000
+
+
+def _declared_rows(text: str | None, field: str, path: Path, where: str) -> int | None:
+    """A header's row count (``NumFrames``, ``nRows``) as an int in ``[1, MAX_ROWS]``; ``None`` if absent."""
+    if text is None or text.strip() == "":
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"header field {field}={text.strip()[:40]!r} is not a number of rows", path, where) from None
+    if not (math.isfinite(v) and v == int(v) and 1 <= v <= MAX_ROWS):
+        raise InputError(f"header field {field}={text.strip()[:40]} is not a row count in [1, {MAX_ROWS}]", path,
+                         where)
+    return int(v)
+
+
+def _check_row_count(n: int, declared: int | None, field: str, what: str, path: Path, last_line: int) -> None:
+    """The rows present match the header's count: fewer is a truncated file, more a header that lies."""
+    if declared is None or n == declared:
+        return
+    if n < declared:
+        raise InputError(f"truncated file: the header says {field}={declared}, the file ends after {n} {what}",
+                         path, f"line {last_line}")
+    raise InputError(f"the header says {field}={declared} but the file holds {n} {what}", path,
+                     f"line {last_line}")
+
+
 # ---------------------------------------------------------------------- TRC
 def read_trc(path: str | Path) -> MarkerData:
     """Read an OpenSim TRC marker file (tab-separated; ``Units`` from the header line; Y up by convention)."""
@@ -243,7 +274,9 @@ def read_trc(path: str | Path) -> MarkerData:
     if len(set(names)) != len(names):
         raise InputError("duplicate marker names", path, "line 4")
     n_cols = 2 + 3 * n_markers
+    declared = _declared_rows(hdr.get("NumFrames"), "NumFrames", path, "line 3")
     rows, times = [], []
+    first_frame, last_line = None, 5
     for i, line in enumerate(lines[5:], start=6):
         if not line.strip():
             continue
@@ -251,6 +284,13 @@ def read_trc(path: str | Path) -> MarkerData:
         if len(cells) < n_cols:
             # trailing markers unseen may be written as empty cells or left off; OpenSim writes them empty
             raise InputError(f"truncated row: {len(cells)} fields, expected {n_cols}", path, f"line {i}")
+        frame = _float(cells[0], path, i, "Frame#")
+        if first_frame is None:
+            first_frame = frame
+        elif frame != first_frame + len(rows):
+            raise InputError(f"frame number {cells[0].strip()} where {first_frame + len(rows):g} was expected (a "
+                             "frame missing, repeated or out of order)", path, f"line {i}")
+        last_line = i
         times.append(_float(cells[1], path, i, "Time"))
         rows.append(
             [
@@ -260,6 +300,12 @@ def read_trc(path: str | Path) -> MarkerData:
         )
     if not rows:
         raise InputError("no data rows after the header", path)
+    _check_row_count(len(rows), declared, "NumFrames", "frames", path, last_line)
+    if rate > 0 and len(times) > 1:
+        step = float(np.median(np.diff(times)))
+        if not abs(step * rate - 1.0) <= 0.02:
+            raise InputError(f"the Time column steps {step:.6g} s but the header's DataRate={hdr['DataRate']} Hz "
+                             f"means {1.0 / rate:.6g} s", path, "line 3")
     a = np.asarray(rows) * scale
     markers = {n: a[:, 3 * k : 3 * k + 3] for k, n in enumerate(names)}
     return MarkerData(rate=rate, markers=markers, source=str(path), t=np.asarray(times), up="+y")
@@ -474,19 +520,31 @@ def read_mot(path: str | Path) -> AngleData:
     if end is None:
         raise InputError("not a MOT file (no 'endheader' line)", path)
     in_degrees = True
+    declared = n_columns = None
     for k, ln in enumerate(lines[:end]):
-        if ln.strip().lower().startswith("indegrees"):
+        key = ln.split("=", 1)[0].strip().lower()
+        if key == "indegrees":
             val = ln.split("=", 1)[-1].strip().lower()
             if val not in ("yes", "no"):
                 raise InputError(f"inDegrees must be yes or no, got {val!r}", path, f"line {k + 1}")
             in_degrees = val == "yes"
+        elif key in ("nrows", "datarows") and "=" in ln:
+            declared = _declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}")
+        elif key in ("ncolumns", "datacolumns") and "=" in ln:
+            n_columns = (_declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}"),
+                         k + 1)
     hdr_k = next((k for k in range(end + 1, len(lines)) if lines[k].strip()), None)
     if hdr_k is None:
         raise InputError("no column header after 'endheader'", path)
     sep = "\t" if "\t" in lines[hdr_k] else None
     header = lines[hdr_k].split(sep) if sep else lines[hdr_k].split()
+    if n_columns is not None and n_columns[0] != len(header):
+        raise InputError(f"the header says nColumns={n_columns[0]} but the column header names {len(header)}",
+                         path, f"line {n_columns[1]}")
     it, i1, i2 = _find_q_columns(header, path, hdr_k + 1)
     a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
+    last_line = max(k for k in range(hdr_k, len(lines)) if lines[k].strip()) + 1
+    _check_row_count(a.shape[0], declared, "nRows", "rows", path, last_line)
     q = np.radians(a[:, [i1, i2]]) if in_degrees else a[:, [i1, i2]]
     q[:, 0] += _q1_offset(header[i1])
     return AngleData(t=a[:, it], q=q, source=str(path))
@@ -698,9 +756,15 @@ def read_manifest(path: str | Path) -> list[ManifestEntry]:
     path = Path(path)
     rows = _csv_dicts(path, ("file", "subject", "posture"))
     out = []
+    seen: dict[str, int] = {}
     for line, r in rows:
         if not r["file"]:
             raise InputError("empty file name", path, f"line {line}")
+        key = os.path.normpath(r["file"])
+        if key in seen:  # the same recording twice would be one reach counted twice
+            raise InputError(f"file {r['file']!r} is listed twice (lines {seen[key]} and {line})", path,
+                             f"line {line}")
+        seen[key] = line
         side = r.get("side", "").lower() or None
         if side is not None and side not in ("right", "left", "r", "l"):
             raise InputError(f"side must be right or left, got {r['side']!r}", path, f"line {line}")

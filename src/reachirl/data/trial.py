@@ -202,14 +202,15 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
 
 def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
+    from ..io import check_regular_file
     from ..validation import check_npz_file, check_trial_meta, check_trial_physics
+    from .checks import check_start_and_target
 
-    path = Path(path)
-    if not path.exists():
-        raise InputError("file not found", path)
-    if path.is_dir() or not zipfile.is_zipfile(path):
+    path = check_regular_file(path)  # a FIFO or a device would block or never end
+    if not zipfile.is_zipfile(path):
         raise InputError("not a trials file (expected the NPZ written by `reachirl preprocess` or `synth`)", path)
     check_npz_file(path)  # sizes, dtypes and CRCs, before any array is read
+    _check_entries(path)
     try:
         with np.load(path, allow_pickle=False) as z:
             files = set(z.files)
@@ -227,8 +228,9 @@ def load_trials(path: str | Path) -> list[Trial]:
                 missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
                 if missing:
                     raise InputError(f"trial {i} lacks arrays {missing}", path)
-                out.append(
-                    Trial(
+                out.append(_trial_in_file(
+                    path, i, m,
+                    lambda m=m, i=i: Trial(
                         subject=m["subject"],
                         posture=m["posture"],
                         trial_id=m["trial_id"],
@@ -239,8 +241,7 @@ def load_trials(path: str | Path) -> list[Trial]:
                         x0=z[f"{i}/x0"],
                         onset_threshold=m.get("onset_threshold"),
                         **{n: z[f"{i}/{n}"] for n in _ARRAYS},
-                    )
-                )
+                    )))
     except InputError:
         raise
     except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as e:
@@ -251,7 +252,30 @@ def load_trials(path: str | Path) -> list[Trial]:
         raise InputError("the file holds no trials", path)
     for i, tr in enumerate(out):
         check_trial_physics(tr, i, path)
+        check_start_and_target(tr, path, f"trial {i} ({tr.id})")
     return out
+
+
+def _trial_in_file(path: Path, i: int, meta: dict, make) -> Trial:
+    """``make()``, a trial of the file ``path``; its errors name that file and the trial (not the recording
+    the trial was once made from, which its ``source`` holds)."""
+    try:
+        return make()
+    except InputError as e:
+        ident = "/".join(str(meta.get(k, "?")) for k in ("subject", "posture", "side", "trial_id"))
+        raise InputError(e.reason, path, f"trial {i} ({ident})") from None
+
+
+def _check_entries(path: Path) -> None:
+    """A trials file's zip entries are unique (zip allows a name twice, and numpy would read only the last)."""
+    with zipfile.ZipFile(path) as zf:
+        names = zf.namelist()
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            raise InputError(f"entry {n} appears twice in the archive; which one holds the trial is ambiguous",
+                             path)
+        seen.add(n)
 
 
 

@@ -48,6 +48,7 @@ import time
 import casadi as ca
 import numpy as np
 
+from ..errors import solver_interrupts
 from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
 from . import compiled
 from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots
@@ -380,7 +381,8 @@ def _run(nlp: _Nlp, kind: str, args: dict) -> tuple[np.ndarray, dict, float]:
     with nlp.lock:  # an nlpsol instance is not re-entrant
         solver = nlp.fatrop(kind) if kind.startswith("fatrop") else nlp.solver(kind)
         t0 = time.perf_counter()
-        out = solver(**args)
+        with solver_interrupts():  # Ctrl-C/SIGTERM stop the solver and are raised here, never a failed solve
+            out = solver(**args)
         elapsed = time.perf_counter() - t0
         stats = solver.stats()
     return out["x"].full().reshape(-1), stats, elapsed

@@ -64,6 +64,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..arm import ArmModel
+from ..errors import interrupt_pending, solver_interrupts
 from ..features import FEATURES, N_FEATURES, euler_knots, trajectory_cost, window_index
 from .task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots
 
@@ -504,7 +505,9 @@ class _Monitor(mim_solvers.CallbackAbstract):
         feasible = gap <= o.feasibility_tolerance and cons <= o.feasibility_tolerance
         self.acceptable = feasible and kkt <= o.acceptable_factor * self.tol
         stop = False
-        if feasible and kkt <= self.tol:
+        if interrupt_pending():  # Ctrl-C or SIGTERM: stop now; solver_interrupts raises it after the solve
+            stop, self.reason = True, "interrupted"
+        elif feasible and kkt <= self.tol:
             stop, self.reason = True, "converged"
         elif self.acceptable:
             self._n_acceptable += 1
@@ -633,14 +636,18 @@ def _attempt(prob: ReachingProblem, task: ReachingTask, weights: np.ndarray, xs,
         t0 = time.perf_counter()
         monitor = _Monitor(tol, options)
         solver = prob.make_solver(tol, options.qp_eps_max, [monitor])
-        ok = bool(solver.solve(list(xs), list(us), options.max_iter, False))
+        # a signal is only recorded meanwhile (a Python exception inside CSQP aborts the process): the monitor
+        # stops the solve at the next QP and the signal is raised when the guard ends
+        with solver_interrupts(stop_solver=False):
+            ok = bool(solver.solve(list(xs), list(us), options.max_iter, False))
         iterations = int(solver.iter)
         if not ok and iterations < options.max_iter:
             # stopped early (no acceptable step along an inexact QP direction): polish with tight QPs
             monitor.eps_max = monitor.eps_min
             polisher = prob.make_solver(tol, monitor.eps_min, [monitor])
             polisher.mu_dynamic, polisher.mu_constraint = monitor.mu
-            ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
+            with solver_interrupts(stop_solver=False):
+                ok = bool(polisher.solve(list(solver.xs), list(solver.us), options.max_iter - iterations, False))
             iterations += int(polisher.iter)
             solver = polisher
             if not ok and iterations < options.max_iter and monitor.acceptable:

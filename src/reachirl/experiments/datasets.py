@@ -155,6 +155,10 @@ def _check_truth_weights(truth: dict, p: Path) -> None:
                     weights(r["weights"], f"field 'subjects.{sid}.trials', file {str(r.get('file'))[:40]}")
 
 
+#: built-in virtual subjects at most (generating one takes seconds to minutes: 100 is hours of solves)
+MAX_SUBJECTS = 100
+
+
 def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None,
          n_subjects: int | None = None) -> Dataset:
     """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`.
@@ -163,6 +167,9 @@ def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None =
         raise InputError("--subjects makes built-in virtual subjects; it cannot be combined with --data")
     if n_subjects is not None and int(n_subjects) < 2:
         raise InputError(f"--subjects needs at least 2 subjects (one to learn from, one to predict), got {n_subjects}")
+    if n_subjects is not None and int(n_subjects) > MAX_SUBJECTS:
+        raise InputError(f"--subjects {n_subjects}: at most {MAX_SUBJECTS} built-in virtual subjects (as `reachirl "
+                         "synth --subjects`)")
     if path is None:
         from ..synth import builtin_dataset_dir
 

@@ -24,9 +24,9 @@ import numpy as np
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
 from . import figures as fg
-from .cost import uncertainty_summary
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
+from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_bytes, atomic_write_json, npz_bytes
+from ..io import atomic_write_bytes, atomic_write_json, npz_bytes, to_jsonable
 from .no_data import annotate_no_data
 
-__all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "save_unit", "unit_paths"]
+__all__ = ["RunResult", "RunSummary", "content_checksum", "load_unit", "load_unit_arrays", "save_unit", "unit_paths"]
 
 
 log = logging.getLogger(__name__)
@@ -62,14 +62,39 @@ def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
     return d / f"{key}.json", d / f"{key}.npz"
 
 
+def content_checksum(res: dict) -> str:
+    """SHA-256 of a unit result's JSON content without its ``checksum`` field (keys sorted, compact): it covers
+    the numbers and the ``fingerprint`` of the unit's inputs, so any edit or damage shows."""
+    import hashlib
+
+    body = {k: v for k, v in res.items() if k != "checksum"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _reject_constant(name: str):
+    raise ValueError(f"non-finite number {name}")
+
+
+def _check_unit_paths(js: Path, npz: Path) -> None:
+    from ..errors import InputError
+
+    for p in (js, npz):
+        if p.exists() and not p.is_file():
+            raise InputError("is not a regular file, where the unit's checkpoint goes; remove it and rerun", p)
+
+
 def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
-    """A finished unit's result, or ``None`` (recompute it) if absent, damaged, for other inputs (other
-    fingerprint), or if its NPZ is missing, damaged or not the one its JSON was written with (SHA-256)."""
+    """A finished unit's result, or ``None`` (recompute it) if absent, damaged, edited (its ``checksum`` does not
+    match its content), holding a non-finite number, for other inputs (other fingerprint), or if its NPZ is
+    missing, damaged or not the one its JSON was written with (SHA-256). A folder or other non-file where the
+    checkpoint goes raises :class:`~reachirl.errors.InputError` naming it."""
     js, npz = unit_paths(out_dir, key)
+    _check_unit_paths(js, npz)
     if not js.is_file():
         return None
     try:
-        res = json.loads(js.read_text(encoding="utf-8"))
+        res = json.loads(js.read_text(encoding="utf-8"), parse_constant=_reject_constant)
     except (OSError, ValueError, RecursionError) as e:
         log.warning("%s: damaged (%s); recomputing the unit", js, e)
         return None
@@ -77,6 +102,13 @@ def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict |
         log.warning("%s: not a unit result of %s; recomputing the unit", js, key)
         return None
     if fingerprint is not None and res.get("fingerprint") != fingerprint:
+        return None
+    try:
+        same = res.get("checksum") == content_checksum(res)
+    except (TypeError, ValueError):
+        same = False
+    if not same:
+        log.warning("%s: its content does not match its checksum (edited or damaged); recomputing the unit", js)
         return None
     if res.get("has_arrays"):
         problem = _npz_problem(npz, res.get("npz_sha256"))
@@ -118,11 +150,14 @@ def save_unit(out_dir: Path, payload: dict) -> dict:
 
     res = dict(payload["result"])
     js, npz = unit_paths(out_dir, res["key"])
+    _check_unit_paths(js, npz)
     res["has_arrays"] = bool(payload["arrays"])
     res = annotate_no_data(res)  # an empty split: "no_data" and its reason, never a bare null
     if payload["arrays"]:
         data = npz_bytes(dict(sorted(payload["arrays"].items())))
         res["npz_sha256"] = hashlib.sha256(data).hexdigest()  # checked before the unit is reused
         atomic_write_bytes(npz, data)
+    res = to_jsonable(res)
+    res["checksum"] = content_checksum(res)  # of the content as written, and of the inputs' fingerprint
     atomic_write_json(js, res)
     return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read

@@ -1,0 +1,131 @@
+"""Physical consistency at the door: the checks that a trial, a subject's measured arm, a model's fields and PD
+gains make sense for a human reach, before any solve.
+
+Each check raises :class:`~reachirl.errors.InputError` with one line naming the file, the field and the range
+that was expected, which the command line turns into exit code 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = [
+    "LENGTH_TOLERANCE",
+    "check_model_rollout",
+    "check_segment_lengths",
+    "check_start_and_target",
+    "check_trial_posture",
+    "pd_gain_limits",
+]
+
+#: subject-info segment lengths may differ from the markers' measured ones by this fraction at most (joint
+#: centres from markers and tape measures of the segments agree within ~10 %; 20 % apart is another arm)
+LENGTH_TOLERANCE = 0.20
+
+
+def _deg(v: float) -> str:
+    return f"{np.degrees(v):.1f}°"
+
+
+def check_start_and_target(trial, path: object, where: str | None = None) -> None:
+    """The target lies in front of the shoulder within the arm's reach, ``0 < target_x <= l1 + l2``, and the
+    start velocities are within the DOC's speed bound ``|q̇0| <= qd_max`` (rad/s)."""
+    from ..doc.task import DEFAULT_QD_MAX
+
+    length = trial.arm.length
+    tx = float(trial.target_x)
+    if not 0.0 < tx <= length:
+        raise InputError(
+            f"field 'target_x' = {tx:.4g} m is outside the arm's reach (0, {length:.3f}] m (in front of the "
+            "shoulder, at most l1 + l2 away)", path, where)
+    qd_max = np.asarray(DEFAULT_QD_MAX, dtype=float)
+    qd0 = np.asarray(trial.x0[2:], dtype=float)
+    for j in range(2):
+        if not abs(qd0[j]) <= qd_max[j]:
+            raise InputError(
+                f"field 'x0': the start velocity q̇{j + 1} = {qd0[j]:.4g} rad/s is outside [{-qd_max[j]:g}, "
+                f"{qd_max[j]:g}] rad/s, the DOC's speed bound", path, where)
+
+
+def check_trial_posture(trial, path: object, where: str | None = None) -> None:
+    """After preprocessing a recording: the reach starts inside the joint limits, stays within them, and ends
+    in front of the shoulder. A mirrored recording (a left arm read as a right one) bends the elbow backwards
+    and a backwards one starts at the bar: the message says so, here where ``--side`` or ``--markers`` can fix
+    it, and not later in ``fit``."""
+    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    hint = ("a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
+            "check --markers and --forward-axis)")
+    limits = f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
+    q0 = trial.q[0]
+    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
+        raise InputError(f"the start posture q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits "
+                         f"{limits}: {hint}", path, where)
+    bad = np.flatnonzero(np.any((trial.q < lo - 1e-9) | (trial.q > hi + 1e-9), axis=1))
+    if bad.size:
+        q = trial.q[bad[0]]
+        raise InputError(f"the reach leaves the joint limits {limits} at {trial.t[bad[0]]:.3f} s after onset "
+                         f"(q = ({_deg(q[0])}, {_deg(q[1])})): {hint}", path, where)
+    if not trial.target_x > 0.0:
+        raise InputError(f"the reach ends {trial.target_x:.3f} m behind the shoulder (fingertip x at offset), "
+                         f"expected a target in front: {hint}", path, where)
+
+
+def check_segment_lengths(info_lengths: Mapping[str, float | None], measured: Mapping[str, float],
+                          path: object, subject: str = "") -> None:
+    """Segment lengths of the subject info (``upper_arm_m``, ``forearm_m``, ``hand_m``; ``None``: not given)
+    against the markers' measured ones (:func:`reachirl.data.preprocess.estimate_lengths`): more than
+    :data:`LENGTH_TOLERANCE` apart, the planned reach would miss the recorded target."""
+    ua, fa, hand = (info_lengths.get(k) for k in ("upper_arm_m", "forearm_m", "hand_m"))
+    pairs = [("upper_arm_m", ua, "upper_arm", "shoulder to elbow")]
+    if fa is not None and hand is not None:
+        pairs.append(("forearm_m + hand_m", fa + hand, "elbow_fingertip", "elbow to fingertip"))
+    elif fa is not None and hand is None:
+        pairs.append(("forearm_m", fa, "forearm", "elbow to wrist"))
+    who = f"subject {subject}: " if subject else ""
+    for field, given, key, span in pairs:
+        m = measured.get(key)
+        if given is None or m is None or not np.isfinite(m) or m <= 0:
+            continue
+        apart = abs(given - m) / m
+        if apart > LENGTH_TOLERANCE:
+            raise InputError(
+                f"{who}subject-info {field} = {given:.3f} m but the markers measure {m:.3f} m from {span} "
+                f"({100 * apart:.0f} % apart; at most {100 * LENGTH_TOLERANCE:.0f} % allowed): check the "
+                "subject info or the marker map", path)
+
+
+def check_model_rollout(model, path: object) -> None:
+    """A model's ``info.rollout_q`` (the fit's own reach, ``evaluate``'s cold start) lies within the joint
+    limits."""
+    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+
+    rollout = model.info.get("rollout_q") if isinstance(model.info, dict) else None
+    if rollout is None:
+        return
+    r = np.asarray(rollout, dtype=float)
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    bad = np.argwhere(~((r >= lo - 1e-6) & (r <= hi + 1e-6)))
+    if bad.size:
+        i, j = (int(v) for v in bad[0])
+        raise InputError(
+            f"field 'info.rollout_q', row {i}: q{j + 1} = {r[i, j]:.4g} rad is outside the joint limits "
+            f"[{lo[j]:.4g}, {hi[j]:.4g}] rad", path)
+
+
+def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, float, float]:
+    """``(kp_max, kd_max, h, inertia)``: the largest PD gains that MuJoCo's explicit step ``h`` (the shortest
+    of the trials' ``duration / (n_nodes · substeps)``, s) integrates stably on the lightest of the trials'
+    arms, whose smallest mass-matrix eigenvalue over the elbow's range is ``inertia`` (kg·m²):
+    ``kd · h / I <= 1`` and ``kp · h² / I <= 1`` (half and a quarter of the undamped stability limits)."""
+    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+
+    h = min(tr.duration for tr in trials) / (int(n_nodes) * int(substeps))
+    q2 = np.linspace(DEFAULT_Q_LOWER[1], DEFAULT_Q_UPPER[1], 33)
+    inertia = min(float(np.linalg.eigvalsh(tr.arm.mass_matrix(np.array([0.0, a])))[0]) for tr in trials for a in q2)
+    return inertia / h**2, inertia / h, h, inertia
