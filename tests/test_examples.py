@@ -38,3 +38,21 @@ def test_examples_need_an_output_path(name, capsys):
     with pytest.raises(SystemExit) as e:
         load(name).main([])
     assert e.value.code == 2 and "required" in capsys.readouterr().err
+
+
+def test_one_cost_across_subjects_needs_three_subjects(recorded, capsys):
+    with pytest.raises(SystemExit) as e:
+        load("one_cost_across_subjects").main(["--data", str(recorded / "trials.npz")])
+    assert e.value.code == 2 and "needs at least 3 subjects, found 2" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_one_cost_across_subjects_compares_pooled_and_single_fits(tmp_path, capsys):
+    from reachirl.data.trial import save_trials
+    from reachirl.experiments import datasets
+
+    ds = datasets.toy(n_subjects=3, postures=("P2",), n_trials=2, n_nodes=20, seed=2)
+    save_trials(tmp_path / "t.npz", ds.trials)
+    assert load("one_cost_across_subjects").main(["--data", str(tmp_path / "t.npz"), "--windows", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 4 and lines[-1].startswith("mean: pooled ")
