@@ -160,3 +160,16 @@ def test_a_pooled_fit_says_how_much_pooling_narrows_the_intervals(recorded):
         assert 0 <= rec["mean_width"] <= 1 and 0 <= rec["undetermined_fraction"] <= 1
     # more demonstrations determine at least as much: the pooled Gauss-Newton model adds the tasks' curvatures
     assert pooling["pooled"]["n_determined"] >= min(r["n_determined"] for r in pooling["per_task"].values())
+
+
+def test_a_fit_whose_rollout_has_no_sensitivity_says_so_instead_of_failing(fitted, monkeypatch):
+    from reachirl.irl import uncertainty
+
+    def degenerate(*args, **kwargs):
+        raise ValueError("the KKT matrix is singular (a degenerate optimum)")
+
+    monkeypatch.setattr(uncertainty, "weight_jacobian", degenerate)
+    _, trials = fitted
+    est = MOIRL(2, n_nodes=40, max_iter=1, uncertainty=20).fit(trials)
+    assert est.uncertainty_ is None
+    assert any(w.startswith("no weight samples: the KKT matrix is singular") for w in est.warnings_)

@@ -386,10 +386,16 @@ class MOIRL(WeightEstimator):
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
         msg = mixed_postures_warning(trials) if self.rollout == "mean" else None
+        self.uncertainty_ = None
         if self.uncertainty is not None:
             from .uncertainty import weight_uncertainty
 
-            self.uncertainty_ = weight_uncertainty(self, trials, int(self.uncertainty), self.random_state)
+            try:
+                self.uncertainty_ = weight_uncertainty(self, trials, int(self.uncertainty), self.random_state)
+            except ValueError as e:  # an unconverged or degenerate rollout has no sensitivity
+                msg = f"no weight samples: {e}"
+                self.warnings_ = [*self.warnings_, msg]
+                log.warning(msg)
         if msg is not None:
             self.warnings_ = [*self.warnings_, msg]
             log.warning(msg)
