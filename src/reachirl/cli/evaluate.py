@@ -9,7 +9,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import Progress
 
-from ..data.checks import check_model_rollout
+from ..consistency import check_model_rollout
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..evaluation import evaluate_trials, summarise

@@ -83,8 +83,8 @@ def _select(trials, keys, path):
 
 def _check_gains(args, trials, n_nodes: int) -> None:
     """PD gains that MuJoCo's explicit step integrates stably on these arms
-    (:func:`reachirl.data.checks.pd_gain_limits`); larger ones make the playback diverge."""
-    from ..data.checks import pd_gain_limits
+    (:func:`reachirl.consistency.pd_gain_limits`); larger ones make the playback diverge."""
+    from ..consistency import pd_gain_limits
 
     kp_max, kd_max, h, inertia = pd_gain_limits(trials, n_nodes, args.substeps)
     why = (f"the largest that MuJoCo's step of {1000 * h:.3g} ms integrates stably on this arm (smallest inertia "
@@ -98,7 +98,7 @@ def _check_gains(args, trials, n_nodes: int) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..data.checks import check_model_rollout
+    from ..consistency import check_model_rollout
     from ..data.trial import load_trials
     from ..io import atomic_write_json
     from ..sim import simulate as sim

@@ -12,8 +12,8 @@ import logging
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+from ..consistency import check_start_and_target, check_trial_posture
 from ..errors import InputError
-from .checks import check_start_and_target, check_trial_posture
 from .markersets import MarkerSet, load_markerset, resolve_name
 from .preprocess import DEFAULT_SUBJECT, PreprocessOptions, angles_to_trial, markers_to_trial
 from .readers import ManifestEntry, MarkerData, SubjectInfo, read_file, read_manifest, read_subject_info

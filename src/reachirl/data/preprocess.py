@@ -648,7 +648,7 @@ def reconstruct_markers(
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
 
     if subject_info is not None:  # lengths given in the subject info must agree with the markers'
-        from .checks import check_segment_lengths
+        from ..consistency import check_segment_lengths
 
         ua, fa, hand = info.lengths(side)
         check_segment_lengths({"upper_arm_m": ua, "forearm_m": fa, "hand_m": hand}, lengths, src, info.subject)

@@ -202,9 +202,9 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
 
 def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
+    from ..consistency import check_start_and_target
     from ..io import check_regular_file
     from ..validation import check_npz_file, check_trial_meta, check_trial_physics
-    from .checks import check_start_and_target
 
     path = check_regular_file(path)  # a FIFO or a device would block or never end
     if not zipfile.is_zipfile(path):
