@@ -38,14 +38,15 @@ class Terminated(KeyboardInterrupt):
 _caught: list[int] = []
 # every SIGINT/SIGTERM of the command so far (note_signal), whatever code was running when it arrived
 _signalled: list[int] = []
-_tracking: list[bool] = []
+_tracking: list = []  # [callback or None] while a command tracks its signals
 _GUARDED = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGALRM") if hasattr(signal, n))
 
 
-def track_signals(on: bool) -> None:
+def track_signals(on: bool, on_signal=None) -> None:
     """Start (a command starts) or stop recording SIGINT/SIGTERM with :func:`note_signal`; both forget what was
-    recorded. Off by default: in a Python session a Ctrl-C is handled once and forgotten."""
-    _tracking[:] = [True] if on else []
+    recorded. ``on_signal(signum)`` is called on each one recorded. Off by default: in a Python session a Ctrl-C
+    is handled once and forgotten."""
+    _tracking[:] = [on_signal] if on else []
     clear_signals()
 
 
@@ -55,6 +56,8 @@ def note_signal(signum: int) -> None:
     (:func:`raise_if_signalled`)."""
     if _tracking and signum in (signal.SIGINT, signal.SIGTERM):
         _signalled.append(signum)
+        if _tracking[0] is not None:
+            _tracking[0](signum)
 
 
 def signalled() -> int | None:

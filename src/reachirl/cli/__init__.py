@@ -14,6 +14,7 @@ import logging
 import os
 import signal
 import sys
+import threading
 
 from .. import errors
 from ..errors import InputError, Terminated
@@ -22,6 +23,31 @@ COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simu
 
 
 _Terminated = Terminated
+
+#: seconds a command may take to stop after Ctrl-C or SIGTERM before it is ended outright, for compiled code that
+#: swallows the interrupt and runs on (the solves of reachirl itself stop within a fraction of a second)
+STOP_GRACE_S = 1.5
+_watchdog: dict = {}
+
+
+def _arm_watchdog(command: str, signum: int) -> None:
+    """On the first signal: end the process with 130/143 if the command has not stopped STOP_GRACE_S later
+    (nothing is written meanwhile: every write checks for a signal first)."""
+    if _watchdog.get("timer") is not None:
+        return
+    code = 143 if signum == signal.SIGTERM else 130
+
+    def force_exit() -> None:
+        try:
+            print(f"reachirl {command}: {'terminated' if code == 143 else 'interrupted'}", file=sys.__stderr__,
+                  flush=True)
+        finally:
+            os._exit(code)
+
+    timer = threading.Timer(STOP_GRACE_S, force_exit)
+    timer.daemon = True
+    timer.start()
+    _watchdog["timer"] = timer
 
 
 def _on_sigterm(signum, frame):
@@ -65,13 +91,16 @@ def main(argv: list[str] | None = None) -> int:
             previous[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
     except ValueError:  # not the main thread (main() called from a thread): leave the signals alone
         pass
-    errors.track_signals(bool(previous))
+    errors.track_signals(bool(previous), lambda signum: _arm_watchdog(args.command, signum))
     try:
         return _run(args)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         errors.track_signals(False)
+        timer = _watchdog.pop("timer", None)
+        if timer is not None:
+            timer.cancel()
 
 
 def _interrupted(args, terminated: bool) -> int:

@@ -13,7 +13,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ..errors import InputError
-from .checks import check_trial_posture
+from .checks import check_start_and_target, check_trial_posture
 from .markersets import MarkerSet, load_markerset, resolve_name
 from .preprocess import DEFAULT_SUBJECT, PreprocessOptions, angles_to_trial, markers_to_trial
 from .readers import ManifestEntry, MarkerData, SubjectInfo, read_file, read_manifest, read_subject_info
@@ -84,6 +84,7 @@ def preprocess_entries(
         else:
             tr = angles_to_trial(data, **common)
         check_trial_posture(tr, e.file)  # a mirrored or backwards recording is caught here, where it can be fixed
+        check_start_and_target(tr, e.file)  # as load_trials will check it
         trials.append(tr)
         if on_trial is not None:
             on_trial(tr)
