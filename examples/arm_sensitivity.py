@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from reachirl.doc import solve_doc
+from reachirl.doc.observation import common_threshold, observe, rest_to_rest
 from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
 from reachirl.irl.moirl import mean_task
-from reachirl.observation import common_threshold, observe, rest_to_rest
 
 
 def _rmse_deg(a: np.ndarray, b: np.ndarray) -> float:

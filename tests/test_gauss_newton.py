@@ -9,10 +9,10 @@ import pytest
 
 from moirl_settings import whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
+from reachirl.doc.observation import observe, observed_state_jacobian, rest_to_rest
 from reachirl.doc.sensitivity import weight_jacobian
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import gauss_newton_step
-from reachirl.observation import observe, observed_state_jacobian, rest_to_rest
 from reachirl.synth import knot_trials
 
 MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit

@@ -14,7 +14,7 @@ LAYERS = {
     "base": ("reachirl.errors", "reachirl.io", "reachirl.validation", "reachirl.arm", "reachirl.features",
              "reachirl.runfile"),
     "data": ("reachirl.data", "reachirl.exports"),
-    "doc": ("reachirl.doc", "reachirl.observation", "reachirl.evaluation"),
+    "doc": ("reachirl.doc", "reachirl.evaluation"),
     "irl": ("reachirl.irl",),
     "synth": ("reachirl.synth",),
     "sim": ("reachirl.sim",),

@@ -1,4 +1,4 @@
-"""Predicting a reach as it was recorded (``reachirl.observation``): the cut, the gain it brings, its plumbing
+"""Predicting a reach as it was recorded (``reachirl.doc.observation``): the cut, the gain it brings, its plumbing
 (Trial field, trials file, preprocessing, MO-IRL, ``fit``/``evaluate``, ``reproduce``), and its errors."""
 
 import json
@@ -10,16 +10,16 @@ import pytest
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials, trial_from_solution
-from reachirl.errors import InputError
-from reachirl.evaluation import evaluate_trials
-from reachirl.irl.moirl import MOIRL, mean_task
-from reachirl.observation import (
+from reachirl.doc.observation import (
     MOVING_FRACTION,
     common_threshold,
     observe,
     observed_knots,
     rest_to_rest,
 )
+from reachirl.errors import InputError
+from reachirl.evaluation import evaluate_trials
+from reachirl.irl.moirl import MOIRL, mean_task
 from reachirl.synth import nominal_weights, posture_q
 
 N = 40

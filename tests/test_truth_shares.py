@@ -45,7 +45,7 @@ def test_reference_of_cut_trials_is_seen_as_they_were_recorded():
     from dataclasses import replace
 
     from reachirl.doc import ReachingTask, solve_doc
-    from reachirl.observation import observe, rest_to_rest
+    from reachirl.doc.observation import observe, rest_to_rest
 
     trial, w = _one_trial()
     task = rest_to_rest(ReachingTask.from_trial(trial, 40))

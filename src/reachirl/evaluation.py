@@ -13,7 +13,7 @@ import numpy as np
 
 from .data.trial import Trial
 from .doc import DocSolution
-from .observation import predict
+from .doc.observation import predict
 
 __all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
 
@@ -50,7 +50,7 @@ def evaluate_trials(
 ) -> list[TrialError]:
     """Predict every trial from its own initial state and measure the RMSE against it. With ``observe``, a trial
     cut from its recording at a speed threshold (``Trial.onset_threshold``) is predicted as it was recorded
-    (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part.
+    (:mod:`reachirl.doc.observation`): the rest-to-rest DOC's own onset-to-offset part.
 
     Each DOC starts cold: from the minimum-jerk path, or from ``path`` (``(n_nodes + 1, 2)``, a reach under
     these weights on the same knots, such as the fit's own rollout) moved to the trial's start and bar

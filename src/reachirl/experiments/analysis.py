@@ -62,7 +62,7 @@ def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str =
     """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
     and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
     at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.observation`), as an observed unit predicts its trials, so its windows are the
+    (:mod:`reachirl.doc.observation`), as an observed unit predicts its trials, so its windows are the
     demonstrations'; otherwise the DOC over the mean duration.
 
     Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
@@ -70,9 +70,9 @@ def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str =
     shares on Φ* credit the true weights with costs that hardly shape their own reach."""
     from ..data.trial import trial_from_solution
     from ..doc import solve_doc
+    from ..doc.observation import common_threshold, rest_to_rest
+    from ..doc.observation import observe as seen_as_recorded
     from ..irl.moirl import mean_task
-    from ..observation import common_threshold, rest_to_rest
-    from ..observation import observe as seen_as_recorded
 
     task = mean_task(trials, n_nodes)
     try:

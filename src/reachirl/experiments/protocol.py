@@ -196,7 +196,7 @@ _CODE_COMMON = (
     "data/trial.py",
     "doc/__init__.py",
     "doc/task.py",
-    "observation.py",
+    "doc/observation.py",
     "irl/base.py",
     "irl/objective.py",
     "irl/moirl.py",

@@ -79,8 +79,8 @@ def _fmt(c: dict | None) -> str:
 
 
 OBSERVED = ("the rest-to-rest DOC from the trial's onset posture to its target, seen between its own crossings of "
-            "the onset threshold the trial was cut at, as the reach was recorded (reachirl.observation; a trial not "
-            "cut at a threshold: the DOC over its own duration)")
+            "the onset threshold the trial was cut at, as the reach was recorded (reachirl.doc.observation; a trial "
+            "not cut at a threshold: the DOC over its own duration)")
 WHOLE = "the DOC from the trial's own initial state, target and duration"
 
 

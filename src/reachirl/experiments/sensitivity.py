@@ -130,8 +130,8 @@ def load_run(run_dir: str | Path):
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
     DOC solutions themselves (warm starts for the same tasks)."""
+    from ..doc.observation import predict
     from ..evaluation import rmse_deg
-    from ..observation import predict
 
     out, sols = [], []
     for i, t in enumerate(trials):

@@ -22,7 +22,7 @@ demonstrations (the seed's, identical to ``"per_task"`` on one task).
 
 **Observed rollouts** (``Options.observe``): for demonstrations cut at a fingertip-speed threshold
 (``Trial.onset_threshold``), a rollout is the rest-to-rest DOC over ``duration / MOVING_FRACTION`` and enters the
-merit and the features through its own onset-to-offset part (:mod:`reachirl.observation`). The fit first runs on
+merit and the features through its own onset-to-offset part (:mod:`reachirl.doc.observation`). The fit first runs on
 whole rollouts (same options) and goes on from those weights; both stages' solves are counted.
 """
 
@@ -40,9 +40,7 @@ import numpy as np
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
-from ..doc.sensitivity import weight_jacobian
-from ..features import N_FEATURES, feature_rates, window_index, windowed_features
-from ..observation import (
+from ..doc.observation import (
     common_threshold,
     observe,
     observed_knots,
@@ -50,6 +48,8 @@ from ..observation import (
     observed_task,
     rest_to_rest,
 )
+from ..doc.sensitivity import weight_jacobian
+from ..features import N_FEATURES, feature_rates, window_index, windowed_features
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 from .options import FIELDS as _OPTION_FIELDS
@@ -267,7 +267,7 @@ class MOIRL(WeightEstimator):
             group = [t for t, g in zip(trials, self._of, strict=True) if g == r]
             task = mean_task(group, self.n_nodes)
             th = common_threshold(group) if self._o.observe else None
-            if th is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
+            if th is not None:  # rest to rest, seen from onset to offset (reachirl.doc.observation)
                 task = rest_to_rest(task)
             tasks.append(task)
             self._thresholds.append(th)
@@ -276,7 +276,7 @@ class MOIRL(WeightEstimator):
 
     def _seen(self, i: int, task: ReachingTask, sol: DocSolution) -> Trial:
         """Rollout ``i`` as a trial, seen as the demonstrations were recorded: its onset-to-offset part when
-        they were cut at a threshold (:func:`reachirl.observation.observe`), all of it otherwise."""
+        they were cut at a threshold (:func:`reachirl.doc.observation.observe`), all of it otherwise."""
         if self._thresholds[i] is None:
             return trial_from_solution(sol, task.arm, task.target_x)
         return observe(sol, task, self._thresholds[i])
@@ -329,7 +329,7 @@ class MOIRL(WeightEstimator):
 
     def _state(self, i: int, task: ReachingTask, sol: DocSolution) -> np.ndarray:
         """Rollout ``i``'s state on the knots as the merit compares it, ``(N+1, 4)``: seen as the demonstrations
-        were recorded (:func:`reachirl.observation.observed_knots`), or the DOC's own knots."""
+        were recorded (:func:`reachirl.doc.observation.observed_knots`), or the DOC's own knots."""
         q, qd, _, _ = observed_knots(sol, task, self._thresholds[i])
         return np.hstack([q, qd])
 
@@ -597,7 +597,7 @@ class MOIRL(WeightEstimator):
         likelihood step would be. The model (``merit_model``):
 
         * ``"gauss-newton"``: each rollout's derivative along every log-weight (:func:`reachirl.doc.sensitivity
-          .weight_jacobian`, seen as the demonstrations were recorded: :func:`reachirl.observation
+          .weight_jacobian`, seen as the demonstrations were recorded: :func:`reachirl.doc.observation
           .observed_state_jacobian`) gives the Gauss-Newton model of the merit in all ``S × 7`` log-weights
           (:func:`reachirl.irl.objective.gauss_newton_step`); no DOC is solved for it.
         * ``"probes"``: rollouts with each feature's weight (in every window) scaled by ``ρ^{±1}`` give a

@@ -28,7 +28,7 @@ class Options:
     """Every choice of the MO-IRL iteration that :class:`~reachirl.irl.moirl.MOIRL` does not take as a parameter.
 
     * ``observe``: rollouts of demonstrations cut at a fingertip-speed threshold are the rest-to-rest DOC seen
-      between their own threshold crossings (:mod:`reachirl.observation`); ``False``: the DOC over the trial's
+      between their own threshold crossings (:mod:`reachirl.doc.observation`); ``False``: the DOC over the trial's
       duration, at rest at both ends (the seed).
     * ``merit``: ``"normalised"`` divides each state channel by the demonstrations' spread; ``"state"`` is the
       seed's full-state error.

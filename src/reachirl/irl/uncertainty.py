@@ -3,7 +3,7 @@
 **Determined directions.** The observed training states (every demonstration's rollout, seen as the merit sees
 it, each channel scaled as the merit scales it) depend on the log-weights ``η = log ω`` through the DOC's optimum.
 Their Jacobian ``J = ∂r/∂η`` (:func:`reachirl.doc.sensitivity.weight_jacobian` through
-:func:`reachirl.observation.observed_state_jacobian`; one sparse factorisation per rollout, no solve) gives, by
+:func:`reachirl.doc.observation.observed_state_jacobian`; one sparse factorisation per rollout, no solve) gives, by
 its singular value decomposition ``J = U S Vᵀ``, the directions of ``η`` that change the reaches (large ``s_k``)
 and those that do not. A direction is *determined* when moving the log-weights along it by ``log 2`` (halving or
 doubling a weight's combination) raises the merit by more than the data can tell from noise
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from ..doc.observation import observed_state_jacobian
 from ..doc.sensitivity import weight_jacobian
 from ..features import FEATURES, N_FEATURES
-from ..observation import observed_state_jacobian
 
 __all__ = [
     "UNDETERMINED_WIDTH",

@@ -28,10 +28,10 @@ from typing import NamedTuple
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
-from .data.trial import Trial
-from .doc import DocSolution, ReachingTask, solve_doc
-from .doc.task import moved_path
-from .features import euler_knots
+from ..data.trial import Trial
+from ..features import euler_knots
+from . import DocSolution, ReachingTask, solve_doc
+from .task import moved_path
 
 __all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_knots", "observed_solution",
            "observed_state_jacobian", "observed_task", "predict", "rest_to_rest"]
