@@ -1,6 +1,6 @@
 """IRL benchmark: MO-IRL against MaxEnt, bilevel and KKT IOC on virtual subjects with known weights.
 
-One virtual subject (:mod:`reachirl.synth`, Berret's protocol, seed-paper-like true weights with 8
+One virtual subject (:mod:`reachirl.virtual`, Berret's protocol, seed-paper-like true weights with 8
 windows: joint acceleration at onset and termination, geodesic/energy/torque mid-movement), one posture, 10
 training and 10 cross-validation reaches (each under the truth jittered by ``exp(N(0, 0.2))``, with its own
 start and duration). For each method and 1 and 8 windows:
@@ -53,9 +53,9 @@ def virtual_subject(n_trials: int, posture: str = POSTURE, seed: int = 0, n_node
     The demonstrations are the DOC's knots themselves (no recording noise), on the same discretisation as the
     fits; the truth is the synth module's nominal weights.
     """
-    from reachirl import synth
+    from reachirl import virtual as synth
 
-    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights(), "reachirl.synth"
+    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights(), "reachirl.virtual"
 
 
 # ---------------------------------------------------------------------- measuring one fit

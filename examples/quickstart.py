@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
-from reachirl.synth import posture_q
+from reachirl.virtual import posture_q
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from reachirl import FEATURES
-from reachirl.synth import (
+from reachirl.virtual import (
     FEATURE_SCALE,
     RELATIVE_IMPORTANCE,
     SynthConfig,

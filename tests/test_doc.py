@@ -250,7 +250,7 @@ def test_convergence_sweep(arm):
 def test_a_reach_fatrop_solved_is_not_solved_again_by_ipopt(arm):
     """fatrop 1.1.8 reports its "acceptable level" stop as unsuccessful; with it, 12 of these 15 cold solves at
 XX as fatrop failures and solved a second time by IPOPT."""
-    from reachirl.synth import MOVEMENT_FRACTION, POSTURES, nominal_weights, posture_q
+    from reachirl.virtual import MOVEMENT_FRACTION, POSTURES, nominal_weights, posture_q
 
     sols = [
         solve_doc(ReachingTask(arm, posture_q(p), 0.95 * arm.length, d / MOVEMENT_FRACTION), nominal_weights())

@@ -13,7 +13,7 @@ from reachirl.doc.observation import observe, observed_state_jacobian, rest_to_r
 from reachirl.doc.sensitivity import weight_jacobian
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import gauss_newton_step
-from reachirl.synth import knot_trials
+from reachirl.virtual import knot_trials
 
 MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 

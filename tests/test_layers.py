@@ -16,7 +16,7 @@ LAYERS = {
     "data": ("reachirl.data", "reachirl.exports"),
     "doc": ("reachirl.doc", "reachirl.evaluation"),
     "irl": ("reachirl.irl",),
-    "synth": ("reachirl.synth",),
+    "synth": ("reachirl.virtual",),
     "sim": ("reachirl.sim",),
     "experiments": ("reachirl.experiments",),
     "cli": ("reachirl.cli", "reachirl.__main__"),

@@ -10,7 +10,7 @@ from reachirl.data.trial import trial_from_solution
 from reachirl.irl import moirl as moirl_module
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import merit_model_step
-from reachirl.synth import knot_trials
+from reachirl.virtual import knot_trials
 
 MOIRL = whole_rollout_moirl(_MOIRL)  # the iteration on whole rollouts, full-state merit
 

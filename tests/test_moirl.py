@@ -311,7 +311,7 @@ def test_predict_rejects_other_inputs():
 # ---------------------------------------------------------------------- slow: a virtual subject, 8 windows
 def virtual_subject_trials(n_trials: int = 10, posture: str = "P2", seed: int = 0, n_nodes: int = 100):
     """Reaches of one virtual subject on the DOC's own knots, and the truth."""
-    from reachirl import synth
+    from reachirl import virtual as synth
 
     return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights()
 

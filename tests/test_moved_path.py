@@ -8,7 +8,7 @@ import pytest
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.doc.task import moved_path, on_bar
 from reachirl.evaluation import evaluate_trials
-from reachirl.synth import nominal_weights, posture_q
+from reachirl.virtual import nominal_weights, posture_q
 
 N = 50
 ARM = ArmModel.from_anthropometrics(1.76, 70.0, "M")

@@ -20,7 +20,7 @@ from reachirl.doc.observation import (
 from reachirl.errors import InputError
 from reachirl.evaluation import evaluate_trials
 from reachirl.irl.moirl import MOIRL, mean_task
-from reachirl.synth import nominal_weights, posture_q
+from reachirl.virtual import nominal_weights, posture_q
 
 N = 40
 ARM = ArmModel.from_anthropometrics(1.76, 70.0, "M")

@@ -12,7 +12,7 @@ from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.doc.observation import observe
 from reachirl.evaluation import evaluate_trials
-from reachirl.synth import nominal_weights, posture_q
+from reachirl.virtual import nominal_weights, posture_q
 
 N = 20
 ARM = ArmModel.from_anthropometrics(1.76, 70.0, "M")

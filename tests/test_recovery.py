@@ -11,7 +11,7 @@ from reachirl import MOIRL, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials
 from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
-from reachirl.synth import SynthConfig, generate, nominal_weights
+from reachirl.virtual import SynthConfig, generate, nominal_weights
 
 pytestmark = pytest.mark.slow
 

@@ -94,7 +94,7 @@ def test_the_cli_takes_the_segmentation_cutoff(tmp_path, capsys):
     import json
 
     from reachirl.data.trial import load_trials
-    from reachirl.synth import SynthConfig, generate
+    from reachirl.virtual import SynthConfig, generate
 
     data = tmp_path / "syn"
     generate(data, SynthConfig(n_subjects=1, n_trials=1, postures=("P2",), workers=1))

@@ -7,10 +7,11 @@ import time
 import numpy as np
 import pytest
 
-from reachirl import FEATURES, ArmModel, synth
+from reachirl import FEATURES, ArmModel
+from reachirl import virtual as synth
 from reachirl.cli import main
 from reachirl.data.writers import read_mot_simple, read_trc_simple
-from reachirl.synth import (
+from reachirl.virtual import (
     BERRET_POSTURES_DEG,
     MARKERS,
     POSTURES,
@@ -18,9 +19,11 @@ from reachirl.synth import (
     SynthConfig,
     berret_to_model,
     draw_subject,
+    files,
     generate,
     nominal_weights,
     posture_q,
+    recording,
 )
 
 SMALL = {"n_subjects": 1, "n_trials": 2, "postures": ("P2", "P5"), "workers": 1}
@@ -192,7 +195,7 @@ def test_doc_failure_is_redrawn_and_counted(tmp_path, monkeypatch):
                 return type(sol)(**{**sol.__dict__, "converged": False, "status": "forced failure"})
         return sol
 
-    monkeypatch.setattr(synth, "solve_doc", flaky)
+    monkeypatch.setattr(recording, "solve_doc", flaky)
     res = generate(tmp_path, SynthConfig(**{**SMALL, "postures": ("P2",), "n_trials": 1}))
     assert res.doc_failures == 1 and res.trials[0].doc_retries == 1
     assert json.loads((tmp_path / "truth.json").read_text())["doc_failures"] == 1
@@ -212,7 +215,7 @@ def test_builtin_dataset_is_cached_atomically(tmp_path, monkeypatch):
     monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path / "cache"))
     small_cfg = SynthConfig(**{**SMALL, "postures": ("P2",), "n_trials": 1})
     monkeypatch.setattr(
-        synth, "_builtin_config", lambda seed: SynthConfig(**{**small_cfg.__dict__, "seed": seed})
+        files, "_builtin_config", lambda seed: SynthConfig(**{**small_cfg.__dict__, "seed": seed})
     )
     d = synth.builtin_dataset_dir(seed=0)
     assert d.parent == tmp_path / "cache" and d.name.startswith(f"synth-v{synth.GENERATOR_VERSION}-seed0-")
@@ -227,7 +230,7 @@ def test_builtin_dataset_is_cached_atomically(tmp_path, monkeypatch):
 def test_builtin_ignores_half_written_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path))
     small_cfg = SynthConfig(**{**SMALL, "postures": ("P4",), "n_trials": 1})
-    monkeypatch.setattr(synth, "_builtin_config", lambda seed: small_cfg)
+    monkeypatch.setattr(files, "_builtin_config", lambda seed: small_cfg)
     (tmp_path / ".tmp-synth-crashed").mkdir()  # a crashed generation's leftover is never picked up
     d = synth.builtin_dataset_dir()
     assert d.name != ".tmp-synth-crashed" and (d / "truth.json").is_file()

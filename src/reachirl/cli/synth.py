@@ -9,7 +9,7 @@ from ._args import float_in, int_in, non_negative_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from ..synth import FORMATS, POSTURES
+    from ..virtual import FORMATS, POSTURES
 
     p = subparsers.add_parser(
         "synth",
@@ -48,7 +48,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..synth import SynthConfig, format_human_likeness, generate
+    from ..virtual import SynthConfig, format_human_likeness, generate
 
     try:
         config = SynthConfig(

@@ -4,7 +4,7 @@ with a manifest.
 :func:`load` is the one entry point. It returns a :class:`Dataset`: the trials, where they came from, and the
 true weights when the data are virtual subjects (``truth.json`` beside the manifest).
 
-* ``None``: the built-in data set (:func:`reachirl.synth.builtin_dataset_dir`, generated on first use and
+* ``None``: the built-in data set (:func:`reachirl.virtual.builtin_dataset_dir`, generated on first use and
   cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would.
 * a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
   ``truth.json`` beside it (virtual subjects) is read as the ground truth;
@@ -171,7 +171,7 @@ def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None =
         raise InputError(f"--subjects {n_subjects}: at most {MAX_SUBJECTS} built-in virtual subjects (as `reachirl "
                          "synth --subjects`)")
     if path is None:
-        from ..synth import builtin_dataset_dir
+        from ..virtual import builtin_dataset_dir
 
         n = 2 if n_subjects is None else int(n_subjects)
         folder = builtin_dataset_dir(seed, n)
@@ -213,7 +213,7 @@ def toy(
     from ..arm import ArmModel
     from ..data.trial import trial_from_solution
     from ..doc import ReachingTask, solve_doc
-    from ..synth import nominal_weights, posture_q
+    from ..virtual import nominal_weights, posture_q
 
     rng = np.random.default_rng(seed)
     w_nom = nominal_weights()
