@@ -142,7 +142,7 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     finally:
         cb.KnotModel.calc = calc
     assert again.iterations == iters
-    xs, us = cb._to_shooting(task, sol.q, sol.qd, sol.tau)
+    xs, us = cb.solver._to_shooting(task, sol.q, sol.qd, sol.tau)
     # the ADMM iterations are timed with the bounds the solve had (the running ones screened out, by default)
     prob.update(task, w * scale, running_bounds=not (cb.DEFAULT_OPTIONS.screen_bounds and sol.attempts == 1))
     t_calc = _time(lambda: prob.problem.calc(xs, us), 20)

@@ -135,7 +135,7 @@ def test_problem_cost_is_the_features_cost(arm, rng):
     q, qd, tau = cb.initial_guess(task)
     prob = cb.build_problem(arm, task.n_nodes, 6)
     prob.update(task, w)
-    xs, us = cb._to_shooting(task, q, qd, tau)
+    xs, us = cb.solver._to_shooting(task, q, qd, tau)
     cost = prob.problem.calc(xs, us)
     exact = trajectory_cost(arm, q, qd, tau, task.dt, w)
     assert abs(cost - exact) <= w[:, 1].max() * cb.DEFAULT_OPTIONS.energy_smoothing * task.duration + 1e-9
@@ -249,14 +249,14 @@ def test_a_failed_screened_solve_is_solved_again_with_every_bound_from_the_same_
     rng = np.random.default_rng(12)
     task = make_task(arm, "P4")
     w = random_weights(rng, 1)
-    real, calls = cb._attempt, []
+    real, calls = cb.solver._attempt, []
 
     def screened_fails(prob, task_, weights, xs, us, tol, options, running_bounds=True):
         calls.append((running_bounds, np.array(xs)))
         out = real(prob, task_, weights, xs, us, tol, options, running_bounds)
         return (False, *out[1:]) if not running_bounds else out
 
-    monkeypatch.setattr(cb, "_attempt", screened_fails)
+    monkeypatch.setattr(cb.solver, "_attempt", screened_fails)
     sol = solve_doc(task, w, backend="crocoddyl")
     assert [c[0] for c in calls] == [False, True]
     np.testing.assert_array_equal(calls[1][1], calls[0][1])  # not from the failed solve's end point

@@ -209,7 +209,12 @@ def code_fingerprint(method: str = "moirl", backend: str = "casadi") -> str:
     """A hash of the source of the modules a unit's result depends on: the arm, features, evaluation, the DOC
     backend, MO-IRL, and for a baseline ``irl/baselines/`` and ``irl/methods.py``."""
     root = Path(__file__).resolve().parent.parent
-    names = [*_CODE_COMMON, f"doc/{backend}.py"]
+    backend_dir = root / "doc" / backend  # a backend is one module (casadi.py) or a package (crocoddyl/)
+    names = [*_CODE_COMMON]
+    if backend_dir.is_dir():
+        names += sorted(p.relative_to(root).as_posix() for p in backend_dir.glob("*.py"))
+    else:
+        names.append(f"doc/{backend}.py")
     if method != "moirl":
         names += [
             "irl/methods.py",
