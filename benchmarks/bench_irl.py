@@ -5,7 +5,7 @@ windows: joint acceleration at onset and termination, geodesic/energy/torque mid
 training and 10 cross-validation reaches (each under the truth jittered by ``exp(N(0, 0.2))``, with its own
 start and duration). For each method and 1 and 8 windows:
 
-* training and CV RMSE of q (degrees; :func:`reachirl.evaluation.evaluate_trials`, each reach predicted
+* training and CV RMSE of q (degrees; :func:`reachirl.doc.evaluation.evaluate_trials`, each reach predicted
   from its own start);
 * truth agreement: RMSE (degrees) between the learned weights' predictions and the nominal true weights'
   predictions on the CV tasks (how well the *cost* was recovered, regardless of trial-to-trial jitter);
@@ -35,7 +35,7 @@ import numpy as np
 
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import Trial
-from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.doc.evaluation import evaluate_trials, rmse_deg, summarise
 from reachirl.irl.methods import make_estimator
 from reachirl.irl.moirl import demonstration_states, mean_task
 from reachirl.irl.objective import merit

@@ -5,10 +5,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from reachirl.data.exports import CSV_COLUMNS, TrajectoryExport, export_trajectories, safe_name
 from reachirl.data.readers import read_file, read_mot
 from reachirl.data.trial import load_trials
 from reachirl.data.writers import write_mot
-from reachirl.exports import CSV_COLUMNS, TrajectoryExport, export_trajectories, safe_name
 
 
 def test_safe_name():

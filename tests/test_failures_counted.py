@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from reachirl.doc import DocSolution
-from reachirl.evaluation import TrialError, summarise
+from reachirl.doc.evaluation import TrialError, summarise
 from reachirl.experiments import tables as tb
 
 

@@ -10,7 +10,7 @@ import pytest
 from moirl_settings import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
-from reachirl.evaluation import evaluate_trials
+from reachirl.doc.evaluation import evaluate_trials
 from reachirl.irl import moirl as moirl_module
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import subproblem_objective

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from reachirl import ArmModel, ReachingTask, solve_doc
+from reachirl.doc.evaluation import evaluate_trials
 from reachirl.doc.task import moved_path, on_bar
-from reachirl.evaluation import evaluate_trials
 from reachirl.virtual import nominal_weights, posture_q
 
 N = 50

@@ -10,6 +10,7 @@ import pytest
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials, trial_from_solution
+from reachirl.doc.evaluation import evaluate_trials
 from reachirl.doc.observation import (
     MOVING_FRACTION,
     common_threshold,
@@ -18,7 +19,6 @@ from reachirl.doc.observation import (
     rest_to_rest,
 )
 from reachirl.errors import InputError
-from reachirl.evaluation import evaluate_trials
 from reachirl.irl.moirl import MOIRL, mean_task
 from reachirl.virtual import nominal_weights, posture_q
 

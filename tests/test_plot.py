@@ -10,8 +10,8 @@ import pytest
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
+from reachirl.doc.evaluation import evaluate_trials
 from reachirl.doc.observation import observe
-from reachirl.evaluation import evaluate_trials
 from reachirl.virtual import nominal_weights, posture_q
 
 N = 20

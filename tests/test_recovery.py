@@ -10,7 +10,7 @@ import pytest
 from reachirl import MOIRL, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials
-from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.doc.evaluation import evaluate_trials, rmse_deg, summarise
 from reachirl.virtual import SynthConfig, generate, nominal_weights
 
 pytestmark = pytest.mark.slow

@@ -105,9 +105,9 @@ def output_folder_files(folder: object, names, inputs, option: str) -> None:
 
 
 def export_names(ids) -> list[str]:
-    """The files that :func:`reachirl.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
+    """The files that :func:`reachirl.data.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
     ``<name>.mot`` per id (a repeated name gets ``-2``, ``-3`` …) and ``index.csv``."""
-    from ..exports import safe_name
+    from ..data.exports import safe_name
 
     used: set[str] = set()
     names = ["index.csv"]

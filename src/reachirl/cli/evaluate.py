@@ -10,8 +10,8 @@ from rich.progress import Progress
 
 from ..data.checks import check_model_rollout
 from ..data.trial import load_trials
+from ..doc.evaluation import summarise
 from ..errors import InputError
-from ..evaluation import summarise
 from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
@@ -44,7 +44,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 
 
 def summary_line(summary: dict, backend: str) -> str:
-    """One line of :func:`reachirl.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
+    """One line of :func:`reachirl.doc.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
     and the DOC failures."""
     r, fails = summary["rmse_deg"], summary["doc_failures"]
     how = "included in" if summary["failures_included"] else "left out of"
@@ -57,9 +57,9 @@ def summary_line(summary: dict, backend: str) -> str:
 
 
 def prediction_exports(trials, errors, set_name: str = ""):
-    """One :class:`~reachirl.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
+    """One :class:`~reachirl.data.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
     knots beside the prediction."""
-    from ..exports import TrajectoryExport
+    from ..data.exports import TrajectoryExport
 
     out = []
     for tr, e in zip(trials, errors, strict=True):
@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     print(summary_line(summary, args.backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:
-        from ..exports import export_trajectories
+        from ..data.exports import export_trajectories
 
         export_trajectories(args.predictions, prediction_exports(trials, errors))
         print(f"wrote {len(errors)} trajectories (.csv, .mot) and index.csv to {args.predictions}")

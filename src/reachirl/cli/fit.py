@@ -64,7 +64,7 @@ def _experimental(path: Path | None) -> dict | None:
     if path is None:
         return None
     from ..irl.options import resolve_options
-    from ..runfile import read_run_file
+    from .runfile import read_run_file
 
     table = read_run_file(path).get("experimental", {})
     if not isinstance(table, dict):

@@ -58,7 +58,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     (:meth:`reachirl.irl.model.LearnedModel.evaluate`; see the module docstring); returns the files written."""
     import numpy as np
 
-    from ..evaluation import summarise
+    from ..doc.evaluation import summarise
     from ..experiments import figures as fg
 
     n, n_nodes = model.n_windows, model.n_nodes
@@ -134,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --out needs a folder", out)
     if args.model is not None:
         from ..data.trial import load_trials
-        from ..evaluation import summarise
+        from ..doc.evaluation import summarise
         from ..irl.model import load_model
         from .evaluate import summary_line
 

@@ -276,7 +276,7 @@ def run(args) -> int:
         output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export")
     save_trials(out, trials)
     if args.export is not None:
-        from ..exports import TrajectoryExport, export_trajectories
+        from ..data.exports import TrajectoryExport, export_trajectories
 
         export_trajectories(args.export, [
             TrajectoryExport(id=tr.id, t=tr.t, side=tr.side, demo={"q": tr.q, "qd": tr.qd, "tau": tr.tau})

@@ -118,7 +118,7 @@ FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "po
 def run_options(args) -> dict:
     """The run's options: the run file, then ``--set``, then the flags given; every key checked (exit 2 naming the
     key or the file). ``experimental`` is a table."""
-    from ..runfile import parse_assignment, read_run_file
+    from .runfile import parse_assignment, read_run_file
 
     opts: dict = {}
     where = None
@@ -266,7 +266,7 @@ def _check_scheduler(address: str | None) -> None:
 def _write_run_file(out, args, opts: dict, config) -> None:
     """``DIR/run.toml``: every option the run used, so that ``reproduce --config DIR/run.toml`` repeats it."""
     from .. import __version__
-    from ..runfile import write_run_file
+    from .runfile import write_run_file
 
     resolved = {
         "data": None if args.data is None else str(Path(args.data).resolve()),

@@ -469,7 +469,7 @@ _Q_ALIASES = {
     "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder", "r_shoulder_elev", "l_shoulder_elev"),
     "q2": ("q2", "elbow", "elbow_flex", "q_elbow", "r_elbow_flex", "l_elbow_flex"),
 }
-# OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.exports)
+# OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.data.exports)
 _Q1_OFFSET_RAD = {"r_shoulder_elev": -np.pi / 2, "l_shoulder_elev": -np.pi / 2}
 
 

@@ -146,7 +146,7 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
     (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
     truth."""
-    from ..evaluation import evaluate_trials, rmse_deg
+    from ..doc.evaluation import evaluate_trials, rmse_deg
 
     truth = run.dataset.truth or {}
     nominal = (truth.get("truth") or {}).get("nominal_weights")

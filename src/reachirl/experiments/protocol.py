@@ -13,7 +13,7 @@ With ``iscv="all-pairs"`` every other subject is a training subject too, in extr
 (``Unit.train_subject``; :mod:`reachirl.experiments.pairs`), and ``n_iscv`` counts trials per test subject.
 
 Every prediction is the DOC from the trial's own arm, initial state, target and duration
-(:func:`reachirl.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
+(:func:`reachirl.doc.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
 :func:`run_unit` is a pure function of the unit and its trials, so it gives the same numbers in any process.
 """
 
@@ -192,7 +192,7 @@ class Unit:
 _CODE_COMMON = (
     "arm.py",
     "features.py",
-    "evaluation.py",
+    "doc/evaluation.py",
     "data/trial.py",
     "doc/__init__.py",
     "doc/task.py",
@@ -429,7 +429,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from ..evaluation import evaluate_trials, summarise
+    from ..doc.evaluation import evaluate_trials, summarise
 
     est = make_estimator(unit)
     t0 = time.perf_counter()

@@ -2,7 +2,7 @@
 
 * :func:`write_tables` — ``table.md`` and ``table.csv``;
 * :func:`write_figures` — ``figures/*.png`` (and ``.pdf``);
-* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.exports`);
+* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`);
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
 
@@ -274,8 +274,8 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
 
 def write_predictions(run: RunResult) -> list[Path]:
     """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit
-    (:func:`reachirl.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
-    from ..exports import TrajectoryExport, export_trajectories
+    (:func:`reachirl.data.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
+    from ..data.exports import TrajectoryExport, export_trajectories
 
     written = []
     for key in sorted(run.results):

@@ -130,8 +130,8 @@ def load_run(run_dir: str | Path):
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
     DOC solutions themselves (warm starts for the same tasks)."""
+    from ..doc.evaluation import rmse_deg
     from ..doc.observation import predict
-    from ..evaluation import rmse_deg
 
     out, sols = [], []
     for i, t in enumerate(trials):
@@ -163,7 +163,7 @@ def sensitivity_job(weights: np.ndarray, trials: Sequence, n_nodes: int, backend
                     percent: float, observe: bool = False) -> dict:
     """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − (predictions
     seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one."""
-    from ..evaluation import rmse_deg
+    from ..doc.evaluation import rmse_deg
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     w = np.asarray(weights, dtype=float)

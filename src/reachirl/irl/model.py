@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..doc.evaluation import TrialError, evaluate_trials
 from ..errors import InputError
-from ..evaluation import TrialError, evaluate_trials
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, read_json
 from ..validation import brief, check_file_size, check_n_nodes, require
@@ -62,7 +62,7 @@ class LearnedModel:
     def evaluate(self, trials: Sequence, backend: str = "casadi",
                  on_trial: Callable[[TrialError], None] | None = None) -> list[TrialError]:
         """Each trial predicted from its own start as the model was fitted (:attr:`observe`, from
-        :attr:`rollout_q`), with its RMSE: :func:`reachirl.evaluation.evaluate_trials` under this model."""
+        :attr:`rollout_q`), with its RMSE: :func:`reachirl.doc.evaluation.evaluate_trials` under this model."""
         return evaluate_trials(self.weights, trials, n_nodes=self.n_nodes, backend=backend, on_trial=on_trial,
                                observe=self.observe, path=self.rollout_q)
 

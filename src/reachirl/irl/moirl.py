@@ -400,7 +400,7 @@ class MOIRL(WeightEstimator):
         """``λ`` of :data:`SMOOTHNESS_GRID` with the lowest mean joint-angle RMSE over ``cv_folds`` folds of the
         training demonstrations (each fold predicted by the DOC from its own start, as a test trial would be).
         Ties go to the smoother model. The folds interleave the trials in their given order."""
-        from ..evaluation import rmse_deg
+        from ..doc.evaluation import rmse_deg
 
         k = min(int(self._o.cv_folds), len(trials))
         if k < 2:

@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .data.writers import write_mot
-from .io import atomic_write_text
+from ..io import atomic_write_text
+from .writers import write_mot
 
 __all__ = [
     "CSV_COLUMNS",

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data.trial import Trial
-from .doc import DocSolution
-from .doc.observation import predict
+from ..data.trial import Trial
+from . import DocSolution
+from .observation import predict
 
 __all__ = ["TrialError", "evaluate_trials", "rmse_deg", "summarise"]
 

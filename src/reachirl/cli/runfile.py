@@ -13,8 +13,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from .errors import InputError
-from .io import atomic_write_text
+from ..errors import InputError
+from ..io import atomic_write_text
 
 __all__ = ["dumps", "parse_assignment", "read_run_file", "write_run_file"]
 
