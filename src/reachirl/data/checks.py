@@ -34,7 +34,7 @@ def _deg(v: float) -> str:
 def check_start_and_target(trial, path: object, where: str | None = None) -> None:
     """The target lies in front of the shoulder within the arm's reach, ``0 < target_x <= l1 + l2``, and the
     start velocities are within the DOC's speed bound ``|q̇0| <= qd_max`` (rad/s)."""
-    from ..doc.task import DEFAULT_QD_MAX
+    from ..arm import DEFAULT_QD_MAX
 
     length = trial.arm.length
     tx = float(trial.target_x)
@@ -56,7 +56,7 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     in front of the shoulder. A mirrored recording (a left arm read as a right one) bends the elbow backwards
     and a backwards one starts at the bar: the message says so, here where ``--side`` or ``--markers`` can fix
     it, and not later in ``fit``."""
-    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+    from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
     lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
     hint = ("a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
@@ -103,7 +103,7 @@ def check_segment_lengths(info_lengths: Mapping[str, float | None], measured: Ma
 def check_model_rollout(model, path: object) -> None:
     """A model's ``info.rollout_q`` (the fit's own reach, ``evaluate``'s cold start) lies within the joint
     limits."""
-    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+    from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
     rollout = model.info.get("rollout_q") if isinstance(model.info, dict) else None
     if rollout is None:
@@ -123,7 +123,7 @@ def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, f
     of the trials' ``duration / (n_nodes · substeps)``, s) integrates stably on the lightest of the trials'
     arms, whose smallest mass-matrix eigenvalue over the elbow's range is ``inertia`` (kg·m²):
     ``kd · h / I <= 1`` and ``kp · h² / I <= 1`` (half and a quarter of the undamped stability limits)."""
-    from ..doc.task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+    from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
     h = min(tr.duration for tr in trials) / (int(n_nodes) * int(substeps))
     q2 = np.linspace(DEFAULT_Q_LOWER[1], DEFAULT_Q_UPPER[1], 33)

@@ -22,14 +22,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, ArmModel
+from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, ArmModel
 from ..features import euler_knots
 from ..validation import check_arm, check_duration, check_n_nodes
 
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk",
            "moved_path", "on_bar", "rest_to_rest_knots"]
 
-DEFAULT_QD_MAX = (10.0, 10.0)
 
 
 def _vec2(name: str, v) -> np.ndarray:
