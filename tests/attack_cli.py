@@ -7,7 +7,7 @@ it wrote, an answer within the timeout).
 
 The valid inputs (virtual subjects in TRC, C3D and MOT, a trials file, a model) are made under --base (default
 a folder in the system's temporary directory) on first use. Not collected by pytest (make test runs
-tests/test_fuzz.py and tests/test_validation.py).
+tests/cli/test_fuzz.py and tests/test_validation.py).
 """
 import io
 import json
@@ -293,7 +293,7 @@ def attacks():
     A["reproduce:method-bogus"] = lambda: RQ("rm", "--method", "bogus")
     A["reproduce:sections-huge"] = lambda: RQ("rsh", "--sections", "500")
     A["reproduce:data-missing"] = lambda: [R, "reproduce", "--quick", "--data", str(W / "nope"), "--out", str(W / "rx")]
-    # ---- issue 34: outputs over inputs, FIFOs, truncated recordings, inconsistent inputs (tests/test_nothing_lost*.py)
+    # ---- issue 34: outputs over inputs, FIFOs, truncated recordings, inconsistent inputs (tests/cli/test_nothing_lost*.py)
     def victim(src, name):
         p = W / name
         shutil.copy(src, p)

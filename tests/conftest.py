@@ -1,10 +1,16 @@
 import os
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+# the shared helpers (moirl_settings, attack_cli) live here and are imported as top-level modules by the tests in
+# the subfolders, which mirror src/reachirl/
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-# no background compilation into the user's cache from a test run (tests/test_compiled.py sets its own)
+# no background compilation into the user's cache from a test run (tests/doc/test_compiled.py sets its own)
 os.environ.setdefault("REACHIRL_COMPILE", "off")
 os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")

@@ -296,7 +296,7 @@ def test_agrees_with_a_plain_multiple_shooting_formulation(arm):
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
     from bench_doc import PlainDoc
 
     rng = np.random.default_rng(3)

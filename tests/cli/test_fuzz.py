@@ -27,7 +27,7 @@ from reachirl.irl.model import LearnedModel, save_model
 
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
 MARKERS = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
-UE_ADL = Path(__file__).resolve().parents[1] / "src" / "reachirl" / "data" / "ue_adl_sample" / "ADL001"
+UE_ADL = Path(__file__).resolve().parents[2] / "src" / "reachirl" / "data" / "ue_adl_sample" / "ADL001"
 SEED = 12
 
 

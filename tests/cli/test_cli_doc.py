@@ -5,7 +5,7 @@ from pathlib import Path
 from reachirl.cli import COMMANDS
 from reachirl.cli.docs import render
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "cli.md"
 
 
 def test_cli_doc_is_the_parsers_rendered():

@@ -98,7 +98,7 @@ def test_a_stall_at_the_energys_kink_is_rescued_by_the_smoothing_continuation():
 
     from reachirl import ArmModel
 
-    fits = json.loads((Path(__file__).resolve().parents[1] / "benchmarks" / "learned_weights.json").read_text())
+    fits = json.loads((Path(__file__).resolve().parents[2] / "benchmarks" / "learned_weights.json").read_text())
     fit = next(f for f in fits["fits"] if (f["source"], f["method"], f["posture"], f["sections"])
                == ("builtin", "maxent", "P4", 8))
     d = next(t for t in fit["trials"]["train"] if t["id"] == "S01/P4/right/S01_P4_T06")

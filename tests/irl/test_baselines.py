@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from test_moirl import FEATURE_SCALE, N_NODES, known_weight_demos, mean_rmse, true_weights
 
 from reachirl import solve_doc
 from reachirl.irl.baselines import KKTIOC, BilevelIOC, MaxEntIRL
@@ -13,7 +14,6 @@ from reachirl.irl.baselines.kkt import kkt_residual
 from reachirl.irl.methods import METHODS, make_estimator
 from reachirl.irl.moirl import MOIRL, demonstration_states, mean_task
 from reachirl.irl.objective import merit
-from test_moirl import FEATURE_SCALE, N_NODES, known_weight_demos, mean_rmse, true_weights
 
 
 @pytest.fixture(scope="module")
