@@ -7,17 +7,22 @@ that was expected, which the command line turns into exit code 2.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
 
+from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 from ..errors import InputError
+from ..validation import brief, check_arm, check_duration, require
 
 __all__ = [
     "LENGTH_TOLERANCE",
     "check_model_rollout",
     "check_segment_lengths",
     "check_start_and_target",
+    "check_trial_meta",
+    "check_trial_physics",
     "check_trial_posture",
     "pd_gain_limits",
 ]
@@ -129,3 +134,50 @@ def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, f
     q2 = np.linspace(DEFAULT_Q_LOWER[1], DEFAULT_Q_UPPER[1], 33)
     inertia = min(float(np.linalg.eigvalsh(tr.arm.mass_matrix(np.array([0.0, a])))[0]) for tr in trials for a in q2)
     return inertia / h**2, inertia / h, h, inertia
+
+
+# ---------------------------------------------------------------------- a trials file's entries
+_META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
+
+
+def check_trial_meta(m, i: int, path) -> None:
+    """One trial's entry in a trials file's ``meta.json``."""
+    where = f"trial {i}"
+    require(isinstance(m, dict), f"{where}: expected an object, found {brief(m)}", path)
+    for key in ("subject", "posture", "trial_id", "target_x", "arm"):
+        require(key in m, f"{where}: field '{key}' is missing", path)
+    for key, typ in _META_TYPES.items():
+        if key in m:
+            require(isinstance(m[key], typ | int) and not isinstance(m[key], bool),
+                    f"{where}: field '{key}' must be a string, found {brief(m[key])}", path)
+    tx = m["target_x"]
+    require(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
+            f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}", path)
+    th = m.get("onset_threshold")
+    require(th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
+            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}", path)
+    arm = m["arm"]
+    require(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
+    for k, v in arm.items():
+        require(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
+                f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}", path)
+
+
+def check_trial_physics(trial, i: int, path) -> None:
+    """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
+    limits."""
+    where = f"trial {i} ({trial.id})"
+    try:
+        check_arm(trial.arm, where)
+        check_duration(trial.duration, where)
+    except InputError as e:
+        raise InputError(e.reason, path, where) from None
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    q0 = trial.x0[:2]
+    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
+        d = np.rad2deg
+        raise InputError(
+            f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
+            f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
+            path, where,
+        )

@@ -203,8 +203,8 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
 def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
     from ..io import check_regular_file
-    from ..validation import check_npz_file, check_trial_meta, check_trial_physics
-    from .checks import check_start_and_target
+    from ..validation import check_npz_file
+    from .checks import check_start_and_target, check_trial_meta, check_trial_physics
 
     path = check_regular_file(path)  # a FIFO or a device would block or never end
     if not zipfile.is_zipfile(path):
