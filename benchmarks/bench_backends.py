@@ -169,8 +169,14 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
             "problem_calc_ms": 1e3 * t_calc,
             "problem_calcdiff_ms": 1e3 * t_diff,
             "admm_iteration_us": 1e6 * t_qp,
-            "solve": {"time_ms": 1e3 * total, "sqp_iterations": iters, "rollouts": rollouts[0],
-                      "admm_iterations": qp_iters, "attempts": sol.attempts, **pieces},
+            "solve": {
+                "time_ms": 1e3 * total,
+                "sqp_iterations": iters,
+                "rollouts": rollouts[0],
+                "admm_iterations": qp_iters,
+                "attempts": sol.attempts,
+                **pieces,
+            },
             "python_share_of_knot_time": python_share,
         }
     )

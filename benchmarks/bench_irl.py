@@ -199,9 +199,15 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8, repeats: int = 3) -> dict
             cpus = [min(times) for times in runs]
             solves = list(solves.values())
         key = "vm" if mode == "off" else "compiled"
-        out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "fit_cpu_runs_s": runs,
-                    "repeats": repeats, "doc_solves": solves, "reference_doc_cpu_s": ref_cpu,
-                    "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}
+        out[key] = {
+            "fit_cpu_s": cpus,
+            "fit_cpu_median_s": float(np.median(cpus)),
+            "fit_cpu_runs_s": runs,
+            "repeats": repeats,
+            "doc_solves": solves,
+            "reference_doc_cpu_s": ref_cpu,
+            "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu,
+        }
     out["same_weights"] = all(np.array_equal(w[0], b) for w in weights.values() for b in w[1:])
     with compile_mode("on"):  # the same fits with weight samples (reachirl fit --uncertainty): their own CPU
         unc = []
@@ -211,8 +217,10 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8, repeats: int = 3) -> dict
             c0 = time.process_time()
             est.fit(train[u.posture])
             unc.append(time.process_time() - c0)
-    out["uncertainty"] = {"fit_cpu_s": unc, "ratio_to_plain_fit": [a / b for a, b in
-                                                                   zip(unc, out["compiled"]["fit_cpu_s"], strict=True)]}
+    out["uncertainty"] = {
+        "fit_cpu_s": unc,
+        "ratio_to_plain_fit": [a / b for a, b in zip(unc, out["compiled"]["fit_cpu_s"], strict=True)],
+    }
     out["compiled_vs_vm"] = out["compiled"]["fit_cpu_median_s"] / out["vm"]["fit_cpu_median_s"]
     return out
 
@@ -299,8 +307,11 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
     targets = _targets(rows, curves, ref_doc)
     if protocol_fits is not None:  # target: an 8-window fit of 10 recorded reaches takes at most 1 s of CPU
         median = protocol_fits["compiled"]["fit_cpu_median_s"]
-        targets["protocol_fit_le_1s_cpu"] = {"median_cpu_s": median, "per_posture_cpu_s":
-                                             protocol_fits["compiled"]["fit_cpu_s"], "met": median <= 1.0}
+        targets["protocol_fit_le_1s_cpu"] = {
+            "median_cpu_s": median,
+            "per_posture_cpu_s": protocol_fits["compiled"]["fit_cpu_s"],
+            "met": median <= 1.0,
+        }
         ratios = protocol_fits["uncertainty"]["ratio_to_plain_fit"]
         targets["uncertainty_le_10x_fit_cpu"] = {"ratio_per_posture": ratios, "met": max(ratios) <= 10.0}
     result = {
@@ -473,8 +484,10 @@ def markdown(result: dict) -> str:
         ]
         for key, label in (("vm", "CasADi virtual machine"), ("compiled", "compiled (`reachirl.doc.compiled`)")):
             r = pf[key]
-            lines.append(f"| {label} | {', '.join(f'{c:.2f}' for c in r['fit_cpu_s'])} | {r['fit_cpu_median_s']:.2f} "
-                         f"| {', '.join(map(str, r['doc_solves']))} | {r['fit_in_reference_docs']:.0f} |")
+            lines.append(
+                f"| {label} | {', '.join(f'{c:.2f}' for c in r['fit_cpu_s'])} | {r['fit_cpu_median_s']:.2f} "
+                f"| {', '.join(map(str, r['doc_solves']))} | {r['fit_in_reference_docs']:.0f} |"
+            )
         lines += ["", f"Compiled / VM: {pf['compiled_vs_vm']:.2f}; the same weights both ways: {pf['same_weights']}."]
     for name, e in result.get("extra", {}).items():
         shown = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in e.items()}

@@ -88,8 +88,9 @@ def check_duration(duration, where: object | None = None) -> float:
     try:
         d = float(duration)
     except (TypeError, ValueError):
-        raise InputError(f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}",
-                         where) from None
+        raise InputError(
+            f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}", where
+        ) from None
     if not (math.isfinite(d) and lo <= d <= hi):
         raise InputError(f"duration {brief(d)} s is outside the range of a reach, [{lo}, {hi}] s", where)
     return d
@@ -136,7 +137,8 @@ def _check_writable_folder(path: Path, option: str) -> None:
         if len(os.fsencode(part)) + 16 > limit:
             raise InputError(
                 f"{option}: the name {part[:20]}... is {len(os.fsencode(part))} bytes long; the limit here is "
-                f"{limit - 16} bytes", path
+                f"{limit - 16} bytes",
+                path,
             )
     try:
         with tempfile.TemporaryFile(dir=anc, prefix=".reachirl-write-test-"):
@@ -176,8 +178,21 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
 #: errno values of an OSError that concern a path the user gave (not a bug of reachirl)
 PATH_ERRNOS = frozenset(
     getattr(errno, n)
-    for n in ("EACCES", "EPERM", "EROFS", "ENOSPC", "EDQUOT", "ENAMETOOLONG", "ENOTDIR", "EISDIR", "EEXIST",
-              "ENOENT", "ELOOP", "EFBIG", "EMFILE")
+    for n in (
+        "EACCES",
+        "EPERM",
+        "EROFS",
+        "ENOSPC",
+        "EDQUOT",
+        "ENAMETOOLONG",
+        "ENOTDIR",
+        "EISDIR",
+        "EEXIST",
+        "ENOENT",
+        "ELOOP",
+        "EFBIG",
+        "EMFILE",
+    )
     if hasattr(errno, n)
 )
 
@@ -214,7 +229,8 @@ def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
                 if info.file_size > max_entry:
                     raise InputError(
                         f"entry {info.filename} is {info.file_size / 1024**2:.0f} MB uncompressed, more than "
-                        f"{max_entry / 1024**2:.0f} MB", path
+                        f"{max_entry / 1024**2:.0f} MB",
+                        path,
                     )
             for info in infos:
                 if not info.filename.endswith(".npy"):
@@ -228,13 +244,13 @@ def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
                     else:
                         raise InputError(f"entry {info.filename}: unsupported .npy version {version}", path)
                     if dtype.hasobject or dtype.kind not in "biufU":
-                        raise InputError(f"entry {info.filename} has dtype {dtype}, expected numbers or text",
-                                         path)
+                        raise InputError(f"entry {info.filename} has dtype {dtype}, expected numbers or text", path)
                     n_bytes = int(np.prod([int(s) for s in shape], dtype=object) or 0) * dtype.itemsize
                     if n_bytes > max_entry or n_bytes > info.file_size:
                         raise InputError(
                             f"entry {info.filename} declares shape {tuple(shape)} ({brief(n_bytes)} bytes) but holds "
-                            f"{info.file_size} bytes", path
+                            f"{info.file_size} bytes",
+                            path,
                         )
             bad = zf.testzip()  # decompresses every entry and checks its CRC
             if bad is not None:

@@ -38,8 +38,9 @@ def trials_file(tmp_path_factory, arm):
 
 def test_fit_then_evaluate(trials_file, tmp_path, capsys):
     model = tmp_path / "model.json"
-    assert main(["fit", str(trials_file), "--sections", "2", "--nodes", "40", "--max-iter", "5",
-                 "--out", str(model)]) == 0
+    assert (
+        main(["fit", str(trials_file), "--sections", "2", "--nodes", "40", "--max-iter", "5", "--out", str(model)]) == 0
+    )
     m = json.loads(model.read_text())
     assert m["format"] == "reachirl-model/1" and m["method"] == "moirl" and m["n_windows"] == 2
     w = np.array(m["weights"])
@@ -74,16 +75,26 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
 @pytest.mark.parametrize(
     ("make_args", "match"),
     [
-        (lambda d, t: ["fit", str(d / "missing.npz"), "--sections", "1", "--out", str(d / "m.json")],
-         r"missing\.npz: file not found"),
-        (lambda d, t: ["fit", str(d / "bad.npz"), "--sections", "1", "--out", str(d / "m.json")],
-         r"bad\.npz: not a trials file"),
-        (lambda d, t: ["fit", str(t), "--sections", "101", "--out", str(d / "m.json")],
-         r"--sections must be between 1 and"),
-        (lambda d, t: ["evaluate", "--model", str(d / "bad.json"), str(t), "--out", str(d / "x.json")],
-         r"bad\.json: line 1: invalid JSON"),
-        (lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
-         r"other\.json: not a reachirl model file"),
+        (
+            lambda d, t: ["fit", str(d / "missing.npz"), "--sections", "1", "--out", str(d / "m.json")],
+            r"missing\.npz: file not found",
+        ),
+        (
+            lambda d, t: ["fit", str(d / "bad.npz"), "--sections", "1", "--out", str(d / "m.json")],
+            r"bad\.npz: not a trials file",
+        ),
+        (
+            lambda d, t: ["fit", str(t), "--sections", "101", "--out", str(d / "m.json")],
+            r"--sections must be between 1 and",
+        ),
+        (
+            lambda d, t: ["evaluate", "--model", str(d / "bad.json"), str(t), "--out", str(d / "x.json")],
+            r"bad\.json: line 1: invalid JSON",
+        ),
+        (
+            lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
+            r"other\.json: not a reachirl model file",
+        ),
     ],
 )
 def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_args, match):
@@ -120,15 +131,47 @@ def mixed_file(tmp_path_factory, trials_file, arm):
 
 def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, capsys):
     model = tmp_path / "p2.json"
-    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "2", "--posture", "P2",
-                 "--out", str(model)]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(mixed_file),
+                "--sections",
+                "1",
+                "--nodes",
+                "40",
+                "--max-iter",
+                "2",
+                "--posture",
+                "P2",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
     info = json.loads(model.read_text())["info"]
     assert info["trial_ids"] == [f"S1/P2/right/{i}" for i in range(4)]
     assert info["selection"] == {"subjects": None, "postures": ["P2"], "sides": None}
     assert not any("postures" in w for w in info["warnings"])
     metrics = tmp_path / "m.json"
-    assert main(["evaluate", "--model", str(model), str(mixed_file), "--subject", "S2", "--side", "right",
-                 "--out", str(metrics)]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--model",
+                str(model),
+                str(mixed_file),
+                "--subject",
+                "S2",
+                "--side",
+                "right",
+                "--out",
+                str(metrics),
+            ]
+        )
+        == 0
+    )
     out = json.loads(metrics.read_text())
     assert [t["id"] for t in out["trials"]] == ["S2/P4/right/0", "S2/P4/right/1"]
     assert out["selection"] == {"subjects": ["S2"], "postures": None, "sides": ["right"]}
@@ -136,8 +179,25 @@ def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, caps
 
 def test_fit_warns_when_one_mean_rollout_would_stand_for_several_postures(mixed_file, tmp_path, capsys):
     model = tmp_path / "all.json"
-    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1", "--rollout", "mean",
-                 "--out", str(model)]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(mixed_file),
+                "--sections",
+                "1",
+                "--nodes",
+                "40",
+                "--max-iter",
+                "1",
+                "--rollout",
+                "mean",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
     info = json.loads(model.read_text())["info"]
     assert info["selection"] is None and len(info["trial_ids"]) == 6
     assert any("span 2 postures (P2, P4)" in w for w in info["warnings"]), info["warnings"]
@@ -148,8 +208,9 @@ def test_fit_of_several_tasks_learns_one_cost_with_a_rollout_per_task(mixed_file
     """The default fit of trials of two postures (and two subjects) solves one rollout per (subject, posture):
     its first iteration solves as many DOCs as there are tasks, and no warning is needed."""
     model = tmp_path / "all.json"
-    assert main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1",
-                 "--out", str(model)]) == 0
+    assert (
+        main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1", "--out", str(model)]) == 0
+    )
     info = json.loads(model.read_text())["info"]
     tasks = {tuple(i.split("/")[:2]) for i in info["trial_ids"]}
     assert len(tasks) > 1 and info["postures"] == ["P2", "P4"]
@@ -161,21 +222,25 @@ def test_fit_of_several_tasks_learns_one_cost_with_a_rollout_per_task(mixed_file
     ("selection", "match"),
     [
         (["--posture", "P9"], r"mixed\.npz: no trial of posture P9; they have posture P2, P4$"),
-        (["--subject", "S2", "--posture", "P2"],
-         r"mixed\.npz: no trial of posture P2 among those of subject S2; they have posture P4$"),
+        (
+            ["--subject", "S2", "--posture", "P2"],
+            r"mixed\.npz: no trial of posture P2 among those of subject S2; they have posture P4$",
+        ),
         (["--subject", "S1", "S3"], r"mixed\.npz: no trial of subject S3; they have subject S1, S2$"),
         (["--side", "left"], r"mixed\.npz: no trial of side left; they have side right$"),
     ],
 )
 @pytest.mark.parametrize("command", ["fit", "evaluate"])
-def test_a_selection_no_trial_matches_exits_2_naming_the_file(mixed_file, tmp_path, capsys, selection, match,
-                                                              command):
+def test_a_selection_no_trial_matches_exits_2_naming_the_file(mixed_file, tmp_path, capsys, selection, match, command):
     from reachirl.irl.model import LearnedModel, save_model
 
     model = tmp_path / "model.json"
     save_model(model, LearnedModel(weights=np.ones((1, 7)), n_nodes=40, method="moirl", info={}))
-    args = (["fit", str(mixed_file), "--sections", "1", "--out", str(tmp_path / "m.json")] if command == "fit"
-            else ["evaluate", "--model", str(model), str(mixed_file), "--out", str(tmp_path / "m.json")])
+    args = (
+        ["fit", str(mixed_file), "--sections", "1", "--out", str(tmp_path / "m.json")]
+        if command == "fit"
+        else ["evaluate", "--model", str(model), str(mixed_file), "--out", str(tmp_path / "m.json")]
+    )
     assert main([*args, *selection]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and re.search(match, err), err

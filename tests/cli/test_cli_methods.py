@@ -15,8 +15,10 @@ def models(tiny_trials, tmp_path_factory, cli):
     runs = {}
     for m in METHODS:
         out = d / f"{m}.json"
-        runs[m] = (cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "3",
-                                "--method", m, "--out", out), out)
+        runs[m] = (
+            cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "3", "--method", m, "--out", out),
+            out,
+        )
     return runs
 
 
@@ -45,9 +47,27 @@ def test_fit_evaluate_simulate(method, models, tiny_trials, tmp_path, cli):
 
 def test_reproduce_every_method(tiny_trials, tmp_path, cli):
     out = tmp_path / "run"
-    proc = cli("reproduce", "--data", tiny_trials, "--method", *METHODS, "--sections", "1", "2",
-                        "--nodes", "20", "--max-iter", "3", "--n-train", "2", "--workers", "1", "--no-progress",
-                        "--out", out)
+    proc = cli(
+        "reproduce",
+        "--data",
+        tiny_trials,
+        "--method",
+        *METHODS,
+        "--sections",
+        "1",
+        "2",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "3",
+        "--n-train",
+        "2",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        out,
+    )
     assert proc.returncode == 0, proc.stderr
     for m in METHODS:
         assert f"{m} (casadi DOC): RMSE of the joint angles" in proc.stdout

@@ -31,13 +31,30 @@ def test_every_option_has_help_with_its_default(name):
             continue
         assert a.help, f"{name} {a.option_strings or a.dest} has no help"
         if a.option_strings and not a.required and not isinstance(a, argparse._StoreTrueAction):
-            assert "default" in a.help.lower() or "required" in a.help.lower(), \
+            assert "default" in a.help.lower() or "required" in a.help.lower(), (
                 f"{name} {a.option_strings}: the help does not say the default"
+            )
 
 
 def test_preprocess_folder_uses_its_manifest(tmp_path, capsys):
-    assert main(["synth", "--out", str(tmp_path / "syn"), "--subjects", "1", "--trials", "2", "--postures", "P2",
-                 "--workers", "1"]) == 0
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(tmp_path / "syn"),
+                "--subjects",
+                "1",
+                "--trials",
+                "2",
+                "--postures",
+                "P2",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
     capsys.readouterr()
     out = tmp_path / "t.npz"
     assert main(["preprocess", str(tmp_path / "syn"), "--out", str(out)]) == 0

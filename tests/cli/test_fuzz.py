@@ -36,11 +36,45 @@ SEED = 12
 def base(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("fuzz_base")
     for fmt in ("trc", "c3d", "mot"):
-        assert main(["synth", "--out", str(d / fmt), "--subjects", "1", "--trials", "1", "--postures", "P2",
-                     "--format", fmt, "--workers", "1"]) == 0
-    assert main(["preprocess", str(d / "trc" / "S01_P2_T01.trc"), "--markers", MARKERS,
-                 "--subject-info", str(d / "trc" / "subjects.csv"), "--subject", "S01", "--posture", "P2",
-                 "--out", str(d / "trials.npz")]) == 0
+        assert (
+            main(
+                [
+                    "synth",
+                    "--out",
+                    str(d / fmt),
+                    "--subjects",
+                    "1",
+                    "--trials",
+                    "1",
+                    "--postures",
+                    "P2",
+                    "--format",
+                    fmt,
+                    "--workers",
+                    "1",
+                ]
+            )
+            == 0
+        )
+    assert (
+        main(
+            [
+                "preprocess",
+                str(d / "trc" / "S01_P2_T01.trc"),
+                "--markers",
+                MARKERS,
+                "--subject-info",
+                str(d / "trc" / "subjects.csv"),
+                "--subject",
+                "S01",
+                "--posture",
+                "P2",
+                "--out",
+                str(d / "trials.npz"),
+            ]
+        )
+        == 0
+    )
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
     shutil.copytree(UE_ADL, d / "vicon")
     return d
@@ -175,9 +209,13 @@ def cases(base: Path) -> list[tuple[str, str, object]]:
     """``(kind, mutation, content)`` for every kind, seeded."""
     rng = random.Random(SEED)
     out = []
-    for kind, src in (("trc", base / "trc" / "S01_P2_T01.trc"), ("mot", base / "mot" / "S01_P2_T01.mot"),
-                      ("vicon-csv", base / "vicon" / "ADL001FL1.csv"),
-                      ("subject-info", base / "trc" / "subjects.csv"), ("manifest", base / "trc" / "manifest.csv")):
+    for kind, src in (
+        ("trc", base / "trc" / "S01_P2_T01.trc"),
+        ("mot", base / "mot" / "S01_P2_T01.mot"),
+        ("vicon-csv", base / "vicon" / "ADL001FL1.csv"),
+        ("subject-info", base / "trc" / "subjects.csv"),
+        ("manifest", base / "trc" / "manifest.csv"),
+    ):
         out += [(kind, name, c) for name, c in _text_mutations(src.read_text(encoding="utf-8"), rng)]
     out += [("c3d", name, c) for name, c in _binary_mutations((base / "c3d" / "S01_P2_T01.c3d").read_bytes(), rng)]
     npz = base / "trials.npz"
@@ -193,9 +231,16 @@ def _command(kind: str, base: Path, work: Path, content) -> tuple[list[str], Pat
     """Write the mutated input into ``work`` and return the command and its output file."""
     out = work / "out" / ("result.json" if kind in ("trials-npz", "model-json") else "trials.npz")
     (work / "out").mkdir(parents=True)
-    name = {"trc": "S01_P2_T01.trc", "mot": "S01_P2_T01.mot", "c3d": "S01_P2_T01.c3d",
-            "vicon-csv": "ADL001FL1.csv", "subject-info": "subjects.csv", "manifest": "manifest.csv",
-            "trials-npz": "trials.npz", "model-json": "model.json"}[kind]
+    name = {
+        "trc": "S01_P2_T01.trc",
+        "mot": "S01_P2_T01.mot",
+        "c3d": "S01_P2_T01.c3d",
+        "vicon-csv": "ADL001FL1.csv",
+        "subject-info": "subjects.csv",
+        "manifest": "manifest.csv",
+        "trials-npz": "trials.npz",
+        "model-json": "model.json",
+    }[kind]
     if kind == "vicon-csv":
         shutil.copytree(base / "vicon", work / "in")
     elif kind in ("subject-info", "manifest"):

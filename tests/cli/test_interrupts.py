@@ -20,34 +20,100 @@ from reachirl.cli import main
 pytestmark = pytest.mark.slow
 
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
-ARGS = ["--nodes", "40", "--max-iter", "10", "--sections", "1", "6", "--postures", "P1", "P2", "P3",
-        "--workers", "2", "--no-progress"]
+ARGS = [
+    "--nodes",
+    "40",
+    "--max-iter",
+    "10",
+    "--sections",
+    "1",
+    "6",
+    "--postures",
+    "P1",
+    "P2",
+    "P3",
+    "--workers",
+    "2",
+    "--no-progress",
+]
 
 
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("interrupts")
-    assert main(["synth", "--out", str(d / "syn"), "--subjects", "1", "--trials", "3", "--postures", "P1", "P2",
-                 "P3", "--workers", "1"]) == 0
-    assert main(["preprocess", "--manifest", str(d / "syn" / "manifest.csv"), "--subject-info",
-                 str(d / "syn" / "subjects.csv"), "--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
-                 "--out", str(d / "trials.npz")]) == 0
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(d / "syn"),
+                "--subjects",
+                "1",
+                "--trials",
+                "3",
+                "--postures",
+                "P1",
+                "P2",
+                "P3",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "preprocess",
+                "--manifest",
+                str(d / "syn" / "manifest.csv"),
+                "--subject-info",
+                str(d / "syn" / "subjects.csv"),
+                "--markers",
+                "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
+                "--out",
+                str(d / "trials.npz"),
+            ]
+        )
+        == 0
+    )
     return d / "trials.npz"
 
 
 @pytest.fixture(scope="module")
 def reference(data, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("reference")
-    p = subprocess.run([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *ARGS],
-                       capture_output=True, text=True, timeout=600)
+    p = subprocess.run(
+        [REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *ARGS],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert p.returncode == 0, p.stderr
     return out
 
 
 # A run long enough to be interrupted mid-way whatever the machine: bilevel units of 400 full-size DOC solves
 # (a few seconds each), beside MO-IRL ones (MO-IRL fits can end within a second)
-LONG_ARGS = ["--nodes", "100", "--max-iter", "10", "--sections", "1", "6", "--postures", "P1", "P2", "P3",
-             "--method", "bilevel", "moirl", "--workers", "2", "--no-progress"]
+LONG_ARGS = [
+    "--nodes",
+    "100",
+    "--max-iter",
+    "10",
+    "--sections",
+    "1",
+    "6",
+    "--postures",
+    "P1",
+    "P2",
+    "P3",
+    "--method",
+    "bilevel",
+    "moirl",
+    "--workers",
+    "2",
+    "--no-progress",
+]
 
 
 def _default_sigint() -> None:
@@ -57,8 +123,13 @@ def _default_sigint() -> None:
 
 
 def _start(data: Path, out: Path, args=ARGS) -> psutil.Popen:
-    return psutil.Popen([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *args],
-                        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=_default_sigint)
+    return psutil.Popen(
+        [REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *args],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_default_sigint,
+    )
 
 
 def _wait_for_workers(p: psutil.Popen, n: int = 2, timeout: float = 60.0) -> list[psutil.Process]:
@@ -125,8 +196,12 @@ def test_kills_at_random_times_then_rerun_give_the_same_tables(data, reference, 
             pass
         p.wait(timeout=10)
         assert _gone(workers, 5.0), "orphaned workers"  # they die with their parent
-    rerun = subprocess.run([REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *ARGS],
-                           capture_output=True, text=True, timeout=600)
+    rerun = subprocess.run(
+        [REACHIRL, "reproduce", "--data", str(data), "--out", str(out), *ARGS],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert rerun.returncode == 0, rerun.stderr
     for name in ("table.csv", "table.md"):
         assert (out / name).read_bytes() == (reference / name).read_bytes(), name

@@ -32,8 +32,22 @@ pytestmark = pytest.mark.slow
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
 MARKERS = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "COLUMNS": "200", "MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
-RUN_ARGS = ["--nodes", "40", "--max-iter", "10", "--sections", "1", "6", "--postures", "P1", "P2", "P3",
-            "--workers", "1", "--no-progress"]
+RUN_ARGS = [
+    "--nodes",
+    "40",
+    "--max-iter",
+    "10",
+    "--sections",
+    "1",
+    "6",
+    "--postures",
+    "P1",
+    "P2",
+    "P3",
+    "--workers",
+    "1",
+    "--no-progress",
+]
 
 
 @pytest.fixture(scope="module")
@@ -42,18 +56,73 @@ def world(tmp_path_factory) -> Path:
     reaches three times over (27 trials, for runs long enough to interrupt), models of 20 and 300 knots, and a
     quick protocol run."""
     d = tmp_path_factory.mktemp("world")
-    assert main(["synth", "--out", str(d / "syn"), "--subjects", "1", "--trials", "3", "--postures", "P1", "P2",
-                 "P3", "--workers", "1"]) == 0
-    assert main(["synth", "--out", str(d / "mot"), "--subjects", "1", "--trials", "1", "--postures", "P2",
-                 "--format", "mot", "--workers", "1"]) == 0
-    assert main(["preprocess", "--manifest", str(d / "syn" / "manifest.csv"), "--subject-info",
-                 str(d / "syn" / "subjects.csv"), "--markers", MARKERS, "--out", str(d / "trials.npz")]) == 0
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(d / "syn"),
+                "--subjects",
+                "1",
+                "--trials",
+                "3",
+                "--postures",
+                "P1",
+                "P2",
+                "P3",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(d / "mot"),
+                "--subjects",
+                "1",
+                "--trials",
+                "1",
+                "--postures",
+                "P2",
+                "--format",
+                "mot",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "preprocess",
+                "--manifest",
+                str(d / "syn" / "manifest.csv"),
+                "--subject-info",
+                str(d / "syn" / "subjects.csv"),
+                "--markers",
+                MARKERS,
+                "--out",
+                str(d / "trials.npz"),
+            ]
+        )
+        == 0
+    )
     trials = load_trials(d / "trials.npz")
     save_trials(d / "many.npz", [replace(t, trial_id=f"{t.trial_id}-{k}") for k in range(3) for t in trials])
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
     save_model(d / "model300.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=300))
-    p = subprocess.run([REACHIRL, "reproduce", "--data", str(d / "trials.npz"), "--out", str(d / "run"), *RUN_ARGS],
-                       capture_output=True, text=True, timeout=600, env=ENV)
+    p = subprocess.run(
+        [REACHIRL, "reproduce", "--data", str(d / "trials.npz"), "--out", str(d / "run"), *RUN_ARGS],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=ENV,
+    )
     assert p.returncode == 0, p.stderr
     many = d / "many_trc"  # 600 recordings (symlinks) for a preprocess long enough to interrupt (~5 s)
     many.mkdir()
@@ -102,6 +171,7 @@ def _attacks(world: Path, w: Path) -> dict:
     fit = [REACHIRL, "fit", "--sections", "1", "--nodes", "20", "--max-iter", "1"]
     A: dict = {}
     for kind in ("same", "symlink", "hardlink"):
+
         def pre_out(kind=kind):
             r = copy(trc)
             return [*pre, str(r), "--markers", MARKERS, "--out", str(linked(kind, r, "o.npz"))], [r]
@@ -118,8 +188,17 @@ def _attacks(world: Path, w: Path) -> dict:
 
         def sim_out(kind=kind):
             m, t = copy(world / "model.json"), copy(world / "trials.npz")
-            return [REACHIRL, "simulate", "--model", str(m), str(t), "--trial", "0", "--out",
-                    str(linked(kind, m, "o.json"))], [m, t]
+            return [
+                REACHIRL,
+                "simulate",
+                "--model",
+                str(m),
+                str(t),
+                "--trial",
+                "0",
+                "--out",
+                str(linked(kind, m, "o.json")),
+            ], [m, t]
 
         A[f"preprocess: --out is the recording ({kind})"] = pre_out
         A[f"fit: --out is the trials ({kind})"] = fit_out
@@ -127,16 +206,29 @@ def _attacks(world: Path, w: Path) -> dict:
         A[f"evaluate: --out is the trials ({kind})"] = lambda f=eval_out: f(which="trials")
         A[f"simulate: --out is the model ({kind})"] = sim_out
     for which in ("manifest.csv", "subjects.csv"):
+
         def pre_meta(which=which):
             s = copy(syn)
-            return [*pre, "--manifest", str(s / "manifest.csv"), "--subject-info", str(s / "subjects.csv"),
-                    "--markers", MARKERS, "--out", str(s / which)], [s / which, s / "manifest.csv"]
+            return [
+                *pre,
+                "--manifest",
+                str(s / "manifest.csv"),
+                "--subject-info",
+                str(s / "subjects.csv"),
+                "--markers",
+                MARKERS,
+                "--out",
+                str(s / which),
+            ], [s / which, s / "manifest.csv"]
+
         A[f"preprocess: --out is the {which}"] = pre_meta
 
     def reproduce_out():
         s = copy(syn)
-        return [REACHIRL, "reproduce", "--quick", "--data", str(s), "--out", str(s), "--workers", "1"], \
-            [s / "manifest.csv", trc]
+        return [REACHIRL, "reproduce", "--quick", "--data", str(s), "--out", str(s), "--workers", "1"], [
+            s / "manifest.csv",
+            trc,
+        ]
 
     def sens_out():
         r = copy(world / "run")
@@ -144,8 +236,17 @@ def _attacks(world: Path, w: Path) -> dict:
 
     def eval_pred_under_file():
         (w / "afile").write_text("x")
-        return [REACHIRL, "evaluate", "--model", str(world / "model.json"), str(world / "trials.npz"), "--out",
-                str(w / "ev.json"), "--predictions", str(w / "afile" / "p")], [w / "afile"]
+        return [
+            REACHIRL,
+            "evaluate",
+            "--model",
+            str(world / "model.json"),
+            str(world / "trials.npz"),
+            "--out",
+            str(w / "ev.json"),
+            "--predictions",
+            str(w / "afile" / "p"),
+        ], [w / "afile"]
 
     def plot_out_is_trials():
         t = copy(world / "trials.npz")
@@ -156,40 +257,87 @@ def _attacks(world: Path, w: Path) -> dict:
     A["evaluate: --predictions under a file"] = eval_pred_under_file
     A["plot: --out is the trials file"] = plot_out_is_trials
     # FIFOs
-    A["preprocess: FIFO recording"] = lambda: ([*pre, str(fifo("f.trc")), "--markers", MARKERS, "--out",
-                                                str(w / "o.npz")], [])
-    A["preprocess: FIFO manifest"] = lambda: ([*pre, "--manifest", str(fifo("m.csv")), "--markers", MARKERS, "--out",
-                                               str(w / "o.npz")], [])
-    A["preprocess: FIFO subject info"] = lambda: ([*pre, str(trc), "--subject-info", str(fifo("s.csv")), "--markers",
-                                                   MARKERS, "--out", str(w / "o.npz")], [trc])
+    A["preprocess: FIFO recording"] = lambda: (
+        [*pre, str(fifo("f.trc")), "--markers", MARKERS, "--out", str(w / "o.npz")],
+        [],
+    )
+    A["preprocess: FIFO manifest"] = lambda: (
+        [*pre, "--manifest", str(fifo("m.csv")), "--markers", MARKERS, "--out", str(w / "o.npz")],
+        [],
+    )
+    A["preprocess: FIFO subject info"] = lambda: (
+        [*pre, str(trc), "--subject-info", str(fifo("s.csv")), "--markers", MARKERS, "--out", str(w / "o.npz")],
+        [trc],
+    )
     A["fit: FIFO trials"] = lambda: ([*fit, str(fifo("t.npz")), "--out", str(w / "o.json")], [])
-    A["evaluate: FIFO trials"] = lambda: ([REACHIRL, "evaluate", "--model", str(world / "model.json"),
-                                           str(fifo("t.npz")), "--out", str(w / "o.json")], [])
-    A["evaluate: FIFO model"] = lambda: ([REACHIRL, "evaluate", "--model", str(fifo("m.json")),
-                                          str(world / "trials.npz"), "--out", str(w / "o.json")], [])
-    A["simulate: FIFO trials"] = lambda: ([REACHIRL, "simulate", "--model", str(world / "model.json"),
-                                           str(fifo("t.npz"))], [])
-    A["plot: FIFO trials"] = lambda: ([REACHIRL, "plot", str(fifo("t.npz")), "--model", str(world / "model.json"),
-                                       "--out", str(w / "p")], [])
-    A["reproduce: FIFO data"] = lambda: ([REACHIRL, "reproduce", "--quick", "--data", str(fifo("t.npz")), "--out",
-                                          str(w / "r"), "--workers", "1"], [])
+    A["evaluate: FIFO trials"] = lambda: (
+        [REACHIRL, "evaluate", "--model", str(world / "model.json"), str(fifo("t.npz")), "--out", str(w / "o.json")],
+        [],
+    )
+    A["evaluate: FIFO model"] = lambda: (
+        [REACHIRL, "evaluate", "--model", str(fifo("m.json")), str(world / "trials.npz"), "--out", str(w / "o.json")],
+        [],
+    )
+    A["simulate: FIFO trials"] = lambda: (
+        [REACHIRL, "simulate", "--model", str(world / "model.json"), str(fifo("t.npz"))],
+        [],
+    )
+    A["plot: FIFO trials"] = lambda: (
+        [REACHIRL, "plot", str(fifo("t.npz")), "--model", str(world / "model.json"), "--out", str(w / "p")],
+        [],
+    )
+    A["reproduce: FIFO data"] = lambda: (
+        [REACHIRL, "reproduce", "--quick", "--data", str(fifo("t.npz")), "--out", str(w / "r"), "--workers", "1"],
+        [],
+    )
     # recordings against their headers
-    A["preprocess: MOT cut at a row"] = lambda: ([*pre, str(_write(w / "c.mot", _lines(mot)[:100])), "--out",
-                                                  str(w / "o.npz")], [])
-    A["preprocess: MOT nRows 999999999"] = lambda: ([*pre, str(_write(w / "b.mot", [
-        "nRows=999999999" if ln.startswith("nRows") else ln for ln in _lines(mot)])), "--out", str(w / "o.npz")], [])
-    A["preprocess: TRC cut at a row"] = lambda: ([*pre, str(_write(w / "c.trc", _lines(trc)[:90])), "--markers",
-                                                  MARKERS, "--out", str(w / "o.npz")], [])
-    A["preprocess: TRC frame missing"] = lambda: ([*pre, str(_write(w / "g.trc", _lines(trc)[:40] + _lines(trc)[41:])),
-                                                   "--markers", MARKERS, "--out", str(w / "o.npz")], [])
+    A["preprocess: MOT cut at a row"] = lambda: (
+        [*pre, str(_write(w / "c.mot", _lines(mot)[:100])), "--out", str(w / "o.npz")],
+        [],
+    )
+    A["preprocess: MOT nRows 999999999"] = lambda: (
+        [
+            *pre,
+            str(_write(w / "b.mot", ["nRows=999999999" if ln.startswith("nRows") else ln for ln in _lines(mot)])),
+            "--out",
+            str(w / "o.npz"),
+        ],
+        [],
+    )
+    A["preprocess: TRC cut at a row"] = lambda: (
+        [*pre, str(_write(w / "c.trc", _lines(trc)[:90])), "--markers", MARKERS, "--out", str(w / "o.npz")],
+        [],
+    )
+    A["preprocess: TRC frame missing"] = lambda: (
+        [
+            *pre,
+            str(_write(w / "g.trc", _lines(trc)[:40] + _lines(trc)[41:])),
+            "--markers",
+            MARKERS,
+            "--out",
+            str(w / "o.npz"),
+        ],
+        [],
+    )
+
     # physical consistency
     def lengths():
         rows = _lines(syn / "subjects.csv")
         head, cells = rows[0].split(","), rows[1].split(",")
         cells[head.index("upper_arm_m")], cells[head.index("forearm_m")] = "0.40", "0.55"
         si = _write(w / "si.csv", [rows[0], ",".join(cells)])
-        return [*pre, str(trc), "--subject-info", str(si), "--subject", "S01", "--markers", MARKERS, "--out",
-                str(w / "o.npz")], [si, trc]
+        return [
+            *pre,
+            str(trc),
+            "--subject-info",
+            str(si),
+            "--subject",
+            "S01",
+            "--markers",
+            MARKERS,
+            "--out",
+            str(w / "o.npz"),
+        ], [si, trc]
 
     def backwards():
         lines = _lines(trc)
@@ -200,18 +348,44 @@ def _attacks(world: Path, w: Path) -> dict:
 
     A["preprocess: subject-info lengths vs markers"] = lengths
     A["preprocess: backwards recording"] = backwards
-    A["preprocess: same up and forward axis"] = lambda: ([*pre, str(trc), "--markers", MARKERS, "--plane", "axes",
-                                                          "--up-axis", "+y", "--forward-axis", "+y", "--out",
-                                                          str(w / "o.npz")], [trc])
-    A["preprocess: missing --static"] = lambda: ([*pre, str(trc), "--markers", MARKERS, "--static",
-                                                  str(w / "nope.csv"), "--out", str(w / "o.npz")], [trc])
+    A["preprocess: same up and forward axis"] = lambda: (
+        [
+            *pre,
+            str(trc),
+            "--markers",
+            MARKERS,
+            "--plane",
+            "axes",
+            "--up-axis",
+            "+y",
+            "--forward-axis",
+            "+y",
+            "--out",
+            str(w / "o.npz"),
+        ],
+        [trc],
+    )
+    A["preprocess: missing --static"] = lambda: (
+        [*pre, str(trc), "--markers", MARKERS, "--static", str(w / "nope.csv"), "--out", str(w / "o.npz")],
+        [trc],
+    )
     for tx in (-0.3, 0.0):
-        A[f"fit: target x {tx}"] = lambda tx=tx: ([*fit, str(_trials_with(w, world / "trials.npz", "t.npz",
-                                                                          target_x=tx)), "--out", str(w / "o.json")],
-                                                  [])
-        A[f"evaluate: target x {tx}"] = lambda tx=tx: ([REACHIRL, "evaluate", "--model", str(world / "model.json"),
-                                                        str(_trials_with(w, world / "trials.npz", "t.npz",
-                                                                         target_x=tx)), "--out", str(w / "o.json")], [])
+        A[f"fit: target x {tx}"] = lambda tx=tx: (
+            [*fit, str(_trials_with(w, world / "trials.npz", "t.npz", target_x=tx)), "--out", str(w / "o.json")],
+            [],
+        )
+        A[f"evaluate: target x {tx}"] = lambda tx=tx: (
+            [
+                REACHIRL,
+                "evaluate",
+                "--model",
+                str(world / "model.json"),
+                str(_trials_with(w, world / "trials.npz", "t.npz", target_x=tx)),
+                "--out",
+                str(w / "o.json"),
+            ],
+            [],
+        )
 
     def fast_start():
         t0 = load_trials(world / "trials.npz")[0]
@@ -229,17 +403,34 @@ def _attacks(world: Path, w: Path) -> dict:
     A["evaluate: start velocity 1e6 rad/s"] = fast_start
     A["evaluate: rollout_q 1e6 rad"] = lambda: rollout("evaluate")
     A["simulate: rollout_q 1e6 rad"] = lambda: rollout("simulate")
-    A["simulate: PD gains 1e5/1e4"] = lambda: ([REACHIRL, "simulate", "--model", str(world / "model.json"),
-                                                str(world / "trials.npz"), "--trial", "0", "--mode", "pd", "--kp",
-                                                "100000", "--kd", "10000"], [])
+    A["simulate: PD gains 1e5/1e4"] = lambda: (
+        [
+            REACHIRL,
+            "simulate",
+            "--model",
+            str(world / "model.json"),
+            str(world / "trials.npz"),
+            "--trial",
+            "0",
+            "--mode",
+            "pd",
+            "--kp",
+            "100000",
+            "--kd",
+            "10000",
+        ],
+        [],
+    )
+
     # damaged checkpoints and folders in their place
     def edited_unit(how):
         r = copy(world / "run")
         js = sorted((r / "units").glob("*.json"))[0]
         text = js.read_text()
         if how == "rmse":
-            text = re.sub(r'("mean": )(\d)\.(\d)', lambda m: f"{m.group(1)}{int(m.group(2)) + 1}.{m.group(3)}", text,
-                          count=1)
+            text = re.sub(
+                r'("mean": )(\d)\.(\d)', lambda m: f"{m.group(1)}{int(m.group(2)) + 1}.{m.group(3)}", text, count=1
+            )
         elif how == "nan":
             text = re.sub(r'("weights": \[\s*\[\s*)[-\d.e]+', r"\1NaN", text, count=1)
         else:
@@ -254,13 +445,20 @@ def _attacks(world: Path, w: Path) -> dict:
     A["reproduce: NaN weight in a unit"] = lambda: edited_unit("nan")
     A["reproduce: a folder at units/<key>.json"] = lambda: edited_unit("folder")
     # unbounded options
-    A["reproduce: --subjects 100000"] = lambda: ([REACHIRL, "reproduce", "--quick", "--subjects", "100000", "--out",
-                                                  str(w / "r")], [])
-    A["sensitivity: --workers 10000"] = lambda: ([REACHIRL, "sensitivity", str(world / "run"), "--out", str(w / "s"),
-                                                  "--workers", "10000"], [])
+    A["reproduce: --subjects 100000"] = lambda: (
+        [REACHIRL, "reproduce", "--quick", "--subjects", "100000", "--out", str(w / "r")],
+        [],
+    )
+    A["sensitivity: --workers 10000"] = lambda: (
+        [REACHIRL, "sensitivity", str(world / "run"), "--out", str(w / "s"), "--workers", "10000"],
+        [],
+    )
     A["synth: --subjects 100000"] = lambda: ([REACHIRL, "synth", "--subjects", "100000", "--out", str(w / "s")], [])
-    A["synth: --out is a file"] = lambda: ([REACHIRL, "synth", "--subjects", "1", "--out", str(copy(trc))],
-                                           [w / trc.name])
+    A["synth: --out is a file"] = lambda: (
+        [REACHIRL, "synth", "--subjects", "1", "--out", str(copy(trc))],
+        [w / trc.name],
+    )
+
     def bench_under_file():
         (w / "afile").write_text("x")
         return [REACHIRL, "bench", "doc", "--quick", "--out", str(w / "afile" / "b.json")], [w / "afile"]
@@ -273,7 +471,7 @@ def _digests(paths) -> dict:
     out = {}
     for p in paths:
         p = Path(p)
-        for f in ([p] if p.is_file() else sorted(x for x in p.rglob("*") if x.is_file()) if p.is_dir() else []):
+        for f in [p] if p.is_file() else sorted(x for x in p.rglob("*") if x.is_file()) if p.is_dir() else []:
             out[str(f)] = hashlib.sha256(f.read_bytes()).hexdigest()
     return out
 
@@ -327,8 +525,17 @@ def test_attacks_on_every_command(world, tmp_path):
     with ThreadPoolExecutor(max_workers=2) as ex:
         failures = [f for f in ex.map(lambda a: _run_attack(world, tmp_path, *a), enumerate(names)) if f]
     commands = {n.split(":")[0] for n in names}
-    assert commands >= {"preprocess", "fit", "evaluate", "simulate", "reproduce", "sensitivity", "synth", "plot",
-                        "bench"}
+    assert commands >= {
+        "preprocess",
+        "fit",
+        "evaluate",
+        "simulate",
+        "reproduce",
+        "sensitivity",
+        "synth",
+        "plot",
+        "bench",
+    }
     assert not failures, f"{len(failures)} of {len(names)} attacks failed:\n\n" + "\n\n".join(failures)
 
 
@@ -338,11 +545,32 @@ def _long_run(world: Path, out: Path, command: str, backend: str) -> tuple[list[
     b = ["--backend", backend]
     many, m300 = str(world / "many.npz"), str(world / "model300.json")
     if command == "preprocess":
-        return [REACHIRL, "preprocess", str(world / "many_trc"), "--markers", MARKERS, "--out",
-                str(out / "p.npz")], out / "p.npz"
+        return [
+            REACHIRL,
+            "preprocess",
+            str(world / "many_trc"),
+            "--markers",
+            MARKERS,
+            "--out",
+            str(out / "p.npz"),
+        ], out / "p.npz"
     if command == "fit":
-        return [REACHIRL, "fit", many, "--sections", "2", "--nodes", "100", "--max-iter", "30", "--rollout",
-                "per_demo", "--out", str(out / "m.json"), *b], out / "m.json"
+        return [
+            REACHIRL,
+            "fit",
+            many,
+            "--sections",
+            "2",
+            "--nodes",
+            "100",
+            "--max-iter",
+            "30",
+            "--rollout",
+            "per_demo",
+            "--out",
+            str(out / "m.json"),
+            *b,
+        ], out / "m.json"
     if command == "evaluate":
         return [REACHIRL, "evaluate", "--model", m300, many, "--out", str(out / "e.json"), *b], out / "e.json"
     if command == "simulate":
@@ -350,14 +578,41 @@ def _long_run(world: Path, out: Path, command: str, backend: str) -> tuple[list[
     if command == "plot":
         return [REACHIRL, "plot", many, "--model", m300, "--out", str(out / "fig"), "--no-pdf", *b], None
     if command == "reproduce":
-        return [REACHIRL, "reproduce", "--data", many, "--out", str(out / "run"), *RUN_ARGS, *b], \
-            out / "run" / "table.csv"
+        return [
+            REACHIRL,
+            "reproduce",
+            "--data",
+            many,
+            "--out",
+            str(out / "run"),
+            *RUN_ARGS,
+            *b,
+        ], out / "run" / "table.csv"
     if command == "sensitivity":
-        return [REACHIRL, "sensitivity", str(world / "run"), "--out", str(out / "sens"), "--workers", "1",
-                "--no-progress", "--no-occlusion"], out / "sens" / "sensitivity.md"
+        return [
+            REACHIRL,
+            "sensitivity",
+            str(world / "run"),
+            "--out",
+            str(out / "sens"),
+            "--workers",
+            "1",
+            "--no-progress",
+            "--no-occlusion",
+        ], out / "sens" / "sensitivity.md"
     if command == "synth":
-        return [REACHIRL, "synth", "--out", str(out / "syn"), "--subjects", "3", "--trials", "30", "--workers",
-                "1"], out / "syn" / "manifest.csv"
+        return [
+            REACHIRL,
+            "synth",
+            "--out",
+            str(out / "syn"),
+            "--subjects",
+            "3",
+            "--trials",
+            "30",
+            "--workers",
+            "1",
+        ], out / "syn" / "manifest.csv"
     return [REACHIRL, "bench", "doc", "--quick", "--out", str(out / "b.json")], out / "b.json"
 
 
@@ -373,8 +628,15 @@ SIGNAL_CASES += [(c, "casadi") for c in ("preprocess", "sensitivity", "synth", "
 @pytest.mark.parametrize(("command", "backend"), SIGNAL_CASES)
 def test_a_signal_stops_every_command_on_both_backends(world, tmp_path, command, backend, sig, code):
     argv, output = _long_run(world, tmp_path, command, backend)
-    p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV,
-                         cwd=tmp_path, preexec_fn=_default_sigint)
+    p = subprocess.Popen(
+        argv,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=ENV,
+        cwd=tmp_path,
+        preexec_fn=_default_sigint,
+    )
     time.sleep(2.5)  # past the imports, inside the work
     assert p.poll() is None, "the run ended before the signal: the test would test nothing"
     t0 = time.monotonic()

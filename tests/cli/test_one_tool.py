@@ -31,8 +31,24 @@ def p2(recorded):
 def test_the_estimator_and_the_fit_command_learn_the_same_model(recorded, p2, tmp_path):
     est = MOIRL(2, **FAST).fit(p2)
     out = tmp_path / "model.json"
-    assert main(["fit", str(recorded / "trials.npz"), "--sections", "2", *FAST_ARGS, "--subject", "S01",
-                 "--posture", "P2", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(recorded / "trials.npz"),
+                "--sections",
+                "2",
+                *FAST_ARGS,
+                "--subject",
+                "S01",
+                "--posture",
+                "P2",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     model = json.loads(out.read_text())
     np.testing.assert_array_equal(np.array(model["weights"]), est.weights_)
     assert model["info"]["observe"] is True and model["info"]["options"]["merit"] == "normalised"
@@ -42,9 +58,30 @@ def test_the_estimator_and_the_fit_command_learn_the_same_model(recorded, p2, tm
 
 def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_read_it(recorded, tmp_path, capsys):
     run = tmp_path / "run"
-    assert main(["reproduce", "--data", str(recorded / "trials.npz"), "--out", str(run), "--sections", "2",
-                 "--postures", "P2", *FAST_ARGS, "--n-train", "3", "--workers", "1", "--no-progress",
-                 "--uncertainty", "0"]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--data",
+                str(recorded / "trials.npz"),
+                "--out",
+                str(run),
+                "--sections",
+                "2",
+                "--postures",
+                "P2",
+                *FAST_ARGS,
+                "--n-train",
+                "3",
+                "--workers",
+                "1",
+                "--no-progress",
+                "--uncertainty",
+                "0",
+            ]
+        )
+        == 0
+    )
     res = json.loads((run / "results.json").read_text())
     (unit,) = res["units"]
     model_path = run / "models" / f"{unit['key']}.json"
@@ -56,14 +93,42 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
     np.testing.assert_array_equal(MOIRL(2, **FAST).fit(trials).weights_, np.array(unit["weights"]))
     # evaluate on the model reproduces the unit's own ISCV RMSE, trial by trial
     metrics = tmp_path / "m.json"
-    assert main(["evaluate", "--model", str(model_path), str(recorded / "trials.npz"), "--posture", "P2",
-                 "--subject", "S02", "--out", str(metrics)]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--model",
+                str(model_path),
+                str(recorded / "trials.npz"),
+                "--posture",
+                "P2",
+                "--subject",
+                "S02",
+                "--out",
+                str(metrics),
+            ]
+        )
+        == 0
+    )
     got = {t["id"]: t["rmse_deg"]["q"] for t in json.loads(metrics.read_text())["trials"]}
     want = {t["id"]: t["rmse_deg"]["q"] for t in unit["sets"]["iscv"]["trials"]}
     assert got.keys() == want.keys()
     assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in got)
-    assert main(["simulate", "--model", str(model_path), str(recorded / "trials.npz"), "--trial", "0",
-                 "--out", str(tmp_path / "sim.json")]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--model",
+                str(model_path),
+                str(recorded / "trials.npz"),
+                "--trial",
+                "0",
+                "--out",
+                str(tmp_path / "sim.json"),
+            ]
+        )
+        == 0
+    )
     # run.toml repeats the run: the same table, byte for byte
     run_file = tomllib.loads((run / "run.toml").read_text())
     assert run_file["sections"] == [2] and run_file["rollout"] == "per_task" and run_file["uncertainty"] == 0
@@ -74,7 +139,7 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
 
 def test_a_run_file_with_an_unknown_key_is_refused_naming_it(tmp_path, capsys):
     bad = tmp_path / "run.toml"
-    bad.write_text('n_trian = 3\n')
+    bad.write_text("n_trian = 3\n")
     assert main(["reproduce", "--config", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "run.toml: unknown run option(s) n_trian" in err and len(err.strip().splitlines()) == 1
@@ -88,6 +153,7 @@ def test_a_pooled_fit_given_one_task_is_the_single_task_fit(p2):
     pooled = MOIRL(2, **FAST).fit(p2)  # one rollout per (subject, posture): here one
     single = MOIRL(2, rollout="mean", **FAST).fit(p2)
     np.testing.assert_array_equal(pooled.weights_, single.weights_)
+
     def steps(est):
         return [{k: v for k, v in h.items() if k != "wall_time"} for h in est.history_]
 
@@ -110,8 +176,13 @@ def test_the_seed_form_is_the_papers_step_computed_by_hand(arm):
     truth = np.array([[0.1, 1.0, 0.1, 0.01, 1e-4, 0.02, 0.05], [0.1, 0.5, 0.2, 0.003, 1e-4, 0.02, 0.05]])
     demos = []
     for i in range(3):
-        task = ReachingTask(arm, np.deg2rad([-80.0, 95.0]) + np.deg2rad(rng.normal(0, 2, 2)), 0.9 * arm.length,
-                            0.7 + 0.02 * i, n_nodes=20)
+        task = ReachingTask(
+            arm,
+            np.deg2rad([-80.0, 95.0]) + np.deg2rad(rng.normal(0, 2, 2)),
+            0.9 * arm.length,
+            0.7 + 0.02 * i,
+            n_nodes=20,
+        )
         sol = solve_doc(task, truth)
         demos.append(trial_from_solution(sol, arm, task.target_x, subject="S", posture="P", trial_id=f"T{i}"))
     est = MOIRL(2, n_nodes=20, max_iter=1, seed_form=True).fit(demos)
@@ -127,8 +198,13 @@ def test_the_seed_form_is_the_papers_step_computed_by_hand(arm):
         dw = dw_flat.reshape(2, 7)
         return sum(np.log1p(np.exp(-np.sum((w + dw) * (phi_i - pd)))) for pd in phi_d) + 0.5e-10 * np.sum(dw**2)
 
-    res = minimize(eq4, np.zeros(14), method="L-BFGS-B", bounds=[(-(1 - 1e-3) * x, None) for x in w.ravel()],
-                   options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 500})
+    res = minimize(
+        eq4,
+        np.zeros(14),
+        method="L-BFGS-B",
+        bounds=[(-(1 - 1e-3) * x, None) for x in w.ravel()],
+        options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 500},
+    )
     dw = res.x.reshape(2, 7)
     x_demos = np.stack([d.knot_state(20) for d in demos])
 
@@ -195,9 +271,29 @@ def test_cv_and_iscv_trials_never_reach_a_fit(recorded, monkeypatch):
 
 def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out_one(recorded, tmp_path):
     run = tmp_path / "run"
-    assert main(["reproduce", "--data", str(recorded / "trials.npz"), "--out", str(run), "--sections", "2",
-                 *FAST_ARGS, "--n-train", "2", "--workers", "1", "--no-progress", "--uncertainty", "0",
-                 "--posture-transfer"]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--data",
+                str(recorded / "trials.npz"),
+                "--out",
+                str(run),
+                "--sections",
+                "2",
+                *FAST_ARGS,
+                "--n-train",
+                "2",
+                "--workers",
+                "1",
+                "--no-progress",
+                "--uncertainty",
+                "0",
+                "--posture-transfer",
+            ]
+        )
+        == 0
+    )
     rows = (run / "posture_transfer.csv").read_text().splitlines()
     assert rows[0].split(",")[:6] == ["method", "sections", "held_out_posture", "mean", "sd", "n"]
     assert sorted(r.split(",")[2] for r in rows[1:]) == ["P2", "P4"]

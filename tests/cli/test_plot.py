@@ -22,12 +22,14 @@ THRESHOLD = 0.05
 def _recorded(subject: str, k: int, offset: float) -> object:
     """A rest-to-rest reach under the nominal weights, cut at its own crossings of the speed threshold, as a
     recording is."""
-    task = ReachingTask(ARM, posture_q("P2") + np.deg2rad([offset, -offset]), 0.95 * ARM.length, 0.75 + 0.02 * k,
-                        n_nodes=N)
+    task = ReachingTask(
+        ARM, posture_q("P2") + np.deg2rad([offset, -offset]), 0.95 * ARM.length, 0.75 + 0.02 * k, n_nodes=N
+    )
     sol = solve_doc(task, nominal_weights())
     assert sol.converged
-    return replace(observe(sol, task, THRESHOLD), subject=subject, posture="P2", trial_id=f"T{k}",
-                   onset_threshold=THRESHOLD)
+    return replace(
+        observe(sol, task, THRESHOLD), subject=subject, posture="P2", trial_id=f"T{k}", onset_threshold=THRESHOLD
+    )
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +39,25 @@ def fitted(tmp_path_factory):
     trials = [_recorded(s, k, off) for s in ("S01", "S02") for k, off in enumerate((-3.0, 0.0, 3.0))]
     path = save_trials(d / "trials.npz", trials)
     model = d / "model.json"
-    assert main(["fit", str(path), "--subject", "S01", "--sections", "2", "--nodes", str(N), "--max-iter", "2",
-                 "--out", str(model)]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(path),
+                "--subject",
+                "S01",
+                "--sections",
+                "2",
+                "--nodes",
+                str(N),
+                "--max-iter",
+                "2",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
     assert json.loads(model.read_text())["info"]["observe"] is True
     return d, path, model
 
@@ -50,11 +69,12 @@ def _summary_line(out: str) -> str:
 def test_plot_gives_evaluates_rmse_on_the_chosen_held_out_trials(fitted, capsys):
     d, trials, model = fitted
     capsys.readouterr()
-    assert main(["evaluate", "--model", str(model), str(trials), "--subject", "S02", "--out",
-                 str(d / "m.json")]) == 0
+    assert main(["evaluate", "--model", str(model), str(trials), "--subject", "S02", "--out", str(d / "m.json")]) == 0
     evaluated = _summary_line(capsys.readouterr().out)
-    assert main(["plot", "--model", str(model), str(trials), "--subject", "S02", "--no-pdf", "--out",
-                 str(d / "figs")]) == 0
+    assert (
+        main(["plot", "--model", str(model), str(trials), "--subject", "S02", "--no-pdf", "--out", str(d / "figs")])
+        == 0
+    )
     plotted = _summary_line(capsys.readouterr().out)
     assert plotted == evaluated and plotted.startswith("3 trials:")
     assert (d / "figs" / "prediction.png").is_file() and (d / "figs" / "convergence.png").is_file()

@@ -58,9 +58,7 @@ def test_outputs(reference_run, capsys):
         "all_postures_convention",
     ):
         assert k in res, k
-    assert {"data_s", "units_wall_s", "fit_s_sum", "evaluation_s_sum", "figures_s", "report_s"} <= set(
-        res["timing"]
-    )
+    assert {"data_s", "units_wall_s", "fit_s_sum", "evaluation_s_sum", "figures_s", "report_s"} <= set(res["timing"])
     assert len(res["units"]) == 4 and res["protocol"]["postures_run"] == ["P2", "P4"]
     u = res["units"][0]
     assert {"weights", "history", "sets", "fit", "evaluation"} <= set(u)
@@ -137,11 +135,33 @@ def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, refere
     out = tmp_path / "out"
     run = tmp_path / "run.toml"
     run.write_text('rollout = "per_demo"\ntol = 3e-4\n\n[experimental]\nmerit_model = "gauss-newton"\n')
-    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS,
-                 "--sections", "1", "--postures", "P2", "--config", str(run)]) == 0
+    assert (
+        main(
+            [
+                "reproduce",
+                "--data",
+                str(trials_file),
+                "--out",
+                str(out),
+                "--workers",
+                "1",
+                *ARGS,
+                "--sections",
+                "1",
+                "--postures",
+                "P2",
+                "--config",
+                str(run),
+            ]
+        )
+        == 0
+    )
     (unit,) = json.loads((out / "results.json").read_text())["units"]
-    ref = next(u for u in json.loads((reference_run / "results.json").read_text())["units"]
-               if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1)
+    ref = next(
+        u
+        for u in json.loads((reference_run / "results.json").read_text())["units"]
+        if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1
+    )
     n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
     assert n_train > 1
     assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]

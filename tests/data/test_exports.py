@@ -71,8 +71,20 @@ def test_preprocess_export_round_trip(tmp_path, tiny_trials, cli):
     src = tmp_path / "in" / "reach.mot"
     src.parent.mkdir()
     write_mot(src, tr.t, np.rad2deg(tr.q))
-    proc = cli("preprocess", src, "--subject", "S9", "--posture", "P2", "--cutoff", "0", "--out",
-               tmp_path / "t.npz", "--export", tmp_path / "exp")
+    proc = cli(
+        "preprocess",
+        src,
+        "--subject",
+        "S9",
+        "--posture",
+        "P2",
+        "--cutoff",
+        "0",
+        "--out",
+        tmp_path / "t.npz",
+        "--export",
+        tmp_path / "exp",
+    )
     assert proc.returncode == 0, proc.stderr
     done = load_trials(tmp_path / "t.npz")[0]
     df = pd.read_csv(tmp_path / "exp" / f"{safe_name(done.id)}.csv")
@@ -84,7 +96,15 @@ def test_preprocess_export_round_trip(tmp_path, tiny_trials, cli):
 
 def test_export_needs_a_folder(tmp_path, tiny_trials, cli):
     (tmp_path / "file").write_text("x")
-    proc = cli("evaluate", "--model", tmp_path / "m.json", tiny_trials, "--out", tmp_path / "x.json",
-               "--predictions", tmp_path / "file")
+    proc = cli(
+        "evaluate",
+        "--model",
+        tmp_path / "m.json",
+        tiny_trials,
+        "--out",
+        tmp_path / "x.json",
+        "--predictions",
+        tmp_path / "file",
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().endswith("file: exists and is not a folder; --predictions needs a folder")

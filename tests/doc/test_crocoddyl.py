@@ -1,5 +1,4 @@
-"""The Crocoddyl/CSQP backend: pinned versions, derivatives against finite differences, agreement with CasADi.
-"""
+"""The Crocoddyl/CSQP backend: pinned versions, derivatives against finite differences, agreement with CasADi."""
 
 import subprocess
 import sys
@@ -118,9 +117,7 @@ def test_knot_derivatives_match_finite_differences(arm, rng, feature):
             np.testing.assert_allclose(d.Lx, Lx, atol=2e-6 * scale, err_msg=f"{feature}: Lx")
             np.testing.assert_allclose(d.Gx, Gx, atol=1e-6, err_msg=f"{feature}: Gx")
             if uu is not None:
-                np.testing.assert_allclose(
-                    d.Lu, Lu, atol=2e-6 * (1.0 + np.abs(Lu).max()), err_msg=f"{feature}: Lu"
-                )
+                np.testing.assert_allclose(d.Lu, Lu, atol=2e-6 * (1.0 + np.abs(Lu).max()), err_msg=f"{feature}: Lu")
                 np.testing.assert_allclose(d.Fx, Fx, atol=1e-6, err_msg=f"{feature}: Fx")
                 np.testing.assert_allclose(d.Fu, Fu, atol=1e-6, err_msg=f"{feature}: Fu")
                 np.testing.assert_allclose(d.Gu, Gu, atol=1e-6, err_msg=f"{feature}: Gu")

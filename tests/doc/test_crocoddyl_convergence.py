@@ -77,8 +77,25 @@ def test_fit_and_evaluate_on_the_crocoddyl_backend(arm, tmp_path, capsys, monkey
         return original(*a, **k)
 
     monkeypatch.setattr(cb, "solve", counting)
-    assert main(["fit", str(path), "--sections", "1", "--nodes", "30", "--max-iter", "2", "--backend",
-                 "crocoddyl", "--out", str(model)]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(path),
+                "--sections",
+                "1",
+                "--nodes",
+                "30",
+                "--max-iter",
+                "2",
+                "--backend",
+                "crocoddyl",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
     m = json.loads(model.read_text())
     assert m["info"]["backend"] == "crocoddyl" and len(calls) == m["info"]["n_doc_solves"] >= 1
     assert "(crocoddyl)" in capsys.readouterr().out
@@ -99,8 +116,11 @@ def test_a_stall_at_the_energys_kink_is_rescued_by_the_smoothing_continuation():
     from reachirl import ArmModel
 
     fits = json.loads((Path(__file__).resolve().parents[2] / "benchmarks" / "learned_weights.json").read_text())
-    fit = next(f for f in fits["fits"] if (f["source"], f["method"], f["posture"], f["sections"])
-               == ("builtin", "maxent", "P4", 8))
+    fit = next(
+        f
+        for f in fits["fits"]
+        if (f["source"], f["method"], f["posture"], f["sections"]) == ("builtin", "maxent", "P4", 8)
+    )
     d = next(t for t in fit["trials"]["train"] if t["id"] == "S01/P4/right/S01_P4_T06")
     task = ReachingTask(ArmModel(**d["arm"]), np.array(d["q0"]), d["target_x"], d["duration"], n_nodes=100)
     w = np.array(fit["weights"])

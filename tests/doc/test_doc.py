@@ -114,8 +114,9 @@ def test_reported_cost_is_the_seeds_objective(any_backend):
     # torques from the solution's own trajectory by RNEA (independent of the backend's inverse dynamics)
     model = task.arm.pinocchio_model()
     data = model.createData()
-    tau = np.array([pin.rnea(model, data, sol.q[k], sol.qd[k], (sol.qd[k + 1] - sol.qd[k]) / task.dt)
-                    for k in range(task.n_nodes)])
+    tau = np.array(
+        [pin.rnea(model, data, sol.q[k], sol.qd[k], (sol.qd[k + 1] - sol.qd[k]) / task.dt) for k in range(task.n_nodes)]
+    )
     np.testing.assert_allclose(tau, sol.tau, rtol=1e-7, atol=1e-7)
     assert sol.cost == pytest.approx(_cost_with_pinocchio(task, w, sol.q, sol.qd, tau), rel=1e-7)
 
@@ -222,6 +223,7 @@ def test_weights_change_the_optimum(arm):
     trq[0, 6] = 1.0
     a, t = solve_doc(task, acc), solve_doc(task, trq)
     assert a.converged and t.converged
+
     # each optimum is best under its own cost
     def cost(s, w):
         return trajectory_cost(arm, s.q, s.qd, s.tau, task.dt, w)
@@ -249,7 +251,7 @@ def test_convergence_sweep(arm):
 
 def test_a_reach_fatrop_solved_is_not_solved_again_by_ipopt(arm):
     """fatrop 1.1.8 reports its "acceptable level" stop as unsuccessful; with it, 12 of these 15 cold solves at
-XX as fatrop failures and solved a second time by IPOPT."""
+    XX as fatrop failures and solved a second time by IPOPT."""
     from reachirl.virtual import MOVEMENT_FRACTION, POSTURES, nominal_weights, posture_q
 
     sols = [

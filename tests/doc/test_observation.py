@@ -87,8 +87,10 @@ def test_uncut_trials_are_predicted_whole_and_fits_ignore_observe():
     a = evaluate_trials(nominal_weights(), [uncut], N, observe=True)[0]
     b = evaluate_trials(nominal_weights(), [uncut], N)[0]
     np.testing.assert_array_equal(a.prediction.q, b.prediction.q)
-    demos = [replace(_recorded((d, -d), 0.75 + 0.02 * d)[0], onset_threshold=None, trial_id=f"T{d}")
-             for d in (-2.0, 0.0, 2.0)]
+    demos = [
+        replace(_recorded((d, -d), 0.75 + 0.02 * d)[0], onset_threshold=None, trial_id=f"T{d}")
+        for d in (-2.0, 0.0, 2.0)
+    ]
     fit = dict(n_nodes=N, max_iter=3, tol=1e-5)
     w_obs = MOIRL(2, **fit, experimental={"observe": True}).fit(demos)
     w_plain = MOIRL(2, **fit).fit(demos)
@@ -163,8 +165,7 @@ def test_preprocessing_records_the_threshold_only_where_it_cut():
     rest = np.arange(1, 41) / rate
     q = np.vstack([np.repeat(sol.q[:1], 40, axis=0), spline(t_move), np.repeat(sol.q[-1:], 40, axis=0)])
     t = np.r_[-rest[::-1], t_move, t_move[-1] + rest] + 0.4
-    kw = dict(subject="S01", posture="P2", trial_id="T1", side="right", subject_info=None,
-              options=PreprocessOptions())
+    kw = dict(subject="S01", posture="P2", trial_id="T1", side="right", subject_info=None, options=PreprocessOptions())
     with_rest = angles_to_trial(AngleData(t=t, q=q, source="rec.mot"), **kw)
     assert with_rest.onset_threshold == 0.05
     n_cut = 40 + int(0.3 * t_move.shape[0])  # the record starts mid-reach: no rest before
@@ -179,8 +180,27 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
         model = tmp_path / f"m{expect}.json"
         run = tmp_path / f"r{expect}.toml"
         run.write_text(f"[experimental]\nobserve = {str(expect).lower()}\n")
-        assert main(["fit", str(trials), "--sections", "1", "--nodes", str(N), "--max-iter", "2", "--config",
-                     str(run), "--rollout", "mean", "--out", str(model)]) == 0
+        assert (
+            main(
+                [
+                    "fit",
+                    str(trials),
+                    "--sections",
+                    "1",
+                    "--nodes",
+                    str(N),
+                    "--max-iter",
+                    "2",
+                    "--config",
+                    str(run),
+                    "--rollout",
+                    "mean",
+                    "--out",
+                    str(model),
+                ]
+            )
+            == 0
+        )
         assert json.loads(model.read_text())["info"]["observe"] is expect
         out = tmp_path / f"e{expect}.json"
         assert main(["evaluate", "--model", str(model), str(trials), "--out", str(out)]) == 0
@@ -205,8 +225,10 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "info.observe" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
-    for rollout, message in (([[0.1, 0.2]] * N, f"field 'info.rollout_q': expected {N + 1} rows of 2 joint angles"),
-                             ([[0.1, 0.2]] * N + [[0.1, None]], "field 'info.rollout_q', row 40: expected 2 finite")):
+    for rollout, message in (
+        ([[0.1, 0.2]] * N, f"field 'info.rollout_q': expected {N + 1} rows of 2 joint angles"),
+        ([[0.1, 0.2]] * N + [[0.1, None]], "field 'info.rollout_q', row 40: expected 2 finite"),
+    ):
         d = json.loads((tmp_path / "mTrue.json").read_text())
         d["info"]["rollout_q"] = rollout
         bad.write_text(json.dumps(d))

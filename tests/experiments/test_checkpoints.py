@@ -31,8 +31,25 @@ def trials_file(tmp_path_factory, arm):
 
 
 def _reproduce(trials_file, out) -> dict:
-    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "1", "--nodes", "20",
-            "--max-iter", "1", "--sections", "1", "--n-train", "2", "--no-progress", "--out", str(out)]
+    argv = [
+        "reproduce",
+        "--quick",
+        "--data",
+        str(trials_file),
+        "--workers",
+        "1",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "1",
+        "--sections",
+        "1",
+        "--n-train",
+        "2",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     assert main(argv) == 0
     return json.loads((out / "results.json").read_text())
 
@@ -94,8 +111,10 @@ def test_empty_splits_say_no_data_with_a_reason(first_run):
         (lambda js, npz: js.write_text("[]"), "JSON holding []"),
         (lambda js, npz: js.write_text("null"), "JSON holding null"),
         (lambda js, npz: js.write_text('{"key": "moirl-P2-s1", "fing'), "truncated JSON"),
-        (lambda js, npz: js.write_text(js.read_text().replace('"npz_sha256": "', '"npz_sha256": "0')),
-         "NPZ other than the JSON's"),
+        (
+            lambda js, npz: js.write_text(js.read_text().replace('"npz_sha256": "', '"npz_sha256": "0')),
+            "NPZ other than the JSON's",
+        ),
     ],
 )
 def test_a_damaged_checkpoint_is_recomputed(first_run, trials_file, tmp_path, damage, what):
@@ -132,12 +151,29 @@ def test_an_intact_checkpoint_is_reused(first_run, trials_file, tmp_path):
 
 def test_a_unit_over_its_time_limit_is_stopped(trials_file, tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "0.001")
-    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "1", "--nodes", "20", "--max-iter",
-            "1", "--sections", "1", "--no-progress", "--out", str(tmp_path / "run")]
+    argv = [
+        "reproduce",
+        "--quick",
+        "--data",
+        str(trials_file),
+        "--workers",
+        "1",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "1",
+        "--sections",
+        "1",
+        "--no-progress",
+        "--out",
+        str(tmp_path / "run"),
+    ]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err[-1].endswith(f"unit {KEY} ran longer than 0.001 s; finished units are kept (rerun to resume), "
-                            "raise the limit with REACHIRL_UNIT_TIMEOUT_S")
+    assert err[-1].endswith(
+        f"unit {KEY} ran longer than 0.001 s; finished units are kept (rerun to resume), "
+        "raise the limit with REACHIRL_UNIT_TIMEOUT_S"
+    )
     monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "nan")
     assert main(argv) == 2
     assert "REACHIRL_UNIT_TIMEOUT_S=nan: expected a positive number" in capsys.readouterr().err

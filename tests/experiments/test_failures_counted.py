@@ -36,10 +36,14 @@ def test_summary_with_no_converged_prediction_has_no_rmse():
 
 
 def _unit(posture, rmses, converged):
-    trials = [{"id": str(i), "rmse_deg": {"q1": r, "q2": r, "q": r}, "converged": c}
-              for i, (r, c) in enumerate(zip(rmses, converged, strict=True))]
-    return {"unit": {"method": "moirl", "posture": posture, "sections": 1},
-            "sets": {s: {"trials": trials} for s in tb.SETS}}
+    trials = [
+        {"id": str(i), "rmse_deg": {"q1": r, "q2": r, "q": r}, "converged": c}
+        for i, (r, c) in enumerate(zip(rmses, converged, strict=True))
+    ]
+    return {
+        "unit": {"method": "moirl", "posture": posture, "sections": 1},
+        "sets": {s: {"trials": trials} for s in tb.SETS},
+    }
 
 
 def test_reproduce_table_excludes_and_counts_failures():
@@ -66,8 +70,7 @@ def test_evaluate_cli_marks_counts_and_leaves_out_failures(tmp_path, monkeypatch
     monkeypatch.setattr(cli_evaluate, "load_trials", lambda path: ["a", "b"])
     monkeypatch.setattr(LearnedModel, "evaluate", lambda self, *a, **k: errs)
     out = tmp_path / "metrics.json"
-    assert main(["evaluate", "--model", str(model), "trials.npz", "--out", str(out),
-                 "--backend", "crocoddyl"]) == 0
+    assert main(["evaluate", "--model", str(model), "trials.npz", "--out", str(out), "--backend", "crocoddyl"]) == 0
     d = json.loads(out.read_text())
     assert [t["converged"] for t in d["trials"]] == [True, False]
     assert d["summary"]["doc_failures"] == 1 and d["summary"]["n_included"] == 1

@@ -73,8 +73,9 @@ def test_main_table_unchanged_and_resume(pairs_run, three_subjects, tmp_path, ca
     assert not (one / "iscv_pairs.csv").exists()
     before = (pairs_run / "iscv_pairs.csv").read_text()
     capsys.readouterr()
-    assert main(["reproduce", "--data", str(three_subjects), "--iscv", "all-pairs", "--out", str(pairs_run),
-                 *ARGS]) == 0
+    assert (
+        main(["reproduce", "--data", str(three_subjects), "--iscv", "all-pairs", "--out", str(pairs_run), *ARGS]) == 0
+    )
     assert "3 unit(s) already done" in capsys.readouterr().err
     assert (pairs_run / "iscv_pairs.csv").read_text() == before
 

@@ -71,8 +71,11 @@ def test_every_unit_predicts_as_its_estimator_fits(observe):
     protocol's observe and merit; bilevel and KKT fit whole reaches, so their units predict whole reaches."""
     from reachirl.experiments.protocol import make_estimator
 
-    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel", "kkt"),
-                  experimental={"observe": observe, "merit": "state"})
+    cfg = _config(
+        sections=(2,),
+        methods=("moirl", "maxent", "bilevel", "kkt"),
+        experimental={"observe": observe, "merit": "state"},
+    )
     for unit in make_units(["P2"], cfg):
         est = make_estimator(unit)
         assert unit.observe is bool(getattr(est, "observe", False)), unit.key
@@ -103,10 +106,7 @@ def test_seed_all_row_convention():
 
 def test_build_table_all_rows():
     def unit(p, vals):
-        trials = [
-            {"id": str(i), "rmse_deg": {"q1": v, "q2": v, "q": v}, "converged": True}
-            for i, v in enumerate(vals)
-        ]
+        trials = [{"id": str(i), "rmse_deg": {"q1": v, "q2": v, "q": v}, "converged": True} for i, v in enumerate(vals)]
         return {
             "key": p,
             "unit": {"method": "moirl", "posture": p, "sections": 1},

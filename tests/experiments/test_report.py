@@ -18,16 +18,19 @@ def _results(rmse: dict[int, dict[str, list[float]]]) -> dict:
     for n, by_posture in rmse.items():
         for p, values in by_posture.items():
             trials = [{"id": f"S2/{p}/right/T{i}", "rmse_deg": {"q": v}} for i, v in enumerate(values)]
-            out[f"moirl-{p}-s{n}"] = {"unit": {"method": "moirl", "posture": p, "sections": n},
-                                      "sets": {"iscv": {"trials": trials}}}
+            out[f"moirl-{p}-s{n}"] = {
+                "unit": {"method": "moirl", "posture": p, "sections": n},
+                "sets": {"iscv": {"trials": trials}},
+            }
     return out
 
 
 def test_fifty_trials_of_two_fits_are_two_samples_not_fifty():
     rng = np.random.default_rng(0)
     base = {p: rng.uniform(5, 10, 25) for p in ("P1", "P2")}
-    c = paired_comparison(_results({1: base, 8: {p: v - 0.5 for p, v in base.items()}}), "moirl", "iscv", 1, 8,
-                          ["P1", "P2"])
+    c = paired_comparison(
+        _results({1: base, 8: {p: v - 0.5 for p, v in base.items()}}), "moirl", "iscv", 1, 8, ["P1", "P2"]
+    )
     assert c["n"] == 2 and c["n_lower"] == 2 and c["mean_diff_deg"] == pytest.approx(-0.5)
     assert c["per_posture"] == pytest.approx({"P1": -0.5, "P2": -0.5})
     assert c["wilcoxon_p"] == pytest.approx(0.5) and c["min_p"] == pytest.approx(0.5)  # no evidence either way
@@ -36,17 +39,35 @@ def test_fifty_trials_of_two_fits_are_two_samples_not_fifty():
 def test_six_postures_all_lower_reach_significance_and_mixed_ones_do_not():
     postures = [f"P{i}" for i in range(1, 7)]
     a = {p: [5.0 + i, 6.0 + i] for i, p in enumerate(postures)}
-    lower = paired_comparison(_results({1: a, 8: {p: [v - 0.3 - 0.1 * i for v in a[p]]
-                                                  for i, p in enumerate(postures)}}), "moirl", "iscv", 1, 8, postures)
+    lower = paired_comparison(
+        _results({1: a, 8: {p: [v - 0.3 - 0.1 * i for v in a[p]] for i, p in enumerate(postures)}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        postures,
+    )
     assert lower["n"] == 6 and lower["wilcoxon_p"] == pytest.approx(2 / 64)
-    mixed = paired_comparison(_results({1: a, 8: {p: [v + (-1) ** i * (0.1 + 0.1 * i) for v in a[p]]
-                                                  for i, p in enumerate(postures)}}), "moirl", "iscv", 1, 8, postures)
+    mixed = paired_comparison(
+        _results({1: a, 8: {p: [v + (-1) ** i * (0.1 + 0.1 * i) for v in a[p]] for i, p in enumerate(postures)}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        postures,
+    )
     assert mixed["n_lower"] == 3 and mixed["wilcoxon_p"] > 0.05
 
 
 def test_postures_pair_on_the_trials_both_fits_predicted():
-    c = paired_comparison(_results({1: {"P1": [1.0, 2.0, 9.0], "P2": [1.0]}, 8: {"P1": [1.0, 2.0], "P2": [2.0]}}),
-                          "moirl", "iscv", 1, 8, ["P1", "P2"])
+    c = paired_comparison(
+        _results({1: {"P1": [1.0, 2.0, 9.0], "P2": [1.0]}, 8: {"P1": [1.0, 2.0], "P2": [2.0]}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        ["P1", "P2"],
+    )
     assert c["per_posture"] == pytest.approx({"P1": 0.0, "P2": 1.0})
     assert paired_comparison(_results({1: {"P1": [1.0]}, 8: {"P1": [2.0]}}), "moirl", "iscv", 1, 8, ["P1"]) is None
 
@@ -57,8 +78,13 @@ def _unit(options, tol=None, method="moirl"):
 
 def test_the_method_lines_name_each_departure_used():
     lines = "\n".join(method_lines([_unit([["experimental", []], ["rollout", "per_task"], ["seed_form", False]])]))
-    for departure in ("observed rollouts", "normalised merit", "merit fallback", "scale-free steps",
-                      "acceptance threshold"):
+    for departure in (
+        "observed rollouts",
+        "normalised merit",
+        "merit fallback",
+        "scale-free steps",
+        "acceptance threshold",
+    ):
         assert departure in lines
     assert "6 departure(s) from the paper" in lines and "This is the paper's method" not in lines
     assert "one rollout per task" not in lines  # one posture of one subject: one task, the paper's one rollout
@@ -66,8 +92,11 @@ def test_the_method_lines_name_each_departure_used():
 
 
 def test_an_option_set_back_to_the_papers_is_no_departure():
-    lines = "\n".join(method_lines([_unit({"seed_form": False, "rollout": "per_task",
-                                           "experimental": {"observe": False, "fallback": None}})]))
+    lines = "\n".join(
+        method_lines(
+            [_unit({"seed_form": False, "rollout": "per_task", "experimental": {"observe": False, "fallback": None}})]
+        )
+    )
     assert "normalised merit" in lines and "observed rollouts" not in lines and "merit fallback" not in lines
 
 
@@ -97,10 +126,14 @@ def test_fig3_caption_states_the_shares_the_figure_shows_per_row():
     eight[:, FEATURES.index("joint_torque")] = 0.5
     eight[:, FEATURES.index("joint_velocity")] = 0.4
     caption = weights_caption({("P1", 1): one, ("P2", 1): one, ("P1", 8): eight, ("P2", 8): eight})
-    assert "1 section: largest torque change 70 %, joint torque 30 %; torque change 70 %, joint acceleration 0 %" \
+    assert (
+        "1 section: largest torque change 70 %, joint torque 30 %; torque change 70 %, joint acceleration 0 %"
         in caption
-    assert "8 sections: largest joint torque 50 %, joint velocity 40 %; torque change 2 %, joint acceleration 2 %" \
+    )
+    assert (
+        "8 sections: largest joint torque 50 %, joint velocity 40 %; torque change 2 %, joint acceleration 2 %"
         in caption
+    )
     assert "read high" not in caption
 
 
@@ -114,6 +147,7 @@ def test_the_rmse_note_says_how_each_methods_predictions_were_made():
     observed = {"seed_form": False, "rollout": "per_task", "experimental": {}}
     assert prediction_note([_unit(observed)]).startswith("each prediction is the rest-to-rest DOC")
     assert prediction_note([_unit({"seed_form": True, "rollout": "mean"})]).startswith(
-        "each prediction is the DOC from the trial's own initial state")
+        "each prediction is the DOC from the trial's own initial state"
+    )
     mixed = prediction_note([_unit(observed), _unit({}, method="kkt")])
     assert mixed.startswith("the predictions of moirl are the rest-to-rest DOC") and "those of kkt, the DOC" in mixed

@@ -57,8 +57,27 @@ def test_sensitivity_grows_with_the_change(toy):
 def small_run(recorded, tmp_path_factory, cli):
     """A reproduce run on recorded trials (cut at a speed threshold, as real recordings are)."""
     d = tmp_path_factory.mktemp("sens")
-    proc = cli("reproduce", "--data", recorded / "trials.npz", "--sections", "1", "2", "--postures", "P2", "--nodes",
-               "40", "--max-iter", "3", "--n-train", "3", "--workers", "1", "--no-progress", "--out", d / "run")
+    proc = cli(
+        "reproduce",
+        "--data",
+        recorded / "trials.npz",
+        "--sections",
+        "1",
+        "2",
+        "--postures",
+        "P2",
+        "--nodes",
+        "40",
+        "--max-iter",
+        "3",
+        "--n-train",
+        "3",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        d / "run",
+    )
     assert proc.returncode == 0, proc.stderr
     return d / "run"
 

@@ -51,8 +51,14 @@ def test_reference_of_cut_trials_is_seen_as_they_were_recorded():
     task = rest_to_rest(ReachingTask.from_trial(trial, 40))
     sol = solve_doc(task, w)
     assert sol.converged
-    cut = replace(observe(sol, task, 0.05), subject="S01", posture="P2", trial_id="T01", onset_threshold=0.05,
-                  target_x=task.target_x)
+    cut = replace(
+        observe(sol, task, 0.05),
+        subject="S01",
+        posture="P2",
+        trial_id="T01",
+        onset_threshold=0.05,
+        target_x=task.target_x,
+    )
     own = cut.features(40, w.shape[0])
     seen = reference_features([cut], w, 40, observe=True)
     whole = reference_features([cut], w, 40, observe=False)

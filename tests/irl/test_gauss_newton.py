@@ -129,10 +129,11 @@ def test_the_gauss_newton_step_stays_in_its_box_and_beats_clipping():
 
 @pytest.mark.parametrize(
     ("args", "match"),
-    [((np.zeros((2, 5)), np.zeros((2, 4, 3)), 1.0), r"do not match"),
-     ((np.zeros((2, 5)), np.zeros((2, 5, 3)), 0.0), "bound must be a number > 0"),
-     ((np.full((2, 5), np.nan), np.zeros((2, 5, 3)), 1.0), "finite residuals"),
-     ],
+    [
+        ((np.zeros((2, 5)), np.zeros((2, 4, 3)), 1.0), r"do not match"),
+        ((np.zeros((2, 5)), np.zeros((2, 5, 3)), 0.0), "bound must be a number > 0"),
+        ((np.full((2, 5), np.nan), np.zeros((2, 5, 3)), 1.0), "finite residuals"),
+    ],
 )
 def test_the_gauss_newton_step_refuses_bad_input(args, match):
     with pytest.raises(ValueError, match=match):

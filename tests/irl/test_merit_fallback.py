@@ -95,8 +95,10 @@ def test_the_fallback_probes_each_feature_both_ways_and_counts_its_solves(arm, m
 
 @pytest.mark.parametrize(
     ("kwargs", "match"),
-    [({"fallback": "gradient"}, "fallback must be 'merit' or None"),
-     ({"fallback_tol": 1.0}, r"fallback_tol must be in \[0, 1\)")],
+    [
+        ({"fallback": "gradient"}, "fallback must be 'merit' or None"),
+        ({"fallback_tol": 1.0}, r"fallback_tol must be in \[0, 1\)"),
+    ],
 )
 def test_bad_fallback_options_are_refused(dominated_demos, kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -140,10 +142,26 @@ def test_fit_command_takes_the_fallback_switch(dominated_demos, tmp_path):
         model = tmp_path / f"{choice}.json"
         run = tmp_path / f"{choice}.toml"
         # the seed's rule: fallback = None, written "" (TOML has no null)
-        run.write_text('[experimental]\nobserve = false\nmerit = "state"\n'
-                       + ("" if choice == "merit" else 'fallback = ""\n'))
-        assert main(["fit", str(path), "--sections", "1", "--nodes", str(N_NODES), "--config", str(run),
-                     "--out", str(model)]) == 0
+        run.write_text(
+            '[experimental]\nobserve = false\nmerit = "state"\n' + ("" if choice == "merit" else 'fallback = ""\n')
+        )
+        assert (
+            main(
+                [
+                    "fit",
+                    str(path),
+                    "--sections",
+                    "1",
+                    "--nodes",
+                    str(N_NODES),
+                    "--config",
+                    str(run),
+                    "--out",
+                    str(model),
+                ]
+            )
+            == 0
+        )
         info = json.loads(model.read_text())["info"]
         flags[choice] = (info["flag"], {h.get("step") for h in info["history"][1:]})
     assert flags["none"][0] == "w0" and flags["none"][1] == {"likelihood"}

@@ -131,10 +131,19 @@ def test_reported_merit_is_the_seeds_merit_of_the_returned_weights(fitted, demos
     arms = [t.arm for t in demos]
     from reachirl import ArmModel
 
-    arm = ArmModel(*[float(np.mean([getattr(a, f) for a in arms])) for f in ("l1", "l2", "m1", "m2", "c1",
-                                                                            "c2", "i1", "i2", "gravity")])
-    task = ReachingTask(arm, np.mean([t.x0[:2] for t in demos], axis=0), np.mean([t.target_x for t in demos]),
-                        np.mean([t.duration for t in demos]), n_nodes=n)
+    arm = ArmModel(
+        *[
+            float(np.mean([getattr(a, f) for a in arms]))
+            for f in ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
+        ]
+    )
+    task = ReachingTask(
+        arm,
+        np.mean([t.x0[:2] for t in demos], axis=0),
+        np.mean([t.target_x for t in demos]),
+        np.mean([t.duration for t in demos]),
+        n_nodes=n,
+    )
     x = solve_doc(task, fitted.weights_).state
     total = 0.0
     for t in demos:
@@ -330,7 +339,7 @@ def test_eight_windows_fit_a_virtual_subject_within_two_degrees():
 
 
 def test_either_acceptance_returns_the_best_merit_seen(demos):
-    """"either" may accept a step that raises the merit (on feature mismatch); the fit must go on from there and
+    """ "either" may accept a step that raises the merit (on feature mismatch); the fit must go on from there and
     return the weights of the best merit, never worse than the start."""
     est = MOIRL(n_windows=2, n_nodes=N_NODES, max_iter=6, experimental={"acceptance": "either"}).fit(demos)
     merits = [h["merit"] for h in est.history_ if h["accepted"]]

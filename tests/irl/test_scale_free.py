@@ -2,7 +2,6 @@
 (``Δω > −ω``, at most ``max_ratio``), invariance to the features' units, the demonstrations' features as the DOC
 computes them, and the fixed point at the true weights."""
 
-
 import numpy as np
 import pytest
 
@@ -70,8 +69,10 @@ def test_step_objective_gradient_matches_finite_differences(lam):
     for idx in np.ndindex(eta.shape):
         e = np.zeros_like(eta)
         e[idx] = h
-        fd[idx] = (step_objective(eta + e, theta, groups, 0.3, lam, log_sigma)[0]
-                   - step_objective(eta - e, theta, groups, 0.3, lam, log_sigma)[0]) / (2 * h)
+        fd[idx] = (
+            step_objective(eta + e, theta, groups, 0.3, lam, log_sigma)[0]
+            - step_objective(eta - e, theta, groups, 0.3, lam, log_sigma)[0]
+        ) / (2 * h)
     np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-8)
 
 
@@ -197,5 +198,3 @@ def test_the_line_search_spends_no_solve_on_steps_below_min_step(doc_demos, monk
     assert est.n_doc_solves_ == est.history_[0]["doc_solves"]
     with pytest.raises(ValueError, match=r"min_step must be in \[0, 1\)"):
         MOIRL(2, n_nodes=N_NODES, experimental={"min_step": 1.5}).fit(demos)
-
-

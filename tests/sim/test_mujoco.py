@@ -1,5 +1,4 @@
-"""MuJoCo playback: the MJCF arm has the same dynamics, open-loop playback reproduces the DOC, rendering, CLI.
-"""
+"""MuJoCo playback: the MJCF arm has the same dynamics, open-loop playback reproduces the DOC, rendering, CLI."""
 
 import numpy as np
 import pytest
@@ -122,9 +121,7 @@ def test_simulate_cli_renders_a_gif(arm, tmp_path, capsys):
     last = frames[-1][..., :3].astype(int)
     blue = (last[..., 2] > 150) & (last[..., 0] < 120)  # the simulated arm
     red = (last[..., 0] > 180) & (last[..., 1] < 110) & (last[..., 2] < 110)  # the target bar
-    orange = (
-        (last[..., 0] > 180) & (last[..., 1] > 90) & (last[..., 1] < 190) & (last[..., 2] < 90)
-    )  # the ghost
+    orange = (last[..., 0] > 180) & (last[..., 1] > 90) & (last[..., 1] < 190) & (last[..., 2] < 90)  # the ghost
     assert blue.sum() > 50 and red.sum() > 50 and orange.sum() > 10
     assert (tmp_path / "sim.json").exists()
 
@@ -143,9 +140,14 @@ def test_mjcf_compiles_for_any_body_size(sex):
 
     rng = np.random.default_rng(1)
     for _ in range(25):
-        arm = ArmModel.from_anthropometrics(rng.uniform(1.5, 2.0), rng.uniform(45, 110), sex,
-                                            upper_arm_m=rng.uniform(0.22, 0.34), forearm_m=rng.uniform(0.2, 0.3),
-                                            hand_m=rng.uniform(0.15, 0.21))
+        arm = ArmModel.from_anthropometrics(
+            rng.uniform(1.5, 2.0),
+            rng.uniform(45, 110),
+            sex,
+            upper_arm_m=rng.uniform(0.22, 0.34),
+            forearm_m=rng.uniform(0.2, 0.3),
+            hand_m=rng.uniform(0.15, 0.21),
+        )
         model = arm_mujoco_model(arm, 0.005, 0.9 * arm.length)
         assert model.nv == 2
 

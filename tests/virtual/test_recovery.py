@@ -20,8 +20,22 @@ pytestmark = pytest.mark.slow
 def trials(tmp_path_factory):
     d = tmp_path_factory.mktemp("recovery")
     generate(d, SynthConfig(n_subjects=1, n_trials=20, postures=("P2",), seed=3, workers=2))
-    assert main(["preprocess", "--manifest", str(d / "manifest.csv"), "--subject-info", str(d / "subjects.csv"),
-                 "--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP", "--out", str(d / "t.npz")]) == 0
+    assert (
+        main(
+            [
+                "preprocess",
+                "--manifest",
+                str(d / "manifest.csv"),
+                "--subject-info",
+                str(d / "subjects.csv"),
+                "--markers",
+                "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
+                "--out",
+                str(d / "t.npz"),
+            ]
+        )
+        == 0
+    )
     return load_trials(d / "t.npz")
 
 

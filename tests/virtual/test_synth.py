@@ -214,9 +214,7 @@ def test_config_validation():
 def test_builtin_dataset_is_cached_atomically(tmp_path, monkeypatch):
     monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path / "cache"))
     small_cfg = SynthConfig(**{**SMALL, "postures": ("P2",), "n_trials": 1})
-    monkeypatch.setattr(
-        files, "_builtin_config", lambda seed: SynthConfig(**{**small_cfg.__dict__, "seed": seed})
-    )
+    monkeypatch.setattr(files, "_builtin_config", lambda seed: SynthConfig(**{**small_cfg.__dict__, "seed": seed}))
     d = synth.builtin_dataset_dir(seed=0)
     assert d.parent == tmp_path / "cache" and d.name.startswith(f"synth-v{synth.GENERATOR_VERSION}-seed0-")
     for name in ("manifest.csv", "subjects.csv", "truth.json", "S01_P2_T01.trc"):
@@ -247,9 +245,7 @@ def test_cache_root_env(monkeypatch, tmp_path):
 # ---------------------------------------------------------------------- command line
 def test_cli_synth(tmp_path, capsys):
     out = tmp_path / "o"
-    rc = main(
-        ["synth", "--out", str(out), "--subjects", "1", "--trials", "1", "--postures", "P4", "--workers", "1"]
-    )
+    rc = main(["synth", "--out", str(out), "--subjects", "1", "--trials", "1", "--postures", "P4", "--workers", "1"])
     assert rc == 0
     text = capsys.readouterr().out
     assert "wrote 1 TRC trials" in text and "peak/mean" in text

@@ -24,8 +24,12 @@ def read_run_file(path: str | Path) -> dict[str, Any]:
     naming it (and the line where TOML says)."""
     p = Path(path)
     if not p.is_file():
-        raise InputError("run file not found (expected a TOML file)" if not p.exists() else
-                         "not a regular file (expected a TOML run file)", p)
+        raise InputError(
+            "run file not found (expected a TOML file)"
+            if not p.exists()
+            else "not a regular file (expected a TOML run file)",
+            p,
+        )
     try:
         with p.open("rb") as f:
             return tomllib.load(f)

@@ -28,8 +28,11 @@ class TrialError:
     prediction: DocSolution
 
     def to_dict(self) -> dict:
-        return {"id": self.trial_id, "rmse_deg": {"q1": self.rmse_q1, "q2": self.rmse_q2, "q": self.rmse_q},
-                "converged": self.converged}
+        return {
+            "id": self.trial_id,
+            "rmse_deg": {"q1": self.rmse_q1, "q2": self.rmse_q2, "q": self.rmse_q},
+            "converged": self.converged,
+        }
 
 
 def rmse_deg(q_pred: np.ndarray, q_true: np.ndarray) -> tuple[float, float, float]:
@@ -57,8 +60,7 @@ def evaluate_trials(
     (:func:`reachirl.doc.task.moved_path`), which takes fewer iterations to the same optimum."""
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
-        _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend,
-                         path=path)
+        _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend, path=path)
         e = TrialError(trial.id, *rmse_deg(sol.q, trial.q_at(n_nodes + 1)), converged=sol.converged, prediction=sol)
         out.append(e)
         if on_trial is not None:

@@ -33,8 +33,18 @@ from ..features import euler_knots
 from . import DocSolution, ReachingTask, solve_doc
 from .task import moved_path
 
-__all__ = ["MOVING_FRACTION", "check_threshold", "common_threshold", "observe", "observed_knots", "observed_solution",
-           "observed_state_jacobian", "observed_task", "predict", "rest_to_rest"]
+__all__ = [
+    "MOVING_FRACTION",
+    "check_threshold",
+    "common_threshold",
+    "observe",
+    "observed_knots",
+    "observed_solution",
+    "observed_state_jacobian",
+    "observed_task",
+    "predict",
+    "rest_to_rest",
+]
 
 MOVING_FRACTION = 0.9
 """Share of a rest-to-rest reach's time above its onset threshold (the DOC horizon is the trial's duration over it)."""
@@ -46,8 +56,11 @@ def check_threshold(threshold: float | None) -> float | None:
     """``threshold`` as a float in (0, 1), or ``None``; anything else raises ``ValueError``."""
     if threshold is None:
         return None
-    if isinstance(threshold, bool) or not isinstance(threshold, int | float | np.floating) \
-            or not 0.0 < float(threshold) < 1.0:
+    if (
+        isinstance(threshold, bool)
+        or not isinstance(threshold, int | float | np.floating)
+        or not 0.0 < float(threshold) < 1.0
+    ):
         raise ValueError(f"the onset threshold must be a fraction of the peak speed in (0, 1), got {threshold!r}")
     return float(threshold)
 
@@ -76,8 +89,15 @@ def observed_task(trial: Trial, n_nodes: int, threshold: float | None) -> Reachi
     return task if check_threshold(threshold) is None else rest_to_rest(task)
 
 
-def predict(trial: Trial, weights: np.ndarray, n_nodes: int, threshold: float | None, backend: str = "casadi",
-            warm_start: DocSolution | None = None, path: np.ndarray | None = None) -> tuple[DocSolution, DocSolution]:
+def predict(
+    trial: Trial,
+    weights: np.ndarray,
+    n_nodes: int,
+    threshold: float | None,
+    backend: str = "casadi",
+    warm_start: DocSolution | None = None,
+    path: np.ndarray | None = None,
+) -> tuple[DocSolution, DocSolution]:
     """``(solution, seen)``: the DOC of :func:`observed_task` under ``weights`` (``warm_start``: a solution of
     that same task; ``path``: a cold start, a similar reach's joint path on the same knots, moved to this task
     by :func:`reachirl.doc.task.moved_path`) and its :func:`observed_solution`; both are the same solution
@@ -146,12 +166,14 @@ def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name:
     cut = _cut(sol, task, threshold)
     t = np.linspace(cut.a, cut.b, 4 * n + 1)
     q, qd, qdd = cut.spline(t), cut.spline(t, 1), cut.spline(t, 2)
-    return Trial("model", "", name, t, q, qd, qdd, arm.inverse_dynamics(q, qd, qdd), float(arm.fk(q[-1])[0]),
-                 arm, source=name)
+    return Trial(
+        "model", "", name, t, q, qd, qdd, arm.inverse_dynamics(q, qd, qdd), float(arm.fk(q[-1])[0]), arm, source=name
+    )
 
 
-def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: float | None,
-                            dq: np.ndarray) -> np.ndarray:
+def observed_state_jacobian(
+    sol: DocSolution, task: ReachingTask, threshold: float | None, dq: np.ndarray
+) -> np.ndarray:
     """The derivative of the observed state (``q`` and ``q̇`` of :func:`observed_knots`, ``sol.state`` without a
     threshold) along changes ``dq (N+1, 2, P)`` of the solution's knots: ``(N+1, 4, P)``.
 
@@ -177,8 +199,9 @@ def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: flo
         q, qd = cut.spline(t), cut.spline(t, 1)
         d, dd = dspline(t).reshape(2, n_dir), dspline(t, 1).reshape(2, n_dir)
         eps = 1e-7  # the speed's directional derivative, central differences (exact to ~1e-9; the speed is > 0 here)
-        return (arm.fingertip_speed(q + eps * d.T, qd + eps * dd.T)
-                - arm.fingertip_speed(q - eps * d.T, qd - eps * dd.T)) / (2 * eps)
+        return (
+            arm.fingertip_speed(q + eps * d.T, qd + eps * dd.T) - arm.fingertip_speed(q - eps * d.T, qd - eps * dd.T)
+        ) / (2 * eps)
 
     def dcrossing(i: int | None) -> np.ndarray:
         if i is None:
@@ -200,8 +223,9 @@ def observed_state_jacobian(sol: DocSolution, task: ReachingTask, threshold: flo
     return np.concatenate([dqk, np.concatenate([dqd0[None], dqd])], axis=1)
 
 
-def observed_knots(sol: DocSolution, task: ReachingTask,
-                   threshold: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+def observed_knots(
+    sol: DocSolution, task: ReachingTask, threshold: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``(q (N+1, 2), q̇ (N+1, 2), τ (N, 2), dt)``: the observed part of ``sol`` on the DOC's ``N`` intervals, as
     :meth:`Trial.knots` computes a demonstration's (``observe(sol, task, threshold).knots(N)``), read straight
     off the solution's spline: ``q_k`` at ``t_k = a + k (b − a)/N``, ``q̇_0`` its slope at ``a``, Euler
@@ -223,5 +247,17 @@ def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | N
     if check_threshold(threshold) is None:
         return sol
     q, qd, tau, dt = observed_knots(sol, task, threshold)
-    return DocSolution(np.linspace(0.0, dt * task.n_nodes, task.n_nodes + 1), q, qd, tau, sol.cost, sol.converged,
-                       sol.iterations, sol.solve_time, sol.status, sol.backend, sol.attempts, warm=None)
+    return DocSolution(
+        np.linspace(0.0, dt * task.n_nodes, task.n_nodes + 1),
+        q,
+        qd,
+        tau,
+        sol.cost,
+        sol.converged,
+        sol.iterations,
+        sol.solve_time,
+        sol.status,
+        sol.backend,
+        sol.attempts,
+        warm=None,
+    )

@@ -65,8 +65,9 @@ class WeightEstimator:
         path = self.rollout_path() if warm_start is None else None
         if isinstance(trial_or_task, Trial):
             threshold = trial_or_task.onset_threshold if getattr(self, "observe", False) else None
-            _, seen = observation.predict(trial_or_task, self.weights_, self.n_nodes, threshold, self.backend,
-                                          warm_start, path)
+            _, seen = observation.predict(
+                trial_or_task, self.weights_, self.n_nodes, threshold, self.backend, warm_start, path
+            )
             return seen
         if isinstance(trial_or_task, ReachingTask):
             task = trial_or_task

@@ -116,4 +116,3 @@ __all__ = [
     "to_opensim_axes",
     "typical_feature_scales",
 ]
-

@@ -77,9 +77,7 @@ def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
         return [tr for s, p in groups for tr in _simulate_group(s, p, config)]
     # fork is cheap and works from unguarded scripts; never fork a process that runs other threads
     methods = multiprocessing.get_all_start_methods()
-    ctx = multiprocessing.get_context(
-        "fork" if "fork" in methods and threading.active_count() == 1 else "spawn"
-    )
+    ctx = multiprocessing.get_context("fork" if "fork" in methods and threading.active_count() == 1 else "spawn")
     ex = cf.ProcessPoolExecutor(max_workers=min(workers, len(groups)), mp_context=ctx, initializer=_worker_signals)
     try:
         futures = [ex.submit(_simulate_group, s, p, config) for s, p in groups]
@@ -136,10 +134,7 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
         out_dir / "subjects.csv",
         _csv_text(
             ("subject", "sex", "height_m", "mass_kg", "upper_arm_m", "forearm_m", "hand_m"),
-            [
-                [s.subject, s.sex, s.height_m, s.mass_kg, s.upper_arm_m, s.forearm_m, s.hand_m]
-                for s in subjects
-            ],
+            [[s.subject, s.sex, s.height_m, s.mass_kg, s.upper_arm_m, s.forearm_m, s.hand_m] for s in subjects],
         ),
     )
     hl = human_likeness(trials, subjects)
@@ -208,8 +203,7 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
         "posture_convention": "q1 = -shoulder, q2 = -elbow (Berret's angles from the forward horizontal, "
         "clockwise in reachirl's x-forward/y-up frame)",
         "truth": {
-            "definition": "weights = relative_importance / feature_scale, per window (rows) and feature "
-            "(columns)",
+            "definition": "weights = relative_importance / feature_scale, per window (rows) and feature (columns)",
             "relative_importance": RELATIVE_IMPORTANCE,
             "feature_scale": FEATURE_SCALE,
             "nominal_weights": nominal_weights(),

@@ -68,7 +68,5 @@ def plot_postures(arm: ArmModel | None = None, target_fraction: float = 0.95, ax
         ax.set_ylabel("y up (m)")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7.5, loc="upper left")
-    fig.suptitle(
-        f"Berret 2011 initial postures [elbow; shoulder] (deg); arm L = {arm.length:.2f} m, shoulder at 0"
-    )
+    fig.suptitle(f"Berret 2011 initial postures [elbow; shoulder] (deg); arm L = {arm.length:.2f} m, shoulder at 0")
     return fig

@@ -48,9 +48,7 @@ class SynthConfig:
 
     def __post_init__(self) -> None:
         if int(self.n_subjects) < 1 or int(self.n_trials) < 1:
-            raise ValueError(
-                f"need at least 1 subject and 1 trial, got {self.n_subjects} and {self.n_trials}"
-            )
+            raise ValueError(f"need at least 1 subject and 1 trial, got {self.n_subjects} and {self.n_trials}")
         if int(self.seed) < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
         if self.fmt not in FORMATS:
@@ -87,8 +85,9 @@ class SynthTrial:
 
     def to_trial(self, arm: ArmModel) -> Trial:
         """The reach as a trial on the DOC's own knots (no recording, no noise)."""
-        return trial_from_knots(arm, self.t_knots, self.q_knots, self.target_x, self.subject, self.posture,
-                                self.trial_id)
+        return trial_from_knots(
+            arm, self.t_knots, self.q_knots, self.target_x, self.subject, self.posture, self.trial_id
+        )
 
 
 def simulate_trial(
@@ -126,9 +125,7 @@ def simulate_trial(
             sol.status,
         )
         if retries > _MAX_RETRIES:
-            raise RuntimeError(
-                f"DOC failed {retries} times for {subject.subject} {posture} trial {trial_index + 1}"
-            )
+            raise RuntimeError(f"DOC failed {retries} times for {subject.subject} {posture} trial {trial_index + 1}")
     rec = _record(subject, arm, sol.t, sol.q, config, _rng(config.seed, 2, s_idx, p_idx, trial_index))
     return SynthTrial(
         subject=subject.subject,
@@ -185,14 +182,16 @@ def _simulate_group(subject: SynthSubject, posture: str, config: SynthConfig) ->
     return [simulate_trial(subject, posture, k, config) for k in range(config.n_trials)]
 
 
-def knot_trials(n_trials: int, posture: str = "P2", seed: int = 0, n_nodes: int = 100,
-                subject_index: int = 0) -> list[Trial]:
+def knot_trials(
+    n_trials: int, posture: str = "P2", seed: int = 0, n_nodes: int = 100, subject_index: int = 0
+) -> list[Trial]:
     """``n_trials`` reaches of one virtual subject from ``posture``, in memory, on the DOC's own knots.
 
     The ground truth is :func:`nominal_weights` (each trial jittered around it). For benchmarks and tests that
     need no files; :func:`generate` records the same reaches as marker files.
     """
-    config = SynthConfig(n_subjects=subject_index + 1, n_trials=n_trials, seed=seed, postures=(posture,),
-                         n_nodes=n_nodes)
+    config = SynthConfig(
+        n_subjects=subject_index + 1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
+    )
     subject = draw_subject(seed, subject_index)
     return [simulate_trial(subject, posture, i, config).to_trial(subject.arm) for i in range(n_trials)]

@@ -33,10 +33,24 @@ class KnotData(crocoddyl.ActionDataAbstract):
         self.Fu[4:, :] = np.eye(_NU)  # τ_prev at the next knot is this knot's τ
         Fx, Fu, Lx, Lu, Lxx, Lxu, Luu = self.Fx, self.Fu, self.Lx, self.Lu, self.Lxx, self.Lxu, self.Luu
         self.xnext_, self.g_, self.Lx_, self.Lu_, self.Lxx_, self.Lxu_, self.Luu_ = (
-            self.xnext, self.g, Lx, Lu, Lxx, Lxu, Luu)
+            self.xnext,
+            self.g,
+            Lx,
+            Lu,
+            Lxx,
+            Lxu,
+            Luu,
+        )
         # (destination view, source view) pairs copied after the inner model's calcDiff
-        self.copies_running = [(Fx[:4, :4], di.Fx), (Fu[:4], di.Fu), (Lx[:4], di.Lx), (Lu, di.Lu),
-                               (Lxx[:4, :4], di.Lxx), (Lxu[:4], di.Lxu), (Luu, di.Luu)]
+        self.copies_running = [
+            (Fx[:4, :4], di.Fx),
+            (Fu[:4], di.Fu),
+            (Lx[:4], di.Lx),
+            (Lu, di.Lu),
+            (Lxx[:4, :4], di.Lxx),
+            (Lxu[:4], di.Lxu),
+            (Luu, di.Luu),
+        ]
         self.copies_terminal = [(Lx[:4], di.Lx), (Lxx[:4, :4], di.Lxx)]
         if model.n_constraints:
             self.copies_running += [(self.Gx[:, :4], di.Gx), (self.Gu, di.Gu)]

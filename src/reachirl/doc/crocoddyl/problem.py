@@ -34,8 +34,7 @@ def _com_frames(model, arm: ArmModel) -> tuple[int, int]:
 
 
 class ReachingProblem:
-    """The Crocoddyl shooting problem of one ``(arm, N, n_windows)`` shape; tasks and weights go in in place.
-    """
+    """The Crocoddyl shooting problem of one ``(arm, N, n_windows)`` shape; tasks and weights go in in place."""
 
     def __init__(self, arm: ArmModel, n: int, n_windows: int, options: CsqpOptions = DEFAULT_OPTIONS):
         self.arm, self.n, self.n_windows, self.options = arm, n, n_windows, options
@@ -102,9 +101,7 @@ class ReachingProblem:
             )
         costs = crocoddyl.CostModelSum(state, nu)
         constraints = crocoddyl.ConstraintModelManager(state, nu)
-        constraints.addConstraint(
-            "state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf)
-        )
+        constraints.addConstraint("state_bounds", crocoddyl.ConstraintModelResidual(state, bounds_residual, -inf, inf))
         constraints.addConstraint(
             "fingertip",
             crocoddyl.ConstraintModelResidual(state, tip_residual, np.full(3, -np.inf), np.full(3, np.inf)),
@@ -164,9 +161,8 @@ class ReachingProblem:
             solver.setCallbacks(list(callbacks))
         return solver
 
-def build_problem(
-    arm: ArmModel, n: int, n_windows: int, options: CsqpOptions | None = None
-) -> ReachingProblem:
+
+def build_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions | None = None) -> ReachingProblem:
     """The cached problem of one ``(arm, N, n_windows)`` shape (and solver options)."""
     return _cached_problem(arm, int(n), int(n_windows), options or DEFAULT_OPTIONS)
 
@@ -175,7 +171,5 @@ def build_problem(
 def _cached_problem(arm: ArmModel, n: int, n_windows: int, options: CsqpOptions) -> ReachingProblem:
     t0 = time.perf_counter()
     p = ReachingProblem(arm, n, n_windows, options)
-    log.debug(
-        "built the Crocoddyl problem N=%d, %d windows in %.3f s", n, n_windows, time.perf_counter() - t0
-    )
+    log.debug("built the Crocoddyl problem N=%d, %d windows in %.3f s", n, n_windows, time.perf_counter() - t0)
     return p

@@ -55,9 +55,8 @@ class _Monitor(mim_solvers.CallbackAbstract):
         elif self.acceptable:
             self._n_acceptable += 1
             costs = [h[1] for h in self.history[-o.acceptable_iter - 1 :]]
-            if (
-                self._n_acceptable >= o.acceptable_iter
-                and max(costs) - min(costs) <= o.acceptable_cost_change * abs(cost)
+            if self._n_acceptable >= o.acceptable_iter and max(costs) - min(costs) <= o.acceptable_cost_change * abs(
+                cost
             ):
                 stop, self.reason = True, "converged to an acceptable level"
         else:
@@ -130,12 +129,21 @@ def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list
 
 def _task_key(task: ReachingTask) -> tuple:
     """What must match for a warm start: everything in the task but the weights."""
-    return (task.n_nodes, task.arm, tuple(task.q0), task.target_x, task.duration, tuple(task.q_lower),
-            tuple(task.q_upper), tuple(task.qd_max))
+    return (
+        task.n_nodes,
+        task.arm,
+        tuple(task.q0),
+        task.target_x,
+        task.duration,
+        tuple(task.q_lower),
+        tuple(task.q_upper),
+        tuple(task.qd_max),
+    )
 
 
-def weight_scale(task: ReachingTask, weights: np.ndarray, options: CsqpOptions | None = None,
-                 cold=None) -> tuple[float, float]:
+def weight_scale(
+    task: ReachingTask, weights: np.ndarray, options: CsqpOptions | None = None, cold=None
+) -> tuple[float, float]:
     """``(scale, J0)``: the solver sees ``scale × weights``, with ``J0`` the cost of the cold guess (``cold``,
     by default :func:`initial_guess`) under ``weights``, so that the cold guess costs
     ``options.objective_scale`` (scale 1 when that is ≤ 0)."""
@@ -153,8 +161,16 @@ def _bound_violation(task: ReachingTask, X: np.ndarray) -> float:
     return float(max(np.max(q - task.q_upper), np.max(task.q_lower - q), np.max(np.abs(qd) - task.qd_max), 0.0))
 
 
-def _attempt(prob: ReachingProblem, task: ReachingTask, weights: np.ndarray, xs, us, tol: float,
-             options: CsqpOptions, running_bounds: bool = True):
+def _attempt(
+    prob: ReachingProblem,
+    task: ReachingTask,
+    weights: np.ndarray,
+    xs,
+    us,
+    tol: float,
+    options: CsqpOptions,
+    running_bounds: bool = True,
+):
     """One CSQP solve (and its polishing restart) of ``prob`` under the (scaled) ``weights`` from ``(xs, us)``:
     ``(ok, X, U, monitor, iterations, seconds)``."""
     with prob.lock:  # one problem's data is not re-entrant
@@ -205,9 +221,7 @@ def solve(
     warm = warm_start.warm if warm_start is not None else None
     warm_used = bool(warm and warm.get("backend") == "crocoddyl" and warm.get("task") == _task_key(task))
     if warm_used:
-        xs, us = _to_shooting(
-            task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau)
-        )
+        xs, us = _to_shooting(task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau))
     else:
         xs, us = cold
     # CSQP is not scale-invariant (its merit penalty, ADMM penalty and QP tolerances are absolute): solve with
@@ -225,7 +239,8 @@ def solve(
     # CSQP's own line search
     retry = replace(options, line_search_growth=0.0)
     ok, X, U, monitor, iterations, elapsed = _attempt(
-        prob, task, weights * scale, xs, us, tol, retry if warm_used else options, running_bounds=not screened)
+        prob, task, weights * scale, xs, us, tol, retry if warm_used else options, running_bounds=not screened
+    )
     attempts = 1
     if screened and not (ok and _bound_violation(task, X) <= options.feasibility_tolerance):
         start = (list(X), list(U)) if ok else (xs, us)
@@ -240,8 +255,12 @@ def solve(
     if not ok and options.fallback_smoothing_factor > 0 and np.any(weights[:, _J_ENERGY] > 0):
         # continuation in the energy's smoothing: the kink of |q̇ᵀτ| can stall CSQP (KKT stuck at ~0.1 on some
         # learned weights); solve with a smoother energy first, then at ε from that solution
-        smooth = replace(retry, energy_smoothing=options.energy_smoothing * options.fallback_smoothing_factor,
-                         fallback_exact_hessian=False, fallback_smoothing_factor=0.0)
+        smooth = replace(
+            retry,
+            energy_smoothing=options.energy_smoothing * options.fallback_smoothing_factor,
+            fallback_exact_hessian=False,
+            fallback_smoothing_factor=0.0,
+        )
         prob3 = build_problem(task.arm, n, weights.shape[0], smooth)
         ok3, X3, U3, _, it3, el3 = _attempt(prob3, task, weights * scale, *cold, tol, smooth)
         iterations, elapsed, attempts = iterations + it3, elapsed + el3, attempts + 1
