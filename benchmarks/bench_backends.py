@@ -142,7 +142,7 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     finally:
         cb.KnotModel.calc = calc
     assert again.iterations == iters
-    xs, us = cb._to_shooting(task, sol.q, sol.qd, sol.tau)
+    xs, us = cb.solver._to_shooting(task, sol.q, sol.qd, sol.tau)
     # the ADMM iterations are timed with the bounds the solve had (the running ones screened out, by default)
     prob.update(task, w * scale, running_bounds=not (cb.DEFAULT_OPTIONS.screen_bounds and sol.attempts == 1))
     t_calc = _time(lambda: prob.problem.calc(xs, us), 20)
@@ -169,8 +169,14 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
             "problem_calc_ms": 1e3 * t_calc,
             "problem_calcdiff_ms": 1e3 * t_diff,
             "admm_iteration_us": 1e6 * t_qp,
-            "solve": {"time_ms": 1e3 * total, "sqp_iterations": iters, "rollouts": rollouts[0],
-                      "admm_iterations": qp_iters, "attempts": sol.attempts, **pieces},
+            "solve": {
+                "time_ms": 1e3 * total,
+                "sqp_iterations": iters,
+                "rollouts": rollouts[0],
+                "admm_iterations": qp_iters,
+                "attempts": sol.attempts,
+                **pieces,
+            },
             "python_share_of_knot_time": python_share,
         }
     )

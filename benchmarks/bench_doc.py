@@ -75,8 +75,12 @@ class PlainDoc:
         g.append(_fingertip(a, X[:2, n])[0] - task.target_x)
         self.n_eq = int(ca.vertcat(*g).numel())
         z = ca.vertcat(ca.vec(X), ca.vec(U), Sp, Sm)
-        self.solver = ca.nlpsol("plain", "ipopt", {"x": z, "p": w, "f": obj, "g": ca.vertcat(*g)},
-                                {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"})
+        self.solver = ca.nlpsol(
+            "plain",
+            "ipopt",
+            {"x": z, "p": w, "f": obj, "g": ca.vertcat(*g)},
+            {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"},
+        )
         inf = np.inf
         lbx_X = np.tile(np.r_[task.q_lower, -task.qd_max][:, None], (1, n + 1)).T.reshape(-1)
         ubx_X = np.tile(np.r_[task.q_upper, task.qd_max][:, None], (1, n + 1)).T.reshape(-1)
@@ -95,16 +99,25 @@ class PlainDoc:
 
     def solve(self, weights: np.ndarray, x0: np.ndarray | None = None) -> dict:
         c0, t0 = time.process_time(), time.perf_counter()
-        out = self.solver(x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx,
-                          ubx=self.ubx, lbg=0, ubg=0)
+        out = self.solver(
+            x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx, ubx=self.ubx, lbg=0, ubg=0
+        )
         elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         st = self.solver.stats()
         z = np.asarray(out["x"]).reshape(-1)
         n = self.n
         X = z[: 4 * (n + 1)].reshape(n + 1, 4)
         tau = z[4 * (n + 1) : 4 * (n + 1) + 2 * n].reshape(n, 2)
-        return {"time": elapsed, "cpu": cpu, "iterations": int(st["iter_count"]),
-                "converged": bool(st["success"]), "x": z, "q": X[:, :2], "qd": X[:, 2:], "tau": tau}
+        return {
+            "time": elapsed,
+            "cpu": cpu,
+            "iterations": int(st["iter_count"]),
+            "converged": bool(st["success"]),
+            "x": z,
+            "q": X[:, :2],
+            "qd": X[:, 2:],
+            "tau": tau,
+        }
 
 
 def compiled_figures(problems, reference, reference_warm) -> dict:
@@ -128,9 +141,13 @@ def compiled_figures(problems, reference, reference_warm) -> dict:
             cpu_warm.append(c2 - c1)
             identical += bool(np.array_equal(sol.q, ref.q) and sol.cost == ref.cost)
             identical += bool(np.array_equal(warm.q, ref_warm.q) and warm.cost == ref_warm.cost)
-    return {"cold_cpu_median_s": float(np.median(cpu)), "warm_cpu_median_s": float(np.median(cpu_warm)),
-            "first_solve_s": compile_s, "first_warm_solve_s": compile_warm_s,
-            "bit_identical": f"{identical}/{2 * len(problems)}"}
+    return {
+        "cold_cpu_median_s": float(np.median(cpu)),
+        "warm_cpu_median_s": float(np.median(cpu_warm)),
+        "first_solve_s": compile_s,
+        "first_warm_solve_s": compile_warm_s,
+        "bit_identical": f"{identical}/{2 * len(problems)}",
+    }
 
 
 def run(n_repeats: int = 20, sweep: bool = True, seed: int = 0) -> dict:
@@ -146,8 +163,9 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
     n_windows, n_nodes = 8, 100
     problems = []
     for i in range(n_repeats):
-        task = ReachingTask(arm, np.deg2rad(POSTURES_DEG[i % 5]), 0.9 * arm.length, rng.uniform(0.65, 0.8),
-                            n_nodes=n_nodes)
+        task = ReachingTask(
+            arm, np.deg2rad(POSTURES_DEG[i % 5]), 0.9 * arm.length, rng.uniform(0.65, 0.8), n_nodes=n_nodes
+        )
         w = random_weights(rng, n_windows)
         problems.append((task, w, w * np.exp(0.1 * rng.normal(size=w.shape))))  # warm: a 10 % weight change
 
@@ -193,9 +211,12 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
 
     def fig(d):
         return {
-            "cold_cpu_median_s": med(d["cold_cpu"]), "warm_cpu_median_s": med(d["warm_cpu"]),
-            "cold_median_s": med(d["cold"]), "warm_median_s": med(d["warm"]),
-            "cold_iterations_median": med(d["cold_it"]), "warm_iterations_median": med(d["warm_it"]),
+            "cold_cpu_median_s": med(d["cold_cpu"]),
+            "warm_cpu_median_s": med(d["warm_cpu"]),
+            "cold_median_s": med(d["cold"]),
+            "warm_median_s": med(d["warm"]),
+            "cold_iterations_median": med(d["cold_it"]),
+            "warm_iterations_median": med(d["warm_it"]),
             "converged": f"{d['ok']}/{d['n']}",
         }
 
@@ -245,9 +266,15 @@ def convergence_sweep(arm: ArmModel, seed: int = 0) -> dict:
                     its.append(sol.iterations)
                     times.append(sol.solve_time)
                     n += 1
-    return {"n_problems": n, "converged": ok, "rate": ok / n, "iterations_median": float(np.median(its)),
-            "iterations_max": int(max(its)), "solve_time_median_s": float(np.median(times)),
-            "cpu_median_s": float(np.median(cpus))}
+    return {
+        "n_problems": n,
+        "converged": ok,
+        "rate": ok / n,
+        "iterations_median": float(np.median(its)),
+        "iterations_max": int(max(its)),
+        "solve_time_median_s": float(np.median(times)),
+        "cpu_median_s": float(np.median(cpus)),
+    }
 
 
 if __name__ == "__main__":

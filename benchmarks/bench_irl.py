@@ -1,11 +1,11 @@
 """IRL benchmark: MO-IRL against MaxEnt, bilevel and KKT IOC on virtual subjects with known weights.
 
-One virtual subject (:mod:`reachirl.synth`, Berret's protocol, seed-paper-like true weights with 8
+One virtual subject (:mod:`reachirl.virtual`, Berret's protocol, seed-paper-like true weights with 8
 windows: joint acceleration at onset and termination, geodesic/energy/torque mid-movement), one posture, 10
 training and 10 cross-validation reaches (each under the truth jittered by ``exp(N(0, 0.2))``, with its own
 start and duration). For each method and 1 and 8 windows:
 
-* training and CV RMSE of q (degrees; :func:`reachirl.evaluation.evaluate_trials`, each reach predicted
+* training and CV RMSE of q (degrees; :func:`reachirl.doc.evaluation.evaluate_trials`, each reach predicted
   from its own start);
 * truth agreement: RMSE (degrees) between the learned weights' predictions and the nominal true weights'
   predictions on the CV tasks (how well the *cost* was recovered, regardless of trial-to-trial jitter);
@@ -35,7 +35,7 @@ import numpy as np
 
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import Trial
-from reachirl.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.doc.evaluation import evaluate_trials, rmse_deg, summarise
 from reachirl.irl.methods import make_estimator
 from reachirl.irl.moirl import demonstration_states, mean_task
 from reachirl.irl.objective import merit
@@ -53,9 +53,9 @@ def virtual_subject(n_trials: int, posture: str = POSTURE, seed: int = 0, n_node
     The demonstrations are the DOC's knots themselves (no recording noise), on the same discretisation as the
     fits; the truth is the synth module's nominal weights.
     """
-    from reachirl import synth
+    from reachirl import virtual as synth
 
-    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights(), "reachirl.synth"
+    return synth.knot_trials(n_trials, posture, seed, n_nodes), synth.nominal_weights(), "reachirl.virtual"
 
 
 # ---------------------------------------------------------------------- measuring one fit
@@ -199,9 +199,15 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8, repeats: int = 3) -> dict
             cpus = [min(times) for times in runs]
             solves = list(solves.values())
         key = "vm" if mode == "off" else "compiled"
-        out[key] = {"fit_cpu_s": cpus, "fit_cpu_median_s": float(np.median(cpus)), "fit_cpu_runs_s": runs,
-                    "repeats": repeats, "doc_solves": solves, "reference_doc_cpu_s": ref_cpu,
-                    "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu}
+        out[key] = {
+            "fit_cpu_s": cpus,
+            "fit_cpu_median_s": float(np.median(cpus)),
+            "fit_cpu_runs_s": runs,
+            "repeats": repeats,
+            "doc_solves": solves,
+            "reference_doc_cpu_s": ref_cpu,
+            "fit_in_reference_docs": float(np.median(cpus)) / ref_cpu,
+        }
     out["same_weights"] = all(np.array_equal(w[0], b) for w in weights.values() for b in w[1:])
     with compile_mode("on"):  # the same fits with weight samples (reachirl fit --uncertainty): their own CPU
         unc = []
@@ -211,8 +217,10 @@ def protocol_fit_cpu(seed: int = 0, sections: int = 8, repeats: int = 3) -> dict
             c0 = time.process_time()
             est.fit(train[u.posture])
             unc.append(time.process_time() - c0)
-    out["uncertainty"] = {"fit_cpu_s": unc, "ratio_to_plain_fit": [a / b for a, b in
-                                                                   zip(unc, out["compiled"]["fit_cpu_s"], strict=True)]}
+    out["uncertainty"] = {
+        "fit_cpu_s": unc,
+        "ratio_to_plain_fit": [a / b for a, b in zip(unc, out["compiled"]["fit_cpu_s"], strict=True)],
+    }
     out["compiled_vs_vm"] = out["compiled"]["fit_cpu_median_s"] / out["vm"]["fit_cpu_median_s"]
     return out
 
@@ -299,8 +307,11 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
     targets = _targets(rows, curves, ref_doc)
     if protocol_fits is not None:  # target: an 8-window fit of 10 recorded reaches takes at most 1 s of CPU
         median = protocol_fits["compiled"]["fit_cpu_median_s"]
-        targets["protocol_fit_le_1s_cpu"] = {"median_cpu_s": median, "per_posture_cpu_s":
-                                             protocol_fits["compiled"]["fit_cpu_s"], "met": median <= 1.0}
+        targets["protocol_fit_le_1s_cpu"] = {
+            "median_cpu_s": median,
+            "per_posture_cpu_s": protocol_fits["compiled"]["fit_cpu_s"],
+            "met": median <= 1.0,
+        }
         ratios = protocol_fits["uncertainty"]["ratio_to_plain_fit"]
         targets["uncertainty_le_10x_fit_cpu"] = {"ratio_per_posture": ratios, "met": max(ratios) <= 10.0}
     result = {
@@ -473,8 +484,10 @@ def markdown(result: dict) -> str:
         ]
         for key, label in (("vm", "CasADi virtual machine"), ("compiled", "compiled (`reachirl.doc.compiled`)")):
             r = pf[key]
-            lines.append(f"| {label} | {', '.join(f'{c:.2f}' for c in r['fit_cpu_s'])} | {r['fit_cpu_median_s']:.2f} "
-                         f"| {', '.join(map(str, r['doc_solves']))} | {r['fit_in_reference_docs']:.0f} |")
+            lines.append(
+                f"| {label} | {', '.join(f'{c:.2f}' for c in r['fit_cpu_s'])} | {r['fit_cpu_median_s']:.2f} "
+                f"| {', '.join(map(str, r['doc_solves']))} | {r['fit_in_reference_docs']:.0f} |"
+            )
         lines += ["", f"Compiled / VM: {pf['compiled_vs_vm']:.2f}; the same weights both ways: {pf['same_weights']}."]
     for name, e in result.get("extra", {}).items():
         shown = {k: (round(v, 4) if isinstance(v, float) else v) for k, v in e.items()}

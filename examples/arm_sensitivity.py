@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from reachirl.doc import solve_doc
+from reachirl.doc.observation import common_threshold, observe, rest_to_rest
 from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
 from reachirl.irl.moirl import mean_task
-from reachirl.observation import common_threshold, observe, rest_to_rest
 
 
 def _rmse_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -47,8 +47,11 @@ def main(argv: list[str] | None = None) -> int:
     data = datasets.load(None, seed=args.data_seed)
     truth = np.asarray(data.truth["truth"]["nominal_weights"], dtype=float)
     units = json.loads((args.run / "results.json").read_text())["units"]
-    learned = {u["unit"]["posture"]: np.asarray(u["weights"]) for u in units
-               if u["unit"]["sections"] == args.sections and u["unit"]["method"] == "moirl"}
+    learned = {
+        u["unit"]["posture"]: np.asarray(u["weights"])
+        for u in units
+        if u["unit"]["sections"] == args.sections and u["unit"]["method"] == "moirl"
+    }
     config = ProtocolConfig(sections=(args.sections,))
     trials = list(data.trials)
     for posture, w in learned.items():
@@ -67,8 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         cells = []
         for name, arm in arms.items():
             q_l, q_t = _predict(task, threshold, w, arm), _predict(task, threshold, truth, arm)
-            cells.append(f"{name}: dL {_rmse_deg(q_l, own_l):.2f} dT {_rmse_deg(q_t, own_t):.2f} "
-                         f"L-T {_rmse_deg(q_l, q_t):.2f}")
+            cells.append(
+                f"{name}: dL {_rmse_deg(q_l, own_l):.2f} dT {_rmse_deg(q_t, own_t):.2f} L-T {_rmse_deg(q_l, q_t):.2f}"
+            )
         print(f"{posture} | " + " | ".join(cells))
     return 0
 

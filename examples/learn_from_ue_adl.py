@@ -17,7 +17,7 @@ from reachirl import FEATURES, MOIRL
 from reachirl.data.pipeline import preprocess_entries
 from reachirl.data.readers import ManifestEntry, read_subject_info
 from reachirl.data.ue_adl import reach_files
-from reachirl.evaluation import evaluate_trials, summarise
+from reachirl.doc.evaluation import evaluate_trials, summarise
 
 SAMPLE = Path(__file__).resolve().parents[1] / "src" / "reachirl" / "data" / "ue_adl_sample"
 

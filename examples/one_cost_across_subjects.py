@@ -14,10 +14,10 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from reachirl.doc.evaluation import evaluate_trials, summarise
 
 from reachirl import MOIRL
 from reachirl.data.trial import load_trials
-from reachirl.evaluation import evaluate_trials, summarise
 
 
 def _rmse(model: MOIRL, trials) -> float:
@@ -44,11 +44,15 @@ def main(argv: list[str] | None = None) -> int:
         single = float(np.mean([_rmse(own[s], test) for s in subjects if s != held]))
         pooled_all.append(pooled)
         single_all.append(single)
-        print(f"{held}: one cost from the {len(subjects) - 1} others {pooled:.2f} deg; "
-              f"each other subject's own cost {single:.2f} deg (mean)")
+        print(
+            f"{held}: one cost from the {len(subjects) - 1} others {pooled:.2f} deg; "
+            f"each other subject's own cost {single:.2f} deg (mean)"
+        )
     better = sum(p < s for p, s in zip(pooled_all, single_all, strict=True))
-    print(f"mean: pooled {np.mean(pooled_all):.2f} deg, single-subject {np.mean(single_all):.2f} deg; pooled better "
-          f"for {better} of {len(subjects)} subjects")
+    print(
+        f"mean: pooled {np.mean(pooled_all):.2f} deg, single-subject {np.mean(single_all):.2f} deg; pooled better "
+        f"for {better} of {len(subjects)} subjects"
+    )
     return 0
 
 

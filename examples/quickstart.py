@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
-from reachirl.synth import posture_q
+from reachirl.virtual import posture_q
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -33,8 +33,10 @@ def main(argv: list[str] | None = None) -> int:
         weights[0, FEATURES.index(name)] = 1.0
         sol = solve_doc(task, weights)
         tip = arm.fk(sol.q)
-        print(f"{name:20s} converged={sol.converged} iterations={sol.iterations} "
-              f"cost={sol.cost:.4g} final fingertip=({tip[-1, 0]:.3f}, {tip[-1, 1]:.3f}) m")
+        print(
+            f"{name:20s} converged={sol.converged} iterations={sol.iterations} "
+            f"cost={sol.cost:.4g} final fingertip=({tip[-1, 0]:.3f}, {tip[-1, 1]:.3f}) m"
+        )
         line = ax_q.plot(sol.t, np.degrees(sol.q[:, 0]), label=f"{name} q1")[0]
         ax_q.plot(sol.t, np.degrees(sol.q[:, 1]), "--", color=line.get_color(), label=f"{name} q2")
         ax_p.plot(tip[:, 0], tip[:, 1], color=line.get_color(), label=name)

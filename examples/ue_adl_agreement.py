@@ -18,9 +18,7 @@ from reachirl.data.ue_adl import SAMPLE_DIR, agreement, agreement_markdown
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--root", default=str(SAMPLE_DIR), help="UE-ADL folder (subjects.csv, ADLxxx/)")
     parser.add_argument(
         "--distal",
@@ -34,9 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     rows, trials = agreement(args.root, PreprocessOptions(distal=args.distal, plane=args.plane))
     print(agreement_markdown(rows))
     if args.per_trial:
-        print(
-            "\n| trial | frames ours/theirs | shoulder r | elbow r | forearm mm (SD) |\n|---|---|---|---|---|"
-        )
+        print("\n| trial | frames ours/theirs | shoulder r | elbow r | forearm mm (SD) |\n|---|---|---|---|---|")
         for t in trials:
             print(
                 f"| {t['subject']} {t['trial']} | {t['frames_ours']}/{t['frames_theirs']} | "

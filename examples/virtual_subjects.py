@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from reachirl import FEATURES
-from reachirl.synth import (
+from reachirl.virtual import (
     FEATURE_SCALE,
     RELATIVE_IMPORTANCE,
     SynthConfig,
@@ -49,9 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         res = generate(tmp, SynthConfig(n_subjects=1, n_trials=args.trials, seed=0))
         header, cells = format_human_likeness(res.human_likeness)
-        print(
-            f"\n{len(res.trials)} reaches in {res.elapsed_s:.1f} s, {res.doc_failures} DOC failures redrawn"
-        )
+        print(f"\n{len(res.trials)} reaches in {res.elapsed_s:.1f} s, {res.doc_failures} DOC failures redrawn")
         widths = [max(len(h), *(len(c[i]) for c in cells)) for i, h in enumerate(header)]
         print("  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True)))
         for c in cells:

@@ -1,10 +1,16 @@
 import os
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+# the shared helpers (moirl_settings, attack_cli) live here and are imported as top-level modules by the tests in
+# the subfolders, which mirror src/reachirl/
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
 os.environ.setdefault("OMP_NUM_THREADS", "1")
-# no background compilation into the user's cache from a test run (tests/test_compiled.py sets its own)
+# no background compilation into the user's cache from a test run (tests/doc/test_compiled.py sets its own)
 os.environ.setdefault("REACHIRL_COMPILE", "off")
 os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
@@ -29,8 +35,14 @@ def run_reachirl(*args, timeout: float = 300, cwd=None):
     from pathlib import Path
 
     exe = Path(sys.executable).parent / "reachirl"
-    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, timeout=timeout, cwd=cwd,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    return subprocess.run(
+        [str(exe), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=cwd,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
 
 
 @pytest.fixture(scope="session")
@@ -60,17 +72,36 @@ def tiny_trials(tmp_path_factory, arm):
     return path
 
 
-
 @pytest.fixture(scope="session")
 def recorded(tmp_path_factory):
     """Virtual subjects recorded as real ones are: markers with noise at 100 Hz, rest before and after, run
     through ``reachirl synth`` and ``reachirl preprocess`` (trials cut at a fingertip-speed threshold). Two
     subjects, postures P2 and P4, 4 reaches each; returns the folder (``trials.npz``, ``truth.json``)."""
     d = tmp_path_factory.mktemp("recorded")
-    proc = run_reachirl("synth", "--out", d / "raw", "--subjects", "2", "--trials", "4", "--postures", "P2", "P4",
-                        "--seed", "3", "--workers", "1")
+    proc = run_reachirl(
+        "synth",
+        "--out",
+        d / "raw",
+        "--subjects",
+        "2",
+        "--trials",
+        "4",
+        "--postures",
+        "P2",
+        "P4",
+        "--seed",
+        "3",
+        "--workers",
+        "1",
+    )
     assert proc.returncode == 0, proc.stderr
-    proc = run_reachirl("preprocess", d / "raw", "--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
-                        "--out", d / "trials.npz")
+    proc = run_reachirl(
+        "preprocess",
+        d / "raw",
+        "--markers",
+        "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
+        "--out",
+        d / "trials.npz",
+    )
     assert proc.returncode == 0, proc.stderr
     return d

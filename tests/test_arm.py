@@ -86,8 +86,9 @@ def test_energy_is_conserved_without_torque(arm):
         return 0.5 * qd @ arm.mass_matrix(q) @ qd + pot
 
     x0 = np.array([0.3, 0.8, 1.0, -2.0])
-    sol = solve_ivp(lambda t, x: np.r_[x[2:], arm.forward_dynamics(x[:2], x[2:], np.zeros(2))], (0, 1.0), x0,
-                    rtol=1e-11, atol=1e-11)
+    sol = solve_ivp(
+        lambda t, x: np.r_[x[2:], arm.forward_dynamics(x[:2], x[2:], np.zeros(2))], (0, 1.0), x0, rtol=1e-11, atol=1e-11
+    )
     assert abs(energy(sol.y[:, -1]) - energy(x0)) < 1e-7
 
 

@@ -9,7 +9,12 @@ ARM = ArmModel(l1=0.3, l2=0.4, m1=2.0, m2=1.5, c1=0.15, c2=0.2, i1=0.01, i2=0.02
 
 def test_feature_order_is_the_papers():
     assert FEATURES == (
-        "cartesian_velocity", "energy", "geodesic", "joint_acceleration", "torque_change", "joint_velocity",
+        "cartesian_velocity",
+        "energy",
+        "geodesic",
+        "joint_acceleration",
+        "torque_change",
+        "joint_velocity",
         "joint_torque",
     )
 

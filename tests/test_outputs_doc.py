@@ -37,13 +37,33 @@ def documented() -> dict[str, list[str]]:
 def written(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("outputs")
     model = d / "model.json"
-    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--uncertainty", "20",
-               "--out", model)
+    proc = cli(
+        "fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "2", "--uncertainty", "20", "--out", model
+    )
     assert proc.returncode == 0, proc.stderr
     proc = cli("evaluate", "--model", model, tiny_trials, "--out", d / "metrics.json", "--predictions", d / "pred")
     assert proc.returncode == 0, proc.stderr
-    proc = cli("reproduce", "--data", tiny_trials, "--sections", "1", "2", "--nodes", "20", "--max-iter", "2",
-               "--n-train", "2", "--workers", "1", "--no-progress", "--iscv", "all-pairs", "--out", d / "run")
+    proc = cli(
+        "reproduce",
+        "--data",
+        tiny_trials,
+        "--sections",
+        "1",
+        "2",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "2",
+        "--n-train",
+        "2",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--iscv",
+        "all-pairs",
+        "--out",
+        d / "run",
+    )
     assert proc.returncode == 0, proc.stderr
     proc = cli("sensitivity", d / "run", "--no-occlusion", "--workers", "1", "--no-progress", "--out", d / "sens")
     assert proc.returncode == 0, proc.stderr

@@ -22,13 +22,18 @@ def _run(cmd, **kw):
 @pytest.mark.timeout(3600)
 def test_wheel_installs_and_reproduces(tmp_path):
     # the wheel, built as `pip install .` builds it; no licence or other build warning
-    proc = _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", ROOT, "-w",
-                 tmp_path / "dist"], cwd=tmp_path)
+    proc = _run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", ROOT, "-w", tmp_path / "dist"],
+        cwd=tmp_path,
+    )
     assert "BuildBackendWarning" not in proc.stderr and "license" not in proc.stderr.lower()
     wheel = next((tmp_path / "dist").glob("reachirl-*.whl"))
     names = zipfile.ZipFile(wheel).namelist()
-    for data in ("reachirl/data/markersets/ue-adl.json", "reachirl/data/ue_adl_sample/subjects.csv",
-                 "reachirl/py.typed"):
+    for data in (
+        "reachirl/data/markersets/ue-adl.json",
+        "reachirl/data/ue_adl_sample/subjects.csv",
+        "reachirl/py.typed",
+    ):
         assert data in names
     assert any(n.endswith("licenses/LICENSE") for n in names)
 
@@ -40,12 +45,36 @@ def test_wheel_installs_and_reproduces(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"OMP_NUM_THREADS": "1"}
     where = _run([py, "-c", "import reachirl; print(reachirl.__file__)"], cwd=tmp_path, env=env).stdout
     assert str(venv) in where and str(ROOT) not in where  # the installed copy, not the checkout
-    proc = _run([venv / "bin" / "reachirl", "reproduce", "--quick", "--workers", "1", "--no-progress", "--out",
-                 tmp_path / "run"], cwd=tmp_path, env=env, timeout=3000)
+    proc = _run(
+        [
+            venv / "bin" / "reachirl",
+            "reproduce",
+            "--quick",
+            "--workers",
+            "1",
+            "--no-progress",
+            "--out",
+            tmp_path / "run",
+        ],
+        cwd=tmp_path,
+        env=env,
+        timeout=3000,
+    )
     assert "RMSE of the joint angles" in proc.stdout
     for f in ("table.md", "table.csv", "results.json", "report.md", "figures/fig2_prediction.png"):
         assert (tmp_path / "run" / f).is_file()
     # package data: the UE-ADL sample and its marker set, through the installed console script
     sample = Path(where.strip()).parent / "data" / "ue_adl_sample"
-    _run([venv / "bin" / "reachirl", "preprocess", sample / "ADL001", "--subject-info", sample / "subjects.csv",
-          "--out", tmp_path / "adl.npz"], cwd=tmp_path, env=env)
+    _run(
+        [
+            venv / "bin" / "reachirl",
+            "preprocess",
+            sample / "ADL001",
+            "--subject-info",
+            sample / "subjects.csv",
+            "--out",
+            tmp_path / "adl.npz",
+        ],
+        cwd=tmp_path,
+        env=env,
+    )

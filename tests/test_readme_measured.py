@@ -29,8 +29,10 @@ def test_measured_block_is_the_snapshot_rendered():
     m = _measured()
     snap = json.loads((ROOT / "docs" / "measured.json").read_text(encoding="utf-8"))
     page = (ROOT / "docs" / "benchmarks.md").read_text(encoding="utf-8")
-    assert m.measured_block(page) == m.render(snap), "docs/benchmarks.md's Measured section was edited by hand " \
+    assert m.measured_block(page) == m.render(snap), (
+        "docs/benchmarks.md's Measured section was edited by hand "
         "or is stale: run `make docs` (re-render docs/measured.json) or `make measured` (new numbers)"
+    )
 
 
 def test_no_number_in_the_measured_section_outside_the_generated_block():
@@ -49,21 +51,32 @@ def test_snapshot_matches_the_current_make_run_output():
     res = json.loads(path.read_text(encoding="utf-8"))
     p = res["protocol"]
     if (p["sections"], p["n_train"], p["n_nodes"], p["methods"], res["data"]["kind"]) != (
-        [1, 6, 8], 10, 100, ["moirl"], "builtin"
+        [1, 6, 8],
+        10,
+        100,
+        ["moirl"],
+        "builtin",
     ):
         pytest.skip("results/ holds another run than `make run`'s")
     m = _measured()
     snap = json.loads((ROOT / "docs" / "measured.json").read_text(encoding="utf-8"))
-    assert m.protocol_numbers(res)["all_q_rmse_deg"] == snap["protocol"]["all_q_rmse_deg"], \
+    assert m.protocol_numbers(res)["all_q_rmse_deg"] == snap["protocol"]["all_q_rmse_deg"], (
         "docs/benchmarks.md's protocol table differs from results/results.json: run `make measured`"
+    )
 
 
 def test_render_quotes_the_snapshot_numbers():
     m = _measured()
-    snap = {"protocol": {"method": "moirl", "postures": ["P1"], "n_nodes": 100,
-                         "split_sizes": {"train": {"P1": 10}, "cv": {"P1": 10}, "iscv": {"P1": 20}},
-                         "all_q_rmse_deg": {"1": {"train": 3.41, "cv": 3.4, "iscv": 3.45}}},
-            "run_wall_s": {"a 2-core box": [100.0, 163.0]}}
+    snap = {
+        "protocol": {
+            "method": "moirl",
+            "postures": ["P1"],
+            "n_nodes": 100,
+            "split_sizes": {"train": {"P1": 10}, "cv": {"P1": 10}, "iscv": {"P1": 20}},
+            "all_q_rmse_deg": {"1": {"train": 3.41, "cv": 3.4, "iscv": 3.45}},
+        },
+        "run_wall_s": {"a 2-core box": [100.0, 163.0]},
+    }
     text = m.render(snap)
     assert "| 1 | 3.41° | 3.40° | 3.45° |" in text and "1.7 min–2.7 min over 2 run(s) on a 2-core box" in text
 

@@ -34,8 +34,9 @@ def files(tmp_path_factory, arm) -> Path:
     trials = []
     for i in range(2):
         task = ReachingTask(arm, np.deg2rad([-20.0 + 5 * i, 90.0]), 0.9 * arm.length, 0.7, n_nodes=20)
-        trials.append(trial_from_solution(solve_doc(task, w), arm, task.target_x, subject="S1", posture="P2",
-                                          trial_id=str(i)))
+        trials.append(
+            trial_from_solution(solve_doc(task, w), arm, task.target_x, subject="S1", posture="P2", trial_id=str(i))
+        )
     save_trials(d / "trials.npz", trials)
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
     (d / "afile").write_text("x")
@@ -93,14 +94,22 @@ def test_trials_file_damage_is_an_input_error(files):
     [
         (lambda m: [m], r"unsupported format 'list'"),
         (lambda m: {**m, "trials": {"a": 1}}, r"meta\.json: field 'trials' must be a list"),
-        (lambda m: {**m, "trials": [{**t, "subject": [1]} for t in m["trials"]]},
-         r"trial 0: field 'subject' must be a string, found \[1\]"),
-        (lambda m: {**m, "trials": [{**t, "arm": [1]} for t in m["trials"]]},
-         r"trial 0: field 'arm' must be an object"),
-        (lambda m: {**m, "trials": [{**t, "target_x": "far"} for t in m["trials"]]},
-         r"trial 0: field 'target_x' must be a finite number \(m\), found 'far'"),
-        (lambda m: {**m, "trials": [{**t, "arm": {**t["arm"], "l1": 250e3}} for t in m["trials"]]},
-         r"trial 0 \(S1/P2/right/0\): arm l1 = 250000 is outside the physical range \[0.02, 2\]"),
+        (
+            lambda m: {**m, "trials": [{**t, "subject": [1]} for t in m["trials"]]},
+            r"trial 0: field 'subject' must be a string, found \[1\]",
+        ),
+        (
+            lambda m: {**m, "trials": [{**t, "arm": [1]} for t in m["trials"]]},
+            r"trial 0: field 'arm' must be an object",
+        ),
+        (
+            lambda m: {**m, "trials": [{**t, "target_x": "far"} for t in m["trials"]]},
+            r"trial 0: field 'target_x' must be a finite number \(m\), found 'far'",
+        ),
+        (
+            lambda m: {**m, "trials": [{**t, "arm": {**t["arm"], "l1": 250e3}} for t in m["trials"]]},
+            r"trial 0 \(S1/P2/right/0\): arm l1 = 250000 is outside the physical range \[0.02, 2\]",
+        ),
     ],
 )
 def test_trials_metadata_is_checked_field_by_field(files, change, match):
@@ -110,8 +119,11 @@ def test_trials_metadata_is_checked_field_by_field(files, change, match):
 
 def test_a_start_outside_the_joint_limits_names_the_trial(files):
     path = _with_array(files, "q0.npz", "1/x0.npy", lambda a: np.array([3.0, 3.0, 0.0, 0.0]))
-    with pytest.raises(InputError, match=r"q0\.npz: trial 1 \(S1/P2/right/1\): the start q0 = \(171\.9°, 171\.9°\) "
-                                         r"lies outside the joint limits"):
+    with pytest.raises(
+        InputError,
+        match=r"q0\.npz: trial 1 \(S1/P2/right/1\): the start q0 = \(171\.9°, 171\.9°\) "
+        r"lies outside the joint limits",
+    ):
         load_trials(path)
 
 
@@ -128,12 +140,16 @@ def test_a_duration_outside_a_reach_is_refused(files):
         ({"features": 3}, r"field 'features': expected a list of the 7 feature names, found 3"),
         ({"features": None}, r"field 'features': expected a list"),
         ({"weights": [[0] * 7] * 2}, r"field 'weights': all weights are zero"),
-        ({"n_nodes": 4, "weights": [[0.1] * 7] * 6, "n_windows": 6},
-         r"field 'weights': 6 windows do not fit in n_nodes = 4 intervals"),
+        (
+            {"n_nodes": 4, "weights": [[0.1] * 7] * 6, "n_windows": 6},
+            r"field 'weights': 6 windows do not fit in n_nodes = 4 intervals",
+        ),
         ({"n_nodes": 0}, r"field 'n_nodes' must be an integer in \[4, 1000\], got 0"),
         ({"n_nodes": 1e308}, r"field 'n_nodes' must be an integer in \[4, 1000\], got 1e\+308"),
-        ({"weights": [[-1] * 7] * 2},
-         r"field 'weights', row 0, cartesian_velocity: expected a finite number >= 0, found -1"),
+        (
+            {"weights": [[-1] * 7] * 2},
+            r"field 'weights', row 0, cartesian_velocity: expected a finite number >= 0, found -1",
+        ),
         ({"weights": [[1] * 7, [1]]}, r"field 'weights', row 1: expected 7 numbers, found \[1\]"),
         ({"info": [1]}, r"field 'info': expected an object"),
     ],
@@ -198,8 +214,11 @@ def test_a_truncated_c3d_is_refused(tmp_path):
     data = (tmp_path / "ok.c3d").read_bytes()
     assert read_c3d(tmp_path / "ok.c3d").n_frames == 100
     (tmp_path / "cut.c3d").write_bytes(data[: int(len(data) * 0.8)])
-    with pytest.raises(InputError, match=r"cut\.c3d: truncated C3D file: the header declares 100 frames, the "
-                                         r"file holds \d+"):
+    with pytest.raises(
+        InputError,
+        match=r"cut\.c3d: truncated C3D file: the header declares 100 frames, the "
+        r"file holds \d+",
+    ):
         read_c3d(tmp_path / "cut.c3d")
 
 
@@ -217,27 +236,41 @@ def test_angles_that_wrap_are_unwrapped_and_glitches_refused():
 
 # ---------------------------------------------------------------------- the console script
 CLI_CASES = [
-    (["fit", "{T}", "--sections", "1", "--nodes", "3", "--out", "{D}/fit_out.json"],
-     r"argument --nodes: expected an integer in \[4, 1000\], got 3"),
-    (["fit", "{T}", "--sections", "1", "--max-iter", "0", "--out", "{D}/fit_out.json"],
-     r"argument --max-iter: expected an integer in \[1, 10000\], got 0"),
+    (
+        ["fit", "{T}", "--sections", "1", "--nodes", "3", "--out", "{D}/fit_out.json"],
+        r"argument --nodes: expected an integer in \[4, 1000\], got 3",
+    ),
+    (
+        ["fit", "{T}", "--sections", "1", "--max-iter", "0", "--out", "{D}/fit_out.json"],
+        r"argument --max-iter: expected an integer in \[1, 10000\], got 0",
+    ),
     (["fit", "{T}", "--sections", "1", "--out", "{D}/adir"], r"adir: --out: is a folder, expected a file path"),
-    (["preprocess", "x.trc", "--cutoff", "nan", "--out", "{D}/p.npz"],
-     r"argument --cutoff: expected a number in \[0, 1000\], got nan"),
-    (["preprocess", "x.trc", "--filter-order", "0", "--out", "{D}/p.npz"],
-     r"argument --filter-order: expected an integer in \[1, 8\], got 0"),
+    (
+        ["preprocess", "x.trc", "--cutoff", "nan", "--out", "{D}/p.npz"],
+        r"argument --cutoff: expected a number in \[0, 1000\], got nan",
+    ),
+    (
+        ["preprocess", "x.trc", "--filter-order", "0", "--out", "{D}/p.npz"],
+        r"argument --filter-order: expected an integer in \[1, 8\], got 0",
+    ),
     (["preprocess", "/dev/zero", "--format", "trc", "--out", "{D}/p.npz"], r"/dev/zero: is not a regular file"),
     (["simulate", "--model", "{M}", "{T}", "--fps", "0"], r"argument --fps: expected a number in \[1, 120\]"),
     (["simulate", "--model", "{M}", "{T}", "--size", "100000"], r"argument --size: expected an integer in "),
     (["simulate", "--model", "{M}", "{T}", "--mode", "pd", "--kp", "inf"], r"argument --kp: expected a number"),
-    (["evaluate", "--model", "{D}/huge_nodes.json", "{T}", "--out", "{D}/x.json"],
-     r"huge_nodes\.json: field 'n_nodes' must be an integer in \[4, 1000\], got 1e\+308"),
+    (
+        ["evaluate", "--model", "{D}/huge_nodes.json", "{T}", "--out", "{D}/x.json"],
+        r"huge_nodes\.json: field 'n_nodes' must be an integer in \[4, 1000\], got 1e\+308",
+    ),
     (["evaluate", "--model", "{M}", "{T}", "--out", "{D}/afile/x.json"], r"afile is a file, not a folder"),
     (["reproduce", "--data", "{T}", "--out", "{D}/afile/o"], r"afile is a file, not a folder"),
-    (["reproduce", "--data", "{T}", "--nodes", "100000000", "--out", "{D}/o"],
-     r"argument --nodes: expected an integer in \[4, 1000\]"),
-    (["reproduce", "--data", "{T}", "--scheduler", "foo://bar:1", "--out", "{D}/o"],
-     r"--scheduler 'foo://bar:1': expected an address like tcp://HOST:PORT"),
+    (
+        ["reproduce", "--data", "{T}", "--nodes", "100000000", "--out", "{D}/o"],
+        r"argument --nodes: expected an integer in \[4, 1000\]",
+    ),
+    (
+        ["reproduce", "--data", "{T}", "--scheduler", "foo://bar:1", "--out", "{D}/o"],
+        r"--scheduler 'foo://bar:1': expected an address like tcp://HOST:PORT",
+    ),
     (["reproduce", "--data", "{T}", "--method", "bogus", "--out", "{D}/o"], r"unknown method 'bogus'"),
 ]
 
@@ -247,8 +280,11 @@ FAST = (0, 2, 5, 9, 13)
 
 
 @pytest.mark.parametrize(
-    "cases", [pytest.param([CLI_CASES[i] for i in FAST], id="sample"),
-              pytest.param(CLI_CASES, id="all", marks=pytest.mark.slow)]
+    "cases",
+    [
+        pytest.param([CLI_CASES[i] for i in FAST], id="sample"),
+        pytest.param(CLI_CASES, id="all", marks=pytest.mark.slow),
+    ],
 )
 def test_the_console_script_answers_bad_options_and_paths_in_one_line(files, cases):
     d = json.loads((files / "model.json").read_text())

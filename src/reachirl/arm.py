@@ -25,7 +25,8 @@ __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DUMAS_2007",
 #: limits (:class:`reachirl.doc.task.ReachingTask`) and the range a recorded start must lie in.
 DEFAULT_Q_LOWER = (np.deg2rad(-150.0), np.deg2rad(-5.0))
 DEFAULT_Q_UPPER = (np.deg2rad(120.0), np.deg2rad(160.0))
-DEFAULT_QD_MAX = (10.0, 10.0)  # rad/s per joint: the DOC's speed bound
+#: a reach's default bound on each joint's speed (rad/s), (q1, q2)
+DEFAULT_QD_MAX = (10.0, 10.0)
 
 # Dumas, Cheze & Verriest 2007, J Biomech 40:543-553: (mass % of body mass, CoM % of length from the proximal
 # joint along the segment, radius of gyration about the CoM r_zz % of length (z: the medio-lateral axis, about

@@ -10,8 +10,17 @@ import sys
 import threading
 from collections.abc import Iterator
 
-__all__ = ["InputError", "Terminated", "clear_signals", "interrupt_pending", "note_signal", "raise_if_signalled",
-           "signalled", "solver_interrupts", "track_signals"]
+__all__ = [
+    "InputError",
+    "Terminated",
+    "clear_signals",
+    "interrupt_pending",
+    "note_signal",
+    "raise_if_signalled",
+    "signalled",
+    "solver_interrupts",
+    "track_signals",
+]
 
 
 class InputError(ValueError):

@@ -89,13 +89,14 @@ def _check(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, dt: float) -> tuple[n
     return q, qd, tau
 
 
-def euler_knots(arm: ArmModel, q: np.ndarray, dt: float,
-                qd0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def euler_knots(
+    arm: ArmModel, q: np.ndarray, dt: float, qd0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(q, q̇, τ)`` of a knot path ``q (N+1, 2)`` read as the DOC reads its own: semi-implicit Euler velocities
     ``q̇_k = (q_k − q_{k−1})/dt`` (``q̇_0 = qd0``, at rest when ``None``), accelerations
     ``q̈_k = (q̇_{k+1} − q̇_k)/dt`` and inverse-dynamics torques ``τ_k = M(q_k) q̈_k + b(q_k, q̇_k)`` on the ``N``
     intervals. Both backends, the demonstrations (:meth:`reachirl.data.trial.Trial.knots`) and the observed
-    rollouts (:func:`reachirl.observation.observed_knots`) go through it."""
+    rollouts (:func:`reachirl.doc.observation.observed_knots`) go through it."""
     qd = np.vstack([np.zeros(2) if qd0 is None else qd0, np.diff(q, axis=0) / dt])
     tau = arm.inverse_dynamics(q[:-1], qd[:-1], np.diff(qd, axis=0) / dt)
     return q, qd, tau

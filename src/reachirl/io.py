@@ -120,8 +120,7 @@ def check_regular_file(path: str | os.PathLike, option: str | None = None) -> Pa
     if stat.S_ISDIR(st.st_mode):
         raise InputError(f"{pre}is a directory, expected a file", p)
     if not stat.S_ISREG(st.st_mode):
-        raise InputError(f"{pre}is not a regular file (a FIFO, device or socket); reachirl reads regular files "
-                         f"only", p)
+        raise InputError(f"{pre}is not a regular file (a FIFO, device or socket); reachirl reads regular files only", p)
     return p
 
 

@@ -20,7 +20,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 from .errors import InputError
 from .io import MAX_FILE_BYTES
 
@@ -38,8 +37,6 @@ __all__ = [
     "check_npz_file",
     "check_output_dir",
     "check_output_file",
-    "check_trial_meta",
-    "check_trial_physics",
     "require",
 ]
 
@@ -91,8 +88,9 @@ def check_duration(duration, where: object | None = None) -> float:
     try:
         d = float(duration)
     except (TypeError, ValueError):
-        raise InputError(f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}",
-                         where) from None
+        raise InputError(
+            f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}", where
+        ) from None
     if not (math.isfinite(d) and lo <= d <= hi):
         raise InputError(f"duration {brief(d)} s is outside the range of a reach, [{lo}, {hi}] s", where)
     return d
@@ -139,7 +137,8 @@ def _check_writable_folder(path: Path, option: str) -> None:
         if len(os.fsencode(part)) + 16 > limit:
             raise InputError(
                 f"{option}: the name {part[:20]}... is {len(os.fsencode(part))} bytes long; the limit here is "
-                f"{limit - 16} bytes", path
+                f"{limit - 16} bytes",
+                path,
             )
     try:
         with tempfile.TemporaryFile(dir=anc, prefix=".reachirl-write-test-"):
@@ -179,8 +178,21 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
 #: errno values of an OSError that concern a path the user gave (not a bug of reachirl)
 PATH_ERRNOS = frozenset(
     getattr(errno, n)
-    for n in ("EACCES", "EPERM", "EROFS", "ENOSPC", "EDQUOT", "ENAMETOOLONG", "ENOTDIR", "EISDIR", "EEXIST",
-              "ENOENT", "ELOOP", "EFBIG", "EMFILE")
+    for n in (
+        "EACCES",
+        "EPERM",
+        "EROFS",
+        "ENOSPC",
+        "EDQUOT",
+        "ENAMETOOLONG",
+        "ENOTDIR",
+        "EISDIR",
+        "EEXIST",
+        "ENOENT",
+        "ELOOP",
+        "EFBIG",
+        "EMFILE",
+    )
     if hasattr(errno, n)
 )
 
@@ -217,7 +229,8 @@ def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
                 if info.file_size > max_entry:
                     raise InputError(
                         f"entry {info.filename} is {info.file_size / 1024**2:.0f} MB uncompressed, more than "
-                        f"{max_entry / 1024**2:.0f} MB", path
+                        f"{max_entry / 1024**2:.0f} MB",
+                        path,
                     )
             for info in infos:
                 if not info.filename.endswith(".npy"):
@@ -231,13 +244,13 @@ def check_npz_file(path: Path, max_entry: int = MAX_NPZ_ENTRY_BYTES) -> None:
                     else:
                         raise InputError(f"entry {info.filename}: unsupported .npy version {version}", path)
                     if dtype.hasobject or dtype.kind not in "biufU":
-                        raise InputError(f"entry {info.filename} has dtype {dtype}, expected numbers or text",
-                                         path)
+                        raise InputError(f"entry {info.filename} has dtype {dtype}, expected numbers or text", path)
                     n_bytes = int(np.prod([int(s) for s in shape], dtype=object) or 0) * dtype.itemsize
                     if n_bytes > max_entry or n_bytes > info.file_size:
                         raise InputError(
                             f"entry {info.filename} declares shape {tuple(shape)} ({brief(n_bytes)} bytes) but holds "
-                            f"{info.file_size} bytes", path
+                            f"{info.file_size} bytes",
+                            path,
                         )
             bad = zf.testzip()  # decompresses every entry and checks its CRC
             if bad is not None:
@@ -260,49 +273,3 @@ def require(cond: bool, message: str, where) -> None:
     """Raise :class:`~reachirl.errors.InputError` (``message`` at ``where``) unless ``cond``."""
     if not cond:
         raise InputError(message, where)
-
-
-_META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
-
-
-def check_trial_meta(m, i: int, path) -> None:
-    """One trial's entry in a trials file's ``meta.json``."""
-    where = f"trial {i}"
-    require(isinstance(m, dict), f"{where}: expected an object, found {brief(m)}", path)
-    for key in ("subject", "posture", "trial_id", "target_x", "arm"):
-        require(key in m, f"{where}: field '{key}' is missing", path)
-    for key, typ in _META_TYPES.items():
-        if key in m:
-            require(isinstance(m[key], typ | int) and not isinstance(m[key], bool),
-                    f"{where}: field '{key}' must be a string, found {brief(m[key])}", path)
-    tx = m["target_x"]
-    require(isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
-            f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}", path)
-    th = m.get("onset_threshold")
-    require(th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
-            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}", path)
-    arm = m["arm"]
-    require(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
-    for k, v in arm.items():
-        require(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
-                f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}", path)
-
-
-def check_trial_physics(trial, i: int, path) -> None:
-    """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
-    limits."""
-    where = f"trial {i} ({trial.id})"
-    try:
-        check_arm(trial.arm, where)
-        check_duration(trial.duration, where)
-    except InputError as e:
-        raise InputError(e.reason, path, where) from None
-    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
-    q0 = trial.x0[:2]
-    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
-        d = np.rad2deg
-        raise InputError(
-            f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
-            f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
-            path, where,
-        )

@@ -35,9 +35,7 @@ def test_ue_adl_sample_folder(tmp_path, synth, capsys):
     for tr in trials:
         assert 0.8 < tr.duration < 1.5 and 0.4 < tr.target_x < 0.7
         assert tr.arm.m1 == pytest.approx(0.022 * 96.0)  # female, 96 kg (Dumas: 2.2 % of body mass)
-    assert re.search(
-        r"ADL001/forward/right/FR1: 1\.\d\d s, peak fingertip speed 0\.\d\d m/s, q1 -9\d\.\.-4\d°", stdout
-    )
+    assert re.search(r"ADL001/forward/right/FR1: 1\.\d\d s, peak fingertip speed 0\.\d\d m/s, q1 -9\d\.\.-4\d°", stdout)
     assert "wrote 4 trial(s)" in stdout
 
 
@@ -45,9 +43,7 @@ def test_manifest_with_static_column(tmp_path, synth, capsys):
     for f in ("ADL001FR1.csv", "ADL001_static.csv"):
         shutil.copy(synth.SAMPLE / "ADL001" / f, tmp_path / ("reach.csv" if "FR1" in f else "calib.csv"))
     (tmp_path / "info.csv").write_text("subject,sex,height_m,mass_kg\nP01,F,1.70,60\n")
-    (tmp_path / "m.csv").write_text(
-        "file,subject,posture,side,static\nreach.csv,P01,seated,right,calib.csv\n"
-    )
+    (tmp_path / "m.csv").write_text("file,subject,posture,side,static\nreach.csv,P01,seated,right,calib.csv\n")
     code, _, err = _run(
         [
             "--manifest",
@@ -95,9 +91,7 @@ def test_trc_with_marker_map_and_default_subject(tmp_path, reach, synth, capsys)
 
 
 def test_mot_angles(tmp_path, reach, capsys):
-    rows = "".join(
-        f"{t:.3f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, np.degrees(reach.q), strict=True)
-    )
+    rows = "".join(f"{t:.3f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, np.degrees(reach.q), strict=True))
     (tmp_path / "r.mot").write_text(f"r\nversion=1\ninDegrees=yes\nendheader\ntime\tq1\tq2\n{rows}")
     (tmp_path / "info.csv").write_text(
         "subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m\nr,M,1.76,70,0.3,0.26,0.18\n"
@@ -111,10 +105,7 @@ def test_mot_angles(tmp_path, reach, capsys):
 
 
 # ---------------------------------------------------------------------- bad input → exit 2, one line
-_VHEAD = (
-    "Trajectories\n100\n,,S:SH,,,S:EL,,,S:FT,,\n"
-    "Frame,Sub Frame,X,Y,Z,X,Y,Z,X,Y,Z\n,,mm,mm,mm,mm,mm,mm,mm,mm,mm\n"
-)
+_VHEAD = "Trajectories\n100\n,,S:SH,,,S:EL,,,S:FT,,\nFrame,Sub Frame,X,Y,Z,X,Y,Z,X,Y,Z\n,,mm,mm,mm,mm,mm,mm,mm,mm,mm\n"
 
 
 def _bad_files(tmp_path, reach, synth):
@@ -152,8 +143,11 @@ def _bad_files(tmp_path, reach, synth):
         "gap_too_long": (synth.vicon_text(gap), [], r"marker EL is missing for 20 frames \(41-60\)"),
         "no_movement": (synth.vicon_text(still), [], r"no movement detected"),
         "units_wrong": (synth.vicon_text(tiny), [], r"units look wrong: .* absurdly small"),
-        "unreachable": (synth.vicon_text(good), ["--subject-info", "SHORT"],
-                        r"subject-info upper_arm_m = 0\.150 m but the markers measure 0\.300 m"),
+        "unreachable": (
+            synth.vicon_text(good),
+            ["--subject-info", "SHORT"],
+            r"subject-info upper_arm_m = 0\.150 m but the markers measure 0\.300 m",
+        ),
         "unknown_subject": (
             synth.vicon_text(good),
             ["--subject-info", "OTHER"],
@@ -213,9 +207,7 @@ def test_one_bad_file_writes_nothing(tmp_path, synth, reach, capsys):
     (tmp_path / "good.trc").write_text(synth.trc_text(reach.markers, up="y"))
     (tmp_path / "bad.trc").write_text("PathFileType\t4\n")
     out = tmp_path / "o.npz"
-    code, _, err = _run(
-        [tmp_path / "good.trc", tmp_path / "bad.trc", "--markers", synth.MAP, "--out", out], capsys
-    )
+    code, _, err = _run([tmp_path / "good.trc", tmp_path / "bad.trc", "--markers", synth.MAP, "--out", out], capsys)
     assert code == 2 and "bad.trc" in err and not out.exists()
 
 

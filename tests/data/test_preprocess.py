@@ -40,9 +40,7 @@ def test_fill_gaps_short_by_spline_long_refused():
     np.testing.assert_allclose(filled[40:46], x[40:46], atol=2e-4)
     np.testing.assert_allclose(filled[:2], np.repeat(x[2:3], 2, axis=0))
     g[60:75] = np.nan
-    with pytest.raises(
-        InputError, match=r"f\.trc: marker EL is missing for 15 frames \(61-75\), longer than the 10"
-    ):
+    with pytest.raises(InputError, match=r"f\.trc: marker EL is missing for 15 frames \(61-75\), longer than the 10"):
         fill_gaps(g, max_gap=10, name="EL", source="f.trc")
 
 
@@ -129,8 +127,12 @@ def _min_jerk_torques(arm, t, q0=(-1.4, 1.6), qf=(-0.6, 0.5), duration=0.8, rest
     dds = (60 * tau_ - 180 * tau_**2 + 120 * tau_**3) / duration**2
     model = arm.pinocchio_model()
     data = model.createData()
-    return np.array([pin.rnea(model, data, np.asarray(q0) + dq * a, dq * b, dq * c).copy()
-                     for a, b, c in zip(s, ds, dds, strict=True)])
+    return np.array(
+        [
+            pin.rnea(model, data, np.asarray(q0) + dq * a, dq * b, dq * c).copy()
+            for a, b, c in zip(s, ds, dds, strict=True)
+        ]
+    )
 
 
 def test_trial_fields_and_dynamics(reach, synth):
@@ -173,9 +175,7 @@ def test_torques_agree_with_pinocchio_rnea(reach, synth):
 def test_round_trip_save_load(tmp_path, reach, synth):
     md = MarkerData(100.0, reach.markers, source="s.trc")
     trials = [
-        markers_to_trial(
-            md, parse_marker_map(synth.MAP), subject="S1", posture="P1", trial_id=str(i), side=side
-        )
+        markers_to_trial(md, parse_marker_map(synth.MAP), subject="S1", posture="P1", trial_id=str(i), side=side)
         for i, side in enumerate(("right", "left"))
     ]
     back = load_trials(save_trials(tmp_path / "t.npz", trials))
@@ -197,9 +197,7 @@ def test_angles_to_trial(reach):
     )
     assert tr.arm == reach.arm
     n = len(tr.t)
-    k0 = min(
-        range(50, 61), key=lambda k: np.abs(reach.q[k : k + n] - tr.q).max()
-    )  # onset just after the rest
+    k0 = min(range(50, 61), key=lambda k: np.abs(reach.q[k : k + n] - tr.q).max())  # onset just after the rest
     np.testing.assert_allclose(tr.q, reach.q[k0 : k0 + n], atol=1e-12)
     assert tr.target_x == pytest.approx(reach.arm.fk(tr.q[-1])[0])
     # unfiltered exact angles: the spline's derivatives give the true torques (RNEA on the analytic reach)
@@ -226,9 +224,7 @@ def test_subject_info_too_short_for_the_markers(reach, synth):
     md = MarkerData(100.0, reach.markers, source="s.trc")
     too_short = r"s\.trc: subject S1: subject-info upper_arm_m = 0\.150 m but the markers measure 0\.300 m"
     with pytest.raises(InputError, match=too_short):
-        markers_to_trial(
-            md, parse_marker_map(synth.MAP), subject="S1", posture="P", trial_id="1", subject_info=short
-        )
+        markers_to_trial(md, parse_marker_map(synth.MAP), subject="S1", posture="P", trial_id="1", subject_info=short)
     with pytest.raises(InputError, match=too_short):
         markers_to_trial(
             md,
@@ -284,16 +280,29 @@ def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
     spiked = {k: np.array(v) for k, v in reach.markers.items()}
     spiked["FT"][55, 0] += 0.5  # 0.5 m in one frame at 100 Hz
     with pytest.raises(InputError, match=r"s\.trc: frame 5[67]: the fingertip moves 500 mm in one frame"):
-        markers_to_trial(MarkerData(100.0, spiked, source="s.trc"), parse_marker_map(synth.MAP), subject="S1",
-                         posture="P2", trial_id="1")
+        markers_to_trial(
+            MarkerData(100.0, spiked, source="s.trc"),
+            parse_marker_map(synth.MAP),
+            subject="S1",
+            posture="P2",
+            trial_id="1",
+        )
     swapped = "shoulder=FT,elbow=WR,wrist=EL,fingertip=SH"
     n = len(reach.t)
     sway = np.c_[0.03 * np.sin(2 * np.pi * np.arange(n) / 100.0), np.zeros((n, 2))]  # the trunk sways 3 cm
     swaying = {k: np.asarray(v) + sway for k, v in reach.markers.items()}
-    with pytest.raises(InputError, match=r"s\.trc: the shoulder travels .* m and the fingertip .* m: are the "
-                                         r"markers swapped\?"):
-        markers_to_trial(MarkerData(100.0, swaying, source="s.trc"), parse_marker_map(swapped),
-                         subject="S1", posture="P2", trial_id="1")
+    with pytest.raises(
+        InputError,
+        match=r"s\.trc: the shoulder travels .* m and the fingertip .* m: are the "
+        r"markers swapped\?",
+    ):
+        markers_to_trial(
+            MarkerData(100.0, swaying, source="s.trc"),
+            parse_marker_map(swapped),
+            subject="S1",
+            posture="P2",
+            trial_id="1",
+        )
     far = {k: np.array(v) for k, v in reach.markers.items()}
     far["EL"][10, 2] = 1e308
     with pytest.raises(InputError, match=r"s\.trc: frame 11: marker 'EL' is 1e\+308 m from the lab's origin"):

@@ -80,9 +80,7 @@ def test_c3d_round_trip(tmp_path):
 def test_mot_degrees_and_radians(tmp_path):
     q = np.array([[-90.0, 90.0], [-80.0, 70.0], [-60.0, 40.0]])
     body = "time\tq1\tq2\n" + "".join(f"{0.01 * i}\t{a}\t{b}\n" for i, (a, b) in enumerate(q))
-    (tmp_path / "d.mot").write_text(
-        f"reach\nversion=1\nnRows=3\nnColumns=3\ninDegrees=yes\nendheader\n{body}"
-    )
+    (tmp_path / "d.mot").write_text(f"reach\nversion=1\nnRows=3\nnColumns=3\ninDegrees=yes\nendheader\n{body}")
     ad = read_mot(tmp_path / "d.mot")
     np.testing.assert_allclose(ad.q, np.radians(q))
     rad = "time\tq1\tq2\n" + "".join(f"{0.01 * i}\t{a}\t{b}\n" for i, (a, b) in enumerate(np.radians(q)))

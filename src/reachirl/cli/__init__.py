@@ -142,8 +142,10 @@ def _run_command(args) -> int:
             where = e.filename if e.filename is not None else "a file"
             print(f"reachirl {args.command}: error: {where}: {e.strerror or e}", file=sys.stderr)
             return 2
-        print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
-              file=sys.stderr)
+        print(
+            f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+            file=sys.stderr,
+        )
         return 1
     except KeyboardInterrupt as e:
         if errors.signalled() is not None:
@@ -152,8 +154,10 @@ def _run_command(args) -> int:
     except Exception as e:  # an internal error: say so in one line; -v for the traceback
         if args.verbose or errors.signalled() is not None:
             raise
-        print(f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
-              file=sys.stderr)
+        print(
+            f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+            file=sys.stderr,
+        )
         return 1
 
 

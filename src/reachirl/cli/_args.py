@@ -10,8 +10,9 @@ from pathlib import Path
 from ..errors import InputError
 
 
-def _checked(convert: Callable[[str], float], ok: Callable[[float], bool], expected: str,
-             trim: int | None = None) -> Callable[[str], float]:
+def _checked(
+    convert: Callable[[str], float], ok: Callable[[float], bool], expected: str, trim: int | None = None
+) -> Callable[[str], float]:
     """A parser: ``convert(text)``, refused with ``expected {expected}, got …`` when it fails or ``ok`` is
     False. The message echoes the value, or with ``trim`` the text cut to that many characters."""
 
@@ -53,12 +54,23 @@ def number_in(lo: float, hi: float) -> Callable[[str], float]:
 
 def add_selection(p: argparse.ArgumentParser, what: str) -> None:
     """``--subject``, ``--posture`` and ``--side``: which trials of the trials file ``what`` (e.g. "fit")."""
-    p.add_argument("--subject", nargs="+", metavar="ID", default=None,
-                   help=f"{what} only these subjects' trials (default: every subject)")
-    p.add_argument("--posture", nargs="+", metavar="NAME", default=None,
-                   help=f"{what} only the trials of these postures (default: every posture)")
-    p.add_argument("--side", choices=("right", "left"), default=None,
-                   help=f"{what} only the trials of this arm (default: both)")
+    p.add_argument(
+        "--subject",
+        nargs="+",
+        metavar="ID",
+        default=None,
+        help=f"{what} only these subjects' trials (default: every subject)",
+    )
+    p.add_argument(
+        "--posture",
+        nargs="+",
+        metavar="NAME",
+        default=None,
+        help=f"{what} only the trials of these postures (default: every posture)",
+    )
+    p.add_argument(
+        "--side", choices=("right", "left"), default=None, help=f"{what} only the trials of this arm (default: both)"
+    )
 
 
 def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | None]:
@@ -92,8 +104,9 @@ def refuse_overwrite(outputs: dict[str, object], inputs) -> None:
         for inp in ins:
             if _same(out, inp) or out.absolute() == inp.absolute():
                 what = "folder" if inp.is_dir() else "file"
-                raise InputError(f"{option} is the input {what} {inp}; it would be overwritten (choose another "
-                                 f"output path)", out)
+                raise InputError(
+                    f"{option} is the input {what} {inp}; it would be overwritten (choose another output path)", out
+                )
 
 
 def output_folder_files(folder: object, names, inputs, option: str) -> None:
@@ -105,9 +118,9 @@ def output_folder_files(folder: object, names, inputs, option: str) -> None:
 
 
 def export_names(ids) -> list[str]:
-    """The files that :func:`reachirl.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
+    """The files that :func:`reachirl.data.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
     ``<name>.mot`` per id (a repeated name gets ``-2``, ``-3`` …) and ``index.csv``."""
-    from ..exports import safe_name
+    from ..data.exports import safe_name
 
     used: set[str] = set()
     names = ["index.csv"]

@@ -25,10 +25,15 @@ def _bench_dir() -> Path:
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("bench", help="run the performance benchmarks and print their figures",
-                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("suites", nargs="*", metavar="SUITE",
-                   help=f"which suites to run: {', '.join(SUITES)} (default: all)")
+    p = sub.add_parser(
+        "bench",
+        help="run the performance benchmarks and print their figures",
+        description=__doc__.replace("``", ""),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "suites", nargs="*", metavar="SUITE", help=f"which suites to run: {', '.join(SUITES)} (default: all)"
+    )
     p.add_argument("--out", type=Path, default=None, help="write all figures to this JSON file (default: print only)")
     p.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
     return p
@@ -37,8 +42,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
 def _load(suite: str):
     path = _bench_dir() / f"bench_{suite}.py"
     if not path.exists():
-        raise InputError(f"benchmark suite {suite!r} not found; `reachirl bench` runs from a source checkout",
-                         path)
+        raise InputError(f"benchmark suite {suite!r} not found; `reachirl bench` runs from a source checkout", path)
     spec = importlib.util.spec_from_file_location(f"reachirl_bench_{suite}", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -59,8 +63,11 @@ def run(args: argparse.Namespace) -> int:
         module = _load(suite)
         t0 = time.perf_counter()
         print(f"== {suite} ==", flush=True)
-        quick = {"doc": {"n_repeats": 6, "sweep": False}, "backends": {"n_repeats": 1, "learned_stride": 20},
-                 "irl": {"quick": True}}
+        quick = {
+            "doc": {"n_repeats": 6, "sweep": False},
+            "backends": {"n_repeats": 1, "learned_stride": 20},
+            "irl": {"quick": True},
+        }
         kwargs = dict(quick[suite]) if args.quick else {}
         if suite == "irl" and args.out is not None:
             kwargs["out_dir"] = args.out.parent / "bench_irl"

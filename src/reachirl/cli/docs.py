@@ -3,7 +3,7 @@
     python -m reachirl.cli.docs [--out docs/cli.md] [--check]
 
 (``make docs`` runs it.) Not a subcommand: it renders what ``reachirl <command> --help`` shows, so the reference
-cannot drift from the code; ``tests/test_cli_doc.py`` fails when the file differs from :func:`render`.
+cannot drift from the code; ``tests/cli/test_cli_doc.py`` fails when the file differs from :func:`render`.
 """
 
 from __future__ import annotations

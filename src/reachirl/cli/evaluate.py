@@ -10,8 +10,8 @@ from rich.progress import Progress
 
 from ..data.checks import check_model_rollout
 from ..data.trial import load_trials
+from ..doc.evaluation import summarise
 from ..errors import InputError
-from ..evaluation import summarise
 from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
@@ -30,46 +30,59 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument("trials", type=Path, help="trials file")
     p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
-                   help="DOC backend (default casadi)")
-    p.add_argument("--include-failed", action="store_true",
-                   help="average the RMSE of predictions whose DOC did not converge too (default: count them, "
-                        "leave them out)")
-    p.add_argument("--predictions", type=Path, default=None, metavar="DIR",
-                   help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
-                   "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
-                   "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)")
+    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi", help="DOC backend (default casadi)")
+    p.add_argument(
+        "--include-failed",
+        action="store_true",
+        help="average the RMSE of predictions whose DOC did not converge too (default: count them, leave them out)",
+    )
+    p.add_argument(
+        "--predictions",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
+        "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
+        "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)",
+    )
     add_selection(p, "predict")
     return p
 
 
 def summary_line(summary: dict, backend: str) -> str:
-    """One line of :func:`reachirl.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
+    """One line of :func:`reachirl.doc.evaluation.summarise`'s figures: the RMSE of q1, q2 and q (mean ± SD, deg)
     and the DOC failures."""
     r, fails = summary["rmse_deg"], summary["doc_failures"]
     how = "included in" if summary["failures_included"] else "left out of"
     note = f"; {fails} DOC failure(s) ({backend}), {how} the RMSE" if fails else ""
     if r["q"]["mean"] is None:
         return f"{summary['n_trials']} trials: no prediction converged ({backend}); no RMSE"
-    return (f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
-            f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
-            f" over {summary['n_included']} prediction(s){note}")
+    return (
+        f"{summary['n_trials']} trials: RMSE q1 {r['q1']['mean']:.2f} ± {r['q1']['std']:.2f} deg, "
+        f"q2 {r['q2']['mean']:.2f} ± {r['q2']['std']:.2f} deg, q {r['q']['mean']:.2f} ± {r['q']['std']:.2f} deg"
+        f" over {summary['n_included']} prediction(s){note}"
+    )
 
 
 def prediction_exports(trials, errors, set_name: str = ""):
-    """One :class:`~reachirl.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
+    """One :class:`~reachirl.data.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
     knots beside the prediction."""
-    from ..exports import TrajectoryExport
+    from ..data.exports import TrajectoryExport
 
     out = []
     for tr, e in zip(trials, errors, strict=True):
         sol = e.prediction
         demo = tr.resample(sol.t.size)
-        out.append(TrajectoryExport(
-            id=tr.id, t=sol.t, side=tr.side, set=set_name,
-            demo={"q": demo.q, "qd": demo.qd, "tau": demo.tau[:-1]},
-            pred={"q": sol.q, "qd": sol.qd, "tau": sol.tau},
-        ))
+        out.append(
+            TrajectoryExport(
+                id=tr.id,
+                t=sol.t,
+                side=tr.side,
+                set=set_name,
+                demo={"q": demo.q, "qd": demo.qd, "tau": demo.tau[:-1]},
+                pred={"q": sol.q, "qd": sol.qd, "tau": sol.tau},
+            )
+        )
     return out
 
 
@@ -91,12 +104,13 @@ def run(args: argparse.Namespace) -> int:
         errors = model.evaluate(trials, backend=args.backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
     # a mean that cannot be computed (every DOC failed) is written with its reason, never a bare null
-    atomic_write_json(args.out, annotate_no_data(
-        {"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]}))
+    atomic_write_json(
+        args.out, annotate_no_data({"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
+    )
     print(summary_line(summary, args.backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:
-        from ..exports import export_trajectories
+        from ..data.exports import export_trajectories
 
         export_trajectories(args.predictions, prediction_exports(trials, errors))
         print(f"wrote {len(errors)} trajectories (.csv, .mot) and index.csv to {args.predictions}")

@@ -28,33 +28,71 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "(schema: docs/outputs.md).",
     )
     p.add_argument("trials", type=Path, help="trials file written by `reachirl preprocess` or `reachirl synth`")
-    p.add_argument("--sections", type=int_in(1, MAX_NODES), required=True,
-                   help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes; required")
+    p.add_argument(
+        "--sections",
+        type=int_in(1, MAX_NODES),
+        required=True,
+        help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes; required",
+    )
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
-    p.add_argument("--max-iter", type=int_in(1, MAX_ITER), default=30,
-                   help=f"iterations at most of moirl and maxent, 1 to {MAX_ITER}; bilevel and kkt ignore it "
-                   "(default 30)")
-    p.add_argument("--nodes", type=int_in(MIN_NODES, MAX_NODES), default=100,
-                   help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
-                   help="DOC backend of the fit's solves (default: casadi)")
-    p.add_argument("--rollout", choices=ROLLOUTS, default="per_task",
-                   help="MO-IRL/MaxEnt training rollouts: one per task (subject, posture) from its trials' mean start, "
-                   "target and duration (per_task, default: several postures or subjects learn one shared cost), "
-                   "one per trial (per_demo: about five times the fit time), or one for all trials (mean)")
-    p.add_argument("--seed-form", action="store_true",
-                   help="MO-IRL/MaxEnt: the seed paper's method exactly as written (raw subproblem with beta, its "
-                   "alpha search and stopping rule, the DOC over each trial's duration, the full-state merit); "
-                   "docs/method.md lists what the default adds")
-    p.add_argument("--uncertainty", type=int_in(20, 1000), nargs="?", const=40, default=None, metavar="K",
-                   help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) that the "
-                   "training trials cannot tell apart from the fit, and each window's cost-share intervals "
-                   "(MODEL.json 'uncertainty'; about 4x the fit's time)")
-    p.add_argument("--seed", type=int_in(0, 2**32 - 1), default=0, metavar="N",
-                   help="seed of the uncertainty's random samples (default 0)")
-    p.add_argument("--config", type=Path, metavar="RUN.toml",
-                   help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md; default: none)")
+    p.add_argument(
+        "--max-iter",
+        type=int_in(1, MAX_ITER),
+        default=30,
+        help=f"iterations at most of moirl and maxent, 1 to {MAX_ITER}; bilevel and kkt ignore it (default 30)",
+    )
+    p.add_argument(
+        "--nodes",
+        type=int_in(MIN_NODES, MAX_NODES),
+        default=100,
+        help=f"DOC knots N, {MIN_NODES} to {MAX_NODES} (default 100)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("casadi", "crocoddyl"),
+        default="casadi",
+        help="DOC backend of the fit's solves (default: casadi)",
+    )
+    p.add_argument(
+        "--rollout",
+        choices=ROLLOUTS,
+        default="per_task",
+        help="MO-IRL/MaxEnt training rollouts: one per task (subject, posture) from its trials' mean start, "
+        "target and duration (per_task, default: several postures or subjects learn one shared cost), "
+        "one per trial (per_demo: about five times the fit time), or one for all trials (mean)",
+    )
+    p.add_argument(
+        "--seed-form",
+        action="store_true",
+        help="MO-IRL/MaxEnt: the seed paper's method exactly as written (raw subproblem with beta, its "
+        "alpha search and stopping rule, the DOC over each trial's duration, the full-state merit); "
+        "docs/method.md lists what the default adds",
+    )
+    p.add_argument(
+        "--uncertainty",
+        type=int_in(20, 1000),
+        nargs="?",
+        const=40,
+        default=None,
+        metavar="K",
+        help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) that the "
+        "training trials cannot tell apart from the fit, and each window's cost-share intervals "
+        "(MODEL.json 'uncertainty'; about 4x the fit's time)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int_in(0, 2**32 - 1),
+        default=0,
+        metavar="N",
+        help="seed of the uncertainty's random samples (default 0)",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        metavar="RUN.toml",
+        help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md; default: none)",
+    )
     add_selection(p, "learn from (several postures or subjects: one shared cost)")
     return p
 
@@ -64,7 +102,7 @@ def _experimental(path: Path | None) -> dict | None:
     if path is None:
         return None
     from ..irl.options import resolve_options
-    from ..runfile import read_run_file
+    from .runfile import read_run_file
 
     table = read_run_file(path).get("experimental", {})
     if not isinstance(table, dict):
@@ -92,15 +130,24 @@ def run(args: argparse.Namespace) -> int:
     kwargs = {"n_nodes": args.nodes, "backend": args.backend}
     is_moirl = issubclass(CLASSES[args.method], MOIRL)
     if is_moirl:
-        kwargs.update(max_iter=args.max_iter, rollout=args.rollout, seed_form=args.seed_form,
-                      uncertainty=args.uncertainty, random_state=args.seed, experimental=experimental)
+        kwargs.update(
+            max_iter=args.max_iter,
+            rollout=args.rollout,
+            seed_form=args.seed_form,
+            uncertainty=args.uncertainty,
+            random_state=args.seed,
+            experimental=experimental,
+        )
     elif args.seed_form or args.uncertainty is not None or experimental:
         raise InputError(f"--seed-form, --uncertainty and --config apply to moirl and maxent, not {args.method}")
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
+
         def progress(rec: dict) -> None:
-            status.update(f"{args.method}: iteration {rec.get('iteration', '?')}, merit {rec.get('merit', '?')}, "
-                          f"{rec.get('doc_solves', '?')} DOC solves")
+            status.update(
+                f"{args.method}: iteration {rec.get('iteration', '?')}, merit {rec.get('merit', '?')}, "
+                f"{rec.get('doc_solves', '?')} DOC solves"
+            )
 
         if is_moirl:  # the baselines take no progress callback
             kwargs["callback"] = progress
@@ -109,21 +156,29 @@ def run(args: argparse.Namespace) -> int:
     info = estimator_info(est, args.method, trials)
     unc = info.pop("uncertainty", None)
     info.update({"trials": str(args.trials), "selection": chosen, "backend": args.backend})
-    save_model(args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info,
-                                      uncertainty=unc))
+    save_model(
+        args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info, uncertainty=unc)
+    )
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
     extra = ""
     if unc is not None:
         det = unc["determination"]
-        extra = (f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
-                 "directions determined by the trials")
+        extra = (
+            f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
+            "directions determined by the trials"
+        )
         if unc.get("pooling"):
             alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]
             pooled = unc["pooling"]["pooled"]["mean_width"]
-            extra += (f"; pooling {len(alone)} tasks: mean share-interval width {pooled:.2f} against "
-                      f"{min(alone):.2f}-{max(alone):.2f} from each task alone")
-    print(f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
-          f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
-          + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "") + extra)
+            extra += (
+                f"; pooling {len(alone)} tasks: mean share-interval width {pooled:.2f} against "
+                f"{min(alone):.2f}-{max(alone):.2f} from each task alone"
+            )
+    print(
+        f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
+        f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
+        + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "")
+        + extra
+    )
     return 0

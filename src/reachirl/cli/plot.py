@@ -27,17 +27,33 @@ def add_parser(sub) -> argparse.ArgumentParser:
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("source", type=Path, metavar="TRIALS|RUN_DIR",
-                   help="a trials file (with --model) or a folder written by `reachirl reproduce`")
-    p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
-                   help="model JSON written by `reachirl fit`, then SOURCE is a trials file (default: SOURCE is a run "
-                   "folder)")
+    p.add_argument(
+        "source",
+        type=Path,
+        metavar="TRIALS|RUN_DIR",
+        help="a trials file (with --model) or a folder written by `reachirl reproduce`",
+    )
+    p.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        metavar="MODEL.json",
+        help="model JSON written by `reachirl fit`, then SOURCE is a trials file (default: SOURCE is a run folder)",
+    )
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="folder to write the figures to")
-    p.add_argument("--trial", action="append", default=None, metavar="ID|INDEX",
-                   help="with --model: plot only this trial (id, trial_id or 0-based index); repeat for several "
-                   "(default: all)")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi",
-                   help="with --model: DOC backend of the predictions (default casadi)")
+    p.add_argument(
+        "--trial",
+        action="append",
+        default=None,
+        metavar="ID|INDEX",
+        help="with --model: plot only this trial (id, trial_id or 0-based index); repeat for several (default: all)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("casadi", "crocoddyl"),
+        default="casadi",
+        help="with --model: DOC backend of the predictions (default casadi)",
+    )
     p.add_argument("--no-pdf", action="store_true", help="write PNG only (default: PNG and PDF)")
     add_selection(p, "with --model: plot")
     return p
@@ -58,7 +74,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     (:meth:`reachirl.irl.model.LearnedModel.evaluate`; see the module docstring); returns the files written."""
     import numpy as np
 
-    from ..evaluation import summarise
+    from ..doc.evaluation import summarise
     from ..experiments import figures as fg
 
     n, n_nodes = model.n_windows, model.n_nodes
@@ -72,8 +88,10 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
         "trials/demo_qd": np.stack([d.qd for d in demos]),
     }
     rmse = summarise(errors)["rmse_deg"]["q"]["mean"]  # as `evaluate` reports it
-    title = (f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
-             "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°"))
+    title = (
+        f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
+        "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°")
+    )
     _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     phi = np.mean([t.features(n_nodes, n) for t in trials], axis=0)
     c = model.weights * phi
@@ -81,20 +99,39 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     shares = np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
     label = f"at {len(trials)} trial(s)"
     unc = model.uncertainty
-    undetermined = None if unc is None else {
-        (label, n): ~np.asarray(unc["share_intervals"]["determined"], dtype=bool)}
-    _save(fg.plot_weights({(label, n): shares}, [label], [n], undetermined=undetermined,
-                          title=f"{model.method}: each feature's share of its window's cost"),
-          out, "weights", pdf, written)
+    undetermined = None if unc is None else {(label, n): ~np.asarray(unc["share_intervals"]["determined"], dtype=bool)}
+    _save(
+        fg.plot_weights(
+            {(label, n): shares},
+            [label],
+            [n],
+            undetermined=undetermined,
+            title=f"{model.method}: each feature's share of its window's cost",
+        ),
+        out,
+        "weights",
+        pdf,
+        written,
+    )
     history = model.info.get("history") or []
     if any(h.get("merit") is not None for h in history):
         from ..experiments.method import convergence_text
 
         options = model.info.get("options")  # every option in force, when the model file records them
         words = convergence_text(options if isinstance(options, dict) else {"observe": model.info.get("observe")})
-        _save(fg.plot_convergence({(model.method, n): history}, [n], title=f"{model.method}: convergence",
-                                  merit_label=words["merit_label"], start=words["start"]),
-              out, "convergence", pdf, written)
+        _save(
+            fg.plot_convergence(
+                {(model.method, n): history},
+                [n],
+                title=f"{model.method}: convergence",
+                merit_label=words["merit_label"],
+                start=words["start"],
+            ),
+            out,
+            "convergence",
+            pdf,
+            written,
+        )
     return written
 
 
@@ -120,8 +157,15 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in d["units"]}))
     sections, methods = list(config.sections), list(config.methods)
     tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
-    run = RunResult(out_dir=run_dir, dataset=None, config=config, postures=postures, train_subject="",
-                    split_sizes={}, summary=RunSummary(results, [], list(results), False))
+    run = RunResult(
+        out_dir=run_dir,
+        dataset=None,
+        config=config,
+        postures=postures,
+        train_subject="",
+        split_sizes={},
+        summary=RunSummary(results, [], list(results), False),
+    )
     figs = write_figures(run, tables, ({}, {}, {}), fig_dir=out, pdf=pdf)
     return [out / f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
 
@@ -134,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --out needs a folder", out)
     if args.model is not None:
         from ..data.trial import load_trials
-        from ..evaluation import summarise
+        from ..doc.evaluation import summarise
         from ..irl.model import load_model
         from .evaluate import summary_line
 
@@ -149,11 +193,13 @@ def run(args: argparse.Namespace) -> int:
     else:
         given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]
         if given:
-            raise InputError(f"--{given[0]} chooses trials, so it needs --model MODEL.json and a trials file",
-                             args.source)
+            raise InputError(
+                f"--{given[0]} chooses trials, so it needs --model MODEL.json and a trials file", args.source
+            )
         if not args.source.is_dir():
-            raise InputError("expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials "
-                             "file)", args.source)
+            raise InputError(
+                "expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials file)", args.source
+            )
         written = run_figures(args.source, out, pdf=not args.no_pdf)
     for p in written:
         print(f"wrote {p}")

@@ -50,51 +50,71 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("inputs", nargs="*", metavar="INPUT", help="marker or joint-angle files, or folders")
+    p.add_argument("--out", required=True, metavar="TRIALS", help="trials file to write (NPZ), exactly this path")
+    p.add_argument("--format", default="auto", choices=("auto", *FORMATS), help="input format (default: auto)")
     p.add_argument(
-        "--out", required=True, metavar="TRIALS", help="trials file to write (NPZ), exactly this path"
+        "--markers",
+        metavar="MAP",
+        help="shoulder=A,elbow=B,wrist=C,fingertip=D (B1+B2: midpoint) (default: --markerset, else detected)",
     )
     p.add_argument(
-        "--format", default="auto", choices=("auto", *FORMATS), help="input format (default: auto)"
-    )
-    p.add_argument(
-        "--markers", metavar="MAP",
-        help="shoulder=A,elbow=B,wrist=C,fingertip=D (B1+B2: midpoint) (default: --markerset, else detected)"
-    )
-    p.add_argument(
-        "--static", metavar="FILE",
+        "--static",
+        metavar="FILE",
         help="static calibration trial, for landmark-based marker sets (default: <subject>_static.csv beside "
-        "each file, when the marker set needs one)"
+        "each file, when the marker set needs one)",
     )
-    p.add_argument("--markerset", metavar="NAME|FILE",
-                   help="preset (ue-adl, default) or a JSON marker set (default: ue-adl when the file has its "
-                   "clusters, else default)")
-    p.add_argument("--subject-info", metavar="CSV",
-                   help="CSV with subject,sex,height_m (m),mass_kg (kg)[,upper_arm_m,forearm_m,hand_m] (default: "
-                   "subjects.csv inside a single INPUT folder, else Berret 2011's mean subject)")
+    p.add_argument(
+        "--markerset",
+        metavar="NAME|FILE",
+        help="preset (ue-adl, default) or a JSON marker set (default: ue-adl when the file has its "
+        "clusters, else default)",
+    )
+    p.add_argument(
+        "--subject-info",
+        metavar="CSV",
+        help="CSV with subject,sex,height_m (m),mass_kg (kg)[,upper_arm_m,forearm_m,hand_m] (default: "
+        "subjects.csv inside a single INPUT folder, else Berret 2011's mean subject)",
+    )
     p.add_argument("--subject", metavar="ID", help="subject id (default: from the manifest or the file name)")
-    p.add_argument("--posture", metavar="NAME",
-                   help="posture / condition label (default: from the manifest, else 'default')")
-    p.add_argument("--side", choices=("right", "left"),
-                   help="arm that moved; left arms are mirrored (default: from the manifest, else right)")
     p.add_argument(
-        "--manifest", metavar="CSV",
-        help="CSV with the columns file,subject,posture[,side,static]; paths relative to it (default: "
-        "manifest.csv inside a single INPUT folder, when there is one)"
+        "--posture", metavar="NAME", help="posture / condition label (default: from the manifest, else 'default')"
     )
     p.add_argument(
-        "--export", metavar="DIR", default=None,
+        "--side",
+        choices=("right", "left"),
+        help="arm that moved; left arms are mirrored (default: from the manifest, else right)",
+    )
+    p.add_argument(
+        "--manifest",
+        metavar="CSV",
+        help="CSV with the columns file,subject,posture[,side,static]; paths relative to it (default: "
+        "manifest.csv inside a single INPUT folder, when there is one)",
+    )
+    p.add_argument(
+        "--export",
+        metavar="DIR",
+        default=None,
         help="also write each processed trial (t, q, q̇, τ in SI and degrees) as DIR/<trial id>.csv and its "
         "angles as the OpenSim motion file DIR/<trial id>.mot (slashes in ids become _; DIR/index.csv maps them) "
         "(default: none)",
     )
     g = p.add_argument_group("processing options (defaults follow Berret et al. 2011)")
     d = PreprocessOptions()
-    g.add_argument("--cutoff", type=number_in(0.0, 1000.0), default=d.cutoff_hz, metavar="HZ",
-                   help=f"zero-lag Butterworth low-pass cutoff, 0 to 1000 Hz and below half the frame rate; "
-                   f"0: no filter (default {d.cutoff_hz:g})")
-    g.add_argument("--filter-order", type=int_in(1, 8), default=d.filter_order, metavar="N",
-                   help=f"order of the Butterworth low-pass, 1 to 8, applied forward and backward "
-                   f"(default {d.filter_order})")
+    g.add_argument(
+        "--cutoff",
+        type=number_in(0.0, 1000.0),
+        default=d.cutoff_hz,
+        metavar="HZ",
+        help=f"zero-lag Butterworth low-pass cutoff, 0 to 1000 Hz and below half the frame rate; "
+        f"0: no filter (default {d.cutoff_hz:g})",
+    )
+    g.add_argument(
+        "--filter-order",
+        type=int_in(1, 8),
+        default=d.filter_order,
+        metavar="N",
+        help=f"order of the Butterworth low-pass, 1 to 8, applied forward and backward (default {d.filter_order})",
+    )
     g.add_argument(
         "--threshold",
         type=number_in(0.001, 0.9),
@@ -118,33 +138,52 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         metavar="FRAMES",
         help="longest gap filled by a cubic spline, 0 to 100000 (default 10)",
     )
-    g.add_argument("--plane", choices=("pca", "vertical", "axes"), default=d.plane,
-                   help="sagittal plane: pca = principal plane of the joint centres (Berret), vertical = the "
-                   "vertical plane of the fingertip's travel, axes = --up-axis/--forward-axis (default pca)")
-    g.add_argument("--up-axis", metavar="AXIS", help="lab axis opposite gravity, e.g. +z "
-                   "(default: the format's, +z Vicon/C3D, +y TRC)")
-    g.add_argument("--forward-axis", metavar="AXIS", help="lab forward axis, with --plane axes "
-                   "(default: the horizontal axis the fingertip moves along)")
-    g.add_argument("--ik", choices=("segments", "fingertip"), default=d.ik,
-                   help="planar IK: segments = angles of the shoulder->elbow and elbow->distal directions, "
-                   "fingertip = 2-link IK of the fingertip alone (Berret) (default segments)")
+    g.add_argument(
+        "--plane",
+        choices=("pca", "vertical", "axes"),
+        default=d.plane,
+        help="sagittal plane: pca = principal plane of the joint centres (Berret), vertical = the "
+        "vertical plane of the fingertip's travel, axes = --up-axis/--forward-axis (default pca)",
+    )
+    g.add_argument(
+        "--up-axis",
+        metavar="AXIS",
+        help="lab axis opposite gravity, e.g. +z (default: the format's, +z Vicon/C3D, +y TRC)",
+    )
+    g.add_argument(
+        "--forward-axis",
+        metavar="AXIS",
+        help="lab forward axis, with --plane axes (default: the horizontal axis the fingertip moves along)",
+    )
+    g.add_argument(
+        "--ik",
+        choices=("segments", "fingertip"),
+        default=d.ik,
+        help="planar IK: segments = angles of the shoulder->elbow and elbow->distal directions, "
+        "fingertip = 2-link IK of the fingertip alone (Berret) (default segments)",
+    )
     g.add_argument(
         "--distal",
         choices=("fingertip", "wrist"),
         default=d.distal,
         help="q2 from elbow->fingertip (the model's segment 2) or elbow->wrist (default fingertip)",
     )
-    g.add_argument("--n-samples", type=int_in(4, 100000), metavar="N",
-                   help="resample each trial to N points, 4 to 100000 (Berret: 200) "
-                   "(default: keep the recording's samples)")
+    g.add_argument(
+        "--n-samples",
+        type=int_in(4, 100000),
+        metavar="N",
+        help="resample each trial to N points, 4 to 100000 (Berret: 200) (default: keep the recording's samples)",
+    )
     return p
 
 
 def _options(args) -> PreprocessOptions:
     up, fwd = (a.strip().lower().lstrip("+-") if a else None for a in (args.up_axis, args.forward_axis))
     if up is not None and up == fwd:
-        raise InputError(f"--up-axis {args.up_axis} and --forward-axis {args.forward_axis} are the same lab axis; the "
-                         "forward axis must be horizontal, e.g. --up-axis +y --forward-axis +x")
+        raise InputError(
+            f"--up-axis {args.up_axis} and --forward-axis {args.forward_axis} are the same lab axis; the "
+            "forward axis must be horizontal, e.g. --up-axis +y --forward-axis +x"
+        )
     try:
         return PreprocessOptions(
             max_gap_frames=args.max_gap,
@@ -171,13 +210,10 @@ def _expand(inputs: list[str]) -> list[Path]:
             found = sorted(
                 f
                 for f in p.rglob("*")
-                if f.is_file()
-                and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
+                if f.is_file() and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
             )
             if not found:
-                raise InputError(
-                    "folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p
-                )
+                raise InputError("folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p)
             out += found
         else:
             out.append(p)
@@ -255,9 +291,7 @@ def run(args) -> int:
     inputs = _refuse_overwrite(args, out, entries)
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (
-        parse_marker_map(args.markers)
-        if args.markers
-        else (load_markerset(args.markerset) if args.markerset else None)
+        parse_marker_map(args.markers) if args.markers else (load_markerset(args.markerset) if args.markerset else None)
     )
     lines: list[str] = []
     trials = preprocess_entries(
@@ -276,16 +310,18 @@ def run(args) -> int:
         output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export")
     save_trials(out, trials)
     if args.export is not None:
-        from ..exports import TrajectoryExport, export_trajectories
+        from ..data.exports import TrajectoryExport, export_trajectories
 
-        export_trajectories(args.export, [
-            TrajectoryExport(id=tr.id, t=tr.t, side=tr.side, demo={"q": tr.q, "qd": tr.qd, "tau": tr.tau})
-            for tr in trials
-        ])
+        export_trajectories(
+            args.export,
+            [
+                TrajectoryExport(id=tr.id, t=tr.t, side=tr.side, demo={"q": tr.q, "qd": tr.qd, "tau": tr.tau})
+                for tr in trials
+            ],
+        )
     if infos is None:
         print(
-            "note: no --subject-info; masses and inertias use Berret 2011's mean subject "
-            "(M, 1.76 m, 69.9 kg)",
+            "note: no --subject-info; masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)",
             file=sys.stderr,
         )
     for ln in lines:

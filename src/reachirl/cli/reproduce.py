@@ -60,41 +60,97 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         + "\n  [experimental]: MO-IRL options (docs/usage.md)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("--data", metavar="PATH",
-                   help="trials file (.npz from `reachirl preprocess`) or a folder with manifest.csv [+ subjects.csv]; "
-                   "default: the built-in virtual subjects")
-    p.add_argument("--sections", type=int_in(1, NODES_RANGE[1]), nargs="+", default=None, metavar="N",
-                   help="numbers of weight sections, each 1 to the DOC's knots (default: 1 6 8)")
+    p.add_argument(
+        "--data",
+        metavar="PATH",
+        help="trials file (.npz from `reachirl preprocess`) or a folder with manifest.csv [+ subjects.csv]; "
+        "default: the built-in virtual subjects",
+    )
+    p.add_argument(
+        "--sections",
+        type=int_in(1, NODES_RANGE[1]),
+        nargs="+",
+        default=None,
+        metavar="N",
+        help="numbers of weight sections, each 1 to the DOC's knots (default: 1 6 8)",
+    )
     p.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
-    p.add_argument("--workers", type=int_in(1, 256), default=None, metavar="N",
-                   help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run the units on this Dask scheduler (tcp://HOST:PORT) (default: local processes)")
-    p.add_argument("--seed", type=non_negative_int, default=None, metavar="N",
-                   help="seed of the random training trials and of the uncertainty's samples (default 0)")
-    p.add_argument("--quick", action="store_true",
-                   help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations")
-    p.add_argument("--subjects", type=int_in(2, MAX_SUBJECTS), metavar="N",
-                   help=f"make N built-in virtual subjects, 2 to {MAX_SUBJECTS} (default 2; 20 is Berret 2011's "
-                   "design); not with --data")
-    p.add_argument("--iscv", choices=("one", "all-pairs"), default=None,
-                   help="one: learn from the training subject only (the seed; default); all-pairs: learn from every "
-                   "subject in turn and predict every other one (iscv_pairs.csv and its heatmaps)")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default=None,
-                   help="DOC backend of every fit and prediction (default: casadi)")
-    p.add_argument("--seed-form", action="store_true", default=None,
-                   help="MO-IRL as the seed paper wrote it (docs/method.md lists what the default adds)")
-    p.add_argument("--posture-transfer", action="store_true", default=None,
-                   help="also learn one cost on every posture but one and predict the held-out one "
-                   "(posture_transfer.csv)")
-    p.add_argument("--uncertainty", type=int_in(0, 1000), default=None, metavar="K",
-                   help="weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40): "
-                   "the cost-share intervals of the models, figures and report")
-    p.add_argument("--config", type=Path, metavar="RUN.toml",
-                   help="a run file (every run writes its own as DIR/run.toml); flags given override it "
-                   "(default: none)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="assignments",
-                   help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side (default: none)")
+    p.add_argument(
+        "--workers",
+        type=int_in(1, 256),
+        default=None,
+        metavar="N",
+        help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the units on this Dask scheduler (tcp://HOST:PORT) (default: local processes)",
+    )
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=None,
+        metavar="N",
+        help="seed of the random training trials and of the uncertainty's samples (default 0)",
+    )
+    p.add_argument(
+        "--quick", action="store_true", help="fewer trials (3/3/3) and postures (P2, P4), 40 knots, 5 iterations"
+    )
+    p.add_argument(
+        "--subjects",
+        type=int_in(2, MAX_SUBJECTS),
+        metavar="N",
+        help=f"make N built-in virtual subjects, 2 to {MAX_SUBJECTS} (default 2; 20 is Berret 2011's "
+        "design); not with --data",
+    )
+    p.add_argument(
+        "--iscv",
+        choices=("one", "all-pairs"),
+        default=None,
+        help="one: learn from the training subject only (the seed; default); all-pairs: learn from every "
+        "subject in turn and predict every other one (iscv_pairs.csv and its heatmaps)",
+    )
+    p.add_argument(
+        "--backend",
+        choices=("casadi", "crocoddyl"),
+        default=None,
+        help="DOC backend of every fit and prediction (default: casadi)",
+    )
+    p.add_argument(
+        "--seed-form",
+        action="store_true",
+        default=None,
+        help="MO-IRL as the seed paper wrote it (docs/method.md lists what the default adds)",
+    )
+    p.add_argument(
+        "--posture-transfer",
+        action="store_true",
+        default=None,
+        help="also learn one cost on every posture but one and predict the held-out one (posture_transfer.csv)",
+    )
+    p.add_argument(
+        "--uncertainty",
+        type=int_in(0, 1000),
+        default=None,
+        metavar="K",
+        help="weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40): "
+        "the cost-share intervals of the models, figures and report",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        metavar="RUN.toml",
+        help="a run file (every run writes its own as DIR/run.toml); flags given override it (default: none)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        dest="assignments",
+        help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side (default: none)",
+    )
     # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
     for key, (_, kind) in RUN_KEYS.items():
         name = "method" if key == "methods" else key.replace("_", "-")
@@ -108,8 +164,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-KEY_TYPES = {"str": str, "count": int_in(0, 10**6), "nodes": int_in(*NODES_RANGE), "iters": int_in(1, MAX_ITER),
-             "tol": number_in(0.0, 0.5)}
+KEY_TYPES = {
+    "str": str,
+    "count": int_in(0, 10**6),
+    "nodes": int_in(*NODES_RANGE),
+    "iters": int_in(1, MAX_ITER),
+    "tol": number_in(0.0, 0.5),
+}
 
 
 FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "posture_transfer", "uncertainty")
@@ -118,7 +179,7 @@ FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "po
 def run_options(args) -> dict:
     """The run's options: the run file, then ``--set``, then the flags given; every key checked (exit 2 naming the
     key or the file). ``experimental`` is a table."""
-    from ..runfile import parse_assignment, read_run_file
+    from .runfile import parse_assignment, read_run_file
 
     opts: dict = {}
     where = None
@@ -143,14 +204,14 @@ def run_options(args) -> dict:
     known = {*RUN_KEYS, *FLAG_KEYS, "experimental", "quick", "data", "scheduler", "workers", "out"}
     unknown = sorted(set(opts) - known)
     if unknown:
-        raise InputError(f"unknown run option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}",
-                         where)
+        raise InputError(f"unknown run option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}", where)
     for key in ("postures", "methods"):
         v = opts.get(key)
         if isinstance(v, str):
             opts[key] = [x for x in v.split(",") if x]
-        if opts.get(key) is not None and not (isinstance(opts[key], list)
-                                              and all(isinstance(x, str) and x for x in opts[key])):
+        if opts.get(key) is not None and not (
+            isinstance(opts[key], list) and all(isinstance(x, str) and x for x in opts[key])
+        ):
             raise InputError(f"{key}: expected a list of names, got {opts[key]!r}", where)
     if isinstance(opts.get("sections"), int):
         opts["sections"] = [opts["sections"]]
@@ -266,7 +327,7 @@ def _check_scheduler(address: str | None) -> None:
 def _write_run_file(out, args, opts: dict, config) -> None:
     """``DIR/run.toml``: every option the run used, so that ``reproduce --config DIR/run.toml`` repeats it."""
     from .. import __version__
-    from ..runfile import write_run_file
+    from .runfile import write_run_file
 
     resolved = {
         "data": None if args.data is None else str(Path(args.data).resolve()),
@@ -295,9 +356,12 @@ def _write_run_file(out, args, opts: dict, config) -> None:
         "uncertainty": config.uncertainty,
         "experimental": dict(config.experimental),
     }
-    write_run_file(out / "run.toml", resolved,
-                   header=f"reachirl {__version__} reproduce: the options of this run; repeat it with "
-                   f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`")
+    write_run_file(
+        out / "run.toml",
+        resolved,
+        header=f"reachirl {__version__} reproduce: the options of this run; repeat it with "
+        f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`",
+    )
 
 
 def run(args) -> int:
@@ -342,8 +406,9 @@ def run(args) -> int:
     t0 = time.perf_counter()
     if args.data is None:
         err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
-    dataset = datasets.load(args.data, seed=int(opts.get("data_seed", 0)), marker_map=opts.get("markers"),
-                            n_subjects=opts.get("subjects"))
+    dataset = datasets.load(
+        args.data, seed=int(opts.get("data_seed", 0)), marker_map=opts.get("markers"), n_subjects=opts.get("subjects")
+    )
     if args.quick:
         config = _quick_postures(config, dataset)
     data_s = time.perf_counter() - t0

@@ -33,18 +33,37 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p.add_argument("run_dir", metavar="RUN_DIR", help="the --out folder of `reachirl reproduce`")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--percent", type=number_in(0.001, 99.0), default=10.0, metavar="X",
-                   help="change each weight by ±X %% for the sensitivity, 0.001 to 99 (default 10)")
-    p.add_argument("--sections", type=int_in(1, NODES_RANGE[1]), metavar="N", help="section count to analyse, "
-                   f"1 to {NODES_RANGE[1]} (default: the run's largest)")
+    p.add_argument(
+        "--percent",
+        type=number_in(0.001, 99.0),
+        default=10.0,
+        metavar="X",
+        help="change each weight by ±X %% for the sensitivity, 0.001 to 99 (default 10)",
+    )
+    p.add_argument(
+        "--sections",
+        type=int_in(1, NODES_RANGE[1]),
+        metavar="N",
+        help=f"section count to analyse, 1 to {NODES_RANGE[1]} (default: the run's largest)",
+    )
     p.add_argument("--postures", nargs="+", metavar="NAME", help="postures to analyse (default: all of the run)")
     p.add_argument("--method", metavar="NAME", help="method to analyse (default: the run's first)")
     p.add_argument("--no-occlusion", action="store_true", help="skip the occlusion refits")
     p.add_argument("--no-sensitivity", action="store_true", help="skip the ±X %% weight changes")
-    p.add_argument("--seed", type=non_negative_int, default=0, metavar="N",
-                   help="seed of the occlusion's paired bootstrap intervals over trials (default 0)")
-    p.add_argument("--workers", type=int_in(1, MAX_WORKERS), default=None, metavar="N",
-                   help=f"local worker processes, 1 to {MAX_WORKERS} (default: all cores; 1 runs in this process)")
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        metavar="N",
+        help="seed of the occlusion's paired bootstrap intervals over trials (default 0)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int_in(1, MAX_WORKERS),
+        default=None,
+        metavar="N",
+        help=f"local worker processes, 1 to {MAX_WORKERS} (default: all cores; 1 runs in this process)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress lines")
     return p
 
@@ -75,11 +94,15 @@ def run(args) -> int:
     def on_done(name):
         state["n"] += 1
         if not args.no_progress:
-            print(f"[{state['n']}/{state['total']}] {name} ({time.perf_counter() - t0:.0f} s)", file=sys.stderr,
-                  flush=True)
+            print(
+                f"[{state['n']}/{state['total']}] {name} ({time.perf_counter() - t0:.0f} s)",
+                file=sys.stderr,
+                flush=True,
+            )
 
-    res = run_sensitivity(args.run_dir, cfg, workers=args.workers or (os.cpu_count() or 1), on_start=on_start,
-                          on_done=on_done)
+    res = run_sensitivity(
+        args.run_dir, cfg, workers=args.workers or (os.cpu_count() or 1), on_start=on_start, on_done=on_done
+    )
     paths = write_sensitivity(res, out)
     print((out / "sensitivity.md").read_text(encoding="utf-8"))
     print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")

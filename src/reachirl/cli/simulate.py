@@ -20,12 +20,14 @@ MODES = ("open-loop", "pd")
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser("simulate", help="play predicted reaches back in MuJoCo and render them",
-                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
-    p.add_argument(
-        "trials", type=Path, help="trials file (NPZ) written by `reachirl preprocess` or `reachirl synth`"
+    p = sub.add_parser(
+        "simulate",
+        help="play predicted reaches back in MuJoCo and render them",
+        description=__doc__.replace("``", ""),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
+    p.add_argument("trials", type=Path, help="trials file (NPZ) written by `reachirl preprocess` or `reachirl synth`")
     p.add_argument(
         "--render",
         type=Path,
@@ -43,19 +45,34 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--backend", choices=BACKENDS, default="casadi", help="DOC backend (default casadi)")
     p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
-    p.add_argument("--substeps", type=int_in(1, 1000), default=10,
-                   help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)")
-    p.add_argument("--kp", type=number_in(0.0, 1e5), default=50.0,
-                   help="PD stiffness, N·m/rad, 0 to 1e5 and at most I/h² for MuJoCo's step h and the arm's "
-                   "smallest inertia I (stated when exceeded) (default 50)")
-    p.add_argument("--kd", type=number_in(0.0, 1e4), default=5.0,
-                   help="PD damping, N·m·s/rad, 0 to 1e4 and at most I/h (stated when exceeded) (default 5)")
     p.add_argument(
-        "--fps", type=number_in(1.0, 120.0), default=30.0,
-        help="animation frames per second of reach time, 1 to 120 (default 30)"
+        "--substeps", type=int_in(1, 1000), default=10, help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)"
     )
-    p.add_argument("--size", type=int_in(16, 1280), default=480,
-                   help="animation width and height in pixels, 16 to 1280 (default 480)")
+    p.add_argument(
+        "--kp",
+        type=number_in(0.0, 1e5),
+        default=50.0,
+        help="PD stiffness, N·m/rad, 0 to 1e5 and at most I/h² for MuJoCo's step h and the arm's "
+        "smallest inertia I (stated when exceeded) (default 50)",
+    )
+    p.add_argument(
+        "--kd",
+        type=number_in(0.0, 1e4),
+        default=5.0,
+        help="PD damping, N·m·s/rad, 0 to 1e4 and at most I/h (stated when exceeded) (default 5)",
+    )
+    p.add_argument(
+        "--fps",
+        type=number_in(1.0, 120.0),
+        default=30.0,
+        help="animation frames per second of reach time, 1 to 120 (default 30)",
+    )
+    p.add_argument(
+        "--size",
+        type=int_in(16, 1280),
+        default=480,
+        help="animation width and height in pixels, 16 to 1280 (default 480)",
+    )
     p.add_argument(
         "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
     )
@@ -71,9 +88,7 @@ def _select(trials, keys, path):
         if not hits and key.lstrip("-").isdigit():
             i = int(key)
             if not -len(trials) <= i < len(trials):
-                raise InputError(
-                    f"--trial {key}: index out of range (the file holds {len(trials)} trials)", path
-                )
+                raise InputError(f"--trial {key}: index out of range (the file holds {len(trials)} trials)", path)
             hits = [trials[i]]
         if not hits:
             raise InputError(f"--trial {key}: no trial with that id, trial_id or index", path)
@@ -87,8 +102,10 @@ def _check_gains(args, trials, n_nodes: int) -> None:
     from ..data.checks import pd_gain_limits
 
     kp_max, kd_max, h, inertia = pd_gain_limits(trials, n_nodes, args.substeps)
-    why = (f"the largest that MuJoCo's step of {1000 * h:.3g} ms integrates stably on this arm (smallest inertia "
-           f"{inertia:.3g} kg·m²); lower it or raise --substeps")
+    why = (
+        f"the largest that MuJoCo's step of {1000 * h:.3g} ms integrates stably on this arm (smallest inertia "
+        f"{inertia:.3g} kg·m²); lower it or raise --substeps"
+    )
     if args.kd > kd_max:
         raise InputError(f"--kd {args.kd:g} N·m·s/rad is outside [0, {kd_max:.3g}], {why}", args.trials)
     if args.kp > kp_max:
@@ -130,7 +147,9 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(
                 f"--render: {len(trials)} trial(s) at --fps {args.fps:g} and --size {args.size} make {n_frames} "
                 f"frames ({n_bytes / 1024**3:.1f} GB); choose fewer --trial, a lower --fps or a smaller --size "
-                f"(at most {MAX_RENDER_BYTES / 1024**3:.0f} GB)", args.render)
+                f"(at most {MAX_RENDER_BYTES / 1024**3:.0f} GB)",
+                args.render,
+            )
     sims = []
     for tr in trials:
         s = sim.simulate_trial(
@@ -170,8 +189,6 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f"wrote {args.out}")
     if args.render is not None:
-        path, n_frames = sim.render_simulations(
-            sims, args.render, fps=args.fps, width=args.size, height=args.size
-        )
+        path, n_frames = sim.render_simulations(sims, args.render, fps=args.fps, width=args.size, height=args.size)
         print(f"wrote {path} ({n_frames} frames)")
     return 0

@@ -9,7 +9,7 @@ from ._args import float_in, int_in, non_negative_int
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
-    from ..synth import FORMATS, POSTURES
+    from ..virtual import FORMATS, POSTURES
 
     p = subparsers.add_parser(
         "synth",
@@ -25,8 +25,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         ),
     )
     p.add_argument("--out", required=True, help="output folder (created if needed)")
-    p.add_argument("--subjects", type=int_in(1, 100), default=2,
-                   help="number of virtual subjects, 1 to 100 (default 2)")
+    p.add_argument(
+        "--subjects", type=int_in(1, 100), default=2, help="number of virtual subjects, 1 to 100 (default 2)"
+    )
     p.add_argument("--trials", type=int_in(1, 1000), default=20, help="trials per posture, 1 to 1000 (default 20)")
     p.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0); same seed, same bytes")
     p.add_argument("--format", dest="fmt", choices=FORMATS, default="trc", help="file format (default trc)")
@@ -48,7 +49,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..synth import SynthConfig, format_human_likeness, generate
+    from ..virtual import SynthConfig, format_human_likeness, generate
 
     try:
         config = SynthConfig(
@@ -91,9 +92,7 @@ def _print_table(table) -> None:
         return
     from rich import box
 
-    t = Table(
-        title="Human-likeness vs Berret 2011 (fingertip, 5 % of peak speed onset/offset)", box=box.SIMPLE
-    )
+    t = Table(title="Human-likeness vs Berret 2011 (fingertip, 5 % of peak speed onset/offset)", box=box.SIMPLE)
     for h in header:
         t.add_column(h, justify="right", no_wrap=True)
     for row in cells:

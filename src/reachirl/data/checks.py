@@ -7,17 +7,22 @@ that was expected, which the command line turns into exit code 2.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
 
+from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 from ..errors import InputError
+from ..validation import brief, check_arm, check_duration, require
 
 __all__ = [
     "LENGTH_TOLERANCE",
     "check_model_rollout",
     "check_segment_lengths",
     "check_start_and_target",
+    "check_trial_meta",
+    "check_trial_physics",
     "check_trial_posture",
     "pd_gain_limits",
 ]
@@ -41,14 +46,20 @@ def check_start_and_target(trial, path: object, where: str | None = None) -> Non
     if not 0.0 < tx <= length:
         raise InputError(
             f"field 'target_x' = {tx:.4g} m is outside the arm's reach (0, {length:.3f}] m (in front of the "
-            "shoulder, at most l1 + l2 away)", path, where)
+            "shoulder, at most l1 + l2 away)",
+            path,
+            where,
+        )
     qd_max = np.asarray(DEFAULT_QD_MAX, dtype=float)
     qd0 = np.asarray(trial.x0[2:], dtype=float)
     for j in range(2):
         if not abs(qd0[j]) <= qd_max[j]:
             raise InputError(
                 f"field 'x0': the start velocity q̇{j + 1} = {qd0[j]:.4g} rad/s is outside [{-qd_max[j]:g}, "
-                f"{qd_max[j]:g}] rad/s, the DOC's speed bound", path, where)
+                f"{qd_max[j]:g}] rad/s, the DOC's speed bound",
+                path,
+                where,
+            )
 
 
 def check_trial_posture(trial, path: object, where: str | None = None) -> None:
@@ -59,25 +70,39 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
     lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
-    hint = ("a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
-            "check --markers and --forward-axis)")
+    hint = (
+        "a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
+        "check --markers and --forward-axis)"
+    )
     limits = f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
     q0 = trial.q[0]
     if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
-        raise InputError(f"the start posture q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits "
-                         f"{limits}: {hint}", path, where)
+        raise InputError(
+            f"the start posture q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {limits}: {hint}",
+            path,
+            where,
+        )
     bad = np.flatnonzero(np.any((trial.q < lo - 1e-9) | (trial.q > hi + 1e-9), axis=1))
     if bad.size:
         q = trial.q[bad[0]]
-        raise InputError(f"the reach leaves the joint limits {limits} at {trial.t[bad[0]]:.3f} s after onset "
-                         f"(q = ({_deg(q[0])}, {_deg(q[1])})): {hint}", path, where)
+        raise InputError(
+            f"the reach leaves the joint limits {limits} at {trial.t[bad[0]]:.3f} s after onset "
+            f"(q = ({_deg(q[0])}, {_deg(q[1])})): {hint}",
+            path,
+            where,
+        )
     if not trial.target_x > 0.0:
-        raise InputError(f"the reach ends {trial.target_x:.3f} m behind the shoulder (fingertip x at offset), "
-                         f"expected a target in front: {hint}", path, where)
+        raise InputError(
+            f"the reach ends {trial.target_x:.3f} m behind the shoulder (fingertip x at offset), "
+            f"expected a target in front: {hint}",
+            path,
+            where,
+        )
 
 
-def check_segment_lengths(info_lengths: Mapping[str, float | None], measured: Mapping[str, float],
-                          path: object, subject: str = "") -> None:
+def check_segment_lengths(
+    info_lengths: Mapping[str, float | None], measured: Mapping[str, float], path: object, subject: str = ""
+) -> None:
     """Segment lengths of the subject info (``upper_arm_m``, ``forearm_m``, ``hand_m``; ``None``: not given)
     against the markers' measured ones (:func:`reachirl.data.preprocess.estimate_lengths`): more than
     :data:`LENGTH_TOLERANCE` apart, the planned reach would miss the recorded target."""
@@ -97,7 +122,9 @@ def check_segment_lengths(info_lengths: Mapping[str, float | None], measured: Ma
             raise InputError(
                 f"{who}subject-info {field} = {given:.3f} m but the markers measure {m:.3f} m from {span} "
                 f"({100 * apart:.0f} % apart; at most {100 * LENGTH_TOLERANCE:.0f} % allowed): check the "
-                "subject info or the marker map", path)
+                "subject info or the marker map",
+                path,
+            )
 
 
 def check_model_rollout(model, path: object) -> None:
@@ -115,7 +142,9 @@ def check_model_rollout(model, path: object) -> None:
         i, j = (int(v) for v in bad[0])
         raise InputError(
             f"field 'info.rollout_q', row {i}: q{j + 1} = {r[i, j]:.4g} rad is outside the joint limits "
-            f"[{lo[j]:.4g}, {hi[j]:.4g}] rad", path)
+            f"[{lo[j]:.4g}, {hi[j]:.4g}] rad",
+            path,
+        )
 
 
 def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, float, float]:
@@ -129,3 +158,63 @@ def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, f
     q2 = np.linspace(DEFAULT_Q_LOWER[1], DEFAULT_Q_UPPER[1], 33)
     inertia = min(float(np.linalg.eigvalsh(tr.arm.mass_matrix(np.array([0.0, a])))[0]) for tr in trials for a in q2)
     return inertia / h**2, inertia / h, h, inertia
+
+
+# ---------------------------------------------------------------------- a trials file's entries
+_META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "source": str}
+
+
+def check_trial_meta(m, i: int, path) -> None:
+    """One trial's entry in a trials file's ``meta.json``."""
+    where = f"trial {i}"
+    require(isinstance(m, dict), f"{where}: expected an object, found {brief(m)}", path)
+    for key in ("subject", "posture", "trial_id", "target_x", "arm"):
+        require(key in m, f"{where}: field '{key}' is missing", path)
+    for key, typ in _META_TYPES.items():
+        if key in m:
+            require(
+                isinstance(m[key], typ | int) and not isinstance(m[key], bool),
+                f"{where}: field '{key}' must be a string, found {brief(m[key])}",
+                path,
+            )
+    tx = m["target_x"]
+    require(
+        isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
+        f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}",
+        path,
+    )
+    th = m.get("onset_threshold")
+    require(
+        th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
+        f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}",
+        path,
+    )
+    arm = m["arm"]
+    require(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
+    for k, v in arm.items():
+        require(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
+            f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}",
+            path,
+        )
+
+
+def check_trial_physics(trial, i: int, path) -> None:
+    """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
+    limits."""
+    where = f"trial {i} ({trial.id})"
+    try:
+        check_arm(trial.arm, where)
+        check_duration(trial.duration, where)
+    except InputError as e:
+        raise InputError(e.reason, path, where) from None
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    q0 = trial.x0[:2]
+    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
+        d = np.rad2deg
+        raise InputError(
+            f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
+            f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
+            path,
+            where,
+        )

@@ -61,8 +61,14 @@ def preprocess_entries(
             raise InputError(f"subject {subj!r} is not in the subject-info file", e.file)
         info = subject_info[subj] if subject_info is not None else DEFAULT_SUBJECT
         data = read_file(e.file, fmt)
-        common = {"subject": subj, "posture": post, "trial_id": trial_id, "side": sd, "subject_info": info,
-                  "options": options}
+        common = {
+            "subject": subj,
+            "posture": post,
+            "trial_id": trial_id,
+            "side": sd,
+            "subject_info": info,
+            "options": options,
+        }
         if isinstance(data, MarkerData):
             mset = markers or auto_markerset(data)
             static_md = None

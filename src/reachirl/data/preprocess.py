@@ -105,9 +105,7 @@ class PreprocessOptions:
     min_peak_speed: float = 0.05  # m/s; below it there is no movement
     plane: str = "pca"  # "pca" | "vertical" | "axes"
     up_axis: str | None = None  # lab axis opposite gravity, e.g. "+z"; None: the file format's convention
-    forward_axis: str | None = (
-        None  # for plane="axes"; None: the horizontal lab axis the fingertip moves along
-    )
+    forward_axis: str | None = None  # for plane="axes"; None: the horizontal lab axis the fingertip moves along
     lateral_axis: str | None = None  # for mirroring; None: the horizontal lab axis normal to the movement
     ik: str = "segments"  # "segments" | "fingertip"
     distal: str = "fingertip"  # q2 from elbow→"fingertip" or elbow→"wrist" (ik="segments")
@@ -117,9 +115,7 @@ class PreprocessOptions:
         0.9,
     )  # plausible median joint-centre distances (units check)
     pca_max_tilt_deg: float = 30.0  # a principal plane further than this from vertical is not trusted ...
-    pca_max_flatness: float = (
-        0.5  # ... nor one whose 3rd singular value exceeds this × the 2nd; then "vertical"
-    )
+    pca_max_flatness: float = 0.5  # ... nor one whose 3rd singular value exceeds this × the 2nd; then "vertical"
 
     def __post_init__(self) -> None:
         if self.plane not in ("pca", "vertical", "axes"):
@@ -198,8 +194,7 @@ def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source
     nyq = rate / 2.0
     if cutoff_hz >= nyq:
         raise InputError(
-            f"the {cutoff_hz:g} Hz low-pass needs a sampling rate above {2 * cutoff_hz:g} Hz, "
-            f"got {rate:g} Hz",
+            f"the {cutoff_hz:g} Hz low-pass needs a sampling rate above {2 * cutoff_hz:g} Hz, got {rate:g} Hz",
             source,
         )
     sos = butter(order, cutoff_hz / nyq, btype="low", output="sos")
@@ -328,8 +323,14 @@ def _noise_gains(rate: float, cutoff_hz: float, order: int) -> tuple[float, floa
     return float(np.mean((1.0 - h2) ** 2)), float(np.mean(h2**2 * (rate * np.sin(w)) ** 2))
 
 
-def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, options: PreprocessOptions,
-                        source: object | None = None, filtered: np.ndarray | None = None) -> float | None:
+def segmentation_cutoff(
+    t: np.ndarray,
+    points: np.ndarray,
+    peak_speed: float,
+    options: PreprocessOptions,
+    source: object | None = None,
+    filtered: np.ndarray | None = None,
+) -> float | None:
     """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
     ``cutoff_hz`` speed (Berret's).
 
@@ -364,14 +365,24 @@ def segmentation_cutoff(t: np.ndarray, points: np.ndarray, peak_speed: float, op
     for f in np.arange(base - 0.5, MIN_SEGMENT_CUTOFF_HZ - 1e-9, -0.5):
         if speed_noise(f) <= target:
             return float(f)
-    log.warning("%s: the markers' noise (%.2g mm RMS) is large for a reach this slow; onset and offset are "
-                "found on a %g Hz speed and may still wander", source, np.sqrt(noise_var) * 1000,
-                MIN_SEGMENT_CUTOFF_HZ)
+    log.warning(
+        "%s: the markers' noise (%.2g mm RMS) is large for a reach this slow; onset and offset are "
+        "found on a %g Hz speed and may still wander",
+        source,
+        np.sqrt(noise_var) * 1000,
+        MIN_SEGMENT_CUTOFF_HZ,
+    )
     return MIN_SEGMENT_CUTOFF_HZ
 
 
-def segmentation_speed(t: np.ndarray, points: np.ndarray, speed: np.ndarray, options: PreprocessOptions,
-                       source: object | None = None, filtered: np.ndarray | None = None) -> np.ndarray:
+def segmentation_speed(
+    t: np.ndarray,
+    points: np.ndarray,
+    speed: np.ndarray,
+    options: PreprocessOptions,
+    source: object | None = None,
+    filtered: np.ndarray | None = None,
+) -> np.ndarray:
     """The fingertip speed that onset and offset are found on: ``points`` ``(n, d)`` (the fingertip, before
     the angles' filter) low-passed at :func:`segmentation_cutoff`, differentiated and normed; ``speed`` (the
     ``cutoff_hz`` speed) as is when that is ``None``. ``filtered``: see :func:`segmentation_cutoff`."""
@@ -450,8 +461,11 @@ def sagittal_basis(
         else:
             fwd = forward - (forward @ up) * up
             if np.linalg.norm(fwd) < 0.5:  # ±x, ±y, ±z: the same axis as up, or its opposite
-                raise InputError("--forward-axis is the up axis (or its opposite); with --plane axes it must be "
-                                 "a horizontal lab axis, e.g. --up-axis +y --forward-axis +x", source)
+                raise InputError(
+                    "--forward-axis is the up axis (or its opposite); with --plane axes it must be "
+                    "a horizontal lab axis, e.g. --up-axis +y --forward-axis +x",
+                    source,
+                )
         fwd /= np.linalg.norm(fwd)
     if fwd @ displacement < 0:
         fwd = -fwd
@@ -608,12 +622,13 @@ def reconstruct_markers(
             f = int(np.nanargmax(raw))
             raise InputError(
                 f"the {k} moves {raw[f] / md.rate * 1000:.0f} mm in one frame ({raw[f]:.3g} m/s, faster than any "
-                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?", src, f"frame {f + 2}")
+                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?",
+                src,
+                f"frame {f + 2}",
+            )
     raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
-        joints = {
-            k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()
-        }
+        joints = {k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()}
     t = md.t
     vel = np.gradient(joints["fingertip"], t, axis=0)
     speed = np.linalg.norm(vel, axis=1)
@@ -633,14 +648,12 @@ def reconstruct_markers(
             src,
         )
     onset, offset = detect_onset_offset(
-        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]),
-        options.onset_threshold)
+        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]), options.onset_threshold
+    )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if onset == 0 or offset == md.n_frames - 1:
-        log.warning(
-            "%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after"
-        )
+        log.warning("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
     rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
     disp = joints["fingertip"][offset] - joints["fingertip"][onset]
     fwd = _axis(options.forward_axis) if options.forward_axis else None
@@ -800,8 +813,9 @@ def angles_to_trial(
             f"(< {options.min_peak_speed:g} m/s)",
             src,
         )
-    onset, offset = detect_onset_offset(segmentation_speed(t, arm.fk(q_seen), speed, options, src),
-                                        options.onset_threshold)
+    onset, offset = detect_onset_offset(
+        segmentation_speed(t, arm.fk(q_seen), speed, options, src), options.onset_threshold
+    )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} samples", src)
     target_x = float(arm.fk(q[offset])[0])

@@ -104,7 +104,10 @@ class MarkerData:
                 k = int(np.flatnonzero(np.any(far, axis=1))[0])
                 raise InputError(
                     f"marker {name!r} is {np.abs(a[k]).max():.3g} m from the lab's origin, beyond any lab "
-                    f"({MAX_MARKER_COORDINATE:.0f} m): a corrupt value?", where, f"frame {k + 1}")
+                    f"({MAX_MARKER_COORDINATE:.0f} m): a corrupt value?",
+                    where,
+                    f"frame {k + 1}",
+                )
             a.setflags(write=False)
             clean[str(name)] = a
         object.__setattr__(self, "markers", clean)
@@ -172,7 +175,8 @@ class AngleData:
         wrapped = np.flatnonzero(np.any(np.abs(np.diff(q, axis=0)) > np.pi, axis=1))
         if wrapped.size:
             logging.getLogger(__name__).warning(
-                "%s: angles wrap around a full turn at sample %d; unwrapped", where or "angles", wrapped[0] + 2)
+                "%s: angles wrap around a full turn at sample %d; unwrapped", where or "angles", wrapped[0] + 2
+            )
             q = np.unwrap(q, axis=0)
         speed = np.abs(np.diff(q, axis=0)) / np.diff(t)[:, None]
         if np.any(speed > MAX_JOINT_SPEED):
@@ -180,7 +184,9 @@ class AngleData:
             raise InputError(
                 f"q{j + 1} jumps by {np.degrees(abs(q[k + 1, j] - q[k, j])):.0f}° in one sample "
                 f"({speed[k, j]:.0f} rad/s, more than any arm's {MAX_JOINT_SPEED:.0f} rad/s): a glitch in the file?",
-                where, f"sample {k + 2}")
+                where,
+                f"sample {k + 2}",
+            )
         for a in (t, q):
             a.setflags(write=False)
         object.__setattr__(self, "t", t)
@@ -226,8 +232,7 @@ def _declared_rows(text: str | None, field: str, path: Path, where: str) -> int 
     except ValueError:
         raise InputError(f"header field {field}={text.strip()[:40]!r} is not a number of rows", path, where) from None
     if not (math.isfinite(v) and v == int(v) and 1 <= v <= MAX_ROWS):
-        raise InputError(f"header field {field}={text.strip()[:40]} is not a row count in [1, {MAX_ROWS}]", path,
-                         where)
+        raise InputError(f"header field {field}={text.strip()[:40]} is not a row count in [1, {MAX_ROWS}]", path, where)
     return int(v)
 
 
@@ -236,10 +241,12 @@ def _check_row_count(n: int, declared: int | None, field: str, what: str, path: 
     if declared is None or n == declared:
         return
     if n < declared:
-        raise InputError(f"truncated file: the header says {field}={declared}, the file ends after {n} {what}",
-                         path, f"line {last_line}")
-    raise InputError(f"the header says {field}={declared} but the file holds {n} {what}", path,
-                     f"line {last_line}")
+        raise InputError(
+            f"truncated file: the header says {field}={declared}, the file ends after {n} {what}",
+            path,
+            f"line {last_line}",
+        )
+    raise InputError(f"the header says {field}={declared} but the file holds {n} {what}", path, f"line {last_line}")
 
 
 # ---------------------------------------------------------------------- TRC
@@ -268,9 +275,7 @@ def read_trc(path: str | Path) -> MarkerData:
     names = [n for n in names if n]
     n_markers = int(_float(hdr["NumMarkers"], path, 3, "NumMarkers"))
     if len(names) != n_markers:
-        raise InputError(
-            f"line 4 names {len(names)} markers, the header says NumMarkers={n_markers}", path, "line 4"
-        )
+        raise InputError(f"line 4 names {len(names)} markers, the header says NumMarkers={n_markers}", path, "line 4")
     if len(set(names)) != len(names):
         raise InputError("duplicate marker names", path, "line 4")
     n_cols = 2 + 3 * n_markers
@@ -288,15 +293,16 @@ def read_trc(path: str | Path) -> MarkerData:
         if first_frame is None:
             first_frame = frame
         elif frame != first_frame + len(rows):
-            raise InputError(f"frame number {cells[0].strip()} where {first_frame + len(rows):g} was expected (a "
-                             "frame missing, repeated or out of order)", path, f"line {i}")
+            raise InputError(
+                f"frame number {cells[0].strip()} where {first_frame + len(rows):g} was expected (a "
+                "frame missing, repeated or out of order)",
+                path,
+                f"line {i}",
+            )
         last_line = i
         times.append(_float(cells[1], path, i, "Time"))
         rows.append(
-            [
-                _float(c, path, i, names[(j - 2) // 3], allow_empty=True)
-                for j, c in enumerate(cells[2:n_cols], start=2)
-            ]
+            [_float(c, path, i, names[(j - 2) // 3], allow_empty=True) for j, c in enumerate(cells[2:n_cols], start=2)]
         )
     if not rows:
         raise InputError("no data rows after the header", path)
@@ -304,8 +310,12 @@ def read_trc(path: str | Path) -> MarkerData:
     if rate > 0 and len(times) > 1:
         step = float(np.median(np.diff(times)))
         if not abs(step * rate - 1.0) <= 0.02:
-            raise InputError(f"the Time column steps {step:.6g} s but the header's DataRate={hdr['DataRate']} Hz "
-                             f"means {1.0 / rate:.6g} s", path, "line 3")
+            raise InputError(
+                f"the Time column steps {step:.6g} s but the header's DataRate={hdr['DataRate']} Hz "
+                f"means {1.0 / rate:.6g} s",
+                path,
+                "line 3",
+            )
     a = np.asarray(rows) * scale
     markers = {n: a[:, 3 * k : 3 * k + 3] for k, n in enumerate(names)}
     return MarkerData(rate=rate, markers=markers, source=str(path), t=np.asarray(times), up="+y")
@@ -344,8 +354,9 @@ def read_c3d(path: str | Path) -> MarkerData:
     declared = _c3d_declared_frames(path)
     if declared is not None and declared > pts.shape[2]:
         # ezc3d reads what is there and says nothing: a cut-off file would give a cut-off reach
-        raise InputError(f"truncated C3D file: the header declares {declared} frames, the file holds "
-                         f"{pts.shape[2]}", path)
+        raise InputError(
+            f"truncated C3D file: the header declares {declared} frames, the file holds {pts.shape[2]}", path
+        )
     if len(labels) < pts.shape[1]:
         labels += [f"M{k + 1:03d}" for k in range(len(labels), pts.shape[1])]
     if len(set(labels[: pts.shape[1]])) != pts.shape[1]:
@@ -394,9 +405,7 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
     if lines[0].split(",")[0].strip() != "Trajectories":
         raise InputError("not a Vicon 'Trajectories' CSV (line 1 should be 'Trajectories')", path, "line 1")
     if len(lines) < 5:
-        raise InputError(
-            "truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path
-        )
+        raise InputError("truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path)
     rate = _float(lines[1].split(",")[0], path, 2, "rate")
     names_row = next(csv.reader([lines[2]]))
     axes_row = next(csv.reader([lines[3]]))
@@ -434,9 +443,7 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         if len(cells) < n_cols:
             raise InputError(f"truncated row: {len(cells)} fields, expected {n_cols}", path, f"line {i}")
         frames.append(_float(cells[0], path, i, "Frame"))
-        rows.append(
-            [_float(c, path, i, _col_name(cols, j), allow_empty=True) for j, c in enumerate(cells[:n_cols])]
-        )
+        rows.append([_float(c, path, i, _col_name(cols, j), allow_empty=True) for j, c in enumerate(cells[:n_cols])])
     if not rows:
         raise InputError("no data rows after the header", path)
     frames_a = np.asarray(frames)
@@ -469,7 +476,7 @@ _Q_ALIASES = {
     "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder", "r_shoulder_elev", "l_shoulder_elev"),
     "q2": ("q2", "elbow", "elbow_flex", "q_elbow", "r_elbow_flex", "l_elbow_flex"),
 }
-# OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.exports)
+# OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.data.exports)
 _Q1_OFFSET_RAD = {"r_shoulder_elev": -np.pi / 2, "l_shoulder_elev": -np.pi / 2}
 
 
@@ -499,10 +506,7 @@ def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path:
         if len(cells) < n_min:
             raise InputError(f"truncated row: {len(cells)} fields, expected {n_min}", path, f"line {i}")
         rows.append(
-            [
-                _float(c, path, i, names[j] if j < len(names) else str(j + 1))
-                for j, c in enumerate(cells[:n_min])
-            ]
+            [_float(c, path, i, names[j] if j < len(names) else str(j + 1)) for j, c in enumerate(cells[:n_min])]
         )
     if not rows:
         raise InputError("no data rows after the header", path)
@@ -531,16 +535,18 @@ def read_mot(path: str | Path) -> AngleData:
         elif key in ("nrows", "datarows") and "=" in ln:
             declared = _declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}")
         elif key in ("ncolumns", "datacolumns") and "=" in ln:
-            n_columns = (_declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}"),
-                         k + 1)
+            n_columns = (_declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}"), k + 1)
     hdr_k = next((k for k in range(end + 1, len(lines)) if lines[k].strip()), None)
     if hdr_k is None:
         raise InputError("no column header after 'endheader'", path)
     sep = "\t" if "\t" in lines[hdr_k] else None
     header = lines[hdr_k].split(sep) if sep else lines[hdr_k].split()
     if n_columns is not None and n_columns[0] != len(header):
-        raise InputError(f"the header says nColumns={n_columns[0]} but the column header names {len(header)}",
-                         path, f"line {n_columns[1]}")
+        raise InputError(
+            f"the header says nColumns={n_columns[0]} but the column header names {len(header)}",
+            path,
+            f"line {n_columns[1]}",
+        )
     it, i1, i2 = _find_q_columns(header, path, hdr_k + 1)
     a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
     last_line = max(k for k in range(hdr_k, len(lines)) if lines[k].strip()) + 1
@@ -561,9 +567,7 @@ def read_angles_csv(path: str | Path) -> AngleData:
         if m:
             u = m.group(1).lower()
             if u not in ("deg", "degree", "degrees", "rad", "radian", "radians"):
-                raise InputError(
-                    f"unknown angle unit {m.group(1)!r}, expected deg or rad", path, f"line {k + 1}"
-                )
+                raise InputError(f"unknown angle unit {m.group(1)!r}, expected deg or rad", path, f"line {k + 1}")
             units = "deg" if u.startswith("deg") else "rad"
         k += 1
     if k >= len(lines):
@@ -577,9 +581,7 @@ def read_angles_csv(path: str | Path) -> AngleData:
     if sfx:
         col_unit = sfx.pop()
         if units is not None and units != col_unit:
-            raise InputError(
-                f"'# units: {units}' contradicts the column suffix _{col_unit}", path, f"line {k + 1}"
-            )
+            raise InputError(f"'# units: {units}' contradicts the column suffix _{col_unit}", path, f"line {k + 1}")
         units = col_unit
     a = _angle_rows(lines, k + 1, ",", max(it, i1, i2) + 1, path, header)
     q = np.radians(a[:, [i1, i2]]) if units == "deg" else a[:, [i1, i2]]
@@ -601,9 +603,7 @@ def detect_format(path: str | Path) -> str:
     if ext in (".csv", ".txt"):
         first = read_text(path).lstrip().split("\n", 1)[0]
         return "vicon-csv" if first.split(",")[0].strip() == "Trajectories" else "csv"
-    raise InputError(
-        f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path
-    )
+    raise InputError(f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path)
 
 
 def read_file(path: str | Path, fmt: str = "auto") -> MarkerData | AngleData:
@@ -672,15 +672,11 @@ def _csv_rows(path: Path, reader: csv.DictReader, required: tuple[str, ...]) -> 
     reader.fieldnames = fields_
     missing = [c for c in required if c not in fields_]
     if missing:
-        raise InputError(
-            f"missing column(s) {', '.join(missing)} (has: {', '.join(fields_)})", path, "line 1"
-        )
+        raise InputError(f"missing column(s) {', '.join(missing)} (has: {', '.join(fields_)})", path, "line 1")
     rows = []
     for row in reader:
         if None in row:
-            raise InputError(
-                f"row has more fields than the header ({len(fields_)})", path, f"line {reader.line_num}"
-            )
+            raise InputError(f"row has more fields than the header ({len(fields_)})", path, f"line {reader.line_num}")
         if all(not (v or "").strip() for v in row.values()):
             continue
         if any(row.get(c) is None for c in required):
@@ -762,8 +758,7 @@ def read_manifest(path: str | Path) -> list[ManifestEntry]:
             raise InputError("empty file name", path, f"line {line}")
         key = os.path.normpath(r["file"])
         if key in seen:  # the same recording twice would be one reach counted twice
-            raise InputError(f"file {r['file']!r} is listed twice (lines {seen[key]} and {line})", path,
-                             f"line {line}")
+            raise InputError(f"file {r['file']!r} is listed twice (lines {seen[key]} and {line})", path, f"line {line}")
         seen[key] = line
         side = r.get("side", "").lower() or None
         if side is not None and side not in ("right", "left", "r", "l"):

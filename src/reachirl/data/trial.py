@@ -22,8 +22,15 @@ from ..errors import InputError
 from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
 
-__all__ = ["TRIALS_FORMAT", "Trial", "load_trials", "save_trials", "select_trials", "trial_from_knots",
-           "trial_from_solution"]
+__all__ = [
+    "TRIALS_FORMAT",
+    "Trial",
+    "load_trials",
+    "save_trials",
+    "select_trials",
+    "trial_from_knots",
+    "trial_from_solution",
+]
 
 TRIALS_FORMAT = "reachirl-trials/1"
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
@@ -83,9 +90,7 @@ class Trial:
         if not isinstance(self.arm, ArmModel):
             raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)
         if not np.isfinite(self.target_x) or abs(self.target_x) > self.arm.length:
-            raise InputError(
-                f"target_x {self.target_x} m is unreachable by an arm {self.arm.length:.3f} m long", where
-            )
+            raise InputError(f"target_x {self.target_x} m is unreachable by an arm {self.arm.length:.3f} m long", where)
         object.__setattr__(self, "target_x", float(self.target_x))
         if self.side not in ("right", "left"):
             raise InputError(f"side must be 'right' or 'left', got {self.side!r}", where)
@@ -153,8 +158,9 @@ class Trial:
         q = sosfiltfilt(sos, q, axis=0, padtype="odd", padlen=min(n - 1, 3 * (2 * len(sos) + 1)))
         spline = CubicSpline(t, q, axis=0)
         qd, qdd = spline(t, 1), spline(t, 2)
-        return replace(self, t=t, q=q, qd=qd, qdd=qdd, tau=self.arm.inverse_dynamics(q, qd, qdd),
-                       x0=np.r_[q[0], self.x0[2:]])
+        return replace(
+            self, t=t, q=q, qd=qd, qdd=qdd, tau=self.arm.inverse_dynamics(q, qd, qdd), x0=np.r_[q[0], self.x0[2:]]
+        )
 
     def knot_state(self, n_nodes: int) -> np.ndarray:
         """The state ``(q1, q2, q̇1, q̇2)`` on the DOC's knots, ``(N+1, 4)``, as :meth:`knots` defines it."""
@@ -203,8 +209,8 @@ def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
 def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
     from ..io import check_regular_file
-    from ..validation import check_npz_file, check_trial_meta, check_trial_physics
-    from .checks import check_start_and_target
+    from ..validation import check_npz_file
+    from .checks import check_start_and_target, check_trial_meta, check_trial_physics
 
     path = check_regular_file(path)  # a FIFO or a device would block or never end
     if not zipfile.is_zipfile(path):
@@ -228,20 +234,25 @@ def load_trials(path: str | Path) -> list[Trial]:
                 missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
                 if missing:
                     raise InputError(f"trial {i} lacks arrays {missing}", path)
-                out.append(_trial_in_file(
-                    path, i, m,
-                    lambda m=m, i=i: Trial(
-                        subject=m["subject"],
-                        posture=m["posture"],
-                        trial_id=m["trial_id"],
-                        side=m.get("side", "right"),
-                        source=m.get("source", ""),
-                        target_x=m["target_x"],
-                        arm=ArmModel.from_dict(m["arm"]),
-                        x0=z[f"{i}/x0"],
-                        onset_threshold=m.get("onset_threshold"),
-                        **{n: z[f"{i}/{n}"] for n in _ARRAYS},
-                    )))
+                out.append(
+                    _trial_in_file(
+                        path,
+                        i,
+                        m,
+                        lambda m=m, i=i: Trial(
+                            subject=m["subject"],
+                            posture=m["posture"],
+                            trial_id=m["trial_id"],
+                            side=m.get("side", "right"),
+                            source=m.get("source", ""),
+                            target_x=m["target_x"],
+                            arm=ArmModel.from_dict(m["arm"]),
+                            x0=z[f"{i}/x0"],
+                            onset_threshold=m.get("onset_threshold"),
+                            **{n: z[f"{i}/{n}"] for n in _ARRAYS},
+                        ),
+                    )
+                )
     except InputError:
         raise
     except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as e:
@@ -273,15 +284,18 @@ def _check_entries(path: Path) -> None:
     seen: set[str] = set()
     for n in names:
         if n in seen:
-            raise InputError(f"entry {n} appears twice in the archive; which one holds the trial is ambiguous",
-                             path)
+            raise InputError(f"entry {n} appears twice in the archive; which one holds the trial is ambiguous", path)
         seen.add(n)
 
 
-
-def select_trials(trials: Sequence[Trial], *, subjects: Sequence[str] | None = None,
-                  postures: Sequence[str] | None = None, sides: Sequence[str] | None = None,
-                  path: object | None = None) -> list[Trial]:
+def select_trials(
+    trials: Sequence[Trial],
+    *,
+    subjects: Sequence[str] | None = None,
+    postures: Sequence[str] | None = None,
+    sides: Sequence[str] | None = None,
+    path: object | None = None,
+) -> list[Trial]:
     """The trials of the given subjects, postures and arms (``None``: any), in their order.
 
     A value that none of the trials left by the choices before it has (subject, then posture, then side) raises
@@ -297,15 +311,25 @@ def select_trials(trials: Sequence[Trial], *, subjects: Sequence[str] | None = N
         if unknown:
             among = f" among those of {' and '.join(applied)}" if applied else ""
             shown = ", ".join(h if h else "''" for h in have)
-            raise InputError(f"no trial of {field_name} {', '.join(unknown)}{among}; they have {field_name} {shown}",
-                             path)
+            raise InputError(
+                f"no trial of {field_name} {', '.join(unknown)}{among}; they have {field_name} {shown}", path
+            )
         out = [t for t in out if getattr(t, field_name) in wanted]
         applied.append(f"{field_name} {', '.join(wanted)}")
     return out
 
 
-def trial_from_knots(arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: float, subject: str = "virtual",
-                     posture: str = "", trial_id: str = "0", side: str = "right", source: str = "") -> Trial:
+def trial_from_knots(
+    arm: ArmModel,
+    t: np.ndarray,
+    q: np.ndarray,
+    target_x: float,
+    subject: str = "virtual",
+    posture: str = "",
+    trial_id: str = "0",
+    side: str = "right",
+    source: str = "",
+) -> Trial:
     """A trial from a knot path ``q (N+1, 2)`` at times ``t``, read as the DOC reads it: Euler velocities
     ``q̇_k = (q_k − q_{k−1})/dt`` (0 at the start), Euler accelerations, inverse-dynamics torques.
 
@@ -316,11 +340,31 @@ def trial_from_knots(arm: ArmModel, t: np.ndarray, q: np.ndarray, target_x: floa
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
     qdd = np.diff(qd, axis=0) / dt
     qdd = np.vstack([qdd, qdd[-1:]])
-    return Trial(subject=subject, posture=posture, trial_id=trial_id, t=t, q=q, qd=qd, qdd=qdd,
-                 tau=arm.inverse_dynamics(q, qd, qdd), target_x=target_x, arm=arm, side=side, source=source)
+    return Trial(
+        subject=subject,
+        posture=posture,
+        trial_id=trial_id,
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        tau=arm.inverse_dynamics(q, qd, qdd),
+        target_x=target_x,
+        arm=arm,
+        side=side,
+        source=source,
+    )
 
 
-def trial_from_solution(sol, arm: ArmModel, target_x: float, subject: str = "virtual", posture: str = "",
-                        trial_id: str = "0", side: str = "right", source: str = "") -> Trial:
+def trial_from_solution(
+    sol,
+    arm: ArmModel,
+    target_x: float,
+    subject: str = "virtual",
+    posture: str = "",
+    trial_id: str = "0",
+    side: str = "right",
+    source: str = "",
+) -> Trial:
     """A trial holding a DOC solution's trajectory: its torque on every interval is ``sol.tau`` exactly."""
     return trial_from_knots(arm, sol.t, sol.q, target_x, subject, posture, trial_id, side, source)

@@ -263,9 +263,7 @@ def agreement(
     rows = []
     groups = sorted({(r["subject"], r["side"]) for r in per_trial}, key=lambda g: (g[0], g[1] != "right"))
     for subject, side in groups:
-        rows.append(
-            row(subject, side, [r for r in per_trial if (r["subject"], r["side"]) == (subject, side)])
-        )
+        rows.append(row(subject, side, [r for r in per_trial if (r["subject"], r["side"]) == (subject, side)]))
     for side in ("right", "left"):
         recs = [r for r in per_trial if r["side"] == side]
         if recs:

@@ -29,9 +29,7 @@ from ..io import atomic_path, atomic_write_text
 __all__ = ["read_mot_simple", "read_trc_simple", "write_c3d", "write_mot", "write_trc"]
 
 
-def _check_markers(
-    time: np.ndarray, markers: Mapping[str, np.ndarray]
-) -> tuple[np.ndarray, list[str], np.ndarray]:
+def _check_markers(time: np.ndarray, markers: Mapping[str, np.ndarray]) -> tuple[np.ndarray, list[str], np.ndarray]:
     t = np.asarray(time, dtype=float).reshape(-1)
     if t.size < 2 or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
         raise ValueError("time must hold at least 2 finite, strictly increasing samples")

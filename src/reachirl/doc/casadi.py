@@ -54,7 +54,12 @@ from . import compiled
 from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots
 
 __all__ = [
-    "FATROP_OPTIONS", "FATROP_WARM_OPTIONS", "IPOPT_OPTIONS", "build_nlp", "guess_knots", "initial_guess",
+    "FATROP_OPTIONS",
+    "FATROP_WARM_OPTIONS",
+    "IPOPT_OPTIONS",
+    "build_nlp",
+    "guess_knots",
+    "initial_guess",
     "solve",
 ]
 
@@ -154,9 +159,7 @@ def _mass_matrix(arm, q):
 
 def _fingertip(arm, q):
     l1, l2 = arm[0], arm[1]
-    return ca.vertcat(
-        l1 * ca.cos(q[0]) + l2 * ca.cos(q[0] + q[1]), l1 * ca.sin(q[0]) + l2 * ca.sin(q[0] + q[1])
-    )
+    return ca.vertcat(l1 * ca.cos(q[0]) + l2 * ca.cos(q[0] + q[1]), l1 * ca.sin(q[0]) + l2 * ca.sin(q[0] + q[1]))
 
 
 class _Nlp:
@@ -223,8 +226,10 @@ class _Nlp:
         self._solvers: dict = {}
         self._bounds: dict = {}
         self.lock = threading.Lock()
-        self.slots = {"cold": compiled.Slot(n, self.nlp, self.cold_solver_spec(), kind="cold"),
-                      "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm")}
+        self.slots = {
+            "cold": compiled.Slot(n, self.nlp, self.cold_solver_spec(), kind="cold"),
+            "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm"),
+        }
 
     def kkt_functions(self) -> dict:
         """CasADi functions of the KKT conditions (built on first use, for :mod:`reachirl.doc.sensitivity`):
@@ -292,9 +297,12 @@ class _Nlp:
         inf = np.inf
         lb = np.r_[task.q_lower, -task.qd_max, -inf, -inf, -inf, -inf, 0.0, 0.0]
         ub = np.r_[task.q_upper, task.qd_max, inf, inf, inf, inf, inf, inf]
-        out = {"lbx": np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]],
-               "ubx": np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]],
-               "lbg": np.zeros(self.n_g), "ubg": np.zeros(self.n_g)}
+        out = {
+            "lbx": np.r_[-inf, -inf, np.tile(lb, self.n - 1), lb[:NX]],
+            "ubx": np.r_[inf, inf, np.tile(ub, self.n - 1), ub[:NX]],
+            "lbg": np.zeros(self.n_g),
+            "ubg": np.zeros(self.n_g),
+        }
         for a in out.values():
             a.setflags(write=False)
         with self.lock:  # threads may share the NLP
@@ -361,8 +369,16 @@ def _unpack_q(task: ReachingTask, z: np.ndarray) -> np.ndarray:
 
 def _task_key(task: ReachingTask) -> tuple:
     """What must match for a warm start: everything in the task but the weights."""
-    return (task.n_nodes, task.arm, tuple(task.q0), task.target_x, task.duration, tuple(task.q_lower),
-            tuple(task.q_upper), tuple(task.qd_max))
+    return (
+        task.n_nodes,
+        task.arm,
+        tuple(task.q0),
+        task.target_x,
+        task.duration,
+        tuple(task.q_lower),
+        tuple(task.q_upper),
+        tuple(task.qd_max),
+    )
 
 
 def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> float:

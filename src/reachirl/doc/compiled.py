@@ -42,8 +42,20 @@ from ..errors import InputError
 from ..io import atomic_path, cache_root
 
 __all__ = [
-    "AUTO_AFTER", "AUTO_AFTER_WARM", "KINDS", "MODES", "Slot", "cache_path", "compile_or_wait", "compile_solver",
-    "load", "mode", "on_setting", "release", "setting", "start_background",
+    "AUTO_AFTER",
+    "AUTO_AFTER_WARM",
+    "KINDS",
+    "MODES",
+    "Slot",
+    "cache_path",
+    "compile_or_wait",
+    "compile_solver",
+    "load",
+    "mode",
+    "on_setting",
+    "release",
+    "setting",
+    "start_background",
 ]
 
 MODES = ("auto", "on", "off")
@@ -99,9 +111,18 @@ def _options(options: dict, folder: Path | str = "<cache folder>") -> dict:
     # "link": the saved solver loads the library compiled beside it (kept: no clean-up); "embed" would write
     # the library back to its first path at every load, from every process. "directory": where CasADi puts its
     # temporary files, also the empty one it creates at every load (in the working directory by default)
-    return {**options, "jit": True, "compiler": "shell", "jit_serialize": "link",
-            "jit_options": {"flags": list(JIT_FLAGS), "verbose": False, "cleanup": False,
-                            "directory": os.path.join(str(folder), "")}}
+    return {
+        **options,
+        "jit": True,
+        "compiler": "shell",
+        "jit_serialize": "link",
+        "jit_options": {
+            "flags": list(JIT_FLAGS),
+            "verbose": False,
+            "cleanup": False,
+            "directory": os.path.join(str(folder), ""),
+        },
+    }
 
 
 def cache_path(nlp: dict, options: dict) -> Path:
@@ -210,8 +231,11 @@ def start_background(n: int, path: Path, kind: str = "cold") -> bool:
         return False
     subprocess.Popen(
         [sys.executable, "-m", "reachirl.doc.compile_job", str(n), kind, str(path)],
-        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        start_new_session=True, env={**os.environ, "REACHIRL_COMPILE": "off"},
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        env={**os.environ, "REACHIRL_COMPILE": "off"},
     )
     return True
 

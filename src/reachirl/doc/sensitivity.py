@@ -72,13 +72,15 @@ def weight_jacobian(task: ReachingTask, weights: np.ndarray, sol: DocSolution) -
         except RuntimeError as e:  # "Factor is exactly singular"
             raise ValueError(f"the DOC's KKT matrix is singular at this solution ({e})") from None
 
-    lam = kkt(np.zeros(n_g)).solve(np.r_[-grad, np.zeros(n_g)])[free.sum():]
+    lam = kkt(np.zeros(n_g)).solve(np.r_[-grad, np.zeros(n_g)])[free.sum() :]
     lu = kkt(lam)
     # ∂(∇_z f)/∂w (per knot and feature) times d w / d log ω_{s,j} = ω_{s,j} on the knots of window s
     window = window_index(n, weights.shape[0])
     seeds = sps.csc_matrix(
-        (weights[window].reshape(-1),
-         (np.arange(n * N_FEATURES), (window[:, None] * N_FEATURES + np.arange(N_FEATURES)).reshape(-1))),
+        (
+            weights[window].reshape(-1),
+            (np.arange(n * N_FEATURES), (window[:, None] * N_FEATURES + np.arange(N_FEATURES)).reshape(-1)),
+        ),
         shape=(n * N_FEATURES, weights.size),
     )
     rhs = -(_sparse(fun["B"](z, p))[free] @ seeds).toarray()

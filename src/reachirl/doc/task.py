@@ -26,9 +26,17 @@ from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, ArmModel
 from ..features import euler_knots
 from ..validation import check_arm, check_duration, check_n_nodes
 
-__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DocSolution", "ReachingTask", "min_jerk",
-           "moved_path", "on_bar", "rest_to_rest_knots"]
-
+__all__ = [
+    "DEFAULT_QD_MAX",
+    "DEFAULT_Q_LOWER",
+    "DEFAULT_Q_UPPER",
+    "DocSolution",
+    "ReachingTask",
+    "min_jerk",
+    "moved_path",
+    "on_bar",
+    "rest_to_rest_knots",
+]
 
 
 def _vec2(name: str, v) -> np.ndarray:
@@ -80,9 +88,7 @@ class ReachingTask:
                 f"[{np.rad2deg(self.q_lower).round(1)}, {np.rad2deg(self.q_upper).round(1)}] deg"
             )
         if abs(self.target_x) > self.arm.length:
-            raise ValueError(
-                f"target_x {self.target_x:.3f} m is out of reach of an arm {self.arm.length:.3f} m long"
-            )
+            raise ValueError(f"target_x {self.target_x:.3f} m is out of reach of an arm {self.arm.length:.3f} m long")
 
     @classmethod
     def from_trial(cls, trial, n_nodes: int = 100, **bounds) -> ReachingTask:

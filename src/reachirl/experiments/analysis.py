@@ -57,12 +57,13 @@ def _observes(unit: dict) -> bool:
     return unit_observes(unit["method"], unit.get("estimator_options", ()))
 
 
-def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi",
-                       observe: bool = False) -> np.ndarray | None:
+def reference_features(
+    trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi", observe: bool = False
+) -> np.ndarray | None:
     """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
     and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
     at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.observation`), as an observed unit predicts its trials, so its windows are the
+    (:mod:`reachirl.doc.observation`), as an observed unit predicts its trials, so its windows are the
     demonstrations'; otherwise the DOC over the mean duration.
 
     Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
@@ -70,9 +71,9 @@ def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str =
     shares on Φ* credit the true weights with costs that hardly shape their own reach."""
     from ..data.trial import trial_from_solution
     from ..doc import solve_doc
+    from ..doc.observation import common_threshold, rest_to_rest
+    from ..doc.observation import observe as seen_as_recorded
     from ..irl.moirl import mean_task
-    from ..observation import common_threshold, rest_to_rest
-    from ..observation import observe as seen_as_recorded
 
     task = mean_task(trials, n_nodes)
     try:
@@ -84,8 +85,11 @@ def reference_features(trials, weights: np.ndarray, n_nodes: int, backend: str =
     sol = solve_doc(task, weights, backend=backend)
     if not sol.converged:
         return None
-    reach = (seen_as_recorded(sol, task, threshold) if threshold is not None
-             else trial_from_solution(sol, task.arm, task.target_x))
+    reach = (
+        seen_as_recorded(sol, task, threshold)
+        if threshold is not None
+        else trial_from_solution(sol, task.arm, task.target_x)
+    )
     return reach.features(n_nodes, weights.shape[0])
 
 
@@ -146,7 +150,7 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
     (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
     truth."""
-    from ..evaluation import evaluate_trials, rmse_deg
+    from ..doc.evaluation import evaluate_trials, rmse_deg
 
     truth = run.dataset.truth or {}
     nominal = (truth.get("truth") or {}).get("nominal_weights")
@@ -187,8 +191,9 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     return out
 
 
-def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: int, hi: int,
-                      postures: Sequence[str]) -> dict | None:
+def paired_comparison(
+    results: dict[str, dict], method: str, set_name: str, lo: int, hi: int, postures: Sequence[str]
+) -> dict | None:
     """``hi`` against ``lo`` sections, paired by posture. Each posture has one fit per section count, and the
     trials a fit predicts share its weights, so they are not independent samples: the unit compared is the
     posture, through its mean RMSE of q over the trials both fits predicted.
@@ -204,8 +209,9 @@ def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: 
         for r in results.values():
             u = r["unit"]
             if u["method"] == method and u["sections"] == n and u["posture"] in postures:
-                out[u["posture"]] = {t["id"]: t["rmse_deg"]["q"] for t in r["sets"][set_name]["trials"]
-                                     if t["rmse_deg"]["q"] is not None}
+                out[u["posture"]] = {
+                    t["id"]: t["rmse_deg"]["q"] for t in r["sets"][set_name]["trials"] if t["rmse_deg"]["q"] is not None
+                }
         return out
 
     a, b = per_posture(lo), per_posture(hi)
@@ -218,10 +224,16 @@ def paired_comparison(results: dict[str, dict], method: str, set_name: str, lo: 
         return None
     d = np.array(list(diffs.values()))
     p_value = float(wilcoxon(d, method="exact").pvalue) if np.any(d != 0) else 1.0
-    return {"n": len(d), "per_posture": diffs, "mean_diff_deg": float(d.mean()), "n_lower": int(np.sum(d < 0)),
-            "wilcoxon_p": p_value, "min_p": 2.0 / 2 ** len(d),
-            "test": "exact two-sided Wilcoxon signed-rank over postures (one fit each), on each posture's mean "
-                    "RMSE of q over the trials both fits predicted"}
+    return {
+        "n": len(d),
+        "per_posture": diffs,
+        "mean_diff_deg": float(d.mean()),
+        "n_lower": int(np.sum(d < 0)),
+        "wilcoxon_p": p_value,
+        "min_p": 2.0 / 2 ** len(d),
+        "test": "exact two-sided Wilcoxon signed-rank over postures (one fit each), on each posture's mean "
+        "RMSE of q over the trials both fits predicted",
+    }
 
 
 def section_comparisons(run: RunResult) -> dict:

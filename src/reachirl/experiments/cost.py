@@ -26,10 +26,16 @@ def write_models(run) -> list[Path]:
     every = {**run.results, **run.pairs, **run.transfer}
     for key, r in sorted(every.items()):
         info = dict(r.get("model_info") or {"method": r["unit"]["method"]})
-        info.update({"unit": key, "backend": r["unit"]["backend"], "history": r.get("history", []),
-                     "run": str(run.out_dir)})
-        model = LearnedModel(weights=np.asarray(r["weights"], dtype=float), n_nodes=int(r["unit"]["n_nodes"]),
-                             method=r["unit"]["method"], info=info, uncertainty=r.get("uncertainty"))
+        info.update(
+            {"unit": key, "backend": r["unit"]["backend"], "history": r.get("history", []), "run": str(run.out_dir)}
+        )
+        model = LearnedModel(
+            weights=np.asarray(r["weights"], dtype=float),
+            n_nodes=int(r["unit"]["n_nodes"]),
+            method=r["unit"]["method"],
+            info=info,
+            uncertainty=r.get("uncertainty"),
+        )
         out.append(save_model(Path(run.out_dir) / "models" / f"{key}.json", model))
     return out
 
@@ -68,22 +74,28 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
     """``report.md``'s section on the learned cost: per MO-IRL fit with weight samples, the determined weight
     directions in words, the share intervals (how many are undetermined), the claim's verdict and, on virtual
     subjects (``true_shares`` by posture), how often the intervals contain the truth's shares."""
-    lines = ["## What the data determines about the cost", "",
-             "The learned weights are one cost among several that explain the training reaches equally well: "
-             "quote a cost share only where its interval is narrow. For each fit with weight samples "
-             "(`--uncertainty`, on by default): the weight directions the training data determines (moving the "
-             "log-weights along one by log 2 raises the merit by more than the demonstrations can tell from noise) "
-             "and the most determined one in words; the share of cost shares whose 95 % interval is wider than "
-             f"{UNDETERMINED_WIDTH} (undetermined, not a finding); and the paper's claim, joint acceleration's share "
-             "higher at onset and end than mid-reach, over the samples (supported in at least 97.5 % of them, "
-             "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
-             "of the log-weights with a prior of a factor 10 around equal shares (`docs/method.md`).", ""]
+    lines = [
+        "## What the data determines about the cost",
+        "",
+        "The learned weights are one cost among several that explain the training reaches equally well: "
+        "quote a cost share only where its interval is narrow. For each fit with weight samples "
+        "(`--uncertainty`, on by default): the weight directions the training data determines (moving the "
+        "log-weights along one by log 2 raises the merit by more than the demonstrations can tell from noise) "
+        "and the most determined one in words; the share of cost shares whose 95 % interval is wider than "
+        f"{UNDETERMINED_WIDTH} (undetermined, not a finding); and the paper's claim, joint acceleration's share "
+        "higher at onset and end than mid-reach, over the samples (supported in at least 97.5 % of them, "
+        "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
+        "of the log-weights with a prior of a factor 10 around equal shares (`docs/method.md`).",
+        "",
+    ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
     if not rows:
         return [*lines, "No fit of this run has weight samples: rerun with `--uncertainty` to quote a share.", ""]
-    lines += ["| unit | determined directions | shares undetermined | claim | most determined direction |"
-              + (" truth's shares inside | mean width |" if true_shares else ""),
-              "|---|---|---|---|---|" + ("---|---|" if true_shares else "")]
+    lines += [
+        "| unit | determined directions | shares undetermined | claim | most determined direction |"
+        + (" truth's shares inside | mean width |" if true_shares else ""),
+        "|---|---|---|---|---|" + ("---|---|" if true_shares else ""),
+    ]
     for r in sorted(rows, key=lambda r: r["key"]):
         u = r["uncertainty"]
         det = u["determination"]
@@ -91,8 +103,10 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         claim = claim_verdict(np.asarray(u["share_samples"]))
         frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of samples)"
         top = det["determined"][0] if det["determined"] else "none"
-        row = (f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
-               f"{claim['verdict']}{frac} | {top} |")
+        row = (
+            f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
+            f"{claim['verdict']}{frac} | {top} |"
+        )
         p = r["unit"]["posture"]
         if true_shares:
             ts = true_shares.get(p)
@@ -117,14 +131,31 @@ def write_posture_transfer(run) -> list[str]:
         return []
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["method", "sections", "held_out_posture", "mean", "sd", "n", "iscv_mean", "iscv_sd", "iscv_n",
-                "per_posture_fit_mean"])
-    lines = ["## Posture transfer (leave one posture out)", "",
-             "One cost learned on the training trials of every other posture (one rollout per posture), predicting "
-             "the held-out posture's reaches of the training subject and of the other subjects, beside the fit of "
-             "that posture's own training trials (the main table's CV and training trials).", "",
-             "| method | sections | held-out posture | RMSE of q, same subject (deg) | other subjects (deg) | "
-             "per-posture fit, same trials (deg) |", "|---|---|---|---|---|---|"]
+    w.writerow(
+        [
+            "method",
+            "sections",
+            "held_out_posture",
+            "mean",
+            "sd",
+            "n",
+            "iscv_mean",
+            "iscv_sd",
+            "iscv_n",
+            "per_posture_fit_mean",
+        ]
+    )
+    lines = [
+        "## Posture transfer (leave one posture out)",
+        "",
+        "One cost learned on the training trials of every other posture (one rollout per posture), predicting "
+        "the held-out posture's reaches of the training subject and of the other subjects, beside the fit of "
+        "that posture's own training trials (the main table's CV and training trials).",
+        "",
+        "| method | sections | held-out posture | RMSE of q, same subject (deg) | other subjects (deg) | "
+        "per-posture fit, same trials (deg) |",
+        "|---|---|---|---|---|---|",
+    ]
 
     def stats(trials):
         v = [t["rmse_deg"]["q"] for t in trials if t.get("converged", True)]
@@ -134,18 +165,34 @@ def write_posture_transfer(run) -> list[str]:
         u = r["unit"]
         own = stats(r["sets"]["cv"]["trials"])
         iscv = stats(r["sets"]["iscv"]["trials"])
-        main = next((m for m in run.results.values() if m["unit"]["method"] == u["method"]
-                     and m["unit"]["posture"] == u["held_out_posture"]
-                     and m["unit"]["sections"] == u["sections"]), None)
+        main = next(
+            (
+                m
+                for m in run.results.values()
+                if m["unit"]["method"] == u["method"]
+                and m["unit"]["posture"] == u["held_out_posture"]
+                and m["unit"]["sections"] == u["sections"]
+            ),
+            None,
+        )
         base = stats([*main["sets"]["train"]["trials"], *main["sets"]["cv"]["trials"]]) if main else (None, None, 0)
-        w.writerow([u["method"], u["sections"], u["held_out_posture"], *_fmt_row(own), *_fmt_row(iscv),
-                    "" if base[0] is None else f"{base[0]:.4f}"])
+        w.writerow(
+            [
+                u["method"],
+                u["sections"],
+                u["held_out_posture"],
+                *_fmt_row(own),
+                *_fmt_row(iscv),
+                "" if base[0] is None else f"{base[0]:.4f}",
+            ]
+        )
 
         def cell(s):
             return "—" if s[0] is None else f"{s[0]:.2f} ± {s[1]:.2f} (n = {s[2]})"
 
-        lines.append(f"| {u['method']} | {u['sections']} | {u['held_out_posture']} | {cell(own)} | {cell(iscv)} | "
-                     f"{cell(base)} |")
+        lines.append(
+            f"| {u['method']} | {u['sections']} | {u['held_out_posture']} | {cell(own)} | {cell(iscv)} | {cell(base)} |"
+        )
     atomic_write_text(Path(run.out_dir) / "posture_transfer.csv", buf.getvalue())
     return [*lines, ""]
 

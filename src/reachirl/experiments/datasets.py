@@ -4,7 +4,7 @@ with a manifest.
 :func:`load` is the one entry point. It returns a :class:`Dataset`: the trials, where they came from, and the
 true weights when the data are virtual subjects (``truth.json`` beside the manifest).
 
-* ``None``: the built-in data set (:func:`reachirl.synth.builtin_dataset_dir`, generated on first use and
+* ``None``: the built-in data set (:func:`reachirl.virtual.builtin_dataset_dir`, generated on first use and
   cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would.
 * a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
   ``truth.json`` beside it (virtual subjects) is read as the ground truth;
@@ -93,8 +93,11 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
     if manifest is None:  # a UE-ADL folder: its reach files, each with its static trial beside it
         files = reach_files(folder)
         if not files:
-            raise InputError("folder has no manifest.csv (columns file,subject,posture[,side]) and no UE-ADL "
-                             "reach files (ADLxxxFR1.csv ...)", folder)
+            raise InputError(
+                "folder has no manifest.csv (columns file,subject,posture[,side]) and no UE-ADL "
+                "reach files (ADLxxxFR1.csv ...)",
+                folder,
+            )
         infos = read_subject_info(info_path) if info_path else None
         markers = parse_marker_map(marker_map) if marker_map else None
         entries = [ManifestEntry(file=f, subject="", posture="") for f in files]
@@ -114,8 +117,9 @@ def _read_truth(folder: Path) -> dict | None:
 
     truth = read_json(p)  # InputError naming the file when it is not JSON
     if not isinstance(truth, dict):
-        raise InputError(f"expected a JSON object (the ground truth of `reachirl synth`), found a "
-                         f"{type(truth).__name__}", p)
+        raise InputError(
+            f"expected a JSON object (the ground truth of `reachirl synth`), found a {type(truth).__name__}", p
+        )
     m = truth.get("markers")
     if m is not None and not (isinstance(m, dict) and all(isinstance(v, str) for v in m.values())):
         raise InputError("field 'markers': expected an object of marker names", p)
@@ -125,10 +129,16 @@ def _read_truth(folder: Path) -> dict | None:
 
 def _check_truth_weights(truth: dict, p: Path) -> None:
     """The parts of truth.json the report reads: n_windows, nominal weights, per-trial weights (n_windows, 7)."""
+
     def weights(w, where):
         a = np.asarray(w, dtype=object)
-        ok = a.ndim == 2 and a.shape[1] == 7 and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v) and v >= 0 for v in a.flat)
+        ok = (
+            a.ndim == 2
+            and a.shape[1] == 7
+            and all(
+                isinstance(v, int | float) and not isinstance(v, bool) and np.isfinite(v) and v >= 0 for v in a.flat
+            )
+        )
         if not ok:
             raise InputError(f"{where}: expected rows of 7 finite weights >= 0", p)
 
@@ -159,8 +169,9 @@ def _check_truth_weights(truth: dict, p: Path) -> None:
 MAX_SUBJECTS = 100
 
 
-def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None = None,
-         n_subjects: int | None = None) -> Dataset:
+def load(
+    path: str | Path | None = None, seed: int = 0, marker_map: str | None = None, n_subjects: int | None = None
+) -> Dataset:
     """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`.
     ``n_subjects`` (built-in data only) makes that many virtual subjects (default 2)."""
     if n_subjects is not None and path is not None:
@@ -168,10 +179,12 @@ def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None =
     if n_subjects is not None and int(n_subjects) < 2:
         raise InputError(f"--subjects needs at least 2 subjects (one to learn from, one to predict), got {n_subjects}")
     if n_subjects is not None and int(n_subjects) > MAX_SUBJECTS:
-        raise InputError(f"--subjects {n_subjects}: at most {MAX_SUBJECTS} built-in virtual subjects (as `reachirl "
-                         "synth --subjects`)")
+        raise InputError(
+            f"--subjects {n_subjects}: at most {MAX_SUBJECTS} built-in virtual subjects (as `reachirl "
+            "synth --subjects`)"
+        )
     if path is None:
-        from ..synth import builtin_dataset_dir
+        from ..virtual import builtin_dataset_dir
 
         n = 2 if n_subjects is None else int(n_subjects)
         folder = builtin_dataset_dir(seed, n)
@@ -179,7 +192,8 @@ def load(path: str | Path | None = None, seed: int = 0, marker_map: str | None =
         return Dataset(
             tuple(trials),
             f"built-in virtual subjects ({n} subjects, seed {seed}): {folder}"
-            if n != 2 else f"built-in virtual subjects (seed {seed}): {folder}",
+            if n != 2
+            else f"built-in virtual subjects (seed {seed}): {folder}",
             "builtin",
             _read_truth(folder),
         )
@@ -213,7 +227,7 @@ def toy(
     from ..arm import ArmModel
     from ..data.trial import trial_from_solution
     from ..doc import ReachingTask, solve_doc
-    from ..synth import nominal_weights, posture_q
+    from ..virtual import nominal_weights, posture_q
 
     rng = np.random.default_rng(seed)
     w_nom = nominal_weights()
@@ -229,9 +243,7 @@ def toy(
                 for _attempt in range(10):
                     q0 = posture_q(p) + np.deg2rad(rng.normal(0.0, 2.0, 2))
                     w = w_nom * np.exp(rng.normal(0.0, 0.2, w_nom.shape))
-                    task = ReachingTask(
-                        arm, q0, 0.95 * arm.length, 0.7 + rng.normal(0.0, 0.04), n_nodes=n_nodes
-                    )
+                    task = ReachingTask(arm, q0, 0.95 * arm.length, 0.7 + rng.normal(0.0, 0.04), n_nodes=n_nodes)
                     sol = solve_doc(task, w)
                     if sol.converged:
                         break

@@ -50,9 +50,10 @@ JOINT_COLOURS = ("tab:blue", "tab:green")
 PRED_COLOUR, DEMO_COLOUR = "tab:blue", "tab:orange"
 
 
-
-CAVEAT = ("Learned weights are one cost among several that explain the reaches; hatched: undetermined (95 % "
-          "interval of the share wider than 0.25), not a finding.")
+CAVEAT = (
+    "Learned weights are one cost among several that explain the reaches; hatched: undetermined (95 % "
+    "interval of the share wider than 0.25), not a finding."
+)
 NO_SAMPLES = "No weight samples (fit --uncertainty): no share here is a finding."
 
 
@@ -62,17 +63,26 @@ def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
     from matplotlib.patches import Rectangle
 
     s = np.asarray(shares)
-    im = ax.imshow(s.T, aspect="auto", cmap="viridis", vmin=0, vmax=1, interpolation="nearest",
-                   extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5))
+    im = ax.imshow(
+        s.T,
+        aspect="auto",
+        cmap="viridis",
+        vmin=0,
+        vmax=1,
+        interpolation="nearest",
+        extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
+    )
     if undetermined is not None:
         for w, j in zip(*np.nonzero(np.asarray(undetermined, dtype=bool)), strict=True):
-            ax.add_patch(Rectangle((w + 0.5, j - 0.5), 1, 1, fill=False, hatch="///", edgecolor="white",
-                                   linewidth=0, alpha=0.6))
+            ax.add_patch(
+                Rectangle((w + 0.5, j - 0.5), 1, 1, fill=False, hatch="///", edgecolor="white", linewidth=0, alpha=0.6)
+            )
     ax.set_xticks(range(1, s.shape[0] + 1))
     ax.tick_params(labelsize=9)
     ax.set_yticks(range(len(FEATURES)))
     ax.set_yticklabels([SHORT[f] for f in FEATURES] if feature_labels else [], fontsize=9)
     return im
+
 
 def save(fig, path, close: bool = True) -> None:
     """Write ``fig`` atomically as PNG (200 dpi) or PDF, from ``path``'s suffix, and close it (unless
@@ -111,10 +121,18 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             demo = np.rad2deg(arrays[f"{set_name}/demo_{kind}"][..., j])
             pred = np.rad2deg(arrays[f"{set_name}/pred_{kind}"][..., j])
             for i in range(t.shape[0]):
-                ax.plot(t[i], demo[i], "--", color=DEMO_COLOUR, lw=1.2, alpha=0.85,
-                        label="demonstration" if i == 0 else None)
-                ax.plot(t[i], pred[i], "-", color=PRED_COLOUR, lw=1.2, alpha=0.85,
-                        label="prediction" if i == 0 else None)
+                ax.plot(
+                    t[i],
+                    demo[i],
+                    "--",
+                    color=DEMO_COLOUR,
+                    lw=1.2,
+                    alpha=0.85,
+                    label="demonstration" if i == 0 else None,
+                )
+                ax.plot(
+                    t[i], pred[i], "-", color=PRED_COLOUR, lw=1.2, alpha=0.85, label="prediction" if i == 0 else None
+                )
             sym = "q" if kind == "q" else "q̇"
             ax.set_ylabel(f"{sym}{j + 1} ({unit})", fontsize=10)
             ax.tick_params(labelsize=9)
@@ -132,19 +150,34 @@ def _mark_flag(ax, flag: str | None) -> None:
     if not flag:
         return
     text = {"w0": "NOT LEARNED\n(initial weights ω₀)", "one_step": "one step only"}.get(flag, flag)
-    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center", fontsize=8, color="white",
-            fontweight="bold", bbox={"facecolor": "crimson", "alpha": 0.85, "edgecolor": "none"})
+    ax.text(
+        0.5,
+        0.5,
+        text,
+        transform=ax.transAxes,
+        ha="center",
+        va="center",
+        fontsize=8,
+        color="white",
+        fontweight="bold",
+        bbox={"facecolor": "crimson", "alpha": 0.85, "edgecolor": "none"},
+    )
 
 
-def plot_weights(shares: dict, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = "",
-                 flags: dict | None = None, undetermined: dict | None = None):
+def plot_weights(
+    shares: dict,
+    postures: Sequence[str],
+    sections: Sequence[int],
+    axes=None,
+    title: str = "",
+    flags: dict | None = None,
+    undetermined: dict | None = None,
+):
     """``shares[(posture, sections)] = (n_windows, 7)`` cost shares; one heatmap per posture (columns) and
     section count (rows): features on the y axis, windows on the x axis. ``flags[(posture, sections)]`` marks
     fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``); ``undetermined[(posture, sections)]``
     (booleans ``(n_windows, 7)``) hatches the shares whose interval is wide. The caveat is written under it."""
-    fig, axes = _grid(
-        axes, len(sections), len(postures), (2.4 * len(postures) + 2.2, 2.6 * len(sections) + 0.8)
-    )
+    fig, axes = _grid(axes, len(sections), len(postures), (2.4 * len(postures) + 2.2, 2.6 * len(sections) + 0.8))
     im = None
     for r, n in enumerate(sections):
         for c, p in enumerate(postures):
@@ -206,8 +239,14 @@ def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
     return fig
 
 
-def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title: str = "",
-                     merit_label: str = "merit m(x)", start: str = "the initial weights ω₀"):
+def plot_convergence(
+    histories: dict,
+    sections: Sequence[int],
+    axes=None,
+    title: str = "",
+    merit_label: str = "merit m(x)",
+    start: str = "the initial weights ω₀",
+):
     """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration.
     ``merit_label`` names the merit and its units on the y axis; ``start`` says what the weights of iteration 0
     are (the x axis)."""
@@ -218,8 +257,11 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
         ax = axes[0, c]
         for k, p in enumerate(postures):
             h = histories.get((p, n)) or []
-            ok = [r for r in h if r.get("merit") is not None and r.get("iteration") is not None
-                  and r.get("accepted", True)]  # a baseline's history may lack iterations (bilevel)
+            ok = [
+                r
+                for r in h
+                if r.get("merit") is not None and r.get("iteration") is not None and r.get("accepted", True)
+            ]  # a baseline's history may lack iterations (bilevel)
             it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
@@ -237,8 +279,9 @@ def plot_convergence(histories: dict, sections: Sequence[int], axes=None, title:
     return fig
 
 
-def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None,
-               undetermined: dict | None = None):
+def plot_truth(
+    learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None, undetermined: dict | None = None
+):
     """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
     (bottom), postures in natural order (P2 before P10). ``flags[posture]`` marks learned panels whose fit
     never left ω₀ or made one step; ``undetermined[posture]`` hatches the learned shares whose interval is
@@ -249,8 +292,9 @@ def plot_truth(learned: dict, true: dict, axes=None, title: str = "", flags: dic
     for c, p in enumerate(postures):
         for r, (label, d) in enumerate((("learned", learned), ("true", true))):
             ax = axes[r, c]
-            im = _share_heatmap(ax, d[p], feature_labels=c == 0,
-                                undetermined=(undetermined or {}).get(p) if r == 0 else None)
+            im = _share_heatmap(
+                ax, d[p], feature_labels=c == 0, undetermined=(undetermined or {}).get(p) if r == 0 else None
+            )
             if r == 0:
                 ax.set_title(p, fontsize=9)
                 _mark_flag(ax, (flags or {}).get(p))

@@ -45,13 +45,20 @@ def unit_method(method: str, estimator_options, tol: float | None, tasks: int | 
     rollout = str(opts.get("rollout", "mean" if seed_form else "per_task"))
     tol = (0.0 if seed_form else DEFAULT_TOL) if tol is None else float(tol)
     as_paper = "mean" if rollout == "per_task" and tasks == 1 else rollout
-    return {"seed_form": seed_form, "options": options.to_dict(), "rollout": rollout, "tol": tol,
-            "departures": departures(options, as_paper, tol)}
+    return {
+        "seed_form": seed_form,
+        "options": options.to_dict(),
+        "rollout": rollout,
+        "tol": tol,
+        "departures": departures(options, as_paper, tol),
+    }
 
 
 def _iteration(o: Mapping) -> str:
-    return (f"β = {o['beta']:g}, ω₀ = {o['w0']:g}, α = {o['alpha0']:g} shrinking by {o['shrink']:g}, "
-            f"at most {o['max_tries']} tries")
+    return (
+        f"β = {o['beta']:g}, ω₀ = {o['w0']:g}, α = {o['alpha0']:g} shrinking by {o['shrink']:g}, "
+        f"at most {o['max_tries']} tries"
+    )
 
 
 def method_lines(units: Sequence[Mapping]) -> list[str]:
@@ -65,8 +72,12 @@ def method_lines(units: Sequence[Mapping]) -> list[str]:
     for u in units:
         seen.setdefault(u["method"], []).append(u)
     for method, group in seen.items():
-        described = [unit_method(method, u.get("estimator_options"), u.get("tol"),
-                                 tasks=1 if isinstance(u.get("posture"), str) else None) for u in group]
+        described = [
+            unit_method(
+                method, u.get("estimator_options"), u.get("tol"), tasks=1 if isinstance(u.get("posture"), str) else None
+            )
+            for u in group
+        ]
         if described[0] is None:
             lines.append(f"- **{method}:** a baseline, with its own options (not MO-IRL's).")
             continue
@@ -102,14 +113,16 @@ def convergence_text(options: Mapping | None) -> dict[str, str]:
     units = {
         "state": " The merit is the full-state error, q in rad and q̇ in rad/s.",
         "normalised": " The merit is the normalised one (each of q and q̇ divided by the demonstrations' "
-                      "spread): it has no units.",
+        "spread): it has no units.",
     }.get(merit, "")
     if observe:
         start = "where the first stage ended"
-        caption = ("Merit of every fit at each accepted iteration of its observed stage (rollouts seen as the "
-                   "demonstrations were recorded). Iteration 0 is where the fit's first stage (the same options, "
-                   "rollouts not observed) ended, not the initial weights ω₀; trials not cut at a speed "
-                   "threshold have that stage only, from ω₀.")
+        caption = (
+            "Merit of every fit at each accepted iteration of its observed stage (rollouts seen as the "
+            "demonstrations were recorded). Iteration 0 is where the fit's first stage (the same options, "
+            "rollouts not observed) ended, not the initial weights ω₀; trials not cut at a speed "
+            "threshold have that stage only, from ω₀."
+        )
     elif observe is None:
         start = "the fit's first weights"
         caption = "Merit of every fit at each accepted iteration (iteration 0: the weights the fit started from)."

@@ -44,8 +44,11 @@ def annotate_no_data(obj, reasons: dict[str, str] | None = None, _split: str = "
     if isinstance(obj, dict):
         n, failed = obj.get("n_trials"), obj.get("doc_failures")
         if isinstance(n, int) and not isinstance(n, bool) and n > 0:  # the set has trials: none gave a number
-            why = (f"the DOC failed (did not converge) on all {n} trial(s) of this set; no RMSE"
-                   if isinstance(failed, int) and failed >= n else reasons["other"])
+            why = (
+                f"the DOC failed (did not converge) on all {n} trial(s) of this set; no RMSE"
+                if isinstance(failed, int) and failed >= n
+                else reasons["other"]
+            )
             reasons = {**reasons, _split: why}
         out = {}
         for k, v in obj.items():

@@ -43,8 +43,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ALL = "ALL"
-COLUMNS = ("method", "posture", "sections", "train_subject", "test_subject", "rmse_q_mean_deg", "rmse_q_sd_deg",
-           "n")
+COLUMNS = ("method", "posture", "sections", "train_subject", "test_subject", "rmse_q_mean_deg", "rmse_q_sd_deg", "n")
 
 
 def pair_training_subjects(trials: Sequence[Trial], config) -> list[str]:
@@ -94,7 +93,8 @@ def pair_rows(run) -> list[dict]:
                     continue
                 for p in (u["posture"], ALL):
                     cells.setdefault((u["method"], p, int(u["sections"]), train, test), []).append(
-                        float(e["rmse_deg"]["q"]))
+                        float(e["rmse_deg"]["q"])
+                    )
     order = {p: i for i, p in enumerate([*postures, ALL])}
     morder = {m: i for i, m in enumerate(methods)}
     rows = []
@@ -107,9 +107,20 @@ def pair_rows(run) -> list[dict]:
 def to_csv(rows: Sequence[dict]) -> str:
     lines = [",".join(COLUMNS)]
     for r in rows:
-        lines.append(",".join([r["method"], r["posture"], str(r["sections"]), r["train_subject"],
-                               r["test_subject"], f"{r['rmse_q_mean_deg']:.4f}", f"{r['rmse_q_sd_deg']:.4f}",
-                               str(r["n"])]))
+        lines.append(
+            ",".join(
+                [
+                    r["method"],
+                    r["posture"],
+                    str(r["sections"]),
+                    r["train_subject"],
+                    r["test_subject"],
+                    f"{r['rmse_q_mean_deg']:.4f}",
+                    f"{r['rmse_q_sd_deg']:.4f}",
+                    str(r["n"]),
+                ]
+            )
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -153,13 +164,21 @@ def transfer_summary(rows: Sequence[dict], method: str, postures: Sequence[str],
 
     r, p_val = rho(cv, iscv)
     rc, pc = rho(cv_c, iscv_c)
-    return {"cv": cv, "iscv": iscv, "spearman_rho": r, "spearman_p": p_val, "n": len(cv),
-            "within_posture_rho": rc, "within_posture_p": pc}
+    return {
+        "cv": cv,
+        "iscv": iscv,
+        "spearman_rho": r,
+        "spearman_p": p_val,
+        "n": len(cv),
+        "within_posture_rho": rc,
+        "within_posture_p": pc,
+    }
 
 
 # ---------------------------------------------------------------------- figures
-def plot_pair_matrix(subjects: Sequence[str], matrix: np.ndarray, ax=None, title: str = "", vmax=None,
-                     annotate: bool | None = None):
+def plot_pair_matrix(
+    subjects: Sequence[str], matrix: np.ndarray, ax=None, title: str = "", vmax=None, annotate: bool | None = None
+):
     """A train × test subject heatmap of the RMSE of q (deg); the diagonal (CV) is outlined."""
     import matplotlib
 
@@ -170,8 +189,9 @@ def plot_pair_matrix(subjects: Sequence[str], matrix: np.ndarray, ax=None, title
     if ax is None:
         fig, ax = plt.subplots(figsize=(1.2 + 0.45 * max(n, 4), 1.0 + 0.4 * max(n, 4)))
     fig = ax.figure
-    im = ax.imshow(matrix, cmap="magma_r", vmin=0, vmax=vmax if vmax is not None else np.nanmax(matrix),
-                   interpolation="nearest")
+    im = ax.imshow(
+        matrix, cmap="magma_r", vmin=0, vmax=vmax if vmax is not None else np.nanmax(matrix), interpolation="nearest"
+    )
     ax.set_xticks(range(n))
     ax.set_yticks(range(n))
     fs = 8 if n <= 8 else 5
@@ -187,15 +207,23 @@ def plot_pair_matrix(subjects: Sequence[str], matrix: np.ndarray, ax=None, title
                 if np.isfinite(matrix[i, j]):
                     r, g, b, _ = im.cmap(im.norm(matrix[i, j]))
                     dark = 0.299 * r + 0.587 * g + 0.114 * b < 0.5  # white on dark cells, black on light ones
-                    ax.text(j, i, f"{matrix[i, j]:.1f}", ha="center", va="center", fontsize=7,
-                            color="white" if dark else "black")
+                    ax.text(
+                        j,
+                        i,
+                        f"{matrix[i, j]:.1f}",
+                        ha="center",
+                        va="center",
+                        fontsize=7,
+                        color="white" if dark else "black",
+                    )
     ax.set_title(title, fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8, label="RMSE of q (deg)")
     return fig
 
 
-def plot_iscv_vs_cv(rows: Sequence[dict], method: str, postures: Sequence[str], sections: Sequence[int],
-                    axes=None, title: str = ""):
+def plot_iscv_vs_cv(
+    rows: Sequence[dict], method: str, postures: Sequence[str], sections: Sequence[int], axes=None, title: str = ""
+):
     """Left: the distribution of CV (diagonal) and ISCV (off-diagonal) pair RMSEs per section count. Right: each
     training subject's CV RMSE against the mean RMSE of its weights on the other subjects (one point per
     subject and posture), with Spearman ρ per section count."""
@@ -209,10 +237,22 @@ def plot_iscv_vs_cv(rows: Sequence[dict], method: str, postures: Sequence[str], 
     fig = axes[0].figure
     data, labels = [], []
     for n in sections:
-        diag = [r["rmse_q_mean_deg"] for r in rows if r["method"] == method and r["posture"] in postures
-                and r["sections"] == n and r["train_subject"] == r["test_subject"]]
-        off = [r["rmse_q_mean_deg"] for r in rows if r["method"] == method and r["posture"] in postures
-               and r["sections"] == n and r["train_subject"] != r["test_subject"]]
+        diag = [
+            r["rmse_q_mean_deg"]
+            for r in rows
+            if r["method"] == method
+            and r["posture"] in postures
+            and r["sections"] == n
+            and r["train_subject"] == r["test_subject"]
+        ]
+        off = [
+            r["rmse_q_mean_deg"]
+            for r in rows
+            if r["method"] == method
+            and r["posture"] in postures
+            and r["sections"] == n
+            and r["train_subject"] != r["test_subject"]
+        ]
         data += [diag, off]
         labels += [f"CV\n{n} sec.", f"ISCV\n{n} sec."]
     keep = [i for i, d in enumerate(data) if d]
@@ -261,24 +301,35 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
             for ax, p in zip(axes[0], panels, strict=True):
                 subjects, mat = mats[p]
                 plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax)
-            fig.suptitle(f"{m}, {n} section(s): RMSE of q (deg), weights of row subject on column subject's trials "
-                         "(diagonal: own CV)", fontsize=10)
+            fig.suptitle(
+                f"{m}, {n} section(s): RMSE of q (deg), weights of row subject on column subject's trials "
+                "(diagonal: own CV)",
+                fontsize=10,
+            )
             fig.tight_layout()
             name = f"iscv_pairs_{m}_s{n}.png"
             fig_dir.mkdir(parents=True, exist_ok=True)
             save(fig, fig_dir / name)
-            figs[name] = {"caption": f"All-pairs ISCV, {m}, {n} section(s): subject × subject matrix of the RMSE "
-                                     f"of q per posture{' and pooled (ALL)' if len(panels) > 1 else ''}; row = "
-                                     "the subject the weights were learned on, column = the subject predicted; "
-                                     "the outlined diagonal is the training subject's own CV."}
+            figs[name] = {
+                "caption": f"All-pairs ISCV, {m}, {n} section(s): subject × subject matrix of the RMSE "
+                f"of q per posture{' and pooled (ALL)' if len(panels) > 1 else ''}; row = "
+                "the subject the weights were learned on, column = the subject predicted; "
+                "the outlined diagonal is the training subject's own CV."
+            }
         fig = plot_iscv_vs_cv(rows, m, postures, sections, title=f"{m}: CV against ISCV over all subject pairs")
         name = f"iscv_vs_cv_{m}.png"
         save(fig, fig_dir / name)
-        figs[name] = {"caption": f"{m}: distribution of CV and all-pairs ISCV RMSEs, and each training subject's "
-                                 "CV against the mean RMSE of its weights on the other subjects (Spearman ρ)."}
-        md += [f"### {m}", "", "| sections | CV (diagonal) mean | ISCV (off-diagonal) mean | ISCV/CV | "
-               "best donor (lowest mean ISCV, ALL) | worst donor | Spearman ρ (CV vs transfer) | ρ within postures |",
-               "|---|---|---|---|---|---|---|---|"]
+        figs[name] = {
+            "caption": f"{m}: distribution of CV and all-pairs ISCV RMSEs, and each training subject's "
+            "CV against the mean RMSE of its weights on the other subjects (Spearman ρ)."
+        }
+        md += [
+            f"### {m}",
+            "",
+            "| sections | CV (diagonal) mean | ISCV (off-diagonal) mean | ISCV/CV | "
+            "best donor (lowest mean ISCV, ALL) | worst donor | Spearman ρ (CV vs transfer) | ρ within postures |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
         for n in sections:
             sel = [r for r in rows if r["method"] == m and r["sections"] == n and r["posture"] != ALL]
             diag = [r["rmse_q_mean_deg"] for r in sel if r["train_subject"] == r["test_subject"]]
@@ -286,22 +337,33 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
             if not off:
                 continue
             subjects, mat = pair_matrix(rows, m, ALL if len(postures) > 1 else postures[0], n)
-            donors = {s: float(np.nanmean(np.delete(mat[i], i))) for i, s in enumerate(subjects)
-                      if np.isfinite(np.delete(mat[i], i)).any()}
+            donors = {
+                s: float(np.nanmean(np.delete(mat[i], i)))
+                for i, s in enumerate(subjects)
+                if np.isfinite(np.delete(mat[i], i)).any()
+            }
             best = min(donors, key=donors.get)
             worst = max(donors, key=donors.get)
             ts = transfer_summary(rows, m, postures, n)
             rho = "—" if ts["spearman_rho"] is None else f"{ts['spearman_rho']:.2f} (p = {ts['spearman_p']:.2g})"
-            rho_c = ("—" if ts["within_posture_rho"] is None
-                     else f"{ts['within_posture_rho']:.2f} (p = {ts['within_posture_p']:.2g})")
+            rho_c = (
+                "—"
+                if ts["within_posture_rho"] is None
+                else f"{ts['within_posture_rho']:.2f} (p = {ts['within_posture_p']:.2g})"
+            )
             cvm = f"{np.mean(diag):.2f}°" if diag else "—"
             ratio = f"{np.mean(off) / np.mean(diag):.2f}" if diag else "—"
-            md.append(f"| {n} | {cvm} | {np.mean(off):.2f}° | {ratio} | {best} ({donors[best]:.2f}°) | "
-                      f"{worst} ({donors[worst]:.2f}°) | {rho} | {rho_c} |")
+            md.append(
+                f"| {n} | {cvm} | {np.mean(off):.2f}° | {ratio} | {best} ({donors[best]:.2f}°) | "
+                f"{worst} ({donors[worst]:.2f}°) | {rho} | {rho_c} |"
+            )
         md.append("")
-    md += ["Means are over (train, test, posture) cells of the per-pair mean RMSE of q. ρ: Spearman correlation, "
-           "over (training subject, posture), of the subject's own CV RMSE with the mean RMSE of its weights on "
-           "the others; within postures: both centred on their posture's mean first (subject differences only, "
-           "not posture difficulty). The matrices are in "
-           "`iscv_pairs.csv` and the figures `iscv_pairs_*.png`, `iscv_vs_cv_*.png`.", ""]
+    md += [
+        "Means are over (train, test, posture) cells of the per-pair mean RMSE of q. ρ: Spearman correlation, "
+        "over (training subject, posture), of the subject's own CV RMSE with the mean RMSE of its weights on "
+        "the others; within postures: both centred on their posture's mean first (subject differences only, "
+        "not posture difficulty). The matrices are in "
+        "`iscv_pairs.csv` and the figures `iscv_pairs_*.png`, `iscv_vs_cv_*.png`.",
+        "",
+    ]
     return {"rows": rows, "figures": figs, "markdown": md}

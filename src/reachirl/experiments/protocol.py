@@ -13,7 +13,7 @@ With ``iscv="all-pairs"`` every other subject is a training subject too, in extr
 (``Unit.train_subject``; :mod:`reachirl.experiments.pairs`), and ``n_iscv`` counts trials per test subject.
 
 Every prediction is the DOC from the trial's own arm, initial state, target and duration
-(:func:`reachirl.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
+(:func:`reachirl.doc.evaluation.evaluate_trials`). A unit of work is one ``(method, posture, sections)``:
 :func:`run_unit` is a pure function of the unit and its trials, so it gives the same numbers in any process.
 """
 
@@ -97,8 +97,9 @@ class ProtocolConfig:
         if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):
             raise InputError(f"tol must be a number in [0, 0.5), got {self.tol!r}")
         if not (isinstance(self.uncertainty, int) and (self.uncertainty == 0 or 20 <= self.uncertainty <= 1000)):
-            raise InputError(f"uncertainty must be 0 (none) or a number of samples from 20 to 1000, got "
-                             f"{self.uncertainty!r}")
+            raise InputError(
+                f"uncertainty must be 0 (none) or a number of samples from 20 to 1000, got {self.uncertainty!r}"
+            )
         if self.cv not in ("rest", "other-side"):
             raise InputError(f"cv must be 'rest' or 'other-side', got {self.cv!r}")
         for m in self.methods:
@@ -177,8 +178,11 @@ class Unit:
             {
                 "v": RESULT_VERSION,
                 "code": code_fingerprint(self.method, self.backend),
-                "unit": {k: v for k, v in asdict(self).items()
-                         if not (k in ("train_subject", "held_out_posture") and v is None)},
+                "unit": {
+                    k: v
+                    for k, v in asdict(self).items()
+                    if not (k in ("train_subject", "held_out_posture") and v is None)
+                },
                 "data": {k: fingerprint(v) for k, v in split.sets().items()},
                 "ids": {k: [t.id for t in v] for k, v in split.sets().items()},
             },
@@ -192,11 +196,11 @@ class Unit:
 _CODE_COMMON = (
     "arm.py",
     "features.py",
-    "evaluation.py",
+    "doc/evaluation.py",
     "data/trial.py",
     "doc/__init__.py",
     "doc/task.py",
-    "observation.py",
+    "doc/observation.py",
     "irl/base.py",
     "irl/objective.py",
     "irl/moirl.py",
@@ -209,7 +213,12 @@ def code_fingerprint(method: str = "moirl", backend: str = "casadi") -> str:
     """A hash of the source of the modules a unit's result depends on: the arm, features, evaluation, the DOC
     backend, MO-IRL, and for a baseline ``irl/baselines/`` and ``irl/methods.py``."""
     root = Path(__file__).resolve().parent.parent
-    names = [*_CODE_COMMON, f"doc/{backend}.py"]
+    backend_dir = root / "doc" / backend  # a backend is one module (casadi.py) or a package (crocoddyl/)
+    names = [*_CODE_COMMON]
+    if backend_dir.is_dir():
+        names += sorted(p.relative_to(root).as_posix() for p in backend_dir.glob("*.py"))
+    else:
+        names.append(f"doc/{backend}.py")
     if method != "moirl":
         names += [
             "irl/methods.py",
@@ -256,9 +265,7 @@ def resolve_train_subject(trials: Sequence[Trial], config: ProtocolConfig) -> st
     if config.train_subject is None:
         return subjects[0]
     if config.train_subject not in subjects:
-        raise InputError(
-            f"unknown training subject {config.train_subject!r}; the data have {', '.join(subjects)}"
-        )
+        raise InputError(f"unknown training subject {config.train_subject!r}; the data have {', '.join(subjects)}")
     return config.train_subject
 
 
@@ -283,32 +290,47 @@ def split_trials(trials: Sequence[Trial], posture: str, config: ProtocolConfig) 
         )
     cv, _ = _pick(cv, config.n_cv, rng)
     if config.iscv == "all-pairs":  # n_iscv per test subject, so every pair has trials
-        iscv = [t for s in sorted({t.subject for t in others})
-                for t in _pick([t for t in others if t.subject == s], config.n_iscv, rng)[0]]
+        iscv = [
+            t
+            for s in sorted({t.subject for t in others})
+            for t in _pick([t for t in others if t.subject == s], config.n_iscv, rng)[0]
+        ]
     else:
         iscv, _ = _pick(others, config.n_iscv, rng)
     return Split(posture, tuple(train), tuple(cv), tuple(iscv))
 
 
-def make_units(postures: Sequence[str], config: ProtocolConfig,
-               pair_subjects: Sequence[str] = ()) -> list[Unit]:
+def make_units(postures: Sequence[str], config: ProtocolConfig, pair_subjects: Sequence[str] = ()) -> list[Unit]:
     """Every ``(method, posture, sections)``, the costliest (most sections) first for load balancing; with
     ``pair_subjects`` (``--iscv all-pairs``), also every such unit learned from each of those subjects; with
     ``config.posture_transfer`` (and several postures), one unit per held-out posture."""
     opts = {m: _method_options(m, config) for m in config.methods}
     main = {m: _with_uncertainty(opts[m], config) for m in config.methods}  # the main units' fits only
     units = [
-        Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend,
-             main[m] if subj is None else opts[m], subj)
+        Unit(
+            m,
+            p,
+            s,
+            config.seed,
+            config.n_nodes,
+            config.max_iter,
+            config.tol,
+            config.backend,
+            main[m] if subj is None else opts[m],
+            subj,
+        )
         for s in sorted(config.sections, reverse=True)
         for subj in (None, *pair_subjects)
         for m in config.methods
         for p in postures
     ]
     if config.posture_transfer and len(postures) > 1:
-        units += [Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m],
-                       None, p)
-                  for s in sorted(config.sections, reverse=True) for m in config.methods for p in postures]
+        units += [
+            Unit(m, p, s, config.seed, config.n_nodes, config.max_iter, config.tol, config.backend, opts[m], None, p)
+            for s in sorted(config.sections, reverse=True)
+            for m in config.methods
+            for p in postures
+        ]
     return units
 
 
@@ -336,8 +358,11 @@ def _method_options(method: str, config: ProtocolConfig) -> tuple:
     cls = AVAILABLE.get(method)
     if cls is None or not issubclass(cls, MOIRL):
         return ()
-    opts = {"rollout": config.rollout, "seed_form": config.seed_form,
-            "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in config.experimental.items()))}
+    opts = {
+        "rollout": config.rollout,
+        "seed_form": config.seed_form,
+        "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in config.experimental.items())),
+    }
     return tuple(sorted(opts.items()))
 
 
@@ -345,8 +370,9 @@ def _with_uncertainty(options: tuple, config: ProtocolConfig) -> tuple:
     """A MO-IRL unit's options with ``uncertainty`` (and its seed) when the run asks for weight samples."""
     if not options or not config.uncertainty:
         return options
-    return tuple(sorted({**dict(options), "uncertainty": int(config.uncertainty),
-                         "random_state": int(config.seed)}.items()))
+    return tuple(
+        sorted({**dict(options), "uncertainty": int(config.uncertainty), "random_state": int(config.seed)}.items())
+    )
 
 
 def _hashable(v):
@@ -399,8 +425,17 @@ def make_estimator(unit: Unit):
 
 
 def _history(est) -> list[dict]:
-    keep = ("iteration", "merit", "alpha", "tries", "accepted", "doc_solves", "doc_failures", "doc_recovered",
-            "wall_time")
+    keep = (
+        "iteration",
+        "merit",
+        "alpha",
+        "tries",
+        "accepted",
+        "doc_solves",
+        "doc_failures",
+        "doc_recovered",
+        "wall_time",
+    )
     out = []
     for rec in getattr(est, "history_", []) or []:
         out.append({k: rec[k] for k in keep if k in rec})
@@ -424,7 +459,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from ..evaluation import evaluate_trials, summarise
+    from ..doc.evaluation import evaluate_trials, summarise
 
     est = make_estimator(unit)
     t0 = time.perf_counter()
@@ -437,8 +472,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     eval_time, eval_fail, eval_solves = 0.0, 0, 0
     for name, trials in split.sets().items():
         t1 = time.perf_counter()
-        errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend,
-                               observe=unit.observe, path=path)
+        errs = evaluate_trials(w, list(trials), unit.n_nodes, backend=unit.backend, observe=unit.observe, path=path)
         eval_time += time.perf_counter() - t1
         eval_solves += len(errs)
         eval_fail += sum(not e.converged for e in errs)

@@ -2,7 +2,7 @@
 
 * :func:`write_tables` — ``table.md`` and ``table.csv``;
 * :func:`write_figures` — ``figures/*.png`` (and ``.pdf``);
-* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.exports`);
+* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`);
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
 
@@ -53,11 +53,15 @@ def _agreement_note(agreement: dict, n_true: int) -> str:
         v = [a[s][key] for a in agreement.values() if s in a]
         return f"{np.mean(v):.2f}" if v else "—"
 
-    return (f"Virtual subjects, {n_true} sections (mean over postures, train / CV / ISCV): the fits' predictions lie "
-            + " / ".join(mean("learned_vs_true_deg", s) for s in SETS)
-            + "° from the true weights' own; the true weights predict the recorded reaches to "
-            + " / ".join(mean("true_vs_recorded_deg", s) for s in SETS)
-            + "°, the fits to " + " / ".join(mean("learned_vs_recorded_deg", s) for s in SETS) + "°.")
+    return (
+        f"Virtual subjects, {n_true} sections (mean over postures, train / CV / ISCV): the fits' predictions lie "
+        + " / ".join(mean("learned_vs_true_deg", s) for s in SETS)
+        + "° from the true weights' own; the true weights predict the recorded reaches to "
+        + " / ".join(mean("true_vs_recorded_deg", s) for s in SETS)
+        + "°, the fits to "
+        + " / ".join(mean("learned_vs_recorded_deg", s) for s in SETS)
+        + "°."
+    )
 
 
 def _count(items) -> dict:
@@ -78,9 +82,11 @@ def _fmt(c: dict | None) -> str:
     return "—" if not c or c.get("mean") is None else f"{c['mean']:.2f} ± {c['std']:.2f}"
 
 
-OBSERVED = ("the rest-to-rest DOC from the trial's onset posture to its target, seen between its own crossings of "
-            "the onset threshold the trial was cut at, as the reach was recorded (reachirl.observation; a trial not "
-            "cut at a threshold: the DOC over its own duration)")
+OBSERVED = (
+    "the rest-to-rest DOC from the trial's onset posture to its target, seen between its own crossings of "
+    "the onset threshold the trial was cut at, as the reach was recorded (reachirl.doc.observation; a trial "
+    "not cut at a threshold: the DOC over its own duration)"
+)
 WHOLE = "the DOC from the trial's own initial state, target and duration"
 
 
@@ -112,36 +118,38 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
         "Fits ended by: "
         + ", ".join(
             f"{k} {v}"
-            for k, v in sorted(
-                _count(r["stop_reason"] or "one-shot (no iterations)" for r in results.values()).items()
-            )
+            for k, v in sorted(_count(r["stop_reason"] or "one-shot (no iterations)" for r in results.values()).items())
         )
         + f" (at most {config.max_iter} iterations).",
-        "RMSE in degrees, mean ± population SD over trials; " + prediction_note([r["unit"] for r in results.values()])
+        "RMSE in degrees, mean ± population SD over trials; "
+        + prediction_note([r["unit"] for r in results.values()])
         + ", compared on normalised time.",
     ]
     flagged = sorted(f"{r['key']} ({r['flag']})" for r in results.values() if r.get("flag"))
-    notes.append(
-        "Fits flagged: " + (", ".join(flagged) if flagged else "none") + ". " + tb.FLAG_NOTE
-    )
+    notes.append("Fits flagged: " + (", ".join(flagged) if flagged else "none") + ". " + tb.FLAG_NOTE)
     zero = sorted(r["key"] for r in results.values() if not np.any(np.asarray(r["weights"]) > 0))
     if zero:
         notes.append(
             f"Degenerate fits: {', '.join(zero)} learned all-zero weights (the DOC then has no cost and "
             "returns its initial guess, a minimum-jerk path); their rows are reported as they are."
         )
-    doc = {"fit_solves": fit_solves, "fit_failures": fit_fail, "predictions": ev_solves,
-           "prediction_failures": ev_fail}
+    doc = {"fit_solves": fit_solves, "fit_failures": fit_fail, "predictions": ev_solves, "prediction_failures": ev_fail}
     return notes, doc
 
 
-def write_tables(out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str],
-                 reasons: dict[str, str] | None = None) -> list[str]:
+def write_tables(
+    out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str], reasons: dict[str, str] | None = None
+) -> list[str]:
     """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
     methods = list(tables)
     md_tables = [
-        tb.to_markdown(tables[m], postures, sections, n_trials,
-                       title=f"{m}: RMSE of the joint angles (deg)" if len(methods) > 1 else "")
+        tb.to_markdown(
+            tables[m],
+            postures,
+            sections,
+            n_trials,
+            title=f"{m}: RMSE of the joint angles (deg)" if len(methods) > 1 else "",
+        )
         for m in methods
     ]
     atomic_write_text(out / "table.md", "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n")
@@ -162,11 +170,15 @@ def weights_caption(shares: dict) -> str:
     rows = []
     for n in sorted({n for _, n in shares}):
         mean = np.mean([np.asarray(v, dtype=float).mean(axis=0) for (_, k), v in shares.items() if k == n], axis=0)
-        rows.append(f"{n} section{'s' if n > 1 else ''}: largest {listed(mean, np.argsort(mean)[::-1][:2])}; "
-                    f"{listed(mean, [TORQUE_CHANGE, JOINT_ACCELERATION])}")
-    return ("Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
-            "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
-            "window). Mean shares per row: " + ". ".join(rows) + ".")
+        rows.append(
+            f"{n} section{'s' if n > 1 else ''}: largest {listed(mean, np.argsort(mean)[::-1][:2])}; "
+            f"{listed(mean, [TORQUE_CHANGE, JOINT_ACCELERATION])}"
+        )
+    return (
+        "Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
+        "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
+        "window). Mean shares per row: " + ". ".join(rows) + "."
+    )
 
 
 def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
@@ -175,8 +187,9 @@ def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
     fg.save(fig, fig_dir / name)
 
 
-def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], fig_dir: Path | None = None,
-                  pdf: bool = False) -> dict[str, dict]:
+def write_figures(
+    run: RunResult, tables: dict, truth: tuple[dict, dict, dict], fig_dir: Path | None = None, pdf: bool = False
+) -> dict[str, dict]:
     """``figures/*.png`` (and ``.pdf`` with ``pdf``) under ``run.out_dir`` (or ``fig_dir``); returns
     ``{name: {"caption"}}``."""
     out = run.out_dir
@@ -196,7 +209,8 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         arrays = load_unit_arrays(out, key(main, p2, n8))
         if "train/t" in arrays:
             fig = fg.plot_prediction(
-                arrays, "train",
+                arrays,
+                "train",
                 title=f"{p2}, {n8} sections: training demonstrations (dashed) vs {main} predictions (solid)",
             )
             _save_figure(fig, fig_dir, "fig2_prediction.png", pdf)
@@ -210,12 +224,22 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         if r["unit"]["method"] == main
     }
     if shares:
-        flags = {(r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
-                 for r in results.values() if r["unit"]["method"] == main}
-        undetermined = {(r["unit"]["posture"], r["unit"]["sections"]): _undetermined(r)
-                        for r in results.values() if r["unit"]["method"] == main and r.get("uncertainty")}
-        _save_figure(fg.plot_weights(shares, postures, sections, flags=flags, undetermined=undetermined or None),
-                     fig_dir, "fig3_weights.png", pdf)
+        flags = {
+            (r["unit"]["posture"], r["unit"]["sections"]): r.get("flag")
+            for r in results.values()
+            if r["unit"]["method"] == main
+        }
+        undetermined = {
+            (r["unit"]["posture"], r["unit"]["sections"]): _undetermined(r)
+            for r in results.values()
+            if r["unit"]["method"] == main and r.get("uncertainty")
+        }
+        _save_figure(
+            fg.plot_weights(shares, postures, sections, flags=flags, undetermined=undetermined or None),
+            fig_dir,
+            "fig3_weights.png",
+            pdf,
+        )
         figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
@@ -228,7 +252,9 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
     if iscv_arrays:
         _save_figure(
             fg.plot_iscv(iscv_arrays, title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)"),
-            fig_dir, "fig4_iscv.png", pdf,
+            fig_dir,
+            "fig4_iscv.png",
+            pdf,
         )
         figs["fig4_iscv.png"] = {
             "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
@@ -243,30 +269,45 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
         first = next(r["unit"] for r in results.values() if r["unit"]["method"] == main)
         described = unit_method(main, first.get("estimator_options"), first.get("tol"), tasks=1)
         words = convergence_text(described["options"] if described else None)
-        _save_figure(fg.plot_convergence(hist, sections, merit_label=words["merit_label"], start=words["start"]),
-                     fig_dir, "convergence.png", pdf)
+        _save_figure(
+            fg.plot_convergence(hist, sections, merit_label=words["merit_label"], start=words["start"]),
+            fig_dir,
+            "convergence.png",
+            pdf,
+        )
         figs["convergence.png"] = {"caption": words["caption"]}
     learned, true, truth_metrics = truth
     if learned:
         n_true = next(iter(truth_metrics.values()))["sections"]
-        truth_flags = {r["unit"]["posture"]: r.get("flag") for r in results.values()
-                       if r["unit"]["method"] == main and r["unit"]["sections"] == n_true}
-        truth_undetermined = {r["unit"]["posture"]: _undetermined(r) for r in results.values()
-                              if r["unit"]["method"] == main and r["unit"]["sections"] == n_true
-                              and r.get("uncertainty")}
-        _save_figure(fg.plot_truth(learned, true, title=f"Virtual subjects, {n_true} sections: learned vs true "
-                                   "weights (cost shares)", flags=truth_flags,
-                                   undetermined=truth_undetermined or None), fig_dir, "weights_vs_truth.png", pdf)
+        truth_flags = {
+            r["unit"]["posture"]: r.get("flag")
+            for r in results.values()
+            if r["unit"]["method"] == main and r["unit"]["sections"] == n_true
+        }
+        truth_undetermined = {
+            r["unit"]["posture"]: _undetermined(r)
+            for r in results.values()
+            if r["unit"]["method"] == main and r["unit"]["sections"] == n_true and r.get("uncertainty")
+        }
+        _save_figure(
+            fg.plot_truth(
+                learned,
+                true,
+                title=f"Virtual subjects, {n_true} sections: learned vs true weights (cost shares)",
+                flags=truth_flags,
+                undetermined=truth_undetermined or None,
+            ),
+            fig_dir,
+            "weights_vs_truth.png",
+            pdf,
+        )
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
             "both on the features of the true weights' own noise-free reach; true weights = mean of the "
             "training trials' own (jittered) weights from truth.json."
         }
     if len(methods) > 1:
-        heads = {
-            m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS}
-            for m in methods
-        }
+        heads = {m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS} for m in methods}
         _save_figure(fg.plot_methods(heads, sections), fig_dir, "methods.png", pdf)
         figs["methods.png"] = {"caption": "ALL-postures RMSE of q per method, set and section count."}
     return figs
@@ -274,8 +315,8 @@ def write_figures(run: RunResult, tables: dict, truth: tuple[dict, dict, dict], 
 
 def write_predictions(run: RunResult) -> list[Path]:
     """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit
-    (:func:`reachirl.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
-    from ..exports import TrajectoryExport, export_trajectories
+    (:func:`reachirl.data.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
+    from ..data.exports import TrajectoryExport, export_trajectories
 
     written = []
     for key in sorted(run.results):
@@ -285,29 +326,49 @@ def write_predictions(run: RunResult) -> list[Path]:
             if f"{s}/ids" not in a:
                 continue
             for i, tid in enumerate(a[f"{s}/ids"]):
-                items.append(TrajectoryExport(
-                    id=str(tid), t=a[f"{s}/t"][i].astype(float), side=str(a[f"{s}/sides"][i]), set=s,
-                    demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
-                    pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
-                ))
+                items.append(
+                    TrajectoryExport(
+                        id=str(tid),
+                        t=a[f"{s}/t"][i].astype(float),
+                        side=str(a[f"{s}/sides"][i]),
+                        set=s,
+                        demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                        pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                    )
+                )
         if items:
             written.append(export_trajectories(run.out_dir / "predictions" / key, items))
     return written
 
 
-def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: dict, notes: list[str],
-                       doc: dict, comparisons: dict) -> Path:
+def write_results_json(
+    run: RunResult, tables: dict, figs: dict, truth_metrics: dict, notes: list[str], doc: dict, comparisons: dict
+) -> Path:
     """``results.json`` (schema: docs/outputs.md)."""
     config, sections = run.config, list(run.config.sections)
     units = []
     for r in sorted(run.results.values(), key=lambda r: r["key"]):
         units.append(
-            {k: r.get(k) for k in ("key", "unit", "fingerprint", "weights", "cost_shares", "n_iter", "stop_reason",
-                                   "flag", "warnings", "smoothness", "fit", "evaluation", "history")}
+            {
+                k: r.get(k)
+                for k in (
+                    "key",
+                    "unit",
+                    "fingerprint",
+                    "weights",
+                    "cost_shares",
+                    "n_iter",
+                    "stop_reason",
+                    "flag",
+                    "warnings",
+                    "smoothness",
+                    "fit",
+                    "evaluation",
+                    "history",
+                )
+            }
             | {
-                "sets": {
-                    s: {"summary": r["sets"][s]["summary"], "trials": r["sets"][s]["trials"]} for s in SETS
-                },
+                "sets": {s: {"summary": r["sets"][s]["summary"], "trials": r["sets"][s]["trials"]} for s in SETS},
                 "predictions": f"units/{r['key']}.npz",
                 "model": f"models/{r['key']}.json",
                 "uncertainty": uncertainty_summary(r.get("uncertainty")),
@@ -340,8 +401,16 @@ def write_results_json(run: RunResult, tables: dict, figs: dict, truth_metrics: 
     return path
 
 
-def write_report(run: RunResult, tables: dict, md_tables: list[str], notes: list[str], figs: dict,
-                 truth_metrics: dict, comparisons: dict, extra_md: Sequence[str] = ()) -> Path:
+def write_report(
+    run: RunResult,
+    tables: dict,
+    md_tables: list[str],
+    notes: list[str],
+    figs: dict,
+    truth_metrics: dict,
+    comparisons: dict,
+    extra_md: Sequence[str] = (),
+) -> Path:
     """``report.md`` (``extra_md``: more sections, before "Run")."""
     path = run.out_dir / "report.md"
     atomic_write_text(path, _report_md(run, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md))
@@ -435,9 +504,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         + ("its other-arm reaches (mirrored)" if config.cv == "other-side" else "its other trials")
         + ", ISCV on the other subjects' trials of the same posture.",
         "- **Trials per posture:** "
-        + "; ".join(
-            f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS
-        )
+        + "; ".join(f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS)
         + ".",
         f"- **Methods:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
         f"at most {config.max_iter} iterations.",
@@ -464,9 +531,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
     ]
     for row in tb.headline(tab, sections):
         lines.append(
-            f"| {row['sections']} | "
-            + " | ".join(f"{_fmt(row[s])} | {_fmt(row['seed_' + s])}" for s in SETS)
-            + " |"
+            f"| {row['sections']} | " + " | ".join(f"{_fmt(row[s])} | {_fmt(row['seed_' + s])}" for s in SETS) + " |"
         )
     lines += [""]
     # what the numbers say
@@ -479,8 +544,11 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         if c["min_p"] >= 0.05:
             test = f"too few postures for a test: p ≥ {c['min_p']:.2g} whatever the data"
         else:
-            verdict = ("significantly " + ("lower" if c["mean_diff_deg"] < 0 else "higher")
-                       if c["wilcoxon_p"] < 0.05 else "no significant difference")
+            verdict = (
+                "significantly " + ("lower" if c["mean_diff_deg"] < 0 else "higher")
+                if c["wilcoxon_p"] < 0.05
+                else "no significant difference"
+            )
             test = f"{verdict}: Wilcoxon signed-rank p = {c['wilcoxon_p']:.2g} over the postures, one fit each"
         says.append(
             f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo}, lower in "
@@ -516,8 +584,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         for p, m in truth_metrics.items():
             corr = "—" if m["share_correlation"] is None else f"{m['share_correlation']:.2f}"
             lines.append(
-                f"| {p} | {m['mean_total_variation']:.2f} | {corr} | "
-                f"{100 * m['dominant_feature_agreement']:.0f} % |"
+                f"| {p} | {m['mean_total_variation']:.2f} | {corr} | {100 * m['dominant_feature_agreement']:.0f} % |"
             )
         lines += [
             "",
@@ -540,8 +607,10 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
                 "|---|---|---|---|",
             ]
             for p, a in agree.items():
-                cells = [" / ".join(f"{a[s][k]:.2f}" if s in a else "—" for s in SETS)
-                         for k in ("learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg")]
+                cells = [
+                    " / ".join(f"{a[s][k]:.2f}" if s in a else "—" for s in SETS)
+                    for k in ("learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg")
+                ]
                 lines.append(f"| {p} | " + " | ".join(cells) + " |")
             lines += [""]
         ends_true = sorted({m["true_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})

@@ -118,8 +118,9 @@ def _local_executor(workers: int) -> cf.Executor:
     # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
     ctx = multiprocessing.get_context("spawn")
     memory = _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB)
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                                  initargs=(os.getpid(), memory))
+    return cf.ProcessPoolExecutor(
+        max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(), memory)
+    )
 
 
 def _stop_workers(ex: cf.ProcessPoolExecutor) -> None:
@@ -144,8 +145,9 @@ def _dask_client(address: str):
     try:
         return Client(address, timeout="15s", set_as_default=False)
     except Exception as e:  # OSError, TimeoutError, ValueError, a protocol whose package is missing, ...
-        raise InputError(f"cannot connect to the Dask scheduler ({type(e).__name__}: {str(e)[:200]})",
-                         address) from None
+        raise InputError(
+            f"cannot connect to the Dask scheduler ({type(e).__name__}: {str(e)[:200]})", address
+        ) from None
 
 
 def run_units(
@@ -208,11 +210,14 @@ def run_units(
         bounded = threading.current_thread() is threading.main_thread()  # SIGALRM needs the main thread
         for u, _ in todo:
             try:
-                payload = _run_unit_bounded(u, splits[u.split_key], timeout) if bounded else run_unit(
-                    u, splits[u.split_key])
+                payload = (
+                    _run_unit_bounded(u, splits[u.split_key], timeout) if bounded else run_unit(u, splits[u.split_key])
+                )
             except UnitTimeoutError as e:
-                raise InputError(f"{e}; finished units are kept (rerun to resume), raise the limit with "
-                                 f"REACHIRL_UNIT_TIMEOUT_S", out_dir) from None
+                raise InputError(
+                    f"{e}; finished units are kept (rerun to resume), raise the limit with REACHIRL_UNIT_TIMEOUT_S",
+                    out_dir,
+                ) from None
             finish(payload)
     elif scheduler is None:
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
@@ -223,14 +228,20 @@ def run_units(
                 try:
                     payload = f.result()
                 except UnitTimeoutError as e:
-                    raise InputError(f"{e}; finished units are kept (rerun to resume), raise the limit with "
-                                     f"REACHIRL_UNIT_TIMEOUT_S", out_dir) from None
+                    raise InputError(
+                        f"{e}; finished units are kept (rerun to resume), raise the limit with REACHIRL_UNIT_TIMEOUT_S",
+                        out_dir,
+                    ) from None
                 except MemoryError:
-                    raise InputError(f"unit {futures[f]} needed more than the worker's memory limit; raise it "
-                                     f"with REACHIRL_UNIT_MEMORY_GB", out_dir) from None
+                    raise InputError(
+                        f"unit {futures[f]} needed more than the worker's memory limit; raise it "
+                        f"with REACHIRL_UNIT_MEMORY_GB",
+                        out_dir,
+                    ) from None
                 except cf.process.BrokenProcessPool:
-                    raise RuntimeError(f"a worker process died while running unit {futures[f]} (out of memory?)"
-                                       ) from None
+                    raise RuntimeError(
+                        f"a worker process died while running unit {futures[f]} (out of memory?)"
+                    ) from None
                 finish(payload)
                 if len(computed) >= limit:
                     break
@@ -297,8 +308,7 @@ def reproduce(
     splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
     if config.posture_transfer:
         splits.update(transfer_splits(splits, postures))
-    units = [u for u in make_units(postures, config, pair_training_subjects(trials, config))
-             if u.split_key in splits]
+    units = [u for u in make_units(postures, config, pair_training_subjects(trials, config)) if u.split_key in splits]
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(out_dir)
@@ -313,8 +323,11 @@ def reproduce(
         on_start=on_start,
         on_done=on_done,
     )
-    main = {k: r for k, r in summary.results.items()
-            if r["unit"].get("train_subject") is None and r["unit"].get("held_out_posture") is None}
+    main = {
+        k: r
+        for k, r in summary.results.items()
+        if r["unit"].get("train_subject") is None and r["unit"].get("held_out_posture") is None
+    }
     transfer = {k: r for k, r in summary.results.items() if r["unit"].get("held_out_posture") is not None}
     pairs = {k: r for k, r in summary.results.items() if k not in main and k not in transfer}
     summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)

@@ -52,9 +52,25 @@ log = logging.getLogger(__name__)
 
 ALL = "ALL"
 COLUMNS = (
-    "method", "posture", "sections", "analysis", "feature", "window", "cost_share",
-    "train_delta_deg", "train_ci_lo", "train_ci_hi", "cv_delta_deg", "cv_ci_lo", "cv_ci_hi",
-    "iscv_delta_deg", "iscv_ci_lo", "iscv_ci_hi", "plus_delta_deg", "minus_delta_deg", "path_change_deg",
+    "method",
+    "posture",
+    "sections",
+    "analysis",
+    "feature",
+    "window",
+    "cost_share",
+    "train_delta_deg",
+    "train_ci_lo",
+    "train_ci_hi",
+    "cv_delta_deg",
+    "cv_ci_lo",
+    "cv_ci_hi",
+    "iscv_delta_deg",
+    "iscv_ci_lo",
+    "iscv_ci_hi",
+    "plus_delta_deg",
+    "minus_delta_deg",
+    "path_change_deg",
     "verdict",
 )
 SETS = ("train", "cv", "iscv")
@@ -130,13 +146,14 @@ def load_run(run_dir: str | Path):
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
     DOC solutions themselves (warm starts for the same tasks)."""
-    from ..evaluation import rmse_deg
-    from ..observation import predict
+    from ..doc.evaluation import rmse_deg
+    from ..doc.observation import predict
 
     out, sols = [], []
     for i, t in enumerate(trials):
-        sol, seen = predict(t, weights, n_nodes, t.onset_threshold if observe else None, backend,
-                            None if warm is None else warm[i])
+        sol, seen = predict(
+            t, weights, n_nodes, t.onset_threshold if observe else None, backend, None if warm is None else warm[i]
+        )
         out.append(rmse_deg(seen.q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
     return np.array(out), sols
@@ -151,19 +168,29 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
     mask = np.ones((unit.sections, N_FEATURES), dtype=bool)
     mask[:, list(removed)] = False
     experimental = {**dict(params.get("experimental") or {}), "frozen_windows": tuple(frozen)}
-    est = type(base)(**{**params, "feature_mask": mask if removed else None, "experimental": experimental,
-                        "uncertainty": None})
+    est = type(base)(
+        **{**params, "feature_mask": mask if removed else None, "experimental": experimental, "uncertainty": None}
+    )
     est.fit(list(split.train))
-    rmse = {s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)[0].tolist()
-            for s, tr in split.sets().items()}
+    rmse = {
+        s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)[0].tolist()
+        for s, tr in split.sets().items()
+    }
     return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "flag": est.flag_}
 
 
-def sensitivity_job(weights: np.ndarray, trials: Sequence, n_nodes: int, backend: str, window: int,
-                    percent: float, observe: bool = False) -> dict:
+def sensitivity_job(
+    weights: np.ndarray,
+    trials: Sequence,
+    n_nodes: int,
+    backend: str,
+    window: int,
+    percent: float,
+    observe: bool = False,
+) -> dict:
     """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − (predictions
     seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one."""
-    from ..evaluation import rmse_deg
+    from ..doc.evaluation import rmse_deg
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     w = np.asarray(weights, dtype=float)
@@ -216,9 +243,14 @@ def _executor(workers: int):
     return cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
 
 
-def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None, *, workers: int = 1,
-                    on_start: Callable[[int], None] | None = None,
-                    on_done: Callable[[str], None] | None = None) -> dict:
+def run_sensitivity(
+    run_dir: str | Path,
+    config: SensitivityConfig | None = None,
+    *,
+    workers: int = 1,
+    on_start: Callable[[int], None] | None = None,
+    on_done: Callable[[str], None] | None = None,
+) -> dict:
     """Occlusion, sensitivity and identifiability of the chosen units of ``run_dir`` (module docstring). Returns
     ``{"rows": [...], "identifiability": {...}, "units": [...], "config": {...}}``."""
 
@@ -239,16 +271,34 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
     trials = list(dataset.trials)
     chosen = {}
     for p in postures:
-        r = next((r for r in results.values() if r["unit"]["method"] == method and r["unit"]["posture"] == p
-                  and int(r["unit"]["sections"]) == sections and not r["unit"].get("train_subject")), None)
+        r = next(
+            (
+                r
+                for r in results.values()
+                if r["unit"]["method"] == method
+                and r["unit"]["posture"] == p
+                and int(r["unit"]["sections"]) == sections
+                and not r["unit"].get("train_subject")
+            ),
+            None,
+        )
         if r is None:
             raise InputError(f"the run has no finished unit {method}, {p}, {sections} sections", run_dir)
         split = split_trials(trials, p, pconfig)
         if [t.id for t in split.train] != [e["id"] for e in r["sets"]["train"]["trials"]]:
             raise InputError(f"{r['key']}: the training trials differ from the run's", run_dir)
         u = r["unit"]
-        unit = Unit(u["method"], u["posture"], int(u["sections"]), u["seed"], u["n_nodes"], u["max_iter"], u["tol"],
-                    u["backend"], tuple(tuple(x) for x in u.get("estimator_options", ())))
+        unit = Unit(
+            u["method"],
+            u["posture"],
+            int(u["sections"]),
+            u["seed"],
+            u["n_nodes"],
+            u["max_iter"],
+            u["tol"],
+            u["backend"],
+            tuple(tuple(x) for x in u.get("estimator_options", ())),
+        )
         chosen[p] = (unit, split, r)
 
     jobs = []  # (name, fn, args)
@@ -261,9 +311,21 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
                     jobs.append(((p, "freeze_window", s), occlusion_job, (unit, split, (), (s,))))
         if config.sensitivity:
             for s in range(sections):
-                jobs.append(((p, "sensitivity", s), sensitivity_job,
-                             (np.asarray(r["weights"]), list(split.train), unit.n_nodes, unit.backend, s,
-                              float(config.percent), unit.observe)))
+                jobs.append(
+                    (
+                        (p, "sensitivity", s),
+                        sensitivity_job,
+                        (
+                            np.asarray(r["weights"]),
+                            list(split.train),
+                            unit.n_nodes,
+                            unit.backend,
+                            s,
+                            float(config.percent),
+                            unit.observe,
+                        ),
+                    )
+                )
     if on_start:
         on_start(len(jobs))
     done: dict = {}
@@ -300,7 +362,8 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
                     d = np.asarray(res["rmse"][s]) - base[s]
                     pooled.setdefault((kind, i, s), []).extend(d.tolist())
                     row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
-                        d, config.n_boot, config.seed)
+                        d, config.n_boot, config.seed
+                    )
                 row["verdict"] = _verdict(row)
                 rows.append(row)
         for s in range(sections):
@@ -324,7 +387,8 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
                 row = _row(method, ALL, sections, kind, i, mean_shares)
                 for s in SETS:
                     row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
-                        pooled[(kind, i, s)], config.n_boot, config.seed)
+                        pooled[(kind, i, s)], config.n_boot, config.seed
+                    )
                 row["verdict"] = _verdict(row)
                 rows.append(row)
         for s in range(sections):
@@ -340,8 +404,15 @@ def run_sensitivity(run_dir: str | Path, config: SensitivityConfig | None = None
         "rows": rows,
         "identifiability": ident,
         "units": [r["key"] for _, _, r in chosen.values()],
-        "config": {"method": method, "sections": sections, "postures": postures, "percent": config.percent,
-                   "n_boot": config.n_boot, "seed": config.seed, "train_subject": train_subject},
+        "config": {
+            "method": method,
+            "sections": sections,
+            "postures": postures,
+            "percent": config.percent,
+            "n_boot": config.n_boot,
+            "seed": config.seed,
+            "train_subject": train_subject,
+        },
     }
 
 
@@ -405,8 +476,10 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     fig = axes[0].figure
     sel = [r for r in rows if r["posture"] == posture]
-    for ax, kind, label in ((axes[0], "occlude_feature", "feature removed"),
-                            (axes[1], "freeze_window", "window frozen at ω₀")):
+    for ax, kind, label in (
+        (axes[0], "occlude_feature", "feature removed"),
+        (axes[1], "freeze_window", "window frozen at ω₀"),
+    ):
         rs = [r for r in sel if r["analysis"] == kind]
         if not rs:
             ax.set_axis_off()
@@ -418,14 +491,25 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
                 continue
             lo = np.array([r[f"{s}_ci_lo"] for r in rs], float)
             hi = np.array([r[f"{s}_ci_hi"] for r in rs], float)
-            ax.bar(x + (k - 1) * 0.27, m, 0.27, color=c, label=s.upper() if s != "train" else "training",
-                   yerr=np.vstack([m - lo, hi - m]), capsize=2, error_kw={"lw": 0.8})
+            ax.bar(
+                x + (k - 1) * 0.27,
+                m,
+                0.27,
+                color=c,
+                label=s.upper() if s != "train" else "training",
+                yerr=np.vstack([m - lo, hi - m]),
+                capsize=2,
+                error_kw={"lw": 0.8},
+            )
         ax.axhline(0, color="k", lw=0.6)
-        names = [SHORT.get(r["feature"], r["feature"]) if kind == "occlude_feature" else f"w{r['window']}"
-                 for r in rs]
+        names = [SHORT.get(r["feature"], r["feature"]) if kind == "occlude_feature" else f"w{r['window']}" for r in rs]
         ax.set_xticks(x)
-        ax.set_xticklabels(names, rotation=45 if kind == "occlude_feature" else 0, ha="right" if kind ==
-                           "occlude_feature" else "center", fontsize=8)
+        ax.set_xticklabels(
+            names,
+            rotation=45 if kind == "occlude_feature" else 0,
+            ha="right" if kind == "occlude_feature" else "center",
+            fontsize=8,
+        )
         ax.set_ylabel("RMSE change of q (deg), refit − full fit")
         ax.set_title(f"occlusion: {label}", fontsize=9)
         ax.legend(fontsize=7)
@@ -435,8 +519,9 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         m = np.full((n_w, N_FEATURES), np.nan)
         for r in rs:
             m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
-        im = axes[2].imshow(m.T, aspect="auto", cmap="viridis", interpolation="nearest",
-                            extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5))
+        im = axes[2].imshow(
+            m.T, aspect="auto", cmap="viridis", interpolation="nearest", extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5)
+        )
         axes[2].set_yticks(range(N_FEATURES))
         axes[2].set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
         axes[2].set_xticks(range(1, n_w + 1))
@@ -454,36 +539,60 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
 def _markdown(out: dict) -> list[str]:
     cfg, rows = out["config"], out["rows"]
     post = ALL if any(r["posture"] == ALL for r in rows) else cfg["postures"][0]
-    lines = [f"# reachirl sensitivity: {cfg['method']}, {cfg['sections']} section(s), postures "
-             f"{', '.join(cfg['postures'])}", ""]
-    occ = sorted([r for r in rows if r["posture"] == post and r["analysis"] == "occlude_feature"],
-                 key=lambda r: -(r["cv_delta_deg"] if r["cv_delta_deg"] is not None and np.isfinite(
-                     r["cv_delta_deg"]) else r["train_delta_deg"] or 0.0))
+    lines = [
+        f"# reachirl sensitivity: {cfg['method']}, {cfg['sections']} section(s), postures {', '.join(cfg['postures'])}",
+        "",
+    ]
+    occ = sorted(
+        [r for r in rows if r["posture"] == post and r["analysis"] == "occlude_feature"],
+        key=lambda r: (
+            -(
+                r["cv_delta_deg"]
+                if r["cv_delta_deg"] is not None and np.isfinite(r["cv_delta_deg"])
+                else r["train_delta_deg"] or 0.0
+            )
+        ),
+    )
     if occ:
-        lines += [f"## Which costs the data needs (posture {post}; refit without each feature)", "",
-                  "| feature | mean cost share | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | "
-                  "Δ ISCV (deg) [95 % CI] | verdict |", "|---|---|---|---|---|---|"]
+        lines += [
+            f"## Which costs the data needs (posture {post}; refit without each feature)",
+            "",
+            "| feature | mean cost share | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | "
+            "Δ ISCV (deg) [95 % CI] | verdict |",
+            "|---|---|---|---|---|---|",
+        ]
         for r in occ:
-            lines.append(f"| {r['feature']} | {r['cost_share']:.2f} | " + " | ".join(
-                _ci(r, s) for s in SETS) + f" | {r['verdict']} |")
+            lines.append(
+                f"| {r['feature']} | {r['cost_share']:.2f} | "
+                + " | ".join(_ci(r, s) for s in SETS)
+                + f" | {r['verdict']} |"
+            )
         lines.append("")
     fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
     if fr:
-        lines += [f"## Which windows need learning (posture {post}; window frozen at ω₀)", "",
-                  "| window | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | Δ ISCV (deg) [95 % CI] | "
-                  "verdict |", "|---|---|---|---|---|"]
+        lines += [
+            f"## Which windows need learning (posture {post}; window frozen at ω₀)",
+            "",
+            "| window | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | Δ ISCV (deg) [95 % CI] | verdict |",
+            "|---|---|---|---|---|",
+        ]
         for r in fr:
             lines.append(f"| {r['window']} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |")
         lines.append("")
     sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
     if sens:
         top = sorted(sens, key=lambda r: -r["path_change_deg"])[:5]
-        lines += [f"## Most sensitive weights (±{cfg['percent']:g} %, posture {post})", "",
-                  "| window | feature | cost share | path change (deg) | Δ RMSE + (deg) | Δ RMSE − (deg) |",
-                  "|---|---|---|---|---|---|"]
+        lines += [
+            f"## Most sensitive weights (±{cfg['percent']:g} %, posture {post})",
+            "",
+            "| window | feature | cost share | path change (deg) | Δ RMSE + (deg) | Δ RMSE − (deg) |",
+            "|---|---|---|---|---|---|",
+        ]
         for r in top:
-            lines.append(f"| {r['window']} | {r['feature']} | {r['cost_share']:.2f} | {r['path_change_deg']:.3f} | "
-                         f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |")
+            lines.append(
+                f"| {r['window']} | {r['feature']} | {r['cost_share']:.2f} | {r['path_change_deg']:.3f} | "
+                f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |"
+            )
         lines.append("")
     lines += ["## What the training data determines", ""]
     for p, d in out["identifiability"].items():
@@ -492,10 +601,12 @@ def _markdown(out: dict) -> list[str]:
         if det is None:
             lines.append(head + "no sensitivity of this method's fit (only MO-IRL and MaxEnt make rollouts).")
             continue
-        lines.append(head + f"{det['n_determined']} of {det['n_directions']} weight directions determined "
-                     f"(most determined: {det['determined'][0] if det['determined'] else 'none'}; least: "
-                     f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); weights with nearly collinear "
-                     f"effects on the path (|cos| ≥ 0.9, per window): {_effects(d.get('effect_collinearity') or [])}.")
+        lines.append(
+            head + f"{det['n_determined']} of {det['n_directions']} weight directions determined "
+            f"(most determined: {det['determined'][0] if det['determined'] else 'none'}; least: "
+            f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); weights with nearly collinear "
+            f"effects on the path (|cos| ≥ 0.9, per window): {_effects(d.get('effect_collinearity') or [])}."
+        )
     lines.append("")
     return lines
 
@@ -547,8 +658,9 @@ def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
     atomic_write_text(paths[1], "\n".join(_markdown(out)))
     atomic_write_json(paths[2], {"config": out["config"], "units": out["units"], "postures": out["identifiability"]})
     for p in sorted({r["posture"] for r in out["rows"]}):
-        fig = plot_sensitivity(out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} "
-                                                     f"section(s), posture {p}")
+        fig = plot_sensitivity(
+            out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} section(s), posture {p}"
+        )
         path = out_dir / "figures" / f"sensitivity_{p}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
         save(fig, path)

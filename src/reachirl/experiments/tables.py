@@ -273,8 +273,9 @@ SEED_N_TRIALS = {"train": 10, "cv": 10, "iscv": 20}
 
 def natural_key(name: str) -> tuple:
     """Sort key of a posture (or subject) name that orders its numbers by value: P1, P2, …, P10."""
-    return tuple((0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", str(name))
-                 if part)
+    return tuple(
+        (0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", str(name)) if part
+    )
 
 
 def _stats(values: Sequence[float]) -> dict:
@@ -284,9 +285,7 @@ def _stats(values: Sequence[float]) -> dict:
     return {"mean": float(np.mean(v)), "std": float(np.std(v)), "n": int(v.size)}
 
 
-def build_table(
-    results: dict[str, dict], method: str, postures: Sequence[str], sections: Sequence[int]
-) -> dict:
+def build_table(results: dict[str, dict], method: str, postures: Sequence[str], sections: Sequence[int]) -> dict:
     """``table[posture][set][sections][joint] = {"mean", "std", "n"}`` plus ``"doc_failures"`` per cell,
     with the ``ALL`` and ``ALL (trials)`` rows. ``results`` maps unit keys to unit results."""
     by = {(r["unit"]["method"], r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values()}
@@ -313,8 +312,9 @@ def build_table(
                 table[p][s][n] = cell
             table[ALL_TRIALS][s][n] = {**{j: _stats(pooled[j]) for j in JOINTS}, "doc_failures": fails_all}
             if len(postures) == 1:  # an SD over one posture mean would read ± 0: give the trials' spread
-                table[ALL][s][n] = {k: dict(v) if isinstance(v, dict) else v
-                                    for k, v in table[ALL_TRIALS][s][n].items()}
+                table[ALL][s][n] = {
+                    k: dict(v) if isinstance(v, dict) else v for k, v in table[ALL_TRIALS][s][n].items()
+                }
                 continue
             table[ALL][s][n] = {**{j: _stats(means[j]) for j in JOINTS}, "doc_failures": fails_all}
             for j in JOINTS:
@@ -323,16 +323,21 @@ def build_table(
 
 
 FLAG_MARKS = {"w0": "†", "one_step": "‡"}
-FLAG_NOTE = ("† the fit never left its initial weights ω₀ (no step lowered the merit): those predictions are "
-             "ω₀'s, not learned; ‡ the fit stopped after one step.")
+FLAG_NOTE = (
+    "† the fit never left its initial weights ω₀ (no step lowered the merit): those predictions are "
+    "ω₀'s, not learned; ‡ the fit stopped after one step."
+)
 
 
 def _cell(c: dict | None, digits: int = 2, flag: str | None = None, fails: int = 0) -> str:
     failed = f" ({fails} DOC failed)" if fails else ""
     if not c or c.get("mean") is None:
         return "—" + failed
-    return (f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}" + (f" {FLAG_MARKS[flag]}" if flag in FLAG_MARKS else "")
-            + failed)
+    return (
+        f"{c['mean']:.{digits}f} ± {c['std']:.{digits}f}"
+        + (f" {FLAG_MARKS[flag]}" if flag in FLAG_MARKS else "")
+        + failed
+    )
 
 
 def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) -> list[list[str]]:
@@ -341,9 +346,21 @@ def table_rows(table: dict, postures: Sequence[str], sections: Sequence[int]) ->
     rows = []
     for p in [*postures, ALL, ALL_TRIALS]:
         for j in JOINTS:
-            rows.append([p, j, *[_cell(table[p][s].get(n, {}).get(j), flag=table[p][s].get(n, {}).get("flag"),
-                                       fails=table[p][s].get(n, {}).get("doc_failures", 0) if j == "q" else 0)
-                                 for s in SETS for n in sections]])
+            rows.append(
+                [
+                    p,
+                    j,
+                    *[
+                        _cell(
+                            table[p][s].get(n, {}).get(j),
+                            flag=table[p][s].get(n, {}).get("flag"),
+                            fails=table[p][s].get(n, {}).get("doc_failures", 0) if j == "q" else 0,
+                        )
+                        for s in SETS
+                        for n in sections
+                    ],
+                ]
+            )
     return rows
 
 
@@ -359,9 +376,7 @@ def to_markdown(
     lines += ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * 2 + [":---:"] * (len(head) - 2)) + "|"]
     for row in table_rows(table, postures, sections):
         p, j = row[0], row[1]
-        lines.append(
-            "| " + " | ".join([p if j == "q1" else "", f"**{j}**" if j == "q" else j, *row[2:]]) + " |"
-        )
+        lines.append("| " + " | ".join([p if j == "q1" else "", f"**{j}**" if j == "q" else j, *row[2:]]) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -405,9 +420,7 @@ def seed_markdown() -> str:
     for p in [*postures, ALL]:
         for j in JOINTS:
             cells = [_cell(t[p][s][n][j]) for s in SETS for n in SEED_SECTIONS]
-            lines.append(
-                "| " + " | ".join([p if j == "q1" else "", f"**{j}**" if j == "q" else j, *cells]) + " |"
-            )
+            lines.append("| " + " | ".join([p if j == "q1" else "", f"**{j}**" if j == "q" else j, *cells]) + " |")
     return "\n".join(lines) + "\n"
 
 

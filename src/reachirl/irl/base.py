@@ -9,9 +9,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .. import observation
 from ..data.trial import Trial
-from ..doc import DocSolution, ReachingTask, solve_doc
+from ..doc import DocSolution, ReachingTask, observation, solve_doc
 from ..doc.task import moved_path
 
 __all__ = ["WeightEstimator"]
@@ -60,14 +59,15 @@ class WeightEstimator:
     def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
         """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration. An
         estimator with ``observe=True`` predicts a trial cut at a speed threshold as it was recorded
-        (:mod:`reachirl.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots.
+        (:mod:`reachirl.doc.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots.
         Without ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
         self._check_fitted()
         path = self.rollout_path() if warm_start is None else None
         if isinstance(trial_or_task, Trial):
             threshold = trial_or_task.onset_threshold if getattr(self, "observe", False) else None
-            _, seen = observation.predict(trial_or_task, self.weights_, self.n_nodes, threshold, self.backend,
-                                          warm_start, path)
+            _, seen = observation.predict(
+                trial_or_task, self.weights_, self.n_nodes, threshold, self.backend, warm_start, path
+            )
             return seen
         if isinstance(trial_or_task, ReachingTask):
             task = trial_or_task

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..doc.evaluation import TrialError, evaluate_trials
 from ..errors import InputError
-from ..evaluation import TrialError, evaluate_trials
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, read_json
 from ..validation import brief, check_file_size, check_n_nodes, require
@@ -59,12 +59,20 @@ class LearnedModel:
         r = self.info.get("rollout_q")
         return None if r is None else np.asarray(r, dtype=float)
 
-    def evaluate(self, trials: Sequence, backend: str = "casadi",
-                 on_trial: Callable[[TrialError], None] | None = None) -> list[TrialError]:
+    def evaluate(
+        self, trials: Sequence, backend: str = "casadi", on_trial: Callable[[TrialError], None] | None = None
+    ) -> list[TrialError]:
         """Each trial predicted from its own start as the model was fitted (:attr:`observe`, from
-        :attr:`rollout_q`), with its RMSE: :func:`reachirl.evaluation.evaluate_trials` under this model."""
-        return evaluate_trials(self.weights, trials, n_nodes=self.n_nodes, backend=backend, on_trial=on_trial,
-                               observe=self.observe, path=self.rollout_q)
+        :attr:`rollout_q`), with its RMSE: :func:`reachirl.doc.evaluation.evaluate_trials` under this model."""
+        return evaluate_trials(
+            self.weights,
+            trials,
+            n_nodes=self.n_nodes,
+            backend=backend,
+            on_trial=on_trial,
+            observe=self.observe,
+            path=self.rollout_q,
+        )
 
 
 def save_model(path: str | Path, model: LearnedModel) -> Path:
@@ -115,28 +123,46 @@ def check_model_dict(d, path) -> None:
                 f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {brief(v)}",
                 path,
             )
-    require(any(float(v) > 0 for row in w for v in row),
-            "field 'weights': all weights are zero, so the DOC would have no cost to minimise", path)
-    require(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals",
-            path)
+    require(
+        any(float(v) > 0 for row in w for v in row),
+        "field 'weights': all weights are zero, so the DOC would have no cost to minimise",
+        path,
+    )
+    require(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals", path)
     if "n_windows" in d:
-        require(d["n_windows"] == len(w), f"field 'n_windows' = {brief(d['n_windows'])} but 'weights' has "
-                f"{len(w)} rows", path)
+        require(
+            d["n_windows"] == len(w),
+            f"field 'n_windows' = {brief(d['n_windows'])} but 'weights' has {len(w)} rows",
+            path,
+        )
     for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
         if key in d:
             require(isinstance(d[key], typ), f"field '{key}': expected {name}, found {brief(d[key])}", path)
     observe = d.get("info", {}).get("observe")
-    require(observe is None or isinstance(observe, bool),
-            f"field 'info.observe': expected true or false, found {brief(observe)}", path)
+    require(
+        observe is None or isinstance(observe, bool),
+        f"field 'info.observe': expected true or false, found {brief(observe)}",
+        path,
+    )
     rollout = d.get("info", {}).get("rollout_q")
     if rollout is not None:
-        ok = (isinstance(rollout, list) and len(rollout) == n_nodes + 1
-              and all(isinstance(r, list) and len(r) == 2 for r in rollout))
-        require(ok, f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
-                f"{brief(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}", path)
+        ok = (
+            isinstance(rollout, list)
+            and len(rollout) == n_nodes + 1
+            and all(isinstance(r, list) and len(r) == 2 for r in rollout)
+        )
+        require(
+            ok,
+            f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
+            f"{brief(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}",
+            path,
+        )
         for i, r in enumerate(rollout):
-            require(all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
-                    f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}", path)
+            require(
+                all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
+                f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}",
+                path,
+            )
 
 
 def load_model(path: str | Path) -> LearnedModel:

@@ -22,7 +22,7 @@ demonstrations (the seed's, identical to ``"per_task"`` on one task).
 
 **Observed rollouts** (``Options.observe``): for demonstrations cut at a fingertip-speed threshold
 (``Trial.onset_threshold``), a rollout is the rest-to-rest DOC over ``duration / MOVING_FRACTION`` and enters the
-merit and the features through its own onset-to-offset part (:mod:`reachirl.observation`). The fit first runs on
+merit and the features through its own onset-to-offset part (:mod:`reachirl.doc.observation`). The fit first runs on
 whole rollouts (same options) and goes on from those weights; both stages' solves are counted.
 """
 
@@ -40,9 +40,7 @@ import numpy as np
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_solution
 from ..doc import DocSolution, ReachingTask, solve_doc
-from ..doc.sensitivity import weight_jacobian
-from ..features import N_FEATURES, feature_rates, window_index, windowed_features
-from ..observation import (
+from ..doc.observation import (
     common_threshold,
     observe,
     observed_knots,
@@ -50,13 +48,23 @@ from ..observation import (
     observed_task,
     rest_to_rest,
 )
+from ..doc.sensitivity import weight_jacobian
+from ..features import N_FEATURES, feature_rates, window_index, windowed_features
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 from .options import FIELDS as _OPTION_FIELDS
 from .options import ROLLOUTS, Options, resolve_options
 
-__all__ = ["MOIRL", "SMOOTHNESS_GRID", "demonstration_states", "fit_flag", "fit_warnings", "mean_task",
-           "mixed_postures_warning", "multimodal_accept"]
+__all__ = [
+    "MOIRL",
+    "SMOOTHNESS_GRID",
+    "demonstration_states",
+    "fit_flag",
+    "fit_warnings",
+    "mean_task",
+    "mixed_postures_warning",
+    "multimodal_accept",
+]
 
 DEFAULT_TOL = 1e-4
 """The acceptance threshold: well above the DOC's own repeatability (warm and cold solves of the same weights give
@@ -74,7 +82,10 @@ def mean_task(trials: Sequence[Trial], n_nodes: int) -> ReachingTask:
     arm = ArmModel(**{f.name: float(np.mean([getattr(a, f.name) for a in arms])) for f in fields(ArmModel)})
     q0 = np.mean([t.x0[:2] for t in trials], axis=0)
     return ReachingTask(
-        arm, q0, float(np.mean([t.target_x for t in trials])), float(np.mean([t.duration for t in trials])),
+        arm,
+        q0,
+        float(np.mean([t.target_x for t in trials])),
+        float(np.mean([t.duration for t in trials])),
         n_nodes=n_nodes,
     )
 
@@ -219,10 +230,12 @@ class MOIRL(WeightEstimator):
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
         if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
             raise ValueError(f"tol must be a number >= 0 and < 1, got {self.tol}")
-        if self.uncertainty is not None and not (isinstance(self.uncertainty, int | np.integer)
-                                                 and 20 <= self.uncertainty <= 1000):
-            raise ValueError(f"uncertainty must be a number of samples from 20 to 1000, or None, got "
-                             f"{self.uncertainty!r}")
+        if self.uncertainty is not None and not (
+            isinstance(self.uncertainty, int | np.integer) and 20 <= self.uncertainty <= 1000
+        ):
+            raise ValueError(
+                f"uncertainty must be a number of samples from 20 to 1000, or None, got {self.uncertainty!r}"
+            )
         if any(k >= self.n_windows for k in self._o.frozen_windows):
             raise ValueError(f"frozen_windows {self._o.frozen_windows} must be windows 0 to {self.n_windows - 1}")
         self._mask = self._feature_mask()
@@ -234,8 +247,10 @@ class MOIRL(WeightEstimator):
             return np.ones((self.n_windows, N_FEATURES), dtype=bool)
         m = np.asarray(self.feature_mask)
         if m.dtype != bool or m.shape not in ((N_FEATURES,), (self.n_windows, N_FEATURES)):
-            raise ValueError(f"feature_mask must be booleans of shape ({N_FEATURES},) or ({self.n_windows}, "
-                             f"{N_FEATURES}), got {m.dtype} {m.shape}")
+            raise ValueError(
+                f"feature_mask must be booleans of shape ({N_FEATURES},) or ({self.n_windows}, "
+                f"{N_FEATURES}), got {m.dtype} {m.shape}"
+            )
         m = np.broadcast_to(m, (self.n_windows, N_FEATURES)).copy()
         if not m.any(axis=1).all():
             raise ValueError("feature_mask leaves a window without any feature")
@@ -254,7 +269,6 @@ class MOIRL(WeightEstimator):
         keys = list(dict.fromkeys((t.subject, t.posture) for t in trials))
         return np.array([keys.index((t.subject, t.posture)) for t in trials])
 
-
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         """The rollouts' tasks; sets ``self._thresholds`` (each rollout's onset threshold, or ``None``) and
         ``self._of`` (each demonstration's rollout)."""
@@ -267,16 +281,15 @@ class MOIRL(WeightEstimator):
             group = [t for t, g in zip(trials, self._of, strict=True) if g == r]
             task = mean_task(group, self.n_nodes)
             th = common_threshold(group) if self._o.observe else None
-            if th is not None:  # rest to rest, seen from onset to offset (reachirl.observation)
+            if th is not None:  # rest to rest, seen from onset to offset (reachirl.doc.observation)
                 task = rest_to_rest(task)
             tasks.append(task)
             self._thresholds.append(th)
         return tasks
 
-
     def _seen(self, i: int, task: ReachingTask, sol: DocSolution) -> Trial:
         """Rollout ``i`` as a trial, seen as the demonstrations were recorded: its onset-to-offset part when
-        they were cut at a threshold (:func:`reachirl.observation.observe`), all of it otherwise."""
+        they were cut at a threshold (:func:`reachirl.doc.observation.observe`), all of it otherwise."""
         if self._thresholds[i] is None:
             return trial_from_solution(sol, task.arm, task.target_x)
         return observe(sol, task, self._thresholds[i])
@@ -319,22 +332,31 @@ class MOIRL(WeightEstimator):
     def _features(self, tasks, sols: list[DocSolution], starts: np.ndarray) -> np.ndarray:
         """Features of each rollout: ``(R, n_windows, 7)``, or with suffixes ``(R, 1 + n_suffixes, S, 7)``."""
         if self._o.feature_cutoff is not None:  # the filter needs the rollout as a recording
-            return np.stack([self._trajectory_features(self._seen(i, task, sol), starts)
-                             for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))])
-        return np.stack([self._knot_features(task.arm, *observed_knots(sol, task, self._thresholds[i]), starts)
-                         for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))])
+            return np.stack(
+                [
+                    self._trajectory_features(self._seen(i, task, sol), starts)
+                    for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))
+                ]
+            )
+        return np.stack(
+            [
+                self._knot_features(task.arm, *observed_knots(sol, task, self._thresholds[i]), starts)
+                for i, (task, sol) in enumerate(zip(tasks, sols, strict=True))
+            ]
+        )
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 
     def _state(self, i: int, task: ReachingTask, sol: DocSolution) -> np.ndarray:
         """Rollout ``i``'s state on the knots as the merit compares it, ``(N+1, 4)``: seen as the demonstrations
-        were recorded (:func:`reachirl.observation.observed_knots`), or the DOC's own knots."""
+        were recorded (:func:`reachirl.doc.observation.observed_knots`), or the DOC's own knots."""
         q, qd, _, _ = observed_knots(sol, task, self._thresholds[i])
         return np.hstack([q, qd])
 
-    def _merit(self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None,
-               tasks: Sequence[ReachingTask]) -> float:
+    def _merit(
+        self, x_demos: np.ndarray, sols: list[DocSolution], channels: np.ndarray | None, tasks: Sequence[ReachingTask]
+    ) -> float:
         if any(not s.converged for s in sols):
             return np.inf
         states = [self._state(i, task, s) for i, (task, s) in enumerate(zip(tasks, sols, strict=True))]
@@ -367,13 +389,13 @@ class MOIRL(WeightEstimator):
         may not move (:meth:`_movable`) keep their value; removed features are absent from the likelihood."""
         free = self._movable(w.shape)
         if self._o.scaling is None:
-            dw, info = solve_delta(w, self._subproblem_terms(phi_star, bank, starts), self._o.beta,
-                                   self._o.use_gamma, self._o.l1)
+            dw, info = solve_delta(
+                w, self._subproblem_terms(phi_star, bank, starts), self._o.beta, self._o.use_gamma, self._o.l1
+            )
             return np.where(free, dw, 0.0), info
         groups = self._subproblem_terms(phi_star / sigma, [b / sigma for b in bank], starts)
         n_demo = phi_star.shape[0]
-        return solve_step(w, sigma, groups, self._o.beta, ratio, smoothness * n_demo,
-                          free=free, present=self._mask)
+        return solve_step(w, sigma, groups, self._o.beta, ratio, smoothness * n_demo, free=free, present=self._mask)
 
     # ------------------------------------------------------------------ fit / predict
     def fit(self, trials: Sequence[Trial]) -> MOIRL:
@@ -406,7 +428,7 @@ class MOIRL(WeightEstimator):
         """``λ`` of :data:`SMOOTHNESS_GRID` with the lowest mean joint-angle RMSE over ``cv_folds`` folds of the
         training demonstrations (each fold predicted by the DOC from its own start, as a test trial would be).
         Ties go to the smoother model. The folds interleave the trials in their given order."""
-        from ..evaluation import rmse_deg
+        from ..doc.evaluation import rmse_deg
 
         k = min(int(self._o.cv_folds), len(trials))
         if k < 2:
@@ -417,8 +439,14 @@ class MOIRL(WeightEstimator):
             errs = []
             for held in folds:
                 train = [t for i, t in enumerate(trials) if i not in held]
-                est = type(self)(**{**self.get_params(), "callback": None, "uncertainty": None,
-                                    "experimental": {**dict(self.experimental or {}), "smoothness": lam}})
+                est = type(self)(
+                    **{
+                        **self.get_params(),
+                        "callback": None,
+                        "uncertainty": None,
+                        "experimental": {**dict(self.experimental or {}), "smoothness": lam},
+                    }
+                )
                 est._check_params(train)
                 est._fit(train, lam)
                 for i in held:
@@ -445,12 +473,15 @@ class MOIRL(WeightEstimator):
             plain.rollout = "mean" if self.rollout == "mean" else "per_task"
             plain._fit(trials, smoothness)
         x_demos = demonstration_states(trials, self.n_nodes)
-        self._tau_demos = np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self._o.acceptance == "multimodal" \
-            else None
+        self._tau_demos = (
+            np.stack([t.knots(self.n_nodes)[2] for t in trials]) if self._o.acceptance == "multimodal" else None
+        )
         channels = channel_scale(x_demos) if self._o.merit == "normalised" else None
         guesses = [x_demos[self._of == r, :, :2].mean(axis=0) for r in range(len(tasks))]
-        starts = np.array([0]) if not self._o.n_suffixes else np.unique(
-            np.linspace(0, self.n_nodes * 0.9, self._o.n_suffixes + 1).astype(int)
+        starts = (
+            np.array([0])
+            if not self._o.n_suffixes
+            else np.unique(np.linspace(0, self.n_nodes * 0.9, self._o.n_suffixes + 1).astype(int))
         )
         phi_star = self._demo_features(trials, starts)
         sigma = None
@@ -474,9 +505,18 @@ class MOIRL(WeightEstimator):
         best = (m, w, sols, 0)  # the fit returns the best merit seen ("either" acceptance can raise it)
         bank = [self._features(tasks, sols, starts)]
         self.history_ = [
-            {"iteration": 0, "merit": m, "alpha": 0.0, "tries": 0, "accepted": True, "weights": w.tolist(),
-             "doc_solves": n_solves, "doc_failures": n_fail, "doc_recovered": 0,
-             "wall_time": time.perf_counter() - t_start}
+            {
+                "iteration": 0,
+                "merit": m,
+                "alpha": 0.0,
+                "tries": 0,
+                "accepted": True,
+                "weights": w.tolist(),
+                "doc_solves": n_solves,
+                "doc_failures": n_fail,
+                "doc_recovered": 0,
+                "wall_time": time.perf_counter() - t_start,
+            }
         ]
         if not np.isfinite(m):
             log.warning("the DOC at the initial weights did not converge")
@@ -489,29 +529,50 @@ class MOIRL(WeightEstimator):
             # every weight scaled by one factor changes no DOC, so no α can lower the merit (the demonstrations
             # cost more than the rollout on every feature: the likelihood has nothing left to say)
             rescale = _is_rescale(w, dw)
-            step = (_Step(False, 0.0, 0, w, sols, m, 0, 0, 0) if rescale else
-                    self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels))
+            step = (
+                _Step(False, 0.0, 0, w, sols, m, 0, 0, 0)
+                if rescale
+                else self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels)
+            )
             kind = "likelihood"
             # the Gauss-Newton model costs no solve: it is also tried when the likelihood's step gains little
-            small = not step.accepted or (self._o.merit_model == "gauss-newton"
-                                          and step.merit > m * (1.0 - self._o.fallback_tol))
+            small = not step.accepted or (
+                self._o.merit_model == "gauss-newton" and step.merit > m * (1.0 - self._o.fallback_tol)
+            )
             if self._o.fallback == "merit" and np.isfinite(m) and small:
                 # the likelihood's step lowers the merit by less than a merit step must (or not at all): a step
                 # from a local model of the merit itself, taken when it is accepted (it then lowers the merit by
                 # at least fallback_tol, more than the likelihood's step did)
                 alt = self._merit_step(w, m, sols, tasks, x_demos, phi_star, starts, guesses, channels, ratio)
                 if alt.accepted or not step.accepted:
-                    step, kind = alt._replace(solves=alt.solves + step.solves, failures=alt.failures + step.failures,
-                                              recovered=alt.recovered + step.recovered), "merit"
+                    step, kind = (
+                        alt._replace(
+                            solves=alt.solves + step.solves,
+                            failures=alt.failures + step.failures,
+                            recovered=alt.recovered + step.recovered,
+                        ),
+                        "merit",
+                    )
                 else:  # the likelihood's smaller gain stands; the merit step's solves count all the same
-                    step = step._replace(solves=step.solves + alt.solves, failures=step.failures + alt.failures,
-                                         recovered=step.recovered + alt.recovered)
+                    step = step._replace(
+                        solves=step.solves + alt.solves,
+                        failures=step.failures + alt.failures,
+                        recovered=step.recovered + alt.recovered,
+                    )
             n_solves += step.solves
             n_fail += step.failures
             n_rescued += step.recovered
-            record = {"iteration": it, "step": kind, "alpha": step.alpha, "tries": step.tries,
-                      "accepted": step.accepted, "subproblem_iterations": info["nit"], "doc_solves": n_solves,
-                      "doc_failures": n_fail, "doc_recovered": n_rescued}
+            record = {
+                "iteration": it,
+                "step": kind,
+                "alpha": step.alpha,
+                "tries": step.tries,
+                "accepted": step.accepted,
+                "subproblem_iterations": info["nit"],
+                "doc_solves": n_solves,
+                "doc_failures": n_fail,
+                "doc_recovered": n_rescued,
+            }
             if not step.accepted:
                 record.update(merit=m, weights=w.tolist(), wall_time=time.perf_counter() - t_start)
                 self.history_.append(record)
@@ -520,8 +581,11 @@ class MOIRL(WeightEstimator):
                 break
             n_accepted += 1
             # trust region: the next step may go 4× as far (in log-weights) as this accepted one, up to max_ratio
-            ratio = float(np.clip(np.exp(4.0 * np.max(np.abs(np.log(step.weights / w)))), 1.0 + self._o.min_step,
-                                  self._o.max_ratio))
+            ratio = float(
+                np.clip(
+                    np.exp(4.0 * np.max(np.abs(np.log(step.weights / w)))), 1.0 + self._o.min_step, self._o.max_ratio
+                )
+            )
             w, sols, m = step.weights, step.solutions, step.merit
             if m < best[0]:
                 best = (m, w, sols, it)
@@ -547,9 +611,14 @@ class MOIRL(WeightEstimator):
         self.plain_fit_ = None
         best_iteration, initial_merit = self.best_iteration_, self.initial_merit_
         if plain is not None:
-            self.plain_fit_ = {"merit": plain.merit_, "initial_merit": plain.initial_merit_,
-                               "n_iter": plain.n_iter_, "n_accepted": plain.n_accepted_,
-                               "stop_reason": plain.stop_reason_, "weights": plain.weights_.tolist()}
+            self.plain_fit_ = {
+                "merit": plain.merit_,
+                "initial_merit": plain.initial_merit_,
+                "n_iter": plain.n_iter_,
+                "n_accepted": plain.n_accepted_,
+                "stop_reason": plain.stop_reason_,
+                "weights": plain.weights_.tolist(),
+            }
             # the flag judges both stages: ω₀ only if neither moved, one step only if they made one between them
             n_accepted += plain.n_accepted_
             self.n_accepted_ = n_accepted
@@ -561,8 +630,9 @@ class MOIRL(WeightEstimator):
             for msg in self.warnings_:
                 log.warning(msg)
 
-    def _line_search(self, w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels,
-                     tol: float | None = None) -> _Step:
+    def _line_search(
+        self, w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels, tol: float | None = None
+    ) -> _Step:
         """``α = α0, α0·shrink, …`` (at most ``max_tries``): the first ``ω + αΔω`` whose DOC rollout lowers the
         merit by more than ``tol`` (relative; or passes the "either" test) is accepted. A try whose DOC fails
         even after the cold and demonstration-path retries counts as a failure and is rejected.
@@ -584,8 +654,11 @@ class MOIRL(WeightEstimator):
             failures += failed
             m_try = self._merit(x_demos, cand, channels, tasks)
             if m_try < m * (1.0 - tol) or (
-                failed == 0 and (self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
-                                 or self._accept_multimodal(m, m_try, sols, cand))
+                failed == 0
+                and (
+                    self._accept_either(w, dw, alpha, tasks, sols, cand, phi_star, starts)
+                    or self._accept_multimodal(m, m_try, sols, cand)
+                )
             ):
                 return _Step(True, alpha, tries, w_try, cand, m_try, solves, failures, recovered)
             if self._o.line_search_stop and self._o.acceptance == "merit" and np.isfinite(m_try) and m_try >= m_prev:
@@ -603,7 +676,7 @@ class MOIRL(WeightEstimator):
         likelihood step would be. The model (``merit_model``):
 
         * ``"gauss-newton"``: each rollout's derivative along every log-weight (:func:`reachirl.doc.sensitivity
-          .weight_jacobian`, seen as the demonstrations were recorded: :func:`reachirl.observation
+          .weight_jacobian`, seen as the demonstrations were recorded: :func:`reachirl.doc.observation
           .observed_state_jacobian`) gives the Gauss-Newton model of the merit in all ``S × 7`` log-weights
           (:func:`reachirl.irl.objective.gauss_newton_step`); no DOC is solved for it.
         * ``"probes"``: rollouts with each feature's weight (in every window) scaled by ``ρ^{±1}`` give a
@@ -613,8 +686,11 @@ class MOIRL(WeightEstimator):
         Returns the line search's outcome, with the model's solves counted."""
         h = max(float(np.log(ratio)), float(np.log(1.1)))  # probes well above the DOC's repeatability
         free = self._movable(w.shape)
-        eta = self._gauss_newton(w, sols, tasks, x_demos, channels, h, free) \
-            if self._o.merit_model == "gauss-newton" else None
+        eta = (
+            self._gauss_newton(w, sols, tasks, x_demos, channels, h, free)
+            if self._o.merit_model == "gauss-newton"
+            else None
+        )
         solves = failures = 0
         if eta is None:
             mp, mm = np.full(N_FEATURES, np.inf), np.full(N_FEATURES, np.inf)
@@ -630,8 +706,19 @@ class MOIRL(WeightEstimator):
         dw = np.where(free, w * np.expm1(eta), 0.0)
         if _is_rescale(w, dw):
             return _Step(False, 0.0, 0, w, sols, m, solves, failures, 0)
-        step = self._line_search(w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels,
-                                 tol=max(self.tol_, self._o.fallback_tol))
+        step = self._line_search(
+            w,
+            dw,
+            m,
+            sols,
+            tasks,
+            x_demos,
+            phi_star,
+            starts,
+            guesses,
+            channels,
+            tol=max(self.tol_, self._o.fallback_tol),
+        )
         return step._replace(solves=step.solves + solves, failures=step.failures + failures)
 
     def _gauss_newton(self, w, sols, tasks, x_demos, channels, h, free) -> np.ndarray | None:
@@ -650,8 +737,11 @@ class MOIRL(WeightEstimator):
                 log.info("no Gauss-Newton model (%s): probing the merit instead", e)
                 return None
             states.append(self._state(i, task, sol))
-            jacs.append((observed_state_jacobian(sol, task, self._thresholds[i], dq) * scale[None, :, None])
-                        .reshape(-1, cols.size))
+            jacs.append(
+                (observed_state_jacobian(sol, task, self._thresholds[i], dq) * scale[None, :, None]).reshape(
+                    -1, cols.size
+                )
+            )
         states, jacs = [states[r] for r in self._of], [jacs[r] for r in self._of]  # each demonstration's rollout
         residuals = np.stack([((x - xd) * scale).reshape(-1) for x, xd in zip(states, x_demos, strict=True)])
         eta = np.zeros(w.size)
@@ -665,8 +755,13 @@ class MOIRL(WeightEstimator):
         return free
 
     def _notify(self, record: dict) -> None:
-        log.info("iteration %d: merit %.5g alpha %.3g tries %d", record["iteration"], record["merit"],
-                 record["alpha"], record["tries"])
+        log.info(
+            "iteration %d: merit %.5g alpha %.3g tries %d",
+            record["iteration"],
+            record["merit"],
+            record["alpha"],
+            record["tries"],
+        )
         if self.callback is not None:
             self.callback(record)
 
@@ -725,9 +820,11 @@ def mixed_postures_warning(trials: Sequence[Trial]) -> str | None:
     postures = sorted({t.posture for t in trials})
     if len(postures) < 2:
         return None
-    return (f"the demonstrations span {len(postures)} postures ({', '.join(postures)}): the one training rollout "
-            "starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
-            "--posture), or use one rollout per demonstration")
+    return (
+        f"the demonstrations span {len(postures)} postures ({', '.join(postures)}): the one training rollout "
+        "starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
+        "--posture), or use one rollout per demonstration"
+    )
 
 
 def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
@@ -747,6 +844,8 @@ def fit_warnings(best_iteration: int, n_accepted: int, initial_merit: float, fin
         return ["never left the initial weights: no step lowered the merit, so these weights are w0, not learned"]
     if n_accepted == 1:
         gain = 100.0 * (1.0 - final_merit / initial_merit) if np.isfinite(initial_merit) and initial_merit else 0.0
-        return [f"stopped after one step (merit {gain:.1f} % below w0's): no second step lowered the merit, so "
-                "these weights were not refined"]
+        return [
+            f"stopped after one step (merit {gain:.1f} % below w0's): no second step lowered the merit, so "
+            "these weights were not refined"
+        ]
     return []

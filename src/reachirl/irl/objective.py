@@ -268,8 +268,9 @@ def solve_step(
     if free is not None:
         bound = np.where(free, bound, 0.0)
 
-    eta, info = minimize_in_box(lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound,
-                                max_iter)
+    eta, info = minimize_in_box(
+        lambda e: step_objective(e, theta, groups, beta, smoothness, log_sigma), -bound, bound, max_iter
+    )
     return w * np.expm1(np.clip(eta, -bound, bound)), info
 
 

@@ -28,7 +28,7 @@ class Options:
     """Every choice of the MO-IRL iteration that :class:`~reachirl.irl.moirl.MOIRL` does not take as a parameter.
 
     * ``observe``: rollouts of demonstrations cut at a fingertip-speed threshold are the rest-to-rest DOC seen
-      between their own threshold crossings (:mod:`reachirl.observation`); ``False``: the DOC over the trial's
+      between their own threshold crossings (:mod:`reachirl.doc.observation`); ``False``: the DOC over the trial's
       duration, at rest at both ends (the seed).
     * ``merit``: ``"normalised"`` divides each state channel by the demonstrations' spread; ``"state"`` is the
       seed's full-state error.
@@ -80,8 +80,9 @@ class Options:
         return asdict(self)
 
 
-def resolve_options(seed_form: bool = False, experimental: Mapping[str, Any] | None = None,
-                    defaults: Mapping[str, Any] | None = None) -> Options:
+def resolve_options(
+    seed_form: bool = False, experimental: Mapping[str, Any] | None = None, defaults: Mapping[str, Any] | None = None
+) -> Options:
     """The options of a fit: reachirl's method (or :data:`SEED_FORM`), then a class's ``defaults`` (MaxEnt keeps
     every trajectory), then ``experimental``. Unknown names raise ``ValueError`` naming the valid ones."""
     if seed_form not in (True, False):
@@ -101,28 +102,44 @@ def departures(options: Options, rollout: str, tol: float) -> list[str]:
     """Each way the fit's method departs from the seed paper's, in words (empty for the seed's form)."""
     out = []
     if options.observe:
-        out.append("observed rollouts: each rollout is the rest-to-rest DOC seen between its own crossings of the "
-                   "demonstrations' onset threshold, as they were recorded")
+        out.append(
+            "observed rollouts: each rollout is the rest-to-rest DOC seen between its own crossings of the "
+            "demonstrations' onset threshold, as they were recorded"
+        )
     if options.merit == "normalised":
         out.append("normalised merit: each state channel divided by the demonstrations' spread")
     if options.scaling == "demo":
-        out.append(f"scale-free steps: the subproblem in normalised coordinates, a multiplicative step with a trust "
-                   f"region of at most x{options.max_ratio:g} per iteration")
+        out.append(
+            f"scale-free steps: the subproblem in normalised coordinates, a multiplicative step with a trust "
+            f"region of at most x{options.max_ratio:g} per iteration"
+        )
     if options.fallback == "merit":
-        out.append(f"merit fallback: when the likelihood's step lowers no merit, a step on a {options.merit_model} "
-                   f"model of the merit, accepted if it gains {100 * options.fallback_tol:g} %")
+        out.append(
+            f"merit fallback: when the likelihood's step lowers no merit, a step on a {options.merit_model} "
+            f"model of the merit, accepted if it gains {100 * options.fallback_tol:g} %"
+        )
     if tol > 0:
         out.append(f"acceptance threshold: a step must lower the merit by more than {tol:g} (relative)")
     if options.min_step > 0 or options.line_search_stop:
-        out.append("shorter line search: no solve for a try that moves no weight by "
-                   f"{100 * options.min_step:g} %, and the search ends after a try no better than the longer one")
+        out.append(
+            "shorter line search: no solve for a try that moves no weight by "
+            f"{100 * options.min_step:g} %, and the search ends after a try no better than the longer one"
+        )
     if rollout == "per_task":
         out.append("one rollout per task (subject, posture) from the task's mean start, target and duration")
     elif rollout == "per_demo":
         out.append("one rollout per demonstration, from its own start, target and duration")
     base = Options() if options.scaling == "demo" else SEED_FORM
-    for name in ("smoothness", "feature_cutoff", "memory", "use_gamma", "l1", "n_suffixes", "acceptance",
-                 "frozen_windows"):
+    for name in (
+        "smoothness",
+        "feature_cutoff",
+        "memory",
+        "use_gamma",
+        "l1",
+        "n_suffixes",
+        "acceptance",
+        "frozen_windows",
+    ):
         if getattr(options, name) != getattr(base, name):
             out.append(f"experimental {name} = {getattr(options, name)!r}")
     return out
@@ -130,6 +147,7 @@ def departures(options: Options, rollout: str, tol: float) -> list[str]:
 
 def _check(o: Options) -> None:
     """Every option's range; ``ValueError`` names the option, the expected values and the value given."""
+
     def need(ok: bool, msg: str) -> None:
         if not ok:
             raise ValueError(msg)
@@ -138,17 +156,27 @@ def _check(o: Options) -> None:
     need(o.merit in ("state", "normalised"), f"merit must be 'state' or 'normalised', got {o.merit!r}")
     need(o.scaling in ("demo", None), f"scaling must be 'demo' or None, got {o.scaling!r}")
     need(o.fallback in ("merit", None), f"fallback must be 'merit' or None, got {o.fallback!r}")
-    need(o.merit_model in ("gauss-newton", "probes"),
-         f"merit_model must be 'gauss-newton' or 'probes', got {o.merit_model!r}")
-    need(o.acceptance in ("merit", "either", "multimodal"),
-         f"acceptance must be 'merit', 'either' or 'multimodal', got {o.acceptance!r}")
+    need(
+        o.merit_model in ("gauss-newton", "probes"),
+        f"merit_model must be 'gauss-newton' or 'probes', got {o.merit_model!r}",
+    )
+    need(
+        o.acceptance in ("merit", "either", "multimodal"),
+        f"acceptance must be 'merit', 'either' or 'multimodal', got {o.acceptance!r}",
+    )
     need(_finite(o.fallback_tol) and 0 <= o.fallback_tol < 1, f"fallback_tol must be in [0, 1), got {o.fallback_tol}")
-    need(not (o.scaling == "demo" and (not o.use_gamma or o.l1)),
-         "use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None")
-    need(not (o.observe and o.acceptance == "multimodal"),
-         "acceptance='multimodal' compares whole rollouts' torques: not with observe=True")
-    need(o.memory is None or (isinstance(o.memory, int) and o.memory >= 1),
-         f"memory must be >= 1 or None, got {o.memory}")
+    need(
+        not (o.scaling == "demo" and (not o.use_gamma or o.l1)),
+        "use_gamma=False and l1 apply to the seed's raw form only: pass scaling=None",
+    )
+    need(
+        not (o.observe and o.acceptance == "multimodal"),
+        "acceptance='multimodal' compares whole rollouts' torques: not with observe=True",
+    )
+    need(
+        o.memory is None or (isinstance(o.memory, int) and o.memory >= 1),
+        f"memory must be >= 1 or None, got {o.memory}",
+    )
     need(_finite(o.shrink) and 0 < o.shrink < 1, f"shrink must be in (0, 1), got {o.shrink}")
     need(isinstance(o.max_tries, int) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
     need(_finite(o.w0) and o.w0 > 0, f"need w0 > 0 (weights stay > 0), got {o.w0}")
@@ -161,11 +189,15 @@ def _check(o: Options) -> None:
     if isinstance(o.smoothness, str):
         need(o.smoothness == "cv", f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
     else:
-        need(_finite(o.smoothness) and o.smoothness >= 0,
-             f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
+        need(
+            _finite(o.smoothness) and o.smoothness >= 0,
+            f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}",
+        )
     need(isinstance(o.cv_folds, int) and o.cv_folds >= 2, f"cv_folds must be >= 2 (an integer), got {o.cv_folds}")
-    need(o.feature_cutoff is None or (_finite(o.feature_cutoff) and o.feature_cutoff > 0),
-         f"feature_cutoff must be a frequency > 0 (Hz) or None, got {o.feature_cutoff}")
+    need(
+        o.feature_cutoff is None or (_finite(o.feature_cutoff) and o.feature_cutoff > 0),
+        f"feature_cutoff must be a frequency > 0 (Hz) or None, got {o.feature_cutoff}",
+    )
     need(isinstance(o.n_suffixes, int) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")
     need(_finite(o.l1) and o.l1 >= 0, f"l1 must be >= 0, got {o.l1}")
     need(o.use_gamma in (True, False), f"use_gamma must be True or False, got {o.use_gamma!r}")

@@ -76,17 +76,19 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
         info["departures"] = departures(options, est.rollout, est.tol_)
         info["seed_form"] = bool(est.seed_form)
     path = est.rollout_path()
-    info.update({
-        "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: a prediction's cold start
-        "n_iter": getattr(est, "n_iter_", None),
-        "n_doc_solves": getattr(est, "n_doc_solves_", None),
-        "n_doc_failures": getattr(est, "n_doc_failures_", None),
-        "fit_time_s": getattr(est, "fit_time_", None),
-        "stop_reason": getattr(est, "stop_reason_", None),
-        "flag": getattr(est, "flag_", None),
-        "warnings": list(getattr(est, "warnings_", [])),
-        "history": _jsonable(getattr(est, "history_", [])),
-    })
+    info.update(
+        {
+            "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: a prediction's cold start
+            "n_iter": getattr(est, "n_iter_", None),
+            "n_doc_solves": getattr(est, "n_doc_solves_", None),
+            "n_doc_failures": getattr(est, "n_doc_failures_", None),
+            "fit_time_s": getattr(est, "fit_time_", None),
+            "stop_reason": getattr(est, "stop_reason_", None),
+            "flag": getattr(est, "flag_", None),
+            "warnings": list(getattr(est, "warnings_", [])),
+            "history": _jsonable(getattr(est, "history_", [])),
+        }
+    )
     if getattr(est, "uncertainty_", None) is not None:
         info["uncertainty"] = _jsonable(est.uncertainty_)
     return info

@@ -3,7 +3,7 @@
 **Determined directions.** The observed training states (every demonstration's rollout, seen as the merit sees
 it, each channel scaled as the merit scales it) depend on the log-weights ``η = log ω`` through the DOC's optimum.
 Their Jacobian ``J = ∂r/∂η`` (:func:`reachirl.doc.sensitivity.weight_jacobian` through
-:func:`reachirl.observation.observed_state_jacobian`; one sparse factorisation per rollout, no solve) gives, by
+:func:`reachirl.doc.observation.observed_state_jacobian`; one sparse factorisation per rollout, no solve) gives, by
 its singular value decomposition ``J = U S Vᵀ``, the directions of ``η`` that change the reaches (large ``s_k``)
 and those that do not. A direction is *determined* when moving the log-weights along it by ``log 2`` (halving or
 doubling a weight's combination) raises the merit by more than the data can tell from noise
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from ..doc.observation import observed_state_jacobian
 from ..doc.sensitivity import weight_jacobian
 from ..features import FEATURES, N_FEATURES
-from ..observation import observed_state_jacobian
 
 __all__ = [
     "UNDETERMINED_WIDTH",
@@ -53,9 +53,11 @@ UNDETERMINED_WIDTH = 0.25
 PRIOR_LOG_SD = float(np.log(10.0))
 """The prior's standard deviation of each log-weight around ``ω₀``: a factor 10."""
 
-METHOD = ("laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit "
-          "(likelihood scale: the merit rise the demonstrations can tell from noise) and a prior centred on equal "
-          "cost shares with a factor-10 standard deviation")
+METHOD = (
+    "laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit "
+    "(likelihood scale: the merit rise the demonstrations can tell from noise) and a prior centred on equal "
+    "cost shares with a factor-10 standard deviation"
+)
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,7 @@ class Determination:
             "merit_threshold": float(self.threshold),
             "singular_values": [float(s) for s in self.singular_values],
             "determined": [describe_direction(v) for v in self.directions[: self.n_determined][:top]],
-            "undetermined": [describe_direction(v) for v in self.directions[self.n_determined:][-top:]],
+            "undetermined": [describe_direction(v) for v in self.directions[self.n_determined :][-top:]],
         }
 
 
@@ -92,8 +94,9 @@ def residuals_and_jacobian(est, free: np.ndarray) -> tuple[np.ndarray, np.ndarra
     for i, (task, sol) in enumerate(zip(est.tasks_, est.train_solutions_, strict=True)):
         dq = weight_jacobian(task, w, sol).reshape(n1, 2, -1)[:, :, cols]
         states.append(est._state(i, task, sol))
-        jacs.append((observed_state_jacobian(sol, task, est._thresholds[i], dq) * scale[None, :, None])
-                    .reshape(-1, cols.size))
+        jacs.append(
+            (observed_state_jacobian(sol, task, est._thresholds[i], dq) * scale[None, :, None]).reshape(-1, cols.size)
+        )
     x_demos = est._x_demos
     r = np.stack([((states[g] - xd) * scale).reshape(-1) for g, xd in zip(est.task_of_demo_, x_demos, strict=True)])
     J = np.stack([jacs[g] for g in est.task_of_demo_])
@@ -180,8 +183,9 @@ def _shares(w: np.ndarray, phi: np.ndarray) -> np.ndarray:
     return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
 
 
-def laplace_posterior(r: np.ndarray, J: np.ndarray, eta_hat: np.ndarray, eta_prior: np.ndarray,
-                      prior_sd: float = PRIOR_LOG_SD) -> tuple[np.ndarray, np.ndarray, float]:
+def laplace_posterior(
+    r: np.ndarray, J: np.ndarray, eta_hat: np.ndarray, eta_prior: np.ndarray, prior_sd: float = PRIOR_LOG_SD
+) -> tuple[np.ndarray, np.ndarray, float]:
     """The Gauss-Newton (Laplace) posterior of the free log-weights: ``(mean (P,), covariance (P, P), τ)``.
 
     The likelihood is ``exp(−(m(η) − m̂) / (2τ))`` with the merit's Gauss-Newton model ``m(η) − m̂ ≈
@@ -198,8 +202,9 @@ def laplace_posterior(r: np.ndarray, J: np.ndarray, eta_hat: np.ndarray, eta_pri
     return mean, cov, tau
 
 
-def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_check: int = 10,
-                       n_interval: int = 4000) -> dict:
+def weight_uncertainty(
+    est, trials, n_samples: int, random_state: int = 0, n_check: int = 10, n_interval: int = 4000
+) -> dict:
     """Weight samples of the Gauss-Newton (Laplace) posterior of ``est``'s fit (module docstring).
 
     The prior centres every free log-weight on ``ω₀`` (every feature with the same share of each window's
@@ -259,8 +264,10 @@ def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_che
         "share_samples": _shares(samples, phi).tolist(),
         "share_intervals": share_intervals(shares),
         "determination": det.to_dict(),
-        "prior": {"center": "w0: every feature with the same share of each window's demonstrated cost",
-                  "log_sd": PRIOR_LOG_SD},
+        "prior": {
+            "center": "w0: every feature with the same share of each window's demonstrated cost",
+            "log_sd": PRIOR_LOG_SD,
+        },
         "likelihood_tau": float(tau),
         "checked": {"solved": min(n_check, n_samples), "indistinguishable": int(passed)},
         "doc_solves": int(solves),
@@ -270,8 +277,11 @@ def weight_uncertainty(est, trials, n_samples: int, random_state: int = 0, n_che
 
 def _width_record(det: Determination, intervals: dict) -> dict:
     width = np.asarray(intervals["high"]) - np.asarray(intervals["low"])
-    return {"n_determined": int(det.n_determined), "mean_width": float(width.mean()),
-            "undetermined_fraction": float(1.0 - np.mean(intervals["determined"]))}
+    return {
+        "n_determined": int(det.n_determined),
+        "mean_width": float(width.mean()),
+        "undetermined_fraction": float(1.0 - np.mean(intervals["determined"])),
+    }
 
 
 def _task_names(est, trials) -> dict[int, str]:

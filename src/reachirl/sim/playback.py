@@ -18,8 +18,8 @@ import mujoco
 import numpy as np
 
 from ..arm import ArmModel
+from ..doc.evaluation import rmse_deg
 from ..doc.task import DocSolution
-from ..evaluation import rmse_deg
 from .mjcf import arm_mujoco_model
 
 __all__ = ["MODES", "PlaybackResult", "playback"]

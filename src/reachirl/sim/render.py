@@ -67,9 +67,7 @@ def _add_ghost(scene, arm: ArmModel, q: np.ndarray) -> None:
         if scene.ngeom >= scene.maxgeom:
             return
         g = scene.geoms[scene.ngeom]
-        mujoco.mjv_initGeom(
-            g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(), GHOST_RGBA
-        )
+        mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(), GHOST_RGBA)
         mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, width, a - [0, 0, 0.03], b - [0, 0, 0.03])
         scene.ngeom += 1
     if scene.ngeom < scene.maxgeom:

@@ -91,9 +91,7 @@ def render_simulations(
     frames).
     """
     clips = [
-        RenderClip(
-            s.trial.arm, s.trace_t, s.trace_q, s.trial.target_x, _demo_interpolant(s.trial) if ghost else None
-        )
+        RenderClip(s.trial.arm, s.trace_t, s.trace_q, s.trial.target_x, _demo_interpolant(s.trial) if ghost else None)
         for s in sims
     ]
     frames = render_frames(clips, fps=fps, width=width, height=height)

@@ -55,9 +55,7 @@ class MarkerSet:
     name: str
     joints: Mapping[str, JointSpec]
     side_prefix: Mapping[str, str] = field(default_factory=lambda: {"right": "", "left": ""})
-    static: str | None = (
-        None  # file name pattern of the static trial beside a reach, e.g. "{subject}_static.csv"
-    )
+    static: str | None = None  # file name pattern of the static trial beside a reach, e.g. "{subject}_static.csv"
     up: str | None = None
     description: str = ""
 
@@ -86,12 +84,9 @@ class MarkerSet:
             return tuple(n.replace("{S}", pre) for n in names)
 
         joints = {
-            j: JointSpec(sub(s.markers), sub(s.landmarks), sub(s.cluster), s.optional)
-            for j, s in self.joints.items()
+            j: JointSpec(sub(s.markers), sub(s.landmarks), sub(s.cluster), s.optional) for j, s in self.joints.items()
         }
-        return MarkerSet(
-            self.name, joints, {"right": pre, "left": pre}, self.static, self.up, self.description
-        )
+        return MarkerSet(self.name, joints, {"right": pre, "left": pre}, self.static, self.up, self.description)
 
 
 def resolve_name(name: str, available_names: Iterable[str]) -> str | None:
@@ -151,9 +146,7 @@ def parse_marker_map(text: str) -> MarkerSet:
         if not part.strip():
             continue
         if "=" not in part:
-            raise InputError(
-                f"--markers: {part.strip()!r} should be joint=MARKER (joints: {', '.join(JOINTS)})"
-            )
+            raise InputError(f"--markers: {part.strip()!r} should be joint=MARKER (joints: {', '.join(JOINTS)})")
         j, names = (x.strip() for x in part.split("=", 1))
         if j not in JOINTS:
             raise InputError(f"--markers: unknown joint {j!r}, expected one of {', '.join(JOINTS)}")

@@ -95,9 +95,7 @@ class BilevelIOC(WeightEstimator):
             if state["solves"] >= self.max_evals:
                 raise _BudgetError
             w = self.w0 * np.exp(np.clip(theta, -self.log_bound, self.log_bound)).reshape(shape)
-            sol: DocSolution = solve_doc(
-                task, w, backend=self.backend, warm_start=state["warm"], retry_cold=False
-            )
+            sol: DocSolution = solve_doc(task, w, backend=self.backend, warm_start=state["warm"], retry_cold=False)
             state["solves"] += 1
             if not sol.converged and state["warm"] is not None and state["solves"] < self.max_evals:
                 sol = solve_doc(task, w, backend=self.backend)  # a distant warm start can mislead IPOPT
@@ -152,12 +150,9 @@ class BilevelIOC(WeightEstimator):
         self.weights_ = w_best
         self.merit_ = m_best
         self.n_doc_solves_ = state["solves"]
-        self.n_doc_failures_ = sum(
-            not h["converged"] for h in self.history_
-        )  # evaluations without a converged DOC
+        self.n_doc_failures_ = sum(not h["converged"] for h in self.history_)  # evaluations without a converged DOC
         self.n_iter_ = n_iter
         self.fit_time_ = time.perf_counter() - t_start
         self.train_solutions_ = [sol_best] if sol_best is not None else []
         self.warnings_ = [msg] if (msg := mixed_postures_warning(trials)) is not None else []
         return self
-

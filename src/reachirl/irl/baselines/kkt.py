@@ -98,9 +98,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
     g = _fingertip(arm_l, qs[n])[0] - target
     e_v = ca.vertcat(*power)
     p = ca.vertcat(arm, q0, target, dt)
-    return ca.Function(
-        "kkt", [z, p], [ca.jacobian(phi_v, z), ca.gradient(g, z), ca.jacobian(e_v, z), e_v, phi_v]
-    )
+    return ca.Function("kkt", [z, p], [ca.jacobian(phi_v, z), ca.gradient(g, z), ca.jacobian(e_v, z), e_v, phi_v])
 
 
 def kkt_matrices(trial: Trial, n_nodes: int, n_windows: int, zero_power_tol: float = 1e-3) -> dict:
@@ -132,9 +130,7 @@ def _project_out(G: np.ndarray, free: np.ndarray) -> np.ndarray:
     return G - Q @ (Q.T @ G)
 
 
-def kkt_residual(
-    weights: np.ndarray, trials: Sequence[Trial], n_nodes: int, zero_power_tol: float = 1e-3
-) -> float:
+def kkt_residual(weights: np.ndarray, trials: Sequence[Trial], n_nodes: int, zero_power_tol: float = 1e-3) -> float:
     """Relative stationarity residual ``‖P Σ ω ∇Φ‖ / ‖Σ ω ∇Φ‖`` over the demonstrations (0 at an exact
     optimum)."""
     w = np.asarray(weights, dtype=float).reshape(-1)
@@ -194,9 +190,7 @@ class KKTIOC(WeightEstimator):
         R = qr(A, mode="r")[0][:n]  # ‖Aω̃‖ = ‖Rω̃‖: a square system for the NNLS
         if w_rel is None:
             rho = self.norm_weight * max(float(np.linalg.norm(R)), 1e-300)
-            w_rel, _ = nnls(
-                np.vstack([R, rho * np.ones((1, n))]), np.r_[np.zeros(R.shape[0]), rho], maxiter=50 * n
-            )
+            w_rel, _ = nnls(np.vstack([R, rho * np.ones((1, n))]), np.r_[np.zeros(R.shape[0]), rho], maxiter=50 * n)
             w_rel = w_rel / max(w_rel.sum(), 1e-300)
         return w_rel, float(np.linalg.norm(R @ w_rel) / max(np.linalg.norm(R) / np.sqrt(n), 1e-300))
 
@@ -244,4 +238,3 @@ class KKTIOC(WeightEstimator):
             }
         ]
         return self
-

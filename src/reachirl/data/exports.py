@@ -1,0 +1,142 @@
+"""Trajectories to files a researcher can take away: one CSV and one OpenSim motion file (MOT) per trial.
+
+* ``<name>.csv`` — comma separated, one row per sample, a ``time_s`` column, then for each of ``demo`` (the
+  recorded reach) and ``pred`` (the DOC prediction) when present: ``q1_rad q2_rad qd1_rad_s qd2_rad_s
+  tau1_Nm tau2_Nm`` in SI, then the same angles and velocities in degrees (``q1_deg``, ``qd1_deg_s`` ...).
+  Torques of the DOC act on an interval: ``tau`` at row ``k`` is the torque on ``[t_k, t_k+1)`` and the last
+  row leaves it empty (:data:`CSV_COLUMNS` lists every column). An empty field is a missing value.
+* ``<name>.mot`` — OpenSim's motion format (``inDegrees=yes``, ``endheader``, then ``time`` and two
+  coordinates) of the predicted angles (or, with no prediction, the recorded ones), under the coordinate
+  names of OpenSim's ``arm26`` model: ``r_shoulder_elev = q1 + 90°`` (0 with the arm hanging, positive
+  forward) and ``r_elbow_flex = q2`` (``l_`` for a left arm). :func:`reachirl.data.readers.read_mot` reads it
+  back into reachirl's convention.
+* ``index.csv`` — which file holds which trial: ``id,file,set``.
+
+Trial ids contain slashes (``subject/posture/side/trial``); :func:`safe_name` turns them into file names.
+Every file is written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write_text
+from .writers import write_mot
+
+__all__ = [
+    "CSV_COLUMNS",
+    "MOT_COLUMNS",
+    "TrajectoryExport",
+    "export_trajectories",
+    "opensim_coordinates",
+    "safe_name",
+    "trajectory_csv",
+]
+
+_SI = ("q1_rad", "q2_rad", "qd1_rad_s", "qd2_rad_s", "tau1_Nm", "tau2_Nm")
+_DEG = ("q1_deg", "q2_deg", "qd1_deg_s", "qd2_deg_s")
+CSV_COLUMNS = ("time_s", *(f"{w}_{c}" for w in ("demo", "pred") for c in (*_SI, *_DEG)))
+"""Every column of a trajectory CSV, in order, when it holds both the demonstration and the prediction."""
+MOT_COLUMNS = {"right": ("r_shoulder_elev", "r_elbow_flex"), "left": ("l_shoulder_elev", "l_elbow_flex")}
+SHOULDER_OFFSET_DEG = 90.0  # r_shoulder_elev = q1 + 90°
+
+
+@dataclass(frozen=True)
+class TrajectoryExport:
+    """One trial to export. ``demo`` and ``pred`` map ``"q"``, ``"qd"`` (``(n, 2)``, rad, rad/s) and optionally
+    ``"tau"`` (``(n, 2)`` or ``(n - 1, 2)`` per interval, N·m) on the samples ``t (n,)`` (s)."""
+
+    id: str
+    t: np.ndarray
+    demo: Mapping[str, np.ndarray] | None = None
+    pred: Mapping[str, np.ndarray] | None = None
+    side: str = "right"
+    set: str = ""
+
+
+def safe_name(trial_id: str) -> str:
+    """A portable file name for a trial id: ``S01/P2/right/T03`` → ``S01_P2_right_T03``.
+
+    Characters other than letters, digits, ``.``, ``-`` and ``_`` become ``-``; no leading dot.
+    """
+    parts = [re.sub(r"[^A-Za-z0-9._-]", "-", p) for p in str(trial_id).split("/")]
+    name = "_".join(p for p in parts if p).lstrip(".")
+    return name or "trial"
+
+
+def opensim_coordinates(q: np.ndarray, side: str = "right") -> tuple[tuple[str, str], np.ndarray]:
+    """``q (n, 2)`` in rad (reachirl's convention) → (arm26 coordinate names, angles in degrees)."""
+    deg = np.rad2deg(np.asarray(q, dtype=float)).copy()
+    deg[:, 0] += SHOULDER_OFFSET_DEG
+    return MOT_COLUMNS[side], deg
+
+
+def _columns(n: int, arrays: Mapping[str, np.ndarray], prefix: str) -> dict[str, np.ndarray]:
+    out: dict[str, np.ndarray] = {}
+    q = np.asarray(arrays["q"], dtype=float)
+    qd = np.asarray(arrays["qd"], dtype=float)
+    tau = arrays.get("tau")
+    tau = np.full((n, 2), np.nan) if tau is None else np.asarray(tau, dtype=float)
+    if tau.shape == (n - 1, 2):  # per interval: nothing on the last knot
+        tau = np.vstack([tau, np.full((1, 2), np.nan)])
+    for name, a in (("q", q), ("qd", qd), ("tau", tau)):
+        if a.shape != (n, 2):
+            raise ValueError(f"{prefix} {name} has shape {a.shape}, expected ({n}, 2)")
+    si = (q[:, 0], q[:, 1], qd[:, 0], qd[:, 1], tau[:, 0], tau[:, 1])
+    deg = (*np.rad2deg(q).T, *np.rad2deg(qd).T)
+    for name, col in zip((*_SI, *_DEG), (*si, *deg), strict=True):
+        out[f"{prefix}_{name}"] = col
+    return out
+
+
+def trajectory_csv(t: np.ndarray, demo: Mapping | None = None, pred: Mapping | None = None) -> str:
+    """The CSV text of one trial (see the module docstring); ``demo`` and/or ``pred`` must be given."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    if demo is None and pred is None:
+        raise ValueError("nothing to export: give demo and/or pred")
+    cols = {"time_s": t}
+    for prefix, arrays in (("demo", demo), ("pred", pred)):
+        if arrays is not None:
+            cols |= _columns(t.size, arrays, prefix)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    data = np.column_stack(list(cols.values()))
+    for row in data:
+        w.writerow(["" if not np.isfinite(v) else f"{v:.9g}" for v in row])
+    return buf.getvalue()
+
+
+def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
+    """Write ``<safe id>.csv`` (and ``.mot``) per item and ``index.csv`` under ``out_dir``; returns the index.
+
+    Two ids that map to one file name get ``-2``, ``-3`` ... appended.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    used: set[str] = set()
+    index = [("id", "file", "set")]
+    for it in items:
+        base = safe_name(it.id)
+        name, k = base, 1
+        while name in used:
+            k += 1
+            name = f"{base}-{k}"
+        used.add(name)
+        atomic_write_text(out / f"{name}.csv", trajectory_csv(it.t, it.demo, it.pred))
+        if mot:
+            src = it.pred if it.pred is not None else it.demo
+            cols, deg = opensim_coordinates(src["q"], it.side)
+            write_mot(out / f"{name}.mot", it.t, deg, columns=cols)
+        index.append((it.id, name, it.set))
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerows(index)
+    atomic_write_text(out / "index.csv", buf.getvalue())
+    return out / "index.csv"

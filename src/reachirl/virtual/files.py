@@ -1,0 +1,273 @@
+"""The virtual data set as files (marker files, manifest, subject info, truth), and the cached built-in data set."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import hashlib
+import io
+import json
+import logging
+import multiprocessing
+import os
+import shutil
+import tempfile
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..data.writers import write_c3d, write_mot, write_trc
+from ..features import FEATURES
+from ..io import atomic_write_json, atomic_write_text, cache_root, to_jsonable
+from .likeness import human_likeness
+from .population import (
+    _LOG_WEIGHT_SD,
+    _POSTURE_SD_DEG,
+    BERRET_DURATIONS_S,
+    BERRET_POSTURES_DEG,
+    FEATURE_SCALE,
+    MOVEMENT_FRACTION,
+    N_WINDOWS,
+    RELATIVE_IMPORTANCE,
+    SynthSubject,
+    draw_subject,
+    nominal_weights,
+    posture_q,
+)
+from .recording import SynthConfig, SynthTrial, _simulate_group, to_opensim_axes
+
+log = logging.getLogger(__name__)
+
+GENERATOR_VERSION = 5  # bump whenever the generated files change for the same seed
+
+
+@dataclass(frozen=True)
+class SynthResult:
+    out_dir: Path
+    config: SynthConfig
+    subjects: tuple[SynthSubject, ...]
+    trials: tuple[SynthTrial, ...]
+    doc_failures: int
+    elapsed_s: float
+    human_likeness: tuple[dict, ...] = ()
+
+
+def _csv_text(header: Sequence[str], rows: Sequence[Sequence]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def _file_name(tr: SynthTrial, fmt: str) -> str:
+    return f"{tr.subject}_{tr.posture}_{tr.trial_id}.{fmt}"
+
+
+def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
+    groups = [(s, p) for s in subjects for p in config.postures]
+    workers = max(1, int(config.workers))
+    if multiprocessing.current_process().daemon:
+        workers = 1  # a daemonic process (e.g. a pool worker) may not have children
+    if workers == 1 or len(groups) == 1:
+        return [tr for s, p in groups for tr in _simulate_group(s, p, config)]
+    # fork is cheap and works from unguarded scripts; never fork a process that runs other threads
+    methods = multiprocessing.get_all_start_methods()
+    ctx = multiprocessing.get_context("fork" if "fork" in methods and threading.active_count() == 1 else "spawn")
+    ex = cf.ProcessPoolExecutor(max_workers=min(workers, len(groups)), mp_context=ctx, initializer=_worker_signals)
+    try:
+        futures = [ex.submit(_simulate_group, s, p, config) for s, p in groups]
+        trials = [tr for f in futures for tr in f.result()]
+    except BaseException:  # Ctrl-C, SIGTERM or an error: end the workers now, not after their groups
+        procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
+        ex.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=2.0)
+            if proc.is_alive():
+                proc.kill()
+        raise
+    ex.shutdown(wait=True)
+    return trials
+
+
+def _worker_signals() -> None:
+    """A generation worker: Ctrl-C is the parent's business (it ends the workers), SIGTERM ends it at once."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthResult:
+    """Generate the virtual data set of ``config`` into ``out_dir`` (created if needed).
+
+    Writes one file per trial (``S01_P1_T01.trc`` …), ``manifest.csv`` (``file,subject,posture,side``),
+    ``subjects.csv`` (``subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m``), ``truth.json`` and
+    ``human_likeness.csv``. The same config gives byte-identical files.
+    """
+    config = config or SynthConfig()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    subjects = tuple(draw_subject(config.seed, i) for i in range(config.n_subjects))
+    trials = _run_groups(subjects, config)
+    failures = sum(tr.doc_retries for tr in trials)
+    manifest = []
+    for tr in trials:
+        name = _file_name(tr, config.fmt)
+        if config.fmt == "trc":
+            write_trc(out_dir / name, tr.time, to_opensim_axes(tr.markers), units="mm", rate=config.rate_hz)
+        elif config.fmt == "c3d":
+            write_c3d(out_dir / name, tr.time, tr.markers, units="mm", rate=config.rate_hz)
+        else:
+            write_mot(out_dir / name, tr.time, tr.angles_deg, columns=("q1", "q2"))
+        manifest.append([name, tr.subject, tr.posture, "right"])
+    atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
+    atomic_write_text(
+        out_dir / "subjects.csv",
+        _csv_text(
+            ("subject", "sex", "height_m", "mass_kg", "upper_arm_m", "forearm_m", "hand_m"),
+            [[s.subject, s.sex, s.height_m, s.mass_kg, s.upper_arm_m, s.forearm_m, s.hand_m] for s in subjects],
+        ),
+    )
+    hl = human_likeness(trials, subjects)
+    keys = list(hl[0])
+    atomic_write_text(
+        out_dir / "human_likeness.csv",
+        _csv_text(keys, [[f"{r[k]:.6g}" if isinstance(r[k], float) else r[k] for k in keys] for r in hl]),
+    )
+    atomic_write_json(out_dir / "truth.json", _truth(config, subjects, trials, failures, hl))
+    elapsed = time.perf_counter() - t0
+    log.info(
+        "generated %d trials of %d subjects in %.1f s (%d DOC failures redrawn)",
+        len(trials),
+        len(subjects),
+        elapsed,
+        failures,
+    )
+    return SynthResult(out_dir, config, subjects, tuple(trials), failures, elapsed, tuple(hl))
+
+
+def _truth(config, subjects, trials, failures, hl) -> dict:
+    subj = {}
+    for s in subjects:
+        d = asdict(s)
+        d["arm"] = s.arm.to_dict()
+        d["target_x_m"] = config.target_fraction * s.arm.length
+        d["trials"] = {}
+        subj[s.subject] = d
+    for tr in trials:
+        subj[tr.subject]["trials"].setdefault(tr.posture, []).append(
+            {
+                "trial_id": tr.trial_id,
+                "file": _file_name(tr, config.fmt),
+                "weights": tr.weights,
+                "q0_deg": np.rad2deg(tr.q0),
+                "horizon_s": tr.horizon_s,
+                "onset_s": tr.onset_s,
+                "offset_s": tr.onset_s + tr.horizon_s,
+                "doc_retries": tr.doc_retries,
+                "doc_iterations": tr.doc_iterations,
+            }
+        )
+    return {
+        "generator": "reachirl.synth",
+        "version": GENERATOR_VERSION,
+        "config": {k: v for k, v in asdict(config).items() if k != "workers"},
+        "features": list(FEATURES),
+        "n_windows": N_WINDOWS,
+        "markers": {"shoulder": "SHO", "elbow": "ELB", "wrist": "WRI", "fingertip": "FTP"},
+        "units": {
+            "markers": "mm",
+            "axes": "C3D: lab, Z up; TRC: OpenSim, Y up ((X, Z, -Y) of the lab); movement plane rotated "
+            "about the vertical",
+            "mot": "degrees, q1 q2 in reachirl's convention",
+            "weights": "SI (features are raw SI quantities)",
+        },
+        "postures": {
+            p: {
+                "berret_elbow_deg": e,
+                "berret_shoulder_deg": sh,
+                "q_deg": np.rad2deg(posture_q(p)),
+                "berret_duration_s": BERRET_DURATIONS_S[p],
+            }
+            for p, (e, sh) in BERRET_POSTURES_DEG.items()
+        },
+        "posture_convention": "q1 = -shoulder, q2 = -elbow (Berret's angles from the forward horizontal, "
+        "clockwise in reachirl's x-forward/y-up frame)",
+        "truth": {
+            "definition": "weights = relative_importance / feature_scale, per window (rows) and feature (columns)",
+            "relative_importance": RELATIVE_IMPORTANCE,
+            "feature_scale": FEATURE_SCALE,
+            "nominal_weights": nominal_weights(),
+            "jitter": {
+                "log_weight_sd": _LOG_WEIGHT_SD,
+                "posture_sd_deg": _POSTURE_SD_DEG,
+                "duration": "Berret's SD per posture",
+                "movement_fraction": MOVEMENT_FRACTION,
+            },
+        },
+        "subjects": subj,
+        "doc_failures": failures,
+        "human_likeness": hl,
+    }
+
+
+# ---------------------------------------------------------------------- the built-in data set (cached)
+def _builtin_config(seed: int) -> SynthConfig:
+    return SynthConfig(n_subjects=2, n_trials=20, seed=seed, fmt="trc", workers=2)
+
+
+def _cache_key(config: SynthConfig) -> str:
+    payload = json.dumps(
+        to_jsonable(
+            {
+                "v": GENERATOR_VERSION,
+                "config": asdict(config) | {"workers": 0},
+                "ri": RELATIVE_IMPORTANCE,
+                "fs": FEATURE_SCALE,
+            }
+        ),
+        sort_keys=True,
+    )
+    return f"synth-v{GENERATOR_VERSION}-seed{config.seed}-{hashlib.sha256(payload.encode()).hexdigest()[:10]}"
+
+
+def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
+    """The built-in data set (2 subjects × 5 postures × 20 trials, TRC), generated on first use and cached.
+
+    ``n_subjects`` draws that many subjects from the same population (``reachirl reproduce --subjects N``;
+    20 is Berret 2011's full design). Subjects and trials are drawn per index, so subject ``S01`` and its trials
+    are the same for every ``n_subjects``.
+
+    Returns the folder with the TRC files, ``manifest.csv``, ``subjects.csv`` and ``truth.json``. It is built
+    in a temporary folder and renamed into place, so a half-written cache is never used.
+    """
+    config = _builtin_config(int(seed))
+    if int(n_subjects) != config.n_subjects:
+        config = replace(config, n_subjects=int(n_subjects))
+    root = cache_root()
+    final = root / _cache_key(config)
+    if final.is_dir() and (final / "truth.json").is_file():
+        return final
+    root.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".tmp-synth-", dir=root))
+    try:
+        log.info("generating the built-in data set (seed %d) into %s", seed, final)
+        generate(tmp, config)
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            if not (final / "truth.json").is_file():  # not a concurrent winner: a real error
+                raise
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return final

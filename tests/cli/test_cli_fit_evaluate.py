@@ -1,0 +1,247 @@
+"""`reachirl fit` and `reachirl evaluate` end to end on a small virtual dataset, and their error paths."""
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.cli import main
+from reachirl.data.trial import save_trials, trial_from_solution
+
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+
+
+def _reach(arm, q0, duration, weights, subject, posture, i):
+    """The DOC's reach from ``q0`` (rad) to the bar at 90 % of the arm's length, as a trial."""
+    task = ReachingTask(arm, q0, 0.9 * arm.length, duration, n_nodes=40)
+    sol = solve_doc(task, weights)
+    assert sol.converged
+    return trial_from_solution(sol, arm, task.target_x, subject=subject, posture=posture, trial_id=str(i))
+
+
+@pytest.fixture(scope="module")
+def trials_file(tmp_path_factory, arm):
+    rng = np.random.default_rng(0)
+    w_true = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5], [0.05, 1.0, 0.05, 0.5, 0.2, 0.05, 0.5]])
+    w_true = w_true / FEATURE_SCALE
+    trials = []
+    for i in range(4):
+        q0 = np.deg2rad([0.0, 90.0]) + np.deg2rad(rng.normal(0, 2, 2))
+        duration = 0.7 + 0.03 * rng.normal()
+        trials.append(_reach(arm, q0, duration, w_true * np.exp(0.1 * rng.normal(size=w_true.shape)), "S1", "P2", i))
+    path = tmp_path_factory.mktemp("cli") / "trials.npz"
+    save_trials(path, trials)
+    return path
+
+
+def test_fit_then_evaluate(trials_file, tmp_path, capsys):
+    model = tmp_path / "model.json"
+    assert (
+        main(["fit", str(trials_file), "--sections", "2", "--nodes", "40", "--max-iter", "5", "--out", str(model)]) == 0
+    )
+    m = json.loads(model.read_text())
+    assert m["format"] == "reachirl-model/1" and m["method"] == "moirl" and m["n_windows"] == 2
+    w = np.array(m["weights"])
+    assert w.shape == (2, 7) and np.all(w >= 0)
+    assert m["info"]["n_doc_solves"] >= 1 and len(m["info"]["history"]) >= 1
+    # the learned weights predict the trials better than the initial ones (evaluated through the CLI too)
+    start = tmp_path / "start.json"
+    start.write_text(json.dumps({**m, "weights": m["info"]["history"][0]["weights"]}))
+    rmse = {}
+    for name, path in (("learned", model), ("start", start)):
+        out = tmp_path / f"{name}_metrics.json"
+        assert main(["evaluate", "--model", str(path), str(trials_file), "--out", str(out)]) == 0
+        rmse[name] = json.loads(out.read_text())["summary"]["rmse_deg"]["q"]["mean"]
+    assert rmse["learned"] < 0.8 * rmse["start"], rmse
+
+    metrics = tmp_path / "metrics.json"
+    assert main(["evaluate", "--model", str(model), str(trials_file), "--out", str(metrics)]) == 0
+    out = json.loads(metrics.read_text())
+    s = out["summary"]
+    assert s["n_trials"] == 4
+    for key in ("q1", "q2", "q"):
+        assert set(s["rmse_deg"][key]) == {"mean", "std"}
+        assert 0 <= s["rmse_deg"][key]["mean"] < 10
+    assert [t["id"] for t in out["trials"]] == [f"S1/P2/right/{i}" for i in range(4)]
+    assert set(out["trials"][0]["rmse_deg"]) == {"q1", "q2", "q"}
+    # q RMSE pools both joints: between the two joints' RMSEs
+    t0 = out["trials"][0]["rmse_deg"]
+    assert min(t0["q1"], t0["q2"]) - 1e-9 <= t0["q"] <= max(t0["q1"], t0["q2"]) + 1e-9
+    assert "RMSE q1" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("make_args", "match"),
+    [
+        (
+            lambda d, t: ["fit", str(d / "missing.npz"), "--sections", "1", "--out", str(d / "m.json")],
+            r"missing\.npz: file not found",
+        ),
+        (
+            lambda d, t: ["fit", str(d / "bad.npz"), "--sections", "1", "--out", str(d / "m.json")],
+            r"bad\.npz: not a trials file",
+        ),
+        (
+            lambda d, t: ["fit", str(t), "--sections", "101", "--out", str(d / "m.json")],
+            r"--sections must be between 1 and",
+        ),
+        (
+            lambda d, t: ["evaluate", "--model", str(d / "bad.json"), str(t), "--out", str(d / "x.json")],
+            r"bad\.json: line 1: invalid JSON",
+        ),
+        (
+            lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
+            r"other\.json: not a reachirl model file",
+        ),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_args, match):
+    (tmp_path / "bad.npz").write_text("time,q1\n1,2\n")
+    (tmp_path / "bad.json").write_text("{not json")
+    (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
+    assert main(make_args(tmp_path, trials_file)) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert re.search(match, err), err
+    assert not (tmp_path / "m.json").exists() and not (tmp_path / "x.json").exists()
+
+
+def test_usage_error_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["fit"])
+    assert e.value.code == 2
+    assert "required" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def mixed_file(tmp_path_factory, trials_file, arm):
+    """The four P2 reaches of subject S1, and two reaches of another posture by subject S2."""
+    from reachirl.data.trial import load_trials
+
+    w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5]]) / FEATURE_SCALE
+    trials = load_trials(trials_file)
+    for i, q0 in enumerate(([-60.0, 100.0], [-55.0, 95.0])):
+        trials.append(_reach(arm, np.deg2rad(q0), 0.7, w, "S2", "P4", i))
+    path = tmp_path_factory.mktemp("mixed") / "mixed.npz"
+    save_trials(path, trials)
+    return path
+
+
+def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, capsys):
+    model = tmp_path / "p2.json"
+    assert (
+        main(
+            [
+                "fit",
+                str(mixed_file),
+                "--sections",
+                "1",
+                "--nodes",
+                "40",
+                "--max-iter",
+                "2",
+                "--posture",
+                "P2",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
+    info = json.loads(model.read_text())["info"]
+    assert info["trial_ids"] == [f"S1/P2/right/{i}" for i in range(4)]
+    assert info["selection"] == {"subjects": None, "postures": ["P2"], "sides": None}
+    assert not any("postures" in w for w in info["warnings"])
+    metrics = tmp_path / "m.json"
+    assert (
+        main(
+            [
+                "evaluate",
+                "--model",
+                str(model),
+                str(mixed_file),
+                "--subject",
+                "S2",
+                "--side",
+                "right",
+                "--out",
+                str(metrics),
+            ]
+        )
+        == 0
+    )
+    out = json.loads(metrics.read_text())
+    assert [t["id"] for t in out["trials"]] == ["S2/P4/right/0", "S2/P4/right/1"]
+    assert out["selection"] == {"subjects": ["S2"], "postures": None, "sides": ["right"]}
+
+
+def test_fit_warns_when_one_mean_rollout_would_stand_for_several_postures(mixed_file, tmp_path, capsys):
+    model = tmp_path / "all.json"
+    assert (
+        main(
+            [
+                "fit",
+                str(mixed_file),
+                "--sections",
+                "1",
+                "--nodes",
+                "40",
+                "--max-iter",
+                "1",
+                "--rollout",
+                "mean",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
+    info = json.loads(model.read_text())["info"]
+    assert info["selection"] is None and len(info["trial_ids"]) == 6
+    assert any("span 2 postures (P2, P4)" in w for w in info["warnings"]), info["warnings"]
+    assert "span 2 postures" in capsys.readouterr().err
+
+
+def test_fit_of_several_tasks_learns_one_cost_with_a_rollout_per_task(mixed_file, tmp_path, capsys):
+    """The default fit of trials of two postures (and two subjects) solves one rollout per (subject, posture):
+    its first iteration solves as many DOCs as there are tasks, and no warning is needed."""
+    model = tmp_path / "all.json"
+    assert (
+        main(["fit", str(mixed_file), "--sections", "1", "--nodes", "40", "--max-iter", "1", "--out", str(model)]) == 0
+    )
+    info = json.loads(model.read_text())["info"]
+    tasks = {tuple(i.split("/")[:2]) for i in info["trial_ids"]}
+    assert len(tasks) > 1 and info["postures"] == ["P2", "P4"]
+    assert info["history"][0]["doc_solves"] == len(tasks)
+    assert not any("postures" in w for w in info["warnings"])
+
+
+@pytest.mark.parametrize(
+    ("selection", "match"),
+    [
+        (["--posture", "P9"], r"mixed\.npz: no trial of posture P9; they have posture P2, P4$"),
+        (
+            ["--subject", "S2", "--posture", "P2"],
+            r"mixed\.npz: no trial of posture P2 among those of subject S2; they have posture P4$",
+        ),
+        (["--subject", "S1", "S3"], r"mixed\.npz: no trial of subject S3; they have subject S1, S2$"),
+        (["--side", "left"], r"mixed\.npz: no trial of side left; they have side right$"),
+    ],
+)
+@pytest.mark.parametrize("command", ["fit", "evaluate"])
+def test_a_selection_no_trial_matches_exits_2_naming_the_file(mixed_file, tmp_path, capsys, selection, match, command):
+    from reachirl.irl.model import LearnedModel, save_model
+
+    model = tmp_path / "model.json"
+    save_model(model, LearnedModel(weights=np.ones((1, 7)), n_nodes=40, method="moirl", info={}))
+    args = (
+        ["fit", str(mixed_file), "--sections", "1", "--out", str(tmp_path / "m.json")]
+        if command == "fit"
+        else ["evaluate", "--model", str(model), str(mixed_file), "--out", str(tmp_path / "m.json")]
+    )
+    assert main([*args, *selection]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and re.search(match, err), err
+    assert not (tmp_path / "m.json").exists()

@@ -1,0 +1,129 @@
+"""Every advertised command × every IRL method, through the installed ``reachirl`` console script."""
+
+import json
+
+import numpy as np
+import pytest
+
+METHODS = ("moirl", "maxent", "bilevel", "kkt")
+
+
+@pytest.fixture(scope="module")
+def models(tiny_trials, tmp_path_factory, cli):
+    """``reachirl fit --method M`` for every method; the test below checks each run."""
+    d = tmp_path_factory.mktemp("models")
+    runs = {}
+    for m in METHODS:
+        out = d / f"{m}.json"
+        runs[m] = (
+            cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "3", "--method", m, "--out", out),
+            out,
+        )
+    return runs
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_fit_evaluate_simulate(method, models, tiny_trials, tmp_path, cli):
+    proc, model = models[method]
+    assert proc.returncode == 0, proc.stderr
+    assert f"wrote {model}: {method}, 2 section(s)" in proc.stdout
+    m = json.loads(model.read_text())
+    assert m["method"] == method and np.array(m["weights"]).shape == (2, 7)
+    assert m["info"]["n_trials"] == 6
+
+    metrics = tmp_path / "metrics.json"
+    proc = cli("evaluate", "--model", model, tiny_trials, "--out", metrics)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(metrics.read_text())
+    assert out["summary"]["n_trials"] == 6 and len(out["trials"]) == 6
+    assert all(np.isfinite(t["rmse_deg"]["q"]) for t in out["trials"])
+
+    sim = tmp_path / "sim.json"
+    proc = cli("simulate", "--model", model, tiny_trials, "--trial", "0", "--out", sim)
+    assert proc.returncode == 0, proc.stderr
+    assert "S1/P2/right/T0: DOC (casadi)" in proc.stdout
+    assert len(json.loads(sim.read_text())["trials"]) == 1
+
+
+def test_reproduce_every_method(tiny_trials, tmp_path, cli):
+    out = tmp_path / "run"
+    proc = cli(
+        "reproduce",
+        "--data",
+        tiny_trials,
+        "--method",
+        *METHODS,
+        "--sections",
+        "1",
+        "2",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "3",
+        "--n-train",
+        "2",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        out,
+    )
+    assert proc.returncode == 0, proc.stderr
+    for m in METHODS:
+        assert f"{m} (casadi DOC): RMSE of the joint angles" in proc.stdout
+    res = json.loads((out / "results.json").read_text())
+    assert sorted({u["unit"]["method"] for u in res["units"]}) == sorted(METHODS)
+    assert len(res["units"]) == 2 * len(METHODS)
+    # the report: the method run and its departures, the seed's numbers labelled as its own subjects'; one
+    # posture gives no paired comparison of section counts (the postures are its samples, not the trials)
+    report = (out / "report.md").read_text()
+    assert "seed defaults otherwise" not in report and "departure(s) from the paper:" in report
+    assert "- **kkt:** a baseline" in report
+    assert "(seed's subjects, not comparable)" in report and "chosen at random (seed 0)" in report
+    assert res["comparisons"] == {} and "What they show" not in report
+    assert res["method"]["moirl"]["departures"] and res["method"]["kkt"] is None
+    # every trial of every set of every unit is exported (docs/outputs.md)
+    for u in res["units"]:
+        index = (out / "predictions" / u["key"] / "index.csv").read_text().splitlines()
+        n = sum(len(u["sets"][s]["trials"]) for s in ("train", "cv", "iscv"))
+        assert index[0] == "id,file,set" and len(index) == 1 + n
+        assert all((out / "predictions" / u["key"] / f"{row.split(',')[1]}.mot").is_file() for row in index[1:])
+
+    # reachirl plot RUN_DIR draws the run's figures again, as PNG and PDF
+    figs = tmp_path / "figs"
+    proc = cli("plot", out, "--out", figs)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("fig2_prediction", "fig3_weights", "fig4_iscv", "convergence", "methods"):
+        assert (figs / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (figs / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+        assert f"wrote {figs / name}.png" in proc.stdout
+
+
+def test_plot_model(models, tiny_trials, tmp_path, cli):
+    import matplotlib.image
+
+    _, model = models["moirl"]
+    proc = cli("plot", "--model", model, tiny_trials, "--out", tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    for name in ("prediction", "weights", "convergence"):
+        img = matplotlib.image.imread(tmp_path / f"{name}.png")
+        assert img.shape[0] > 300 and img.shape[1] > 300 and img[..., :3].std() > 0.05  # drawn, not blank
+        assert (tmp_path / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+    # kkt has no merit history: no convergence figure, and no error
+    _, kkt = models["kkt"]
+    proc = cli("plot", "--model", kkt, tiny_trials, "--out", tmp_path / "kkt", "--no-pdf")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "kkt").iterdir()) == ["prediction.png", "weights.png"]
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (lambda d, t: ["plot", d, "--out", d / "o"], "no results.json"),
+        (lambda d, t: ["plot", t, "--out", d / "o"], "expected a `reachirl reproduce` folder"),
+        (lambda d, t: ["plot", "--model", d / "missing.json", t, "--out", d / "o"], "missing.json: file not found"),
+    ],
+)
+def test_plot_bad_input(args, match, tiny_trials, tmp_path, cli):
+    proc = cli(*args(tmp_path, tiny_trials))
+    assert proc.returncode == 2 and match in proc.stderr and len(proc.stderr.strip().splitlines()) == 1

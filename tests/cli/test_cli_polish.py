@@ -1,0 +1,64 @@
+"""The command line's manners: -v anywhere, a help line with its default for every option, a folder's manifest."""
+
+import argparse
+
+import pytest
+
+from reachirl.cli import build_parser, main
+from reachirl.data.trial import load_trials
+
+
+def _subparsers():
+    p = build_parser()
+    return next(a for a in p._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_verbose_anywhere_on_the_line(where, tmp_path, cli):
+    args = ["fit", tmp_path / "missing.npz", "--sections", "1", "--out", tmp_path / "m.json"]
+    proc = cli(*(["-v", *args] if where == "before" else [*args, "-v"]))
+    assert proc.returncode == 2 and "unrecognized arguments" not in proc.stderr
+    assert proc.stderr.strip() == f"reachirl fit: error: {tmp_path / 'missing.npz'}: file not found"
+
+
+@pytest.mark.parametrize("name", sorted(_subparsers()))
+def test_every_option_has_help_with_its_default(name):
+    sp = _subparsers()[name]
+    assert sp.description, f"{name} has no description"
+    assert "``" not in sp.format_help()
+    for a in sp._actions:
+        if isinstance(a, argparse._HelpAction) or a.help == argparse.SUPPRESS:  # run-file keys: the description
+            continue
+        assert a.help, f"{name} {a.option_strings or a.dest} has no help"
+        if a.option_strings and not a.required and not isinstance(a, argparse._StoreTrueAction):
+            assert "default" in a.help.lower() or "required" in a.help.lower(), (
+                f"{name} {a.option_strings}: the help does not say the default"
+            )
+
+
+def test_preprocess_folder_uses_its_manifest(tmp_path, capsys):
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(tmp_path / "syn"),
+                "--subjects",
+                "1",
+                "--trials",
+                "2",
+                "--postures",
+                "P2",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    capsys.readouterr()
+    out = tmp_path / "t.npz"
+    assert main(["preprocess", str(tmp_path / "syn"), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "using the folder's manifest" in err and "using the folder's subject info" in err
+    # subject and posture from the manifest, not from the file name
+    assert [t.id for t in load_trials(out)] == ["S01/P2/right/S01_P2_T01", "S01/P2/right/S01_P2_T02"]

@@ -1,0 +1,576 @@
+"""Nothing lost, nothing silently wrong (issue 34): an output never replaces an input, only regular files are
+read, recordings are checked against their own headers, physically inconsistent inputs are refused at the door
+(exit 2 naming the field and its range), checkpoints are verified by a checksum, errors name the file the user
+passed, and an interrupt raised inside a solver ends the command instead of becoming a failed solve."""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import os
+import shutil
+import signal
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reachirl.cli import main
+from reachirl.data.trial import load_trials, save_trials
+from reachirl.errors import InputError, Terminated, solver_interrupts
+from reachirl.irl.model import LearnedModel, save_model
+
+MARKERS = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory) -> Path:
+    """One virtual subject's P2 reaches as TRC (3 trials) and MOT (1 trial), their trials file and a model."""
+    d = tmp_path_factory.mktemp("nothing_lost")
+    assert (
+        main(
+            ["synth", "--out", str(d / "syn"), "--subjects", "1", "--trials", "2", "--postures", "P2", "--workers", "1"]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "synth",
+                "--out",
+                str(d / "mot"),
+                "--subjects",
+                "1",
+                "--trials",
+                "1",
+                "--postures",
+                "P2",
+                "--format",
+                "mot",
+                "--workers",
+                "1",
+            ]
+        )
+        == 0
+    )
+    assert (
+        main(
+            [
+                "preprocess",
+                "--manifest",
+                str(d / "syn" / "manifest.csv"),
+                "--subject-info",
+                str(d / "syn" / "subjects.csv"),
+                "--markers",
+                MARKERS,
+                "--out",
+                str(d / "trials.npz"),
+            ]
+        )
+        == 0
+    )
+    save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
+    return d
+
+
+def _digest(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _fails(argv, capsys, pattern: str) -> str:
+    """``main(argv)`` exits 2 with one line on stderr matching ``pattern``."""
+    import re
+
+    code = main([str(a) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, err
+    assert len(err) == 1, err
+    assert re.search(pattern, err[0]), err[0]
+    return err[0]
+
+
+# ---------------------------------------------------------------------- 1. inputs are never outputs
+def _link(kind: str, src: Path, dst: Path) -> Path:
+    if kind == "symlink":
+        dst.symlink_to(src)
+    elif kind == "hardlink":
+        os.link(src, dst)
+    else:
+        return src
+    return dst
+
+
+@pytest.mark.parametrize("kind", ["same", "symlink", "hardlink"])
+def test_preprocess_never_writes_over_a_recording(base, tmp_path, capsys, kind):
+    trc = tmp_path / "victim.trc"
+    shutil.copy(base / "syn" / "S01_P2_T01.trc", trc)
+    before = _digest(trc)
+    out = _link(kind, trc, tmp_path / "out.npz")
+    _fails(
+        ["preprocess", trc, "--markers", MARKERS, "--out", out],
+        capsys,
+        r"--out is the input file .*victim\.trc; it would be overwritten",
+    )
+    assert _digest(trc) == before
+
+
+@pytest.mark.parametrize("which", ["manifest.csv", "subjects.csv"])
+def test_preprocess_never_writes_over_its_manifest_or_subject_info(base, tmp_path, capsys, which):
+    syn = tmp_path / "syn"
+    shutil.copytree(base / "syn", syn)
+    before = _digest(syn / which)
+    _fails(
+        [
+            "preprocess",
+            "--manifest",
+            syn / "manifest.csv",
+            "--subject-info",
+            syn / "subjects.csv",
+            "--markers",
+            MARKERS,
+            "--out",
+            syn / which,
+        ],
+        capsys,
+        rf"--out is the input file .*{which}",
+    )
+    assert _digest(syn / which) == before
+
+
+@pytest.mark.parametrize(
+    ("command", "which"), [("fit", "trials"), ("evaluate", "trials"), ("evaluate", "model"), ("simulate", "model")]
+)
+@pytest.mark.parametrize("kind", ["same", "symlink", "hardlink"])
+def test_fit_evaluate_simulate_never_write_over_their_inputs(base, tmp_path, capsys, command, which, kind):
+    trials, model = tmp_path / "t.npz", tmp_path / "m.json"
+    shutil.copy(base / "trials.npz", trials)
+    shutil.copy(base / "model.json", model)
+    victim = trials if which == "trials" else model
+    before = _digest(victim)
+    out = _link(kind, victim, tmp_path / "o.json")
+    argv = {
+        "fit": ["fit", trials, "--sections", "1", "--nodes", "20", "--max-iter", "1", "--out", out],
+        "evaluate": ["evaluate", "--model", model, trials, "--out", out],
+        "simulate": ["simulate", "--model", model, trials, "--out", out],
+    }[command]
+    _fails(argv, capsys, rf"--out is the input file .*{victim.name}; it would be overwritten")
+    assert _digest(victim) == before
+
+
+def test_evaluate_checks_every_output_before_writing_any(base, tmp_path, capsys):
+    (tmp_path / "afile").write_text("x")
+    _fails(
+        [
+            "evaluate",
+            "--model",
+            base / "model.json",
+            base / "trials.npz",
+            "--out",
+            tmp_path / "ev.json",
+            "--predictions",
+            tmp_path / "afile" / "p",
+        ],
+        capsys,
+        r"--predictions: .*afile is a file, not a folder",
+    )
+    assert not (tmp_path / "ev.json").exists()
+
+
+def test_evaluate_predictions_never_overwrite_an_input(base, tmp_path, capsys):
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    trials = load_trials(base / "trials.npz")
+    model = pred / "S01_P2_right_S01_P2_T01.csv"  # the name the first trial's prediction would get
+    shutil.copy(base / "model.json", model)
+    before = _digest(model)
+    _fails(
+        ["evaluate", "--model", model, base / "trials.npz", "--out", tmp_path / "ev.json", "--predictions", pred],
+        capsys,
+        r"--predictions .* is the input file",
+    )
+    assert _digest(model) == before and not (tmp_path / "ev.json").exists()
+    assert trials[0].id == "S01/P2/right/S01_P2_T01"
+
+
+def test_reproduce_and_sensitivity_refuse_their_input_folder_as_output(base, tmp_path, capsys):
+    syn = tmp_path / "syn"
+    shutil.copytree(base / "syn", syn)
+    _fails(
+        ["reproduce", "--quick", "--data", syn, "--out", syn, "--workers", "1"], capsys, r"--out is the input folder"
+    )
+    run = tmp_path / "run"
+    run.mkdir()
+    _fails(["sensitivity", run, "--out", run], capsys, r"--out is the input folder")
+
+
+# ---------------------------------------------------------------------- 2. an interrupt is an interrupt
+def _swallowing_solver():
+    """What CasADi does when Ctrl-C arrives mid-solve: the KeyboardInterrupt raised by the signal handler is
+    caught, and a failed solve is returned."""
+    try:
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # the handler runs between bytecodes
+            pass
+    except KeyboardInterrupt:
+        return "failed solve"
+    return "solved"
+
+
+def test_an_interrupt_swallowed_by_a_solver_is_raised_when_it_returns():
+    with pytest.raises(KeyboardInterrupt):
+        with solver_interrupts():
+            _swallowing_solver()
+
+
+def test_sigterm_swallowed_by_a_solver_is_raised_as_terminated():
+    def on_term(signum, frame):
+        raise Terminated()
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        with pytest.raises(Terminated):
+            with solver_interrupts():
+                try:
+                    os.kill(os.getpid(), signal.SIGTERM)
+                    for _ in range(1000):
+                        pass
+                except KeyboardInterrupt:
+                    pass  # swallowed
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert signal.getsignal(signal.SIGTERM) is old
+
+
+def test_a_recording_guard_never_raises_inside_the_solver():
+    """Crocoddyl's guard only records: nothing is raised inside (boost::python would abort), the solver's own
+    callback sees the signal pending, and it is raised once the solve returns."""
+    from reachirl.errors import interrupt_pending
+
+    seen = []
+    with pytest.raises(KeyboardInterrupt):
+        with solver_interrupts(stop_solver=False):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):
+                pass
+            seen.append(interrupt_pending())
+    assert seen == [True]
+    assert not interrupt_pending()
+
+
+# ---------------------------------------------------------------------- 3. only regular files are read
+@pytest.mark.parametrize("command", ["preprocess", "fit", "evaluate", "simulate"])
+def test_a_fifo_as_input_is_refused_at_once(base, tmp_path, capsys, command):
+    fifo = tmp_path / ("in.trc" if command == "preprocess" else "in.npz")
+    os.mkfifo(fifo)
+    argv = {
+        "preprocess": ["preprocess", fifo, "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        "fit": ["fit", fifo, "--sections", "1", "--out", tmp_path / "m.json"],
+        "evaluate": ["evaluate", "--model", base / "model.json", fifo, "--out", tmp_path / "e.json"],
+        "simulate": ["simulate", "--model", base / "model.json", fifo],
+    }[command]
+    _fails(argv, capsys, r"in\.(trc|npz): is not a regular file \(a FIFO, device or socket\)")
+
+
+def test_load_trials_refuses_a_fifo(tmp_path):
+    os.mkfifo(tmp_path / "t.npz")
+    with pytest.raises(InputError, match=r"t\.npz: is not a regular file"):
+        load_trials(tmp_path / "t.npz")
+
+
+# ---------------------------------------------------------------------- 4. recordings against their headers
+def _lines(path: Path) -> list[str]:
+    return path.read_text().splitlines()
+
+
+def _write(path: Path, lines: list[str]) -> Path:
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_mot_cut_at_a_row_boundary_is_truncated(base, tmp_path, capsys):
+    lines = _lines(base / "mot" / "S01_P2_T01.mot")
+    assert "nRows=187" in lines
+    cut = _write(tmp_path / "cut.mot", lines[:102])
+    _fails(
+        ["preprocess", cut, "--out", tmp_path / "p.npz"],
+        capsys,
+        r"cut\.mot: line 102: truncated file: the header says nRows=187, the file ends after 95 rows",
+    )
+
+
+def test_a_mot_claiming_absurd_rows_is_refused(base, tmp_path, capsys):
+    lines = [("nRows=999999999" if ln.startswith("nRows=") else ln) for ln in _lines(base / "mot" / "S01_P2_T01.mot")]
+    _fails(
+        ["preprocess", _write(tmp_path / "big.mot", lines), "--out", tmp_path / "p.npz"],
+        capsys,
+        r"big\.mot: line 3: header field nRows=999999999 is not a row count in \[1, 10000000\]",
+    )
+
+
+def test_a_trc_cut_at_a_row_boundary_is_truncated(base, tmp_path, capsys):
+    cut = _write(tmp_path / "cut.trc", _lines(base / "syn" / "S01_P2_T01.trc")[:100])
+    _fails(
+        ["preprocess", cut, "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        capsys,
+        r"cut\.trc: line 100: truncated file: the header says NumFrames=\d+, the file ends after 94 frames",
+    )
+
+
+def test_a_trc_missing_a_frame_or_with_another_rate_is_refused(base, tmp_path, capsys):
+    lines = _lines(base / "syn" / "S01_P2_T01.trc")
+    gap = _write(tmp_path / "gap.trc", lines[:49] + lines[50:])
+    _fails(
+        ["preprocess", gap, "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        capsys,
+        r"gap\.trc: line 50: frame number 45 where 44 was expected",
+    )
+    fields = lines[2].split("\t")
+    fields[0] = "250.00"
+    rate = _write(tmp_path / "rate.trc", [*lines[:2], "\t".join(fields), *lines[3:]])
+    _fails(
+        ["preprocess", rate, "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        capsys,
+        r"rate\.trc: line 3: the Time column steps 0\.01 s but the header's DataRate=250\.00 Hz means 0\.004 s",
+    )
+
+
+# ---------------------------------------------------------------------- 5. physical consistency at the door
+def test_subject_info_lengths_far_from_the_markers_are_refused(base, tmp_path, capsys):
+    si = tmp_path / "subjects.csv"
+    rows = _lines(base / "syn" / "subjects.csv")
+    head = rows[0].split(",")
+    cells = rows[1].split(",")
+    cells[head.index("upper_arm_m")], cells[head.index("forearm_m")] = "0.40", "0.55"
+    _write(si, [rows[0], ",".join(cells)])
+    _fails(
+        [
+            "preprocess",
+            base / "syn" / "S01_P2_T01.trc",
+            "--subject-info",
+            si,
+            "--subject",
+            "S01",
+            "--markers",
+            MARKERS,
+            "--out",
+            tmp_path / "p.npz",
+        ],
+        capsys,
+        r"subject S01: subject-info upper_arm_m = 0\.400 m but the markers measure 0\.\d+ m .* at most 20 % allowed",
+    )
+
+
+def _with_trials(base: Path, path: Path, **changes) -> Path:
+    from dataclasses import replace
+
+    trials = [replace(t, **changes) for t in load_trials(base / "trials.npz")]
+    save_trials(path, trials)
+    return path
+
+
+@pytest.mark.parametrize("target", [-0.3, 0.0])
+def test_a_target_behind_or_at_the_shoulder_is_exit_2(base, tmp_path, capsys, target):
+    bad = _with_trials(base, tmp_path / "t.npz", target_x=target)
+    for argv in (
+        ["fit", bad, "--sections", "1", "--nodes", "20", "--out", tmp_path / "m.json"],
+        ["evaluate", "--model", base / "model.json", bad, "--out", tmp_path / "e.json"],
+    ):
+        _fails(
+            argv,
+            capsys,
+            r"t\.npz: trial 0 \(S01/P2/right/S01_P2_T01\): field 'target_x' = .* is outside the "
+            r"arm's reach \(0, 0\.\d+\] m",
+        )
+
+
+def test_absurd_start_velocities_are_refused(base, tmp_path, capsys):
+    tr = load_trials(base / "trials.npz")[0]
+    bad = _with_trials(base, tmp_path / "t.npz", x0=np.r_[tr.x0[:2], 1e6, 0.0])
+    _fails(
+        ["evaluate", "--model", base / "model.json", bad, "--out", tmp_path / "e.json"],
+        capsys,
+        r"field 'x0': the start velocity q̇1 = 1e\+06 rad/s is outside \[-10, 10\] rad/s",
+    )
+
+
+@pytest.mark.parametrize("command", ["evaluate", "simulate"])
+def test_a_model_rollout_outside_the_joint_limits_is_refused(base, tmp_path, capsys, command):
+    m = json.loads((base / "model.json").read_text())
+    m.setdefault("info", {})["rollout_q"] = [[1e6, 1.0]] + [[0.0, 1.0]] * 20
+    (tmp_path / "m.json").write_text(json.dumps(m))
+    argv = {
+        "evaluate": ["evaluate", "--model", tmp_path / "m.json", base / "trials.npz", "--out", tmp_path / "e.json"],
+        "simulate": ["simulate", "--model", tmp_path / "m.json", base / "trials.npz"],
+    }[command]
+    _fails(argv, capsys, r"m\.json: field 'info\.rollout_q', row 0: q1 = 1e\+06 rad is outside the joint limits")
+
+
+def test_pd_gains_beyond_a_stable_step_are_refused(base, tmp_path, capsys):
+    _fails(
+        [
+            "simulate",
+            "--model",
+            base / "model.json",
+            base / "trials.npz",
+            "--trial",
+            "0",
+            "--mode",
+            "pd",
+            "--kp",
+            "100000",
+            "--kd",
+            "10000",
+        ],
+        capsys,
+        r"--kd 10000 N·m·s/rad is outside \[0, [\d.]+\], the largest that MuJoCo's step of [\d.]+ ms integrates",
+    )
+
+
+@pytest.mark.parametrize("how", ["backwards", "upside down"])
+def test_a_backwards_or_mirrored_recording_is_caught_in_preprocess(base, tmp_path, capsys, how):
+    lines = _lines(base / "syn" / "S01_P2_T01.trc")
+    head, rows = lines[:6], [r.split("\t") for r in lines[6:] if r.strip()]
+    if how == "backwards":
+        data = [r[2:] for r in rows][::-1]
+        rows = [r[:2] + d for r, d in zip(rows, data, strict=True)]
+    else:  # the vertical axis negated
+        rows = [[*r[:2], *(str(-float(v)) if (j % 3 == 1 and v) else v for j, v in enumerate(r[2:]))] for r in rows]
+    rec = _write(tmp_path / "rec.trc", head + ["\t".join(r) for r in rows])
+    _fails(
+        ["preprocess", rec, "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        capsys,
+        r"rec\.trc: the start posture q0 = .* lies outside the joint limits .*: a mirrored or backwards "
+        r"recording\? \(a left arm needs --side left",
+    )
+
+
+# ---------------------------------------------------------------------- 6. checkpoints and no non-finite number
+def test_an_edited_checkpoint_is_recomputed(tmp_path):
+    from reachirl.experiments.results import load_unit, save_unit
+
+    payload = {"result": {"key": "u", "fingerprint": "f", "weights": [[0.1, 0.2]], "rmse": 0.6317}, "arrays": {}}
+    save_unit(tmp_path, payload)
+    js = tmp_path / "units" / "u.json"
+    assert load_unit(tmp_path, "u", "f")["rmse"] == 0.6317
+    text = js.read_text()
+    js.write_text(text.replace("0.6317", "1.1317"))
+    assert load_unit(tmp_path, "u", "f") is None
+    js.write_text(text.replace("0.1", "NaN"))
+    assert load_unit(tmp_path, "u", "f") is None
+    js.write_text(text)
+    assert load_unit(tmp_path, "u", "f") is not None
+
+
+def test_a_folder_in_a_checkpoint_s_place_is_named(tmp_path):
+    from reachirl.experiments.results import load_unit
+
+    (tmp_path / "units" / "u.json").mkdir(parents=True)
+    with pytest.raises(InputError, match=r"units/u\.json: is not a regular file, where the unit's checkpoint goes"):
+        load_unit(tmp_path, "u", "f")
+
+
+def test_a_set_whose_docs_all_failed_says_so():
+    from reachirl.experiments.no_data import annotate_no_data
+
+    out = annotate_no_data(
+        {"train": {"summary": {"n_trials": 3, "doc_failures": 3, "rmse_deg": {"q": {"mean": None, "std": None}}}}}
+    )
+    assert out["train"]["summary"]["rmse_deg"]["q"]["no_data"] == (
+        "the DOC failed (did not converge) on all 3 trial(s) of this set; no RMSE"
+    )
+
+
+# ---------------------------------------------------------------------- 7. bad input is exit 2, not 1
+def test_the_same_up_and_forward_axis_is_exit_2(base, tmp_path, capsys):
+    _fails(
+        [
+            "preprocess",
+            base / "syn" / "S01_P2_T01.trc",
+            "--markers",
+            MARKERS,
+            "--out",
+            tmp_path / "p.npz",
+            "--plane",
+            "axes",
+            "--up-axis",
+            "+y",
+            "--forward-axis",
+            "+y",
+        ],
+        capsys,
+        r"--up-axis \+y and --forward-axis \+y are the same lab axis",
+    )
+
+
+# ---------------------------------------------------------------------- 8. errors name the file passed
+def test_a_trial_error_names_the_trials_file_not_the_recording(base, tmp_path, capsys):
+    with zipfile.ZipFile(base / "trials.npz") as z:
+        entries = {n: z.read(n) for n in z.namelist()}
+    buf = io.BytesIO()
+    np.save(buf, np.load(io.BytesIO(entries["0/q.npy"])) * np.nan)
+    entries["0/q.npy"] = buf.getvalue()
+    bad = tmp_path / "q_nan.npz"
+    with zipfile.ZipFile(bad, "w") as z:
+        for n, b in entries.items():
+            z.writestr(n, b)
+    err = _fails(
+        ["fit", bad, "--sections", "1", "--out", tmp_path / "m.json"],
+        capsys,
+        r"q_nan\.npz: trial 0 \(S01/P2/right/S01_P2_T01\): q contains NaN or infinite values$",
+    )
+    assert ".trc" not in err
+
+
+# ---------------------------------------------------------------------- 9. minor
+def test_a_missing_static_file_is_an_error(base, tmp_path, capsys):
+    _fails(
+        [
+            "preprocess",
+            base / "syn" / "S01_P2_T01.trc",
+            "--markers",
+            MARKERS,
+            "--static",
+            tmp_path / "nope.csv",
+            "--out",
+            tmp_path / "p.npz",
+        ],
+        capsys,
+        r"nope\.csv: --static: file not found",
+    )
+
+
+def test_sensitivity_workers_are_bounded(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["sensitivity", str(tmp_path), "--out", str(tmp_path / "o"), "--workers", "10000"])
+    assert e.value.code == 2
+    assert "argument --workers: expected an integer in [1, 256], got 10000" in capsys.readouterr().err
+
+
+def test_duplicate_npz_entries_and_manifest_rows_are_refused(base, tmp_path, capsys):
+    dup = tmp_path / "dup.npz"
+    shutil.copy(base / "trials.npz", dup)
+    with zipfile.ZipFile(dup) as z:
+        q = z.read("0/q.npy")
+    with pytest.warns(UserWarning, match="Duplicate name"), zipfile.ZipFile(dup, "a") as z:
+        z.writestr("0/q.npy", q)
+    with pytest.raises(InputError, match=r"dup\.npz: entry 0/q\.npy appears twice in the archive"):
+        load_trials(dup)
+    syn = tmp_path / "syn"
+    shutil.copytree(base / "syn", syn)
+    rows = _lines(syn / "manifest.csv")
+    _write(syn / "manifest.csv", [*rows, rows[1]])
+    _fails(
+        ["preprocess", "--manifest", syn / "manifest.csv", "--markers", MARKERS, "--out", tmp_path / "p.npz"],
+        capsys,
+        rf"manifest\.csv: line {len(rows) + 1}: file 'S01_P2_T01\.trc' is listed twice \(lines 2 and "
+        rf"{len(rows) + 1}\)",
+    )
+
+
+def test_reproduce_subjects_are_bounded(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--quick", "--subjects", "100000"])
+    assert e.value.code == 2
+    assert "argument --subjects: expected an integer in [2, 100], got 100000" in capsys.readouterr().err

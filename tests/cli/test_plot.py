@@ -1,0 +1,104 @@
+"""`reachirl plot --model` predicts as `evaluate` does (trials cut at a speed threshold seen as recorded), takes
+the same trial choice, and reads the model through the one checked loader."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reachirl import ArmModel, ReachingTask, solve_doc
+from reachirl.cli import main
+from reachirl.data.trial import load_trials, save_trials
+from reachirl.doc.evaluation import evaluate_trials
+from reachirl.doc.observation import observe
+from reachirl.virtual import nominal_weights, posture_q
+
+N = 20
+ARM = ArmModel.from_anthropometrics(1.76, 70.0, "M")
+THRESHOLD = 0.05
+
+
+def _recorded(subject: str, k: int, offset: float) -> object:
+    """A rest-to-rest reach under the nominal weights, cut at its own crossings of the speed threshold, as a
+    recording is."""
+    task = ReachingTask(
+        ARM, posture_q("P2") + np.deg2rad([offset, -offset]), 0.95 * ARM.length, 0.75 + 0.02 * k, n_nodes=N
+    )
+    sol = solve_doc(task, nominal_weights())
+    assert sol.converged
+    return replace(
+        observe(sol, task, THRESHOLD), subject=subject, posture="P2", trial_id=f"T{k}", onset_threshold=THRESHOLD
+    )
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """Cut trials of two subjects, and a model fitted on S01's (observed rollouts: the fit's default)."""
+    d = tmp_path_factory.mktemp("plot")
+    trials = [_recorded(s, k, off) for s in ("S01", "S02") for k, off in enumerate((-3.0, 0.0, 3.0))]
+    path = save_trials(d / "trials.npz", trials)
+    model = d / "model.json"
+    assert (
+        main(
+            [
+                "fit",
+                str(path),
+                "--subject",
+                "S01",
+                "--sections",
+                "2",
+                "--nodes",
+                str(N),
+                "--max-iter",
+                "2",
+                "--out",
+                str(model),
+            ]
+        )
+        == 0
+    )
+    assert json.loads(model.read_text())["info"]["observe"] is True
+    return d, path, model
+
+
+def _summary_line(out: str) -> str:
+    return next(line for line in out.splitlines() if "trials: RMSE" in line)
+
+
+def test_plot_gives_evaluates_rmse_on_the_chosen_held_out_trials(fitted, capsys):
+    d, trials, model = fitted
+    capsys.readouterr()
+    assert main(["evaluate", "--model", str(model), str(trials), "--subject", "S02", "--out", str(d / "m.json")]) == 0
+    evaluated = _summary_line(capsys.readouterr().out)
+    assert (
+        main(["plot", "--model", str(model), str(trials), "--subject", "S02", "--no-pdf", "--out", str(d / "figs")])
+        == 0
+    )
+    plotted = _summary_line(capsys.readouterr().out)
+    assert plotted == evaluated and plotted.startswith("3 trials:")
+    assert (d / "figs" / "prediction.png").is_file() and (d / "figs" / "convergence.png").is_file()
+    # the prediction a plot that ignored the model's `observe` would make is measurably another one
+    weights = np.array(json.loads(model.read_text())["weights"])
+    held_out = [t for t in load_trials(trials) if t.subject == "S02"]
+    metrics = json.loads((d / "m.json").read_text())["summary"]["rmse_deg"]["q"]["mean"]
+    whole = np.mean([e.rmse_q for e in evaluate_trials(weights, held_out, N, observe=False)])
+    assert abs(whole - metrics) > 0.05
+
+
+def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
+    d, trials, model = fitted
+    bad = json.loads(model.read_text())
+    bad["info"]["observe"] = "yes"
+    (d / "bad.json").write_text(json.dumps(bad))
+    capsys.readouterr()
+    assert main(["plot", "--model", str(d / "bad.json"), str(trials), "--out", str(d / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "field 'info.observe': expected true or false" in err and len(err.strip().splitlines()) == 1
+    assert not (d / "x").exists()
+
+
+def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
+    (tmp_path / "run").mkdir()
+    assert main(["plot", str(tmp_path / "run"), "--subject", "S01", "--out", str(tmp_path / "f")]) == 2
+    assert "--subject chooses trials, so it needs --model" in capsys.readouterr().err

@@ -1,0 +1,214 @@
+"""``reachirl reproduce`` end to end on a tiny trials file: files, resume, determinism, local processes,
+bad input."""
+
+import json
+
+import numpy as np
+import pytest
+
+from reachirl.cli import main
+from reachirl.data.trial import save_trials
+from reachirl.experiments import datasets
+from reachirl.io import atomic_write_json
+
+
+def _same_table(a, b) -> None:
+    la, lb = (p.joinpath("table.csv").read_text().splitlines() for p in (a, b))
+    assert [x for x in la if x not in lb] == [] and la == lb
+
+
+ARGS = ["--quick", "--sections", "1", "8", "--max-iter", "3", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def trials_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("toy")
+    ds = datasets.toy(n_subjects=2, postures=("P2", "P4"), n_trials=4, n_nodes=40, seed=1)
+    save_trials(d / "trials.npz", ds.trials)
+    atomic_write_json(d / "truth.json", ds.truth)  # virtual subjects: the truth beside the trials
+    return d / "trials.npz"
+
+
+@pytest.fixture(scope="module")
+def reference_run(trials_file, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ref") / "out"
+    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]) == 0
+    return out
+
+
+def test_outputs(reference_run, capsys):
+    out = reference_run
+    table_csv = (out / "table.csv").read_text()
+    assert table_csv.startswith("method,posture,joint,train_1_mean")
+    assert {ln.split(",")[1] for ln in table_csv.splitlines()[1:]} == {"P2", "P4", "ALL", "ALL (trials)"}
+    md = (out / "table.md").read_text()
+    assert "| P2 |" in md and "Training" in md and "DOC failures" in md
+    res = json.loads((out / "results.json").read_text())
+    for k in (
+        "data",
+        "protocol",
+        "tables",
+        "headline",
+        "seed_table",
+        "doc",
+        "units",
+        "timing",
+        "figures",
+        "truth_comparison",
+        "all_postures_convention",
+    ):
+        assert k in res, k
+    assert {"data_s", "units_wall_s", "fit_s_sum", "evaluation_s_sum", "figures_s", "report_s"} <= set(res["timing"])
+    assert len(res["units"]) == 4 and res["protocol"]["postures_run"] == ["P2", "P4"]
+    u = res["units"][0]
+    assert {"weights", "history", "sets", "fit", "evaluation"} <= set(u)
+    assert u["sets"]["iscv"]["summary"]["n_trials"] == 3
+    report = (out / "report.md").read_text()
+    figs = sorted(p.name for p in (out / "figures").glob("*.png"))
+    assert {
+        "fig2_prediction.png",
+        "fig3_weights.png",
+        "fig4_iscv.png",
+        "convergence.png",
+        "weights_vs_truth.png",
+    } <= set(figs)
+    import matplotlib.image as mpimg
+
+    for name in figs:
+        img = mpimg.imread(out / "figures" / name)  # decodes: a valid PNG
+        h, w = img.shape[:2]
+        assert h >= 300 and w >= 400, (name, img.shape)
+        ink = np.mean(np.any(img[..., :3] < 0.9, axis=-1))  # share of pixels that are not (near) white
+        assert 0.01 < ink < 0.9, (name, ink)  # drawn on, and not a solid block
+        assert f"figures/{name}" in report
+    assert "seed" in report.lower() and "10.41 ± 3.81" in report  # the seed's own numbers beside ours
+
+
+def test_resume_gives_the_same_table(trials_file, reference_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    base = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main([*base, "--max-units", "2"]) == 0
+    assert "rerun" in capsys.readouterr().err
+    assert len(list((out / "units").glob("*.json"))) == 2 and not (out / "table.csv").exists()
+    assert main(base) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert len(res["run"]["reused"]) == 2 and len(res["run"]["computed"]) == 2
+    # determinism: same seed, same bytes (this run was interrupted and resumed, the reference was not)
+    _same_table(out, reference_run)
+
+
+def test_local_processes_equal_in_process(trials_file, reference_run, tmp_path):
+    out = tmp_path / "out"
+    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "2", *ARGS]) == 0
+    _same_table(out, reference_run)
+
+
+def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file, reference_run):
+    """Virtual subjects: results.json holds, per posture and set, how far the 8-section fit's predictions lie
+    from the true weights' own; recomputed here from the unit's weights and the truth, DOC by DOC."""
+    from reachirl import ReachingTask, solve_doc
+    from reachirl.data.trial import load_trials
+
+    res = json.loads((reference_run / "results.json").read_text())
+    agree = res["truth_comparison"]["P2"]["predictions"]
+    assert set(agree) == {"train", "cv", "iscv"}
+    unit = next(u for u in res["units"] if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 8)
+    truth = json.loads(trials_file.with_name("truth.json").read_text())
+    w_true = np.array(truth["truth"]["nominal_weights"])
+    by_id = {t.id: t for t in load_trials(trials_file)}
+    n = unit["unit"]["n_nodes"]
+    for name, got in agree.items():
+        mine = []
+        for e in unit["sets"][name]["trials"]:
+            task = ReachingTask.from_trial(by_id[e["id"]], n)  # toy trials are DOC reaches: not cut, seen whole
+            a, b = solve_doc(task, np.array(unit["weights"])).q, solve_doc(task, w_true).q
+            mine.append(np.rad2deg(np.sqrt(np.mean((a - b) ** 2))))
+        assert got["n"] == len(mine)
+        assert got["learned_vs_true_deg"] == pytest.approx(np.mean(mine), abs=2e-3)
+    assert "from the true weights' own" in (reference_run / "table.md").read_text()
+
+
+def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, reference_run, tmp_path):
+    """``rollout = per_demo`` gives each demonstration its own training rollout: the fit's first iteration
+    solves one DOC per training trial (one task's rollout, the default, solves one); the unit records it and the
+    run file's ``[experimental]`` merit model."""
+    out = tmp_path / "out"
+    run = tmp_path / "run.toml"
+    run.write_text('rollout = "per_demo"\ntol = 3e-4\n\n[experimental]\nmerit_model = "gauss-newton"\n')
+    assert (
+        main(
+            [
+                "reproduce",
+                "--data",
+                str(trials_file),
+                "--out",
+                str(out),
+                "--workers",
+                "1",
+                *ARGS,
+                "--sections",
+                "1",
+                "--postures",
+                "P2",
+                "--config",
+                str(run),
+            ]
+        )
+        == 0
+    )
+    (unit,) = json.loads((out / "results.json").read_text())["units"]
+    ref = next(
+        u
+        for u in json.loads((reference_run / "results.json").read_text())["units"]
+        if u["unit"]["posture"] == "P2" and u["unit"]["sections"] == 1
+    )
+    n_train = json.loads((out / "results.json").read_text())["split_sizes"]["train"]["P2"]
+    assert n_train > 1
+    assert ["rollout", "per_demo"] in unit["unit"]["estimator_options"]
+    assert ["experimental", [["merit_model", "gauss-newton"]]] in unit["unit"]["estimator_options"]
+    assert unit["unit"]["tol"] == 3e-4 and ref["unit"]["tol"] is None
+    assert ["rollout", "per_task"] in ref["unit"]["estimator_options"]
+    assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--data", "{tmp}/missing.npz"], "no such file"),
+        (["--data", "{tmp}/empty.npz"], "empty.npz"),
+        (["--data", "{trials}", "--postures", "P9"], "unknown posture"),
+        (["--data", "{trials}", "--train-subject", "S99"], "unknown training subject"),
+        (["--data", "{trials}", "--method", "magic"], "unknown method"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, extra, message):
+    (tmp_path / "empty.npz").write_bytes(b"")
+    extra = [e.format(tmp=tmp_path, trials=trials_file) for e in extra]
+    code = main(["reproduce", "--out", str(tmp_path / "out"), "--no-progress", *extra])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert message in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_bad_usage_exits_2(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--sections", "0"])
+    assert e.value.code == 2
+
+
+@pytest.mark.slow
+def test_quick_on_builtin_data(tmp_path):
+    """`reproduce --quick` on the built-in virtual subjects (generates the cached data set on first use)."""
+    out = tmp_path / "out"
+    assert main(["reproduce", "--quick", "--out", str(out), "--no-progress"]) == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["data"]["kind"] == "builtin" and res["protocol"]["postures_run"] == ["P2", "P4"]
+    assert (out / "figures" / "weights_vs_truth.png").exists()
+
+
+def test_a_bad_tol_is_refused_before_any_work(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--tol", "0.7", "--out", str(tmp_path / "o")])
+    assert e.value.code == 2
+    assert "--tol: expected a number in [0, 0.5], got 0.7" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

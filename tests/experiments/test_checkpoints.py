@@ -1,0 +1,179 @@
+"""Checkpoints of `reproduce` are verified before reuse: a damaged or mismatched unit is recomputed, never
+reused, and temporary files left by a killed run are removed. Results never hold NaN or a bare null."""
+
+import json
+
+import numpy as np
+import pytest
+
+from reachirl import ReachingTask, solve_doc
+from reachirl.cli import main
+from reachirl.data.trial import save_trials, trial_from_solution
+from reachirl.experiments.runner import load_unit
+
+FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+KEY = "moirl-P2-s1"
+
+
+@pytest.fixture(scope="module")
+def trials_file(tmp_path_factory, arm):
+    rng = np.random.default_rng(1)
+    w = np.full((1, 7), 0.3) / FEATURE_SCALE
+    trials = []
+    for i in range(3):
+        q0 = np.deg2rad([-20.0, 90.0]) + np.deg2rad(rng.normal(0, 2, 2))
+        task = ReachingTask(arm, q0, 0.9 * arm.length, 0.7, n_nodes=20)
+        sol = solve_doc(task, w)
+        trials.append(trial_from_solution(sol, arm, task.target_x, subject="S1", posture="P2", trial_id=str(i)))
+    path = tmp_path_factory.mktemp("ckpt") / "trials.npz"
+    save_trials(path, trials)
+    return path
+
+
+def _reproduce(trials_file, out) -> dict:
+    argv = [
+        "reproduce",
+        "--quick",
+        "--data",
+        str(trials_file),
+        "--workers",
+        "1",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "1",
+        "--sections",
+        "1",
+        "--n-train",
+        "2",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    return json.loads((out / "results.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def first_run(trials_file, tmp_path_factory):
+    out = tmp_path_factory.mktemp("run")
+    results = _reproduce(trials_file, out)
+    assert results["run"]["computed"] == [KEY]
+    return out, (out / "table.csv").read_bytes(), (out / "table.md").read_bytes()
+
+
+def _nulls(obj, path=""):
+    if isinstance(obj, dict):
+        out = []
+        for k, v in obj.items():
+            if v is None and k in ("mean", "std", "summary") and "no_data" not in obj:
+                out.append(f"{path}/{k}")
+            out += _nulls(v, f"{path}/{k}")
+        return out
+    if isinstance(obj, list):
+        return [p for i, v in enumerate(obj) for p in _nulls(v, f"{path}/{i}")]
+    return []
+
+
+def test_empty_splits_say_no_data_with_a_reason(first_run):
+    import re
+
+    out, _, table_md = first_run
+    written = sorted(f for f in out.rglob("*") if f.is_file())
+    assert {f.name for f in written} >= {"results.json", "table.csv", "table.md", "report.md", f"{KEY}.json"}
+    for f in written:  # every result file the run wrote
+        if f.suffix in (".json", ".csv", ".md"):
+            text = f.read_text()
+            assert not re.search(r"(?<![A-Za-z])(nan|NaN|inf|Infinity)(?![A-Za-z])", text), f
+            if f.suffix == ".json":
+                assert not _nulls(json.loads(text)), (f, _nulls(json.loads(text)))
+        elif f.suffix == ".npz":
+            with np.load(f, allow_pickle=False) as z:
+                assert all(np.all(np.isfinite(z[k])) for k in z.files if z[k].dtype.kind == "f"), f
+    results = json.loads((out / "results.json").read_text())
+    iscv = results["tables"]["moirl"]["P2"]["iscv"]["1"]["q"]
+    assert iscv["mean"] is None and iscv["n"] == 0
+    assert iscv["no_data"].startswith("no inter-subject trials: the data has no other subject")
+    assert "— means no data: no inter-subject trials" in table_md.decode()
+    import csv
+
+    rows = list(csv.DictReader((out / "table.csv").read_text().splitlines()))
+    assert rows and all(r["iscv_1_mean"] == "" and r["iscv_1_n"] == "0" for r in rows)
+    assert all("iscv: no inter-subject trials: the data has no other subject" in r["no_data"] for r in rows)
+
+
+@pytest.mark.parametrize(
+    ("damage", "what"),
+    [
+        (lambda js, npz: npz.write_bytes(npz.read_bytes()[: len(npz.read_bytes()) // 2]), "truncated NPZ"),
+        (lambda js, npz: npz.write_bytes(b"garbage"), "garbage NPZ"),
+        (lambda js, npz: npz.unlink(), "missing NPZ"),
+        (lambda js, npz: js.write_text("[]"), "JSON holding []"),
+        (lambda js, npz: js.write_text("null"), "JSON holding null"),
+        (lambda js, npz: js.write_text('{"key": "moirl-P2-s1", "fing'), "truncated JSON"),
+        (
+            lambda js, npz: js.write_text(js.read_text().replace('"npz_sha256": "', '"npz_sha256": "0')),
+            "NPZ other than the JSON's",
+        ),
+    ],
+)
+def test_a_damaged_checkpoint_is_recomputed(first_run, trials_file, tmp_path, damage, what):
+    src, table_csv, table_md = first_run
+    out = tmp_path / "run"
+    import shutil
+
+    shutil.copytree(src, out)
+    js, npz = out / "units" / f"{KEY}.json", out / "units" / f"{KEY}.npz"
+    fp = json.loads(js.read_text())["fingerprint"]
+    assert load_unit(out, KEY, fp) is not None
+    damage(js, npz)
+    assert load_unit(out, KEY, fp) is None, what
+    (out / "figures" / ".fig3_weights.png.ab3_x9zq.png").write_bytes(b"partial")  # left by a kill
+    (out / "units" / f".{KEY}.json.k2j4h5g6.tmp").write_bytes(b"partial")
+    results = _reproduce(trials_file, out)
+    assert results["run"]["computed"] == [KEY], what
+    assert (out / "table.csv").read_bytes() == table_csv
+    assert (out / "table.md").read_bytes() == table_md
+    assert not [f for f in out.rglob(".*")], "temporary files left"
+    assert load_unit(out, KEY, fp) is not None
+
+
+def test_an_intact_checkpoint_is_reused(first_run, trials_file, tmp_path):
+    import shutil
+
+    src, table_csv, _ = first_run
+    out = tmp_path / "run"
+    shutil.copytree(src, out)
+    results = _reproduce(trials_file, out)
+    assert results["run"]["reused"] == [KEY] and results["run"]["computed"] == []
+    assert (out / "table.csv").read_bytes() == table_csv
+
+
+def test_a_unit_over_its_time_limit_is_stopped(trials_file, tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "0.001")
+    argv = [
+        "reproduce",
+        "--quick",
+        "--data",
+        str(trials_file),
+        "--workers",
+        "1",
+        "--nodes",
+        "20",
+        "--max-iter",
+        "1",
+        "--sections",
+        "1",
+        "--no-progress",
+        "--out",
+        str(tmp_path / "run"),
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith(
+        f"unit {KEY} ran longer than 0.001 s; finished units are kept (rerun to resume), "
+        "raise the limit with REACHIRL_UNIT_TIMEOUT_S"
+    )
+    monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "nan")
+    assert main(argv) == 2
+    assert "REACHIRL_UNIT_TIMEOUT_S=nan: expected a positive number" in capsys.readouterr().err

@@ -1,0 +1,115 @@
+"""``reachirl reproduce --iscv all-pairs``: every ordered pair of subjects, on a 3-subject toy trials file,
+through the real console script."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from reachirl.cli import main
+from reachirl.data.trial import save_trials
+from reachirl.errors import InputError
+from reachirl.experiments import datasets
+from reachirl.experiments.pairs import COLUMNS
+from reachirl.experiments.protocol import ProtocolConfig
+
+ARGS = ["--sections", "1", "--nodes", "20", "--max-iter", "2", "--n-train", "2", "--workers", "1", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def three_subjects(tmp_path_factory):
+    d = tmp_path_factory.mktemp("three")
+    ds = datasets.toy(n_subjects=3, postures=("P2",), n_trials=3, n_nodes=20, seed=3)
+    save_trials(d / "trials.npz", ds.trials)
+    return d / "trials.npz"
+
+
+@pytest.fixture(scope="module")
+def pairs_run(three_subjects, tmp_path_factory, cli):
+    out = tmp_path_factory.mktemp("pairs") / "run"
+    proc = cli("reproduce", "--data", three_subjects, "--iscv", "all-pairs", "--out", out, *ARGS)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def _rows(out):
+    with open(out / "iscv_pairs.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_every_ordered_pair_with_the_units_numbers(pairs_run):
+    rows = _rows(pairs_run)
+    assert list(rows[0]) == list(COLUMNS)
+    p2 = [r for r in rows if r["posture"] == "P2"]
+    assert sorted((r["train_subject"], r["test_subject"]) for r in p2) == [
+        (a, b) for a in ("S01", "S02", "S03") for b in ("S01", "S02", "S03")
+    ]
+    assert {r["posture"] for r in rows} == {"P2", "ALL"}
+    for r in p2:  # diagonal: the 3 - 2 training trials left for CV; off-diagonal: every trial of the test subject
+        assert int(r["n"]) == (1 if r["train_subject"] == r["test_subject"] else 3)
+    # a row is the mean and population SD of the unit's per-trial RMSEs of that test subject
+    unit = json.loads((pairs_run / "units" / "moirl-P2-s1-tS02.json").read_text())
+    assert unit["unit"]["train_subject"] == "S02" and unit["has_arrays"] is False
+    v = [e["rmse_deg"]["q"] for e in unit["sets"]["iscv"]["trials"] if e["id"].startswith("S03")]
+    row = next(r for r in p2 if r["train_subject"] == "S02" and r["test_subject"] == "S03")
+    assert float(row["rmse_q_mean_deg"]) == pytest.approx(np.mean(v), abs=1e-4)
+    assert float(row["rmse_q_sd_deg"]) == pytest.approx(np.std(v), abs=1e-4)
+    cv = [e["rmse_deg"]["q"] for e in unit["sets"]["cv"]["trials"]]
+    diag = next(r for r in p2 if r["train_subject"] == r["test_subject"] == "S02")
+    assert float(diag["rmse_q_mean_deg"]) == pytest.approx(np.mean(cv), abs=1e-4)
+    # the weights differ per training subject (they are learned, not shared)
+    w1 = json.loads((pairs_run / "units" / "moirl-P2-s1.json").read_text())["weights"]
+    assert w1 != unit["weights"] or unit["flag"] == "w0"
+    figs = {p.name for p in (pairs_run / "figures").iterdir()}
+    assert {"iscv_pairs_moirl_s1.png", "iscv_vs_cv_moirl.png"} <= figs
+    assert "All-pairs inter-subject validation" in (pairs_run / "report.md").read_text()
+
+
+def test_main_table_unchanged_and_resume(pairs_run, three_subjects, tmp_path, capsys):
+    one = tmp_path / "one"
+    assert main(["reproduce", "--data", str(three_subjects), "--out", str(one), *ARGS]) == 0
+    assert (one / "table.csv").read_text() == (pairs_run / "table.csv").read_text()
+    assert not (one / "iscv_pairs.csv").exists()
+    before = (pairs_run / "iscv_pairs.csv").read_text()
+    capsys.readouterr()
+    assert (
+        main(["reproduce", "--data", str(three_subjects), "--iscv", "all-pairs", "--out", str(pairs_run), *ARGS]) == 0
+    )
+    assert "3 unit(s) already done" in capsys.readouterr().err
+    assert (pairs_run / "iscv_pairs.csv").read_text() == before
+
+
+def test_bad_options(three_subjects, cli):
+    with pytest.raises(InputError, match="--iscv must be one of"):
+        ProtocolConfig(iscv="some")
+    with pytest.raises(InputError, match="cannot be combined with --data"):
+        datasets.load(three_subjects, n_subjects=4)
+    with pytest.raises(InputError, match="at least 2 subjects"):
+        datasets.load(None, n_subjects=1)
+    proc = cli("reproduce", "--data", three_subjects, "--subjects", "4", "--out", "x", "--no-progress")
+    assert proc.returncode == 2 and "cannot be combined with --data" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--iscv", "every", "--out", "x"])
+    assert e.value.code == 2
+
+
+@pytest.mark.slow
+def test_all_pairs_dask_equals_local_processes(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    from reachirl.experiments.report import write_outputs
+    from reachirl.experiments.runner import reproduce
+
+    toy = datasets.toy(n_subjects=3, postures=("P2", "P4"), n_trials=3, n_nodes=20, seed=4)
+    cfg = ProtocolConfig(sections=(1, 2), n_train=2, n_nodes=20, max_iter=2, iscv="all-pairs")
+    local = reproduce(toy, cfg, tmp_path / "local", workers=2)
+    write_outputs(local)
+    assert len(local.pairs) == 2 * 2 * 2  # 2 more training subjects × 2 postures × 2 section counts
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        remote = reproduce(toy, cfg, tmp_path / "dask", scheduler=cluster.scheduler_address)
+    write_outputs(remote)
+    for name in ("table.csv", "iscv_pairs.csv"):
+        assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()

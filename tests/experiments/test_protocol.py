@@ -1,0 +1,166 @@
+"""The protocol (splits, units), the tables' conventions, the runner's checkpoints and Dask.
+
+Data: a tiny in-memory virtual data set (2 subjects × P2, P4 × 4 DOC reaches on 40 knots).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from reachirl.errors import InputError
+from reachirl.experiments import datasets, tables
+from reachirl.experiments.protocol import ProtocolConfig, make_units, run_unit, split_trials
+from reachirl.experiments.report import write_outputs
+from reachirl.experiments.runner import load_unit, reproduce, run_units
+
+FAST = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "n_nodes": 40, "max_iter": 3}
+
+
+@pytest.fixture(scope="session")
+def toy():
+    return datasets.toy(n_subjects=2, postures=("P2", "P4"), n_trials=4, n_nodes=40, seed=0)
+
+
+def _config(**kw):
+    return ProtocolConfig(**(FAST | {"sections": (1, 3)} | kw))
+
+
+def test_split_is_seeded_disjoint_and_shared_across_sections(toy):
+    cfg = _config()
+    a = split_trials(toy.trials, "P2", cfg)
+    b = split_trials(toy.trials, "P2", cfg)
+    assert [t.id for t in a.train] == [t.id for t in b.train]
+    assert len(a.train) == 3 and len(a.cv) == 1 and len(a.iscv) == 3
+    assert {t.subject for t in a.train + a.cv} == {"S01"} and {t.subject for t in a.iscv} == {"S02"}
+    assert not {t.id for t in a.train} & {t.id for t in a.cv}
+    others = {tuple(t.id for t in split_trials(toy.trials, "P2", _config(seed=s)).train) for s in range(6)}
+    assert len(others) > 1  # the seed matters
+
+
+def test_other_side_split(toy):
+    from dataclasses import replace
+
+    trials = [replace(t, side="left") if t.trial_id.endswith(("T03", "T04")) else t for t in toy.trials]
+    s = split_trials(trials, "P4", _config(cv="other-side", n_train=None, n_cv=None))
+    assert {t.side for t in s.train} == {"right"} and {t.side for t in s.cv} == {"left"}
+    assert {t.subject for t in s.train + s.cv} == {"S01"}
+
+
+def test_bad_protocol_inputs(toy):
+    from reachirl.experiments.protocol import resolve_postures, resolve_train_subject
+
+    with pytest.raises(InputError, match="unknown posture"):
+        resolve_postures(toy.trials, _config(postures=("P9",)))
+    with pytest.raises(InputError, match="unknown training subject"):
+        resolve_train_subject(toy.trials, _config(train_subject="nobody"))
+    with pytest.raises(InputError, match="sections"):
+        _config(sections=(0,))
+    with pytest.raises(InputError, match="unknown method"):
+        _config(methods=("magic",))
+
+
+def test_units_order_and_keys():
+    units = make_units(["P2", "P4"], _config(sections=(1, 8)))
+    assert [u.key for u in units] == ["moirl-P2-s8", "moirl-P4-s8", "moirl-P2-s1", "moirl-P4-s1"]
+
+
+@pytest.mark.parametrize("observe", [True, False])
+def test_every_unit_predicts_as_its_estimator_fits(observe):
+    """A unit observes its trials exactly when its estimator fits observed rollouts: MO-IRL and MaxEnt take the
+    protocol's observe and merit; bilevel and KKT fit whole reaches, so their units predict whole reaches."""
+    from reachirl.experiments.protocol import make_estimator
+
+    cfg = _config(
+        sections=(2,),
+        methods=("moirl", "maxent", "bilevel", "kkt"),
+        experimental={"observe": observe, "merit": "state"},
+    )
+    for unit in make_units(["P2"], cfg):
+        est = make_estimator(unit)
+        assert unit.observe is bool(getattr(est, "observe", False)), unit.key
+        assert unit.observe is (observe and unit.method in ("moirl", "maxent")), unit.key
+        if unit.method in ("moirl", "maxent"):
+            assert est.merit == "state"
+
+
+def test_run_unit_is_pure(toy):
+    cfg = _config(sections=(2,), max_iter=2)
+    split = split_trials(toy.trials, "P4", cfg)
+    (unit,) = make_units(["P4"], cfg)
+    a, b = run_unit(unit, split), run_unit(unit, split)
+    ra, rb = a["result"], b["result"]
+    assert ra["weights"] == rb["weights"] and ra["fingerprint"] == rb["fingerprint"]
+    assert [t["rmse_deg"] for t in ra["sets"]["iscv"]["trials"]] == [
+        t["rmse_deg"] for t in rb["sets"]["iscv"]["trials"]
+    ]
+
+
+def test_seed_all_row_convention():
+    # the seed's ALL row is the mean ± population SD of the per-posture means (q1, training, 1 section)
+    means = [tables.SEED_TABLE[p]["train"][1]["q1"]["mean"] for p in ("P1", "P2", "P3", "P4", "P5")]
+    assert np.mean(means) == pytest.approx(tables.SEED_TABLE["ALL"]["train"][1]["q1"]["mean"], abs=0.01)
+    assert np.std(means) == pytest.approx(tables.SEED_TABLE["ALL"]["train"][1]["q1"]["std"], abs=0.01)
+    assert tables.SEED_TABLE["ALL"]["iscv"][8]["q"] == {"mean": 8.19, "std": 2.93}
+
+
+def test_build_table_all_rows():
+    def unit(p, vals):
+        trials = [{"id": str(i), "rmse_deg": {"q1": v, "q2": v, "q": v}, "converged": True} for i, v in enumerate(vals)]
+        return {
+            "key": p,
+            "unit": {"method": "moirl", "posture": p, "sections": 1},
+            "sets": {s: {"trials": trials} for s in ("train", "cv", "iscv")},
+        }
+
+    res = {"a": unit("A", [1.0, 3.0]), "b": unit("B", [5.0, 5.0, 5.0, 5.0])}
+    t = tables.build_table(res, "moirl", ["A", "B"], [1])
+    assert t["ALL"]["train"][1]["q"]["mean"] == pytest.approx(3.5)  # (2 + 5) / 2
+    assert t["ALL"]["train"][1]["q"]["std"] == pytest.approx(1.5)
+    assert t[tables.ALL_TRIALS]["train"][1]["q"]["mean"] == pytest.approx(24 / 6)
+    csv_text = tables.to_csv({"moirl": t}, ["A", "B"], [1])
+    assert csv_text.splitlines()[0].startswith("method,posture,joint,train_1_mean,train_1_std,train_1_n")
+
+
+def test_checkpoints_resume_and_reject_other_inputs(toy, tmp_path):
+    cfg = _config(sections=(1,), max_iter=2)
+    splits = {p: split_trials(toy.trials, p, cfg) for p in ("P2", "P4")}
+    units = make_units(["P2", "P4"], cfg)
+    first = run_units(units, splits, tmp_path, workers=1, max_units=1)
+    assert first.stopped_early and len(first.computed) == 1
+    second = run_units(units, splits, tmp_path, workers=1)
+    assert second.reused == first.computed and len(second.computed) == 1
+    key = units[0].key
+    assert load_unit(tmp_path, key, units[0].fingerprint(splits["P2"])) is not None
+    assert load_unit(tmp_path, key, "another-fingerprint") is None  # other inputs: recomputed, not reused
+    # a torn write (no JSON) is not a finished unit
+    (tmp_path / "units" / f"{key}.json").unlink()
+    assert load_unit(tmp_path, key) is None
+
+
+def test_dask_equals_local(toy, tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    cfg = _config(sections=(1, 2), postures=("P4",), max_iter=2)
+    local = reproduce(toy, cfg, tmp_path / "local", workers=1)
+    write_outputs(local)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        remote = reproduce(toy, cfg, tmp_path / "dask", scheduler=cluster.scheduler_address)
+    write_outputs(remote)
+    assert remote.summary.computed and not remote.summary.reused
+    assert (tmp_path / "local" / "table.csv").read_bytes() == (tmp_path / "dask" / "table.csv").read_bytes()
+    for key in local.summary.results:
+        a = json.loads((tmp_path / "local" / "units" / f"{key}.json").read_text())
+        b = json.loads((tmp_path / "dask" / "units" / f"{key}.json").read_text())
+        assert a["weights"] == b["weights"] and a["sets"] == b["sets"]
+        assert (tmp_path / "local" / "units" / f"{key}.npz").read_bytes() == (
+            tmp_path / "dask" / "units" / f"{key}.npz"
+        ).read_bytes()
+
+
+def test_dataset_load_errors(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        datasets.load(tmp_path / "missing.npz")
+    with pytest.raises(InputError, match="manifest"):
+        datasets.load(tmp_path)  # a folder without manifest.csv

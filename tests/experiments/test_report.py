@@ -1,0 +1,153 @@
+"""The report says what was done: the method and each departure from the paper, from the recorded options; a
+difference between section counts judged on postures (one fit each), never on trials of one fit; figures and
+captions that name what they show."""
+
+import numpy as np
+import pytest
+
+from reachirl.experiments import figures as fg
+from reachirl.experiments.analysis import paired_comparison
+from reachirl.experiments.method import convergence_text, method_lines
+from reachirl.experiments.report import prediction_note, weights_caption
+from reachirl.features import FEATURES
+
+
+def _results(rmse: dict[int, dict[str, list[float]]]) -> dict:
+    """``rmse[sections][posture]``: the per-trial RMSE of q of one fit."""
+    out = {}
+    for n, by_posture in rmse.items():
+        for p, values in by_posture.items():
+            trials = [{"id": f"S2/{p}/right/T{i}", "rmse_deg": {"q": v}} for i, v in enumerate(values)]
+            out[f"moirl-{p}-s{n}"] = {
+                "unit": {"method": "moirl", "posture": p, "sections": n},
+                "sets": {"iscv": {"trials": trials}},
+            }
+    return out
+
+
+def test_fifty_trials_of_two_fits_are_two_samples_not_fifty():
+    rng = np.random.default_rng(0)
+    base = {p: rng.uniform(5, 10, 25) for p in ("P1", "P2")}
+    c = paired_comparison(
+        _results({1: base, 8: {p: v - 0.5 for p, v in base.items()}}), "moirl", "iscv", 1, 8, ["P1", "P2"]
+    )
+    assert c["n"] == 2 and c["n_lower"] == 2 and c["mean_diff_deg"] == pytest.approx(-0.5)
+    assert c["per_posture"] == pytest.approx({"P1": -0.5, "P2": -0.5})
+    assert c["wilcoxon_p"] == pytest.approx(0.5) and c["min_p"] == pytest.approx(0.5)  # no evidence either way
+
+
+def test_six_postures_all_lower_reach_significance_and_mixed_ones_do_not():
+    postures = [f"P{i}" for i in range(1, 7)]
+    a = {p: [5.0 + i, 6.0 + i] for i, p in enumerate(postures)}
+    lower = paired_comparison(
+        _results({1: a, 8: {p: [v - 0.3 - 0.1 * i for v in a[p]] for i, p in enumerate(postures)}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        postures,
+    )
+    assert lower["n"] == 6 and lower["wilcoxon_p"] == pytest.approx(2 / 64)
+    mixed = paired_comparison(
+        _results({1: a, 8: {p: [v + (-1) ** i * (0.1 + 0.1 * i) for v in a[p]] for i, p in enumerate(postures)}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        postures,
+    )
+    assert mixed["n_lower"] == 3 and mixed["wilcoxon_p"] > 0.05
+
+
+def test_postures_pair_on_the_trials_both_fits_predicted():
+    c = paired_comparison(
+        _results({1: {"P1": [1.0, 2.0, 9.0], "P2": [1.0]}, 8: {"P1": [1.0, 2.0], "P2": [2.0]}}),
+        "moirl",
+        "iscv",
+        1,
+        8,
+        ["P1", "P2"],
+    )
+    assert c["per_posture"] == pytest.approx({"P1": 0.0, "P2": 1.0})
+    assert paired_comparison(_results({1: {"P1": [1.0]}, 8: {"P1": [2.0]}}), "moirl", "iscv", 1, 8, ["P1"]) is None
+
+
+def _unit(options, tol=None, method="moirl"):
+    return {"method": method, "posture": "P2", "estimator_options": options, "tol": tol}
+
+
+def test_the_method_lines_name_each_departure_used():
+    lines = "\n".join(method_lines([_unit([["experimental", []], ["rollout", "per_task"], ["seed_form", False]])]))
+    for departure in (
+        "observed rollouts",
+        "normalised merit",
+        "merit fallback",
+        "scale-free steps",
+        "acceptance threshold",
+    ):
+        assert departure in lines
+    assert "6 departure(s) from the paper" in lines and "This is the paper's method" not in lines
+    assert "one rollout per task" not in lines  # one posture of one subject: one task, the paper's one rollout
+    assert "seed defaults otherwise" not in lines
+
+
+def test_an_option_set_back_to_the_papers_is_no_departure():
+    lines = "\n".join(
+        method_lines(
+            [_unit({"seed_form": False, "rollout": "per_task", "experimental": {"observe": False, "fallback": None}})]
+        )
+    )
+    assert "normalised merit" in lines and "observed rollouts" not in lines and "merit fallback" not in lines
+
+
+def test_a_seed_form_run_is_said_to_be_the_papers_method():
+    lines = method_lines([_unit({"seed_form": True, "rollout": "mean", "experimental": {}}), _unit({}, method="kkt")])
+    assert "This is the paper's method" in lines[0] and "β = 1e-10, ω₀ = 0.05" in lines[0]
+    assert "departure" not in lines[0]
+    assert lines[1] == "- **kkt:** a baseline, with its own options (not MO-IRL's)."
+
+
+def test_convergence_axes_name_the_merit_and_where_iteration_0_is():
+    hist = {("P1", 2): [{"iteration": 0, "merit": 0.5}, {"iteration": 1, "merit": 0.4}]}
+    words = convergence_text({"merit": "normalised", "observe": True})
+    ax = fg.plot_convergence(hist, [2], merit_label=words["merit_label"], start=words["start"]).axes[0]
+    assert "rad" not in ax.get_ylabel() and "unitless" in ax.get_ylabel()
+    assert "first stage" in ax.get_xlabel() and "ω₀" not in ax.get_xlabel()
+    assert "not the initial weights ω₀" in words["caption"] and "no units" in words["caption"]
+    seed = convergence_text({"merit": "state", "observe": False})
+    assert "q in rad" in seed["merit_label"] and seed["start"] == "the initial weights ω₀"
+
+
+def test_fig3_caption_states_the_shares_the_figure_shows_per_row():
+    one = np.zeros((1, 7))
+    one[0, FEATURES.index("torque_change")] = 0.7
+    one[0, FEATURES.index("joint_torque")] = 0.3
+    eight = np.full((8, 7), 0.02)
+    eight[:, FEATURES.index("joint_torque")] = 0.5
+    eight[:, FEATURES.index("joint_velocity")] = 0.4
+    caption = weights_caption({("P1", 1): one, ("P2", 1): one, ("P1", 8): eight, ("P2", 8): eight})
+    assert (
+        "1 section: largest torque change 70 %, joint torque 30 %; torque change 70 %, joint acceleration 0 %"
+        in caption
+    )
+    assert (
+        "8 sections: largest joint torque 50 %, joint velocity 40 %; torque change 2 %, joint acceleration 2 %"
+        in caption
+    )
+    assert "read high" not in caption
+
+
+def test_weights_vs_truth_orders_postures_naturally():
+    shares = {p: np.full((2, 7), 1 / 7) for p in ("P2", "P10", "P1", "P3")}
+    fig = fg.plot_truth(shares, shares)
+    assert [ax.get_title() for ax in fig.axes[:4]] == ["P1", "P2", "P3", "P10"]
+
+
+def test_the_rmse_note_says_how_each_methods_predictions_were_made():
+    observed = {"seed_form": False, "rollout": "per_task", "experimental": {}}
+    assert prediction_note([_unit(observed)]).startswith("each prediction is the rest-to-rest DOC")
+    assert prediction_note([_unit({"seed_form": True, "rollout": "mean"})]).startswith(
+        "each prediction is the DOC from the trial's own initial state"
+    )
+    mixed = prediction_note([_unit(observed), _unit({}, method="kkt")])
+    assert mixed.startswith("the predictions of moirl are the rest-to-rest DOC") and "those of kkt, the DOC" in mixed

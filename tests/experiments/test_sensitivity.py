@@ -1,0 +1,133 @@
+"""``reachirl sensitivity`` and its parts: masked MO-IRL refits, weight sensitivity, identifiability."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from reachirl.errors import InputError
+from reachirl.experiments import datasets
+from reachirl.experiments.protocol import ProtocolConfig, make_units, split_trials
+from reachirl.experiments.sensitivity import (
+    COLUMNS,
+    SensitivityConfig,
+    occlusion_job,
+    run_sensitivity,
+    sensitivity_job,
+)
+from reachirl.features import FEATURES
+
+
+@pytest.fixture(scope="module")
+def toy():
+    return datasets.toy(n_subjects=2, postures=("P2",), n_trials=4, n_nodes=20, seed=5)
+
+
+def test_masked_refit_holds_the_occluded_weights(toy):
+    config = ProtocolConfig(sections=(2,), n_train=3, n_nodes=20, max_iter=3)
+    split = split_trials(toy.trials, "P2", config)
+    unit = make_units(["P2"], config)[0]
+    removed = occlusion_job(unit, split, (3,), ())
+    w = np.asarray(removed["weights"])
+    assert np.all(w[:, 3] == 0) and np.all(w[:, [0, 1, 2, 4, 5, 6]] > 0)
+    assert set(removed["rmse"]) == {"train", "cv", "iscv"} and len(removed["rmse"]["iscv"]) == 4
+    frozen = occlusion_job(unit, split, (), (0,))
+    wf = np.asarray(frozen["weights"])
+    from reachirl.irl.objective import feature_scale
+
+    phi = np.stack([t.features(20, 2) for t in split.train])
+    np.testing.assert_allclose(wf[0], 0.05 / feature_scale(phi)[0], rtol=1e-12)  # window 1 kept ω₀
+    if frozen["flag"] != "w0":
+        assert not np.allclose(wf[1], 0.05 / feature_scale(phi)[1])  # window 2 learned
+
+
+def test_sensitivity_grows_with_the_change(toy):
+    trials = [t for t in toy.trials if t.subject == "S01"][:2]
+    w = np.array([[0.05, 0.5, 0.05, 3.0, 0.2, 0.05, 0.5]]) / np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
+    small = sensitivity_job(w, trials, 20, "casadi", 0, 2.0)
+    big = sensitivity_job(w, trials, 20, "casadi", 0, 20.0)
+    j = FEATURES.index("joint_acceleration")
+    s = np.mean(small["features"][j]["path_plus"])
+    b = np.mean(big["features"][j]["path_plus"])
+    assert 0 < s < b and 4 < b / s < 16  # roughly linear in the change
+
+
+@pytest.fixture(scope="module")
+def small_run(recorded, tmp_path_factory, cli):
+    """A reproduce run on recorded trials (cut at a speed threshold, as real recordings are)."""
+    d = tmp_path_factory.mktemp("sens")
+    proc = cli(
+        "reproduce",
+        "--data",
+        recorded / "trials.npz",
+        "--sections",
+        "1",
+        "2",
+        "--postures",
+        "P2",
+        "--nodes",
+        "40",
+        "--max-iter",
+        "3",
+        "--n-train",
+        "3",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--out",
+        d / "run",
+    )
+    assert proc.returncode == 0, proc.stderr
+    return d / "run"
+
+
+def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
+    out = tmp_path / "sens"
+    proc = cli("sensitivity", small_run, "--out", out, "--workers", "1", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    with open(out / "sensitivity.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == list(COLUMNS)
+    kinds = [r["analysis"] for r in rows]
+    assert kinds.count("occlude_feature") == 7 and kinds.count("freeze_window") == 2
+    assert kinds.count("sensitivity") == 14
+    assert {r["sections"] for r in rows} == {"2"}
+    for r in rows:
+        if r["analysis"] != "sensitivity":
+            lo, m, hi = float(r["cv_ci_lo"]), float(r["cv_delta_deg"]), float(r["cv_ci_hi"])
+            assert lo <= m <= hi and r["verdict"].split(" (")[0] in ("needed", "not needed", "better without")
+        else:
+            assert float(r["path_change_deg"]) >= 0
+    assert (out / "identifiability.json").is_file() and (out / "figures" / "sensitivity_P2.png").is_file()
+    ident = json.loads((out / "identifiability.json").read_text())["postures"]["P2"]
+    assert ident["determination"]["n_directions"] == 14  # what the training trials determine, not fixed weights
+    md = (out / "sensitivity.md").read_text()
+    assert "Which costs the data needs" in md and "weight directions determined" in md
+    assert "bootstrap" not in md and "fixed" not in md
+
+
+def test_bad_options(small_run, tmp_path, cli):
+    with pytest.raises(InputError, match="--percent must be in"):
+        SensitivityConfig(percent=0)
+    with pytest.raises(InputError, match="nothing to do"):
+        SensitivityConfig(occlusion=False, sensitivity=False)
+    proc = cli("sensitivity", tmp_path, "--out", tmp_path / "o")
+    assert proc.returncode == 2 and "no results.json" in proc.stderr
+    with pytest.raises(InputError, match="--sections 5 was not run"):
+        run_sensitivity(small_run, SensitivityConfig(sections=5))
+    with pytest.raises(InputError, match="P9"):
+        run_sensitivity(small_run, SensitivityConfig(postures=("P9",)))
+    with pytest.raises(InputError, match=r"--method 'maxent' was not run"):
+        run_sensitivity(small_run, SensitivityConfig(method="maxent"))
+
+
+def test_effect_collinearity_finds_weights_that_move_the_path_alike():
+    from reachirl.experiments.sensitivity import _effect_collinearity
+
+    base = np.linspace(0, 1, 10)
+    feats = [{"displacement": np.sin(k * base + k)} for k in range(7)]
+    feats[4] = {"displacement": -2.0 * feats[3]["displacement"]}  # opposite direction, other magnitude
+    found = _effect_collinearity({("P2", "sensitivity", 0): {"features": feats}}, "P2", 1)
+    pair = [e for e in found if e["features"] == ["joint_acceleration", "torque_change"]]
+    assert pair and pair[0]["cos"] == pytest.approx(-1.0) and pair[0]["window"] == 1
