@@ -34,8 +34,9 @@ def main(argv: list[str] | None = None) -> int:
     test = [t for t in trials if t.side == "left"]
     model = MOIRL(n_windows=args.windows).fit(train)
     for name, subset in (("training (right arm)", train), ("validation (left arm)", test)):
-        errors = evaluate_trials(model.weights_, subset, model.n_nodes, observe=model.observe,
-                                 path=model.rollout_path())  # as `reachirl evaluate` predicts: as recorded
+        errors = evaluate_trials(
+            model.weights_, subset, model.n_nodes, observe=model.observe, path=model.rollout_path()
+        )  # as `reachirl evaluate` predicts: as recorded
         r = summarise(errors)["rmse_deg"]["q"]
         print(f"{name:22s} {len(subset)} reaches: RMSE of q {r['mean']:.2f} ± {r['std']:.2f} deg")
     shares = model.weights_ * np.mean([t.features(model.n_nodes, args.windows) for t in train], axis=0)

@@ -102,3 +102,22 @@ def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["plot", str(tmp_path / "run"), "--subject", "S01", "--out", str(tmp_path / "f")]) == 2
     assert "--subject chooses trials, so it needs --model" in capsys.readouterr().err
+
+
+def test_a_negative_trial_index_is_refused(tmp_path, capsys):
+    from reachirl.cli import main
+    from reachirl.data.trial import save_trials
+    from reachirl.experiments import datasets
+    from reachirl.irl.model import LearnedModel, save_model
+
+    trials = datasets.toy(n_subjects=1, postures=("P2",), n_trials=2, n_nodes=20, seed=1).trials
+    save_trials(tmp_path / "t.npz", trials)
+    model = save_model(tmp_path / "m.json", LearnedModel(np.full((1, 7), 0.1), n_nodes=20))
+    for command in (
+        ["plot", "--model", str(model), str(tmp_path / "t.npz"), "--out", str(tmp_path / "f")],
+        ["simulate", "--model", str(model), str(tmp_path / "t.npz"), "--out", str(tmp_path / "s.json")],
+    ):
+        assert main([*command, "--trial", "-1"]) == 2
+        err = capsys.readouterr().err
+        assert "--trial -1: expected an index from 0 to 1" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "f").exists() and not (tmp_path / "s.json").exists()

@@ -176,8 +176,8 @@ def test_the_checked_samples_use_the_merits_own_errors(fitted):
 def test_coverage_of_the_true_shares_on_a_small_virtual_set(recorded):
     """On virtual subjects the 95 % intervals contain the true cost shares (on the truth's own reach, seen as
     recorded) in most cells: measured 0.79-0.95 (mean 0.89) over 35 fits of seven populations."""
+    from reachirl.experiments.analysis import reference_features, true_weights
     from reachirl.experiments.datasets import load
-    from reachirl.experiments.report import reference_features, true_weights
 
     ds = load(recorded / "raw")
     cover = []

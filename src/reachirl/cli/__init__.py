@@ -39,8 +39,9 @@ def _arm_watchdog(command: str, signum: int) -> None:
 
     def force_exit() -> None:
         try:
-            print(f"reachirl {command}: {'terminated' if code == 143 else 'interrupted'}", file=sys.__stderr__,
-                  flush=True)
+            print(
+                f"reachirl {command}: {'terminated' if code == 143 else 'interrupted'}", file=sys.__stderr__, flush=True
+            )
         finally:
             os._exit(code)
 

@@ -87,8 +87,12 @@ def _select(trials, keys, path):
         hits = [t for t in trials if key in (t.id, t.trial_id)]
         if not hits and key.lstrip("-").isdigit():
             i = int(key)
-            if not -len(trials) <= i < len(trials):
-                raise InputError(f"--trial {key}: index out of range (the file holds {len(trials)} trials)", path)
+            if not 0 <= i < len(trials):
+                raise InputError(
+                    f"--trial {key}: expected an index from 0 to {len(trials) - 1} (the file holds "
+                    f"{len(trials)} trials)",
+                    path,
+                )
             hits = [trials[i]]
         if not hits:
             raise InputError(f"--trial {key}: no trial with that id, trial_id or index", path)

@@ -126,8 +126,12 @@ def write_posture_transfer(run) -> list[str]:
     report's lines; nothing without ``--posture-transfer``."""
     if not run.transfer:
         if getattr(run.config, "posture_transfer", False):
-            return ["## Posture transfer (leave one posture out)", "",
-                    f"Not run: it needs at least two postures, and this run has {len(run.postures)}.", ""]
+            return [
+                "## Posture transfer (leave one posture out)",
+                "",
+                f"Not run: it needs at least two postures, and this run has {len(run.postures)}.",
+                "",
+            ]
         return []
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
