@@ -14,10 +14,10 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from reachirl.doc.evaluation import evaluate_trials, summarise
 
 from reachirl import MOIRL
 from reachirl.data.trial import load_trials
+from reachirl.doc.evaluation import evaluate_trials, summarise
 
 
 def _rmse(model: MOIRL, trials) -> float:
