@@ -16,6 +16,7 @@ from reachirl.irl.uncertainty import (
     describe_direction,
     determination,
     indistinguishable,
+    laplace_posterior,
     merit_noise,
     residuals_and_jacobian,
 )
@@ -215,3 +216,20 @@ def test_a_fit_whose_rollout_has_no_sensitivity_says_so_instead_of_failing(fitte
     est = MOIRL(2, n_nodes=40, max_iter=1, uncertainty=20).fit(trials)
     assert est.uncertainty_ is None
     assert any(w.startswith("no weight samples: the KKT matrix is singular") for w in est.warnings_)
+
+
+def test_the_posterior_follows_the_data_where_it_is_determined_and_the_prior_elsewhere():
+    """Two log-weights: the residuals see only the first. Its posterior sits at the fit with the variance the
+    Gauss-Newton model gives (τ / s²); the second keeps the prior's mean and spread."""
+    rng = np.random.default_rng(0)
+    d, m = 12, 30
+    J = np.zeros((d, m, 2))
+    J[:, :, 0] = rng.normal(size=(d, m))
+    r = 0.1 * rng.normal(size=(d, m))
+    eta_hat, eta_prior = np.array([1.0, 2.0]), np.array([0.0, -1.0])
+    mean, cov, tau = laplace_posterior(r, J, eta_hat, eta_prior, prior_sd=3.0)
+    a = np.sum(J[:, :, 0] ** 2) / d
+    assert tau == pytest.approx(merit_noise(np.sum(r**2, axis=1)) / 4)
+    assert cov[0, 0] == pytest.approx(1 / (a / tau + 1 / 9))
+    assert mean[0] == pytest.approx(cov[0, 0] * (a * 1.0 / tau + 0.0 / 9))
+    assert mean[1] == pytest.approx(-1.0) and cov[1, 1] == pytest.approx(9.0) and cov[0, 1] == pytest.approx(0.0)

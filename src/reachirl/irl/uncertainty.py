@@ -10,16 +10,15 @@ doubling a weight's combination) raises the merit by more than the data can tell
 (:func:`merit_noise`): ``s_k² (log 2)² > δm``. The others are said in words (:func:`describe_direction`): which
 features trade against which, in which windows.
 
-**Weights the data cannot tell apart** (:func:`weight_uncertainty`). Candidates ``η = η̂ + V_det S_det⁻¹ z ρ_d +
-V_und u ρ_u`` (``z`` standard normal in the determined directions, scaled so that the linearised merit rises by
-about ``δm``; ``u`` uniform in ``[−1, 1]`` in the undetermined ones, a prior of at most a factor ``e^{ρ_u}`` on
-each combination, ``ρ_u = log 10``) are each solved by the DOC and kept only when a one-sided paired test over
-the demonstrations does not find their per-demonstration errors larger than the fit's at the 5 % level
-(:func:`indistinguishable`). The scales adapt to the acceptance rate (halved after a rejection streak), so the
-samples fill the region the data allows, and every kept sample is a cost whose reaches the training data cannot
-tell from the fit's. Each window's cost shares ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the sample's own
-rollout; their intervals are the range over the samples (a region of 95 % confidence, projected), and a share
-whose interval is wider than :data:`UNDETERMINED_WIDTH` is reported as undetermined.
+**Weight samples** (:func:`weight_uncertainty`): the Laplace posterior of the free log-weights
+(:func:`laplace_posterior`), with the merit's Gauss-Newton model ``(η − η̂)ᵀ A (η − η̂)`` as the likelihood's
+exponent at the scale ``τ = δm / 4`` (a move to a direction's 95 % edge raises the merit by ``δm``) and a prior
+``N(log ω₀, (log 10)²)`` per log-weight, centred on equal cost shares. In the determined directions the data
+narrows the samples; in the others the prior speaks, and the intervals say so. Each window's cost shares
+``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
+percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH` is reported as
+undetermined. A few samples are solved by the DOC and tested against the fit (:func:`indistinguishable`, a
+one-sided paired t-test over the demonstrations): the model is linear, the DOC is not.
 """
 
 from __future__ import annotations
@@ -40,6 +39,7 @@ __all__ = [
     "describe_direction",
     "determination",
     "indistinguishable",
+    "laplace_posterior",
     "merit_noise",
     "share_intervals",
     "weight_uncertainty",
