@@ -199,7 +199,7 @@ def plot_weights(
         cb.set_label("share of the window's cost", fontsize=10)
         cb.ax.tick_params(labelsize=9)
     fig.suptitle(title or "Learned weights (each feature's share of its window's cost)", fontsize=11)
-    fig.text(0.01, 0.0, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
+    fig.text(0.01, -0.03, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
     return fig
 
 
@@ -305,7 +305,7 @@ def plot_truth(
     if im is not None:
         fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
     fig.suptitle(title or "Virtual subjects: learned vs true weights (cost shares)")
-    fig.text(0.01, 0.0, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
+    fig.text(0.01, -0.03, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
     return fig
 
 
