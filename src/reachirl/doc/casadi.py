@@ -51,7 +51,7 @@ import numpy as np
 from ..errors import solver_interrupts
 from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
 from . import compiled
-from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots
+from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots, warm_start_key
 
 __all__ = [
     "FATROP_OPTIONS",
@@ -367,20 +367,6 @@ def _unpack_q(task: ReachingTask, z: np.ndarray) -> np.ndarray:
     return np.vstack([task.q0, inner[:, 0:2], np.asarray(z)[-NX : -NX + 2]])
 
 
-def _task_key(task: ReachingTask) -> tuple:
-    """What must match for a warm start: everything in the task but the weights."""
-    return (
-        task.n_nodes,
-        task.arm,
-        tuple(task.q0),
-        task.target_x,
-        task.duration,
-        tuple(task.q_lower),
-        tuple(task.q_upper),
-        tuple(task.qd_max),
-    )
-
-
 def _objective_scale(task: ReachingTask, weights: np.ndarray, z: np.ndarray) -> float:
     """``1 / cost`` of the starting point, so that the solver sees an objective of order one.
 
@@ -440,7 +426,7 @@ def solve(
     bounds = nlp.bounds(task)
     lbx, ubx = bounds["lbx"], bounds["ubx"]
     warm = warm_start.warm if warm_start is not None else None
-    key = _task_key(task)
+    key = warm_start_key(task)
     iterations, elapsed, attempts = 0, 0.0, 0
     x = stats = None
     ok = False

@@ -36,6 +36,7 @@ __all__ = [
     "moved_path",
     "on_bar",
     "rest_to_rest_knots",
+    "warm_start_key",
 ]
 
 
@@ -178,3 +179,17 @@ def moved_path(task: ReachingTask, path: np.ndarray) -> np.ndarray:
         raise ValueError(f"path must be a finite joint path of shape {(task.n_nodes + 1, 2)}, got {path.shape}")
     s = min_jerk(np.linspace(0.0, 1.0, task.n_nodes + 1))[:, None]
     return path + (task.q0 - path[0]) * (1.0 - s) + (on_bar(task, path[-1]) - path[-1]) * s
+
+
+def warm_start_key(task: ReachingTask) -> tuple:
+    """What must match for a warm start: everything in the task but the weights."""
+    return (
+        task.n_nodes,
+        task.arm,
+        tuple(task.q0),
+        task.target_x,
+        task.duration,
+        tuple(task.q_lower),
+        tuple(task.q_upper),
+        tuple(task.qd_max),
+    )

@@ -12,7 +12,7 @@ import numpy as np
 
 from ...errors import interrupt_pending, solver_interrupts
 from ...features import euler_knots, trajectory_cost
-from ..task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots
+from ..task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots, warm_start_key
 from .knots import _J_ENERGY
 from .options import DEFAULT_OPTIONS, CsqpOptions
 from .problem import ReachingProblem, build_problem
@@ -127,20 +127,6 @@ def _to_shooting(task: ReachingTask, q, qd, tau) -> tuple[list[np.ndarray], list
     return list(xs), list(np.asarray(tau, dtype=float))
 
 
-def _task_key(task: ReachingTask) -> tuple:
-    """What must match for a warm start: everything in the task but the weights."""
-    return (
-        task.n_nodes,
-        task.arm,
-        tuple(task.q0),
-        task.target_x,
-        task.duration,
-        tuple(task.q_lower),
-        tuple(task.q_upper),
-        tuple(task.qd_max),
-    )
-
-
 def weight_scale(
     task: ReachingTask, weights: np.ndarray, options: CsqpOptions | None = None, cold=None
 ) -> tuple[float, float]:
@@ -219,7 +205,7 @@ def solve(
     prob = build_problem(task.arm, n, weights.shape[0], options)
     cold = _to_shooting(task, *(initial_guess(task) if guess is None else rest_to_rest_knots(task, guess)))
     warm = warm_start.warm if warm_start is not None else None
-    warm_used = bool(warm and warm.get("backend") == "crocoddyl" and warm.get("task") == _task_key(task))
+    warm_used = bool(warm and warm.get("backend") == "crocoddyl" and warm.get("task") == warm_start_key(task))
     if warm_used:
         xs, us = _to_shooting(task, np.asarray(warm_start.q), np.asarray(warm_start.qd), np.asarray(warm_start.tau))
     else:
@@ -288,5 +274,5 @@ def solve(
         status=status,
         backend="crocoddyl",
         attempts=attempts,
-        warm={"backend": "crocoddyl", "task": _task_key(task)},
+        warm={"backend": "crocoddyl", "task": warm_start_key(task)},
     )
