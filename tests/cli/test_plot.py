@@ -119,5 +119,5 @@ def test_a_negative_trial_index_is_refused(tmp_path, capsys):
     ):
         assert main([*command, "--trial", "-1"]) == 2
         err = capsys.readouterr().err
-        assert "--trial -1: expected an index from 0 to 1" in err and len(err.strip().splitlines()) == 1
+        assert "--trial -1: index out of range, expected 0 to 1" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "f").exists() and not (tmp_path / "s.json").exists()

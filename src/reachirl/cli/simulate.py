@@ -89,7 +89,7 @@ def _select(trials, keys, path):
             i = int(key)
             if not 0 <= i < len(trials):
                 raise InputError(
-                    f"--trial {key}: expected an index from 0 to {len(trials) - 1} (the file holds "
+                    f"--trial {key}: index out of range, expected 0 to {len(trials) - 1} (the file holds "
                     f"{len(trials)} trials)",
                     path,
                 )
