@@ -24,6 +24,7 @@ import numpy as np
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, guess_knots
 from reachirl.doc.compiled import setting as compile_mode
+from reachirl.errors import solver_interrupts
 from reachirl.features import N_FEATURES, trajectory_cost, window_index
 
 POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-60.0, 60.0), (50.0, 80.0)]
@@ -99,9 +100,10 @@ class PlainDoc:
 
     def solve(self, weights: np.ndarray, x0: np.ndarray | None = None) -> dict:
         c0, t0 = time.process_time(), time.perf_counter()
-        out = self.solver(
-            x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx, ubx=self.ubx, lbg=0, ubg=0
-        )
+        with solver_interrupts():  # Ctrl-C/SIGTERM stop the baseline too, and are raised here
+            out = self.solver(
+                x0=self.x0() if x0 is None else x0, p=weights.reshape(-1), lbx=self.lbx, ubx=self.ubx, lbg=0, ubg=0
+            )
         elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         st = self.solver.stats()
         z = np.asarray(out["x"]).reshape(-1)
