@@ -39,6 +39,7 @@ from reachirl.doc.evaluation import evaluate_trials, rmse_deg, summarise
 from reachirl.irl.methods import make_estimator
 from reachirl.irl.moirl import demonstration_states, mean_task
 from reachirl.irl.objective import merit
+from reachirl.irl.options import FIELDS as OPTION_FIELDS
 
 log = logging.getLogger(__name__)
 
@@ -279,7 +280,7 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
             {"scaling": None},
             {"beta": 1.0},
             {"max_ratio": 3.0},
-            {"merit": "normalised"},
+            {"merit": "state"},
             {"smoothness": "cv"},
             {"feature_cutoff": 6.0},
             {"rollout": "per_demo"},
@@ -287,8 +288,11 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
             {"acceptance": "either"},
             {"n_suffixes": 5},
         ]
-        for v in variants:
-            row, _ = _fit_and_score("moirl", 8, train, cv, truth_cv["predictions"], max_iter=50, **v)
+        for v in variants:  # MOIRL's own parameters, or Options fields through `experimental`
+            kw = {k: x for k, x in v.items() if k not in OPTION_FIELDS}
+            if set(v) - set(kw):
+                kw["experimental"] = {k: x for k, x in v.items() if k in OPTION_FIELDS}
+            row, _ = _fit_and_score("moirl", 8, train, cv, truth_cv["predictions"], max_iter=50, **kw)
             row["variant"] = ", ".join(f"{k}={v[k]!r}" for k in v) or "default"
             options.append(row)
 
