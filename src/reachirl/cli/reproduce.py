@@ -54,9 +54,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "reproduce",
         help="run the seed paper's protocol and write its table and figures",
-        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml, --set KEY=VALUE, or the flag "
-        "--key-name VALUE; progress: --no-progress; methods: --method):\n"
+        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml, --set KEY=VALUE (repeatable), "
+        "or the flag --key-name VALUE; progress: --no-progress; methods: --method):\n"
         + "\n".join(f"  {k}: {v[0]}" for k, v in RUN_KEYS.items())
+        + "\n  uncertainty: weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40):"
+        " the cost-share intervals of the models, figures and report (also --uncertainty K)"
         + "\n  [experimental]: MO-IRL options (docs/usage.md)",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -134,8 +136,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=int_in(0, 1000),
         default=None,
         metavar="K",
-        help="weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40): "
-        "the cost-share intervals of the models, figures and report",
+        help=argparse.SUPPRESS,  # a run-file key, listed in the description
     )
     p.add_argument(
         "--config",
@@ -149,7 +150,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=[],
         metavar="KEY=VALUE",
         dest="assignments",
-        help="one run-file key (repeatable), e.g. --set n_train=0 --set cv=other-side (default: none)",
+        help=argparse.SUPPRESS,  # listed in the description
     )
     # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
     for key, (_, kind) in RUN_KEYS.items():
