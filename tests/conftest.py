@@ -77,31 +77,8 @@ def recorded(tmp_path_factory):
     """Virtual subjects recorded as real ones are: markers with noise at 100 Hz, rest before and after, run
     through ``reachirl synth`` and ``reachirl preprocess`` (trials cut at a fingertip-speed threshold). Two
     subjects, postures P2 and P4, 4 reaches each; returns the folder (``trials.npz``, ``truth.json``)."""
+    from recordings import preprocess, synth
+
     d = tmp_path_factory.mktemp("recorded")
-    proc = run_reachirl(
-        "synth",
-        "--out",
-        d / "raw",
-        "--subjects",
-        "2",
-        "--trials",
-        "4",
-        "--postures",
-        "P2",
-        "P4",
-        "--seed",
-        "3",
-        "--workers",
-        "1",
-    )
-    assert proc.returncode == 0, proc.stderr
-    proc = run_reachirl(
-        "preprocess",
-        d / "raw",
-        "--markers",
-        "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
-        "--out",
-        d / "trials.npz",
-    )
-    assert proc.returncode == 0, proc.stderr
+    preprocess(synth(d / "raw", ("P2", "P4"), subjects=2, trials=4, seed=3), d / "trials.npz")
     return d

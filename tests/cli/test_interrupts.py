@@ -15,7 +15,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from reachirl.cli import main
+from recordings import preprocess, synth
 
 pytestmark = pytest.mark.slow
 
@@ -41,43 +41,7 @@ ARGS = [
 @pytest.fixture(scope="module")
 def data(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("interrupts")
-    assert (
-        main(
-            [
-                "synth",
-                "--out",
-                str(d / "syn"),
-                "--subjects",
-                "1",
-                "--trials",
-                "3",
-                "--postures",
-                "P1",
-                "P2",
-                "P3",
-                "--workers",
-                "1",
-            ]
-        )
-        == 0
-    )
-    assert (
-        main(
-            [
-                "preprocess",
-                "--manifest",
-                str(d / "syn" / "manifest.csv"),
-                "--subject-info",
-                str(d / "syn" / "subjects.csv"),
-                "--markers",
-                "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP",
-                "--out",
-                str(d / "trials.npz"),
-            ]
-        )
-        == 0
-    )
-    return d / "trials.npz"
+    return preprocess(synth(d / "syn", ("P1", "P2", "P3"), trials=3), d / "trials.npz")
 
 
 @pytest.fixture(scope="module")

@@ -21,56 +21,16 @@ from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.errors import InputError, Terminated, solver_interrupts
 from reachirl.irl.model import LearnedModel, save_model
-
-MARKERS = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
+from recordings import MARKERS, preprocess, synth
 
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory) -> Path:
     """One virtual subject's P2 reaches as TRC (3 trials) and MOT (1 trial), their trials file and a model."""
     d = tmp_path_factory.mktemp("nothing_lost")
-    assert (
-        main(
-            ["synth", "--out", str(d / "syn"), "--subjects", "1", "--trials", "2", "--postures", "P2", "--workers", "1"]
-        )
-        == 0
-    )
-    assert (
-        main(
-            [
-                "synth",
-                "--out",
-                str(d / "mot"),
-                "--subjects",
-                "1",
-                "--trials",
-                "1",
-                "--postures",
-                "P2",
-                "--format",
-                "mot",
-                "--workers",
-                "1",
-            ]
-        )
-        == 0
-    )
-    assert (
-        main(
-            [
-                "preprocess",
-                "--manifest",
-                str(d / "syn" / "manifest.csv"),
-                "--subject-info",
-                str(d / "syn" / "subjects.csv"),
-                "--markers",
-                MARKERS,
-                "--out",
-                str(d / "trials.npz"),
-            ]
-        )
-        == 0
-    )
+    synth(d / "syn", ("P2",), trials=2)
+    synth(d / "mot", ("P2",), fmt="mot")
+    preprocess(d / "syn", d / "trials.npz")
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
     return d
 

@@ -23,14 +23,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.irl.model import LearnedModel, save_model
+from recordings import MARKERS, preprocess, synth
 
 pytestmark = pytest.mark.slow
 
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
-MARKERS = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
 ENV = {**os.environ, "OMP_NUM_THREADS": "1", "COLUMNS": "200", "MUJOCO_GL": "osmesa", "PYOPENGL_PLATFORM": "osmesa"}
 RUN_ARGS = [
     "--nodes",
@@ -56,62 +55,9 @@ def world(tmp_path_factory) -> Path:
     reaches three times over (27 trials, for runs long enough to interrupt), models of 20 and 300 knots, and a
     quick protocol run."""
     d = tmp_path_factory.mktemp("world")
-    assert (
-        main(
-            [
-                "synth",
-                "--out",
-                str(d / "syn"),
-                "--subjects",
-                "1",
-                "--trials",
-                "3",
-                "--postures",
-                "P1",
-                "P2",
-                "P3",
-                "--workers",
-                "1",
-            ]
-        )
-        == 0
-    )
-    assert (
-        main(
-            [
-                "synth",
-                "--out",
-                str(d / "mot"),
-                "--subjects",
-                "1",
-                "--trials",
-                "1",
-                "--postures",
-                "P2",
-                "--format",
-                "mot",
-                "--workers",
-                "1",
-            ]
-        )
-        == 0
-    )
-    assert (
-        main(
-            [
-                "preprocess",
-                "--manifest",
-                str(d / "syn" / "manifest.csv"),
-                "--subject-info",
-                str(d / "syn" / "subjects.csv"),
-                "--markers",
-                MARKERS,
-                "--out",
-                str(d / "trials.npz"),
-            ]
-        )
-        == 0
-    )
+    synth(d / "syn", ("P1", "P2", "P3"), trials=3)
+    synth(d / "mot", ("P2",), fmt="mot")
+    preprocess(d / "syn", d / "trials.npz")
     trials = load_trials(d / "trials.npz")
     save_trials(d / "many.npz", [replace(t, trial_id=f"{t.trial_id}-{k}") for k in range(3) for t in trials])
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))

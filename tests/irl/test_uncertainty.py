@@ -90,31 +90,15 @@ def test_the_claim_is_supported_contradicted_or_undetermined_over_the_samples():
     assert claim_verdict(shares[:, :2])["verdict"] == "not applicable"
 
 
+def _fit_with_samples(trials, out) -> None:
+    """``reachirl fit`` of S01's P2 reaches, 2 windows, with 25 weight samples."""
+    argv = ["fit", str(trials), "--sections", "2", "--nodes", "40", "--max-iter", "3", "--subject", "S01"]
+    assert main([*argv, "--posture", "P2", "--uncertainty", "25", "--out", str(out)]) == 0
+
+
 def test_fit_uncertainty_writes_samples_in_the_units_of_the_weights(recorded, tmp_path):
     out = tmp_path / "m.json"
-    assert (
-        main(
-            [
-                "fit",
-                str(recorded / "trials.npz"),
-                "--sections",
-                "2",
-                "--nodes",
-                "40",
-                "--max-iter",
-                "3",
-                "--subject",
-                "S01",
-                "--posture",
-                "P2",
-                "--uncertainty",
-                "25",
-                "--out",
-                str(out),
-            ]
-        )
-        == 0
-    )
+    _fit_with_samples(recorded / "trials.npz", out)
     model = json.loads(out.read_text())
     u = model["uncertainty"]
     samples = np.array(u["weight_samples"])
@@ -127,29 +111,7 @@ def test_fit_uncertainty_writes_samples_in_the_units_of_the_weights(recorded, tm
     assert 0 <= u["checked"]["indistinguishable"] <= u["checked"]["solved"] == 10
     # the same seed gives the same samples; another seed others
     again = tmp_path / "again.json"
-    assert (
-        main(
-            [
-                "fit",
-                str(recorded / "trials.npz"),
-                "--sections",
-                "2",
-                "--nodes",
-                "40",
-                "--max-iter",
-                "3",
-                "--subject",
-                "S01",
-                "--posture",
-                "P2",
-                "--uncertainty",
-                "25",
-                "--out",
-                str(again),
-            ]
-        )
-        == 0
-    )
+    _fit_with_samples(recorded / "trials.npz", again)
     assert json.loads(again.read_text())["uncertainty"]["weight_samples"] == u["weight_samples"]
 
 

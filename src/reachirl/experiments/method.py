@@ -36,10 +36,10 @@ def unit_method(method: str, estimator_options, tol: float | None, tasks: int | 
     cls = METHODS.get(method)
     if cls is None or not issubclass(cls, MOIRL):
         return None
-    opts = dict(estimator_options or ())
+    from .protocol import estimator_kwargs
+
+    opts = estimator_kwargs(estimator_options or ())
     experimental = opts.get("experimental") or {}
-    if not isinstance(experimental, Mapping):
-        experimental = {str(k): v for k, v in experimental}
     seed_form = bool(opts.get("seed_form", False))
     options: Options = resolve_options(seed_form, experimental, cls._option_defaults)
     rollout = str(opts.get("rollout", "mean" if seed_form else "per_task"))

@@ -380,10 +380,11 @@ def _hashable(v):
 
 
 def estimator_kwargs(options) -> dict:
-    """A unit's ``estimator_options`` (pairs, or a dict from results.json) as the estimator's keyword arguments."""
+    """A unit's ``estimator_options`` (pairs, or a mapping) as the estimator's keyword arguments; ``experimental``
+    (pairs or a mapping) as a dict."""
     opts = dict(options)
     if "experimental" in opts:
-        opts["experimental"] = {str(k): v for k, v in opts["experimental"]}
+        opts["experimental"] = dict(opts["experimental"] or {})
     return opts
 
 
