@@ -151,12 +151,13 @@ def solver_interrupts(stop_solver: bool = True) -> Iterator[None]:
         yield
         return
     caught: list[int] = []
+    armed = [True]  # False once the solve has returned: a late signal is only recorded, then redelivered below
 
     def handler(signum, frame):
         caught.append(signum)
         _caught.append(signum)
         note_signal(signum)
-        if stop_solver and len(caught) == 1:
+        if stop_solver and armed[0] and len(caught) == 1:
             raise KeyboardInterrupt
 
     mask = _block()
@@ -170,13 +171,16 @@ def solver_interrupts(stop_solver: bool = True) -> Iterator[None]:
     try:
         yield
     finally:
-        _block()
         try:
-            sys.stderr = stderr
-            for sig, old in previous.items():
-                signal.signal(sig, old)
-            _caught[:] = outer
+            armed[0] = False  # a signal raised here must not skip the restoration below
         finally:
-            _unblock(mask)
+            _block()
+            try:
+                sys.stderr = stderr
+                for sig, old in previous.items():
+                    signal.signal(sig, old)
+                _caught[:] = outer
+            finally:
+                _unblock(mask)
         if caught:
             _redeliver(caught[0], previous[caught[0]])
