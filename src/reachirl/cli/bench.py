@@ -1,7 +1,8 @@
 """``reachirl bench [SUITE ...] [--out BENCH.json] [--quick]``: performance benchmarks.
 
 Suites live in the source checkout's ``benchmarks/`` folder (``bench_<suite>.py`` with ``run(...) -> dict``):
-``doc`` (CasADi DOC against a plain formulation), ``backends`` (CasADi against Crocoddyl/CSQP) and ``irl``
+``doc`` (CasADi DOC against a plain formulation), ``predict`` (predictions by exact Newton against fatrop
+from the same start), ``backends`` (CasADi against Crocoddyl/CSQP) and ``irl``
 (MO-IRL against the baselines on virtual subjects). Every timing is reported beside a baseline measured in the
 same run, since shared machines are noisy.
 """
@@ -17,7 +18,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io import atomic_write_json
 
-SUITES = ("doc", "backends", "irl")
+SUITES = ("doc", "predict", "backends", "irl")
 
 
 def _bench_dir() -> Path:
@@ -65,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"== {suite} ==", flush=True)
         quick = {
             "doc": {"n_repeats": 6, "sweep": False},
+            "predict": {"postures": ("P2", "P4"), "stride": 4},
             "backends": {"n_repeats": 1, "learned_stride": 20},
             "irl": {"quick": True},
         }

@@ -50,6 +50,7 @@ __all__ = [
     "cache_path",
     "compile_or_wait",
     "compile_solver",
+    "compiled_function",
     "load",
     "mode",
     "on_setting",
@@ -266,3 +267,44 @@ class Slot:
         if solver is None and how == "auto" and k == after:
             start_background(self.n, self._path, self.kind)
         return solver
+
+
+def compiled_function(f):
+    """``f`` (a small ``casadi.Function``) compiled to a shared library, cached on disk beside the solvers
+    (``<cache>/casadi-<version>/fn-<hash>.so``, the hash covering CasADi's version and ``f``'s serialisation) and
+    loaded with ``casadi.external``; None when :func:`mode` is ``off`` or there is no working C compiler (the
+    caller then evaluates ``f`` in CasADi's virtual machine). Compiling takes a fraction of a second, in a
+    temporary folder (never the working directory); the library is moved into the cache atomically."""
+    import shutil
+    import tempfile
+
+    import casadi as ca
+
+    if mode() == "off":
+        return None
+    h = hashlib.sha256()
+    h.update(ca.__version__.encode())
+    h.update(f.serialize().encode())
+    path = cache_root() / f"casadi-{ca.__version__}" / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
+    try:
+        if not path.is_file():
+            cc = shutil.which("gcc") or shutil.which("cc")
+            if cc is None:
+                return None
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory() as tmp:
+                gen = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+                gen.add(f)
+                gen.generate(os.path.join(tmp, ""))
+                lib = Path(tmp) / "lib.so"
+                subprocess.run(
+                    [cc, "-O2", "-shared", "-fPIC", "-o", str(lib), str(Path(tmp) / f"{f.name()}.c")],
+                    check=True,
+                    capture_output=True,
+                    timeout=120,
+                )
+                with atomic_path(path) as out:
+                    shutil.copyfile(lib, out)
+        return ca.external(f.name(), str(path))
+    except (OSError, subprocess.SubprocessError, RuntimeError):
+        return None

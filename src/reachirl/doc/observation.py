@@ -104,7 +104,7 @@ def predict(
     without a threshold."""
     task = observed_task(trial, n_nodes, threshold)
     guess = None if path is None else moved_path(task, path)
-    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess)
+    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess, newton=True)
     return sol, observed_solution(sol, task, threshold)
 
 

@@ -1,0 +1,366 @@
+"""Exact Newton on the reach's knots: the DOC's optimum from a close start, in a few iterations.
+
+The reaching DOC of :mod:`reachirl.doc.task` has, once the dynamics are eliminated, the joint knots
+``q_1 … q_{N−1}`` as its only unknowns. Under the semi-implicit Euler step the velocities and accelerations are
+differences of the knots, ``q̇_k = (q_k − q_{k−1})/dt`` and ``q̈_k = (q_{k+1} − 2q_k + q_{k−1})/dt²``, the torque is
+the inverse dynamics ``τ_k = ID(q_k, q̇_k, q̈_k)``, the rest at the start is ``q_{−2} = q_{−1} = q_0`` (so that
+``q̇_0 = 0`` and ``τ_{−1} = g(q_0)``) and the rest at the end is ``q_N = q_{N−1}`` (``q̇_N = 0``). Stage ``k``'s
+cost then depends on the four knots ``q_{k−2} … q_{k+1}`` only, and what is left of the constraints is the
+fingertip on the bar, ``P_x(q_{N−1}) = target``, and the bounds (joint limits, joint speeds). It is the same
+problem as :mod:`reachirl.doc.casadi`'s multiple-shooting NLP, whose other variables are functions of the knots.
+
+The energy term ``|q̇_kᵀτ_k|`` is not smooth where the joint power changes sign. With the sign ``σ_k`` of each
+knot's power held fixed, or ``q̇_kᵀτ_k = 0`` imposed at a *kink* (where the optimum sits on the corner), the
+problem is smooth, and Newton's method on its KKT conditions converges quadratically from a close start. The
+signs and kinks are updated after each step as a semismooth Newton (primal-dual active set) method does: a knot
+whose power changes sign becomes a kink, and a kink whose multiplier leaves the subdifferential ``[−w, w]`` is
+released on the side its multiplier points to.
+
+The KKT system is banded: with one multiplier per knot (zero and decoupled where the knot is not a kink) and
+the unknowns ordered knot by knot, ``(q_k, λ_k)``, its half-bandwidth is 10, and one step is one banded LU
+(``scipy.linalg.solve_banded``) of about ``3N`` unknowns. The stages' derivatives are one call of a CasADi
+function mapped over the stages.
+
+:func:`newton_solve` returns None whenever it cannot vouch for its answer: no convergence within
+:data:`MAX_ITER` steps, a bound active or violated, or a reduced Hessian that is not positive definite (a saddle
+or maximum). The caller then solves the DOC as before (:func:`reachirl.doc.casadi.solve`).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import casadi as ca
+import numpy as np
+from scipy import linalg
+from scipy.linalg.lapack import dgbsv as _gbsv
+
+from ..features import N_FEATURES, window_index
+from . import compiled
+from .task import ReachingTask
+
+__all__ = ["MAX_ITER", "NewtonResult", "newton_solve"]
+
+MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a moved reach); then the interior point takes over
+STEP_TOL = 1e-9  # rad: the last step's largest knot change at convergence
+GRAD_TOL = 1e-8  # the Lagrangian's gradient (objective normalised to order one; round-off leaves ~1e-9)
+MAX_STEP = 0.2  # rad: a longer Newton step is shortened to this (a start far from the answer)
+BAR_TOL = 1e-10  # m: the fingertip's distance from the bar
+POWER_TOL = 1e-9  # W: a kink's joint power
+_BW = 10  # the KKT matrix's half-bandwidth with the unknowns ordered (q_k, λ_k) knot by knot
+_QBW = 7  # the knots-only Hessian's half-bandwidth (a stage couples four knots)
+_ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
+
+
+@dataclass(frozen=True)
+class NewtonResult:
+    """The knots ``q (N+1, 2)`` of the optimum (``q_N = q_{N−1}``), the steps taken and the kinks at the end."""
+
+    q: np.ndarray
+    iterations: int
+    n_kinks: int
+
+
+def _id(arm, q, qd, qdd):
+    l1, _l2, m1, m2, c1, c2, i1, i2, g = arm
+    cq2, sq2 = ca.cos(q[1]), ca.sin(q[1])
+    a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
+    b = m2 * l1 * c2
+    d = i2 + m2 * c2**2
+    h = b * sq2
+    g2 = g * m2 * c2 * ca.cos(q[0] + q[1])
+    g1 = g * (m1 * c1 + m2 * l1) * ca.cos(q[0]) + g2
+    tau1 = (a + 2 * b * cq2) * qdd[0] + (d + b * cq2) * qdd[1] - h * (2 * qd[0] * qd[1] + qd[1] ** 2) + g1
+    tau2 = (d + b * cq2) * qdd[0] + d * qdd[1] + h * qd[0] ** 2 + g2
+    return ca.vertcat(tau1, tau2), ca.vertcat(ca.horzcat(a + 2 * b * cq2, d + b * cq2), ca.horzcat(d + b * cq2, d))
+
+
+@functools.lru_cache(maxsize=8)
+def _stage_map(n: int) -> ca.Function:
+    """The stages' derivatives (:func:`_stage`, compiled when it can be: :func:`.compiled.compiled_function`),
+    mapped over ``n`` stages: inputs ``(8, n)``, ``(8, n)``, ``(1, n)`` and the shared arm, ``dt`` and scale;
+    output ``(81, n)``."""
+    stage = _stage()
+    stage = compiled.compiled_function(stage) or stage
+    return stage.map(f"newton_map_{n}", "serial", n, [3, 4, 5], [])
+
+
+@functools.lru_cache(maxsize=1)
+def _stage() -> ca.Function:
+    """One stage's derivatives. Inputs: the stage's four knots ``x (8,)``, its weights and the power's sign
+    ``(8,)``, its kink multiplier, the arm, ``dt`` and the objective's scale. Output ``(81,)``: the Lagrangian's
+    gradient ``(8,)`` and Hessian ``(8, 8)`` in the stage's knots, the power ``e`` and its gradient ``(8,)``."""
+    x = ca.SX.sym("x", 8)  # (q_{k−2}, q_{k−1}, q_k, q_{k+1})
+    ws = ca.SX.sym("ws", N_FEATURES + 1)  # the stage's weights, then σ_k
+    lam = ca.SX.sym("lam")
+    arm = ca.SX.sym("arm", len(_ARM_FIELDS))
+    dt = ca.SX.sym("dt")
+    fscale = ca.SX.sym("fscale")
+    a = [arm[i] for i in range(len(_ARM_FIELDS))]
+    l1, l2 = a[0], a[1]
+    qa, qb, qc, qn = x[0:2], x[2:4], x[4:6], x[6:8]
+    qd_prev, qd = (qb - qa) / dt, (qc - qb) / dt
+    qdd_prev, qdd = (qc - 2 * qb + qa) / dt**2, (qn - 2 * qc + qb) / dt**2
+    tau_prev, _ = _id(a, qb, qd_prev, qdd_prev)
+    tau, mass = _id(a, qc, qd, qdd)
+    q1, q12 = qc[0], qc[0] + qc[1]
+    jac = ca.vertcat(
+        ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
+        ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
+    )
+    e = ca.dot(qd, tau)
+    rates = [
+        ca.sumsqr(jac @ qd),
+        ws[N_FEATURES] * e,  # |e| on the side σ_k; at a kink σ_k = 0 and e = 0 is a constraint
+        ca.bilin(mass, qd, qd),
+        ca.sumsqr(qdd),
+        ca.sumsqr((tau - tau_prev) / dt),
+        ca.sumsqr(qd),
+        ca.sumsqr(tau),
+    ]
+    lag = fscale * dt * sum(ws[j] * rates[j] for j in range(N_FEATURES)) + lam * e
+    hess, grad = ca.hessian(lag, x)
+    out = ca.vertcat(grad, ca.vec(hess), e, ca.gradient(e, x))
+    return ca.Function("reachirl_newton_stage", [x, ws, lam, arm, dt, fscale], [out])
+
+
+@functools.lru_cache(maxsize=8)
+def _layout(n: int):
+    """Where each stage's local derivatives go in the banded KKT matrix of ``n`` stages.
+
+    Unknowns, knot by knot: ``(q_k (2), λ_k)`` for ``k = 1 … N−1`` (``λ_k``: the kink multiplier of stage ``k``),
+    then ``μ`` (the bar). Returns ``(var (n, 8), n_unknowns)``: each stage-local variable's unknown (−1 for the
+    fixed start knots; ``q_N`` is ``q_{N−1}``)."""
+    var = np.full((n, 8), -1, dtype=int)
+    for k in range(n):
+        for j, knot in enumerate((k - 2, k - 1, k, k + 1)):
+            knot = min(knot, n - 1)  # q_N = q_{N−1}
+            if knot >= 1:
+                var[k, 2 * j : 2 * j + 2] = 3 * (knot - 1) + np.arange(2)
+    return var, 3 * (n - 1) + 1
+
+
+def _band_index(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
+    """Flat indices into ``solve_banded``'s ``(2·BW + 1, size)`` storage of the entries ``(rows, cols)``."""
+    return (_BW + rows - cols) * size + cols
+
+
+class _Layout(NamedTuple):
+    """Precomputed indices of the banded KKT system of ``n`` stages (:func:`_scatter`)."""
+
+    size: int  # unknowns
+    var: np.ndarray  # (n, 8): each stage-local knot variable's unknown, −1 for the fixed start
+    valid: np.ndarray  # var >= 0
+    grad_at: np.ndarray  # var[valid]
+    keep: np.ndarray  # (n, 8, 8): the stages' Hessian entries between unknowns
+    band_at: np.ndarray  # their flat positions in the (2·BW + 1, size) band
+    lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
+    q_rows: np.ndarray  # the knots' unknowns
+
+
+@functools.lru_cache(maxsize=8)
+def _scatter(n: int) -> _Layout:
+    var, size = _layout(n)
+    r = np.repeat(var[:, :, None], 8, axis=2)  # (n, 8, 8) row unknown of H[k, i, j]
+    c = np.repeat(var[:, None, :], 8, axis=1)
+    keep = (r >= 0) & (c >= 0)
+    lam_rows = 3 * np.arange(n - 1) + 2
+    return _Layout(
+        size=size,
+        var=var,
+        valid=var >= 0,
+        grad_at=var[var >= 0],
+        keep=keep,
+        band_at=_band_index(r[keep], c[keep], size),
+        lam_rows=lam_rows,
+        q_rows=np.setdiff1d(np.arange(size - 1), lam_rows),
+    )
+
+
+def _params(task: ReachingTask) -> tuple[np.ndarray, float]:
+    a = task.arm
+    return np.array([getattr(a, f) for f in _ARM_FIELDS], dtype=float), float(task.dt)
+
+
+def _stage_knots(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``(8, n)``: each stage's knots ``(q_{k−2}, q_{k−1}, q_k, q_{k+1})`` from the inner knots ``q (N−1, 2)``."""
+    full = np.vstack([q0, q0, q0, q, q[-1:]])  # q_{−2}, q_{−1}, q_0, q_1 … q_{N−1}, q_N = q_{N−1}
+    n = q.shape[0] + 1
+    return np.hstack([full[k : k + n] for k in range(4)]).T
+
+
+def newton_solve(
+    task: ReachingTask, weights: np.ndarray, q_start: np.ndarray, fscale: float, max_iter: int = MAX_ITER
+) -> NewtonResult | None:
+    """The DOC's optimum from the joint path ``q_start (N+1, 2)`` (a close start: a neighbouring reach moved to
+    this task, or this task's solution under other weights), or None when Newton's method cannot vouch for it
+    (see the module docstring). ``weights (n_windows, 7)``; ``fscale``: the objective's scale, as the CasADi
+    backend's (the tolerances are relative to an objective of order one)."""
+    n = task.n_nodes
+    lay = _scatter(n)
+    size, var = lay.size, lay.var
+    arm, dt = _params(task)
+    w_knot = np.asarray(weights, dtype=float)[window_index(n, weights.shape[0])]  # (n, 7)
+    w_e = fscale * dt * w_knot[:, 1]  # each stage's energy weight, as the Lagrangian sees it
+    q0 = np.asarray(task.q0, dtype=float)
+    q = np.array(q_start[1:n], dtype=float)  # the unknowns: the inner knots q_1 … q_{N−1}
+    lam, mu = np.zeros(n), 0.0
+    kink = np.zeros(n, dtype=bool)
+    sigma = np.zeros(n)
+    last = size - 3 + np.arange(2) - 1  # q_{N−1}'s unknowns; μ is the last one
+    dq = None
+
+    # the mapped stages evaluated in place, through CasADi's buffers (no conversion per call)
+    buf, trigger = _stage_map(n).buffer()
+    x_in, ws_in, lam_in, out = np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(81 * n)
+    inputs = (x_in, ws_in, lam_in, arm, np.array([dt]), np.array([fscale]))  # the buffers point into these
+    for i, a in enumerate(inputs):
+        buf.set_arg(i, a)
+    buf.set_res(0, out)
+    ws_view = ws_in.reshape(8, n, order="F")
+    ws_view[:N_FEATURES] = w_knot.T
+    res = out.reshape(81, n, order="F")
+    x_view = x_in.reshape(8, n, order="F")
+
+    for it in range(max_iter + 1):
+        x_view[:] = _stage_knots(q0, q)
+        ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
+        lam_in[:] = lam
+        trigger()
+        grad, hess, e, de = res[0:8].copy(), _blocks(res[8:72]), res[72], res[73:81]
+        # the active set (see the module docstring): at the start, each knot's power on its own side; later, a
+        # knot whose power changed side becomes a kink, and a kink whose multiplier left [−w, w] is released.
+        # The gradient follows exactly (its terms in σ and λ are linear in ∇e); the Hessian's, one step late.
+        coef = np.where(kink, 0.0, sigma) * w_e + lam
+        if it == 0:
+            sigma = np.sign(e)
+            sigma[0] = 0.0  # stage 0's power is identically zero (q̇_0 = 0)
+            changed = True
+        else:
+            flip = ~kink & (sigma * e < 0)
+            flip[0] = False
+            release = kink & (np.abs(lam) > w_e * (1 + 1e-9))
+            changed = bool(flip.any() or release.any())
+            if changed:
+                sigma = np.where(release, np.sign(lam), sigma)
+                kink = (kink | flip) & ~release
+                lam = np.where(kink, lam, 0.0)
+        if changed:
+            grad += de * (np.where(kink, 0.0, sigma) * w_e + lam - coef)
+        tip, jtip = _fingertip(task, q[-1])
+        r = np.bincount(lay.grad_at, weights=grad.T[lay.valid], minlength=size)
+        r[last] += mu * jtip
+        r[lay.lam_rows] = np.where(kink[1:], e[1:], lam[1:])
+        r[size - 1] = tip - task.target_x
+        if it > 0 and not changed:
+            small_step = float(np.max(np.abs(dq))) < STEP_TOL
+            stationary = float(np.max(np.abs(r[lay.q_rows]))) < GRAD_TOL
+            feasible = abs(r[-1]) < BAR_TOL and float(np.max(np.abs(r[lay.lam_rows]), initial=0.0)) < POWER_TOL
+            if (small_step or stationary) and feasible:
+                return _verified(task, q0, q, it, kink, lam, w_e, sigma, e, hess, de, jtip)
+        if it == max_iter:
+            return None
+        # the banded KKT matrix, in LAPACK's storage for a banded LU (``_BW`` more rows for the fill-in)
+        lu = np.zeros((3 * _BW + 1, size))
+        lu[_BW:] = np.bincount(lay.band_at, weights=hess[lay.keep], minlength=(2 * _BW + 1) * size).reshape(
+            2 * _BW + 1, size
+        )
+        ab = lu[_BW:]
+        ks = np.flatnonzero(kink)
+        if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
+            m = var[ks] >= 0
+            cols = var[ks][m]
+            jl = np.broadcast_to((3 * (ks - 1) + 2)[:, None], m.shape)[m]
+            vals = de.T[ks][m]
+            np.add.at(ab, (_BW + cols - jl, jl), vals)
+            np.add.at(ab, (_BW + jl - cols, cols), vals)
+        ab[_BW, lay.lam_rows[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
+        ab[_BW + last - (size - 1), size - 1] = jtip
+        ab[_BW + (size - 1) - last, last] = jtip
+        hp = mu * _fingertip_hessian(task, q[-1])
+        ab[_BW, last] += np.diag(hp)
+        ab[_BW - 1, last[1]] += hp[0, 1]
+        ab[_BW + 1, last[0]] += hp[1, 0]
+        _, _, step, info = _gbsv(_BW, _BW, lu, -r, overwrite_ab=True, overwrite_b=True)
+        if info != 0 or not np.all(np.isfinite(step)):
+            return None
+        inner = step[: size - 1].reshape(n - 1, 3)
+        longest = float(np.max(np.abs(inner[:, :2])))
+        if longest > MAX_STEP:
+            step *= MAX_STEP / longest
+        dq = inner[:, :2]
+        q = q + dq
+        lam[1:] += inner[:, 2]
+        mu += step[-1]
+    return None
+
+
+def _blocks(h: np.ndarray) -> np.ndarray:
+    """The stages' Hessians ``(n, 8, 8)`` from their column-major vectors ``(64, n)``."""
+    return h.reshape(8, 8, -1).transpose(2, 1, 0)
+
+
+def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
+    a = task.arm
+    return float(a.fk(q)[0]), np.asarray(a.jacobian(q)[0], dtype=float)
+
+
+def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:
+    """``∂²P_x/∂q² (2, 2)``."""
+    a = task.arm
+    c1, c12 = np.cos(q[0]), np.cos(q[0] + q[1])
+    return -np.array([[a.l1 * c1 + a.l2 * c12, a.l2 * c12], [a.l2 * c12, a.l2 * c12]])
+
+
+def _verified(task, q0, q, it, kink, lam, w_e, sigma, e, hess, de, jtip) -> NewtonResult | None:
+    """The result, once the answer is checked: every knot's power on its side, every kink's multiplier inside
+    ``[−w, w]``, the bounds inactive, and the Hessian positive definite on the constraints' null space."""
+    n = task.n_nodes
+    off = ~kink
+    off[0] = False
+    if np.any(sigma[off] * e[off] < 0) or np.any(np.abs(lam[kink]) > w_e[kink] * (1 + 1e-6)):
+        return None
+    qs = np.vstack([q0, q, q[-1:]])
+    qd = np.diff(qs, axis=0) / task.dt
+    if np.any(qs[1:] <= task.q_lower) or np.any(qs[1:] >= task.q_upper) or np.any(np.abs(qd) >= task.qd_max):
+        return None
+    if not _is_minimum(hess, de, n, kink, jtip):
+        return None
+    return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()))
+
+
+def _is_minimum(hess, de, n, kink, jtip) -> bool:
+    """Whether the Lagrangian's Hessian in the knots is positive definite on the null space of the constraints
+    (the bar, the kinks): a banded Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit
+    gradient) with ``ρ`` a thousand times the largest diagonal entry of ``H``."""
+    keep, at, qvar, m = _q_scatter(n)
+    ab = np.bincount(at, weights=hess[keep], minlength=(_QBW + 1) * m).reshape(_QBW + 1, m)
+    rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
+    # every constraint's gradient over its stage's knots: the kinks', then the bar's (on q_{N−1})
+    idx = np.vstack([qvar[kink], np.r_[m - 2, m - 1, np.full(6, -1)]])
+    vals = np.vstack([de[:, kink].T, np.r_[jtip, np.zeros(6)]])
+    vals = vals / np.maximum(np.linalg.norm(vals, axis=1), 1e-300)[:, None]
+    r, c = idx[:, :, None], idx[:, None, :]
+    both = (r >= 0) & (c >= 0) & (r <= c)
+    rr, cc = np.broadcast_to(r, both.shape)[both], np.broadcast_to(c, both.shape)[both]
+    outer = (vals[:, :, None] * vals[:, None, :])[both]
+    ab += rho * np.bincount((_QBW + rr - cc) * m + cc, weights=outer, minlength=ab.size).reshape(ab.shape)
+    try:
+        linalg.cholesky_banded(ab, lower=False, check_finite=False)
+    except linalg.LinAlgError:
+        return False
+    return True
+
+
+@functools.lru_cache(maxsize=8)
+def _q_scatter(n: int):
+    """The stages' Hessian entries in the upper band of the knots-only Hessian (``(_QBW + 1, m)`` storage)."""
+    var, _ = _layout(n)
+    qvar = np.where(var >= 0, var - var // 3, -1)  # unknown → index among the knots' unknowns
+    r = np.repeat(qvar[:, :, None], 8, axis=2)
+    c = np.repeat(qvar[:, None, :], 8, axis=1)
+    keep = (r >= 0) & (c >= 0) & (r <= c)
+    m = 2 * (n - 1)
+    return keep, (_QBW + r[keep] - c[keep]) * m + c[keep], qvar, m
