@@ -34,7 +34,7 @@ from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy import linalg
+from scipy import linalg, sparse
 from scipy.linalg.lapack import dgbsv as _gbsv
 
 from ..features import N_FEATURES, window_index
@@ -152,10 +152,8 @@ class _Layout(NamedTuple):
 
     size: int  # unknowns
     var: np.ndarray  # (n, 8): each stage-local knot variable's unknown, −1 for the fixed start
-    valid: np.ndarray  # var >= 0
-    grad_at: np.ndarray  # var[valid]
-    keep: np.ndarray  # (n, 8, 8): the stages' Hessian entries between unknowns
-    band_at: np.ndarray  # their flat positions in the (2·BW + 1, size) band
+    grad_op: sparse.csr_matrix  # the stages' gradients (8, n) (column-major) → the residual's rows
+    band_op: sparse.csr_matrix  # the stage function's output (81, n) (column-major) → the Hessian's band
     lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
     q_rows: np.ndarray  # the knots' unknowns
 
@@ -163,17 +161,21 @@ class _Layout(NamedTuple):
 @functools.lru_cache(maxsize=8)
 def _scatter(n: int) -> _Layout:
     var, size = _layout(n)
+    k, i = np.nonzero(var >= 0)
+    grad_op = sparse.csr_matrix((np.ones(k.size), (var[k, i], i + 8 * k)), shape=(size, 8 * n))
     r = np.repeat(var[:, :, None], 8, axis=2)  # (n, 8, 8) row unknown of H[k, i, j]
     c = np.repeat(var[:, None, :], 8, axis=1)
-    keep = (r >= 0) & (c >= 0)
+    kk, ii, jj = np.nonzero((r >= 0) & (c >= 0))
+    band_op = sparse.csr_matrix(
+        (np.ones(kk.size), (_band_index(r[kk, ii, jj], c[kk, ii, jj], size), 8 + ii + 8 * jj + 81 * kk)),
+        shape=((2 * _BW + 1) * size, 81 * n),
+    )
     lam_rows = 3 * np.arange(n - 1) + 2
     return _Layout(
         size=size,
         var=var,
-        valid=var >= 0,
-        grad_at=var[var >= 0],
-        keep=keep,
-        band_at=_band_index(r[keep], c[keep], size),
+        grad_op=grad_op,
+        band_op=band_op,
         lam_rows=lam_rows,
         q_rows=np.setdiff1d(np.arange(size - 1), lam_rows),
     )
@@ -229,7 +231,7 @@ def newton_solve(
         ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
         lam_in[:] = lam
         trigger()
-        grad, hess, e, de = res[0:8].copy(), _blocks(res[8:72]), res[72], res[73:81]
+        grad, e, de = res[0:8].copy(), res[72], res[73:81]
         # the active set (see the module docstring): at the start, each knot's power on its own side; later, a
         # knot whose power changed side becomes a kink, and a kink whose multiplier left [−w, w] is released.
         # The gradient follows exactly (its terms in σ and λ are linear in ∇e); the Hessian's, one step late.
@@ -250,7 +252,7 @@ def newton_solve(
         if changed:
             grad += de * (np.where(kink, 0.0, sigma) * w_e + lam - coef)
         tip, jtip = _fingertip(task, q[-1])
-        r = np.bincount(lay.grad_at, weights=grad.T[lay.valid], minlength=size)
+        r = lay.grad_op @ grad.ravel(order="F")
         r[last] += mu * jtip
         r[lay.lam_rows] = np.where(kink[1:], e[1:], lam[1:])
         r[size - 1] = tip - task.target_x
@@ -259,14 +261,12 @@ def newton_solve(
             stationary = float(np.max(np.abs(r[lay.q_rows]))) < GRAD_TOL
             feasible = abs(r[-1]) < BAR_TOL and float(np.max(np.abs(r[lay.lam_rows]), initial=0.0)) < POWER_TOL
             if (small_step or stationary) and feasible:
-                return _verified(task, q0, q, it, kink, lam, w_e, sigma, e, hess, de, jtip)
+                return _verified(task, q0, q, it, kink, lam, w_e, sigma, e, out, de, jtip)
         if it == max_iter:
             return None
         # the banded KKT matrix, in LAPACK's storage for a banded LU (``_BW`` more rows for the fill-in)
         lu = np.zeros((3 * _BW + 1, size))
-        lu[_BW:] = np.bincount(lay.band_at, weights=hess[lay.keep], minlength=(2 * _BW + 1) * size).reshape(
-            2 * _BW + 1, size
-        )
+        lu[_BW:] = (lay.band_op @ out).reshape(2 * _BW + 1, size)
         ab = lu[_BW:]
         ks = np.flatnonzero(kink)
         if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
@@ -297,11 +297,6 @@ def newton_solve(
     return None
 
 
-def _blocks(h: np.ndarray) -> np.ndarray:
-    """The stages' Hessians ``(n, 8, 8)`` from their column-major vectors ``(64, n)``."""
-    return h.reshape(8, 8, -1).transpose(2, 1, 0)
-
-
 def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
     a = task.arm
     return float(a.fk(q)[0]), np.asarray(a.jacobian(q)[0], dtype=float)
@@ -314,7 +309,7 @@ def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     return -np.array([[a.l1 * c1 + a.l2 * c12, a.l2 * c12], [a.l2 * c12, a.l2 * c12]])
 
 
-def _verified(task, q0, q, it, kink, lam, w_e, sigma, e, hess, de, jtip) -> NewtonResult | None:
+def _verified(task, q0, q, it, kink, lam, w_e, sigma, e, out, de, jtip) -> NewtonResult | None:
     """The result, once the answer is checked: every knot's power on its side, every kink's multiplier inside
     ``[−w, w]``, the bounds inactive, and the Hessian positive definite on the constraints' null space."""
     n = task.n_nodes
@@ -326,17 +321,17 @@ def _verified(task, q0, q, it, kink, lam, w_e, sigma, e, hess, de, jtip) -> Newt
     qd = np.diff(qs, axis=0) / task.dt
     if np.any(qs[1:] <= task.q_lower) or np.any(qs[1:] >= task.q_upper) or np.any(np.abs(qd) >= task.qd_max):
         return None
-    if not _is_minimum(hess, de, n, kink, jtip):
+    if not _is_minimum(out, de, n, kink, jtip):
         return None
     return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()))
 
 
-def _is_minimum(hess, de, n, kink, jtip) -> bool:
+def _is_minimum(out, de, n, kink, jtip) -> bool:
     """Whether the Lagrangian's Hessian in the knots is positive definite on the null space of the constraints
     (the bar, the kinks): a banded Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit
     gradient) with ``ρ`` a thousand times the largest diagonal entry of ``H``."""
-    keep, at, qvar, m = _q_scatter(n)
-    ab = np.bincount(at, weights=hess[keep], minlength=(_QBW + 1) * m).reshape(_QBW + 1, m)
+    op, qvar, m = _q_scatter(n)
+    ab = (op @ out).reshape(_QBW + 1, m)
     rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
     # every constraint's gradient over its stage's knots: the kinks', then the bar's (on q_{N−1})
     idx = np.vstack([qvar[kink], np.r_[m - 2, m - 1, np.full(6, -1)]])
@@ -356,11 +351,13 @@ def _is_minimum(hess, de, n, kink, jtip) -> bool:
 
 @functools.lru_cache(maxsize=8)
 def _q_scatter(n: int):
-    """The stages' Hessian entries in the upper band of the knots-only Hessian (``(_QBW + 1, m)`` storage)."""
+    """The stage function's output (81, n) → the upper band ``(_QBW + 1, m)`` of the knots-only Hessian."""
     var, _ = _layout(n)
     qvar = np.where(var >= 0, var - var // 3, -1)  # unknown → index among the knots' unknowns
     r = np.repeat(qvar[:, :, None], 8, axis=2)
     c = np.repeat(qvar[:, None, :], 8, axis=1)
-    keep = (r >= 0) & (c >= 0) & (r <= c)
+    kk, ii, jj = np.nonzero((r >= 0) & (c >= 0) & (r <= c))
     m = 2 * (n - 1)
-    return keep, (_QBW + r[keep] - c[keep]) * m + c[keep], qvar, m
+    rows = (_QBW + r[kk, ii, jj] - c[kk, ii, jj]) * m + c[kk, ii, jj]
+    op = sparse.csr_matrix((np.ones(kk.size), (rows, 8 + ii + 8 * jj + 81 * kk)), shape=((_QBW + 1) * m, 81 * n))
+    return op, qvar, m

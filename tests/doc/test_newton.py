@@ -1,0 +1,147 @@
+"""Exact Newton on the knots (``reachirl.doc.newton``), the predictions' solver: its derivatives against finite
+differences of the cost computed independently (``reachirl.features``), its answers against fatrop's on reaches
+recorded as real ones are, and the cases where it must give way."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from reachirl import ArmModel, ReachingTask, solve_doc
+from reachirl.data.trial import load_trials
+from reachirl.doc import compiled, newton
+from reachirl.doc.observation import observed_solution, observed_task
+from reachirl.doc.task import moved_path, rest_to_rest_knots
+from reachirl.features import euler_knots, trajectory_cost
+from reachirl.virtual import nominal_weights, posture_q
+
+N = 40
+ARM = ArmModel.from_anthropometrics(1.76, 70.0, "M")
+
+
+def _task(dq_deg=(0.0, 0.0), reach=0.95, duration=0.8, **kw) -> ReachingTask:
+    return ReachingTask(ARM, posture_q("P2") + np.deg2rad(dq_deg), reach * ARM.length, duration, n_nodes=N, **kw)
+
+
+def _knot_gradient(task, weights, q, fscale):
+    """The stages' gradient in the inner knots, with each knot's power on its own side (no kink)."""
+    n = task.n_nodes
+    lay = newton._scatter(n)
+    arm, dt = newton._params(task)
+    w_knot = weights[newton.window_index(n, weights.shape[0])]
+    x = newton._stage_knots(task.q0, q[1:n])
+    _, _, tau = euler_knots(task.arm, q, dt)
+    qd = np.diff(q, axis=0) / dt
+    sigma = np.sign(np.r_[0.0, np.sum(qd[:-1] * tau[1:], axis=1)])
+    ws = np.vstack([w_knot.T, sigma])
+    out = np.asarray(newton._stage_map(n)(x, ws, np.zeros((1, n)), arm, dt, fscale))
+    return lay.grad_op @ out[:8].ravel(order="F"), lay
+
+
+def _cost(task, weights, inner, fscale):
+    q = np.vstack([task.q0, inner, inner[-1:]])
+    q, qd, tau = rest_to_rest_knots(task, q)
+    return fscale * trajectory_cost(task.arm, q, qd, tau, task.dt, weights)
+
+
+def test_the_knot_gradient_is_the_derivative_of_the_trajectory_cost():
+    """Central differences of ``features.trajectory_cost`` (its own implementation of the seven features and of
+    the Euler knots) against the compiled stage derivatives, on a reach with energy of both signs."""
+    task = _task((3.0, -2.0))
+    w = nominal_weights()
+    q = solve_doc(task, w).q + 0.01 * np.sin(np.linspace(0, 3 * np.pi, N + 1))[:, None]
+    q[-1] = q[-2]
+    fscale = 1.0 / trajectory_cost(task.arm, *euler_knots(task.arm, q, task.dt), task.dt, w)
+    grad, lay = _knot_gradient(task, w, q, fscale)
+    inner = q[1:N].copy()
+    h = 1e-6
+    fd = np.zeros_like(inner)
+    for k in range(inner.shape[0]):
+        for j in range(2):
+            up, down = inner.copy(), inner.copy()
+            up[k, j] += h
+            down[k, j] -= h
+            fd[k, j] = (_cost(task, w, up, fscale) - _cost(task, w, down, fscale)) / (2 * h)
+    ours = grad[lay.q_rows].reshape(N - 1, 2)
+    assert np.max(np.abs(ours - fd)) < 1e-5 * np.max(np.abs(fd))
+
+
+def test_the_compiled_stage_function_equals_the_virtual_machine():
+    f = newton._stage()
+    with compiled.setting("on"):
+        fc = compiled.compiled_function(f)
+    assert fc is not None
+    rng = np.random.default_rng(0)
+    args = [rng.normal(size=8), rng.uniform(size=8), 0.3, rng.uniform(0.1, 1, size=9), 0.01, 2.0]
+    assert np.allclose(np.asarray(fc(*args)), np.asarray(f(*args)), rtol=1e-12, atol=1e-12)
+    with compiled.setting("off"):
+        assert compiled.compiled_function(f) is None
+
+
+@pytest.fixture(scope="module")
+def recorded_p4(recorded):
+    return [t for t in load_trials(recorded / "trials.npz") if t.posture == "P4"]
+
+
+def test_predictions_by_newton_are_fatrops_on_recorded_trials(recorded_p4):
+    """Each recorded reach (cut at a speed threshold) predicted from another's solution moved to it, as
+    ``reproduce`` predicts from the fit's rollout: the same answer as fatrop from the same start, within 0.01°."""
+    w = nominal_weights()
+    trials = recorded_p4
+    first = trials[0]
+    n = 60
+    path = solve_doc(observed_task(first, n, first.onset_threshold), w).q
+    answered = 0
+    for trial in trials[1:]:
+        task = observed_task(trial, n, trial.onset_threshold)
+        guess = moved_path(task, path)
+        fast = solve_doc(task, w, guess=guess, newton=True)
+        slow = solve_doc(task, w, guess=guess)
+        assert fast.converged and slow.converged
+        answered += fast.status.startswith("newton")
+        seen_fast = observed_solution(fast, task, trial.onset_threshold)
+        seen_slow = observed_solution(slow, task, trial.onset_threshold)
+        assert np.degrees(np.max(np.abs(seen_fast.q - seen_slow.q))) < 0.01
+        assert abs(fast.cost - slow.cost) <= 1e-5 * slow.cost
+    assert answered >= len(trials) - 2
+
+
+def test_newton_gives_way_when_it_cannot_vouch_for_its_answer():
+    w = nominal_weights()
+    task = _task((3.0, -2.0))
+    start = moved_path(task, solve_doc(_task(), w).q)
+    fscale = 1.0 / trajectory_cost(task.arm, *euler_knots(task.arm, start, task.dt), task.dt, w)
+    # a start it cannot finish from in the steps allowed
+    assert newton.newton_solve(task, w, start, fscale, max_iter=1) is None
+    found = newton.newton_solve(task, w, start, fscale)
+    assert found is not None
+    # a speed bound the optimum presses against: Newton ignores bounds, so it must refuse and fatrop answers
+    qd_max = np.array(task.qd_max, dtype=float)
+    qd_max[0] = 0.9 * np.max(np.abs(np.diff(found.q[:, 0]))) / task.dt
+    bounded = dataclasses.replace(task, qd_max=qd_max)
+    assert newton.newton_solve(bounded, w, start, fscale) is None
+    sol = solve_doc(bounded, w, guess=start, newton=True)
+    assert sol.converged and sol.status.startswith("fatrop")
+    assert np.max(np.abs(sol.qd[:, 0])) <= qd_max[0] * (1 + 1e-6)
+
+
+def test_a_saddle_is_refused():
+    """The reduced-Hessian test: the same KKT point with the Hessian's sign flipped is not a minimum."""
+    w = nominal_weights()
+    task = _task((3.0, -2.0))
+    start = moved_path(task, solve_doc(_task(), w).q)
+    fscale = 1.0 / trajectory_cost(task.arm, *euler_knots(task.arm, start, task.dt), task.dt, w)
+    found = newton.newton_solve(task, w, start, fscale)
+    assert found is not None
+    arm, dt = newton._params(task)
+    x = newton._stage_knots(task.q0, found.q[1:N])
+    e_sign = np.ones(N)
+    ws = np.vstack([w[newton.window_index(N, 8)].T, e_sign])
+    out = np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, fscale)).ravel(order="F")
+    de = out.reshape(81, N, order="F")[73:81]
+    jtip = np.asarray(ARM.jacobian(found.q[-1])[0])
+    kink = np.zeros(N, dtype=bool)
+    assert newton._is_minimum(out, de, N, kink, jtip)
+    flipped = out.copy().reshape(81, N, order="F")
+    flipped[8:72] *= -1
+    assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip)
