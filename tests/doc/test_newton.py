@@ -64,6 +64,14 @@ def test_the_knot_gradient_is_the_derivative_of_the_trajectory_cost():
             fd[k, j] = (_cost(task, w, up, fscale) - _cost(task, w, down, fscale)) / (2 * h)
     ours = grad[lay.q_rows].reshape(N - 1, 2)
     assert np.max(np.abs(ours - fd)) < 1e-5 * np.max(np.abs(fd))
+    # the stages' costs (the objective's scale of a solve from q) add up to the trajectory's
+    found = newton.newton_solve(task, w, q, max_iter=0)
+    assert found is None  # no step allowed: it cannot vouch for q
+    arm, dt = newton._params(task)
+    sigma = np.zeros((1, N))
+    ws = np.vstack([w[newton.window_index(N, 8)].T, sigma])
+    out = np.asarray(newton._stage_map(N)(newton._stage_knots(task.q0, q[1:N]), ws, sigma, arm, dt, 1.0))
+    assert np.isclose(out[-1].sum(), 1.0 / fscale, rtol=1e-12)
 
 
 def test_the_compiled_stage_function_equals_the_virtual_machine():
@@ -126,22 +134,25 @@ def test_newton_gives_way_when_it_cannot_vouch_for_its_answer():
 
 
 def test_a_saddle_is_refused():
-    """The reduced-Hessian test: the same KKT point with the Hessian's sign flipped is not a minimum."""
+    """The reduced-Hessian test at a converged answer: it holds there (the bar's curvature included), and fails
+    for the same point with the stages' Hessians negated."""
     w = nominal_weights()
     task = _task((3.0, -2.0))
     start = moved_path(task, solve_doc(_task(), w).q)
-    fscale = 1.0 / trajectory_cost(task.arm, *euler_knots(task.arm, start, task.dt), task.dt, w)
-    found = newton.newton_solve(task, w, start, fscale)
+    found = newton.newton_solve(task, w, start)
     assert found is not None
     arm, dt = newton._params(task)
     x = newton._stage_knots(task.q0, found.q[1:N])
-    e_sign = np.ones(N)
-    ws = np.vstack([w[newton.window_index(N, 8)].T, e_sign])
-    out = np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, fscale)).ravel(order="F")
-    de = out.reshape(81, N, order="F")[73:81]
+    _, _, tau = euler_knots(task.arm, found.q, dt)
+    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
+    ws = np.vstack([w[newton.window_index(N, 8)].T, np.sign(e)])
+    out = np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, found.fscale)).ravel(order="F")
+    de = out.reshape(newton._ROWS, N, order="F")[73:81]
     jtip = np.asarray(ARM.jacobian(found.q[-1])[0])
+    curv = found.bar_multiplier * newton._fingertip_hessian(task, found.q[-1])
     kink = np.zeros(N, dtype=bool)
-    assert newton._is_minimum(out, de, N, kink, jtip)
-    flipped = out.copy().reshape(81, N, order="F")
+    assert found.n_kinks == 0
+    assert newton._is_minimum(out, de, N, kink, jtip, curv)
+    flipped = out.copy().reshape(newton._ROWS, N, order="F")
     flipped[8:72] *= -1
-    assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip)
+    assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip, curv)

@@ -441,19 +441,7 @@ def solve(
     x = q = None
     stats: dict = {}
     ok = False
-
-    def local(start: np.ndarray, fscale: float) -> bool:
-        """Exact Newton from ``start`` (knots): True when it vouched for an answer (then in ``q``)."""
-        nonlocal q, iterations, elapsed, attempts, ok, kind
-        t0 = time.perf_counter()
-        found = newton_solve(task, weights, start, fscale)
-        elapsed += time.perf_counter() - t0
-        attempts += 1
-        if found is None:
-            return False
-        q, ok, kind = found.q, True, "newton"
-        iterations += found.iterations
-        return True
+    fscale = 1.0
 
     kind = "fatrop_warm"
     same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
@@ -464,22 +452,31 @@ def solve(
         x, stats, elapsed = _run(nlp, kind, args)
         iterations, attempts = int(stats.get("iter_count", 0)), 1
         ok = _converged(stats, x)
+    if x is None and newton and guess is not None:
+        # a close start (a similar reach moved to this task): exact Newton first, which vouches for its answer
+        # or gives way to the interior point from the same start
+        start = np.array(guess, dtype=float)
+        start[0], start[-2] = task.q0, start[-1]  # at rest at both ends, as _pack makes it
+        start[1:] = np.clip(start[1:], task.q_lower, task.q_upper)
+        t0 = time.perf_counter()
+        found = newton_solve(task, weights, start)
+        elapsed, attempts = elapsed + time.perf_counter() - t0, attempts + 1
+        if found is not None:
+            q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
     if q is None and (x is None or (retry_cold and not ok)):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
-        # change of weights. From ``guess`` (a similar reach moved to this task, a close start), exact Newton
-        # first, which vouches for its answer or gives way to the interior point
+        # change of weights
         x0 = np.clip(initial_guess(task) if guess is None else _pack(task, guess), lbx, ubx)
         fscale = _objective_scale(task, weights, x0)
-        if not (newton and guess is not None and x is None and local(_unpack_q(task, x0), fscale)):
-            args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
-            for kind in ("fatrop", "ipopt"):
-                x, stats, t = _run(nlp, kind, args)
-                iterations += int(stats.get("iter_count", 0))
-                attempts += 1
-                elapsed += t
-                ok = _converged(stats, x)
-                if ok:
-                    break
+        args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
+        for kind in ("fatrop", "ipopt"):
+            x, stats, t = _run(nlp, kind, args)
+            iterations += int(stats.get("iter_count", 0))
+            attempts += 1
+            elapsed += t
+            ok = _converged(stats, x)
+            if ok:
+                break
     if q is None:
         q = _unpack_q(task, x)
     q[-1] = on_bar(task, q[-1])

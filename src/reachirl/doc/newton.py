@@ -29,6 +29,7 @@ or maximum). The caller then solves the DOC as before (:func:`reachirl.doc.casad
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -44,23 +45,29 @@ from .task import ReachingTask
 __all__ = ["MAX_ITER", "NewtonResult", "newton_solve"]
 
 MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a moved reach); then the interior point takes over
-STEP_TOL = 1e-9  # rad: the last step's largest knot change at convergence
+STEP_TOL = 1e-6  # rad: a last step this small, with the gradient below LOOSE_GRAD_TOL, is converged (quadratic
+# convergence: the next step would be ~1e-12 rad)
+LOOSE_GRAD_TOL = 1e-5
 GRAD_TOL = 1e-8  # the Lagrangian's gradient (objective normalised to order one; round-off leaves ~1e-9)
 MAX_STEP = 0.2  # rad: a longer Newton step is shortened to this (a start far from the answer)
 BAR_TOL = 1e-10  # m: the fingertip's distance from the bar
 POWER_TOL = 1e-9  # W: a kink's joint power
 _BW = 10  # the KKT matrix's half-bandwidth with the unknowns ordered (q_k, λ_k) knot by knot
 _QBW = 7  # the knots-only Hessian's half-bandwidth (a stage couples four knots)
+_ROWS = 82  # the stage function's output: gradient (8), Hessian (64), power, its gradient (8), cost
 _ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
 
 
 @dataclass(frozen=True)
 class NewtonResult:
-    """The knots ``q (N+1, 2)`` of the optimum (``q_N = q_{N−1}``), the steps taken and the kinks at the end."""
+    """The knots ``q (N+1, 2)`` of the optimum (``q_N = q_{N−1}``), the steps taken, the kinks at the end, the
+    objective's scale used and the bar's multiplier."""
 
     q: np.ndarray
     iterations: int
     n_kinks: int
+    fscale: float
+    bar_multiplier: float
 
 
 def _id(arm, q, qd, qdd):
@@ -81,7 +88,7 @@ def _id(arm, q, qd, qdd):
 def _stage_map(n: int) -> ca.Function:
     """The stages' derivatives (:func:`_stage`, compiled when it can be: :func:`.compiled.compiled_function`),
     mapped over ``n`` stages: inputs ``(8, n)``, ``(8, n)``, ``(1, n)`` and the shared arm, ``dt`` and scale;
-    output ``(81, n)``."""
+    output ``(82, n)``."""
     stage = _stage()
     stage = compiled.compiled_function(stage) or stage
     return stage.map(f"newton_map_{n}", "serial", n, [3, 4, 5], [])
@@ -90,8 +97,9 @@ def _stage_map(n: int) -> ca.Function:
 @functools.lru_cache(maxsize=1)
 def _stage() -> ca.Function:
     """One stage's derivatives. Inputs: the stage's four knots ``x (8,)``, its weights and the power's sign
-    ``(8,)``, its kink multiplier, the arm, ``dt`` and the objective's scale. Output ``(81,)``: the Lagrangian's
-    gradient ``(8,)`` and Hessian ``(8, 8)`` in the stage's knots, the power ``e`` and its gradient ``(8,)``."""
+    ``(8,)``, its kink multiplier, the arm, ``dt`` and the objective's scale. Output ``(82,)``: the Lagrangian's
+    gradient ``(8,)`` and Hessian ``(8, 8)`` in the stage's knots, the power ``e``, its gradient ``(8,)`` and the
+    stage's cost (with ``|e|``)."""
     x = ca.SX.sym("x", 8)  # (q_{k−2}, q_{k−1}, q_k, q_{k+1})
     ws = ca.SX.sym("ws", N_FEATURES + 1)  # the stage's weights, then σ_k
     lam = ca.SX.sym("lam")
@@ -122,7 +130,8 @@ def _stage() -> ca.Function:
     ]
     lag = fscale * dt * sum(ws[j] * rates[j] for j in range(N_FEATURES)) + lam * e
     hess, grad = ca.hessian(lag, x)
-    out = ca.vertcat(grad, ca.vec(hess), e, ca.gradient(e, x))
+    cost = fscale * dt * sum(ws[j] * (ca.fabs(e) if j == 1 else rates[j]) for j in range(N_FEATURES))
+    out = ca.vertcat(grad, ca.vec(hess), e, ca.gradient(e, x), cost)
     return ca.Function("reachirl_newton_stage", [x, ws, lam, arm, dt, fscale], [out])
 
 
@@ -143,8 +152,9 @@ def _layout(n: int):
 
 
 def _band_index(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
-    """Flat indices into ``solve_banded``'s ``(2·BW + 1, size)`` storage of the entries ``(rows, cols)``."""
-    return (_BW + rows - cols) * size + cols
+    """Flat indices into LAPACK's banded storage ``(2·BW + 1, size)``, column-major, of the entries
+    ``(rows, cols)``."""
+    return (_BW + rows - cols) + (2 * _BW + 1) * cols
 
 
 class _Layout(NamedTuple):
@@ -153,7 +163,7 @@ class _Layout(NamedTuple):
     size: int  # unknowns
     var: np.ndarray  # (n, 8): each stage-local knot variable's unknown, −1 for the fixed start
     grad_op: sparse.csr_matrix  # the stages' gradients (8, n) (column-major) → the residual's rows
-    band_op: sparse.csr_matrix  # the stage function's output (81, n) (column-major) → the Hessian's band
+    band_op: sparse.csr_matrix  # the stage function's output (82, n) (column-major) → the Hessian's band
     lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
     q_rows: np.ndarray  # the knots' unknowns
 
@@ -167,8 +177,8 @@ def _scatter(n: int) -> _Layout:
     c = np.repeat(var[:, None, :], 8, axis=1)
     kk, ii, jj = np.nonzero((r >= 0) & (c >= 0))
     band_op = sparse.csr_matrix(
-        (np.ones(kk.size), (_band_index(r[kk, ii, jj], c[kk, ii, jj], size), 8 + ii + 8 * jj + 81 * kk)),
-        shape=((2 * _BW + 1) * size, 81 * n),
+        (np.ones(kk.size), (_band_index(r[kk, ii, jj], c[kk, ii, jj], size), 8 + ii + 8 * jj + _ROWS * kk)),
+        shape=((2 * _BW + 1) * size, _ROWS * n),
     )
     lam_rows = 3 * np.arange(n - 1) + 2
     return _Layout(
@@ -194,17 +204,23 @@ def _stage_knots(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def newton_solve(
-    task: ReachingTask, weights: np.ndarray, q_start: np.ndarray, fscale: float, max_iter: int = MAX_ITER
+    task: ReachingTask,
+    weights: np.ndarray,
+    q_start: np.ndarray,
+    fscale: float | None = None,
+    max_iter: int = MAX_ITER,
 ) -> NewtonResult | None:
     """The DOC's optimum from the joint path ``q_start (N+1, 2)`` (a close start: a neighbouring reach moved to
     this task, or this task's solution under other weights), or None when Newton's method cannot vouch for it
-    (see the module docstring). ``weights (n_windows, 7)``; ``fscale``: the objective's scale, as the CasADi
-    backend's (the tolerances are relative to an objective of order one)."""
+    (see the module docstring). ``weights (n_windows, 7)``; ``fscale``: the objective's scale (the tolerances are
+    relative to an objective of order one), by default ``1 / cost`` of the start, as the CasADi backend's."""
     n = task.n_nodes
     lay = _scatter(n)
     size, var = lay.size, lay.var
     arm, dt = _params(task)
     w_knot = np.asarray(weights, dtype=float)[window_index(n, weights.shape[0])]  # (n, 7)
+    scale_known = fscale is not None
+    fscale = 1.0 if fscale is None else float(fscale)
     w_e = fscale * dt * w_knot[:, 1]  # each stage's energy weight, as the Lagrangian sees it
     q0 = np.asarray(task.q0, dtype=float)
     q = np.array(q_start[1:n], dtype=float)  # the unknowns: the inner knots q_1 … q_{N−1}
@@ -216,21 +232,34 @@ def newton_solve(
 
     # the mapped stages evaluated in place, through CasADi's buffers (no conversion per call)
     buf, trigger = _stage_map(n).buffer()
-    x_in, ws_in, lam_in, out = np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(81 * n)
-    inputs = (x_in, ws_in, lam_in, arm, np.array([dt]), np.array([fscale]))  # the buffers point into these
+    x_in, ws_in, lam_in, out = np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(_ROWS * n)
+    fs_in = np.array([fscale])
+    inputs = (x_in, ws_in, lam_in, arm, np.array([dt]), fs_in)  # the buffers point into these
     for i, a in enumerate(inputs):
         buf.set_arg(i, a)
     buf.set_res(0, out)
     ws_view = ws_in.reshape(8, n, order="F")
     ws_view[:N_FEATURES] = w_knot.T
-    res = out.reshape(81, n, order="F")
+    res = out.reshape(_ROWS, n, order="F")
     x_view = x_in.reshape(8, n, order="F")
+    # the banded KKT matrix in LAPACK's storage, column-major as LAPACK reads it (``_BW`` more rows: fill-in)
+    lu = np.empty((3 * _BW + 1, size), order="F")
 
+    padded = np.vstack([q0, q0, q0, q, q[-1:]])  # q_{−2}, q_{−1}, q_0, q_1 … q_{N−1}, q_N = q_{N−1}
     for it in range(max_iter + 1):
-        x_view[:] = _stage_knots(q0, q)
+        padded[3:-1], padded[-1] = q, q[-1]
+        for j in range(4):  # each stage's knots (q_{k−2}, q_{k−1}, q_k, q_{k+1})
+            x_view[2 * j : 2 * j + 2] = padded[j : j + n].T
         ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
         lam_in[:] = lam
         trigger()
+        if not scale_known:  # 1 / the start's cost; λ = 0 here, so the derivatives scale with it
+            cost = float(res[81].sum())
+            fscale = 1.0 / cost if np.isfinite(cost) and cost > 1e-300 else 1.0
+            fs_in[0] = fscale
+            res[0:72] *= fscale
+            w_e = fscale * dt * w_knot[:, 1]
+            scale_known = True
         grad, e, de = res[0:8].copy(), res[72], res[73:81]
         # the active set (see the module docstring): at the start, each knot's power on its own side; later, a
         # knot whose power changed side becomes a kink, and a kink whose multiplier left [−w, w] is released.
@@ -257,16 +286,20 @@ def newton_solve(
         r[lay.lam_rows] = np.where(kink[1:], e[1:], lam[1:])
         r[size - 1] = tip - task.target_x
         if it > 0 and not changed:
-            small_step = float(np.max(np.abs(dq))) < STEP_TOL
-            stationary = float(np.max(np.abs(r[lay.q_rows]))) < GRAD_TOL
+            g = float(np.max(np.abs(r[lay.q_rows])))
+            stationary = g < GRAD_TOL or (g < LOOSE_GRAD_TOL and float(np.max(np.abs(dq))) < STEP_TOL)
             feasible = abs(r[-1]) < BAR_TOL and float(np.max(np.abs(r[lay.lam_rows]), initial=0.0)) < POWER_TOL
-            if (small_step or stationary) and feasible:
-                return _verified(task, q0, q, it, kink, lam, w_e, sigma, e, out, de, jtip)
+            if stationary and feasible:
+                curv = mu * _fingertip_hessian(task, q[-1])  # the bar's curvature in the Lagrangian
+                if not _verified(task, q0, q, kink, lam, w_e, sigma, e, out, de, jtip, curv):
+                    return None
+                qs = np.vstack([q0, q, q[-1:]])
+                return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()), fscale=fscale, bar_multiplier=mu)
         if it == max_iter:
             return None
         # the banded KKT matrix, in LAPACK's storage for a banded LU (``_BW`` more rows for the fill-in)
-        lu = np.zeros((3 * _BW + 1, size))
-        lu[_BW:] = (lay.band_op @ out).reshape(2 * _BW + 1, size)
+        lu[:_BW] = 0.0
+        lu[_BW:] = (lay.band_op @ out).reshape(2 * _BW + 1, size, order="F")
         ab = lu[_BW:]
         ks = np.flatnonzero(kink)
         if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
@@ -298,8 +331,11 @@ def newton_solve(
 
 
 def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
+    """The fingertip's ``P_x(q)`` and its gradient."""
     a = task.arm
-    return float(a.fk(q)[0]), np.asarray(a.jacobian(q)[0], dtype=float)
+    q1, q12 = float(q[0]), float(q[0] + q[1])
+    c1, c12, s1, s12 = math.cos(q1), math.cos(q12), math.sin(q1), math.sin(q12)
+    return a.l1 * c1 + a.l2 * c12, np.array([-a.l1 * s1 - a.l2 * s12, -a.l2 * s12])
 
 
 def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:
@@ -309,29 +345,29 @@ def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     return -np.array([[a.l1 * c1 + a.l2 * c12, a.l2 * c12], [a.l2 * c12, a.l2 * c12]])
 
 
-def _verified(task, q0, q, it, kink, lam, w_e, sigma, e, out, de, jtip) -> NewtonResult | None:
-    """The result, once the answer is checked: every knot's power on its side, every kink's multiplier inside
-    ``[−w, w]``, the bounds inactive, and the Hessian positive definite on the constraints' null space."""
-    n = task.n_nodes
+def _verified(task, q0, q, kink, lam, w_e, sigma, e, out, de, jtip, curv) -> bool:
+    """Whether the converged point is the DOC's optimum: every knot's power on its side, every kink's multiplier
+    inside ``[−w, w]``, the bounds inactive, and the Hessian positive definite on the constraints' null space."""
     off = ~kink
     off[0] = False
     if np.any(sigma[off] * e[off] < 0) or np.any(np.abs(lam[kink]) > w_e[kink] * (1 + 1e-6)):
-        return None
+        return False
     qs = np.vstack([q0, q, q[-1:]])
     qd = np.diff(qs, axis=0) / task.dt
     if np.any(qs[1:] <= task.q_lower) or np.any(qs[1:] >= task.q_upper) or np.any(np.abs(qd) >= task.qd_max):
-        return None
-    if not _is_minimum(out, de, n, kink, jtip):
-        return None
-    return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()))
+        return False
+    return _is_minimum(out, de, task.n_nodes, kink, jtip, curv)
 
 
-def _is_minimum(out, de, n, kink, jtip) -> bool:
-    """Whether the Lagrangian's Hessian in the knots is positive definite on the null space of the constraints
-    (the bar, the kinks): a banded Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit
-    gradient) with ``ρ`` a thousand times the largest diagonal entry of ``H``."""
+def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
+    """Whether the Lagrangian's Hessian in the knots (the stages', and ``curv``: the bar's ``μ ∇²P_x`` on
+    ``q_{N−1}``) is positive definite on the null space of the constraints (the bar, the kinks): a banded
+    Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit gradient) with ``ρ`` a thousand
+    times the largest diagonal entry of ``H``."""
     op, qvar, m = _q_scatter(n)
     ab = (op @ out).reshape(_QBW + 1, m)
+    ab[_QBW, m - 2 :] += np.diag(curv)
+    ab[_QBW - 1, m - 1] += curv[0, 1]
     rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
     # every constraint's gradient over its stage's knots: the kinks', then the bar's (on q_{N−1})
     idx = np.vstack([qvar[kink], np.r_[m - 2, m - 1, np.full(6, -1)]])
@@ -351,7 +387,7 @@ def _is_minimum(out, de, n, kink, jtip) -> bool:
 
 @functools.lru_cache(maxsize=8)
 def _q_scatter(n: int):
-    """The stage function's output (81, n) → the upper band ``(_QBW + 1, m)`` of the knots-only Hessian."""
+    """The stage function's output (82, n) → the upper band ``(_QBW + 1, m)`` of the knots-only Hessian."""
     var, _ = _layout(n)
     qvar = np.where(var >= 0, var - var // 3, -1)  # unknown → index among the knots' unknowns
     r = np.repeat(qvar[:, :, None], 8, axis=2)
@@ -359,5 +395,5 @@ def _q_scatter(n: int):
     kk, ii, jj = np.nonzero((r >= 0) & (c >= 0) & (r <= c))
     m = 2 * (n - 1)
     rows = (_QBW + r[kk, ii, jj] - c[kk, ii, jj]) * m + c[kk, ii, jj]
-    op = sparse.csr_matrix((np.ones(kk.size), (rows, 8 + ii + 8 * jj + 81 * kk)), shape=((_QBW + 1) * m, 81 * n))
+    op = sparse.csr_matrix((np.ones(kk.size), (rows, 8 + ii + 8 * jj + _ROWS * kk)), shape=((_QBW + 1) * m, _ROWS * n))
     return op, qvar, m
