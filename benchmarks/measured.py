@@ -93,6 +93,21 @@ def bench_numbers(bench: dict) -> dict:
                 else None
             ),
         }
+    pr = bench.get("predict")
+    if pr:
+        out["predict"] = {
+            "n_predictions": pr["n_predictions"],
+            "newton_cpu_ms_median": round(pr["cpu_ms_newton"]["median"], 2),
+            "fatrop_cpu_ms_median": round(pr["cpu_ms_fatrop"]["median"], 2),
+            "ratio_cpu_median": round(pr["ratio_cpu_median"], 2),
+            "ratio_cpu_total": round(pr["ratio_cpu_total"], 2),
+            "newton_answered": pr["newton_answered"],
+            "iterations_median": pr["newton_iterations_median"],
+            "converged": pr["converged"]["newton_path"],
+            "max_diff_deg": round(pr["max_diff_deg"], 4),
+            "newton_from_optimum_deg": float(f"{pr['max_from_optimum_deg']['newton']:.2g}"),
+            "fatrop_from_optimum_deg": round(pr["max_from_optimum_deg"]["fatrop"], 4),
+        }
     bk = bench.get("backends")
     if bk and "casadi" in bk and "crocoddyl" in bk:
         a, c = bk["casadi"], bk["crocoddyl"]
@@ -170,6 +185,19 @@ def render(snap: dict) -> str:
                 f"solutions bit-identical on {d['compiled_bit_identical']} solves.",
                 "",
             ]
+    pr = (snap.get("bench") or {}).get("predict")
+    if pr:
+        lines += [
+            f"- **Predictions** (`reachirl bench predict`, same machine; {pr['n_predictions']} predictions of the "
+            "built-in data by its 8-section protocol fits, from each fit's moved rollout, CPU): exact Newton "
+            f"{pr['newton_cpu_ms_median']} ms median against {pr['fatrop_cpu_ms_median']} ms for fatrop from the "
+            f"same start (ratio {pr['ratio_cpu_median']:.2f}; all of them {pr['ratio_cpu_total']:.2f}). Newton "
+            f"answered {pr['newton_answered']}/{pr['n_predictions']} ({pr['iterations_median']:g} steps median), "
+            f"every prediction converged; the two answers differ by at most {pr['max_diff_deg']}°, fatrop's "
+            f"tolerance: from the optimum (Newton rerun from fatrop's answer) fatrop lies up to "
+            f"{pr['fatrop_from_optimum_deg']}° away, Newton {pr['newton_from_optimum_deg']}°.",
+            "",
+        ]
     b = (snap.get("bench") or {}).get("backends")
     if b:
         lines += [
