@@ -18,12 +18,14 @@ released on the side its multiplier points to.
 
 The KKT system is banded: with one multiplier per knot (zero and decoupled where the knot is not a kink) and
 the unknowns ordered knot by knot, ``(q_k, λ_k)``, its half-bandwidth is 10, and one step is one banded LU
-(``scipy.linalg.solve_banded``) of about ``3N`` unknowns. The stages' derivatives are one call of a CasADi
-function mapped over the stages.
+(LAPACK's ``dgbsv``) of about ``3N`` unknowns. The stages' derivatives are one call of a CasADi function mapped
+over the stages (compiled to C when :mod:`.compiled` can), through CasADi's buffers.
 
 :func:`newton_solve` returns None whenever it cannot vouch for its answer: no convergence within
-:data:`MAX_ITER` steps, a bound active or violated, or a reduced Hessian that is not positive definite (a saddle
-or maximum). The caller then solves the DOC as before (:func:`reachirl.doc.casadi.solve`).
+:data:`MAX_ITER` steps, a power on the wrong side or a kink's multiplier outside ``[−w, w]``, a bound active or
+violated, or a Lagrangian Hessian (the stages' and the bar's curvature) that is not positive definite on the
+constraints' null space (a saddle or a maximum). The caller then solves the DOC as before
+(:func:`reachirl.doc.casadi.solve`: fatrop from the same start).
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from .task import ReachingTask
 
 __all__ = ["MAX_ITER", "NewtonResult", "newton_solve"]
 
-MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a moved reach); then the interior point takes over
+MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a fit's moved reach); then the interior point takes over
 STEP_TOL = 1e-6  # rad: a last step this small, with the gradient below LOOSE_GRAD_TOL, is converged (quadratic
 # convergence: the next step would be ~1e-12 rad)
 LOOSE_GRAD_TOL = 1e-5
