@@ -106,12 +106,23 @@ def trajectory_csv(t: np.ndarray, demo: Mapping | None = None, pred: Mapping | N
         if arrays is not None:
             cols |= _columns(t.size, arrays, prefix)
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    data = np.column_stack(list(cols.values()))
-    for row in data:
-        w.writerow(["" if not np.isfinite(v) else f"{v:.9g}" for v in row])
-    return buf.getvalue()
+    csv.writer(buf, lineterminator="\n").writerow(cols)
+    return buf.getvalue() + _number_lines(np.column_stack(list(cols.values())))
+
+
+_NON_FINITE = re.compile(r"-?inf|nan")
+
+
+def _number_lines(data: np.ndarray) -> str:
+    """The rows of ``data (n, k)``, k > 1, as CSV lines: each number ``%.9g``, a non-finite one an empty field
+    (what ``csv.writer`` writes for those strings), formatted in one operation."""
+    n, k = data.shape
+    if n == 0:
+        return ""
+    row = ",".join(["%.9g"] * k)
+    text = "\n".join([row] * n) % tuple(data.ravel().tolist()) + "\n"
+    # only a non-finite number prints letters other than the exponent's e
+    return text if np.isfinite(data).all() else _NON_FINITE.sub("", text)
 
 
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
