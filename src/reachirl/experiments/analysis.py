@@ -22,7 +22,6 @@ from .results import RunResult, load_unit_arrays
 from .tables import natural_key
 
 __all__ = [
-    "AGREEMENT_MAX_TRIALS",
     "methods_run",
     "paired_comparison",
     "prediction_agreement",
@@ -136,56 +135,42 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
     return learned, true, metrics
 
 
-AGREEMENT_MAX_TRIALS = 40
-"""At most this many trials per set (evenly spaced in the set's order) are predicted again under the true
-weights, so that a Berret-size run spends seconds, not minutes, on the comparison."""
-
-
 def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
 
     For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
-    :data:`AGREEMENT_MAX_TRIALS`, evenly spaced) are predicted again under the nominal true weights
-    (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``). Returns
+    :data:`~reachirl.experiments.agreement.AGREEMENT_MAX_TRIALS`, evenly spaced) predicted again under the nominal
+    true weights (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``): the
+    unit's worker made those predictions (its checkpoint's ``agreement``, :mod:`reachirl.experiments.agreement`);
+    they are made here for a checkpoint that holds none for these weights and trials. Returns
     ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
     (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
     truth."""
-    from ..doc.evaluation import evaluate_trials, rmse_deg
+    from .agreement import matches, nominal_true_weights, summary, true_predictions
 
-    truth = run.dataset.truth or {}
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    n_true = int(truth.get("n_windows", 0) or 0)
+    nominal = nominal_true_weights(run.dataset.truth)
     if nominal is None:
         return {}
-    w_true = np.asarray(nominal, dtype=float)
+    w_true, n_true = nominal
     by_id = {t.id: t for t in run.dataset.trials}
     out: dict = {}
     for r in run.results.values():
         u = r["unit"]
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
-        arrays = load_unit_arrays(run.out_dir, r["key"])
-        observe = _observes(u)
-        per_set = {}
-        for name in SETS:
-            if f"{name}/pred_q" not in arrays:
-                continue
-            ids = [str(i) for i in arrays[f"{name}/ids"]]
-            rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
-            ids = [ids[k] for k in rows]
-            recs = {e["id"]: e for e in r["sets"][name]["trials"]}
-            trials = [by_id[i] for i in ids]
-            true = evaluate_trials(w_true, trials, u["n_nodes"], backend=u["backend"], observe=observe)
-            both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
-            if not both:
-                continue
-            learned_q = arrays[f"{name}/pred_q"][rows].astype(float)
-            per_set[name] = {
-                "n": len(both),
-                "learned_vs_true_deg": float(np.mean([rmse_deg(learned_q[k], true[k].prediction.q)[2] for k in both])),
-                "true_vs_recorded_deg": float(np.mean([true[k].rmse_q for k in both])),
-                "learned_vs_recorded_deg": float(np.mean([recs[ids[k]]["rmse_deg"]["q"] for k in both])),
-            }
+        record = r.get("agreement")
+        if not matches(record, w_true, r):
+            arrays = load_unit_arrays(run.out_dir, r["key"])
+            sets = [name for name in SETS if f"{name}/pred_q" in arrays]
+            record = true_predictions(
+                w_true,
+                {name: [by_id[str(i)] for i in arrays[f"{name}/ids"]] for name in sets},
+                {name: arrays[f"{name}/pred_q"] for name in sets},
+                u["n_nodes"],
+                u["backend"],
+                _observes(u),
+            )
+        per_set = summary(record, r)
         if per_set:
             out[u["posture"]] = per_set
     return out

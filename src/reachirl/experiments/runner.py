@@ -16,11 +16,14 @@ import logging
 import multiprocessing
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
-from .protocol import Split, Unit, run_unit
+from .agreement import run_unit_and_agreement
+from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
 
 __all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
@@ -88,8 +91,10 @@ def _worker_init(parent_pid: int, memory_gb: float) -> None:
         pass
 
 
-def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
-    """:func:`run_unit` in a local worker, stopped by SIGALRM after ``timeout_s``."""
+def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float, w_true=None) -> dict:
+    """:func:`run_unit` (and the true weights' predictions of its trials, with ``w_true``:
+    :func:`~reachirl.experiments.agreement.run_unit_and_agreement`) in a local worker, stopped by SIGALRM after
+    ``timeout_s``."""
     import signal
 
     def expire(signum, frame):
@@ -98,7 +103,7 @@ def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
     old = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        return run_unit(unit, split)
+        return run_unit_and_agreement(unit, split, w_true)
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
@@ -160,9 +165,12 @@ def run_units(
     max_units: int | None = None,
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
+    agreement: Mapping[str, np.ndarray] | None = None,
 ) -> RunSummary:
     """Run (or reuse) every unit; ``splits`` maps a unit's ``split_key`` (its posture, or (posture, training
-    subject) for an all-pairs unit) to its :class:`Split`.
+    subject) for an all-pairs unit) to its :class:`Split`. ``agreement`` maps the keys of the units whose trials the
+    true weights predict again to those weights (:mod:`reachirl.experiments.agreement`): their workers do it after
+    the unit, and the checkpoint keeps it.
 
     ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
     stops after that many *new* units (for tests and for splitting a long run).
@@ -191,6 +199,7 @@ def run_units(
     computed: list[str] = []
 
     fingerprints = {u.key: fp for u, fp in todo}
+    agreement = dict(agreement or {})
 
     def finish(payload: dict) -> None:
         # the coordinator's fingerprint: a remote worker may hash other source files
@@ -210,8 +219,11 @@ def run_units(
         bounded = threading.current_thread() is threading.main_thread()  # SIGALRM needs the main thread
         for u, _ in todo:
             try:
+                w_true = agreement.get(u.key)
                 payload = (
-                    _run_unit_bounded(u, splits[u.split_key], timeout) if bounded else run_unit(u, splits[u.split_key])
+                    _run_unit_bounded(u, splits[u.split_key], timeout, w_true)
+                    if bounded
+                    else run_unit_and_agreement(u, splits[u.split_key], w_true)
                 )
             except UnitTimeoutError as e:
                 raise InputError(
@@ -223,7 +235,10 @@ def run_units(
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
         ex = _local_executor(min(workers, len(todo)))
         try:
-            futures = {ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout): u.key for u, _ in todo}
+            futures = {
+                ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout, agreement.get(u.key)): u.key
+                for u, _ in todo
+            }
             for f in cf.as_completed(futures):
                 try:
                     payload = f.result()
@@ -256,7 +271,14 @@ def run_units(
         client = _dask_client(scheduler)
         try:
             futures = [
-                client.submit(run_unit, u, splits[u.split_key], key=f"reachirl-{u.key}-{fp}", pure=False)
+                client.submit(
+                    run_unit_and_agreement,
+                    u,
+                    splits[u.split_key],
+                    agreement.get(u.key),
+                    key=f"reachirl-{u.key}-{fp}",
+                    pure=False,
+                )
                 for u, fp in todo
             ]
             try:
@@ -288,6 +310,7 @@ def reproduce(
     written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
     """
+    from .agreement import agreement_units
     from .pairs import pair_splits, pair_training_subjects
     from .protocol import (
         code_fingerprint,
@@ -322,6 +345,7 @@ def reproduce(
         max_units=max_units,
         on_start=on_start,
         on_done=on_done,
+        agreement=agreement_units(units, getattr(dataset, "truth", None), config.methods[0]),
     )
     main = {
         k: r
