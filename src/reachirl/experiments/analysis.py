@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -20,6 +19,7 @@ from .method import unit_method
 from .protocol import SETS, _cost_shares
 from .results import RunResult, load_unit_arrays
 from .tables import natural_key
+from .truth_solves import reference_features, reference_from, true_weights
 
 __all__ = [
     "methods_run",
@@ -32,23 +32,6 @@ __all__ = [
 ]
 
 
-def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
-    """Mean true weights ``(n_windows, 7)`` of the given trials (``truth.json`` of virtual subjects), matched
-    on the trial file's stem; the nominal weights when none match; ``None`` without truth."""
-    if not truth:
-        return None
-    by_stem = {}
-    for subj in (truth.get("subjects") or {}).values():
-        for recs in (subj.get("trials") or {}).values():
-            for r in recs:
-                by_stem[Path(str(r.get("file", ""))).stem] = r.get("weights")
-    ws = [by_stem[i] for i in trial_ids if by_stem.get(i) is not None]
-    if ws:
-        return np.mean(np.asarray(ws, dtype=float), axis=0)
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    return None if nominal is None else np.asarray(nominal, dtype=float)
-
-
 def _observes(unit: dict) -> bool:
     """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
     from .protocol import unit_observes
@@ -56,46 +39,11 @@ def _observes(unit: dict) -> bool:
     return unit_observes(unit["method"], unit.get("estimator_options", ()))
 
 
-def reference_features(
-    trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi", observe: bool = False
-) -> np.ndarray | None:
-    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
-    and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
-    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.doc.observation`), as an observed unit predicts its trials, so its windows are the
-    demonstrations'; otherwise the DOC over the mean duration.
-
-    Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
-    of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
-    shares on Φ* credit the true weights with costs that hardly shape their own reach."""
-    from ..data.trial import trial_from_solution
-    from ..doc import solve_doc
-    from ..doc.observation import common_threshold, rest_to_rest
-    from ..doc.observation import observe as seen_as_recorded
-    from ..irl.moirl import mean_task
-
-    task = mean_task(trials, n_nodes)
-    try:
-        threshold = common_threshold(trials) if observe else None
-    except ValueError:  # cut at different thresholds: no one way to see the reach
-        threshold = None
-    if threshold is not None:
-        task = rest_to_rest(task)
-    sol = solve_doc(task, weights, backend=backend)
-    if not sol.converged:
-        return None
-    reach = (
-        seen_as_recorded(sol, task, threshold)
-        if threshold is not None
-        else trial_from_solution(sol, task.arm, task.target_x)
-    )
-    return reach.features(n_nodes, weights.shape[0])
-
-
 def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
     """Learned vs true cost shares for the units whose section count equals the truth's windows, both on the
-    true weights' own noise-free reach, seen as the unit sees its trials (:func:`reference_features`; the
-    demonstrations' Φ* if that DOC fails)."""
+    true weights' own noise-free reach, seen as the unit sees its trials
+    (:func:`~reachirl.experiments.truth_solves.reference_features`, as the unit's worker stored it in its
+    ``truth_solves``, else solved here; the demonstrations' Φ* if that DOC fails)."""
     learned, true, metrics = {}, {}, {}
     if dataset.truth is None:
         return learned, true, metrics
@@ -111,7 +59,9 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
         w_true = true_weights(dataset.truth, [t.trial_id for t in train])
         if w_true is None or w_true.shape != (n_true, len(FEATURES)):
             continue
-        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
+        found, phi = reference_from((r.get("truth_solves") or {}).get("reference"), w_true)  # the worker's
+        if not found:
+            phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
         on = "true_rollout"
         if phi is None:
             phi, on = np.asarray(r["demo_features"]), "demonstrations"
@@ -139,14 +89,15 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
 
     For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
-    :data:`~reachirl.experiments.agreement.AGREEMENT_MAX_TRIALS`, evenly spaced) predicted again under the nominal
+    :data:`~reachirl.experiments.truth_solves.AGREEMENT_MAX_TRIALS`, evenly spaced) predicted again under the nominal
     true weights (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``): the
-    unit's worker made those predictions (its checkpoint's ``agreement``, :mod:`reachirl.experiments.agreement`);
-    they are made here for a checkpoint that holds none for these weights and trials. Returns
+    unit's worker made those predictions (its checkpoint's ``truth_solves``,
+    :mod:`reachirl.experiments.truth_solves`); they are made here for a checkpoint that holds none for these
+    weights and trials. Returns
     ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
     (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
     truth."""
-    from .agreement import matches, nominal_true_weights, summary, true_predictions
+    from .truth_solves import matches, nominal_true_weights, summary, true_predictions
 
     nominal = nominal_true_weights(run.dataset.truth)
     if nominal is None:
@@ -158,7 +109,7 @@ def prediction_agreement(run: RunResult, method: str, postures) -> dict:
         u = r["unit"]
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
-        record = r.get("agreement")
+        record = (r.get("truth_solves") or {}).get("predictions")
         if not matches(record, w_true, r):
             arrays = load_unit_arrays(run.out_dir, r["key"])
             sets = [name for name in SETS if f"{name}/pred_q" in arrays]

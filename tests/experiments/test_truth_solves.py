@@ -1,5 +1,5 @@
-"""The true weights' predictions of a unit's trials: made by the unit's worker, kept in its checkpoint, and
-summed up to exactly what predicting them again after the run gives."""
+"""The solves under the true weights (their predictions of a unit's trials, their own reach): made by the unit's
+worker, kept in its checkpoint, and giving the report exactly what solving them again after the run gives."""
 
 import json
 
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from reachirl.experiments import datasets
-from reachirl.experiments.agreement import AGREEMENT_MAX_TRIALS, agreement_units, matches, sampled_rows
-from reachirl.experiments.analysis import _observes, prediction_agreement
-from reachirl.experiments.protocol import SETS, ProtocolConfig, make_units
+from reachirl.experiments.analysis import _observes, prediction_agreement, truth_comparison
+from reachirl.experiments.protocol import SETS, ProtocolConfig, make_units, split_trials
 from reachirl.experiments.results import load_unit_arrays
 from reachirl.experiments.runner import reproduce
+from reachirl.experiments.truth_solves import AGREEMENT_MAX_TRIALS, matches, sampled_rows, true_weights, truth_jobs
 
 
 @pytest.fixture(scope="module")
@@ -60,29 +60,41 @@ def serial(run, method, postures) -> dict:
     return out
 
 
-def test_the_workers_agreement_equals_predicting_again(run):
+def test_the_workers_solves_equal_solving_again(run, monkeypatch):
     (r,) = run.results.values()
-    assert matches(r["agreement"], np.asarray(run.dataset.truth["truth"]["nominal_weights"]), r)
+    solves = r["truth_solves"]
+    assert matches(solves["predictions"], np.asarray(run.dataset.truth["truth"]["nominal_weights"]), r)
     on_disk = json.loads((run.out_dir / "units" / f"{r['key']}.json").read_text())
-    assert on_disk["agreement"] == r["agreement"]  # in the checkpoint: a resumed run has it
+    assert on_disk["truth_solves"] == solves  # in the checkpoint: a resumed run has them
     got = prediction_agreement(run, "moirl", ["P4"])
     assert set(got["P4"]) == set(SETS) and got == serial(run, "moirl", ["P4"])
+    shares = truth_comparison(run.dataset, run.results, "moirl", ["P4"])
+    assert shares[2]["P4"]["shares_on"] == "true_rollout"
+    monkeypatch.setitem(r, "truth_solves", {})  # as a checkpoint of an earlier version: solved here
+    again = truth_comparison(run.dataset, run.results, "moirl", ["P4"])
+    assert json.dumps(again, default=np.ndarray.tolist) == json.dumps(shares, default=np.ndarray.tolist)
 
 
-def test_a_checkpoint_without_it_or_for_other_weights_is_predicted_again(run, monkeypatch):
-    (key,) = run.results
+def test_a_checkpoint_without_them_or_for_other_weights_is_solved_again(run, monkeypatch):
+    (r,) = run.results.values()
     want = serial(run, "moirl", ["P4"])
-    record = run.results[key]["agreement"]
-    try:
-        del run.results[key]["agreement"]  # a checkpoint of an earlier version
-        assert prediction_agreement(run, "moirl", ["P4"]) == want
-        other = json.loads(json.dumps(record))
-        other["weights"][0][0] += 1.0  # made under other weights
-        other["sets"]["iscv"]["true_vs_recorded_deg"] = [99.0] * len(other["sets"]["iscv"]["ids"])
-        run.results[key]["agreement"] = other
-        assert prediction_agreement(run, "moirl", ["P4"]) == want
-    finally:
-        run.results[key]["agreement"] = record
+    want_shares = json.dumps(truth_comparison(run.dataset, run.results, "moirl", ["P4"]), default=np.ndarray.tolist)
+    monkeypatch.delitem(r, "truth_solves")  # a checkpoint of an earlier version
+    assert prediction_agreement(run, "moirl", ["P4"]) == want
+    monkeypatch.undo()
+    other = json.loads(json.dumps(r["truth_solves"]))
+    other["predictions"]["weights"][0][0] += 1.0  # made under other weights
+    other["predictions"]["sets"]["iscv"]["true_vs_recorded_deg"] = [99.0] * len(
+        other["predictions"]["sets"]["iscv"]["ids"]
+    )
+    other["reference"]["weights"][0][0] += 1.0
+    other["reference"]["features"] = np.ones((8, 7)).tolist()
+    monkeypatch.setitem(r, "truth_solves", other)
+    assert prediction_agreement(run, "moirl", ["P4"]) == want
+    assert (
+        json.dumps(truth_comparison(run.dataset, run.results, "moirl", ["P4"]), default=np.ndarray.tolist)
+        == want_shares
+    )
 
 
 def test_a_resumed_run_reuses_the_agreement(run):
@@ -90,12 +102,17 @@ def test_a_resumed_run_reuses_the_agreement(run):
     assert not again.summary.computed and again.summary.results == run.summary.results
 
 
-def test_only_the_main_units_with_the_truths_sections_predict_again():
-    truth = {"n_windows": 8, "truth": {"nominal_weights": np.ones((8, 7)).tolist()}}
+def test_only_the_main_units_with_the_truths_sections_solve(run):
+    truth = run.dataset.truth
     cfg = ProtocolConfig(sections=(1, 8), methods=("moirl", "maxent"), iscv="all-pairs", n_nodes=30)
-    units = make_units(["P2", "P4"], cfg, ["S02"])
-    assert sorted(agreement_units(units, truth, "moirl")) == ["moirl-P2-s8", "moirl-P4-s8"]
-    assert agreement_units(units, None, "moirl") == {} and agreement_units(units, {"n_windows": 8}, "moirl") == {}
+    units = make_units(["P4"], cfg, ["S02"])
+    splits = {u.split_key: split_trials(run.dataset.trials, u.posture, cfg) for u in units}
+    jobs = truth_jobs(units, splits, truth, "moirl")
+    assert sorted(jobs) == ["moirl-P4-s8"]
+    np.testing.assert_array_equal(jobs["moirl-P4-s8"]["nominal"], truth["truth"]["nominal_weights"])
+    train_ids = [t.trial_id for t in splits["P4"].train]
+    np.testing.assert_array_equal(jobs["moirl-P4-s8"]["reference"], true_weights(truth, train_ids))
+    assert truth_jobs(units, splits, None, "moirl") == {} and truth_jobs(units, splits, {"n_windows": 8}, "moirl") == {}
 
 
 def test_the_sample_is_evenly_spaced_and_bounded():
