@@ -110,19 +110,22 @@ def trajectory_csv(t: np.ndarray, demo: Mapping | None = None, pred: Mapping | N
     return buf.getvalue() + _number_lines(np.column_stack(list(cols.values())))
 
 
-_NON_FINITE = re.compile(r"-?inf|nan")
-
-
 def _number_lines(data: np.ndarray) -> str:
     """The rows of ``data (n, k)``, k > 1, as CSV lines: each number ``%.9g``, a non-finite one an empty field
-    (what ``csv.writer`` writes for those strings), formatted in one operation."""
+    (what ``csv.writer`` writes for those strings); the finite rows formatted in one operation."""
     n, k = data.shape
     if n == 0:
         return ""
+    finite = np.isfinite(data)
+    whole = finite.all(axis=1)
     row = ",".join(["%.9g"] * k)
-    text = "\n".join([row] * n) % tuple(data.ravel().tolist()) + "\n"
-    # only a non-finite number prints letters other than the exponent's e
-    return text if np.isfinite(data).all() else _NON_FINITE.sub("", text)
+    text = "\n".join([row] * n) % tuple(np.where(finite, data, 0.0).ravel().tolist())
+    if whole.all():
+        return text + "\n"
+    lines = text.split("\n")
+    for i in np.flatnonzero(~whole):
+        lines[i] = ",".join(f"{v:.9g}" if np.isfinite(v) else "" for v in data[i].tolist())
+    return "\n".join(lines) + "\n"
 
 
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:

@@ -72,7 +72,9 @@ def _fixed_lines(a: np.ndarray, decimals: Sequence[int]) -> str:
         return ""
     row = "\t".join(f"%.{int(d)}f" for d in decimals)
     text = "\n".join([row] * a.shape[0]) % tuple(a.ravel().tolist())
-    return _NEGATIVE_ZERO.sub("", text)
+    # a negative number prints as -0.00… only if it is within 10^-decimals of zero
+    near = np.signbit(a) & (np.abs(a) <= 10.0 ** -np.asarray(decimals, dtype=float))
+    return _NEGATIVE_ZERO.sub("", text) if near.any() else text
 
 
 def write_trc(
