@@ -466,7 +466,7 @@ def run(args) -> int:
         )
         return 0
     _write_run_file(out, args, opts, config)
-    outputs = write_outputs(result)
+    outputs = write_outputs(result, workers=workers)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)
