@@ -82,7 +82,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=int_in(1, 256),
         default=None,
         metavar="N",
-        help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)",
+        help="local worker processes for the units and the figures, 1 to 256 (default: all cores; 1 runs in this "
+        "process)",
     )
     p.add_argument(
         "--scheduler",

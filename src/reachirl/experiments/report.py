@@ -1,7 +1,8 @@
 """Everything ``reproduce`` writes once the units are done, one function per output:
 
 * :func:`write_tables` — ``table.md`` and ``table.csv``;
-* :func:`write_figures` — ``figures/*.png`` (and ``.pdf``);
+* :func:`write_figures` — ``figures/*.png`` (and ``.pdf``), drawn in worker processes
+  (:mod:`reachirl.experiments.rendering`; :func:`figure_jobs` says what they draw);
 * :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`);
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
@@ -9,8 +10,9 @@
 What they state is computed by :mod:`reachirl.experiments.analysis` (and the method's words by
 :mod:`reachirl.experiments.method`); here it is only put into words, tables and figures. :func:`write_outputs`
 calls them in turn on the :class:`~reachirl.experiments.results.RunResult` that
-:func:`reachirl.experiments.runner.reproduce` returns (the command line calls both). Predictions are read back
-from the units' NPZ checkpoints, so a resumed run writes the same files as an uninterrupted one.
+:func:`reachirl.experiments.runner.reproduce` returns (the command line calls both), the figures being drawn
+meanwhile. Predictions are read back from the units' NPZ checkpoints, so a resumed run writes the same files as an
+uninterrupted one.
 """
 
 from __future__ import annotations
