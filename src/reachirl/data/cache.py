@@ -43,16 +43,14 @@ def cache_dir() -> Path:
 
 @functools.lru_cache(maxsize=8)
 def code_version(extra_sources: tuple[str, ...] = ()) -> str:
-    """A hash of the preprocessing code: every file under ``reachirl/data`` (modules and marker sets), the
-    modules in ``_SOURCES``, ``extra_sources`` (paths), and the numpy and scipy versions."""
+    """A hash of the preprocessing code: every module under ``reachirl/data`` and its marker sets, the modules in
+    ``_SOURCES``, ``extra_sources`` (paths), and the numpy and scipy versions."""
     import numpy
     import scipy
 
     h = hashlib.sha256()
     h.update(f"{CACHE_FORMAT}\0{TRIALS_FORMAT}\0numpy {numpy.__version__}\0scipy {scipy.__version__}\0".encode())
-    data = sorted(
-        p for p in (_PACKAGE / "data").rglob("*") if p.is_file() and p.suffix in (".py", ".json", ".csv", ".txt")
-    )
+    data = sorted([*(_PACKAGE / "data").rglob("*.py"), *(_PACKAGE / "data" / "markersets").glob("*.json")])
     files = [*data, *(_PACKAGE / s for s in _SOURCES), *(Path(s) for s in extra_sources)]
     for f in files:
         h.update(str(f.relative_to(_PACKAGE) if f.is_relative_to(_PACKAGE) else f.name).encode() + b"\0")
