@@ -108,3 +108,45 @@ def test_export_needs_a_folder(tmp_path, tiny_trials, cli):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().endswith("file: exists and is not a folder; --predictions needs a folder")
+
+
+def _csv_cell_by_cell(t, demo, pred) -> str:
+    """The CSV as ``trajectory_csv`` wrote it before it formatted whole tables: one ``csv.writer`` row per
+    sample, ``f"{v:.9g}"`` per cell."""
+    import csv
+    import io
+
+    from reachirl.data.exports import _columns
+
+    t = np.asarray(t, dtype=float).reshape(-1)
+    cols = {"time_s": t}
+    for prefix, arrays in (("demo", demo), ("pred", pred)):
+        if arrays is not None:
+            cols |= _columns(t.size, arrays, prefix)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols)
+    for row in np.column_stack(list(cols.values())):
+        w.writerow(["" if not np.isfinite(v) else f"{v:.9g}" for v in row])
+    return buf.getvalue()
+
+
+def test_csv_text_is_the_cell_by_cell_formatting(rng):
+    """Negative zeros, numbers that round to zero, subnormals, huge ones, NaN and ±inf (empty cells)."""
+    from reachirl.data.exports import trajectory_csv
+
+    special = [0.0, -0.0, -1e-9, 5e-324, -5e-324, 1e300, -1e300, 0.1, -2 / 3, 123456789.5, np.nan, np.inf, -np.inf]
+    n = 60
+    t = np.sort(rng.uniform(0, 1, n))
+    vals = np.concatenate([special, rng.normal(0, 100, 400), rng.normal(0, 1e-8, 400), 10 ** rng.uniform(-30, 30, 400)])
+    pick = rng.choice(vals, size=(4, n, 2)) * rng.choice([-1.0, 1.0], size=(4, n, 2))
+    pick[0, 0], pick[1, 0], pick[3, 1] = [np.nan, -0.0], [np.inf, -np.inf], [-np.inf, -5e-324]
+    demo = {"q": pick[0], "qd": pick[1], "tau": pick[2][:-1]}
+    pred = {"q": pick[3], "qd": pick[0][::-1]}
+    finite = {"q": np.nan_to_num(pick[1], posinf=1.0, neginf=-1.0), "qd": pick[2] * 0.0}
+    for d, p in ((demo, pred), (demo, None), (None, pred), (finite, None), (finite, finite)):
+        assert trajectory_csv(t, d, p) == _csv_cell_by_cell(t, d, p)
+    text = trajectory_csv(t, demo, pred)
+    assert "nan" not in text and "inf" not in text
+    first = text.splitlines()[1].split(",")
+    assert first[1] == "" and first[2] == "-0"  # NaN: an empty cell; -0.0 as %.9g writes it

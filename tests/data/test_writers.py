@@ -110,3 +110,26 @@ def test_writers_check_shapes(tmp_path, markers):
     with pytest.raises(ValueError, match="shape"):
         write_mot(tmp_path / "bad.mot", t, np.zeros((t.size, 3)))
     assert not (tmp_path / "bad.trc").exists()
+
+
+def _awkward_numbers(rng, n: int) -> np.ndarray:
+    """Values whose text is easy to get wrong: negative zeros, numbers that round to zero from below, halves,
+    tiny and huge magnitudes, and non-finite ones."""
+    special = [0.0, -0.0, -1e-9, 1e-9, -4e-7, -5e-7, -5.000001e-7, 0.5, -0.5, 2.5e-7, 1e300, -1e300, 5e-324, -5e-324]
+    special += [123456.7890125, -0.0000004999, np.nan, np.inf, -np.inf, 1 / 3, -2 / 3]
+    a = np.concatenate([special, rng.normal(0, 100, n), rng.normal(0, 1e-6, n), 10 ** rng.uniform(-12, 12, n)])
+    return a * rng.choice([-1.0, 1.0], a.size)
+
+
+def test_mot_text_is_the_cell_by_cell_formatting(tmp_path, rng):
+    from reachirl.data.writers import _fixed_lines, _fmt
+
+    a = _awkward_numbers(rng, 300)
+    a = a[: a.size // 3 * 3].reshape(-1, 3)
+    for decimals in ([8, 6, 6], [0, 3, 1]):
+        want = "\n".join("\t".join(_fmt(v, d) for v, d in zip(row, decimals, strict=True)) for row in a)
+        assert _fixed_lines(a, decimals) == want
+    t = np.arange(a.shape[0]) / 100.0
+    body = write_mot(tmp_path / "a.mot", t, a[:, 1:]).read_text().splitlines()[7:]
+    assert body == ["\t".join([_fmt(t[k], 8), *(_fmt(v, 6) for v in a[k, 1:])]) for k in range(t.size)]
+    assert not any(c.startswith("-") and float(c) == 0 for line in body for c in line.split("\t"))

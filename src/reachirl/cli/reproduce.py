@@ -82,7 +82,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=int_in(1, 256),
         default=None,
         metavar="N",
-        help="local worker processes, 1 to 256 (default: all cores; 1 runs in this process)",
+        help="local worker processes for the units and the figures, 1 to 256 (default: all cores; 1 runs in this "
+        "process)",
     )
     p.add_argument(
         "--scheduler",
@@ -466,7 +467,7 @@ def run(args) -> int:
         )
         return 0
     _write_run_file(out, args, opts, config)
-    outputs = write_outputs(result)
+    outputs = write_outputs(result, workers=workers)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)

@@ -106,12 +106,26 @@ def trajectory_csv(t: np.ndarray, demo: Mapping | None = None, pred: Mapping | N
         if arrays is not None:
             cols |= _columns(t.size, arrays, prefix)
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    data = np.column_stack(list(cols.values()))
-    for row in data:
-        w.writerow(["" if not np.isfinite(v) else f"{v:.9g}" for v in row])
-    return buf.getvalue()
+    csv.writer(buf, lineterminator="\n").writerow(cols)
+    return buf.getvalue() + _number_lines(np.column_stack(list(cols.values())))
+
+
+def _number_lines(data: np.ndarray) -> str:
+    """The rows of ``data (n, k)``, k > 1, as CSV lines: each number ``%.9g``, a non-finite one an empty field
+    (what ``csv.writer`` writes for those strings); the finite rows formatted in one operation."""
+    n, k = data.shape
+    if n == 0:
+        return ""
+    finite = np.isfinite(data)
+    whole = finite.all(axis=1)
+    row = ",".join(["%.9g"] * k)
+    text = "\n".join([row] * n) % tuple(np.where(finite, data, 0.0).ravel().tolist())
+    if whole.all():
+        return text + "\n"
+    lines = text.split("\n")
+    for i in np.flatnonzero(~whole):
+        lines[i] = ",".join(f"{v:.9g}" if np.isfinite(v) else "" for v in data[i].tolist())
+    return "\n".join(lines) + "\n"
 
 
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:

@@ -19,6 +19,7 @@ produce (for round-trip tests and the human-likeness check); reachirl's general 
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -58,6 +59,22 @@ def _fmt(v: float, decimals: int) -> str:
     """Fixed-point text with no negative zero (``-0.000`` would differ from ``0.000`` for equal data)."""
     s = f"{v:.{decimals}f}"
     return s[1:] if s.startswith("-") and float(s) == 0.0 else s
+
+
+_NEGATIVE_ZERO = re.compile(r"(?<![^\t\n])-(?=0(?:\.0*)?(?:[\t\n]|\Z))")
+
+
+def _fixed_lines(a: np.ndarray, decimals: Sequence[int]) -> str:
+    """The rows of ``a (n, k)`` as tab-separated lines (no trailing newline), column ``j`` with ``decimals[j]``
+    fixed decimals: the text of :func:`_fmt` cell by cell, formatted in one operation."""
+    a = np.asarray(a, dtype=float)
+    if a.shape[0] == 0:
+        return ""
+    row = "\t".join(f"%.{int(d)}f" for d in decimals)
+    text = "\n".join([row] * a.shape[0]) % tuple(a.ravel().tolist())
+    # a negative number prints as -0.00… only if it is within 10^-decimals of zero
+    near = np.signbit(a) & (np.abs(a) <= 10.0 ** -np.asarray(decimals, dtype=float))
+    return _NEGATIVE_ZERO.sub("", text) if near.any() else text
 
 
 def write_trc(
@@ -123,8 +140,7 @@ def write_mot(
         "endheader",
         "\t".join(["time", *columns]),
     ]
-    for k in range(t.size):
-        lines.append("\t".join([_fmt(t[k], 8), *(_fmt(v, decimals) for v in a[k])]))
+    lines.append(_fixed_lines(np.column_stack([t, a]), [8, *[decimals] * a.shape[1]]))
     atomic_write_text(path, "\n".join(lines) + "\n")
     return path
 

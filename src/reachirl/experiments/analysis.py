@@ -10,7 +10,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 
@@ -20,9 +19,9 @@ from .method import unit_method
 from .protocol import SETS, _cost_shares
 from .results import RunResult, load_unit_arrays
 from .tables import natural_key
+from .truth_solves import reference_features, reference_from, true_weights
 
 __all__ = [
-    "AGREEMENT_MAX_TRIALS",
     "methods_run",
     "paired_comparison",
     "prediction_agreement",
@@ -33,23 +32,6 @@ __all__ = [
 ]
 
 
-def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | None:
-    """Mean true weights ``(n_windows, 7)`` of the given trials (``truth.json`` of virtual subjects), matched
-    on the trial file's stem; the nominal weights when none match; ``None`` without truth."""
-    if not truth:
-        return None
-    by_stem = {}
-    for subj in (truth.get("subjects") or {}).values():
-        for recs in (subj.get("trials") or {}).values():
-            for r in recs:
-                by_stem[Path(str(r.get("file", ""))).stem] = r.get("weights")
-    ws = [by_stem[i] for i in trial_ids if by_stem.get(i) is not None]
-    if ws:
-        return np.mean(np.asarray(ws, dtype=float), axis=0)
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    return None if nominal is None else np.asarray(nominal, dtype=float)
-
-
 def _observes(unit: dict) -> bool:
     """Whether a unit (its ``results.json`` record) saw its trials as they were recorded (``observe``)."""
     from .protocol import unit_observes
@@ -57,46 +39,11 @@ def _observes(unit: dict) -> bool:
     return unit_observes(unit["method"], unit.get("estimator_options", ()))
 
 
-def reference_features(
-    trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi", observe: bool = False
-) -> np.ndarray | None:
-    """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
-    and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
-    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.doc.observation`), as an observed unit predicts its trials, so its windows are the
-    demonstrations'; otherwise the DOC over the mean duration.
-
-    Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
-    of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
-    shares on Φ* credit the true weights with costs that hardly shape their own reach."""
-    from ..data.trial import trial_from_solution
-    from ..doc import solve_doc
-    from ..doc.observation import common_threshold, rest_to_rest
-    from ..doc.observation import observe as seen_as_recorded
-    from ..irl.moirl import mean_task
-
-    task = mean_task(trials, n_nodes)
-    try:
-        threshold = common_threshold(trials) if observe else None
-    except ValueError:  # cut at different thresholds: no one way to see the reach
-        threshold = None
-    if threshold is not None:
-        task = rest_to_rest(task)
-    sol = solve_doc(task, weights, backend=backend)
-    if not sol.converged:
-        return None
-    reach = (
-        seen_as_recorded(sol, task, threshold)
-        if threshold is not None
-        else trial_from_solution(sol, task.arm, task.target_x)
-    )
-    return reach.features(n_nodes, weights.shape[0])
-
-
 def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> tuple[dict, dict, dict]:
     """Learned vs true cost shares for the units whose section count equals the truth's windows, both on the
-    true weights' own noise-free reach, seen as the unit sees its trials (:func:`reference_features`; the
-    demonstrations' Φ* if that DOC fails)."""
+    true weights' own noise-free reach, seen as the unit sees its trials
+    (:func:`~reachirl.experiments.truth_solves.reference_features`, as the unit's worker stored it in its
+    ``truth_solves``, else solved here; the demonstrations' Φ* if that DOC fails)."""
     learned, true, metrics = {}, {}, {}
     if dataset.truth is None:
         return learned, true, metrics
@@ -112,7 +59,9 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
         w_true = true_weights(dataset.truth, [t.trial_id for t in train])
         if w_true is None or w_true.shape != (n_true, len(FEATURES)):
             continue
-        phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
+        found, phi = reference_from((r.get("truth_solves") or {}).get("reference"), w_true)  # the worker's
+        if not found:
+            phi = reference_features(train, w_true, u["n_nodes"], u["backend"], _observes(u))
         on = "true_rollout"
         if phi is None:
             phi, on = np.asarray(r["demo_features"]), "demonstrations"
@@ -136,56 +85,43 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
     return learned, true, metrics
 
 
-AGREEMENT_MAX_TRIALS = 40
-"""At most this many trials per set (evenly spaced in the set's order) are predicted again under the true
-weights, so that a Berret-size run spends seconds, not minutes, on the comparison."""
-
-
 def prediction_agreement(run: RunResult, method: str, postures) -> dict:
     """Virtual subjects: how far the fits' predictions lie from the true weights' own, per posture and set.
 
     For each unit of ``method`` whose section count equals the truth's windows, the trials of every set (at most
-    :data:`AGREEMENT_MAX_TRIALS`, evenly spaced) are predicted again under the nominal true weights
-    (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``). Returns
+    :data:`~reachirl.experiments.truth_solves.AGREEMENT_MAX_TRIALS`, evenly spaced) predicted again under the nominal
+    true weights (``truth.json``), exactly as the unit predicted them (same knots, backend and ``observe``): the
+    unit's worker made those predictions (its checkpoint's ``truth_solves``,
+    :mod:`reachirl.experiments.truth_solves`); they are made here for a checkpoint that holds none for these
+    weights and trials. Returns
     ``{posture: {set: {"n", "learned_vs_true_deg", "true_vs_recorded_deg", "learned_vs_recorded_deg"}}}``
     (joint-angle RMSE in degrees, means over those trials where both predictions converged); empty without a
     truth."""
-    from ..doc.evaluation import evaluate_trials, rmse_deg
+    from .truth_solves import matches, nominal_true_weights, summary, true_predictions
 
-    truth = run.dataset.truth or {}
-    nominal = (truth.get("truth") or {}).get("nominal_weights")
-    n_true = int(truth.get("n_windows", 0) or 0)
+    nominal = nominal_true_weights(run.dataset.truth)
     if nominal is None:
         return {}
-    w_true = np.asarray(nominal, dtype=float)
+    w_true, n_true = nominal
     by_id = {t.id: t for t in run.dataset.trials}
     out: dict = {}
     for r in run.results.values():
         u = r["unit"]
         if u["method"] != method or u["sections"] != n_true or u["posture"] not in postures:
             continue
-        arrays = load_unit_arrays(run.out_dir, r["key"])
-        observe = _observes(u)
-        per_set = {}
-        for name in SETS:
-            if f"{name}/pred_q" not in arrays:
-                continue
-            ids = [str(i) for i in arrays[f"{name}/ids"]]
-            rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
-            ids = [ids[k] for k in rows]
-            recs = {e["id"]: e for e in r["sets"][name]["trials"]}
-            trials = [by_id[i] for i in ids]
-            true = evaluate_trials(w_true, trials, u["n_nodes"], backend=u["backend"], observe=observe)
-            both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
-            if not both:
-                continue
-            learned_q = arrays[f"{name}/pred_q"][rows].astype(float)
-            per_set[name] = {
-                "n": len(both),
-                "learned_vs_true_deg": float(np.mean([rmse_deg(learned_q[k], true[k].prediction.q)[2] for k in both])),
-                "true_vs_recorded_deg": float(np.mean([true[k].rmse_q for k in both])),
-                "learned_vs_recorded_deg": float(np.mean([recs[ids[k]]["rmse_deg"]["q"] for k in both])),
-            }
+        record = (r.get("truth_solves") or {}).get("predictions")
+        if not matches(record, w_true, r):
+            arrays = load_unit_arrays(run.out_dir, r["key"])
+            sets = [name for name in SETS if f"{name}/pred_q" in arrays]
+            record = true_predictions(
+                w_true,
+                {name: [by_id[str(i)] for i in arrays[f"{name}/ids"]] for name in sets},
+                {name: arrays[f"{name}/pred_q"] for name in sets},
+                u["n_nodes"],
+                u["backend"],
+                _observes(u),
+            )
+        per_set = summary(record, r)
         if per_set:
             out[u["posture"]] = per_set
     return out

@@ -5,7 +5,8 @@ with a manifest.
 true weights when the data are virtual subjects (``truth.json`` beside the manifest).
 
 * ``None``: the built-in data set (:func:`reachirl.virtual.builtin_dataset_dir`, generated on first use and
-  cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would.
+  cached), preprocessed from its TRC markers exactly as ``reachirl preprocess`` would; the preprocessed trials are
+  cached too (:mod:`reachirl.data.cache`), keyed by the folder's content and the preprocessing code.
 * a ``.npz`` trials file written by ``reachirl preprocess`` (:func:`reachirl.data.trial.load_trials`); a
   ``truth.json`` beside it (virtual subjects) is read as the ground truth;
 * a folder holding ``manifest.csv`` (``file,subject,posture[,side,static]``) and optionally ``subjects.csv``
@@ -165,6 +166,31 @@ def _check_truth_weights(truth: dict, p: Path) -> None:
                     weights(r["weights"], f"field 'subjects.{sid}.trials', file {str(r.get('file'))[:40]}")
 
 
+def _builtin_trials(folder: Path, marker_map: str | None) -> list[Trial]:
+    """:func:`preprocess_folder` of a built-in data set's folder, kept in the trials cache
+    (:mod:`reachirl.data.cache`): preprocessed again only when a file of the folder (or one its manifest names),
+    ``marker_map`` or the preprocessing code changes."""
+    from ..data.cache import cached_trials
+
+    files = [p for p in folder.iterdir() if p.is_file()]
+    manifest = _find(folder, _MANIFEST_NAMES)
+    if manifest is not None:
+        from ..data.readers import read_manifest
+
+        try:
+            entries = read_manifest(manifest)
+        except InputError:  # preprocess_folder says what is wrong with it
+            return preprocess_folder(folder, marker_map)
+        files += [p for e in entries for p in (e.file, e.static) if p is not None]
+    return cached_trials(
+        folder.name,
+        files,
+        {"marker_map": marker_map},
+        lambda: preprocess_folder(folder, marker_map),
+        sources=(__file__,),
+    )
+
+
 #: built-in virtual subjects at most (generating one takes seconds to minutes: 100 is hours of solves)
 MAX_SUBJECTS = 100
 
@@ -188,7 +214,7 @@ def load(
 
         n = 2 if n_subjects is None else int(n_subjects)
         folder = builtin_dataset_dir(seed, n)
-        trials = preprocess_folder(folder, marker_map)
+        trials = _builtin_trials(folder, marker_map)
         return Dataset(
             tuple(trials),
             f"built-in virtual subjects ({n} subjects, seed {seed}): {folder}"

@@ -24,8 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..features import FEATURES
-from .protocol import SET_LABELS, SETS
-from .tables import natural_key
+from .names import natural_key
 
 __all__ = [
     "plot_convergence",
@@ -140,7 +139,11 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             if row == 1:
                 ax.set_xlabel("time (s)", fontsize=10)
     axes[0, 0].legend(loc="best", fontsize=9)
-    fig.suptitle(title or f"{SET_LABELS.get(set_name, set_name)}: demonstrations vs predictions", fontsize=10)
+    if not title:
+        from .protocol import SET_LABELS
+
+        title = f"{SET_LABELS.get(set_name, set_name)}: demonstrations vs predictions"
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     return fig
 
@@ -311,6 +314,8 @@ def plot_truth(
 
 def plot_methods(headlines: dict, sections: Sequence[int], ax=None, title: str = ""):
     """``headlines[method][set][sections] = {"mean", "std"}`` (ALL postures, q): grouped bars."""
+    from .protocol import SET_LABELS, SETS
+
     if ax is None:
         fig, ax = plt.subplots(figsize=(8, 3.6))
     else:

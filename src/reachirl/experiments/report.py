@@ -1,7 +1,8 @@
 """Everything ``reproduce`` writes once the units are done, one function per output:
 
 * :func:`write_tables` — ``table.md`` and ``table.csv``;
-* :func:`write_figures` — ``figures/*.png`` (and ``.pdf``);
+* :func:`write_figures` — ``figures/*.png`` (and ``.pdf``), drawn in worker processes
+  (:mod:`reachirl.experiments.rendering`; :func:`figure_jobs` says what they draw);
 * :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`);
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
@@ -9,8 +10,9 @@
 What they state is computed by :mod:`reachirl.experiments.analysis` (and the method's words by
 :mod:`reachirl.experiments.method`); here it is only put into words, tables and figures. :func:`write_outputs`
 calls them in turn on the :class:`~reachirl.experiments.results.RunResult` that
-:func:`reachirl.experiments.runner.reproduce` returns (the command line calls both). Predictions are read back
-from the units' NPZ checkpoints, so a resumed run writes the same files as an uninterrupted one.
+:func:`reachirl.experiments.runner.reproduce` returns (the command line calls both), the figures being drawn
+meanwhile. Predictions are read back from the units' NPZ checkpoints, so a resumed run writes the same files as an
+uninterrupted one.
 """
 
 from __future__ import annotations
@@ -23,17 +25,18 @@ import numpy as np
 
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
-from . import figures as fg
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
+from .rendering import FigureJob, drawing
 from .results import RunResult, load_unit_arrays
 
 __all__ = [
     "RESULTS_FORMAT",
+    "figure_jobs",
     "prediction_note",
     "weights_caption",
     "write_figures",
@@ -181,23 +184,35 @@ def weights_caption(shares: dict) -> str:
     )
 
 
-def _save_figure(fig, fig_dir: Path, name: str, pdf: bool) -> None:
-    if pdf:
-        fg.save(fig, fig_dir / f"{Path(name).stem}.pdf", close=False)
-    fg.save(fig, fig_dir / name)
+#: the figures, costliest to draw first (workers take them in this order)
+_DRAW_ORDER = (
+    "fig3_weights.png",
+    "weights_vs_truth.png",
+    "convergence.png",
+    "fig4_iscv.png",
+    "fig2_prediction.png",
+    "methods.png",
+)
 
 
-def write_figures(
+def _job(plot: str, fig_dir: Path, name: str, pdf: bool, **kwargs) -> FigureJob:
+    """``figures.<plot>(**kwargs)``, saved as ``fig_dir/name`` (and its PDF first, with ``pdf``)."""
+    paths = ((fig_dir / f"{Path(name).stem}.pdf",) if pdf else ()) + (fig_dir / name,)
+    return FigureJob(f"{__package__}.figures:{plot}", kwargs, paths)
+
+
+def figure_jobs(
     run: RunResult, tables: dict, truth: tuple[dict, dict, dict], fig_dir: Path | None = None, pdf: bool = False
-) -> dict[str, dict]:
-    """``figures/*.png`` (and ``.pdf`` with ``pdf``) under ``run.out_dir`` (or ``fig_dir``); returns
-    ``{name: {"caption"}}``."""
+) -> tuple[list[FigureJob], dict[str, dict]]:
+    """What :func:`write_figures` draws: the jobs (:class:`~reachirl.experiments.rendering.FigureJob`, costliest
+    first) and ``{name: {"caption"}}`` in the report's order."""
     out = run.out_dir
     fig_dir = fig_dir or out / "figures"
     results, postures = run.results, run.postures
     sections, methods = list(run.config.sections), list(run.config.methods)
     main = methods[0]
     figs: dict[str, dict] = {}
+    jobs: dict[str, FigureJob] = {}
     by = {(r["unit"]["method"], r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values()}
 
     def key(m, p, n):
@@ -208,12 +223,15 @@ def write_figures(
     if p2 is not None and key(main, p2, n8):
         arrays = load_unit_arrays(out, key(main, p2, n8))
         if "train/t" in arrays:
-            fig = fg.plot_prediction(
-                arrays,
-                "train",
+            jobs["fig2_prediction.png"] = _job(
+                "plot_prediction",
+                fig_dir,
+                "fig2_prediction.png",
+                pdf,
+                arrays=arrays,
+                set_name="train",
                 title=f"{p2}, {n8} sections: training demonstrations (dashed) vs {main} predictions (solid)",
             )
-            _save_figure(fig, fig_dir, "fig2_prediction.png", pdf)
             figs["fig2_prediction.png"] = {
                 "caption": f"Seed Fig. 2 equivalent: posture {p2}, {n8} sections, "
                 "training trials of the training subject, q (top) and q̇ (bottom)."
@@ -234,11 +252,16 @@ def write_figures(
             for r in results.values()
             if r["unit"]["method"] == main and r.get("uncertainty")
         }
-        _save_figure(
-            fg.plot_weights(shares, postures, sections, flags=flags, undetermined=undetermined or None),
+        jobs["fig3_weights.png"] = _job(
+            "plot_weights",
             fig_dir,
             "fig3_weights.png",
             pdf,
+            shares=shares,
+            postures=postures,
+            sections=sections,
+            flags=flags,
+            undetermined=undetermined or None,
         )
         figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
@@ -250,11 +273,13 @@ def write_figures(
             if "iscv/t" in a:
                 iscv_arrays[p] = a
     if iscv_arrays:
-        _save_figure(
-            fg.plot_iscv(iscv_arrays, title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)"),
+        jobs["fig4_iscv.png"] = _job(
+            "plot_iscv",
             fig_dir,
             "fig4_iscv.png",
             pdf,
+            arrays_by_posture=iscv_arrays,
+            title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)",
         )
         figs["fig4_iscv.png"] = {
             "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
@@ -269,11 +294,15 @@ def write_figures(
         first = next(r["unit"] for r in results.values() if r["unit"]["method"] == main)
         described = unit_method(main, first.get("estimator_options"), first.get("tol"), tasks=1)
         words = convergence_text(described["options"] if described else None)
-        _save_figure(
-            fg.plot_convergence(hist, sections, merit_label=words["merit_label"], start=words["start"]),
+        jobs["convergence.png"] = _job(
+            "plot_convergence",
             fig_dir,
             "convergence.png",
             pdf,
+            histories=hist,
+            sections=sections,
+            merit_label=words["merit_label"],
+            start=words["start"],
         )
         figs["convergence.png"] = {"caption": words["caption"]}
     learned, true, truth_metrics = truth
@@ -289,17 +318,16 @@ def write_figures(
             for r in results.values()
             if r["unit"]["method"] == main and r["unit"]["sections"] == n_true and r.get("uncertainty")
         }
-        _save_figure(
-            fg.plot_truth(
-                learned,
-                true,
-                title=f"Virtual subjects, {n_true} sections: learned vs true weights (cost shares)",
-                flags=truth_flags,
-                undetermined=truth_undetermined or None,
-            ),
+        jobs["weights_vs_truth.png"] = _job(
+            "plot_truth",
             fig_dir,
             "weights_vs_truth.png",
             pdf,
+            learned=learned,
+            true=true,
+            title=f"Virtual subjects, {n_true} sections: learned vs true weights (cost shares)",
+            flags=truth_flags,
+            undetermined=truth_undetermined or None,
         )
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
@@ -308,8 +336,24 @@ def write_figures(
         }
     if len(methods) > 1:
         heads = {m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS} for m in methods}
-        _save_figure(fg.plot_methods(heads, sections), fig_dir, "methods.png", pdf)
+        jobs["methods.png"] = _job("plot_methods", fig_dir, "methods.png", pdf, headlines=heads, sections=sections)
         figs["methods.png"] = {"caption": "ALL-postures RMSE of q per method, set and section count."}
+    return [jobs[n] for n in _DRAW_ORDER if n in jobs], figs
+
+
+def write_figures(
+    run: RunResult,
+    tables: dict,
+    truth: tuple[dict, dict, dict],
+    fig_dir: Path | None = None,
+    pdf: bool = False,
+    workers: int = 1,
+) -> dict[str, dict]:
+    """``figures/*.png`` (and ``.pdf`` with ``pdf``) under ``run.out_dir`` (or ``fig_dir``), drawn in ``workers``
+    processes (:mod:`reachirl.experiments.rendering`); returns ``{name: {"caption"}}``."""
+    jobs, figs = figure_jobs(run, tables, truth, fig_dir, pdf)
+    with drawing(jobs, workers):
+        pass
     return figs
 
 
@@ -417,8 +461,9 @@ def write_report(
     return path
 
 
-def write_outputs(run: RunResult) -> dict:
-    """Every output of a finished run (see the module docstring), in turn.
+def write_outputs(run: RunResult, workers: int = 1) -> dict:
+    """Every output of a finished run (see the module docstring), in turn; the figures are drawn in ``workers``
+    processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`).
 
     Returns ``{"tables": {method: table}, "timing": {...}, "notes": [...], "figures": [...], "n_trials"}``.
     """
@@ -442,28 +487,31 @@ def write_outputs(run: RunResult) -> dict:
                 truth[2][p]["predictions"] = a
     md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
     t_fig = time.perf_counter()
-    figs = write_figures(run, tables, truth)
+    jobs, figs = figure_jobs(run, tables, truth)
     from .cost import cost_section, write_models, write_posture_transfer
 
-    write_models(run)
-    extra_md: list[str] = cost_section(run, truth[1] or None)
-    extra_md += write_posture_transfer(run)
-    if run.config.iscv == "all-pairs":
-        from .pairs import write_pairs
+    with drawing(jobs, workers) as figures:  # drawn in other processes meanwhile (workers > 1)
+        write_models(run)
+        extra_md: list[str] = cost_section(run, truth[1] or None)
+        extra_md += write_posture_transfer(run)
+        if run.config.iscv == "all-pairs":
+            from .pairs import write_pairs
 
-        pairs_out = write_pairs(run)
-        figs.update(pairs_out["figures"])
-        extra_md += pairs_out["markdown"]
+            pairs_out = write_pairs(run)
+            figs.update(pairs_out["figures"])
+            extra_md += pairs_out["markdown"]
+        t_pred = time.perf_counter()
+        write_predictions(run)
+        predictions_s = time.perf_counter() - t_pred
+        figures.wait()
     fig_time = time.perf_counter() - t_fig
-    t_pred = time.perf_counter()
-    write_predictions(run)
     computed = set(run.run_info.get("computed", []))
     timing = dict(run.timing)
     every = [*results.values(), *run.pairs.values()]
     timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in every if r["key"] in computed)
     timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in every if r["key"] in computed)
     timing["figures_s"] = fig_time
-    timing["predictions_s"] = time.perf_counter() - t_pred
+    timing["predictions_s"] = predictions_s
     timing["report_s"] = time.perf_counter() - t0
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing

@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import logging
-import multiprocessing
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ..errors import InputError
-from .protocol import Split, Unit, run_unit
+from .processes import local_executor, stop_workers
+from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
+from .truth_solves import run_unit_and_truth
 
 __all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
 
@@ -58,38 +59,10 @@ class UnitTimeoutError(Exception):
     """A unit ran longer than its time limit."""
 
 
-def _worker_init(parent_pid: int, memory_gb: float) -> None:
-    """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped."""
-    import signal
-    import threading
-    import time as _time
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's business: it ends the workers
-    try:  # Linux: SIGKILL this process when the parent dies
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
-        while True:
-            if os.getppid() != parent_pid:
-                os._exit(1)
-            _time.sleep(1.0)
-
-    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
-    try:
-        import resource
-
-        limit = int(memory_gb * 1024**3)
-        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
-    except (ImportError, ValueError, OSError):
-        pass
-
-
-def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
-    """:func:`run_unit` in a local worker, stopped by SIGALRM after ``timeout_s``."""
+def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float, truth_job=None) -> dict:
+    """:func:`run_unit` (and its solves under the true weights, with ``truth_job``:
+    :func:`~reachirl.experiments.truth_solves.run_unit_and_truth`) in a local worker, stopped by SIGALRM after
+    ``timeout_s``."""
     import signal
 
     def expire(signum, frame):
@@ -98,7 +71,7 @@ def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float) -> dict:
     old = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        return run_unit(unit, split)
+        return run_unit_and_truth(unit, split, truth_job)
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
@@ -114,27 +87,8 @@ def _env_float(name: str, default: float) -> float:
     return v
 
 
-def _local_executor(workers: int) -> cf.Executor:
-    # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
-    ctx = multiprocessing.get_context("spawn")
-    memory = _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB)
-    return cf.ProcessPoolExecutor(
-        max_workers=workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(), memory)
-    )
-
-
-def _stop_workers(ex: cf.ProcessPoolExecutor) -> None:
-    """End the pool now: cancel what has not started and terminate the workers (a unit can run for minutes;
-    waiting for it made Ctrl-C hang)."""
-    procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
-    ex.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        if p.is_alive():
-            p.terminate()
-    for p in procs:
-        p.join(timeout=2.0)
-        if p.is_alive():
-            p.kill()
+def _local_executor(workers: int) -> cf.ProcessPoolExecutor:
+    return local_executor(workers, _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB))
 
 
 def _dask_client(address: str):
@@ -160,9 +114,12 @@ def run_units(
     max_units: int | None = None,
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
+    truth_jobs: Mapping[str, dict] | None = None,
 ) -> RunSummary:
     """Run (or reuse) every unit; ``splits`` maps a unit's ``split_key`` (its posture, or (posture, training
-    subject) for an all-pairs unit) to its :class:`Split`.
+    subject) for an all-pairs unit) to its :class:`Split`. ``truth_jobs`` maps the keys of the units whose workers
+    also solve under the true weights to what they solve (:func:`reachirl.experiments.truth_solves.truth_jobs`):
+    they do it after the unit, and the checkpoint keeps it.
 
     ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
     stops after that many *new* units (for tests and for splitting a long run).
@@ -191,6 +148,7 @@ def run_units(
     computed: list[str] = []
 
     fingerprints = {u.key: fp for u, fp in todo}
+    truth_jobs = dict(truth_jobs or {})
 
     def finish(payload: dict) -> None:
         # the coordinator's fingerprint: a remote worker may hash other source files
@@ -210,8 +168,11 @@ def run_units(
         bounded = threading.current_thread() is threading.main_thread()  # SIGALRM needs the main thread
         for u, _ in todo:
             try:
+                job = truth_jobs.get(u.key)
                 payload = (
-                    _run_unit_bounded(u, splits[u.split_key], timeout) if bounded else run_unit(u, splits[u.split_key])
+                    _run_unit_bounded(u, splits[u.split_key], timeout, job)
+                    if bounded
+                    else run_unit_and_truth(u, splits[u.split_key], job)
                 )
             except UnitTimeoutError as e:
                 raise InputError(
@@ -223,7 +184,10 @@ def run_units(
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
         ex = _local_executor(min(workers, len(todo)))
         try:
-            futures = {ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout): u.key for u, _ in todo}
+            futures = {
+                ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout, truth_jobs.get(u.key)): u.key
+                for u, _ in todo
+            }
             for f in cf.as_completed(futures):
                 try:
                     payload = f.result()
@@ -246,17 +210,24 @@ def run_units(
                 if len(computed) >= limit:
                     break
         except BaseException:
-            _stop_workers(ex)  # Ctrl-C, SIGTERM or an error: end now, keep the finished units
+            stop_workers(ex)  # Ctrl-C, SIGTERM or an error: end now, keep the finished units
             raise
         else:
-            _stop_workers(ex)
+            stop_workers(ex)
     else:
         from dask.distributed import as_completed
 
         client = _dask_client(scheduler)
         try:
             futures = [
-                client.submit(run_unit, u, splits[u.split_key], key=f"reachirl-{u.key}-{fp}", pure=False)
+                client.submit(
+                    run_unit_and_truth,
+                    u,
+                    splits[u.split_key],
+                    truth_jobs.get(u.key),
+                    key=f"reachirl-{u.key}-{fp}",
+                    pure=False,
+                )
                 for u, fp in todo
             ]
             try:
@@ -297,6 +268,7 @@ def reproduce(
         split_trials,
         transfer_splits,
     )
+    from .truth_solves import truth_jobs
 
     trials = list(dataset.trials)
     if not trials:
@@ -322,6 +294,7 @@ def reproduce(
         max_units=max_units,
         on_start=on_start,
         on_done=on_done,
+        truth_jobs=truth_jobs(units, splits, getattr(dataset, "truth", None), config.methods[0]),
     )
     main = {
         k: r

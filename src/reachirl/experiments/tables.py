@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import csv
 import io
-import re
 from collections.abc import Sequence
 
 import numpy as np
 
+from .names import natural_key
 from .protocol import SET_LABELS, SETS
 
 __all__ = [
@@ -269,13 +269,6 @@ SEED_TABLE: dict = {
     for p, rows in _SEED_ROWS.items()
 }
 SEED_N_TRIALS = {"train": 10, "cv": 10, "iscv": 20}
-
-
-def natural_key(name: str) -> tuple:
-    """Sort key of a posture (or subject) name that orders its numbers by value: P1, P2, …, P10."""
-    return tuple(
-        (0, int(part), "") if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", str(name)) if part
-    )
 
 
 def _stats(values: Sequence[float]) -> dict:

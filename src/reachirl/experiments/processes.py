@@ -1,0 +1,73 @@
+"""Local worker processes, for the units (:mod:`reachirl.experiments.runner`) and the figures
+(:mod:`reachirl.experiments.rendering`): started with ``spawn``, bounded, and ended at once.
+
+A worker ignores Ctrl-C (the coordinating process ends the workers), dies with its parent (even a SIGKILLed one)
+and has its memory (address space) capped. :func:`stop_workers` cancels what has not started and terminates the
+workers, without waiting for the work in progress.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+from collections.abc import Callable
+
+__all__ = ["local_executor", "stop_workers", "worker_init"]
+
+
+def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
+    """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped; then
+    ``then()`` (e.g. imports the worker's modules before its first task)."""
+    import signal
+    import threading
+    import time as _time
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's business: it ends the workers
+    try:  # Linux: SIGKILL this process when the parent dies
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            _time.sleep(1.0)
+
+    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
+    try:
+        import resource
+
+        limit = int(memory_gb * 1024**3)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    except (ImportError, ValueError, OSError):
+        pass
+    if then is not None:
+        then()
+
+
+def local_executor(workers: int, memory_gb: float, then: Callable[[], None] | None = None) -> cf.ProcessPoolExecutor:
+    """A pool of ``workers`` bounded local processes (:func:`worker_init`; ``then``: a module-level function each
+    runs once started)."""
+    # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
+    ctx = multiprocessing.get_context("spawn")
+    return cf.ProcessPoolExecutor(
+        max_workers=workers, mp_context=ctx, initializer=worker_init, initargs=(os.getpid(), memory_gb, then)
+    )
+
+
+def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
+    """End the pool now: cancel what has not started and terminate the workers (a unit can run for minutes;
+    waiting for it made Ctrl-C hang)."""
+    procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
+    ex.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=2.0)
+        if p.is_alive():
+            p.kill()

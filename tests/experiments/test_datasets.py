@@ -1,0 +1,28 @@
+"""Where reproduce gets its trials: the built-in data set is preprocessed once, then read from the trials cache."""
+
+import reachirl.virtual
+from reachirl.experiments import datasets
+
+
+def test_builtin_trials_are_preprocessed_once(tmp_path, monkeypatch):
+    from recordings import synth
+
+    folder = synth(tmp_path / "builtin", ("P4",), subjects=2, trials=1, seed=2)
+    monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(reachirl.virtual, "builtin_dataset_dir", lambda seed, n: folder)
+    calls = []
+    real = datasets.preprocess_folder
+
+    def counting(*args, **kwargs):
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(datasets, "preprocess_folder", counting)
+    first = datasets.load(None)
+    second = datasets.load(None)
+    assert len(calls) == 1 and second.describe() == first.describe() and second.truth == first.truth
+    assert [t.source for t in second.trials] == [t.source for t in first.trials]
+    assert second.describe()["fingerprint"] == datasets.fingerprint(real(folder))  # what preprocessing gives
+    rows = (folder / "manifest.csv").read_text().splitlines()
+    (folder / "manifest.csv").write_text("\n".join(rows[:-1]) + "\n")  # one recording fewer
+    assert len(datasets.load(None).trials) == len(first.trials) - 1 and len(calls) == 2

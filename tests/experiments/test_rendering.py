@@ -1,0 +1,71 @@
+"""Figures drawn in worker processes: the same files as drawn here, the first error raised, nothing left running
+or half written."""
+
+import multiprocessing
+
+import numpy as np
+import pytest
+
+from reachirl.experiments.rendering import FigureJob, drawing
+
+FIGURES = "reachirl.experiments.figures"
+
+
+def jobs(folder, pdf: bool = False):
+    """Three small figures, two of them also as PDF with ``pdf``."""
+    hist = {
+        (p, n): [{"iteration": i, "merit": 1.0 / (i + 1 + n), "accepted": True} for i in range(4)]
+        for p in ("P2", "P10")
+        for n in (1, 3)
+    }
+    heads = {
+        m: {s: {n: {"mean": 1.0 + k + n / 10, "std": 0.2} for n in (1, 3)} for s in ("train", "cv", "iscv")}
+        for k, m in enumerate(("moirl", "kkt"))
+    }
+    rng = np.random.default_rng(0)
+    shares = {p: rng.dirichlet(np.ones(7), size=3) for p in ("P1", "P2")}
+
+    def paths(name):
+        return ((folder / f"{name}.pdf",) if pdf else ()) + (folder / f"{name}.png",)
+
+    return [
+        FigureJob(f"{FIGURES}:plot_convergence", {"histories": hist, "sections": [1, 3]}, paths("convergence")),
+        FigureJob(f"{FIGURES}:plot_methods", {"headlines": heads, "sections": [1, 3]}, paths("methods")),
+        FigureJob(f"{FIGURES}:plot_truth", {"learned": shares, "true": shares, "title": "t"}, (folder / "truth.png",)),
+    ]
+
+
+def test_workers_draw_the_same_files_as_this_process(tmp_path):
+    here, there = tmp_path / "here", tmp_path / "there"
+    with drawing(jobs(here, pdf=True), workers=1) as d:
+        assert not here.exists()  # drawn when waited for
+    assert sorted(p.name for p in here.iterdir()) == [
+        "convergence.pdf",
+        "convergence.png",
+        "methods.pdf",
+        "methods.png",
+        "truth.png",
+    ]
+    with drawing(jobs(there, pdf=True), workers=2) as d:
+        written = d.wait()
+    assert sorted(p.name for p in written) == sorted(p.name for p in here.iterdir())
+    for p in here.iterdir():
+        assert (there / p.name).read_bytes() == p.read_bytes(), p.name
+    assert not [p for p in there.iterdir() if p.name.startswith(".")]  # no temporary file left
+    assert not multiprocessing.active_children()
+
+
+def test_a_figures_error_is_raised_and_the_workers_end(tmp_path):
+    bad = [*jobs(tmp_path), FigureJob(f"{FIGURES}:no_such_plot", {}, (tmp_path / "bad.png",))]
+    with pytest.raises(AttributeError, match="no_such_plot"), drawing(bad, workers=2):
+        pass
+    assert not (tmp_path / "bad.png").exists()
+    assert not multiprocessing.active_children()
+
+
+def test_an_error_meanwhile_ends_the_workers_at_once(tmp_path):
+    with pytest.raises(KeyboardInterrupt), drawing(jobs(tmp_path), workers=2):
+        raise KeyboardInterrupt
+    assert not multiprocessing.active_children()
+    for p in tmp_path.glob("*.png"):  # a figure is there whole or not at all (a temporary may be left)
+        assert p.read_bytes().endswith(b"IEND\xaeB`\x82")
