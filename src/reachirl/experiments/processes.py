@@ -62,12 +62,18 @@ def local_executor(workers: int, memory_gb: float, then: Callable[[], None] | No
 def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
     """End the pool now: cancel what has not started and terminate the workers (a unit can run for minutes;
     waiting for it made Ctrl-C hang)."""
-    procs = list(getattr(ex, "_processes", {}).values())  # no public API for the worker processes
+    # the pool's own table of its processes (no public API): the same object its manager thread adds a process
+    # to, so a worker started while the pool shuts down is ended too
+    table = getattr(ex, "_processes", None) or {}
     ex.shutdown(wait=False, cancel_futures=True)
-    for p in procs:
-        if p.is_alive():
+    for _ in range(3):
+        procs = [p for p in list(table.values()) if p.is_alive()]
+        if not procs:
+            break
+        for p in procs:
             p.terminate()
-    for p in procs:
-        p.join(timeout=2.0)
-        if p.is_alive():
-            p.kill()
+        for p in procs:
+            p.join(timeout=2.0)
+            if p.is_alive():
+                p.kill()  # cannot be ignored; reaped once the kernel has ended it (seconds on a loaded machine)
+                p.join(timeout=15.0)
