@@ -22,8 +22,9 @@ import casadi as ca
 import numpy as np
 
 from reachirl import ArmModel, ReachingTask, solve_doc
-from reachirl.doc.casadi import _fingertip, _inverse_dynamics, _mass_matrix, guess_knots
+from reachirl.doc.casadi import guess_knots
 from reachirl.doc.compiled import setting as compile_mode
+from reachirl.doc.symbolic import fingertip, inverse_dynamics, mass_matrix
 from reachirl.errors import solver_interrupts
 from reachirl.features import N_FEATURES, trajectory_cost, window_index
 
@@ -51,14 +52,14 @@ class PlainDoc:
         tau_rest = ca.DM(arm.gravity_torque(task.q0))  # held at rest before the reach
         for k in range(n):
             q, qd, tau = X[:2, k], X[2:, k], U[:, k]
-            M = _mass_matrix(a, q)
-            bias = _inverse_dynamics(a, q, qd, ca.SX.zeros(2))
+            M = mass_matrix(a, q)
+            bias = inverse_dynamics(a, q, qd, ca.SX.zeros(2))
             qdd = ca.solve(M, tau - bias)
             qd_next = qd + dt * qdd
             g.append(X[2:, k + 1] - qd_next)
             g.append(X[:2, k + 1] - (q + dt * qd_next))
             l1, l2 = a[0], a[1]
-            jac = ca.jacobian(_fingertip(a, q), q)
+            jac = ca.jacobian(fingertip(a, q), q)
             wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
             rates = [
                 ca.sumsqr(jac @ qd),
@@ -73,7 +74,7 @@ class PlainDoc:
             g.append(ca.dot(qd, tau) - Sp[k] + Sm[k])
             del l1, l2
         g.append(X[2:, n])
-        g.append(_fingertip(a, X[:2, n])[0] - task.target_x)
+        g.append(fingertip(a, X[:2, n])[0] - task.target_x)
         self.n_eq = int(ca.vertcat(*g).numel())
         z = ca.vertcat(ca.vec(X), ca.vec(U), Sp, Sm)
         self.solver = ca.nlpsol(

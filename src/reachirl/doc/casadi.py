@@ -52,6 +52,7 @@ from ..errors import solver_interrupts
 from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
 from . import compiled
 from .newton import newton_solve
+from .symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
 from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots, warm_start_key
 
 __all__ = [
@@ -130,37 +131,7 @@ FATROP_WARM_OPTIONS: dict = {
 }
 _FATROP_SLOT = {"fatrop": "cold", "fatrop_warm": "warm"}  # each fatrop solver's compiled slot (reachirl.doc.compiled)
 
-_ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
 _BOUNDS_KEPT = 32  # sets of joint limits whose bounds an NLP keeps (~16 kB each at N = 100)
-
-
-def _inverse_dynamics(arm, q, qd, qdd):
-    """Closed-form ``τ = M q̈ + C q̇ + g`` on CasADi symbols (the same equations as ArmModel)."""
-    l1, _l2, m1, m2, c1, c2, i1, i2, g = arm
-    cq2, sq2 = ca.cos(q[1]), ca.sin(q[1])
-    a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
-    b = m2 * l1 * c2
-    d = i2 + m2 * c2**2
-    h = b * sq2
-    g2 = g * m2 * c2 * ca.cos(q[0] + q[1])
-    g1 = g * (m1 * c1 + m2 * l1) * ca.cos(q[0]) + g2
-    tau1 = (a + 2 * b * cq2) * qdd[0] + (d + b * cq2) * qdd[1] - h * (2 * qd[0] * qd[1] + qd[1] ** 2) + g1
-    tau2 = (d + b * cq2) * qdd[0] + d * qdd[1] + h * qd[0] ** 2 + g2
-    return ca.vertcat(tau1, tau2)
-
-
-def _mass_matrix(arm, q):
-    l1, _l2, m1, m2, c1, c2, i1, i2, _g = arm
-    cq2 = ca.cos(q[1])
-    a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
-    b = m2 * l1 * c2
-    d = i2 + m2 * c2**2
-    return ca.vertcat(ca.horzcat(a + 2 * b * cq2, d + b * cq2), ca.horzcat(d + b * cq2, d))
-
-
-def _fingertip(arm, q):
-    l1, l2 = arm[0], arm[1]
-    return ca.vertcat(l1 * ca.cos(q[0]) + l2 * ca.cos(q[0] + q[1]), l1 * ca.sin(q[0]) + l2 * ca.sin(q[0] + q[1]))
 
 
 class _Nlp:
@@ -168,14 +139,13 @@ class _Nlp:
 
     def __init__(self, n: int):
         self.n = n
-        arm = ca.SX.sym("arm", len(_ARM_FIELDS))
+        arm = ca.SX.sym("arm", len(ARM_FIELDS))
         q0 = ca.SX.sym("q0", 2)
         target = ca.SX.sym("target")
         dt = ca.SX.sym("dt")
         fscale = ca.SX.sym("fscale")  # objective normalisation: 1 / (cost of the starting point)
         w = ca.SX.sym("w", n * N_FEATURES)  # row-major (knot, feature): each knot's window's weights
-        arm_l = [arm[i] for i in range(len(_ARM_FIELDS))]
-        l1, l2 = arm_l[0], arm_l[1]
+        arm_l = [arm[i] for i in range(len(ARM_FIELDS))]
 
         # stage 0: the state (q0, q̇_0 = 0, no τ_prev) is known, so only q̈_0 is a variable
         xs = [None] + [ca.SX.sym(f"x{k}", NX) for k in range(1, n + 1)]
@@ -186,29 +156,25 @@ class _Nlp:
         for k in range(n):
             if k == 0:  # at rest before the reach: τ_{−1} = g(q0)
                 q, qd = q0, ca.SX.zeros(2)
-                tau_prev = _inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))
+                tau_prev = inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))
                 qdd, sp, sm = us[0], 0, 0
             else:
                 x, u = xs[k], us[k]
                 q, qd, tau_prev = x[0:2], x[2:4], x[4:6]
                 qdd, sp, sm = u[0:2], u[2], u[3]
                 z_blocks += [x, u]
-            tau = _inverse_dynamics(arm_l, q, qd, qdd)
+            tau = inverse_dynamics(arm_l, q, qd, qdd)
             qd_next = qd + dt * qdd
             # the gap first: fatrop's structure detection starts a stage at it
             g.append(xs[k + 1] - ca.vertcat(q + dt * qd_next, qd_next, tau))
             if k > 0:
                 g.append(ca.dot(qd, tau) - sp + sm)
-            q1, q12 = q[0], q[0] + q[1]
-            jac = ca.vertcat(
-                ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
-                ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
-            )
+            jac = fingertip_jacobian(arm_l, q)
             wk = w[k * N_FEATURES : (k + 1) * N_FEATURES]
             rates = [
                 ca.sumsqr(jac @ qd),
                 sp + sm,
-                ca.bilin(_mass_matrix(arm_l, q), qd, qd),
+                ca.bilin(mass_matrix(arm_l, q), qd, qd),
                 ca.sumsqr(qdd),
                 ca.sumsqr((tau - tau_prev) / dt),
                 ca.sumsqr(qd),
@@ -217,7 +183,7 @@ class _Nlp:
             obj += dt * sum(wk[j] * rates[j] for j in range(N_FEATURES))
         z_blocks.append(xs[n])
         g.append(xs[n][2:4])  # q̇_N = 0 (a constraint: fatrop handles fixed bounds badly)
-        g.append(_fingertip(arm_l, xs[n][0:2])[0] - target)
+        g.append(fingertip(arm_l, xs[n][0:2])[0] - target)
         z = ca.vertcat(*z_blocks)
         gg = ca.vertcat(*g)
         self.n_z, self.n_g = z.numel(), gg.numel()
@@ -284,7 +250,7 @@ class _Nlp:
 
     def params(self, task: ReachingTask, weights: np.ndarray, fscale: float) -> np.ndarray:
         a = task.arm
-        arm = [getattr(a, f) for f in _ARM_FIELDS]
+        arm = [getattr(a, f) for f in ARM_FIELDS]
         per_knot = weights[window_index(self.n, weights.shape[0])]  # (N, 7)
         return np.concatenate([arm, task.q0, [task.target_x, task.dt, fscale], per_knot.reshape(-1)])
 

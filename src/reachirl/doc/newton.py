@@ -42,6 +42,7 @@ from scipy.linalg.lapack import dgbsv as _gbsv
 
 from ..features import N_FEATURES, window_index
 from . import compiled
+from .symbolic import ARM_FIELDS, fingertip_jacobian, inverse_dynamics, mass_matrix
 from .task import ReachingTask
 
 __all__ = ["MAX_ITER", "NewtonResult", "newton_solve"]
@@ -57,7 +58,6 @@ POWER_TOL = 1e-9  # W: a kink's joint power
 _BW = 10  # the KKT matrix's half-bandwidth with the unknowns ordered (q_k, λ_k) knot by knot
 _QBW = 7  # the knots-only Hessian's half-bandwidth (a stage couples four knots)
 _ROWS = 82  # the stage function's output: gradient (8), Hessian (64), power, its gradient (8), cost
-_ARM_FIELDS = ("l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity")
 
 
 @dataclass(frozen=True)
@@ -70,20 +70,6 @@ class NewtonResult:
     n_kinks: int
     fscale: float
     bar_multiplier: float
-
-
-def _id(arm, q, qd, qdd):
-    l1, _l2, m1, m2, c1, c2, i1, i2, g = arm
-    cq2, sq2 = ca.cos(q[1]), ca.sin(q[1])
-    a = i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2)
-    b = m2 * l1 * c2
-    d = i2 + m2 * c2**2
-    h = b * sq2
-    g2 = g * m2 * c2 * ca.cos(q[0] + q[1])
-    g1 = g * (m1 * c1 + m2 * l1) * ca.cos(q[0]) + g2
-    tau1 = (a + 2 * b * cq2) * qdd[0] + (d + b * cq2) * qdd[1] - h * (2 * qd[0] * qd[1] + qd[1] ** 2) + g1
-    tau2 = (d + b * cq2) * qdd[0] + d * qdd[1] + h * qd[0] ** 2 + g2
-    return ca.vertcat(tau1, tau2), ca.vertcat(ca.horzcat(a + 2 * b * cq2, d + b * cq2), ca.horzcat(d + b * cq2, d))
 
 
 @functools.lru_cache(maxsize=8)
@@ -105,26 +91,21 @@ def _stage() -> ca.Function:
     x = ca.SX.sym("x", 8)  # (q_{k−2}, q_{k−1}, q_k, q_{k+1})
     ws = ca.SX.sym("ws", N_FEATURES + 1)  # the stage's weights, then σ_k
     lam = ca.SX.sym("lam")
-    arm = ca.SX.sym("arm", len(_ARM_FIELDS))
+    arm = ca.SX.sym("arm", len(ARM_FIELDS))
     dt = ca.SX.sym("dt")
     fscale = ca.SX.sym("fscale")
-    a = [arm[i] for i in range(len(_ARM_FIELDS))]
-    l1, l2 = a[0], a[1]
+    a = [arm[i] for i in range(len(ARM_FIELDS))]
     qa, qb, qc, qn = x[0:2], x[2:4], x[4:6], x[6:8]
     qd_prev, qd = (qb - qa) / dt, (qc - qb) / dt
     qdd_prev, qdd = (qc - 2 * qb + qa) / dt**2, (qn - 2 * qc + qb) / dt**2
-    tau_prev, _ = _id(a, qb, qd_prev, qdd_prev)
-    tau, mass = _id(a, qc, qd, qdd)
-    q1, q12 = qc[0], qc[0] + qc[1]
-    jac = ca.vertcat(
-        ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
-        ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
-    )
+    tau_prev = inverse_dynamics(a, qb, qd_prev, qdd_prev)
+    tau = inverse_dynamics(a, qc, qd, qdd)
+    jac = fingertip_jacobian(a, qc)
     e = ca.dot(qd, tau)
     rates = [
         ca.sumsqr(jac @ qd),
         ws[N_FEATURES] * e,  # |e| on the side σ_k; at a kink σ_k = 0 and e = 0 is a constraint
-        ca.bilin(mass, qd, qd),
+        ca.bilin(mass_matrix(a, qc), qd, qd),
         ca.sumsqr(qdd),
         ca.sumsqr((tau - tau_prev) / dt),
         ca.sumsqr(qd),
@@ -195,7 +176,7 @@ def _scatter(n: int) -> _Layout:
 
 def _params(task: ReachingTask) -> tuple[np.ndarray, float]:
     a = task.arm
-    return np.array([getattr(a, f) for f in _ARM_FIELDS], dtype=float), float(task.dt)
+    return np.array([getattr(a, f) for f in ARM_FIELDS], dtype=float), float(task.dt)
 
 
 def _stage_knots(q0: np.ndarray, q: np.ndarray) -> np.ndarray:

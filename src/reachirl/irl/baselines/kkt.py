@@ -46,7 +46,7 @@ from scipy.linalg import qr
 from scipy.optimize import nnls
 
 from ...data.trial import Trial
-from ...doc.casadi import _ARM_FIELDS, _fingertip, _inverse_dynamics, _mass_matrix
+from ...doc.symbolic import ARM_FIELDS, fingertip, inverse_dynamics, mass_matrix
 from ...features import N_FEATURES, window_index
 from ..base import WeightEstimator
 
@@ -57,22 +57,22 @@ __all__ = ["KKTIOC", "kkt_matrices", "kkt_residual"]
 def _kkt_function(n: int, n_windows: int) -> ca.Function:
     """``(z, p) → (∂Φ/∂z (7S × nz), ∂g/∂z (nz), ∂e/∂z ((N−1) × nz), e (N−1), Φ (7S))`` for the DOC of shape
     ``(n, n_windows)``; ``p = (arm, q0, target, dt)``. The same equations as :mod:`reachirl.doc.casadi`."""
-    arm = ca.SX.sym("arm", len(_ARM_FIELDS))
+    arm = ca.SX.sym("arm", len(ARM_FIELDS))
     q0 = ca.SX.sym("q0", 2)
     target = ca.SX.sym("target")
     dt = ca.SX.sym("dt")
     z = ca.SX.sym("z", 2 * (n - 1))
-    arm_l = [arm[i] for i in range(len(_ARM_FIELDS))]
+    arm_l = [arm[i] for i in range(len(ARM_FIELDS))]
     qs = [q0] + [z[2 * (k - 1) : 2 * k] for k in range(1, n)]
     qs.append(qs[-1])  # q_N = q_{N−1}  ⇔  q̇_N = 0
     qd = [ca.SX.zeros(2)] + [(qs[k] - qs[k - 1]) / dt for k in range(1, n + 1)]
     win = window_index(n, n_windows)
     phi = [[0] * N_FEATURES for _ in range(n_windows)]
     power = []
-    tau_prev = _inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))  # at rest before: τ_{−1} = g(q0)
+    tau_prev = inverse_dynamics(arm_l, q0, ca.SX.zeros(2), ca.SX.zeros(2))  # at rest before: τ_{−1} = g(q0)
     for k in range(n):
         qdd = (qd[k + 1] - qd[k]) / dt
-        tau = _inverse_dynamics(arm_l, qs[k], qd[k], qdd)
+        tau = inverse_dynamics(arm_l, qs[k], qd[k], qdd)
         l1, l2 = arm_l[0], arm_l[1]
         q1, q12 = qs[k][0], qs[k][0] + qs[k][1]
         jac = ca.vertcat(
@@ -85,7 +85,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
         rates = [
             ca.sumsqr(jac @ qd[k]),
             ca.fabs(e) if k > 0 else 0,  # d|e|/dz = sign(e) de/dz (CasADi: sign(0) = 0)
-            ca.bilin(_mass_matrix(arm_l, qs[k]), qd[k], qd[k]),
+            ca.bilin(mass_matrix(arm_l, qs[k]), qd[k], qd[k]),
             ca.sumsqr(qdd),
             ca.sumsqr((tau - tau_prev) / dt),
             ca.sumsqr(qd[k]),
@@ -95,7 +95,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
             phi[win[k]][j] = phi[win[k]][j] + dt * rates[j]
         tau_prev = tau
     phi_v = ca.vertcat(*[phi[s][j] for s in range(n_windows) for j in range(N_FEATURES)])
-    g = _fingertip(arm_l, qs[n])[0] - target
+    g = fingertip(arm_l, qs[n])[0] - target
     e_v = ca.vertcat(*power)
     p = ca.vertcat(arm, q0, target, dt)
     return ca.Function("kkt", [z, p], [ca.jacobian(phi_v, z), ca.gradient(g, z), ca.jacobian(e_v, z), e_v, phi_v])
@@ -112,7 +112,7 @@ def kkt_matrices(trial: Trial, n_nodes: int, n_windows: int, zero_power_tol: flo
     z = r.q[1:n_nodes].reshape(-1)
     a = trial.arm
     p = np.concatenate(
-        [[getattr(a, f) for f in _ARM_FIELDS], trial.x0[:2], [trial.target_x], [trial.duration / n_nodes]]
+        [[getattr(a, f) for f in ARM_FIELDS], trial.x0[:2], [trial.target_x], [trial.duration / n_nodes]]
     )
     jphi, dg, je, e, phi = (np.asarray(v) for v in _kkt_function(n_nodes, n_windows)(z, p))
     e = e.reshape(-1)
