@@ -1,22 +1,11 @@
 """Local worker processes: they run what they are given after their own set-up, and are ended at once."""
 
 import concurrent.futures as cf
-import multiprocessing
 import os
 import time
 
+from children import children_gone
 from reachirl.experiments.processes import local_executor, stop_workers
-
-
-def _children_gone(within: float = 5.0) -> bool:
-    """No child process left alive: each was ended; on a loaded machine the kernel may take a moment to reap a
-    killed one, so this waits up to ``within`` seconds."""
-    deadline = time.monotonic() + within
-    while multiprocessing.active_children():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 def test_a_worker_runs_its_setup_then_its_tasks():
@@ -34,7 +23,7 @@ def test_stopping_ends_a_busy_worker_at_once():
         time.sleep(0.05)
     t0 = time.perf_counter()
     stop_workers(ex)
-    assert time.perf_counter() - t0 < 10 and _children_gone()
+    assert time.perf_counter() - t0 < 10 and children_gone()
     # not started: never runs (cancelled, or, if the pool had already queued it for a worker, failed with the pool)
     last = futures[-1]
     assert last.cancelled() or isinstance(last.exception(timeout=10), cf.process.BrokenProcessPool)

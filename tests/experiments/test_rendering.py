@@ -1,12 +1,10 @@
 """Figures drawn in worker processes: the same files as drawn here, the first error raised, nothing left running
 or half written."""
 
-import multiprocessing
-import time
-
 import numpy as np
 import pytest
 
+from children import children_gone
 from reachirl.experiments.rendering import FigureJob, drawing
 
 FIGURES = "reachirl.experiments.figures"
@@ -36,17 +34,6 @@ def jobs(folder, pdf: bool = False):
     ]
 
 
-def _children_gone(within: float = 5.0) -> bool:
-    """No child process left alive: each was ended; on a loaded machine the kernel may take a moment to reap a
-    killed one, so this waits up to ``within`` seconds."""
-    deadline = time.monotonic() + within
-    while multiprocessing.active_children():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
-
-
 def test_workers_draw_the_same_files_as_this_process(tmp_path):
     here, there = tmp_path / "here", tmp_path / "there"
     with drawing(jobs(here, pdf=True), workers=1) as d:
@@ -64,7 +51,7 @@ def test_workers_draw_the_same_files_as_this_process(tmp_path):
     for p in here.iterdir():
         assert (there / p.name).read_bytes() == p.read_bytes(), p.name
     assert not [p for p in there.iterdir() if p.name.startswith(".")]  # no temporary file left
-    assert _children_gone()
+    assert children_gone()
 
 
 def test_a_figures_error_is_raised_and_the_workers_end(tmp_path):
@@ -72,12 +59,12 @@ def test_a_figures_error_is_raised_and_the_workers_end(tmp_path):
     with pytest.raises(AttributeError, match="no_such_plot"), drawing(bad, workers=2):
         pass
     assert not (tmp_path / "bad.png").exists()
-    assert _children_gone()
+    assert children_gone()
 
 
 def test_an_error_meanwhile_ends_the_workers_at_once(tmp_path):
     with pytest.raises(KeyboardInterrupt), drawing(jobs(tmp_path), workers=2):
         raise KeyboardInterrupt
-    assert _children_gone()
+    assert children_gone()
     for p in tmp_path.glob("*.png"):  # a figure is there whole or not at all (a temporary may be left)
         assert p.read_bytes().endswith(b"IEND\xaeB`\x82")

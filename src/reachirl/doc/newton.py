@@ -228,11 +228,8 @@ def newton_solve(
     # the banded KKT matrix in LAPACK's storage, column-major as LAPACK reads it (``_BW`` more rows: fill-in)
     lu = np.empty((3 * _BW + 1, size), order="F")
 
-    padded = np.vstack([q0, q0, q0, q, q[-1:]])  # q_{−2}, q_{−1}, q_0, q_1 … q_{N−1}, q_N = q_{N−1}
     for it in range(max_iter + 1):
-        padded[3:-1], padded[-1] = q, q[-1]
-        for j in range(4):  # each stage's knots (q_{k−2}, q_{k−1}, q_k, q_{k+1})
-            x_view[2 * j : 2 * j + 2] = padded[j : j + n].T
+        x_view[:] = _stage_knots(q0, q)
         ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
         lam_in[:] = lam
         trigger()
