@@ -12,13 +12,16 @@ from reachirl.data.trial import load_trials, select_trials
 from reachirl.experiments.cost import claim_verdict
 from reachirl.features import FEATURES
 from reachirl.irl.uncertainty import (
+    PRIOR_LOG_SD,
     _errors,
+    _shares,
     describe_direction,
     determination,
     indistinguishable,
     laplace_posterior,
     merit_noise,
     residuals_and_jacobian,
+    share_intervals,
 )
 
 ACC = FEATURES.index("joint_acceleration")
@@ -138,7 +141,8 @@ def test_the_checked_samples_use_the_merits_own_errors(fitted):
 @pytest.mark.slow
 def test_coverage_of_the_true_shares_on_a_small_virtual_set(recorded):
     """On virtual subjects the 95 % intervals contain the true cost shares (on the truth's own reach, seen as
-    recorded) in most cells: measured 0.79-0.95 (mean 0.89) over 35 fits of seven populations."""
+    recorded) in at least 90 % of the cells of every fit: measured 0.95-1.0 (mean 0.97) over 35 fits of seven
+    populations. The truth has shares of exactly 0 and 1, which a prior that ruled them out would miss."""
     from reachirl.experiments.analysis import reference_features, true_weights
     from reachirl.experiments.datasets import load
 
@@ -153,7 +157,7 @@ def test_coverage_of_the_true_shares_on_a_small_virtual_set(recorded):
         lo = np.array(est.uncertainty_["share_intervals"]["low"])
         hi = np.array(est.uncertainty_["share_intervals"]["high"])
         cover.append(np.mean((true >= lo - 0.005) & (true <= hi + 0.005)))
-    assert np.mean(cover) >= 0.75, cover
+    assert min(cover) >= 0.9, cover
 
 
 def test_a_pooled_fit_says_how_much_pooling_narrows_the_intervals(recorded):
@@ -178,6 +182,21 @@ def test_a_fit_whose_rollout_has_no_sensitivity_says_so_instead_of_failing(fitte
     est = MOIRL(2, n_nodes=40, max_iter=1, uncertainty=20).fit(trials)
     assert est.uncertainty_ is None
     assert any(w.startswith("no weight samples: the KKT matrix is singular") for w in est.warnings_)
+
+
+def test_without_data_the_intervals_rule_out_no_printable_share():
+    """Where the data says nothing, the samples are the prior's, and its 95 % interval of every share of a
+    7-feature window reaches from 0 to 0.995 (the report's precision): a feature that alone makes a window's cost
+    is not excluded before the data speaks."""
+    d, m, p = 10, 20, 7
+    J, r = np.zeros((d, m, p)), 0.1 * np.random.default_rng(1).normal(size=(d, m))
+    mean, cov, _ = laplace_posterior(r, J, np.full(p, 3.0), np.zeros(p))
+    np.testing.assert_allclose(mean, 0.0, atol=1e-12)
+    np.testing.assert_allclose(cov, PRIOR_LOG_SD**2 * np.eye(p), rtol=1e-12)
+    eta = np.random.default_rng(2).multivariate_normal(mean, cov, size=200_000)
+    intervals = share_intervals(_shares(np.exp(eta)[:, None, :], np.ones((1, p))))
+    assert np.all(np.array(intervals["low"]) <= 0.005) and np.all(np.array(intervals["high"]) >= 0.995)
+    assert not np.any(intervals["determined"])
 
 
 def test_the_posterior_follows_the_data_where_it_is_determined_and_the_prior_elsewhere():

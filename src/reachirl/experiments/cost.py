@@ -12,7 +12,7 @@ import numpy as np
 from ..features import FEATURES
 from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
-from ..irl.uncertainty import UNDETERMINED_WIDTH
+from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH
 
 __all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
 
@@ -85,7 +85,8 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         f"{UNDETERMINED_WIDTH} (undetermined, not a finding); and the paper's claim, joint acceleration's share "
         "higher at onset and end than mid-reach, over the samples (supported in at least 97.5 % of them, "
         "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
-        "of the log-weights with a prior of a factor 10 around equal shares (`docs/method.md`).",
+        f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around equal shares, wide enough to "
+        "rule out no share (`docs/method.md`).",
         "",
     ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
