@@ -19,7 +19,6 @@ import numpy as np
 from reachirl import MOIRL
 from reachirl.experiments import datasets
 from reachirl.experiments.analysis import reference_features, true_weights
-from reachirl.experiments.cost import claim_verdict
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
 from reachirl.irl.uncertainty import weight_uncertainty
 
@@ -41,7 +40,7 @@ def one_fit(ds, posture: str, n_windows: int = 8) -> dict:
         "coverage": float(np.mean((true >= lo - 0.005) & (true <= hi + 0.005))),
         "mean_width": float(np.mean(hi - lo)),
         "n_determined": unc["determination"]["n_determined"],
-        "claim_fraction": claim_verdict(np.array(unc["share_samples"]))["fraction"],
+        "claim_fraction": unc["claim"]["fraction"],
         "checked_indistinguishable": unc["checked"]["indistinguishable"],
         "uncertainty_over_fit_cpu": unc_cpu / fit_cpu,
     }

@@ -9,12 +9,12 @@ import pytest
 from reachirl import MOIRL
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, select_trials
-from reachirl.experiments.cost import claim_verdict
 from reachirl.features import FEATURES
 from reachirl.irl.uncertainty import (
     PRIOR_LOG_SD,
     _errors,
     _shares,
+    claim_verdict,
     describe_direction,
     determination,
     indistinguishable,
@@ -157,6 +157,9 @@ def test_coverage_of_the_true_shares_on_a_small_virtual_set(recorded):
         lo = np.array(est.uncertainty_["share_intervals"]["low"])
         hi = np.array(est.uncertainty_["share_intervals"]["high"])
         cover.append(np.mean((true >= lo - 0.005) & (true <= hi + 0.005)))
+        # the truth has the paper's claim: the posterior's draws (not 40 samples' chance) must not contradict it
+        claim = est.uncertainty_["claim"]
+        assert claim["n_samples"] == 4000 and claim["verdict"] != "contradicted", claim
     assert min(cover) >= 0.9, cover
 
 

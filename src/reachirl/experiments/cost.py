@@ -9,14 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..features import FEATURES
 from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
-from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH
+from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict
 
 __all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
-
-ACC = FEATURES.index("joint_acceleration")
 
 
 def write_models(run) -> list[Path]:
@@ -40,28 +37,19 @@ def write_models(run) -> list[Path]:
     return out
 
 
-def claim_verdict(share_samples: np.ndarray) -> dict:
-    """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
-    weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
-    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
-    the fraction of samples where it holds. Onset and end are the first and last windows, mid-reach the others' mean."""
-    sh = np.asarray(share_samples, dtype=float)
-    if sh.ndim != 3 or sh.shape[1] < 3:
-        return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
-    acc = sh[:, :, ACC]
-    holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
-    frac = float(holds.mean())
-    verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
-    return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0])}
-
-
 def uncertainty_summary(unc: dict | None) -> dict | None:
     """A unit's ``uncertainty`` for results.json: its method, intervals, what the data determines, the check and
     the claim's verdict (the samples themselves are in the unit's model, ``models/<key>.json``)."""
     if not unc:
         return None
     keep = ("method", "n_samples", "share_intervals", "determination", "prior", "checked")
-    return {k: unc[k] for k in keep if k in unc} | {"claim": claim_verdict(np.asarray(unc["share_samples"]))}
+    return {k: unc[k] for k in keep if k in unc} | {"claim": _claim(unc)}
+
+
+def _claim(unc: dict) -> dict:
+    """The claim's verdict over the posterior's interval draws (a model written before they were recorded: over
+    its weight samples)."""
+    return unc.get("claim") or claim_verdict(np.asarray(unc["share_samples"]))
 
 
 def _truth_coverage(unc: dict, true_shares: np.ndarray) -> dict:
@@ -101,7 +89,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         u = r["uncertainty"]
         det = u["determination"]
         und = 1.0 - float(np.mean(u["share_intervals"]["determined"]))
-        claim = claim_verdict(np.asarray(u["share_samples"]))
+        claim = _claim(u)
         frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of samples)"
         top = det["determined"][0] if det["determined"] else "none"
         row = (

@@ -37,6 +37,7 @@ from ..features import FEATURES, N_FEATURES
 __all__ = [
     "UNDETERMINED_WIDTH",
     "Determination",
+    "claim_verdict",
     "describe_direction",
     "determination",
     "indistinguishable",
@@ -47,6 +48,8 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+
+ACC = FEATURES.index("joint_acceleration")
 
 UNDETERMINED_WIDTH = 0.25
 """A share whose interval is wider than this is shown as undetermined, not as a finding."""
@@ -219,7 +222,8 @@ def weight_uncertainty(
 
     Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
     units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
-    ``n_interval`` draws, on the fit's own reach, and whether each is determined), ``share_samples``,
+    ``n_interval`` draws, on the fit's own reach, and whether each is determined), ``share_samples``, ``claim``
+    (:func:`claim_verdict` over the same draws),
     ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked``, ``doc_solves`` and, for several
     tasks, ``pooling``: the same intervals' mean width and determined directions from each task's demonstrations
     alone beside the pooled ones (how much pooling narrows them)."""
@@ -268,6 +272,7 @@ def weight_uncertainty(
         "weight_samples": samples.tolist(),
         "share_samples": _shares(samples, phi).tolist(),
         "share_intervals": share_intervals(shares),
+        "claim": claim_verdict(shares),
         "determination": det.to_dict(),
         "prior": {
             "center": "w0: every feature with the same share of each window's demonstrated cost",
@@ -278,6 +283,23 @@ def weight_uncertainty(
         "doc_solves": int(solves),
         "pooling": pooling,
     }
+
+
+def claim_verdict(share_samples: np.ndarray) -> dict:
+    """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
+    weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
+    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
+    the fraction of samples where it holds. Onset and end are the first and last windows, mid-reach the others' mean.
+    :func:`weight_uncertainty` applies it to the posterior's interval draws (thousands), not to the few weight
+    samples: with 40, a claim that holds in 7 % of the posterior fails in all of them 5 % of the time."""
+    sh = np.asarray(share_samples, dtype=float)
+    if sh.ndim != 3 or sh.shape[1] < 3:
+        return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
+    acc = sh[:, :, ACC]
+    holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
+    frac = float(holds.mean())
+    verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
+    return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0])}
 
 
 def _width_record(det: Determination, intervals: dict) -> dict:
