@@ -71,7 +71,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         "log-weights along one by log 2 raises the merit by more than the demonstrations can tell from noise) "
         "and the most determined one in words; the share of cost shares whose 95 % interval is wider than "
         f"{UNDETERMINED_WIDTH} (undetermined, not a finding); and the paper's claim, joint acceleration's share "
-        "higher at onset and end than mid-reach, over the samples (supported in at least 97.5 % of them, "
+        "higher at onset and end than mid-reach, over the posterior's draws (supported in at least 97.5 % of them, "
         "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
         f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around equal shares, wide enough to "
         "rule out no share (`docs/method.md`).",
@@ -90,7 +90,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         det = u["determination"]
         und = 1.0 - float(np.mean(u["share_intervals"]["determined"]))
         claim = _claim(u)
-        frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of samples)"
+        frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of draws)"
         top = det["determined"][0] if det["determined"] else "none"
         row = (
             f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
