@@ -23,10 +23,10 @@ from reachirl.experiments.protocol import ProtocolConfig, split_trials
 from reachirl.irl.uncertainty import weight_uncertainty
 
 
-def one_fit(ds, posture: str, n_windows: int = 8) -> dict:
+def one_fit(ds, posture: str, n_windows: int = 8, rollout: str = "per_task") -> dict:
     train = list(split_trials(ds.trials, posture, ProtocolConfig()).train)
     c0 = time.process_time()
-    est = MOIRL(n_windows).fit(train)
+    est = MOIRL(n_windows, rollout=rollout).fit(train)
     fit_cpu = time.process_time() - c0
     c0 = time.process_time()
     unc = weight_uncertainty(est, train, 40, 0)
@@ -50,12 +50,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="built-in data seeds (default 0)")
     parser.add_argument("--postures", nargs="+", default=["P1", "P2", "P3", "P4", "P5"])
+    parser.add_argument("--rollout", default="per_task", help="MOIRL's rollout (default per_task)")
     args = parser.parse_args(argv)
     rows = []
     for seed in args.seeds:
         ds = datasets.load(None, seed=seed)
         for posture in args.postures:
-            rows.append({"seed": seed, **one_fit(ds, posture)})
+            rows.append({"seed": seed, **one_fit(ds, posture, rollout=args.rollout)})
             print(json.dumps(rows[-1]), flush=True)
     cov = [r["coverage"] for r in rows]
     print(
