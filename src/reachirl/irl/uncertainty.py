@@ -49,7 +49,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-ACC = FEATURES.index("joint_acceleration")
+_ACC = FEATURES.index("joint_acceleration")
 
 UNDETERMINED_WIDTH = 0.25
 """A share whose interval is wider than this is shown as undetermined, not as a finding."""
@@ -58,8 +58,7 @@ PRIOR_LOG_SD = float(np.log(250.0))
 """The prior's standard deviation of each log-weight around ``ω₀``: a factor 250, the smallest round factor under
 which every share of a 7-feature window has a prior 95 % interval from 0 to 0.995, the report's precision. A
 feature that alone makes a window's cost, or plays no part in it, is a share the prior must not rule out: the
-paper's own windows are dominated by one feature. (A factor 10 gives the interval [0.0002, 0.85]: undetermined
-shares then looked bounded away from 1 by the prior alone.)"""
+paper's own windows are dominated by one feature."""
 
 METHOD = (
     "laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit "
@@ -295,7 +294,7 @@ def claim_verdict(share_samples: np.ndarray) -> dict:
     sh = np.asarray(share_samples, dtype=float)
     if sh.ndim != 3 or sh.shape[1] < 3:
         return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
-    acc = sh[:, :, ACC]
+    acc = sh[:, :, _ACC]
     holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
     frac = float(holds.mean())
     verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
