@@ -99,11 +99,14 @@ def _fit_with_samples(trials, out) -> None:
     assert main([*argv, "--posture", "P2", "--uncertainty", "25", "--out", str(out)]) == 0
 
 
-def test_fit_uncertainty_writes_samples_in_the_units_of_the_weights(recorded, tmp_path):
+def test_fit_uncertainty_writes_samples_in_the_units_of_the_weights(recorded, tmp_path, capsys):
     out = tmp_path / "m.json"
     _fit_with_samples(recorded / "trials.npz", out)
     model = json.loads(out.read_text())
     u = model["uncertainty"]
+    # the summary line says how many shares the data leaves undetermined, counted from the written intervals
+    n_undetermined = sum(not d for row in u["share_intervals"]["determined"] for d in row)
+    assert f"{n_undetermined} of 14 cost shares undetermined" in capsys.readouterr().out
     samples = np.array(u["weight_samples"])
     assert samples.shape == (25, 2, 7) and np.all(samples > 0) and np.all(np.isfinite(samples))
     lo, hi = np.array(u["share_intervals"]["low"]), np.array(u["share_intervals"]["high"])

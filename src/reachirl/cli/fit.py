@@ -11,6 +11,7 @@ from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
+from ..irl.uncertainty import UNDETERMINED_WIDTH
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file
 from ._args import add_selection, chosen_trials, int_in, refuse_overwrite
 
@@ -164,10 +165,18 @@ def run(args: argparse.Namespace) -> int:
     extra = ""
     if unc is not None:
         det = unc["determination"]
+        cells = [d for row in unc["share_intervals"]["determined"] for d in row]
         extra = (
             f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
-            "directions determined by the trials"
+            f"directions determined by the trials, {cells.count(False)} of {len(cells)} cost shares undetermined "
+            f"(95 % interval wider than {UNDETERMINED_WIDTH})"
         )
+        claim = unc.get("claim") or {}
+        if claim.get("fraction") is not None:
+            extra += (
+                f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
+                f"({100 * claim['fraction']:.0f} % of the posterior)"
+            )
         if unc.get("pooling"):
             alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]
             pooled = unc["pooling"]["pooled"]["mean_width"]
