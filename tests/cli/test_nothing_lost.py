@@ -170,7 +170,7 @@ def _swallowing_solver():
     """What CasADi does when Ctrl-C arrives mid-solve: the KeyboardInterrupt raised by the signal handler is
     caught, and a failed solve is returned."""
     try:
-        os.kill(os.getpid(), signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)  # to this thread: delivered before it returns
         for _ in range(1000):  # the handler runs between bytecodes
             pass
     except KeyboardInterrupt:
@@ -178,7 +178,16 @@ def _swallowing_solver():
     return "solved"
 
 
-def test_an_interrupt_swallowed_by_a_solver_is_raised_when_it_returns():
+@pytest.fixture
+def ctrl_c():
+    """Python's own Ctrl-C handler for the test: a job started in the background inherits SIGINT ignored, and
+    the guard rightly leaves an ignored signal alone."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_an_interrupt_swallowed_by_a_solver_is_raised_when_it_returns(ctrl_c):
     with pytest.raises(KeyboardInterrupt):
         with solver_interrupts():
             _swallowing_solver()
@@ -193,7 +202,7 @@ def test_sigterm_swallowed_by_a_solver_is_raised_as_terminated():
         with pytest.raises(Terminated):
             with solver_interrupts():
                 try:
-                    os.kill(os.getpid(), signal.SIGTERM)
+                    signal.raise_signal(signal.SIGTERM)
                     for _ in range(1000):
                         pass
                 except KeyboardInterrupt:
@@ -203,7 +212,7 @@ def test_sigterm_swallowed_by_a_solver_is_raised_as_terminated():
     assert signal.getsignal(signal.SIGTERM) is old
 
 
-def test_a_recording_guard_never_raises_inside_the_solver():
+def test_a_recording_guard_never_raises_inside_the_solver(ctrl_c):
     """Crocoddyl's guard only records: nothing is raised inside (boost::python would abort), the solver's own
     callback sees the signal pending, and it is raised once the solve returns."""
     from reachirl.errors import interrupt_pending
@@ -211,7 +220,7 @@ def test_a_recording_guard_never_raises_inside_the_solver():
     seen = []
     with pytest.raises(KeyboardInterrupt):
         with solver_interrupts(stop_solver=False):
-            os.kill(os.getpid(), signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)  # to this thread: delivered before it returns
             for _ in range(1000):
                 pass
             seen.append(interrupt_pending())
