@@ -114,6 +114,25 @@ def test_predictions_by_newton_are_fatrops_on_recorded_trials(recorded_p4):
     assert answered >= len(trials) - 2
 
 
+def test_a_warm_newton_solve_is_fatrops_warm_solve_under_new_weights(recorded_p4):
+    """MO-IRL's line search re-solves the same reach under moved weights from the last solution: Newton from that
+    solution (``warm_newton``) finds fatrop's optimum (within 0.01°, cost within 1e-5) on recorded reaches."""
+    w = nominal_weights()
+    rng = np.random.default_rng(3)
+    answered = 0
+    for trial in recorded_p4[:4]:
+        task = observed_task(trial, 60, trial.onset_threshold)
+        before = solve_doc(task, w)
+        moved = w * np.exp(0.1 * rng.standard_normal(w.shape))  # a line-search try: log-weights moved by ~0.1
+        fast = solve_doc(task, moved, warm_start=before, newton=True)
+        slow = solve_doc(task, moved, warm_start=before)
+        assert fast.converged and slow.converged and slow.status.startswith("fatrop")
+        answered += fast.status.startswith("newton")
+        assert np.degrees(np.max(np.abs(fast.q - slow.q))) < 0.01
+        assert abs(fast.cost - slow.cost) <= 1e-5 * slow.cost
+    assert answered >= 3
+
+
 def test_newton_gives_way_when_it_cannot_vouch_for_its_answer():
     w = nominal_weights()
     task = _task((3.0, -2.0))

@@ -64,7 +64,8 @@ def solve_doc(
     ``guess`` (a joint path ``(N+1, 2)`` on the task's knots, e.g. the demonstrations' mean) replaces the
     minimum-jerk path of the cold start; with ``newton`` (the CasADi backend; predictions, whose ``guess`` is a
     similar reach moved to the task), that start is first solved by exact Newton on the knots
-    (:mod:`reachirl.doc.newton`), at the same optimum in a fraction of the time, with fatrop as its fallback.
+    (:mod:`reachirl.doc.newton`), at the same optimum in a fraction of the time, with fatrop as its fallback;
+    with ``newton`` and a ``warm_start`` of the same task, Newton starts from that solution instead.
     A solution that did not converge is returned with ``converged=False``, never raised.
 
     The problem is scale-free: ω and c·ω (any c > 0) have the same optimum. The backends solve it for

@@ -392,9 +392,10 @@ def solve(
 
     With ``newton`` (predictions), a cold start from ``guess`` (a similar reach moved to this task) is first
     solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), which either vouches for its answer or
-    gives way to fatrop from the same start. MO-IRL's own solves do not use it: its line searches compare
-    merits near their thresholds, and an answer that differs at the solvers' tolerance (1e-4° here) changes
-    which steps they accept (measured: ``make run``'s table moved by up to 0.27°).
+    gives way to fatrop from the same start; so is a warm start (MO-IRL's experimental ``warm_newton``). MO-IRL
+    does not use it by default: its line searches compare merits near their thresholds, and an answer that
+    differs at the solvers' tolerance (1e-4° here) changes which steps they accept (measured: ``make run``'s
+    table moved by up to 0.27°).
 
     ``iterations`` and ``solve_time`` count every attempt.
     """
@@ -411,14 +412,22 @@ def solve(
 
     kind = "fatrop_warm"
     same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
-    if same_task and len(warm["x"]) == nlp.n_z:
+    if same_task and len(warm["x"]) == nlp.n_z and newton:
+        # the same reach under new weights, by exact Newton from the previous solution (MO-IRL's
+        # ``warm_newton``); fatrop from the same point where Newton cannot vouch for its answer
+        t0 = time.perf_counter()
+        found = newton_solve(task, weights, _unpack_q(task, np.asarray(warm["x"])))
+        elapsed, attempts = time.perf_counter() - t0, 1
+        if found is not None:
+            q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
+    if q is None and same_task and len(warm["x"]) == nlp.n_z:
         # the same reach under new weights (MO-IRL's line search): reuse the primal point and the scale
         fscale = warm["fscale"]
         args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}
-        x, stats, elapsed = _run(nlp, kind, args)
-        iterations, attempts = int(stats.get("iter_count", 0)), 1
+        x, stats, t = _run(nlp, kind, args)
+        elapsed, iterations, attempts = elapsed + t, int(stats.get("iter_count", 0)), attempts + 1
         ok = _converged(stats, x)
-    if x is None and newton and guess is not None:
+    if q is None and x is None and newton and guess is not None:
         # a close start (a similar reach moved to this task): exact Newton first, which vouches for its answer
         # or gives way to the interior point from the same start
         start = np.array(guess, dtype=float)

@@ -104,7 +104,8 @@ def predict(
     without a threshold."""
     task = observed_task(trial, n_nodes, threshold)
     guess = None if path is None else moved_path(task, path)
-    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess, newton=True)
+    # Newton from the moved path; a warm start (the same task, other weights) keeps fatrop, as it always has
+    sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess, newton=warm_start is None)
     return sol, observed_solution(sol, task, threshold)
 
 

@@ -298,7 +298,7 @@ class MOIRL(WeightEstimator):
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
         Returns the solution and the number of solver runs behind it."""
         w = self._effective(w)
-        sol = solve_doc(task, w, backend=self.backend, warm_start=warm)
+        sol = solve_doc(task, w, backend=self.backend, warm_start=warm, newton=self._o.warm_newton)
         runs = sol.attempts
         if not sol.converged:
             sol = solve_doc(task, w, backend=self.backend, guess=guess)
