@@ -43,8 +43,8 @@ class Options:
     * ``frozen_windows``: windows whose weights stay at ``ω₀`` (occlusion).
     * ``warm_newton``: the line search's warm solves (the same reach under new weights) by exact Newton on the
       knots from the previous solution (:mod:`reachirl.doc.newton`), fatrop where Newton cannot vouch for its
-      answer; off by default (measured: about half the fits' CPU, held-out RMSE unchanged on average, but each
-      table moves by up to 0.3°, since the searches compare merits at the solvers' tolerance).
+      answer (the CasADi backend). Off by default: the searches compare merits at the solvers' tolerance, so
+      the fits, and every table, change (what was measured: ``docs/design-notes.md``).
     * Variants measured and kept off: ``smoothness`` (a number or ``"cv"``), ``cv_folds``, ``feature_cutoff``,
       ``memory``, ``use_gamma``, ``l1``, ``n_suffixes``, ``acceptance`` (``"merit"``, ``"either"``,
       ``"multimodal"``), ``armijo_c1``, ``curvature_c2``.
