@@ -19,7 +19,7 @@ from reachirl import MOIRL
 from reachirl.experiments import datasets
 from reachirl.experiments.analysis import true_weights
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
-from reachirl.irl.uncertainty import _errors, indistinguishable, residuals_and_jacobian
+from reachirl.irl.uncertainty import indistinguishable, residuals_and_jacobian, rollout_errors
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,11 +37,9 @@ def main(argv: list[str] | None = None) -> int:
     eta_fit, eta_true = np.log(est._w_fit), np.log(np.maximum(w_true, 1e-6 * w_true.max()))
     for t in np.linspace(0.0, 1.0, args.points):
         w = np.exp(eta_fit + t * (eta_true - eta_fit))
-        cand, _, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
+        e, _, _ = rollout_errors(est, w)
         row = {"t": round(float(t), 4), "fit_merit": float(errors_fit.mean())}
-        if all(c.converged for c in cand):
-            states = [est._state(i, task, c) for i, (task, c) in enumerate(zip(est.tasks_, cand, strict=True))]
-            e = _errors(est, states)
+        if e is not None:
             row |= {"merit": float(e.mean()), "indistinguishable": indistinguishable(e, errors_fit)}
         else:
             row |= {"solve": "failed"}

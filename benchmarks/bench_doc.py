@@ -58,7 +58,6 @@ class PlainDoc:
             qd_next = qd + dt * qdd
             g.append(X[2:, k + 1] - qd_next)
             g.append(X[:2, k + 1] - (q + dt * qd_next))
-            l1, l2 = a[0], a[1]
             jac = ca.jacobian(fingertip(a, q), q)
             wk = w[win[k] * N_FEATURES : (win[k] + 1) * N_FEATURES]
             rates = [
@@ -72,7 +71,6 @@ class PlainDoc:
             ]
             obj += dt * sum(wk[j] * rates[j] for j in range(N_FEATURES))
             g.append(ca.dot(qd, tau) - Sp[k] + Sm[k])
-            del l1, l2
         g.append(X[2:, n])
         g.append(fingertip(a, X[:2, n])[0] - task.target_x)
         self.n_eq = int(ca.vertcat(*g).numel())

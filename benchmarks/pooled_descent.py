@@ -22,7 +22,7 @@ from reachirl import MOIRL
 from reachirl.experiments import datasets
 from reachirl.experiments.analysis import reference_features, true_weights
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
-from reachirl.irl.uncertainty import _errors, _shares, residuals_and_jacobian
+from reachirl.irl.uncertainty import _shares, residuals_and_jacobian, rollout_errors
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -45,11 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         return float(np.mean(0.5 * np.abs(fit_shares() - true).sum(axis=1)))
 
     def merit_at(w):
-        cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
-        if not all(c.converged for c in cand):
-            return None, cand, runs
-        states = [est._state(i, task, c) for i, (task, c) in enumerate(zip(est.tasks_, cand, strict=True))]
-        return float(np.mean(_errors(est, states))), cand, runs
+        errors, cand, runs = rollout_errors(est, w)
+        return (None if errors is None else float(errors.mean())), cand, runs
 
     free = est._movable(est._w_fit.shape)
     cols = np.flatnonzero(free.reshape(-1))

@@ -411,8 +411,10 @@ def solve(
     fscale = 1.0
 
     kind = "fatrop_warm"
-    same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
-    if same_task and len(warm["x"]) == nlp.n_z and newton:
+    same_task = (
+        warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key and len(warm["x"]) == nlp.n_z
+    )
+    if same_task and newton:
         # the same reach under new weights, by exact Newton from the previous solution (MO-IRL's
         # ``warm_newton``); fatrop from the same point where Newton cannot vouch for its answer
         t0 = time.perf_counter()
@@ -420,7 +422,7 @@ def solve(
         elapsed, attempts = time.perf_counter() - t0, 1
         if found is not None:
             q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
-    if q is None and same_task and len(warm["x"]) == nlp.n_z:
+    if q is None and same_task:
         # the same reach under new weights (MO-IRL's line search): reuse the primal point and the scale
         fscale = warm["fscale"]
         args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}

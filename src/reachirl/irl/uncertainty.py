@@ -43,6 +43,8 @@ __all__ = [
     "indistinguishable",
     "laplace_posterior",
     "merit_noise",
+    "residuals_and_jacobian",
+    "rollout_errors",
     "share_intervals",
     "weight_uncertainty",
 ]
@@ -260,11 +262,10 @@ def weight_uncertainty(
     errors_fit = np.sum(r**2, axis=1)
     passed = solves = 0
     for w in samples[:n_check]:
-        cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
+        errors, _, runs = rollout_errors(est, w)
         solves += runs
-        if all(c.converged for c in cand):
-            states = [est._state(i, t, c) for i, (t, c) in enumerate(zip(est.tasks_, cand, strict=True))]
-            passed += indistinguishable(_errors(est, states), errors_fit)
+        if errors is not None:
+            passed += indistinguishable(errors, errors_fit)
     return {
         "method": METHOD,
         "n_samples": int(n_samples),
@@ -316,6 +317,17 @@ def _task_names(est, trials) -> dict[int, str]:
     for t, g in zip(trials, est.task_of_demo_, strict=True):
         names.setdefault(int(g), t.id if est.rollout == "per_demo" else f"{t.subject}/{t.posture}")
     return names
+
+
+def rollout_errors(est, w: np.ndarray) -> tuple[np.ndarray | None, list, int]:
+    """``est``'s training rollouts re-solved under the weights ``w (S, 7)`` (warm from the fit's): each
+    demonstration's error ``(D,)`` as the merit weighs it (None when a solve failed), the solutions, and the
+    solver runs spent."""
+    cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
+    if not all(c.converged for c in cand):
+        return None, cand, runs
+    states = [est._state(i, t, c) for i, (t, c) in enumerate(zip(est.tasks_, cand, strict=True))]
+    return _errors(est, states), cand, runs
 
 
 def _errors(est, states: list[np.ndarray]) -> np.ndarray:

@@ -46,7 +46,7 @@ from scipy.linalg import qr
 from scipy.optimize import nnls
 
 from ...data.trial import Trial
-from ...doc.symbolic import ARM_FIELDS, fingertip, inverse_dynamics, mass_matrix
+from ...doc.symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
 from ...features import N_FEATURES, window_index
 from ..base import WeightEstimator
 
@@ -73,12 +73,7 @@ def _kkt_function(n: int, n_windows: int) -> ca.Function:
     for k in range(n):
         qdd = (qd[k + 1] - qd[k]) / dt
         tau = inverse_dynamics(arm_l, qs[k], qd[k], qdd)
-        l1, l2 = arm_l[0], arm_l[1]
-        q1, q12 = qs[k][0], qs[k][0] + qs[k][1]
-        jac = ca.vertcat(
-            ca.horzcat(-l1 * ca.sin(q1) - l2 * ca.sin(q12), -l2 * ca.sin(q12)),
-            ca.horzcat(l1 * ca.cos(q1) + l2 * ca.cos(q12), l2 * ca.cos(q12)),
-        )
+        jac = fingertip_jacobian(arm_l, qs[k])
         e = ca.dot(qd[k], tau)
         if k > 0:
             power.append(e)
