@@ -11,7 +11,9 @@ shared, so prefer these and ``ratios_cpu``) and wall time, iteration counts, the
 135-problem sweep, and the ratios. These run on CasADi's virtual machine (``REACHIRL_COMPILE=off``), whatever
 the cache holds; ``compiled`` times the same cold and warm solves with the compiled solvers of
 :mod:`reachirl.doc.compiled` (compiling them first if they are not cached, and saying how long that took) and
-checks that their solutions are bit-identical.
+checks that their solutions are bit-identical. There too, the warm solves once more by exact Newton from the
+previous solution (:mod:`reachirl.doc.newton`, MO-IRL's experimental ``warm_newton``): its CPU time, how often it
+answered, its largest difference from fatrop's warm answer, and both warm solves against the plain warm solve.
 """
 
 from __future__ import annotations
@@ -131,23 +133,34 @@ def compiled_figures(problems, reference, reference_warm) -> dict:
         t0 = time.perf_counter()
         solve_doc(problems[0][0], problems[0][2], warm_start=cold)  # and the warm one
         compile_warm_s = time.perf_counter() - t0
-        cpu, cpu_warm, identical = [], [], 0
+        solve_doc(problems[0][0], problems[0][2], warm_start=cold, newton=True)  # Newton's stage map, compiled
+        cpu, cpu_warm, cpu_newton, identical, answered, newton_diff = [], [], [], 0, 0, []
         for (task, w, w2), ref, ref_warm in zip(problems, reference, reference_warm, strict=True):
             c0 = time.process_time()
             sol = solve_doc(task, w)
             c1 = time.process_time()
             warm = solve_doc(task, w2, warm_start=sol)
             c2 = time.process_time()
+            newton = solve_doc(task, w2, warm_start=sol, newton=True)  # MO-IRL's experimental warm_newton
+            c3 = time.process_time()
             cpu.append(c1 - c0)
             cpu_warm.append(c2 - c1)
+            cpu_newton.append(c3 - c2)
             identical += bool(np.array_equal(sol.q, ref.q) and sol.cost == ref.cost)
             identical += bool(np.array_equal(warm.q, ref_warm.q) and warm.cost == ref_warm.cost)
+            answered += newton.status.startswith("newton")
+            newton_diff.append(float(np.rad2deg(np.max(np.abs(newton.q - warm.q)))))
     return {
         "cold_cpu_median_s": float(np.median(cpu)),
         "warm_cpu_median_s": float(np.median(cpu_warm)),
         "first_solve_s": compile_s,
         "first_warm_solve_s": compile_warm_s,
         "bit_identical": f"{identical}/{2 * len(problems)}",
+        "warm_newton": {  # the same warm solves by exact Newton (fatrop where Newton cannot vouch for its answer)
+            "cpu_median_s": float(np.median(cpu_newton)),
+            "newton_answered": f"{answered}/{len(problems)}",
+            "max_diff_from_fatrop_warm_deg": max(newton_diff),
+        },
     }
 
 
@@ -244,6 +257,11 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
     out["compiled"] = compiled_figures(problems, colds, warms)
     out["compiled"]["cold_cpu_vs_vm"] = out["compiled"]["cold_cpu_median_s"] / r["cold_cpu_median_s"]
     out["compiled"]["warm_cpu_vs_vm"] = out["compiled"]["warm_cpu_median_s"] / r["warm_cpu_median_s"]
+    # the solves reachirl runs (compiled) against the plain reference's warm solve: fatrop's warm solve (the fits'
+    # default) and exact Newton's (the experimental ``warm_newton``; the predictions' solver)
+    c, plain_warm = out["compiled"], b["warm_cpu_median_s"]
+    c["warm_cpu_vs_plain_warm"] = c["warm_cpu_median_s"] / plain_warm
+    c["warm_newton"]["cpu_vs_plain_warm"] = c["warm_newton"]["cpu_median_s"] / plain_warm
     if sweep:
         out["convergence_sweep"] = convergence_sweep(arm, seed)
     return out

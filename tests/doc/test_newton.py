@@ -175,3 +175,69 @@ def test_a_saddle_is_refused():
     flipped = out.copy().reshape(newton._ROWS, N, order="F")
     flipped[8:72] *= -1
     assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip, curv)
+
+
+def _stage_outputs(task, w, found, kink):
+    """The stage function's output at Newton's answer (each knot's power on its side, zero at the kinks)."""
+    arm, dt = newton._params(task)
+    _, _, tau = euler_knots(task.arm, found.q, dt)
+    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
+    ws = np.vstack([w[newton.window_index(N, w.shape[0])].T, np.where(kink, 0.0, np.sign(e))])
+    x = newton._stage_knots(task.q0, found.q[1:N])
+    return np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, found.fscale))
+
+
+def _dense(out, kinks):
+    """The knots' Hessian ``(m, m)`` and the kinks' constraint gradients ``(len(kinks), m)``, assembled densely
+    from each stage's local derivatives (stage k's knots q_{k−2} … q_{k+1}; the start fixed, q_N = q_{N−1})."""
+    m = 2 * (N - 1)
+    hess, grads = np.zeros((m, m)), np.zeros((len(kinks), m))
+    for k in range(N):
+        idx = [2 * (min(knot, N - 1) - 1) + c for knot in (k - 2, k - 1, k, k + 1) for c in (0, 1)]
+        keep = [i for i, j in enumerate(idx) if j >= 0]
+        sub = np.array(idx)[keep]
+        h = out[8:72, k].reshape(8, 8, order="F")
+        np.add.at(hess, (sub[:, None], sub[None, :]), h[np.ix_(keep, keep)])
+        for row, kk in enumerate(kinks):
+            if kk == k:
+                np.add.at(grads[row], sub, out[73:81, k][keep])
+    return hess, grads
+
+
+def test_the_kinks_restrict_the_second_order_test_to_their_null_space():
+    """At an answer with kinks (a large energy weight), a stage Hessian made indefinite along one kink's gradient
+    is still a minimum, since the kink's constraint forbids that direction: ``_is_minimum`` agrees with the
+    dense null-space eigenvalues, with and without the kinks, so each kink's gradient lands on its own knots."""
+    from scipy.linalg import null_space
+
+    w = nominal_weights().copy()
+    w[:, 1] *= 100
+    task = _task((3.0, -2.0))
+    found = newton.newton_solve(task, w, moved_path(task, solve_doc(_task(), w).q))
+    assert found is not None and found.n_kinks > 0
+    arm, dt = newton._params(task)
+    _, _, tau = euler_knots(task.arm, found.q, dt)
+    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
+    kink = np.abs(e) < 1e-7
+    kink[0] = False
+    assert kink.sum() == found.n_kinks
+    out = _stage_outputs(task, w, found, kink)
+    k = int(np.flatnonzero(kink)[len(np.flatnonzero(kink)) // 2])
+    v = out[73:81, k]
+    hess, _ = _dense(out, [])
+    out[8:72, k] -= (20 * np.max(np.abs(hess)) / (v @ v) * np.outer(v, v)).ravel(order="F")
+    hess, grads = _dense(out, list(np.flatnonzero(kink)))
+    jtip = np.asarray(ARM.jacobian(found.q[-1])[0])
+    curv = found.bar_multiplier * newton._fingertip_hessian(task, found.q[-1])
+    hess[-2:, -2:] += curv
+    bar = np.zeros((1, hess.shape[0]))
+    bar[0, -2:] = jtip
+    z = null_space(np.vstack([grads, bar]))
+    assert np.min(np.linalg.eigvalsh(hess)) < 0  # indefinite ...
+    assert np.min(np.linalg.eigvalsh(z.T @ hess @ z)) > 0  # ... but not where the constraints allow a move
+    de = out[73:81]
+    flat = out.ravel(order="F")
+    assert newton._is_minimum(flat, de, N, kink, jtip, curv)
+    z_bar = null_space(bar)
+    assert np.min(np.linalg.eigvalsh(z_bar.T @ hess @ z_bar)) < 0
+    assert not newton._is_minimum(flat, de, N, np.zeros(N, dtype=bool), jtip, curv)

@@ -149,6 +149,11 @@ class _Layout(NamedTuple):
     band_op: sparse.csr_matrix  # the stage function's output (82, n) (column-major) → the Hessian's band
     lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
     q_rows: np.ndarray  # the knots' unknowns
+    gather: np.ndarray  # (8 n,): stage k's knot values, column-major (8, n), from the flat path q_{−2} … q_N
+    kink_pos: np.ndarray  # (n, 16): where ∂e_k/∂(stage k's knots) goes in the band, as λ_k's column, then row
+    lam_diag: np.ndarray  # (N−1,): the band's diagonal entries of λ_1 … λ_{N−1}
+    bar_pos: np.ndarray  # (4,): q_{N−1}'s two entries in μ's column, then in μ's row
+    curv_pos: np.ndarray  # (4,): q_{N−1}'s 2 × 2 block, row by row
 
 
 @functools.lru_cache(maxsize=8)
@@ -164,6 +169,16 @@ def _scatter(n: int) -> _Layout:
         shape=((2 * _BW + 1) * size, _ROWS * n),
     )
     lam_rows = 3 * np.arange(n - 1) + 2
+    # stage k's knots are q_{k−2} … q_{k+1}: entries 2(k + j) + c of the flat path q_{−2}, q_{−1}, q_0 … q_N
+    stage, j, c = np.meshgrid(np.arange(n), np.arange(4), np.arange(2), indexing="ij")
+    outside = (2 * _BW + 1) * size  # one past the band: where the entries on the fixed start knots go
+    jl = np.broadcast_to((3 * (np.arange(n) - 1) + 2)[:, None], var.shape)  # λ_k's unknown (stage 0 has none)
+    valid = (var >= 0) & (jl >= 0)
+    kink_pos = np.hstack(
+        [np.where(valid, _band_index(var, jl, size), outside), np.where(valid, _band_index(jl, var, size), outside)]
+    )
+    last = np.array([size - 4, size - 3])  # q_{N−1}'s unknowns (then λ_{N−1}); μ is the last one
+    mu = np.full(2, size - 1)
     return _Layout(
         size=size,
         var=var,
@@ -171,6 +186,11 @@ def _scatter(n: int) -> _Layout:
         band_op=band_op,
         lam_rows=lam_rows,
         q_rows=np.setdiff1d(np.arange(size - 1), lam_rows),
+        gather=(2 * (stage + j) + c).reshape(-1),
+        kink_pos=kink_pos,
+        lam_diag=_band_index(lam_rows, lam_rows, size),
+        bar_pos=np.r_[_band_index(last, mu, size), _band_index(mu, last, size)],
+        curv_pos=_band_index(last[[0, 0, 1, 1]], last[[0, 1, 0, 1]], size),
     )
 
 
@@ -179,11 +199,20 @@ def _params(task: ReachingTask) -> tuple[np.ndarray, float]:
     return np.array([getattr(a, f) for f in ARM_FIELDS], dtype=float), float(task.dt)
 
 
+def _path(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The flat path ``q_{−2}, q_{−1}, q_0, q_1 … q_{N−1}, q_N = q_{N−1}`` (at rest at both ends) from the inner
+    knots ``q (N−1, 2)``."""
+    full = np.empty((q.shape[0] + 4, 2))
+    full[:3] = q0
+    full[3:-1] = q
+    full[-1] = q[-1]
+    return full.reshape(-1)
+
+
 def _stage_knots(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
     """``(8, n)``: each stage's knots ``(q_{k−2}, q_{k−1}, q_k, q_{k+1})`` from the inner knots ``q (N−1, 2)``."""
-    full = np.vstack([q0, q0, q0, q, q[-1:]])  # q_{−2}, q_{−1}, q_0, q_1 … q_{N−1}, q_N = q_{N−1}
     n = q.shape[0] + 1
-    return np.hstack([full[k : k + n] for k in range(4)]).T
+    return _path(q0, q)[_scatter(n).gather].reshape(8, n, order="F")
 
 
 def newton_solve(
@@ -199,7 +228,7 @@ def newton_solve(
     relative to an objective of order one), by default ``1 / cost`` of the start, as the CasADi backend's."""
     n = task.n_nodes
     lay = _scatter(n)
-    size, var = lay.size, lay.var
+    size = lay.size
     arm, dt = _params(task)
     w_knot = np.asarray(weights, dtype=float)[window_index(n, weights.shape[0])]  # (n, 7)
     scale_known = fscale is not None
@@ -224,12 +253,11 @@ def newton_solve(
     ws_view = ws_in.reshape(8, n, order="F")
     ws_view[:N_FEATURES] = w_knot.T
     res = out.reshape(_ROWS, n, order="F")
-    x_view = x_in.reshape(8, n, order="F")
     # the banded KKT matrix in LAPACK's storage, column-major as LAPACK reads it (``_BW`` more rows: fill-in)
     lu = np.empty((3 * _BW + 1, size), order="F")
 
     for it in range(max_iter + 1):
-        x_view[:] = _stage_knots(q0, q)
+        np.take(_path(q0, q), lay.gather, out=x_in)
         ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
         lam_in[:] = lam
         trigger()
@@ -278,24 +306,18 @@ def newton_solve(
         if it == max_iter:
             return None
         # the banded KKT matrix, in LAPACK's storage for a banded LU (``_BW`` more rows for the fill-in)
-        lu[:_BW] = 0.0
-        lu[_BW:] = (lay.band_op @ out).reshape(2 * _BW + 1, size, order="F")
-        ab = lu[_BW:]
+        band = lay.band_op @ out
         ks = np.flatnonzero(kink)
         if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
-            m = var[ks] >= 0
-            cols = var[ks][m]
-            jl = np.broadcast_to((3 * (ks - 1) + 2)[:, None], m.shape)[m]
-            vals = de.T[ks][m]
-            np.add.at(ab, (_BW + cols - jl, jl), vals)
-            np.add.at(ab, (_BW + jl - cols, cols), vals)
-        ab[_BW, lay.lam_rows[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
-        ab[_BW + last - (size - 1), size - 1] = jtip
-        ab[_BW + (size - 1) - last, last] = jtip
-        hp = mu * _fingertip_hessian(task, q[-1])
-        ab[_BW, last] += np.diag(hp)
-        ab[_BW - 1, last[1]] += hp[0, 1]
-        ab[_BW + 1, last[0]] += hp[1, 0]
+            vals = de[:, ks].T
+            band += np.bincount(
+                lay.kink_pos[ks].reshape(-1), weights=np.hstack([vals, vals]).reshape(-1), minlength=band.size + 1
+            )[:-1]
+        band[lay.lam_diag[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
+        band[lay.bar_pos] = np.concatenate((jtip, jtip))
+        band[lay.curv_pos] += mu * _fingertip_hessian(task, q[-1]).reshape(-1)
+        lu[:_BW] = 0.0
+        lu[_BW:] = band.reshape(2 * _BW + 1, size, order="F")
         _, _, step, info = _gbsv(_BW, _BW, lu, -r, overwrite_ab=True, overwrite_b=True)
         if info != 0 or not np.all(np.isfinite(step)):
             return None
@@ -344,20 +366,20 @@ def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
     ``q_{N−1}``) is positive definite on the null space of the constraints (the bar, the kinks): a banded
     Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit gradient) with ``ρ`` a thousand
     times the largest diagonal entry of ``H``."""
-    op, qvar, m = _q_scatter(n)
-    ab = (op @ out).reshape(_QBW + 1, m)
+    op, pos, m = _q_scatter(n)
+    ab = (op @ out).reshape(_QBW + 1, m)  # the upper band, row _QBW the diagonal
     ab[_QBW, m - 2 :] += np.diag(curv)
     ab[_QBW - 1, m - 1] += curv[0, 1]
     rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
-    # every constraint's gradient over its stage's knots: the kinks', then the bar's (on q_{N−1})
-    idx = np.vstack([qvar[kink], np.r_[m - 2, m - 1, np.full(6, -1)]])
-    vals = np.vstack([de[:, kink].T, np.r_[jtip, np.zeros(6)]])
-    vals = vals / np.maximum(np.linalg.norm(vals, axis=1), 1e-300)[:, None]
-    r, c = idx[:, :, None], idx[:, None, :]
-    both = (r >= 0) & (c >= 0) & (r <= c)
-    rr, cc = np.broadcast_to(r, both.shape)[both], np.broadcast_to(c, both.shape)[both]
-    outer = (vals[:, :, None] * vals[:, None, :])[both]
-    ab += rho * np.bincount((_QBW + rr - cc) * m + cc, weights=outer, minlength=ab.size).reshape(ab.shape)
+    u = jtip / max(float(np.linalg.norm(jtip)), 1e-300)  # the bar's unit gradient, on q_{N−1}
+    ab[_QBW, m - 2 :] += rho * u**2
+    ab[_QBW - 1, m - 1] += rho * u[0] * u[1]
+    ks = np.flatnonzero(kink)
+    if ks.size:  # each kink's unit gradient over its stage's knots, its outer product added to the band
+        v = de[:, ks].T
+        v = v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
+        outer = (v[:, :, None] * v[:, None, :]).reshape(-1)
+        ab += rho * np.bincount(pos[ks].reshape(-1), weights=outer, minlength=ab.size + 1)[:-1].reshape(ab.shape)
     try:
         linalg.cholesky_banded(ab, lower=False, check_finite=False)
     except linalg.LinAlgError:
@@ -367,13 +389,17 @@ def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
 
 @functools.lru_cache(maxsize=8)
 def _q_scatter(n: int):
-    """The stage function's output (82, n) → the upper band ``(_QBW + 1, m)`` of the knots-only Hessian."""
+    """The stage function's output (82, n) → the upper band ``(_QBW + 1, m)`` of the knots-only Hessian (``m``
+    knot unknowns), and each stage's 8 × 8 local entries' flat positions in that band, ``(n, 64)`` (``ab.size``
+    where an entry is below the diagonal or on a fixed start knot)."""
     var, _ = _layout(n)
     qvar = np.where(var >= 0, var - var // 3, -1)  # unknown → index among the knots' unknowns
     r = np.repeat(qvar[:, :, None], 8, axis=2)
     c = np.repeat(qvar[:, None, :], 8, axis=1)
-    kk, ii, jj = np.nonzero((r >= 0) & (c >= 0) & (r <= c))
+    upper = (r >= 0) & (c >= 0) & (r <= c)
+    kk, ii, jj = np.nonzero(upper)
     m = 2 * (n - 1)
     rows = (_QBW + r[kk, ii, jj] - c[kk, ii, jj]) * m + c[kk, ii, jj]
     op = sparse.csr_matrix((np.ones(kk.size), (rows, 8 + ii + 8 * jj + _ROWS * kk)), shape=((_QBW + 1) * m, _ROWS * n))
-    return op, qvar, m
+    pos = np.where(upper, (_QBW + r - c) * m + c, (_QBW + 1) * m).reshape(n, 64)
+    return op, pos, m
