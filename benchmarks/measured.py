@@ -87,6 +87,21 @@ def bench_numbers(bench: dict) -> dict:
                 else None
             ),
             "compiled_bit_identical": doc["compiled"]["bit_identical"] if doc.get("compiled") else None,
+            "compiled_warm_vs_plain_warm": (
+                round(doc["compiled"]["warm_cpu_vs_plain_warm"], 2)
+                if doc.get("compiled", {}).get("warm_cpu_vs_plain_warm")
+                else None
+            ),
+            "newton_warm": (
+                {
+                    "cpu_ms": round(1e3 * doc["compiled"]["warm_newton"]["cpu_median_s"], 1),
+                    "vs_plain_warm": round(doc["compiled"]["warm_newton"]["cpu_vs_plain_warm"], 2),
+                    "answered": doc["compiled"]["warm_newton"]["newton_answered"],
+                    "max_diff_deg": float(f"{doc['compiled']['warm_newton']['max_diff_from_fatrop_warm_deg']:.2g}"),
+                }
+                if doc.get("compiled", {}).get("warm_newton")
+                else None
+            ),
             "sweep_converged": (
                 f"{doc['convergence_sweep']['converged']}/{doc['convergence_sweep']['n_problems']}"
                 if doc.get("convergence_sweep")
@@ -180,11 +195,25 @@ def render(snap: dict) -> str:
         ]
         if d.get("compiled_cold_cpu_ms") is not None:
             warm = f", {d['compiled_warm_cpu_ms']} ms warm" if d.get("compiled_warm_cpu_ms") is not None else ""
+            ratio = (
+                f" (warm / plain warm {d['compiled_warm_vs_plain_warm']:.2f})"
+                if d.get("compiled_warm_vs_plain_warm") is not None
+                else ""
+            )
             lines += [
-                f"  The compiled solvers (`reachirl.doc.compiled`): {d['compiled_cold_cpu_ms']} ms cold{warm}, "
+                f"  The compiled solvers (`reachirl.doc.compiled`): {d['compiled_cold_cpu_ms']} ms cold{warm}{ratio}, "
                 f"solutions bit-identical on {d['compiled_bit_identical']} solves.",
                 "",
             ]
+            nw = d.get("newton_warm")
+            if nw:
+                lines += [
+                    f"  The same warm solves by exact Newton from the previous solution (MO-IRL's experimental "
+                    f"`warm_newton`, off by default): {nw['cpu_ms']} ms (warm / plain warm {nw['vs_plain_warm']:.2f}); "
+                    f"Newton answered {nw['answered']}, fatrop the rest; at most {nw['max_diff_deg']}° from "
+                    "fatrop's warm answer.",
+                    "",
+                ]
     pr = (snap.get("bench") or {}).get("predict")
     if pr:
         lines += [
