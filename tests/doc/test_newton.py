@@ -23,6 +23,12 @@ def _task(dq_deg=(0.0, 0.0), reach=0.95, duration=0.8, **kw) -> ReachingTask:
     return ReachingTask(ARM, posture_q("P2") + np.deg2rad(dq_deg), reach * ARM.length, duration, n_nodes=N, **kw)
 
 
+def _powers(task, q):
+    """Each stage's joint power ``q̇_kᵀτ_k`` on the knots ``q (N+1, 2)`` (stage 0's is zero: at rest)."""
+    _, qd, tau = euler_knots(task.arm, q, task.dt)
+    return np.r_[0.0, np.sum(qd[1:-1] * tau[1:], axis=1)]
+
+
 def _knot_gradient(task, weights, q, fscale):
     """The stages' gradient in the inner knots, with each knot's power on its own side (no kink)."""
     n = task.n_nodes
@@ -30,9 +36,7 @@ def _knot_gradient(task, weights, q, fscale):
     arm, dt = newton._params(task)
     w_knot = weights[newton.window_index(n, weights.shape[0])]
     x = newton._stage_knots(task.q0, q[1:n])
-    _, _, tau = euler_knots(task.arm, q, dt)
-    qd = np.diff(q, axis=0) / dt
-    sigma = np.sign(np.r_[0.0, np.sum(qd[:-1] * tau[1:], axis=1)])
+    sigma = np.sign(_powers(task, q))
     ws = np.vstack([w_knot.T, sigma])
     out = np.asarray(newton._stage_map(n)(x, ws, np.zeros((1, n)), arm, dt, fscale))
     return lay.grad_op @ out[:8].ravel(order="F"), lay
@@ -162,8 +166,7 @@ def test_a_saddle_is_refused():
     assert found is not None
     arm, dt = newton._params(task)
     x = newton._stage_knots(task.q0, found.q[1:N])
-    _, _, tau = euler_knots(task.arm, found.q, dt)
-    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
+    e = _powers(task, found.q)
     ws = np.vstack([w[newton.window_index(N, 8)].T, np.sign(e)])
     out = np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, found.fscale)).ravel(order="F")
     de = out.reshape(newton._ROWS, N, order="F")[73:81]
@@ -177,11 +180,9 @@ def test_a_saddle_is_refused():
     assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip, curv)
 
 
-def _stage_outputs(task, w, found, kink):
-    """The stage function's output at Newton's answer (each knot's power on its side, zero at the kinks)."""
+def _stage_outputs(task, w, found, kink, e):
+    """The stage function's output at Newton's answer (each knot's power ``e`` on its side, zero at the kinks)."""
     arm, dt = newton._params(task)
-    _, _, tau = euler_knots(task.arm, found.q, dt)
-    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
     ws = np.vstack([w[newton.window_index(N, w.shape[0])].T, np.where(kink, 0.0, np.sign(e))])
     x = newton._stage_knots(task.q0, found.q[1:N])
     return np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, found.fscale))
@@ -215,13 +216,11 @@ def test_the_kinks_restrict_the_second_order_test_to_their_null_space():
     task = _task((3.0, -2.0))
     found = newton.newton_solve(task, w, moved_path(task, solve_doc(_task(), w).q))
     assert found is not None and found.n_kinks > 0
-    arm, dt = newton._params(task)
-    _, _, tau = euler_knots(task.arm, found.q, dt)
-    e = np.r_[0.0, np.sum(np.diff(found.q, axis=0)[:-1] / dt * tau[1:], axis=1)]
+    e = _powers(task, found.q)
     kink = np.abs(e) < 1e-7
     kink[0] = False
     assert kink.sum() == found.n_kinks
-    out = _stage_outputs(task, w, found, kink)
+    out = _stage_outputs(task, w, found, kink, e)
     k = int(np.flatnonzero(kink)[len(np.flatnonzero(kink)) // 2])
     v = out[73:81, k]
     hess, _ = _dense(out, [])

@@ -394,8 +394,7 @@ def solve(
     solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), which either vouches for its answer or
     gives way to fatrop from the same start; so is a warm start (MO-IRL's experimental ``warm_newton``). MO-IRL
     does not use it by default: its line searches compare merits near their thresholds, and an answer that
-    differs at the solvers' tolerance (1e-4° here) changes which steps they accept (measured: ``make run``'s
-    table moved by up to 0.27°).
+    differs at the solvers' tolerance changes which steps they accept (``docs/design-notes.md``).
 
     ``iterations`` and ``solve_time`` count every attempt.
     """

@@ -144,7 +144,7 @@ class _Layout(NamedTuple):
     """Precomputed indices of the banded KKT system of ``n`` stages (:func:`_scatter`)."""
 
     size: int  # unknowns
-    var: np.ndarray  # (n, 8): each stage-local knot variable's unknown, −1 for the fixed start
+    last: np.ndarray  # (2,): q_{N−1}'s unknowns (the bar's knot); μ is the last unknown
     grad_op: sparse.csr_matrix  # the stages' gradients (8, n) (column-major) → the residual's rows
     band_op: sparse.csr_matrix  # the stage function's output (82, n) (column-major) → the Hessian's band
     lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
@@ -181,7 +181,7 @@ def _scatter(n: int) -> _Layout:
     mu = np.full(2, size - 1)
     return _Layout(
         size=size,
-        var=var,
+        last=last,
         grad_op=grad_op,
         band_op=band_op,
         lam_rows=lam_rows,
@@ -239,7 +239,7 @@ def newton_solve(
     lam, mu = np.zeros(n), 0.0
     kink = np.zeros(n, dtype=bool)
     sigma = np.zeros(n)
-    last = size - 3 + np.arange(2) - 1  # q_{N−1}'s unknowns; μ is the last one
+    last = lay.last
     dq = None
 
     # the mapped stages evaluated in place, through CasADi's buffers (no conversion per call)

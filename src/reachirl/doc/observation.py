@@ -104,7 +104,7 @@ def predict(
     without a threshold."""
     task = observed_task(trial, n_nodes, threshold)
     guess = None if path is None else moved_path(task, path)
-    # Newton from the moved path; a warm start (the same task, other weights) keeps fatrop, as it always has
+    # Newton from the moved path; a warm start (the same task under other weights) is fatrop's
     sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess, newton=warm_start is None)
     return sol, observed_solution(sol, task, threshold)
 

@@ -291,7 +291,7 @@ def claim_verdict(share_samples: np.ndarray) -> dict:
     ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
     the fraction of samples where it holds. Onset and end are the first and last windows, mid-reach the others' mean.
     :func:`weight_uncertainty` applies it to the posterior's interval draws (thousands), not to the few weight
-    samples: with 40, a claim that holds in 7 % of the posterior fails in all of them 5 % of the time."""
+    samples."""
     sh = np.asarray(share_samples, dtype=float)
     if sh.ndim != 3 or sh.shape[1] < 3:
         return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
