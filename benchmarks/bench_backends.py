@@ -9,7 +9,8 @@ the same changed problems solved cold (``cold2``, to tell what the warm start sa
 (``time.process_time`` around ``solve_doc``, so on a loaded 2-core machine they are steadier than the wall-clock
 ``solve_time``; medians over the problems of the median over repeats), the agreement of the two backends (q
 RMSE in degrees, relative cost difference under ``features.trajectory_cost``), and where the Crocoddyl
-backend's time goes (:func:`_profile_crocoddyl`).
+backend's time goes (:func:`_profile_crocoddyl`, one cold solve; :func:`_warm_breakdown`, every warm solve, with
+the ratio the warm solves would have if the knot models cost nothing).
 
 ``learned_weights``: the same comparison on the weights real fits produce (:func:`learned_sweep`, from
 ``benchmarks/learned_weights.json``, made by ``benchmarks/learned_weights.py``): both convergence rates,
@@ -19,6 +20,7 @@ default; ``learned_stride=1`` for all of them).
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import numpy as np
@@ -127,20 +129,9 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     sol = solve_doc(task, w, backend="crocoddyl")
     iters = sol.iterations
     qp_iters = int(sol.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in sol.status else 0
-    # the same solve again (deterministic), counting the rollouts: one per SQP iteration and one per line-search
-    # try (the terminal knot's calc runs once per rollout)
-    rollouts = [0]
-    calc = cb.KnotModel.calc
-
-    def counting_calc(self, data, x, u=None):
-        rollouts[0] += self.terminal
-        return calc(self, data, x, u)
-
-    cb.KnotModel.calc = counting_calc
-    try:
+    # the same solve again (deterministic), counting the rollouts
+    with _counting_rollouts() as rollouts:
         again = solve_doc(task, w, backend="crocoddyl")
-    finally:
-        cb.KnotModel.calc = calc
     assert again.iterations == iters
     xs, us = cb.solver._to_shooting(task, sol.q, sol.qd, sol.tau)
     # the ADMM iterations are timed with the bounds the solve had (the running ones screened out, by default)
@@ -181,6 +172,68 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
         }
     )
     return out
+
+
+@contextlib.contextmanager
+def _counting_rollouts():
+    """Count the Crocoddyl solves' rollouts meanwhile (one per SQP iteration and one per line-search try: the
+    terminal knot's calc runs once per rollout); yields a one-element list holding the count."""
+    from reachirl.doc import crocoddyl as cb
+
+    count = [0]
+    calc = cb.KnotModel.calc
+
+    def counting_calc(self, data, x, u=None):
+        count[0] += self.terminal
+        return calc(self, data, x, u)
+
+    cb.KnotModel.calc = counting_calc
+    try:
+        yield count
+    finally:
+        cb.KnotModel.calc = calc
+
+
+def _warm_one(task, w, w2) -> tuple[float, int, int, int, float]:
+    """One warm solve (cold at ``w``, then warm at ``w2``): its CPU time, SQP iterations, rollouts, ADMM
+    iterations and knot models' time (s)."""
+    from reachirl.doc import crocoddyl as cb
+
+    cold = solve_doc(task, w, backend="crocoddyl")
+    with _counting_rollouts() as rollouts:
+        c0 = time.process_time()
+        warm = solve_doc(task, w2, backend="crocoddyl", warm_start=cold)
+        cpu = time.process_time() - c0
+    qp_iters = int(warm.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in warm.status else 0
+    prob = cb.build_problem(task.arm, task.n_nodes, w2.shape[0])
+    prob.update(task, w2 * cb.weight_scale(task, w2)[0])
+    xs, us = cb.solver._to_shooting(task, warm.q, warm.qd, warm.tau)
+    knots = rollouts[0] * _time(lambda: prob.problem.calc(xs, us), 20) + warm.iterations * _time(
+        lambda: prob.problem.calcDiff(xs, us), 20
+    )
+    return cpu, warm.iterations, rollouts[0], qp_iters, min(knots, cpu)
+
+
+def _warm_breakdown(probs, casadi_warm_cpu_median_s: float) -> dict:
+    """Where Crocoddyl's warm solves' time goes, and what faster knot models could give at most.
+
+    Each problem's warm solve (from the cold solution at ``w`` to ``w2``, as in :func:`_run`) is repeated with its
+    rollouts counted; its knot models' time is the rollouts × one ``problem.calc`` plus the SQP iterations × one
+    ``problem.calcDiff`` at its solution (the C++ shooting problem around the Python knots included). Figures
+    (medians over the problems): the warm solve's CPU time, SQP iterations, rollouts and ADMM iterations, the
+    knots' share of the time, and ``without_knots_vs_casadi_warm``: the warm solve's time less its knots' time
+    against CasADi's warm median, a bound no knot model (Python, vectorised or C++) can beat.
+    """
+    rows = [_warm_one(task, w, w2) for task, w, w2 in probs]
+    cpu, iters, rolls, qps, knots = (np.array(c, dtype=float) for c in zip(*rows, strict=True))
+    return {
+        "warm_cpu_median_ms": 1e3 * _median(cpu),
+        "sqp_iterations_median": _median(iters),
+        "rollouts_median": _median(rolls),
+        "admm_iterations_median": _median(qps),
+        "knots_share_of_time": float(knots.sum() / cpu.sum()),
+        "without_knots_vs_casadi_warm": _median(cpu - knots) / casadi_warm_cpu_median_s,
+    }
 
 
 def learned_sweep(stride: int = 1, path=None) -> dict:
@@ -341,6 +394,7 @@ def _run(n_repeats: int, seed: int, windows, learned_stride: int) -> dict:
         summary["crocoddyl"]["cold_cpu_median_s"] / summary["casadi"]["cold_cpu_median_s"]
     )
     summary["crocoddyl_profile"] = _profile_crocoddyl(probs[0][0], probs[0][1])
+    summary["crocoddyl_warm"] = _warm_breakdown(probs, summary["casadi"]["warm_cpu_median_s"])
     summary["problems"] = rows
     summary["learned_weights"] = learned_sweep(learned_stride)
     summary["setup"] = {

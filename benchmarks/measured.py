@@ -133,6 +133,14 @@ def bench_numbers(bench: dict) -> dict:
             "agreement_q_deg_max": round(bk["agreement"]["q_rmse_deg_max"], 3),
             "agreement_cost_pct_max": float(f"{bk['agreement']['cost_diff_pct_max_abs']:.2g}"),  # 2 significant
         }
+        cw = bk.get("crocoddyl_warm")
+        if cw:
+            out["backends"]["warm"] = {
+                "sqp_iterations_median": cw["sqp_iterations_median"],
+                "rollouts_median": cw["rollouts_median"],
+                "knots_share_of_time": round(cw["knots_share_of_time"], 2),
+                "without_knots_vs_casadi_warm": round(cw["without_knots_vs_casadi_warm"], 1),
+            }
     return out
 
 
@@ -233,7 +241,15 @@ def render(snap: dict) -> str:
             f"- **Crocoddyl/CSQP** against CasADi (`make bench`, same run): {b['crocoddyl_vs_casadi_cold_cpu']}× "
             f"the cold CPU time, {b['crocoddyl_vs_casadi_warm_cpu']}× the warm; converged "
             f"{b['crocoddyl_converged']}; agreement within {b['agreement_q_deg_max']}° RMSE of q and "
-            f"{b['agreement_cost_pct_max']} % of the cost.",
+            f"{b['agreement_cost_pct_max']} % of the cost."
+            + (
+                f" Its warm solves take {b['warm']['sqp_iterations_median']:g} SQP iterations and "
+                f"{b['warm']['rollouts_median']:g} rollouts (medians); the knot models are "
+                f"{100 * b['warm']['knots_share_of_time']:.0f} % of their time, so even knot models that cost "
+                f"nothing would leave the warm solve at {b['warm']['without_knots_vs_casadi_warm']}× CasADi's."
+                if b.get("warm")
+                else ""
+            ),
             "",
         ]
     lines.append(END)
