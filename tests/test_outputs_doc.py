@@ -114,8 +114,13 @@ def _tiny(d: Path) -> Path:
     return Path(json.loads((d / "model.json").read_text())["info"]["trials"])
 
 
+#: schema tables checked against the files of a slower test's run
+CHECKED_ELSEWHERE = {"posture_transfer.csv": "tests/cli/test_one_tool.py (posture transfer)"}
+
+
 def test_docs_list_exactly_the_written_fields(written):
     doc, got = documented(), actual(written)
+    doc = {name: fields for name, fields in doc.items() if name not in CHECKED_ELSEWHERE}
     assert sorted(doc) == sorted(got), "a schema table is missing from docs/outputs.md or from this test"
     for name in doc:
         assert sorted(doc[name]) == sorted(got[name]), f"docs/outputs.md '{name}' differs from the written file"

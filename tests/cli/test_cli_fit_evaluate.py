@@ -9,6 +9,7 @@ import pytest
 from reachirl import ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import save_trials, trial_from_solution
+from reachirl.features import FEATURES
 
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
 
@@ -70,6 +71,15 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
     t0 = out["trials"][0]["rmse_deg"]
     assert min(t0["q1"], t0["q2"]) - 1e-9 <= t0["q"] <= max(t0["q1"], t0["q2"]) + 1e-9
     assert "RMSE q1" in capsys.readouterr().out
+    assert out["backend"] == "casadi"  # the fit's
+
+    # a model fitted on Crocoddyl is evaluated on Crocoddyl unless told otherwise (it once fell back to CasADi)
+    croc = tmp_path / "croc.json"
+    croc.write_text(json.dumps({**m, "info": {**m["info"], "backend": "crocoddyl"}}))
+    one = ["--posture", "P2", "--subject", "S1"]
+    for extra, backend in (([], "crocoddyl"), (["--backend", "casadi"], "casadi")):
+        assert main(["evaluate", "--model", str(croc), str(trials_file), *one, *extra, "--out", str(metrics)]) == 0
+        assert json.loads(metrics.read_text())["backend"] == backend
 
 
 @pytest.mark.parametrize(
@@ -95,12 +105,18 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
             lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
             r"other\.json: not a reachirl model file",
         ),
+        (
+            lambda d, t: ["evaluate", "--model", str(d / "acados.json"), str(t), "--out", str(d / "x.json")],
+            r"acados\.json: field 'info\.backend': expected \"casadi\" or \"crocoddyl\", found 'acados'",
+        ),
     ],
 )
 def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_args, match):
     (tmp_path / "bad.npz").write_text("time,q1\n1,2\n")
     (tmp_path / "bad.json").write_text("{not json")
     (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
+    model = {"format": "reachirl-model/1", "features": list(FEATURES), "weights": [[1.0] * 7]}
+    (tmp_path / "acados.json").write_text(json.dumps({**model, "info": {"backend": "acados"}}))
     assert main(make_args(tmp_path, trials_file)) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1

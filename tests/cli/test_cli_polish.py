@@ -62,3 +62,22 @@ def test_preprocess_folder_uses_its_manifest(tmp_path, capsys):
     assert "using the folder's manifest" in err and "using the folder's subject info" in err
     # subject and posture from the manifest, not from the file name
     assert [t.id for t in load_trials(out)] == ["S01/P2/right/S01_P2_T01", "S01/P2/right/S01_P2_T02"]
+
+
+_FIT = ["--sections", "8", "--out", "m.json"]
+_EVAL = ["--model", "m.json", "--out", "metrics.json"]
+
+
+@pytest.mark.parametrize(
+    "argv, dest, expected",
+    [
+        (["fit", "t.npz", *_FIT, "--subject", "S01", "--subject", "S02", "S03"], "subject", ["S01", "S02", "S03"]),
+        (["evaluate", "t.npz", *_EVAL, "--posture", "P1", "--posture", "P2"], "posture", ["P1", "P2"]),
+        (["plot", "run", "--out", "f", "--subject", "S01", "--subject", "S02"], "subject", ["S01", "S02"]),
+        (["fit", "t.npz", *_FIT], "subject", None),
+    ],
+)
+def test_a_selection_given_twice_keeps_both(argv, dest, expected):
+    # `--subject S01 --subject S02` once kept S02 only, and fitted half the trials without a word; the protocol's
+    # options (`reproduce --sections`, ...) keep argparse's rule instead: the last one given wins, as over a run file
+    assert getattr(build_parser().parse_args(argv), dest) == expected

@@ -4,6 +4,7 @@ Every test runs on recorded trials (markers with noise, cut at a fingertip-speed
 fixture)."""
 
 import json
+import re
 import tomllib
 
 import numpy as np
@@ -135,6 +136,16 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
     again = tmp_path / "again"
     assert main(["reproduce", "--config", str(run / "run.toml"), "--out", str(again), "--workers", "1"]) == 0
     assert (again / "table.csv").read_bytes() == (run / "table.csv").read_bytes()
+    # a run resumed from its own run.toml leaves it as it is; options that change it would replace the input: refused
+    text = (run / "run.toml").read_bytes()
+    own = ["reproduce", "--config", str(run / "run.toml"), "--out", str(run), "--workers", "1", "--no-progress"]
+    assert main(own) == 0 and (run / "run.toml").read_bytes() == text
+    capsys.readouterr()
+    assert main([*own, "--max-iter", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    own_file = r"run\.toml: --config is this run folder's own run\.toml, and the options given change it"
+    assert re.fullmatch(rf"reachirl reproduce: error: .*{own_file}.*", err), err
+    assert (run / "run.toml").read_bytes() == text
 
 
 def test_a_run_file_with_an_unknown_key_is_refused_naming_it(tmp_path, capsys):
@@ -228,11 +239,14 @@ def test_the_seed_form_is_the_papers_step_computed_by_hand(arm):
 
 def test_the_seed_form_and_the_default_differ_where_the_docs_say(p2):
     from reachirl.irl.options import departures
+    from reachirl.irl.provenance import estimator_info
 
     seed = MOIRL(2, seed_form=True, **FAST).fit(p2)
     assert seed.options_.observe is False and seed.options_.merit == "state" and seed.options_.scaling is None
     assert seed.options_.fallback is None and seed.tol_ == 0.0 and seed.plain_fit_ is None
     assert departures(seed.options_, "mean", seed.tol_) == []
+    # MODEL.json's account: from one task its one rollout is the paper's (it once listed "one rollout per task")
+    assert len(seed.tasks_) == 1 and estimator_info(seed, "moirl", p2)["departures"] == []
     default = MOIRL(2, **FAST).fit(p2)
     words = " ".join(departures(default.options_, default.rollout, default.tol_))
     for what in ("observed rollouts", "normalised merit", "scale-free steps", "merit fallback", "acceptance threshold"):
@@ -270,6 +284,8 @@ def test_cv_and_iscv_trials_never_reach_a_fit(recorded, monkeypatch):
 
 
 def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out_one(recorded, tmp_path):
+    from test_outputs_doc import documented
+
     run = tmp_path / "run"
     assert (
         main(
@@ -296,6 +312,7 @@ def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out
     )
     rows = (run / "posture_transfer.csv").read_text().splitlines()
     assert rows[0].split(",")[:6] == ["method", "sections", "held_out_posture", "mean", "sd", "n"]
+    assert sorted(rows[0].split(",")) == sorted(documented()["posture_transfer.csv"])  # docs/outputs.md's table
     assert sorted(r.split(",")[2] for r in rows[1:]) == ["P2", "P4"]
     for held, other in (("P2", "P4"), ("P4", "P2")):
         model = json.loads((run / "models" / f"moirl-xfer-{held}-s2.json").read_text())

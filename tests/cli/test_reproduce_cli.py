@@ -2,6 +2,7 @@
 bad input."""
 
 import json
+import tomllib
 
 import numpy as np
 import pytest
@@ -90,6 +91,10 @@ def test_resume_gives_the_same_table(trials_file, reference_run, tmp_path, capsy
     assert main([*base, "--max-units", "2"]) == 0
     assert "rerun" in capsys.readouterr().err
     assert len(list((out / "units").glob("*.json"))) == 2 and not (out / "table.csv").exists()
+    # what a stopped run has already: its options and the finished units' models (once: checkpoints only)
+    assert tomllib.loads((out / "run.toml").read_text())["data"] == str(trials_file.resolve())
+    units = sorted(p.stem for p in (out / "units").glob("*.json"))
+    assert sorted(p.stem for p in (out / "models").glob("*.json")) == units
     assert main(base) == 0
     res = json.loads((out / "results.json").read_text())
     assert len(res["run"]["reused"]) == 2 and len(res["run"]["computed"]) == 2

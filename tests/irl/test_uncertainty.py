@@ -91,6 +91,12 @@ def test_the_claim_is_supported_contradicted_or_undetermined_over_the_samples():
     verdict = claim_verdict(shares)
     assert verdict["verdict"] == "undetermined" and verdict["fraction"] == 0.5
     assert claim_verdict(shares[:, :2])["verdict"] == "not applicable"
+    # one shape whatever the verdict: what a reader of MODEL.json or results.json can rely on
+    assert (
+        set(claim_verdict(shares[:, :2]))
+        == set(claim_verdict(shares))
+        == {"verdict", "fraction", "n_samples", "reason"}
+    )
 
 
 def _fit_with_samples(trials, out) -> None:

@@ -52,11 +52,18 @@ def number_in(lo: float, hi: float) -> Callable[[str], float]:
     return _checked(float, lambda v: lo <= v <= hi, f"a number in [{lo:g}, {hi:g}]", trim=40)
 
 
+#: ``--backend`` of the commands that predict with a MODEL.json
+PREDICTION_BACKEND_HELP = (
+    "DOC backend of the predictions (default: the fit's, MODEL.json's info.backend; casadi when it records none)"
+)
+
+
 def add_selection(p: argparse.ArgumentParser, what: str) -> None:
     """``--subject``, ``--posture`` and ``--side``: which trials of the trials file ``what`` (e.g. "fit")."""
     p.add_argument(
         "--subject",
         nargs="+",
+        action="extend",
         metavar="ID",
         default=None,
         help=f"{what} only these subjects' trials (default: every subject)",
@@ -64,6 +71,7 @@ def add_selection(p: argparse.ArgumentParser, what: str) -> None:
     p.add_argument(
         "--posture",
         nargs="+",
+        action="extend",
         metavar="NAME",
         default=None,
         help=f"{what} only the trials of these postures (default: every posture)",
@@ -85,7 +93,8 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
     return select_trials(trials, **chosen, path=args.trials), chosen
 
 
-def _same(a: Path, b: Path) -> bool:
+def same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` are one file (the same path, a symlink or a hard link); False if either is missing."""
     try:
         return os.path.samefile(a, b)
     except (OSError, ValueError):  # either does not exist (yet), or cannot be examined
@@ -102,7 +111,7 @@ def refuse_overwrite(outputs: dict[str, object], inputs) -> None:
             continue
         out = Path(out)
         for inp in ins:
-            if _same(out, inp) or out.absolute() == inp.absolute():
+            if same_file(out, inp) or out.absolute() == inp.absolute():
                 what = "folder" if inp.is_dir() else "file"
                 raise InputError(
                     f"{option} is the input {what} {inp}; it would be overwritten (choose another output path)", out

@@ -16,7 +16,14 @@ from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
 from ..validation import check_output_dir, check_output_file
-from ._args import add_selection, chosen_trials, export_names, output_folder_files, refuse_overwrite
+from ._args import (
+    PREDICTION_BACKEND_HELP,
+    add_selection,
+    chosen_trials,
+    export_names,
+    output_folder_files,
+    refuse_overwrite,
+)
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -30,7 +37,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument("trials", type=Path, help="trials file")
     p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
-    p.add_argument("--backend", choices=("casadi", "crocoddyl"), default="casadi", help="DOC backend (default casadi)")
+    p.add_argument(
+        "--backend",
+        choices=("casadi", "crocoddyl"),
+        default=None,
+        help=PREDICTION_BACKEND_HELP,
+    )
     p.add_argument(
         "--include-failed",
         action="store_true",
@@ -95,19 +107,23 @@ def run(args: argparse.Namespace) -> int:
     refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
     model = load_model(args.model)
     check_model_rollout(model, args.model)
+    backend = args.backend or model.backend
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.predictions is not None:
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.predictions, names, [args.model, args.trials, args.out], "--predictions")
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
-        errors = model.evaluate(trials, backend=args.backend, on_trial=lambda e: progress.advance(task))
+        errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
     # a mean that cannot be computed (every DOC failed) is written with its reason, never a bare null
     atomic_write_json(
-        args.out, annotate_no_data({"summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]})
+        args.out,
+        annotate_no_data(
+            {"backend": backend, "summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]}
+        ),
     )
-    print(summary_line(summary, args.backend))
+    print(summary_line(summary, backend))
     print(f"wrote {args.out}")
     if args.predictions is not None:
         from ..data.exports import export_trajectories

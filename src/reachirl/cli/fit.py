@@ -28,7 +28,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "trials file with MO-IRL or a baseline, and write them with their provenance to MODEL.json "
         "(schema: docs/outputs.md).",
     )
-    p.add_argument("trials", type=Path, help="trials file written by `reachirl preprocess` or `reachirl synth`")
+    p.add_argument(
+        "trials",
+        type=Path,
+        help="trials file (NPZ) written by `reachirl preprocess` (from recordings, `reachirl synth`'s too)",
+    )
     p.add_argument(
         "--sections",
         type=int_in(1, MAX_NODES),
@@ -77,9 +81,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         const=40,
         default=None,
         metavar="K",
-        help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) that the "
-        "training trials cannot tell apart from the fit, and each window's cost-share intervals "
-        "(MODEL.json 'uncertainty'; about 4x the fit's time)",
+        help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) from the weights' "
+        "posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad prior: "
+        "docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
+        "takes 1.3-2.6x a plain fit's CPU time)",
     )
     p.add_argument(
         "--seed",

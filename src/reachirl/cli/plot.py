@@ -17,7 +17,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import add_selection, chosen_trials
+from ._args import PREDICTION_BACKEND_HELP, add_selection, chosen_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -51,8 +51,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--backend",
         choices=("casadi", "crocoddyl"),
-        default="casadi",
-        help="with --model: DOC backend of the predictions (default casadi)",
+        default=None,
+        help=f"with --model: {PREDICTION_BACKEND_HELP}",
     )
     p.add_argument("--no-pdf", action="store_true", help="write PNG only (default: PNG and PDF)")
     add_selection(p, "with --model: plot")
@@ -188,7 +188,7 @@ def run(args: argparse.Namespace) -> int:
         trials = _select(load_trials(args.source), args.trial, args.source)
         trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
         errors = model.evaluate(trials, backend=args.backend)
-        print(summary_line(summarise(errors), args.backend))
+        print(summary_line(summarise(errors), args.backend or model.backend))
         written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)
     else:
         given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]

@@ -17,6 +17,7 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
@@ -326,10 +327,17 @@ def _check_scheduler(address: str | None) -> None:
         )
 
 
-def _write_run_file(out, args, opts: dict, config) -> None:
-    """``DIR/run.toml``: every option the run used, so that ``reproduce --config DIR/run.toml`` repeats it."""
+def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
+    """What writes ``DIR/run.toml``: every option the run uses, so that ``reproduce --config DIR/run.toml`` repeats
+    it (called once the units are ready to run, so that a stopped or interrupted run has it too).
+
+    When ``--config`` is that very file (resuming a run with its own options), it is left as it is; with other
+    options (flags that override it) it would be replaced, so the run is refused here, before any work."""
+    import tomllib
+
     from .. import __version__
-    from .runfile import write_run_file
+    from ._args import same_file
+    from .runfile import dumps, read_run_file, write_run_file
 
     resolved = {
         "data": None if args.data is None else str(Path(args.data).resolve()),
@@ -358,12 +366,19 @@ def _write_run_file(out, args, opts: dict, config) -> None:
         "uncertainty": config.uncertainty,
         "experimental": dict(config.experimental),
     }
-    write_run_file(
-        out / "run.toml",
-        resolved,
-        header=f"reachirl {__version__} reproduce: the options of this run; repeat it with "
-        f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`",
+    if args.config is not None and same_file(Path(args.config), out / "run.toml"):
+        if read_run_file(args.config) == tomllib.loads(dumps(resolved)):
+            return lambda: None  # the run's own options: nothing to write
+        raise InputError(
+            "--config is this run folder's own run.toml, and the options given change it; the run would replace "
+            "it (copy it elsewhere first, or choose another --out)",
+            args.config,
+        )
+    header = (
+        f"reachirl {__version__} reproduce: the options of this run; repeat it with "
+        f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`"
     )
+    return lambda: write_run_file(out / "run.toml", resolved, header=header)
 
 
 def run(args) -> int:
@@ -414,6 +429,7 @@ def run(args) -> int:
     if args.quick:
         config = _quick_postures(config, dataset)
     data_s = time.perf_counter() - t0
+    write_run_toml = _run_file(out, args, opts, config)
 
     progress = Progress(
         TextColumn("[progress.description]{task.description}"),
@@ -431,6 +447,7 @@ def run(args) -> int:
     log_lines = opts.get("progress", True) and not err.is_terminal  # e.g. a log file: one line per unit
 
     def on_start(total, reused):
+        write_run_toml()
         state["task"] = progress.add_task("reproduce", total=total)
         state["total"] = total
         if reused:
@@ -460,13 +477,15 @@ def run(args) -> int:
             on_done=on_done,
         )
     if result.stopped:
+        from ..experiments.cost import write_models
+
+        write_models(result)  # the finished units' models (`evaluate`, `plot`, `simulate` can use them now)
         print(
             f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out "
             f"to finish",
             file=sys.stderr,
         )
         return 0
-    _write_run_file(out, args, opts, config)
     outputs = write_outputs(result, workers=workers)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:

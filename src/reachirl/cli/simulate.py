@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import int_in, number_in, refuse_overwrite
+from ._args import PREDICTION_BACKEND_HELP, int_in, number_in, refuse_overwrite
 
 BACKENDS = ("casadi", "crocoddyl")
 MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
@@ -27,7 +27,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
-    p.add_argument("trials", type=Path, help="trials file (NPZ) written by `reachirl preprocess` or `reachirl synth`")
+    p.add_argument(
+        "trials",
+        type=Path,
+        help="trials file (NPZ) written by `reachirl preprocess` (from recordings, `reachirl synth`'s too)",
+    )
     p.add_argument(
         "--render",
         type=Path,
@@ -43,7 +47,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="a trial to simulate, by id (subject/posture/side/trial), trial_id or 0-based index; "
         "repeat for several (default: all)",
     )
-    p.add_argument("--backend", choices=BACKENDS, default="casadi", help="DOC backend (default casadi)")
+    p.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default=None,
+        help=PREDICTION_BACKEND_HELP,
+    )
     p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
     p.add_argument(
         "--substeps", type=int_in(1, 1000), default=10, help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)"
@@ -141,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
             raise RuntimeError(f"cannot render offscreen: {why}")
     model = load_model(args.model)
     check_model_rollout(model, args.model)
+    backend = args.backend or model.backend
     trials = _select(load_trials(args.trials), args.trial, args.trials)
     if args.mode == "pd":
         _check_gains(args, trials, model.n_nodes)
@@ -160,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
             tr,
             model.weights,
             n_nodes=model.n_nodes,
-            backend=args.backend,
+            backend=backend,
             mode=args.mode,
             substeps=args.substeps,
             kp=args.kp,
@@ -185,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
         atomic_write_json(
             args.out,
             {
-                "backend": args.backend,
+                "backend": backend,
                 "mode": args.mode,
                 "substeps": args.substeps,
                 "trials": [s.summary() for s in sims],

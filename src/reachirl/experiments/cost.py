@@ -1,5 +1,5 @@
-"""What a run says about the learned cost: each unit's model, what the training data determines, the weights it
-cannot tell apart, the paper's claim tested at that uncertainty, and leave-one-posture-out transfer."""
+"""What a run says about the learned cost: each unit's model, what the training data determines, the weights'
+uncertainty, the paper's claim tested at that uncertainty, and leave-one-posture-out transfer."""
 
 from __future__ import annotations
 

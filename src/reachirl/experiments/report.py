@@ -25,6 +25,7 @@ import numpy as np
 
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
+from ..irl.provenance import versions
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
@@ -557,6 +558,9 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         f"- **Methods:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
         f"at most {config.max_iter} iterations.",
         *method_lines([r["unit"] for r in run.results.values()]),
+        f"- **Provenance:** trials' fingerprint {desc['fingerprint']}; "
+        + ", ".join(f"{name} {v}" for name, v in versions().items() if v is not None)
+        + ".",
         "",
         "## Results: RMSE of the joint angles (deg), seed Table II layout",
         "",

@@ -33,7 +33,7 @@ class LearnedModel:
     n_nodes: int = 100
     method: str = "moirl"
     info: dict = field(default_factory=dict)
-    uncertainty: dict | None = None  # weight samples the training data cannot tell apart (reachirl.irl.uncertainty)
+    uncertainty: dict | None = None  # weight samples and share intervals (reachirl.irl.uncertainty)
 
     def __post_init__(self) -> None:
         w = np.asarray(self.weights, dtype=float)
@@ -54,21 +54,28 @@ class LearnedModel:
         return bool(self.info.get("observe", False))
 
     @property
+    def backend(self) -> str:
+        """The DOC backend the fit solved with (``info["backend"]``; ``"casadi"`` when not recorded): the one its
+        predictions use unless told otherwise."""
+        return str(self.info.get("backend") or "casadi")
+
+    @property
     def rollout_q(self) -> np.ndarray | None:
         """The fit's own reach ``(n_nodes + 1, 2)`` (rad), each prediction's cold start; None when not recorded."""
         r = self.info.get("rollout_q")
         return None if r is None else np.asarray(r, dtype=float)
 
     def evaluate(
-        self, trials: Sequence, backend: str = "casadi", on_trial: Callable[[TrialError], None] | None = None
+        self, trials: Sequence, backend: str | None = None, on_trial: Callable[[TrialError], None] | None = None
     ) -> list[TrialError]:
         """Each trial predicted from its own start as the model was fitted (:attr:`observe`, from
-        :attr:`rollout_q`), with its RMSE: :func:`reachirl.doc.evaluation.evaluate_trials` under this model."""
+        :attr:`rollout_q`), with its RMSE: :func:`reachirl.doc.evaluation.evaluate_trials` under this model, on
+        ``backend`` (default: the fit's, :attr:`backend`)."""
         return evaluate_trials(
             self.weights,
             trials,
             n_nodes=self.n_nodes,
-            backend=backend,
+            backend=backend or self.backend,
             on_trial=on_trial,
             observe=self.observe,
             path=self.rollout_q,
@@ -142,6 +149,12 @@ def check_model_dict(d, path) -> None:
     require(
         observe is None or isinstance(observe, bool),
         f"field 'info.observe': expected true or false, found {brief(observe)}",
+        path,
+    )
+    backend = d.get("info", {}).get("backend")
+    require(
+        backend is None or backend in ("casadi", "crocoddyl"),
+        f'field \'info.backend\': expected "casadi" or "crocoddyl", found {brief(backend)}',
         path,
     )
     rollout = d.get("info", {}).get("rollout_q")

@@ -129,8 +129,8 @@ class MOIRL(WeightEstimator):
       ``None``: 1e-4, or 0 with ``seed_form``).
     * ``n_nodes``, ``backend``: the DOC's knots and solver stack (``"casadi"`` or ``"crocoddyl"``).
     * ``seed_form``: the paper's method exactly as written (:data:`reachirl.irl.options.SEED_FORM`).
-    * ``uncertainty``: a number ``K ≥ 20`` of weight samples the training data cannot tell apart from the fit
-      (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``.
+    * ``uncertainty``: a number ``K ≥ 20`` of weight samples from the weights' posterior given the training data
+      and the share intervals (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``.
     * ``random_state``: the seed of every random choice (the uncertainty's samples).
     * ``feature_mask``: ``(7,)`` or ``(n_windows, 7)`` booleans; a ``False`` feature is left out of the cost
       (weight 0, never learned). ``None``: every feature.

@@ -73,7 +73,9 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
     if options is not None:
         info["options"] = _jsonable(options.to_dict())
         info["tol"] = est.tol_
-        info["departures"] = departures(options, est.rollout, est.tol_)
+        # from one task (subject, posture), its one rollout is the paper's rollout from the demonstrations' mean
+        one_task = est.rollout == "per_task" and len(getattr(est, "tasks_", ())) == 1
+        info["departures"] = departures(options, "mean" if one_task else est.rollout, est.tol_)
         info["seed_form"] = bool(est.seed_form)
     path = est.rollout_path()
     info.update(

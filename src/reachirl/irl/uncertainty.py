@@ -1,4 +1,4 @@
-"""What the training data determines about a fit's weights, and the costs it cannot tell apart from the fit.
+"""What the training data determines about a fit's weights, and how uncertain they are.
 
 **Determined directions.** The observed training states (every demonstration's rollout, seen as the merit sees
 it, each channel scaled as the merit scales it) depend on the log-weights ``η = log ω`` through the DOC's optimum.
@@ -19,7 +19,9 @@ narrows the samples; in the others the prior speaks, and the intervals say so. E
 ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
 percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH` is reported as
 undetermined. A few samples are solved by the DOC and tested against the fit (:func:`indistinguishable`, a
-one-sided paired t-test over the demonstrations): the model is linear, the DOC is not.
+one-sided paired t-test over the demonstrations; ``checked``): the model is linear, the DOC is not, and the samples
+far from the fit usually fail the test (docs/method.md: a local model cannot see the other basins where costs as
+good as the fit's lie; only the prior's width covers them).
 """
 
 from __future__ import annotations
@@ -289,17 +291,19 @@ def claim_verdict(share_samples: np.ndarray) -> dict:
     """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
     weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
     ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
-    the fraction of samples where it holds. Onset and end are the first and last windows, mid-reach the others' mean.
+    the fraction of samples where it holds and their number (``reason``: why the claim does not apply, else
+    None). Onset and end are the first and last windows, mid-reach the others' mean.
     :func:`weight_uncertainty` applies it to the posterior's interval draws (thousands), not to the few weight
     samples."""
     sh = np.asarray(share_samples, dtype=float)
     if sh.ndim != 3 or sh.shape[1] < 3:
-        return {"verdict": "not applicable", "fraction": None, "reason": "needs at least 3 windows"}
+        n = int(sh.shape[0]) if sh.ndim == 3 else 0
+        return {"verdict": "not applicable", "fraction": None, "n_samples": n, "reason": "needs at least 3 windows"}
     acc = sh[:, :, _ACC]
     holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
     frac = float(holds.mean())
     verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
-    return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0])}
+    return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0]), "reason": None}
 
 
 def _width_record(det: Determination, intervals: dict) -> dict:
