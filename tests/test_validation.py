@@ -127,6 +127,37 @@ def test_a_start_outside_the_joint_limits_names_the_trial(files):
         load_trials(path)
 
 
+@pytest.mark.parametrize(
+    ("entry", "change", "match"),
+    [
+        (
+            "1/x0.npy",
+            lambda a: a + np.array([0.5, 0.0, 0.0, 0.0]),
+            r"trial 1 \(S1/P2/right/1\): the start state x0 lies 28\.6° from the trial's first sample q\[0\]",
+        ),
+        (
+            "0/q.npy",
+            lambda a: np.where(np.arange(a.shape[0])[:, None] == a.shape[0] // 2, a + np.array([0.0, 4.0]), a),
+            r"trial 0 \(S1/P2/right/0\): the reach leaves the joint limits at sample \d+ \(q = ",
+        ),
+    ],
+)
+def test_a_trial_edited_since_preprocessing_is_refused(files, entry, change, match):
+    # a trial whose q had been converted to degrees, or x0 moved, was predicted as a reach ("converged", 3732°)
+    with pytest.raises(InputError, match=r"edited\.npz: " + match):
+        load_trials(_with_array(files, "edited.npz", entry, change))
+
+
+def test_two_trials_with_one_id_are_refused(files):
+    def same_id(m):
+        t = m["trials"]
+        return {**m, "trials": [t[0], {**t[1], "trial_id": t[0]["trial_id"]}, *t[2:]]}
+
+    match = r"dup\.npz: trial 1 has the id 'S1/P2/right/0' of trial 0; ids must be unique"
+    with pytest.raises(InputError, match=match):
+        load_trials(_with_meta(files, "dup.npz", same_id))
+
+
 def test_a_duration_outside_a_reach_is_refused(files):
     path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
     with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):

@@ -106,6 +106,10 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
             r"other\.json: not a reachirl model file",
         ),
         (
+            lambda d, t: ["fit", str(t), "--sections", "1", "--config", str(d / "run.toml"), "--out", str(d / "m")],
+            r"run\.toml: fit reads only the \[experimental\] table of a run file, not max_iter, nodes \(give those as",
+        ),
+        (
             lambda d, t: ["evaluate", "--model", str(d / "acados.json"), str(t), "--out", str(d / "x.json")],
             r"acados\.json: field 'info\.backend': expected \"casadi\" or \"crocoddyl\", found 'acados'",
         ),
@@ -115,6 +119,7 @@ def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_arg
     (tmp_path / "bad.npz").write_text("time,q1\n1,2\n")
     (tmp_path / "bad.json").write_text("{not json")
     (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
+    (tmp_path / "run.toml").write_text('nodes = 40\nmax_iter = 2\n\n[experimental]\nmerit = "state"\n')
     model = {"format": "reachirl-model/1", "features": list(FEATURES), "weights": [[1.0] * 7]}
     (tmp_path / "acados.json").write_text(json.dumps({**model, "info": {"backend": "acados"}}))
     assert main(make_args(tmp_path, trials_file)) == 2

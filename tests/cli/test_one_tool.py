@@ -320,3 +320,23 @@ def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out
         row = next(r.split(",") for r in rows[1:] if r.split(",")[2] == held)
         assert int(row[5]) == 4 and int(row[8]) == 4  # S01's and S02's reaches of the held-out posture
     assert "## Posture transfer" in (run / "report.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ('seed_form = "false"', r"seed_form: expected true or false; got 'false'"),
+        ("posture_transfer = 1", r"posture_transfer: expected true or false; got 1"),
+        ("uncertainty = 40.5", r"uncertainty: expected weight samples, 20 to 1000, or 0 for none; got 40\.5"),
+        ("sections = [8, 0]", r"sections: expected a list of section counts, each 1 or more; got \[8, 0\]"),
+        ("subjects = 0", r"subjects: expected a number of built-in virtual subjects, 1 to 100; got 0"),
+    ],
+)
+def test_a_run_file_value_of_the_wrong_kind_is_refused(tmp_path, capsys, text, match):
+    # `seed_form = "false"` (a non-empty string) once switched the paper's form on
+    run = tmp_path / "run.toml"
+    run.write_text(text + "\n")
+    assert main(["reproduce", "--config", str(run), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert re.fullmatch(rf"reachirl reproduce: error: {re.escape(str(run))}: {match}", err), err
+    assert not (tmp_path / "o").exists()

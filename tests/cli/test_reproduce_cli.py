@@ -102,6 +102,53 @@ def test_resume_gives_the_same_table(trials_file, reference_run, tmp_path, capsy
     _same_table(out, reference_run)
 
 
+def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
+    trials_file, reference_run, tmp_path, monkeypatch
+):
+    """Ctrl-C while the outputs are written (here: during the predictions' exports) leaves no table, report or
+    results.json, not even the previous run's in the same folder; rerunning writes them all."""
+    import shutil
+
+    from reachirl.experiments import report
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)  # a finished run: every unit is reused
+    finished = ("table.md", "table.csv", "report.md", "results.json")
+    assert all((out / f).exists() for f in finished)
+
+    def interrupted(run):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report, "write_predictions", interrupted)
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main(argv) == 130
+    assert not any((out / f).exists() for f in finished)
+    monkeypatch.undo()
+    assert main(argv) == 0
+    _same_table(out, reference_run)
+
+
+def test_a_rerun_into_the_folder_of_another_run_leaves_none_of_its_outputs(trials_file, reference_run, tmp_path):
+    """A run with more methods once left its methods figure, models and predictions beside the new run's; the
+    checkpoints stay (to be reused), and so does a file reachirl never writes."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)
+    stale = [out / "figures" / "methods.png", out / "models" / "kkt-P2-s1.json", out / "predictions" / "kkt-P2-s1"]
+    stale[0].write_bytes(b"old")
+    stale[1].write_text("{}")
+    stale[2].mkdir()
+    (stale[2] / "index.csv").write_text("id,file,set\n")
+    mine = [out / "figures" / "my_sketch.png", out / "units" / "kkt-P2-s1.json"]
+    for f in mine:
+        f.write_text("keep")
+    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]) == 0
+    assert not any(f.exists() for f in stale) and all(f.read_text() == "keep" for f in mine)
+    models = [sorted(p.name for p in (d / "models").iterdir()) for d in (out, reference_run)]
+    assert models[0] == models[1]
+
+
 def test_local_processes_equal_in_process(trials_file, reference_run, tmp_path):
     out = tmp_path / "out"
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "2", *ARGS]) == 0

@@ -39,6 +39,41 @@ def test_ue_adl_sample_folder(tmp_path, synth, capsys):
     assert "wrote 4 trial(s)" in stdout
 
 
+def test_a_folder_of_vicon_c3d_files_reads_as_its_csv_export(tmp_path, synth, capsys):
+    """UE-ADL's reach and static trial as Vicon writes C3D (labels "ADL001:RSHO1", ...): the folder's static trial
+    is found beside the reach (and not taken for a reach), and the trial is the CSV's."""
+    from reachirl.data.readers import read_vicon_csv
+    from reachirl.data.writers import write_c3d
+
+    folder = tmp_path / "c3d"
+    for name in ("ADL001FR1", "ADL001_static"):
+        md = read_vicon_csv(synth.SAMPLE / "ADL001" / f"{name}.csv")
+        markers = {f"ADL001:{m}": 1000.0 * md[m] for m in md.names}
+        write_c3d(folder / f"{name}.c3d", md.t, markers, units="mm", rate=md.rate)
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    code, _, err = _run([folder, *info, "--out", tmp_path / "c3d.npz"], capsys)
+    assert code == 0, err
+    code, _, err = _run([synth.SAMPLE / "ADL001" / "ADL001FR1.csv", *info, "--out", tmp_path / "csv.npz"], capsys)
+    assert code == 0, err
+    (c3d,), (csv,) = load_trials(tmp_path / "c3d.npz"), load_trials(tmp_path / "csv.npz")
+    assert c3d.id == csv.id and c3d.q.shape == csv.q.shape
+    np.testing.assert_allclose(c3d.q, csv.q, atol=1e-6)
+
+
+def test_a_static_trial_of_another_subject_is_refused(tmp_path, synth, capsys):
+    # another subject's calibration moved the joint centres and the reach without a word
+    other = tmp_path / "ADL003_static.csv"
+    other.write_text((synth.SAMPLE / "ADL001" / "ADL001_static.csv").read_text().replace("ADL001:", "ADL003:"))
+    reach = synth.SAMPLE / "ADL001" / "ADL001FR1.csv"
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    code, _, err = _run([reach, "--static", other, *info, "--out", tmp_path / "o.npz"], capsys)
+    assert code == 2 and not (tmp_path / "o.npz").exists()
+    assert err.strip() == (
+        f"reachirl preprocess: error: {reach}: the static trial {other} was recorded on ADL003, this reach on "
+        f"ADL001 (the subject before the marker names): give the subject's own static trial"
+    )
+
+
 def test_manifest_with_static_column(tmp_path, synth, capsys):
     for f in ("ADL001FR1.csv", "ADL001_static.csv"):
         shutil.copy(synth.SAMPLE / "ADL001" / f, tmp_path / ("reach.csv" if "FR1" in f else "calib.csv"))
@@ -221,3 +256,7 @@ def test_inputs_with_manifest(tmp_path, reach, synth, capsys):
     assert [t.id for t in load_trials(tmp_path / "o.npz")] == ["S1/P4/left/a"]
     code, _, err = _run([tmp_path / "b.trc", *args], capsys)
     assert code == 2 and re.search(r"b\.trc: not listed in the manifest", err)
+    # a static trial the manifest names must exist, even where the marker set needs none (it was ignored)
+    (tmp_path / "m.csv").write_text("file,subject,posture,side,static\na.trc,S1,P4,left,calib.csv\n")
+    code, _, err = _run([tmp_path / "a.trc", *args], capsys)
+    assert code == 2 and err.strip().endswith("calib.csv: the manifest's 'static' of a.trc: file not found"), err

@@ -92,6 +92,10 @@ def test_preprocess_export_round_trip(tmp_path, tiny_trials, cli):
     np.testing.assert_allclose(df["demo_tau2_Nm"], done.tau[:, 1], rtol=1e-6, atol=1e-9)
     back = read_file(tmp_path / "exp" / f"{safe_name(done.id)}.mot")
     np.testing.assert_allclose(back.q, done.q, atol=1e-7)
+    # the CSV reads back too (its time_s and demo_q1_rad columns were once "no 'time' column")
+    back = read_file(tmp_path / "exp" / f"{safe_name(done.id)}.csv")
+    np.testing.assert_allclose(back.t, done.t, atol=1e-9)
+    np.testing.assert_allclose(back.q, done.q, atol=1e-7)
 
 
 def test_export_needs_a_folder(tmp_path, tiny_trials, cli):

@@ -59,12 +59,14 @@ def test_vicon_csv_real_sample(synth):
     assert 0.05 < np.nanmax(np.abs(md["RFTP"])) < 2.0  # mm → m
 
 
-def test_c3d_round_trip(tmp_path):
+@pytest.mark.parametrize("prefix", ["", "ADL001:"])
+def test_c3d_round_trip(tmp_path, prefix):
+    # Vicon's "Subject:Marker" labels are read as the markers' names, as in its CSV (they were not found before)
     ezc3d = pytest.importorskip("ezc3d")
     mk = _markers(n=12)
     c = ezc3d.c3d()
     c["parameters"]["POINT"]["RATE"]["value"] = [200.0]
-    c["parameters"]["POINT"]["LABELS"]["value"] = list(mk)
+    c["parameters"]["POINT"]["LABELS"]["value"] = [prefix + m for m in mk]
     c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
     pts = np.ones((4, 3, 12))
     pts[:3] = np.stack([mk[m] * 1000 for m in mk], axis=1).transpose(2, 1, 0)
@@ -129,6 +131,18 @@ def test_degrees_declared_as_radians_refused(tmp_path):
             "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,ft,ft,ft\n1,0,1,2,3\n",
             r"unknown length unit 'ft'",
         ),
+        (
+            "Trajectories\n0\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2,3\n",
+            r"line 2: sampling rate must be a positive number, got 0$",
+        ),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2.5,0,1,2,3\n",
+            r"line 7: frame number 2\.5 is not a whole number",
+        ),
+        (
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n99999999,0,1,2,3\n",
+            r"line 7: frame numbers jump from 1 to 1e\+08: a corrupt frame number\?",
+        ),
     ],
 )
 def test_vicon_csv_errors(tmp_path, text, pattern):
@@ -136,6 +150,19 @@ def test_vicon_csv_errors(tmp_path, text, pattern):
     p.write_text(text)
     with pytest.raises(InputError, match=r"bad\.csv: .*" + pattern if text else pattern):
         read_vicon_csv(p)
+
+
+def test_vicon_csv_rows_left_out_are_unseen_frames(tmp_path):
+    """A Vicon CSV whose Frame column skips rows: the skipped frames are unseen (NaN), on the file's own clock
+    (they were once dropped, which shortened the reach and inflated its speed)."""
+    head = "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n"
+    rows = [f"{f},0,{f},0,0\n" for f in (1, 2, 3, 7, 8)]
+    (tmp_path / "gap.csv").write_text(head + "".join(rows))
+    md = read_vicon_csv(tmp_path / "gap.csv")
+    np.testing.assert_allclose(md.t, np.arange(8) / 100.0)
+    x = md["A"][:, 0]
+    np.testing.assert_allclose(x[[0, 1, 2, 6, 7]], [0.001, 0.002, 0.003, 0.007, 0.008])
+    assert np.all(np.isnan(x[3:6]))
 
 
 def test_trc_time_not_increasing(tmp_path, synth):

@@ -236,3 +236,12 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and str(bad) in err and len(err.strip().splitlines()) == 1
         assert not (tmp_path / "x.json").exists()
+    # without n_nodes, 100 knots are assumed: the message says so, not only that the rows are wrong
+    d = json.loads((tmp_path / "mTrue.json").read_text())
+    del d["n_nodes"]
+    bad.write_text(json.dumps(d))
+    assert main(["evaluate", "--model", str(bad), str(trials), "--out", str(tmp_path / "x.json")]) == 2
+    assert (
+        "expected 101 rows of 2 joint angles (the field 'n_nodes' is missing: 100 knots assumed), found "
+        f"'{N + 1} rows'" in capsys.readouterr().err
+    )

@@ -26,3 +26,15 @@ def test_builtin_trials_are_preprocessed_once(tmp_path, monkeypatch):
     rows = (folder / "manifest.csv").read_text().splitlines()
     (folder / "manifest.csv").write_text("\n".join(rows[:-1]) + "\n")  # one recording fewer
     assert len(datasets.load(None).trials) == len(first.trials) - 1 and len(calls) == 2
+
+
+def test_a_relative_data_path_is_recorded_absolute(tmp_path, monkeypatch):
+    """results.json's ``source`` is what `reachirl sensitivity` reloads, from whatever folder it is run in."""
+    from reachirl.data.trial import save_trials
+
+    save_trials(tmp_path / "trials.npz", datasets.toy(n_subjects=1, postures=("P2",), n_trials=1, n_nodes=20).trials)
+    monkeypatch.chdir(tmp_path)
+    ds = datasets.load("trials.npz")
+    assert ds.source == str(tmp_path.resolve() / "trials.npz")
+    monkeypatch.chdir(tmp_path.parent)
+    assert datasets.load(ds.source).describe()["fingerprint"] == ds.describe()["fingerprint"]

@@ -97,20 +97,29 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "--config",
         type=Path,
         metavar="RUN.toml",
-        help="a run file whose [experimental] table sets MO-IRL options (docs/usage.md; default: none)",
+        help="a run file holding only an [experimental] table of MO-IRL options (docs/usage.md; default: none)",
     )
     add_selection(p, "learn from (several postures or subjects: one shared cost)")
     return p
 
 
 def _experimental(path: Path | None) -> dict | None:
-    """The ``[experimental]`` table of ``--config`` (checked where the options are defined)."""
+    """The ``[experimental]`` table of ``--config`` (checked where the options are defined); any other key is
+    refused, naming it (a run file of ``reproduce`` holds the protocol's keys, which ``fit`` takes as flags)."""
     if path is None:
         return None
     from ..irl.options import resolve_options
     from .runfile import read_run_file
 
-    table = read_run_file(path).get("experimental", {})
+    content = read_run_file(path)
+    other = sorted(k for k in content if k != "experimental")
+    if other:
+        raise InputError(
+            f"fit reads only the [experimental] table of a run file, not {', '.join(other)} (give those as "
+            f"fit's flags: reachirl fit --help)",
+            path,
+        )
+    table = content.get("experimental", {})
     if not isinstance(table, dict):
         raise InputError("[experimental] must be a table of MO-IRL options", path)
     try:

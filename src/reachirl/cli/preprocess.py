@@ -153,7 +153,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--forward-axis",
         metavar="AXIS",
-        help="lab forward axis, with --plane axes (default: the horizontal axis the fingertip moves along)",
+        help="lab forward axis, with --plane axes: the axis (x, y or z; its sign follows the reach's own "
+        "direction, so +x and -x are one axis; default: the horizontal axis the fingertip moves along)",
     )
     g.add_argument(
         "--ik",
@@ -210,7 +211,9 @@ def _expand(inputs: list[str]) -> list[Path]:
             found = sorted(
                 f
                 for f in p.rglob("*")
-                if f.is_file() and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
+                if f.is_file()
+                and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
+                and not f.stem.lower().endswith("_static")  # a static trial calibrates the reaches beside it
             )
             if not found:
                 raise InputError("folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p)
@@ -288,6 +291,9 @@ def run(args) -> int:
         entries = [ManifestEntry(file=p, subject="", posture="") for p in _expand(args.inputs)]
     if args.static:
         regular_input(args.static, "--static")  # given, so it must exist, whether or not the marker set needs it
+    for e in entries:  # so must a manifest row's static trial (it was ignored when the marker set needed none)
+        if e.static is not None:
+            regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
     inputs = _refuse_overwrite(args, out, entries)
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (

@@ -177,6 +177,22 @@ KEY_TYPES = {
 
 
 FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "posture_transfer", "uncertainty")
+# what a run file or --set may give for the keys that are also flags (the flags' own types check them there)
+OTHER_KEYS = {
+    "sections": ("a list of section counts, each 1 or more", "sections"),
+    "seed": ("a seed, 0 or more", "count"),
+    "subjects": (f"a number of built-in virtual subjects, 1 to {MAX_SUBJECTS}", "subjects"),
+    "iscv": ('"one" or "all-pairs"', "str"),
+    "backend": ('"casadi" or "crocoddyl"', "str"),
+    "seed_form": ("true or false", "bool"),
+    "posture_transfer": ("true or false", "bool"),
+    "uncertainty": ("weight samples, 20 to 1000, or 0 for none", "uncertainty"),
+    "quick": ("true or false", "bool"),
+    "data": ("a path", "str"),
+    "scheduler": ("a Dask scheduler address", "str"),
+    "workers": ("a number of worker processes, 1 to 256", "workers"),
+    "out": ("a folder", "str"),
+}
 
 
 def run_options(args) -> dict:
@@ -224,6 +240,9 @@ def run_options(args) -> dict:
     for key, (_, kind) in RUN_KEYS.items():
         if key in opts and not _valid(kind, opts[key]):
             raise InputError(f"{key}: {RUN_KEYS[key][0]}; got {opts[key]!r}", where)
+    for key, (what, kind) in OTHER_KEYS.items():  # e.g. seed_form = "no" once read as true
+        if key in opts and opts[key] is not None and not _valid(kind, opts[key]):
+            raise InputError(f"{key}: expected {what}; got {opts[key]!r}", where)
     return opts
 
 
@@ -237,6 +256,10 @@ def _valid(kind: str, v) -> bool:
         "iters": num and 1 <= v <= MAX_ITER,
         "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= 0.5,
         "bool": isinstance(v, bool),
+        "sections": isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v),
+        "subjects": num and 1 <= v <= MAX_SUBJECTS,
+        "uncertainty": num and (v == 0 or 20 <= v <= 1000),
+        "workers": num and 1 <= v <= 256,
     }[kind]
 
 

@@ -201,7 +201,8 @@ def check_trial_meta(m, i: int, path) -> None:
 
 def check_trial_physics(trial, i: int, path) -> None:
     """A loaded trial can be planned by the DOC: a human-sized arm, a reach's duration, a start inside the joint
-    limits."""
+    limits, the start state ``x0`` the trial's first sample, and a reach that stays within the joint limits (as
+    preprocessing guarantees: a trial edited since, or in degrees, would be predicted as if it were a reach)."""
     where = f"trial {i} ({trial.id})"
     try:
         check_arm(trial.arm, where)
@@ -215,6 +216,23 @@ def check_trial_physics(trial, i: int, path) -> None:
         raise InputError(
             f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
             f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
+            path,
+            where,
+        )
+    gap = float(np.max(np.abs(q0 - trial.q[0])))
+    if gap > 1e-6:
+        raise InputError(
+            f"the start state x0 lies {np.rad2deg(gap):.3g}° from the trial's first sample q[0]: an edited file?",
+            path,
+            where,
+        )
+    bad = np.flatnonzero(np.any((trial.q < lo - 1e-6) | (trial.q > hi + 1e-6), axis=1))
+    if bad.size:
+        q, d = trial.q[bad[0]], np.rad2deg
+        raise InputError(
+            f"the reach leaves the joint limits at sample {bad[0]} (q = ({d(q[0]):.1f}°, {d(q[1]):.1f}°); q1 ∈ "
+            f"[{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]): angles in degrees, or "
+            f"an edited file?",
             path,
             where,
         )

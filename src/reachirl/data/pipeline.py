@@ -86,6 +86,14 @@ def preprocess_entries(
                         raise InputError("static trial holds joint angles, expected markers", sp)
                     statics[sp] = md
                 static_md = statics[sp]
+                mine, its = set(data.labelled_subjects), set(static_md.labelled_subjects)
+                if mine and its and not mine & its:  # Vicon names the subject before each marker
+                    raise InputError(
+                        f"the static trial {sp} was recorded on {', '.join(sorted(its))}, this reach on "
+                        f"{', '.join(sorted(mine))} (the subject before the marker names): give the subject's own "
+                        f"static trial",
+                        e.file,
+                    )
             tr = markers_to_trial(data, mset, static=static_md, **common)
         else:
             tr = angles_to_trial(data, **common)

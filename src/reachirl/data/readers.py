@@ -75,6 +75,7 @@ class MarkerData:
 
     ``t`` is the time of each frame in seconds; ``up`` is the lab axis opposite gravity in the file's
     convention (``"+z"`` for Vicon and C3D, ``"+y"`` for OpenSim TRC), used when the caller does not say.
+    ``labelled_subjects``: the subject names Vicon put before the marker names (``"ADL001:RSHO1"``), if any.
     """
 
     rate: float
@@ -82,6 +83,7 @@ class MarkerData:
     source: str = ""
     t: np.ndarray = field(default=None)  # type: ignore[assignment]
     up: str = "+z"
+    labelled_subjects: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         where = self.source or None
@@ -324,7 +326,7 @@ def read_trc(path: str | Path) -> MarkerData:
 # ---------------------------------------------------------------------- C3D
 def read_c3d(path: str | Path) -> MarkerData:
     """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
-    up)."""
+    up). A ``Subject:`` prefix is dropped from the labels, as from a Vicon CSV's names."""
     from ..validation import check_file_size
 
     path = Path(path)
@@ -361,13 +363,19 @@ def read_c3d(path: str | Path) -> MarkerData:
         labels += [f"M{k + 1:03d}" for k in range(len(labels), pts.shape[1])]
     if len(set(labels[: pts.shape[1]])) != pts.shape[1]:
         raise InputError("duplicate point labels", path)
+    # Vicon writes "Subject:Marker" labels; the name alone, as the Vicon CSV reader gives it, unless that makes two
+    # markers one (several subjects in one file)
+    bare = [s.split(":", 1)[1] if ":" in s else s for s in labels[: pts.shape[1]]]
+    prefixes = tuple(sorted({s.split(":", 1)[0] for s in labels[: pts.shape[1]] if ":" in s}))
+    if len(set(bare)) == len(bare):
+        labels = bare
     scale = _unit_scale(unit, path, "POINT:UNITS")
     xyz = pts[:3].transpose(2, 1, 0) * scale  # (n_frames, n_markers, 3)
     if resid is not None:
         r = np.asarray(resid, dtype=float).reshape(-1, pts.shape[1], pts.shape[2])[0].T
         xyz[r < 0] = np.nan
     markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
-    return MarkerData(rate=rate, markers=markers, source=str(path), up="+z")
+    return MarkerData(rate=rate, markers=markers, source=str(path), up="+z", labelled_subjects=prefixes)
 
 
 def _c3d_declared_frames(path: Path) -> int | None:
@@ -396,7 +404,8 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
 
     Line 1 ``Trajectories``, line 2 the rate, line 3 the marker names (``Subject:Marker``, one per X/Y/Z
     triplet), line 4 ``Frame,Sub Frame,X,Y,Z,...``, line 5 the units, data from line 6 until a blank line
-    (another block may follow). Empty cells are unseen markers (NaN). The ``Subject:`` prefix is dropped from
+    (another block may follow). Empty cells are unseen markers (NaN), and so are the frames whose rows are missing
+    (the ``Frame`` column skips them): gap filling then treats both alike. The ``Subject:`` prefix is dropped from
     the names.
     """
     path = Path(path)
@@ -407,16 +416,21 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
     if len(lines) < 5:
         raise InputError("truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path)
     rate = _float(lines[1].split(",")[0], path, 2, "rate")
+    if not (np.isfinite(rate) and rate > 0):
+        raise InputError(f"sampling rate must be a positive number, got {rate:g}", path, "line 2")
     names_row = next(csv.reader([lines[2]]))
     axes_row = next(csv.reader([lines[3]]))
     units_row = next(csv.reader([lines[4]]))
     if len(axes_row) < 2 or axes_row[0].strip() != "Frame":
         raise InputError("line 4 should start with 'Frame,Sub Frame'", path, "line 4")
     cols: dict[str, int] = {}
+    prefixes: set[str] = set()
     for j, cell in enumerate(names_row):
         name = cell.strip()
         if not name:
             continue
+        if ":" in name:
+            prefixes.add(name.split(":", 1)[0])
         name = name.split(":", 1)[-1]
         if name in cols:
             raise InputError(f"duplicate marker name {name!r}", path, "line 3")
@@ -454,10 +468,25 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
             path,
             f"line {bad[0] + 7}",
         )
-    a = np.asarray(rows) * scale
+    if np.any(frames_a != np.round(frames_a)):
+        k = int(np.flatnonzero(frames_a != np.round(frames_a))[0])
+        raise InputError(f"frame number {frames_a[k]:g} is not a whole number", path, f"line {k + 6}")
+    index = (frames_a - frames_a[0]).astype(np.int64)
+    if index[-1] + 1 > 2 * len(rows) + 1000:  # not dropped rows: a corrupt frame number
+        k = int(np.flatnonzero(np.diff(index) > 1000)[0]) if np.any(np.diff(index) > 1000) else len(index) - 1
+        raise InputError(
+            f"frame numbers jump from {frames_a[k]:g} to {frames_a[min(k + 1, len(index) - 1)]:g}: a corrupt "
+            f"frame number?",
+            path,
+            f"line {k + 7}",
+        )
+    a = np.full((int(index[-1]) + 1, len(rows[0])), np.nan)
+    a[index] = np.asarray(rows) * scale  # a frame whose row is missing stays unseen (NaN)
     markers = {n: a[:, j : j + 3] for n, j in cols.items()}
-    t = (frames_a - frames_a[0]) / rate
-    return MarkerData(rate=rate, markers=markers, source=str(path), t=t, up="+z")
+    t = np.arange(a.shape[0]) / rate
+    return MarkerData(
+        rate=rate, markers=markers, source=str(path), t=t, up="+z", labelled_subjects=tuple(sorted(prefixes))
+    )
 
 
 def _col_name(cols: dict[str, int], j: int) -> str:
@@ -473,9 +502,10 @@ def _col_name(cols: dict[str, int], j: int) -> str:
 
 # ---------------------------------------------------------------------- angles: MOT, CSV
 _Q_ALIASES = {
-    "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder", "r_shoulder_elev", "l_shoulder_elev"),
-    "q2": ("q2", "elbow", "elbow_flex", "q_elbow", "r_elbow_flex", "l_elbow_flex"),
+    "q1": ("q1", "shoulder", "shoulder_flex", "q_shoulder", "r_shoulder_elev", "l_shoulder_elev", "demo_q1"),
+    "q2": ("q2", "elbow", "elbow_flex", "q_elbow", "r_elbow_flex", "l_elbow_flex", "demo_q2"),
 }
+_TIME_ALIASES = ("time", "time_s")  # time_s: reachirl's own exports (reachirl.data.exports), read back
 # OpenSim arm26's shoulder elevation is 0 with the arm hanging: q1 = r_shoulder_elev - 90° (reachirl.data.exports)
 _Q1_OFFSET_RAD = {"r_shoulder_elev": -np.pi / 2, "l_shoulder_elev": -np.pi / 2}
 
@@ -486,7 +516,8 @@ def _q1_offset(name: str) -> float:
 
 def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int, int]:
     low = [h.strip().lower() for h in header]
-    if "time" not in low:
+    time = next((k for k, h in enumerate(low) if h in _TIME_ALIASES), None)
+    if time is None:
         raise InputError(f"no 'time' column (columns: {', '.join(header)})", path, f"line {line}")
     idx = []
     for q in ("q1", "q2"):
@@ -494,7 +525,7 @@ def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int,
         if not found:
             raise InputError(f"no '{q}' column (columns: {', '.join(header)})", path, f"line {line}")
         idx.append(found[0])
-    return low.index("time"), idx[0], idx[1]
+    return time, idx[0], idx[1]
 
 
 def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path: Path, names: list[str]):

@@ -261,9 +261,13 @@ def load_trials(path: str | Path) -> list[Trial]:
         raise InputError(f"malformed trials file ({type(e).__name__}: {str(e)[:120]})", path) from None
     if not out:
         raise InputError("the file holds no trials", path)
+    seen: dict[str, int] = {}
     for i, tr in enumerate(out):
         check_trial_physics(tr, i, path)
         check_start_and_target(tr, path, f"trial {i} ({tr.id})")
+        if tr.id in seen:  # its predictions, exports and METRICS rows would be told apart by nothing
+            raise InputError(f"trial {i} has the id {tr.id!r} of trial {seen[tr.id]}; ids must be unique", path)
+        seen[tr.id] = i
     return out
 
 

@@ -67,9 +67,11 @@ def parse_trial_name(path: str | Path) -> tuple[str, str, str] | None:
 
 
 def find_static(path: str | Path, subject: str, pattern: str = "{subject}_static.csv") -> Path | None:
-    """The static trial beside ``path`` (``<subject>_static.csv``), or ``None``."""
+    """The static trial beside ``path`` (``<subject>_static.csv``; for a reach in another format, such as C3D, a
+    static in that format is taken first: ``<subject>_static.c3d``), or ``None``."""
     p = Path(path).parent / pattern.format(subject=subject)
-    return p if p.is_file() else None
+    same_format = p.with_suffix(Path(path).suffix)
+    return next((c for c in (same_format, p) if c.is_file()), None)
 
 
 def reach_files(root: str | Path) -> list[Path]:

@@ -234,7 +234,7 @@ def load(
         kind, truth = "trials-file", _read_truth(p.parent)
     if not trials:
         raise InputError("holds no trials", p)
-    return Dataset(tuple(trials), str(p), kind, truth)
+    return Dataset(tuple(trials), str(p.resolve()), kind, truth)  # absolute: `sensitivity` reloads it from anywhere
 
 
 def toy(

@@ -462,14 +462,46 @@ def write_report(
     return path
 
 
+def remove_previous_outputs(run: RunResult) -> list[Path]:
+    """What an earlier run into the same folder wrote and this one will not write again: its tables, report and
+    results.json (rewritten at the end), its figures (redrawn; a figure this run does not draw, such as the
+    methods' comparison of a run with more methods, would stay beside the new ones), the models and prediction
+    folders of units this run does not have. The checkpoints (``units/``) stay, to be reused. Returns what was
+    removed."""
+    import re
+    import shutil
+
+    out = Path(run.out_dir)
+    keys = {*run.results, *run.pairs, *run.transfer}
+    removed = [out / n for n in ("results.json", "report.md", "table.md", "table.csv") if (out / n).is_file()]
+    names = "|".join(Path(n).stem for n in _DRAW_ORDER)
+    figure = re.compile(rf"^(?:{names}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)$")
+    if (out / "figures").is_dir():
+        removed += [f for f in (out / "figures").iterdir() if f.is_file() and figure.match(f.name)]
+    if (out / "models").is_dir():
+        removed += [f for f in (out / "models").glob("*.json") if f.stem not in keys]
+    for f in removed:
+        f.unlink(missing_ok=True)
+    if (out / "predictions").is_dir():
+        for d in (out / "predictions").iterdir():
+            if d.is_dir() and d.name not in run.results and (d / "index.csv").is_file():
+                shutil.rmtree(d)
+                removed.append(d)
+    return removed
+
+
 def write_outputs(run: RunResult, workers: int = 1) -> dict:
     """Every output of a finished run (see the module docstring), in turn; the figures are drawn in ``workers``
     processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`).
+
+    The tables, ``report.md`` and last ``results.json`` are written at the end, and a previous run's are removed
+    first: a folder without them is a run that has not finished (an interrupted one), never one that looks done.
 
     Returns ``{"tables": {method: table}, "timing": {...}, "notes": [...], "figures": [...], "n_trials"}``.
     """
     t0 = time.perf_counter()
     out, config = run.out_dir, run.config
+    remove_previous_outputs(run)
     postures, sections, methods = run.postures, list(config.sections), list(config.methods)
     results = run.results
     tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
@@ -486,7 +518,6 @@ def write_outputs(run: RunResult, workers: int = 1) -> dict:
         for p, a in agreement.items():
             if p in truth[2]:
                 truth[2][p]["predictions"] = a
-    md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
     t_fig = time.perf_counter()
     jobs, figs = figure_jobs(run, tables, truth)
     from .cost import cost_section, write_models, write_posture_transfer
@@ -517,6 +548,7 @@ def write_outputs(run: RunResult, workers: int = 1) -> dict:
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
     comparisons = section_comparisons(run)
+    md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
     write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}

@@ -166,8 +166,9 @@ def check_model_dict(d, path) -> None:
         )
         require(
             ok,
-            f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles, found "
-            f"{brief(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}",
+            f"field 'info.rollout_q': expected {n_nodes + 1} rows of 2 joint angles"
+            + ("" if "n_nodes" in d else " (the field 'n_nodes' is missing: 100 knots assumed)")
+            + f", found {brief(rollout if not isinstance(rollout, list) else f'{len(rollout)} rows')}",
             path,
         )
         for i, r in enumerate(rollout):
