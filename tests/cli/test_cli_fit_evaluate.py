@@ -110,6 +110,10 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
             r"run\.toml: fit reads only the \[experimental\] table of a run file, not max_iter, nodes \(give those as",
         ),
         (
+            lambda d, t: ["fit", str(t), "--sections", "1", "--out", str(d / "old.npz")],
+            r"old\.npz: --out: exists and is not a \.json file; it would be replaced \(choose another path\)",
+        ),
+        (
             lambda d, t: ["evaluate", "--model", str(d / "acados.json"), str(t), "--out", str(d / "x.json")],
             r"acados\.json: field 'info\.backend': expected \"casadi\" or \"crocoddyl\", found 'acados'",
         ),
@@ -119,6 +123,7 @@ def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_arg
     (tmp_path / "bad.npz").write_text("time,q1\n1,2\n")
     (tmp_path / "bad.json").write_text("{not json")
     (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
+    (tmp_path / "old.npz").write_bytes(b"a trials file given as --out by mistake")
     (tmp_path / "run.toml").write_text('nodes = 40\nmax_iter = 2\n\n[experimental]\nmerit = "state"\n')
     model = {"format": "reachirl-model/1", "features": list(FEATURES), "weights": [[1.0] * 7]}
     (tmp_path / "acados.json").write_text(json.dumps({**model, "info": {"backend": "acados"}}))

@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         from ..validation import check_output_file
 
-        check_output_file(args.out)
+        check_output_file(args.out, suffix=".json")
     results = {}
     for suite in suites:
         module = _load(suite)

@@ -15,6 +15,7 @@ from ..errors import InputError
 from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
+from ..irl.provenance import fingerprint
 from ..validation import check_output_dir, check_output_file
 from ._args import (
     PREDICTION_BACKEND_HELP,
@@ -99,7 +100,7 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 
 def run(args: argparse.Namespace) -> int:
-    check_output_file(args.out)
+    check_output_file(args.out, suffix=".json")
     if args.predictions is not None:
         if args.predictions.exists() and not args.predictions.is_dir():
             raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
@@ -120,7 +121,15 @@ def run(args: argparse.Namespace) -> int:
     atomic_write_json(
         args.out,
         annotate_no_data(
-            {"backend": backend, "summary": summary, "selection": chosen, "trials": [e.to_dict() for e in errors]}
+            {
+                "model": str(Path(args.model).resolve()),
+                "trials_file": str(Path(args.trials).resolve()),
+                "trials_fingerprint": fingerprint(trials),
+                "backend": backend,
+                "summary": summary,
+                "selection": chosen,
+                "trials": [e.to_dict() for e in errors],
+            }
         ),
     )
     print(summary_line(summary, backend))

@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     from ..irl.provenance import estimator_info
 
     console = Console(stderr=True)
-    check_output_file(args.out)
+    check_output_file(args.out, suffix=".json")
     refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
     experimental = _experimental(args.config)
     trials, chosen = chosen_trials(args, load_trials(args.trials))

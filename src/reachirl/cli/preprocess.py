@@ -272,7 +272,7 @@ def run(args) -> int:
 
     options = _options(args)
     _folder_defaults(args)
-    out = check_output_file(args.out)
+    out = check_output_file(args.out, suffix=".npz")
     if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
         raise InputError("exists and is not a folder; --export needs a folder", args.export)
     if args.manifest:

@@ -138,9 +138,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
         raise InputError("the animation must end in .gif or .mp4", args.render)
-    for opt, path in (("--out", args.out), ("--render", args.render)):
-        if path is not None:
-            check_output_file(path, opt)
+    if args.out is not None:
+        check_output_file(args.out, "--out", suffix=".json")
+    if args.render is not None:
+        check_output_file(args.render, "--render", suffix=args.render.suffix.lower())
     refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
     if args.out is not None and args.render is not None:
         refuse_overwrite({"--render": args.render}, [args.out])
