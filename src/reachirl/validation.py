@@ -147,11 +147,9 @@ def _check_writable_folder(path: Path, option: str) -> None:
         raise InputError(f"{option}: cannot write in {anc} ({e.strerror or e})", path) from None
 
 
-def check_output_file(path: str | os.PathLike, option: str = "--out", suffix: str | None = None) -> Path:
+def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     """Before any work: ``path`` can be written atomically (it is not a folder, its folder exists or can be
-    made, is writable, and its name is not too long), and, with ``suffix`` (``".json"``), an existing file there
-    is one of that kind (a command replaces its own earlier output, never a file of another kind: a trials file
-    or a model given by mistake). Returns it as a :class:`Path`."""
+    made, is writable, and its name is not too long). Returns it as a :class:`Path`."""
     p = Path(path)
     if str(path) == "" or p.name in ("", ".", ".."):
         raise InputError(f"{option}: expected a file path, got {str(path)!r}")
@@ -163,9 +161,18 @@ def check_output_file(path: str | os.PathLike, option: str = "--out", suffix: st
         raise InputError(f"{option}: is a folder, expected a file path", p)
     if p.exists() and not p.is_file():
         raise InputError(f"{option}: is not a regular file", p)
-    if suffix is not None and p.exists() and p.suffix.lower() != suffix:
-        raise InputError(f"{option}: exists and is not a {suffix} file; it would be replaced (choose another path)", p)
     return p
+
+
+def check_output_kind(path: str | os.PathLike | None, suffix: str, option: str = "--out") -> None:
+    """Before any work (once the inputs are known not to be ``path``): a file already at ``path`` is of the kind
+    the command writes (``suffix``, e.g. ``".json"``): a command replaces its own earlier output, never a file of
+    another kind given by mistake (a trials file, a model)."""
+    if path is None:
+        return
+    p = Path(path)
+    if p.is_file() and p.suffix.lower() != suffix:
+        raise InputError(f"{option}: exists and is not a {suffix} file; it would be replaced (choose another path)", p)
 
 
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:

@@ -84,6 +84,18 @@ def test_onset_offset_on_min_jerk(synth):
     assert abs(t[off] - (rest + (1 - tau_c) * T)) < 1.5 / rate
 
 
+def test_a_recording_of_the_reach_and_a_faster_return_gives_the_reach(reach, synth):
+    """Reach, rest, then the way back at twice the speed: the fastest movement is the return, and the trial must
+    still be the reach (it was the return, read as a mirrored reach and refused)."""
+    _, back = synth.min_jerk_q(reach.q[-1], reach.q[0], duration=0.4, rest=0.5)
+    both = np.concatenate([reach.q, back[1:]])
+    alone = _rec(reach, synth)
+    whole = _rec(reach, synth, markers=synth.lab_markers(reach.arm, both))
+    assert whole.t[whole.offset] < reach.t[-1]  # ends before the return starts
+    assert abs((whole.offset - whole.onset) - (alone.offset - alone.onset)) <= 1
+    np.testing.assert_allclose(whole.q[whole.offset], alone.q[alone.offset], atol=np.radians(0.5))
+
+
 # ---------------------------------------------------------------------- known geometry
 @pytest.mark.parametrize(
     "options",

@@ -68,6 +68,7 @@ def test_evaluate_cli_marks_counts_and_leaves_out_failures(tmp_path, monkeypatch
     model = save_model(tmp_path / "m.json", LearnedModel(np.full((1, 7), 0.1)))
     errs = [_error("a", 2.0, True), _error("b", 40.0, False)]
     monkeypatch.setattr(cli_evaluate, "load_trials", lambda path: ["a", "b"])
+    monkeypatch.setattr(cli_evaluate, "fingerprint", lambda trials: "0123456789abcdef")
     monkeypatch.setattr(LearnedModel, "evaluate", lambda self, *a, **k: errs)
     out = tmp_path / "metrics.json"
     assert main(["evaluate", "--model", str(model), "trials.npz", "--out", str(out), "--backend", "crocoddyl"]) == 0

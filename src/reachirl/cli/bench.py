@@ -56,9 +56,10 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         raise InputError(f"unknown benchmark suite(s) {unknown}; choose from {list(SUITES)}")
     if args.out is not None:
-        from ..validation import check_output_file
+        from ..validation import check_output_file, check_output_kind
 
-        check_output_file(args.out, suffix=".json")
+        check_output_file(args.out)
+        check_output_kind(args.out, ".json")
     results = {}
     for suite in suites:
         module = _load(suite)

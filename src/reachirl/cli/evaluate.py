@@ -16,7 +16,7 @@ from ..experiments.no_data import annotate_no_data
 from ..io import atomic_write_json
 from ..irl.model import load_model
 from ..irl.provenance import fingerprint
-from ..validation import check_output_dir, check_output_file
+from ..validation import check_output_dir, check_output_file, check_output_kind
 from ._args import (
     PREDICTION_BACKEND_HELP,
     add_selection,
@@ -100,12 +100,13 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 
 def run(args: argparse.Namespace) -> int:
-    check_output_file(args.out, suffix=".json")
+    check_output_file(args.out)
     if args.predictions is not None:
         if args.predictions.exists() and not args.predictions.is_dir():
             raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
         check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
     refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
+    check_output_kind(args.out, ".json")
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend

@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
 from ..irl.uncertainty import UNDETERMINED_WIDTH
-from ..validation import MAX_ITER, NODES_RANGE, check_output_file
+from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
 from ._args import add_selection, chosen_trials, int_in, refuse_overwrite
 
 MIN_NODES, MAX_NODES = NODES_RANGE
@@ -136,8 +136,9 @@ def run(args: argparse.Namespace) -> int:
     from ..irl.provenance import estimator_info
 
     console = Console(stderr=True)
-    check_output_file(args.out, suffix=".json")
+    check_output_file(args.out)
     refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
+    check_output_kind(args.out, ".json")
     experimental = _experimental(args.config)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:

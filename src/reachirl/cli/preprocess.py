@@ -268,11 +268,11 @@ def _refuse_overwrite(args, out: Path, entries: list[ManifestEntry]) -> list:
 
 
 def run(args) -> int:
-    from ..validation import check_output_file
+    from ..validation import check_output_file, check_output_kind
 
     options = _options(args)
     _folder_defaults(args)
-    out = check_output_file(args.out, suffix=".npz")
+    out = check_output_file(args.out)
     if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
         raise InputError("exists and is not a folder; --export needs a folder", args.export)
     if args.manifest:
@@ -295,6 +295,7 @@ def run(args) -> int:
         if e.static is not None:
             regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
     inputs = _refuse_overwrite(args, out, entries)
+    check_output_kind(out, ".npz")
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (
         parse_marker_map(args.markers) if args.markers else (load_markerset(args.markerset) if args.markerset else None)

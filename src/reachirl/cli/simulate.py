@@ -134,15 +134,17 @@ def run(args: argparse.Namespace) -> int:
     from ..irl.model import load_model
     from ..sim import simulate as sim
     from ..sim.render import osmesa_available
-    from ..validation import check_output_file
+    from ..validation import check_output_file, check_output_kind
 
     if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
         raise InputError("the animation must end in .gif or .mp4", args.render)
-    if args.out is not None:
-        check_output_file(args.out, "--out", suffix=".json")
-    if args.render is not None:
-        check_output_file(args.render, "--render", suffix=args.render.suffix.lower())
+    for opt, path in (("--out", args.out), ("--render", args.render)):
+        if path is not None:
+            check_output_file(path, opt)
     refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
+    check_output_kind(args.out, ".json")
+    if args.render is not None:
+        check_output_kind(args.render, args.render.suffix.lower(), "--render")
     if args.out is not None and args.render is not None:
         refuse_overwrite({"--render": args.render}, [args.out])
     if args.render is not None:

@@ -21,7 +21,9 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    the angles keep ``cutoff_hz``): with 1–2 mm of marker noise the 10 Hz speed carries about 40 mm/s of
    noise, as much as 5 % of a reach's peak, so onset and offset wandered by up to ±8 % of the reach, into the
    rest or into the movement, and the DOC (at rest at both ends) was asked for another reach. Clean
-   recordings (UE-ADL: 0.06 mm) keep the 10 Hz speed. ``None`` always uses it, as Berret.
+   recordings (UE-ADL: 0.06 mm) keep the 10 Hz speed. ``None`` always uses it, as Berret. A recording that
+   also holds the return, faster than the reach, gives the reach: the movement that takes the fingertip away
+   from where it rested, not the one that brings it back.
 7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
    joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
    gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
@@ -394,19 +396,41 @@ def segmentation_speed(
     return np.linalg.norm(np.gradient(smooth, t, axis=0), axis=1)
 
 
-def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05) -> tuple[int, int]:
+def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05, reach: np.ndarray | None = None) -> tuple[int, int]:
     """Onset and offset frames (inclusive) of the main movement: around the speed peak, the first frames
-    where the
-    speed falls below ``threshold`` × peak bound the movement. Without rest before (after), the record's first
-    (last) frame is used."""
+    where the speed falls below ``threshold`` × peak bound the movement. Without rest before (after), the
+    record's first (last) frame is used.
+
+    ``reach`` (the fingertip's distance from where the recording starts, per frame): a recording may hold the
+    reach and the return from it. When the fastest movement brings the fingertip back towards its start and
+    another one, separated from it by rest, takes it away, that one is the reach."""
     speed = np.asarray(speed, dtype=float)
     p = int(np.argmax(speed))
     thr = threshold * speed[p]
+    if reach is not None:
+        p = _reaching_peak(speed, thr, np.asarray(reach, dtype=float), p)
+        thr = threshold * speed[p]  # the reach's own peak
     below_before = np.flatnonzero(speed[:p] < thr)
     below_after = np.flatnonzero(speed[p:] < thr)
     onset = int(below_before[-1]) + 1 if below_before.size else 0
     offset = p + int(below_after[0]) - 1 if below_after.size else speed.shape[0] - 1
     return onset, offset
+
+
+def _reaching_peak(speed: np.ndarray, thr: float, reach: np.ndarray, p: int) -> int:
+    """The peak of the movement (a run of frames above ``thr``) that takes the fingertip furthest from its start,
+    if the one around ``p`` brings it back (a return); else ``p``."""
+    moving = np.r_[False, speed >= thr, False]
+    starts = np.flatnonzero(~moving[:-1] & moving[1:])
+    ends = np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+    if starts.size < 2:
+        return p
+    extension = reach[ends] - reach[starts]
+    own = int(np.flatnonzero((starts <= p) & (p <= ends))[0])
+    best = int(np.argmax(extension))
+    if extension[own] >= 0 or extension[best] <= 0:
+        return p
+    return int(starts[best] + np.argmax(speed[starts[best] : ends[best] + 1]))
 
 
 def sagittal_basis(
@@ -647,8 +671,11 @@ def reconstruct_markers(
             "markers swapped? (check --markers or the marker set)",
             src,
         )
+    reach = np.linalg.norm(joints["fingertip"] - joints["fingertip"][0], axis=1)  # away from where it rested
     onset, offset = detect_onset_offset(
-        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]), options.onset_threshold
+        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]),
+        options.onset_threshold,
+        reach,
     )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
@@ -813,8 +840,11 @@ def angles_to_trial(
             f"(< {options.min_peak_speed:g} m/s)",
             src,
         )
+    tip = arm.fk(q_seen)
     onset, offset = detect_onset_offset(
-        segmentation_speed(t, arm.fk(q_seen), speed, options, src), options.onset_threshold
+        segmentation_speed(t, tip, speed, options, src),
+        options.onset_threshold,
+        np.linalg.norm(tip - tip[0], axis=1),  # away from where it rested: the reach, not a return
     )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} samples", src)
