@@ -138,7 +138,7 @@ def test_a_start_outside_the_joint_limits_names_the_trial(files):
         (
             "0/q.npy",
             lambda a: np.where(np.arange(a.shape[0])[:, None] == a.shape[0] // 2, a + np.array([0.0, 4.0]), a),
-            r"trial 0 \(S1/P2/right/0\): the reach leaves the joint limits at sample \d+ \(q = ",
+            r"trial 0 \(S1/P2/right/0\): the reach leaves the joint limits q1 in \[.*\] at sample \d+ \(q = ",
         ),
     ],
 )

@@ -62,19 +62,29 @@ def check_start_and_target(trial, path: object, where: str | None = None) -> Non
             )
 
 
+def _limits() -> tuple[np.ndarray, np.ndarray, str]:
+    """The model's joint limits (rad) and their text, in degrees."""
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    return lo, hi, f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
+
+
+def _first_outside(q: np.ndarray, tol: float) -> int | None:
+    """The first sample of ``q`` ``(n, 2)`` outside the joint limits (beyond ``tol`` rad), or None."""
+    lo, hi, _ = _limits()
+    bad = np.flatnonzero(np.any((q < lo - tol) | (q > hi + tol), axis=1))
+    return int(bad[0]) if bad.size else None
+
+
 def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     """After preprocessing a recording: the reach starts inside the joint limits, stays within them, and ends
     in front of the shoulder. A mirrored recording (a left arm read as a right one) bends the elbow backwards
     and a backwards one starts at the bar: the message says so, here where ``--side`` or ``--markers`` can fix
     it, and not later in ``fit``."""
-    from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
-
-    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    lo, hi, limits = _limits()
     hint = (
         "a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
         "check --markers and --forward-axis)"
     )
-    limits = f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
     q0 = trial.q[0]
     if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
         raise InputError(
@@ -82,11 +92,11 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
             path,
             where,
         )
-    bad = np.flatnonzero(np.any((trial.q < lo - 1e-9) | (trial.q > hi + 1e-9), axis=1))
-    if bad.size:
-        q = trial.q[bad[0]]
+    k = _first_outside(trial.q, 1e-9)
+    if k is not None:
+        q = trial.q[k]
         raise InputError(
-            f"the reach leaves the joint limits {limits} at {trial.t[bad[0]]:.3f} s after onset "
+            f"the reach leaves the joint limits {limits} at {trial.t[k]:.3f} s after onset "
             f"(q = ({_deg(q[0])}, {_deg(q[1])})): {hint}",
             path,
             where,
@@ -209,15 +219,10 @@ def check_trial_physics(trial, i: int, path) -> None:
         check_duration(trial.duration, where)
     except InputError as e:
         raise InputError(e.reason, path, where) from None
-    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
     q0 = trial.x0[:2]
-    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
-        d = np.rad2deg
+    if _first_outside(q0[None], 1e-9) is not None:
         raise InputError(
-            f"the start q0 = ({d(q0[0]):.1f}°, {d(q0[1]):.1f}°) lies outside the joint limits "
-            f"q1 ∈ [{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]",
-            path,
-            where,
+            f"the start q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {_limits()[2]}", path, where
         )
     gap = float(np.max(np.abs(q0 - trial.q[0])))
     if gap > 1e-6:
@@ -226,13 +231,12 @@ def check_trial_physics(trial, i: int, path) -> None:
             path,
             where,
         )
-    bad = np.flatnonzero(np.any((trial.q < lo - 1e-6) | (trial.q > hi + 1e-6), axis=1))
-    if bad.size:
-        q, d = trial.q[bad[0]], np.rad2deg
+    k = _first_outside(trial.q, 1e-6)
+    if k is not None:
+        q = trial.q[k]
         raise InputError(
-            f"the reach leaves the joint limits at sample {bad[0]} (q = ({d(q[0]):.1f}°, {d(q[1]):.1f}°); q1 ∈ "
-            f"[{d(lo[0]):.0f}°, {d(hi[0]):.0f}°], q2 ∈ [{d(lo[1]):.0f}°, {d(hi[1]):.0f}°]): angles in degrees, or "
-            f"an edited file?",
+            f"the reach leaves the joint limits {_limits()[2]} at sample {k} (q = ({_deg(q[0])}, {_deg(q[1])})): "
+            f"angles in degrees, or an edited file?",
             path,
             where,
         )
