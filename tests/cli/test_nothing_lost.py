@@ -119,6 +119,14 @@ def test_fit_evaluate_simulate_never_write_over_their_inputs(base, tmp_path, cap
     assert _digest(victim) == before
 
 
+def test_simulate_refuses_one_file_for_its_two_outputs(base, tmp_path, capsys):
+    # the message once called the animation "the input file"
+    out = tmp_path / "r.gif"
+    argv = ["simulate", "--model", base / "model.json", base / "trials.npz", "--out", out, "--render", out]
+    _fails(argv, capsys, r"r\.gif: --render and --out are the same file; give each its own$")
+    assert not out.exists()
+
+
 def test_evaluate_checks_every_output_before_writing_any(base, tmp_path, capsys):
     (tmp_path / "afile").write_text("x")
     _fails(

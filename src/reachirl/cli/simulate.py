@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, int_in, number_in, refuse_overwrite
+from ._args import PREDICTION_BACKEND_HELP, int_in, number_in, refuse_overwrite, same_file
 
 BACKENDS = ("casadi", "crocoddyl")
 MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
@@ -145,8 +145,12 @@ def run(args: argparse.Namespace) -> int:
     check_output_kind(args.out, ".json")
     if args.render is not None:
         check_output_kind(args.render, args.render.suffix.lower(), "--render")
-    if args.out is not None and args.render is not None:
-        refuse_overwrite({"--render": args.render}, [args.out])
+    if (
+        args.out is not None
+        and args.render is not None
+        and (same_file(args.out, args.render) or args.out.absolute() == args.render.absolute())
+    ):
+        raise InputError("--render and --out are the same file; give each its own", args.render)
     if args.render is not None:
         ok, why = osmesa_available()
         if not ok:
