@@ -111,6 +111,15 @@ def _redeliver(sig: int, previous) -> None:
     os.kill(os.getpid(), sig)
 
 
+def unmuted_stderr():
+    """``sys.stderr`` without the muting of :func:`solver_interrupts` (for the command's last word on a signal:
+    a guard left open, such as one in a suspended generator, must not swallow it)."""
+    stream = sys.stderr
+    while isinstance(stream, _MutedAfter):
+        stream = stream._stream
+    return stream
+
+
 class _MutedAfter:
     """``stream``, silent once ``caught`` holds a signal (what an abandoned solve prints is noise)."""
 

@@ -551,3 +551,18 @@ def test_reproduce_subjects_are_bounded(capsys):
         main(["reproduce", "--quick", "--subjects", "100000"])
     assert e.value.code == 2
     assert "argument --subjects: expected an integer in [2, 100], got 100000" in capsys.readouterr().err
+
+
+def test_the_last_word_on_a_signal_is_never_muted(monkeypatch, capsys):
+    """A solver guard mutes stderr once it caught a signal (what an abandoned solve prints is noise); one left open
+    (e.g. in a suspended generator) once swallowed "terminated", leaving exit 143 without a word."""
+    import argparse
+    import signal
+    import sys
+
+    from reachirl import cli, errors
+
+    monkeypatch.setattr(sys, "stderr", errors._MutedAfter(sys.stderr, [signal.SIGTERM]))
+    print("noise", file=sys.stderr)
+    assert cli._interrupted(argparse.Namespace(command="sensitivity"), terminated=True) == 143
+    assert capsys.readouterr().err == "reachirl sensitivity: terminated\n"

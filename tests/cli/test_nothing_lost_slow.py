@@ -543,8 +543,8 @@ def _long_run(world: Path, out: Path, command: str, backend: str) -> tuple[list[
             str(out / "sens"),
             "--workers",
             "1",
-            "--no-progress",
-            "--no-occlusion",
+            "--no-progress",  # with the occlusion refits: far beyond the 2.5 s before the signal (without them the
+            # run could end as the signal came, on a fast machine)
         ], out / "sens" / "sensitivity.md"
     if command == "synth":
         return [

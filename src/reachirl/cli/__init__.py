@@ -105,7 +105,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _interrupted(args, terminated: bool) -> int:
-    print(f"reachirl {args.command}: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+    word = "terminated" if terminated else "interrupted"
+    print(f"reachirl {args.command}: {word}", file=errors.unmuted_stderr(), flush=True)
     return 143 if terminated else 130
 
 
