@@ -94,7 +94,9 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
 
 
 def same_file(a: Path, b: Path) -> bool:
-    """Whether ``a`` and ``b`` are one file (the same path, a symlink or a hard link); False if either is missing."""
+    """Whether ``a`` and ``b`` are one file: the same path (existing or not), a symlink or a hard link."""
+    if Path(a).absolute() == Path(b).absolute():
+        return True
     try:
         return os.path.samefile(a, b)
     except (OSError, ValueError):  # either does not exist (yet), or cannot be examined
@@ -111,7 +113,7 @@ def refuse_overwrite(outputs: dict[str, object], inputs) -> None:
             continue
         out = Path(out)
         for inp in ins:
-            if same_file(out, inp) or out.absolute() == inp.absolute():
+            if same_file(out, inp):
                 what = "folder" if inp.is_dir() else "file"
                 raise InputError(
                     f"{option} is the input {what} {inp}; it would be overwritten (choose another output path)", out

@@ -220,7 +220,7 @@ def run_options(args) -> dict:
         v = getattr(args, f"key_{key}", None)
         if v is not None:
             opts[key] = list(v) if isinstance(v, list) else v
-    known = {*RUN_KEYS, *FLAG_KEYS, "experimental", "quick", "data", "scheduler", "workers", "out"}
+    known = {*RUN_KEYS, *OTHER_KEYS, "experimental"}
     unknown = sorted(set(opts) - known)
     if unknown:
         raise InputError(f"unknown run option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}", where)

@@ -143,13 +143,7 @@ def run(args: argparse.Namespace) -> int:
             check_output_file(path, opt)
     refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
     check_output_kind(args.out, ".json")
-    if args.render is not None:
-        check_output_kind(args.render, args.render.suffix.lower(), "--render")
-    if (
-        args.out is not None
-        and args.render is not None
-        and (same_file(args.out, args.render) or args.out.absolute() == args.render.absolute())
-    ):
+    if args.out is not None and args.render is not None and same_file(args.out, args.render):
         raise InputError("--render and --out are the same file; give each its own", args.render)
     if args.render is not None:
         ok, why = osmesa_available()

@@ -62,17 +62,17 @@ def check_start_and_target(trial, path: object, where: str | None = None) -> Non
             )
 
 
-def _limits() -> tuple[np.ndarray, np.ndarray, str]:
-    """The model's joint limits (rad) and their text, in degrees."""
-    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
-    return lo, hi, f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
-
-
 def _first_outside(q: np.ndarray, tol: float) -> int | None:
     """The first sample of ``q`` ``(n, 2)`` outside the joint limits (beyond ``tol`` rad), or None."""
-    lo, hi, _ = _limits()
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
     bad = np.flatnonzero(np.any((q < lo - tol) | (q > hi + tol), axis=1))
     return int(bad[0]) if bad.size else None
+
+
+def _limits_text() -> str:
+    """The model's joint limits, in degrees."""
+    lo, hi = DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
+    return f"q1 in [{_deg(lo[0])}, {_deg(hi[0])}], q2 in [{_deg(lo[1])}, {_deg(hi[1])}]"
 
 
 def check_trial_posture(trial, path: object, where: str | None = None) -> None:
@@ -80,13 +80,13 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     in front of the shoulder. A mirrored recording (a left arm read as a right one) bends the elbow backwards
     and a backwards one starts at the bar: the message says so, here where ``--side`` or ``--markers`` can fix
     it, and not later in ``fit``."""
-    lo, hi, limits = _limits()
+    limits = _limits_text()
     hint = (
         "a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
         "check --markers and --forward-axis)"
     )
     q0 = trial.q[0]
-    if np.any(q0 < lo - 1e-9) or np.any(q0 > hi + 1e-9):
+    if _first_outside(q0[None], 1e-9) is not None:
         raise InputError(
             f"the start posture q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {limits}: {hint}",
             path,
@@ -222,7 +222,7 @@ def check_trial_physics(trial, i: int, path) -> None:
     q0 = trial.x0[:2]
     if _first_outside(q0[None], 1e-9) is not None:
         raise InputError(
-            f"the start q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {_limits()[2]}", path, where
+            f"the start q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {_limits_text()}", path, where
         )
     gap = float(np.max(np.abs(q0 - trial.q[0])))
     if gap > 1e-6:
@@ -235,7 +235,7 @@ def check_trial_physics(trial, i: int, path) -> None:
     if k is not None:
         q = trial.q[k]
         raise InputError(
-            f"the reach leaves the joint limits {_limits()[2]} at sample {k} (q = ({_deg(q[0])}, {_deg(q[1])})): "
+            f"the reach leaves the joint limits {_limits_text()} at sample {k} (q = ({_deg(q[0])}, {_deg(q[1])})): "
             f"angles in degrees, or an edited file?",
             path,
             where,

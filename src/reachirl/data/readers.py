@@ -324,6 +324,12 @@ def read_trc(path: str | Path) -> MarkerData:
 
 
 # ---------------------------------------------------------------------- C3D
+def _vicon_label(label: str) -> tuple[str, str]:
+    """Vicon's ``"Subject:Marker"`` as ``(subject, marker)``; ``("", label)`` without a subject."""
+    subject, sep, name = label.partition(":")
+    return (subject, name) if sep else ("", label)
+
+
 def read_c3d(path: str | Path) -> MarkerData:
     """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
     up). A ``Subject:`` prefix is dropped from the labels, as from a Vicon CSV's names."""
@@ -365,8 +371,9 @@ def read_c3d(path: str | Path) -> MarkerData:
         raise InputError("duplicate point labels", path)
     # Vicon writes "Subject:Marker" labels; the name alone, as the Vicon CSV reader gives it, unless that makes two
     # markers one (several subjects in one file)
-    bare = [s.split(":", 1)[1] if ":" in s else s for s in labels[: pts.shape[1]]]
-    prefixes = tuple(sorted({s.split(":", 1)[0] for s in labels[: pts.shape[1]] if ":" in s}))
+    split = [_vicon_label(s) for s in labels[: pts.shape[1]]]
+    bare = [name for _, name in split]
+    prefixes = tuple(sorted({subject for subject, _ in split if subject}))
     if len(set(bare)) == len(bare):
         labels = bare
     scale = _unit_scale(unit, path, "POINT:UNITS")
@@ -429,9 +436,9 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         name = cell.strip()
         if not name:
             continue
-        if ":" in name:
-            prefixes.add(name.split(":", 1)[0])
-        name = name.split(":", 1)[-1]
+        subject, name = _vicon_label(name)
+        if subject:
+            prefixes.add(subject)
         if name in cols:
             raise InputError(f"duplicate marker name {name!r}", path, "line 3")
         if j + 2 >= len(axes_row) or [a.strip() for a in axes_row[j : j + 3]] != ["X", "Y", "Z"]:
@@ -473,10 +480,9 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         raise InputError(f"frame number {frames_a[k]:g} is not a whole number", path, f"line {k + 6}")
     index = (frames_a - frames_a[0]).astype(np.int64)
     if index[-1] + 1 > 2 * len(rows) + 1000:  # not dropped rows: a corrupt frame number
-        k = int(np.flatnonzero(np.diff(index) > 1000)[0]) if np.any(np.diff(index) > 1000) else len(index) - 1
+        k = int(np.argmax(np.diff(index)))  # the largest jump
         raise InputError(
-            f"frame numbers jump from {frames_a[k]:g} to {frames_a[min(k + 1, len(index) - 1)]:g}: a corrupt "
-            f"frame number?",
+            f"frame numbers jump from {frames_a[k]:g} to {frames_a[k + 1]:g}: a corrupt frame number?",
             path,
             f"line {k + 7}",
         )
