@@ -11,7 +11,14 @@ from reachirl.experiments.analysis import _observes, prediction_agreement, truth
 from reachirl.experiments.protocol import SETS, ProtocolConfig, make_units, split_trials
 from reachirl.experiments.results import load_unit_arrays
 from reachirl.experiments.runner import reproduce
-from reachirl.experiments.truth_solves import AGREEMENT_MAX_TRIALS, matches, sampled_rows, true_weights, truth_jobs
+from reachirl.experiments.truth_solves import (
+    AGREEMENT_MAX_TRIALS,
+    _truth_reach,
+    matches,
+    sampled_rows,
+    true_weights,
+    truth_jobs,
+)
 
 
 @pytest.fixture(scope="module")
@@ -36,6 +43,10 @@ def serial(run, method, postures) -> dict:
         if u["method"] != method or u["sections"] != truth["n_windows"] or u["posture"] not in postures:
             continue
         arrays = load_unit_arrays(run.out_dir, r["key"])
+        first = next(name for name in SETS if f"{name}/pred_q" in arrays)
+        reach = _truth_reach(
+            [by_id[str(i)] for i in arrays[f"{first}/ids"]], w_true, u["n_nodes"], u["backend"], _observes(u)
+        )[0]
         per_set = {}
         for name in SETS:
             if f"{name}/pred_q" not in arrays:
@@ -44,7 +55,9 @@ def serial(run, method, postures) -> dict:
             rows = np.unique(np.linspace(0, len(ids) - 1, min(len(ids), AGREEMENT_MAX_TRIALS)).round().astype(int))
             ids = [ids[k] for k in rows]
             recs = {e["id"]: e for e in r["sets"][name]["trials"]}
-            true = evaluate_trials(w_true, [by_id[i] for i in ids], u["n_nodes"], u["backend"], observe=_observes(u))
+            true = evaluate_trials(
+                w_true, [by_id[i] for i in ids], u["n_nodes"], u["backend"], observe=_observes(u), path=reach.q
+            )
             both = [k for k, i in enumerate(ids) if recs[i]["converged"] and true[k].converged]
             if not both:
                 continue

@@ -62,6 +62,24 @@ def true_weights(truth: dict | None, trial_ids: Sequence[str]) -> np.ndarray | N
     return None if nominal is None else np.asarray(nominal, dtype=float)
 
 
+def _truth_reach(trials, weights: np.ndarray, n_nodes: int, backend: str, observe: bool):
+    """The DOC under ``weights`` over the trials' mean task, as an observed unit sees its rollout: ``(solution,
+    task, threshold)``; with ``observe`` and trials cut at one onset threshold the task is rest to rest and
+    ``threshold`` that threshold, otherwise ``None``."""
+    from ..doc import solve_doc
+    from ..doc.observation import common_threshold, rest_to_rest
+    from ..irl.moirl import mean_task
+
+    task = mean_task(trials, n_nodes)
+    try:
+        threshold = common_threshold(trials) if observe else None
+    except ValueError:  # cut at different thresholds: no one way to see the reach
+        threshold = None
+    if threshold is not None:
+        task = rest_to_rest(task)
+    return solve_doc(task, weights, backend=backend), task, threshold
+
+
 def reference_features(
     trials, weights: np.ndarray, n_nodes: int, backend: str = "casadi", observe: bool = False
 ) -> np.ndarray | None:
@@ -75,19 +93,9 @@ def reference_features(
     of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
     shares on Φ* credit the true weights with costs that hardly shape their own reach."""
     from ..data.trial import trial_from_solution
-    from ..doc import solve_doc
-    from ..doc.observation import common_threshold, rest_to_rest
     from ..doc.observation import observe as seen_as_recorded
-    from ..irl.moirl import mean_task
 
-    task = mean_task(trials, n_nodes)
-    try:
-        threshold = common_threshold(trials) if observe else None
-    except ValueError:  # cut at different thresholds: no one way to see the reach
-        threshold = None
-    if threshold is not None:
-        task = rest_to_rest(task)
-    sol = solve_doc(task, weights, backend=backend)
+    sol, task, threshold = _truth_reach(trials, weights, n_nodes, backend, observe)
     if not sol.converged:
         return None
     reach = (
@@ -143,12 +151,20 @@ def true_predictions(
     """The true weights' predictions of the sampled trials of every set that has trials (``trials[set]``, in the
     set's order, and ``learned_q[set]``, the unit's predicted q of those trials, ``(n, n_nodes + 1, 2)``).
 
+    Like the unit's, each prediction starts from a reach under the same weights moved to the trial: the true
+    weights' own reach over the first set's mean task (:func:`_truth_reach`), when it converges.
+
     Returns ``{"weights", "sets": {set: {"ids", "true_converged", "true_vs_recorded_deg",
     "learned_vs_true_deg"}}}``: per sampled trial, in the set's order; an RMSE is ``None`` where the true weights'
     DOC did not converge."""
     from ..doc.evaluation import evaluate_trials, rmse_deg
 
     w_true = np.asarray(w_true, dtype=float)
+    first = next((list(trials[name]) for name in SETS if trials.get(name)), None)
+    path = None
+    if first is not None:
+        reach = _truth_reach(first, w_true, n_nodes, backend, observe)[0]
+        path = reach.q if reach.converged else None
     sets = {}
     for name in SETS:
         chosen = list(trials.get(name) or ())
@@ -157,7 +173,7 @@ def true_predictions(
         rows = sampled_rows(len(chosen))
         chosen = [chosen[k] for k in rows]
         learned = np.asarray(learned_q[name])[rows].astype(float)
-        true = evaluate_trials(w_true, chosen, n_nodes, backend=backend, observe=observe)
+        true = evaluate_trials(w_true, chosen, n_nodes, backend=backend, observe=observe, path=path)
         sets[name] = {
             "ids": [t.id for t in chosen],
             "true_converged": [bool(e.converged) for e in true],
