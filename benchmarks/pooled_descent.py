@@ -22,7 +22,8 @@ from reachirl import MOIRL
 from reachirl.experiments import datasets
 from reachirl.experiments.analysis import reference_features, true_weights
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
-from reachirl.irl.uncertainty import _shares, residuals_and_jacobian, rollout_errors
+from reachirl.features import cost_shares
+from reachirl.irl.uncertainty import residuals_and_jacobian, rollout_errors
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,10 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     w_true = true_weights(ds.truth, [t.trial_id for t in train])
     w_true = np.maximum(w_true, 1e-6 * w_true.max())
     phi_true = reference_features(train, w_true, est.n_nodes, "casadi", True)
-    true = _shares(w_true, phi_true)
+    true = cost_shares(w_true, phi_true)
 
     def fit_shares() -> np.ndarray:
-        return _shares(est._w_fit, np.mean(est._features(est.tasks_, est.train_solutions_, np.array([0])), axis=0))
+        return cost_shares(est._w_fit, est.reach_features())
 
     def distance() -> float:
         return float(np.mean(0.5 * np.abs(fit_shares() - true).sum(axis=1)))

@@ -34,6 +34,7 @@ __all__ = [
     "FEATURES",
     "FEATURE_LABELS",
     "FEATURE_UNITS",
+    "cost_shares",
     "euler_knots",
     "feature_rates",
     "trajectory_cost",
@@ -128,6 +129,15 @@ def window_index(n_intervals: int, n_windows: int) -> np.ndarray:
     if n_windows < 1 or n_windows > n_intervals:
         raise ValueError(f"n_windows must be in 1..{n_intervals} for {n_intervals} intervals, got {n_windows}")
     return (np.arange(n_intervals) * n_windows) // n_intervals
+
+
+def cost_shares(weights: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Each feature's share of its window's cost, ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj``: weights ``(..., S, 7)`` (a
+    stack of weight matrices broadcasts) on features ``(S, 7)``; rows sum to 1, or are 0 where a window has no
+    cost."""
+    c = np.asarray(weights, dtype=float) * np.asarray(phi, dtype=float)
+    tot = c.sum(axis=-1, keepdims=True)
+    return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
 
 
 def windowed_features(

@@ -236,6 +236,15 @@ def test_fit_records_observe_and_evaluate_follows_it(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and str(bad) in err and len(err.strip().splitlines()) == 1
         assert not (tmp_path / "x.json").exists()
+    n_windows = len(json.loads((tmp_path / "mTrue.json").read_text())["weights"])
+    for phi in ([[1.0] * 7] * (n_windows + 1), [[1.0] * 6 + [-1.0]] * n_windows, "Φ"):
+        d = json.loads((tmp_path / "mTrue.json").read_text())
+        d["info"]["reach_features"] = phi
+        bad.write_text(json.dumps(d))
+        assert main(["evaluate", "--model", str(bad), str(trials), "--out", str(tmp_path / "x.json")]) == 2
+        err = capsys.readouterr().err
+        assert f"field 'info.reach_features': expected {n_windows} rows of 7 finite numbers >= 0" in err
+        assert str(bad) in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "x.json").exists()
     # without n_nodes, 100 knots are assumed: the message says so, not only that the rows are wrong
     d = json.loads((tmp_path / "mTrue.json").read_text())
     del d["n_nodes"]

@@ -118,23 +118,36 @@ def test_convergence_axes_name_the_merit_and_where_iteration_0_is():
     assert "q in rad" in seed["merit_label"] and seed["start"] == "the initial weights ω₀"
 
 
-def test_fig3_caption_states_the_shares_the_figure_shows_per_row():
+def _intervals(shares: np.ndarray, width: np.ndarray) -> dict:
+    lo, hi = np.clip(shares - width / 2, 0, 1), np.clip(shares + width / 2, 0, 1)
+    return {"low": lo.tolist(), "high": hi.tolist(), "determined": (hi - lo <= 0.25).tolist()}
+
+
+def test_fig3_caption_quotes_only_determined_shares_with_their_intervals():
     one = np.zeros((1, 7))
     one[0, FEATURES.index("torque_change")] = 0.7
     one[0, FEATURES.index("joint_torque")] = 0.3
     eight = np.full((8, 7), 0.02)
     eight[:, FEATURES.index("joint_torque")] = 0.5
     eight[:, FEATURES.index("joint_velocity")] = 0.4
-    caption = weights_caption({("P1", 1): one, ("P2", 1): one, ("P1", 8): eight, ("P2", 8): eight})
-    assert (
-        "1 section: largest torque change 70 %, joint torque 30 %; torque change 70 %, joint acceleration 0 %"
-        in caption
-    )
-    assert (
-        "8 sections: largest joint torque 50 %, joint velocity 40 %; torque change 2 %, joint acceleration 2 %"
-        in caption
-    )
-    assert "read high" not in caption
+    wide = np.ones((8, 7))
+    narrow_acc = wide.copy()
+    narrow_acc[0, FEATURES.index("joint_torque")] = 0.1  # P2's first window: joint torque 0.5 [0.45, 0.55]
+    shares = {("P1", 1): one, ("P2", 1): one, ("P1", 8): eight, ("P2", 8): eight}
+    intervals = {
+        ("P1", 1): _intervals(one, np.ones((1, 7))),
+        ("P2", 1): _intervals(one, np.ones((1, 7))),
+        ("P1", 8): _intervals(eight, wide),
+        ("P2", 8): _intervals(eight, narrow_acc),
+    }
+    caption = weights_caption(shares, intervals)
+    assert "1 section: 0 of 14 shares determined." in caption  # the 0.7 torque change is not quoted
+    assert "torque change 0.70" not in caption and "70 %" not in caption
+    assert "8 sections: 1 of 112 shares determined, the largest P2 window 1 joint torque 0.50 [0.45, 0.55]" in caption
+    assert "on the fit's own reach" in caption and "Hatched: undetermined" in caption
+    no_samples = weights_caption(shares, {k: v for k, v in intervals.items() if k[1] == 8}, on_reach=False)
+    assert "1 section: no weight samples, no share is a finding" in no_samples
+    assert "on the training demonstrations" in no_samples
 
 
 def test_weights_vs_truth_orders_postures_naturally():

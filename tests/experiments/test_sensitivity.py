@@ -99,12 +99,39 @@ def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
             assert lo <= m <= hi and r["verdict"].split(" (")[0] in ("needed", "not needed", "better without")
         else:
             assert float(r["path_change_deg"]) >= 0
+    # each share says whether the fit's weight samples determine it, as the run's intervals do
+    unit = next(u for u in json.loads((small_run / "results.json").read_text())["units"] if u["key"] == "moirl-P2-s2")
+    determined = unit["uncertainty"]["share_intervals"]["determined"]
+    for r in rows:
+        if r["analysis"] == "sensitivity":
+            want = determined[int(r["window"]) - 1][FEATURES.index(r["feature"])]
+            assert r["cost_share_determined"] == str(want)
+        elif r["analysis"] == "occlude_feature":
+            want = all(row[FEATURES.index(r["feature"])] for row in determined)
+            assert r["cost_share_determined"] == str(want)
+        else:
+            assert r["cost_share_determined"] == ""
     assert (out / "identifiability.json").is_file() and (out / "figures" / "sensitivity_P2.png").is_file()
     ident = json.loads((out / "identifiability.json").read_text())["postures"]["P2"]
     assert ident["determination"]["n_directions"] == 14  # what the training trials determine, not fixed weights
     md = (out / "sensitivity.md").read_text()
     assert "Which costs the data needs" in md and "weight directions determined" in md
     assert "bootstrap" not in md and "fixed" not in md
+    if not all(all(row) for row in determined):
+        assert "(undetermined)" in md  # a share the data does not determine is never printed bare
+
+
+def test_without_occlusion_the_figure_has_the_sensitivity_panel_alone():
+    from reachirl.experiments.sensitivity import plot_sensitivity
+
+    rows = [
+        {"posture": "P2", "analysis": "sensitivity", "window": str(w), "feature": f, "path_change_deg": 0.1 * w}
+        for w in (1, 2)
+        for f in FEATURES
+    ]
+    fig = plot_sensitivity(rows, "P2")
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == 2 and titles[0].startswith("sensitivity")  # the panel and its colour bar; no blank half
 
 
 def test_bad_options(small_run, tmp_path, cli):

@@ -9,11 +9,10 @@ import pytest
 from reachirl import MOIRL
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, select_trials
-from reachirl.features import FEATURES
+from reachirl.features import FEATURES, cost_shares
 from reachirl.irl.uncertainty import (
     PRIOR_LOG_SD,
     _errors,
-    _shares,
     claim_verdict,
     describe_direction,
     determination,
@@ -206,7 +205,7 @@ def test_without_data_the_intervals_rule_out_no_printable_share():
     np.testing.assert_allclose(mean, 0.0, atol=1e-12)
     np.testing.assert_allclose(cov, PRIOR_LOG_SD**2 * np.eye(p), rtol=1e-12)
     eta = np.random.default_rng(2).multivariate_normal(mean, cov, size=200_000)
-    intervals = share_intervals(_shares(np.exp(eta)[:, None, :], np.ones((1, p))))
+    intervals = share_intervals(cost_shares(np.exp(eta)[:, None, :], np.ones((1, p))))
     assert np.all(np.array(intervals["low"]) <= 0.005) and np.all(np.array(intervals["high"]) >= 0.995)
     assert not np.any(intervals["determined"])
 
@@ -226,3 +225,35 @@ def test_the_posterior_follows_the_data_where_it_is_determined_and_the_prior_els
     assert cov[0, 0] == pytest.approx(1 / (a / tau + 1 / 9))
     assert mean[0] == pytest.approx(cov[0, 0] * (a * 1.0 / tau + 0.0 / 9))
     assert mean[1] == pytest.approx(-1.0) and cov[1, 1] == pytest.approx(9.0) and cov[0, 1] == pytest.approx(0.0)
+
+
+def test_the_shares_a_fit_shows_lie_in_their_own_intervals(recorded):
+    """The shares quoted and drawn (on the fit's own reach) are those the intervals bracket: every determined one
+    lies in its interval. The recorded demonstrations' shares would not: their noise inflates joint acceleration
+    and torque change, and a determined share moves outside its interval."""
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P4"])
+    est = MOIRL(2, n_nodes=40, max_iter=3, uncertainty=20).fit(trials)
+    iv = est.uncertainty_["share_intervals"]
+    lo, hi, det = (np.array(iv[k]) for k in ("low", "high", "determined"))
+    assert det.sum() >= 1  # the check below is about determined shares, not only about the prior's wide ones
+    shown = cost_shares(est.weights_, est.reach_features())
+    assert np.all((shown[det] >= lo[det] - 0.005) & (shown[det] <= hi[det] + 0.005)), (shown, lo, hi)
+    on_demos = cost_shares(est.weights_, np.mean([t.features(40, 2) for t in trials], axis=0))
+    assert not np.all((on_demos[det] >= lo[det]) & (on_demos[det] <= hi[det]))
+    # what the prior alone gives, beside it: wider intervals (the data narrows them where it determines them)
+    prior = est.uncertainty_["prior"]
+    assert float(np.mean(hi - lo)) < prior["mean_width"] <= 1.0
+    assert prior["claim_fraction"] is None  # two windows: the claim needs onset, mid-reach and end
+
+
+def test_a_narrow_interval_that_misses_the_fits_share_is_not_determined():
+    """A share is quoted only where the data pins it down around the fit's own value: narrow and containing it."""
+    draws = np.zeros((400, 1, 7))
+    draws[:, 0, 0] = np.linspace(0.10, 0.20, 400)  # narrow: 0.1 wide
+    draws[:, 0, 1] = np.linspace(0.0, 0.9, 400)  # wide
+    inside, outside = np.full((1, 7), 0.15), np.full((1, 7), 0.15)
+    outside[0, 0] = 0.22  # 0.02 above the interval's top, beyond the printed precision
+    assert share_intervals(draws, inside)["determined"][0][0]
+    assert not share_intervals(draws, outside)["determined"][0][0]  # the fit lies outside its own narrow interval
+    assert not share_intervals(draws, inside)["determined"][0][1]  # wide: undetermined wherever the fit lies
+    assert share_intervals(draws)["determined"][0][0]  # without the fit's shares: the width alone

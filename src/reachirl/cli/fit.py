@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 
 from ..data.trial import load_trials
@@ -84,7 +85,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) from the weights' "
         "posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad prior: "
         "docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
-        "takes 1.3-2.6x a plain fit's CPU time)",
+        "takes 1.3-2.7x a plain fit's CPU time)",
     )
     p.add_argument(
         "--seed",
@@ -184,13 +185,24 @@ def run(args: argparse.Namespace) -> int:
         extra = (
             f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
             f"directions determined by the trials, {cells.count(False)} of {len(cells)} cost shares undetermined "
-            f"(95 % interval wider than {UNDETERMINED_WIDTH})"
+            f"(95 % interval wider than {UNDETERMINED_WIDTH} or not containing the fit's own share; mean width "
+            f"{np.mean(np.subtract(unc['share_intervals']['high'], unc['share_intervals']['low'])):.2f}"
+            + (
+                ")"
+                if (unc.get("prior") or {}).get("mean_width") is None
+                else f", {unc['prior']['mean_width']:.2f} under the prior alone)"
+            )
         )
         claim = unc.get("claim") or {}
         if claim.get("fraction") is not None:
             extra += (
                 f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
-                f"({100 * claim['fraction']:.0f} % of the posterior)"
+                f"({100 * claim['fraction']:.0f} % of the posterior"
+                + (
+                    ")"
+                    if (unc.get("prior") or {}).get("claim_fraction") is None
+                    else f"; {100 * unc['prior']['claim_fraction']:.0f} % under the prior alone)"
+                )
             )
         if unc.get("pooling"):
             alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]

@@ -5,7 +5,8 @@ With a model: ``--subject/--posture/--side`` (and ``--trial``) choose the trials
 start exactly as ``evaluate`` predicts it (the same function: the same RMSE, printed as ``evaluate`` prints it),
 and DIR gets
 ``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
-feature's share of its window's cost at the trials) and ``convergence.png`` (the fit's merit per iteration, when
+feature's share of its window's cost on the fit's own reach, the shares its intervals bracket; undetermined
+shares hatched) and ``convergence.png`` (the fit's merit per iteration, when
 the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
 ``fig3_weights``, ``fig4_iscv``, ``convergence``, ``methods``) drawn again from its ``results.json`` and
 ``units/``. Every figure is written as ``.png`` and ``.pdf``.
@@ -76,6 +77,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
 
     from ..doc.evaluation import summarise
     from ..experiments import figures as fg
+    from ..features import cost_shares
 
     n, n_nodes = model.n_windows, model.n_nodes
     written: list[Path] = []
@@ -93,13 +95,14 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
         "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°")
     )
     _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
-    phi = np.mean([t.features(n_nodes, n) for t in trials], axis=0)
-    c = model.weights * phi
-    tot = c.sum(axis=1, keepdims=True)
-    shares = np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
-    label = f"at {len(trials)} trial(s)"
+    shares = model.cost_shares()  # on the fit's own reach: the shares its intervals bracket
     unc = model.uncertainty
-    undetermined = None if unc is None else {(label, n): ~np.asarray(unc["share_intervals"]["determined"], dtype=bool)}
+    if shares is not None:
+        label = "on the fit's own reach"
+        undetermined = None if unc is None else {(label, n): ~np.asarray(unc["share_intervals"]["determined"], bool)}
+    else:  # a model file from before reach features were recorded: the chosen trials, without intervals
+        shares = cost_shares(model.weights, np.mean([t.features(n_nodes, n) for t in trials], axis=0))
+        label, undetermined = f"on {len(trials)} recorded trial(s)", None
     _save(
         fg.plot_weights(
             {(label, n): shares},

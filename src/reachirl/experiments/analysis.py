@@ -13,10 +13,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..features import FEATURES
+from ..features import FEATURES, cost_shares
 from .datasets import Dataset
 from .method import unit_method
-from .protocol import SETS, _cost_shares
+from .protocol import SETS
 from .results import RunResult, load_unit_arrays
 from .tables import natural_key
 from .truth_solves import reference_features, reference_from, true_weights
@@ -65,8 +65,8 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
         on = "true_rollout"
         if phi is None:
             phi, on = np.asarray(r["demo_features"]), "demonstrations"
-        s_true = _cost_shares(w_true, phi)
-        s_learned = _cost_shares(np.asarray(r["weights"], dtype=float), phi)
+        s_true = cost_shares(w_true, phi)
+        s_learned = cost_shares(np.asarray(r["weights"], dtype=float), phi)
         p = u["posture"]
         learned[p], true[p] = s_learned, s_true
         tv = 0.5 * np.abs(s_learned - s_true).sum(axis=1)  # total variation per window, in [0, 1]

@@ -74,36 +74,50 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         "higher at onset and end than mid-reach, over the posterior's draws (supported in at least 97.5 % of them, "
         "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
         f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around equal shares, wide enough to "
-        "rule out no share (`docs/method.md`).",
+        "rule out no share (`docs/method.md`). Beside each fit's mean interval width and claim fraction, the same "
+        "under the prior alone, without the data: where they are close, the intervals are the prior's and the "
+        "data says little about the cost"
+        + (
+            "; the intervals containing the truth's shares shows that they are honest, not that the data "
+            "determines them (the prior alone contains them too)."
+            if true_shares
+            else "."
+        ),
         "",
     ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
     if not rows:
         return [*lines, "No fit of this run has weight samples: rerun with `--uncertainty` to quote a share.", ""]
     lines += [
-        "| unit | determined directions | shares undetermined | claim | most determined direction |"
-        + (" truth's shares inside | mean width |" if true_shares else ""),
-        "|---|---|---|---|---|" + ("---|---|" if true_shares else ""),
+        "| unit | determined directions | shares undetermined | mean width (prior alone) | claim (prior alone) | "
+        "most determined direction |" + (" truth's shares inside |" if true_shares else ""),
+        "|---|---|---|---|---|---|" + ("---|" if true_shares else ""),
     ]
     for r in sorted(rows, key=lambda r: r["key"]):
         u = r["uncertainty"]
         det = u["determination"]
-        und = 1.0 - float(np.mean(u["share_intervals"]["determined"]))
+        iv = u["share_intervals"]
+        und = 1.0 - float(np.mean(iv["determined"]))
+        width = float(np.mean(np.subtract(iv["high"], iv["low"])))
+        prior = u.get("prior") or {}
         claim = _claim(u)
-        frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of draws)"
+        frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of draws"
+        if frac:
+            p0 = prior.get("claim_fraction")
+            frac += ")" if p0 is None else f"; {100 * p0:.0f} %)"
+        w0 = prior.get("mean_width")
         top = det["determined"][0] if det["determined"] else "none"
         row = (
             f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
-            f"{claim['verdict']}{frac} | {top} |"
+            f"{width:.2f}{'' if w0 is None else f' ({w0:.2f})'} | {claim['verdict']}{frac} | {top} |"
         )
         p = r["unit"]["posture"]
         if true_shares:
             ts = true_shares.get(p)
-            if ts is not None and np.shape(ts) == np.shape(u["share_intervals"]["low"]):
-                c = _truth_coverage(u, np.asarray(ts))
-                row += f" {100 * c['coverage']:.0f} % | {c['mean_width']:.2f} |"
+            if ts is not None and np.shape(ts) == np.shape(iv["low"]):
+                row += f" {100 * _truth_coverage(u, np.asarray(ts))['coverage']:.0f} % |"
             else:
-                row += " — | — |"
+                row += " — |"
         lines.append(row)
     lines.append("")
     return lines

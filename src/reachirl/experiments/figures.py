@@ -4,8 +4,8 @@ the figure.
 * :func:`plot_prediction` — seed Fig. 2: demonstrations vs predictions, q and q̇ (one posture, one section
   count);
 * :func:`plot_weights` — seed Fig. 3: the learned weights per posture and section count, normalised as each
-  feature's share of its window's cost at the training demonstrations (``ω_sj Φ*_sj / Σ_j ω_sj Φ*_sj``), so
-  features in different units are comparable;
+  feature's share of its window's cost on the fit's own reach (``ω_sj Φ_sj / Σ_j ω_sj Φ_sj``), so features
+  in different units are comparable, undetermined shares hatched;
 * :func:`plot_iscv` — seed Fig. 4: inter-subject predictions for some postures, time normalised;
 * :func:`plot_convergence` — the merit of every fit per iteration;
 * :func:`plot_truth` — virtual subjects: learned vs true cost shares;
@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 SHORT = {
-    "cartesian_velocity": "hand vel.",
+    "cartesian_velocity": "fingertip vel.",
     "energy": "energy",
     "geodesic": "geodesic",
     "joint_acceleration": "joint acc.",
@@ -50,8 +50,8 @@ PRED_COLOUR, DEMO_COLOUR = "tab:blue", "tab:orange"
 
 
 CAVEAT = (
-    "Learned weights are one cost among several that explain the reaches; hatched: undetermined (95 % "
-    "interval of the share wider than 0.25), not a finding."
+    "Learned weights are one cost among several that explain the reaches; shares on the fit's own reach; hatched: "
+    "undetermined (95 % interval of the share wider than 0.25, or missing the fit's share), not a finding."
 )
 NO_SAMPLES = "No weight samples (fit --uncertainty): no share here is a finding."
 

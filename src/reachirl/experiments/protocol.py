@@ -32,6 +32,7 @@ import numpy as np
 
 from ..data.trial import Trial
 from ..errors import InputError
+from ..features import cost_shares
 from .datasets import fingerprint
 
 __all__ = [
@@ -443,14 +444,6 @@ def _history(est) -> list[dict]:
     return out
 
 
-def _cost_shares(weights: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Each feature's share of each window's cost, ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` (rows sum to 1;
-    0 if empty)."""
-    c = weights * phi
-    tot = c.sum(axis=1, keepdims=True)
-    return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
-
-
 def run_unit(unit: Unit, split: Split) -> dict:
     """Fit on ``split.train`` and predict every trial of every set. Pure: same inputs, same result.
 
@@ -469,6 +462,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     w = np.asarray(est.weights_, dtype=float)
     path = est.rollout_path()  # each prediction starts from the fit's own reach, moved to the trial
     phi = np.mean([t.features(unit.n_nodes, unit.sections) for t in split.train], axis=0)
+    reach = est.reach_features() if hasattr(est, "reach_features") else None
     sets, arrays = {}, {}
     eval_time, eval_fail, eval_solves = 0.0, 0, 0
     for name, trials in split.sets().items():
@@ -504,7 +498,11 @@ def run_unit(unit: Unit, split: Split) -> dict:
         "fingerprint": unit.fingerprint(split),
         "weights": w.tolist(),
         "demo_features": phi.tolist(),
-        "cost_shares": _cost_shares(w, phi).tolist(),
+        "reach_features": None if reach is None else reach.tolist(),
+        # the shares the uncertainty's intervals bracket: on the fit's own reach (on the demonstrations for a
+        # method that keeps no reach)
+        "cost_shares": cost_shares(w, phi if reach is None else reach).tolist(),
+        "cost_shares_on": "demonstrations" if reach is None else "fit_reach",
         "history": _history(est),
         "n_iter": int(getattr(est, "n_iter_", len(_history(est)) - 1)),
         "stop_reason": str(getattr(est, "stop_reason_", "")),

@@ -162,26 +162,44 @@ def write_tables(
     return md_tables
 
 
-def weights_caption(shares: dict) -> str:
-    """Fig. 3's caption: what it shows and, per section count (a row of panels), the two features with the
-    largest mean share and the shares of torque change and joint acceleration, averaged over the row's postures
-    and windows (``shares[(posture, sections)] = (n_windows, 7)`` cost shares)."""
+def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str:
+    """Fig. 3's caption: what it shows and, per section count (a row of panels), how many shares the data
+    determines and the largest of those with their 95 % intervals (``shares[(posture, sections)] = (n_windows,
+    7)`` cost shares; ``intervals[(posture, sections)]``: the fit's ``share_intervals``, where it has them;
+    ``on_reach``: the shares are on the fits' own reaches, else on the demonstrations). An undetermined share is
+    never quoted."""
     name = {f: f.replace("_", " ") for f in FEATURES}
-
-    def listed(mean, idx) -> str:
-        return ", ".join(f"{name[FEATURES[i]]} {100 * mean[i]:.0f} %" for i in idx)
-
     rows = []
     for n in sorted({n for _, n in shares}):
-        mean = np.mean([np.asarray(v, dtype=float).mean(axis=0) for (_, k), v in shares.items() if k == n], axis=0)
-        rows.append(
-            f"{n} section{'s' if n > 1 else ''}: largest {listed(mean, np.argsort(mean)[::-1][:2])}; "
-            f"{listed(mean, [TORQUE_CHANGE, JOINT_ACCELERATION])}"
+        keys = [k for k in shares if k[1] == n]
+        if not all(k in intervals for k in keys):
+            rows.append(f"{n} section{'s' if n > 1 else ''}: no weight samples, no share is a finding")
+            continue
+        found = []
+        for p, _ in keys:
+            iv = intervals[(p, n)]
+            s = np.asarray(shares[(p, n)], dtype=float)
+            for w, j in zip(*np.nonzero(np.asarray(iv["determined"], dtype=bool)), strict=True):
+                found.append((s[w, j], p, w, j, iv["low"][w][j], iv["high"][w][j]))
+        n_cells = sum(np.asarray(shares[k]).size for k in keys)
+        top = sorted(found, key=lambda f: -f[0])[:3]
+        quoted = "; ".join(
+            f"{p} window {w + 1} {name[FEATURES[j]]} {v:.2f} [{lo:.2f}, {hi:.2f}]" for v, p, w, j, lo, hi in top
         )
+        rows.append(
+            f"{n} section{'s' if n > 1 else ''}: {len(found)} of {n_cells} shares determined"
+            + (f", the largest {quoted}" if found else "")
+        )
+    base = (
+        "on the fit's own reach (ω·Φ of the reach the weights predict, normalised per window: the shares the 95 % "
+        "intervals bracket)"
+        if on_reach
+        else "on the training demonstrations (ω·Φ*, normalised per window)"
+    )
     return (
-        "Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown "
-        "as the feature's share of its window's cost at the training demonstrations (ω·Φ*, normalised per "
-        "window). Mean shares per row: " + ". ".join(rows) + "."
+        "Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown as the "
+        f"feature's share of its window's cost {base}. Hatched: undetermined (interval wider than 0.25, or not "
+        "containing the fit's share), not a finding. " + ". ".join(rows) + "."
     )
 
 
@@ -264,7 +282,13 @@ def figure_jobs(
             flags=flags,
             undetermined=undetermined or None,
         )
-        figs["fig3_weights.png"] = {"caption": weights_caption(shares)}
+        intervals = {
+            (r["unit"]["posture"], r["unit"]["sections"]): r["uncertainty"]["share_intervals"]
+            for r in results.values()
+            if r["unit"]["method"] == main and r.get("uncertainty")
+        }
+        on_reach = all(r.get("cost_shares_on") == "fit_reach" for r in results.values() if r["unit"]["method"] == main)
+        figs["fig3_weights.png"] = {"caption": weights_caption(shares, intervals, on_reach)}
     iscv_postures = [p for p in ("P2", "P4") if p in postures] or list(postures[:2])
     iscv_arrays = {}
     for p in iscv_postures:
@@ -333,7 +357,9 @@ def figure_jobs(
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
             "both on the features of the true weights' own noise-free reach; true weights = mean of the "
-            "training trials' own (jittered) weights from truth.json."
+            "training trials' own (jittered) weights from truth.json. The hatching marks the learned shares whose "
+            "95 % interval (on the fit's own reach) is wider than 0.25 or misses the fit's share: undetermined by the "
+            "data, not a finding."
         }
     if len(methods) > 1:
         heads = {m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS} for m in methods}
@@ -402,6 +428,7 @@ def write_results_json(
                     "fingerprint",
                     "weights",
                     "cost_shares",
+                    "cost_shares_on",
                     "n_iter",
                     "stop_reason",
                     "flag",
@@ -701,7 +728,9 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         ends_learned = sorted({m["learned_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})
         lines += [
             "At movement onset and termination (first and last windows) the true weights make "
-            f"{', '.join(ends_true)} dominate; the learned ones give {', '.join(ends_learned)}.",
+            f"{', '.join(ends_true)} dominate; the learned weights' point estimates give {', '.join(ends_learned)} "
+            "(not a finding where the next section, What the data determines about the cost, finds those shares "
+            "undetermined).",
             "",
         ]
     lines += list(extra_md)

@@ -59,6 +59,7 @@ COLUMNS = (
     "feature",
     "window",
     "cost_share",
+    "cost_share_determined",
     "train_delta_deg",
     "train_ci_lo",
     "train_ci_hi",
@@ -346,6 +347,8 @@ def run_sensitivity(
     rows, pooled, ident = [], {}, {}
     for p, (unit, split, r) in chosen.items():
         shares = np.asarray(r["cost_shares"])
+        unc = r.get("uncertainty")
+        determined = None if not unc else np.asarray(unc["share_intervals"]["determined"], dtype=bool)
         base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
         ident[p] = _determination(unit, split)
         ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
@@ -357,7 +360,7 @@ def run_sensitivity(
                 res = done.get((p, kind, i))
                 if res is None:
                     continue
-                row = _row(method, p, sections, kind, i, shares)
+                row = _row(method, p, sections, kind, i, shares, determined=determined)
                 for s in SETS:
                     d = np.asarray(res["rmse"][s]) - base[s]
                     pooled.setdefault((kind, i, s), []).extend(d.tolist())
@@ -372,7 +375,7 @@ def run_sensitivity(
                 continue
             b = np.asarray(res["base"])
             for j, rec in enumerate(res["features"]):
-                row = _row(method, p, sections, "sensitivity", j, shares, window=s)
+                row = _row(method, p, sections, "sensitivity", j, shares, window=s, determined=determined)
                 row["plus_delta_deg"] = float(np.mean(np.asarray(rec["plus"]) - b))
                 row["minus_delta_deg"] = float(np.mean(np.asarray(rec["minus"]) - b))
                 row["path_change_deg"] = float(np.mean(rec["path_plus"] + rec["path_minus"]))
@@ -380,11 +383,17 @@ def run_sensitivity(
                 rows.append(row)
     if len(chosen) > 1:  # ALL: every posture's trials pooled
         mean_shares = np.mean([np.asarray(r["cost_shares"]) for _, _, r in chosen.values()], axis=0)
+        uncs = [r.get("uncertainty") for _, _, r in chosen.values()]
+        all_determined = (  # a mean over postures is determined when every posture's share is
+            None
+            if not all(uncs)
+            else np.all([np.asarray(u["share_intervals"]["determined"], dtype=bool) for u in uncs], axis=0)
+        )
         for kind in ("occlude_feature", "freeze_window"):
             for i in range(N_FEATURES if kind == "occlude_feature" else sections):
                 if (kind, i, "train") not in pooled:
                     continue
-                row = _row(method, ALL, sections, kind, i, mean_shares)
+                row = _row(method, ALL, sections, kind, i, mean_shares, determined=all_determined)
                 for s in SETS:
                     row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
                         pooled[(kind, i, s)], config.n_boot, config.seed
@@ -396,7 +405,7 @@ def run_sensitivity(
                 per = pooled.get(("sensitivity", s, j))
                 if not per:
                     continue
-                row = _row(method, ALL, sections, "sensitivity", j, mean_shares, window=s)
+                row = _row(method, ALL, sections, "sensitivity", j, mean_shares, window=s, determined=all_determined)
                 for k in ("plus_delta_deg", "minus_delta_deg", "path_change_deg"):
                     row[k] = float(np.mean([x[k] for x in per]))
                 rows.append(row)
@@ -436,15 +445,27 @@ def _effect_collinearity(done: dict, posture: str, sections: int, threshold: flo
     return out
 
 
-def _row(method, posture, sections, kind, i, shares, window=None) -> dict:
+def _share(row: dict) -> str:
+    """A row's cost share as the report prints it: marked where the fit's weight samples do not determine it."""
+    mark = {True: "", False: " (undetermined)", None: " (no samples)"}[row.get("cost_share_determined")]
+    return f"{row['cost_share']:.2f}{mark}"
+
+
+def _row(method, posture, sections, kind, i, shares, window=None, determined=None) -> dict:
+    """A row of sensitivity.csv; ``determined`` ``(S, 7)`` booleans (the fit's narrow share intervals) or
+    None without weight samples."""
     row = {c: None for c in COLUMNS}
     row.update(method=method, posture=posture, sections=sections, analysis=kind, verdict="")
     if kind == "occlude_feature":
         row.update(feature=FEATURES[i], window="all", cost_share=float(shares[:, i].mean()))
+        if determined is not None:  # a mean over windows is determined when every window's share is
+            row["cost_share_determined"] = bool(np.all(determined[:, i]))
     elif kind == "freeze_window":
         row.update(feature="all", window=str(i + 1), cost_share=None)
     else:
         row.update(feature=FEATURES[i], window=str(window + 1), cost_share=float(shares[window, i]))
+        if determined is not None:
+            row["cost_share_determined"] = bool(determined[window, i])
     return row
 
 
@@ -472,14 +493,19 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
 
     from .figures import SHORT
 
-    if axes is None:
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
-    fig = axes[0].figure
     sel = [r for r in rows if r["posture"] == posture]
-    for ax, kind, label in (
-        (axes[0], "occlude_feature", "feature removed"),
-        (axes[1], "freeze_window", "window frozen at ω₀"),
-    ):
+    kinds = ("occlude_feature", "freeze_window", "sensitivity")
+    if axes is None:  # a panel per analysis that was run (--no-occlusion: the sensitivity alone)
+        shown = [k for k in kinds if any(r["analysis"] == k for r in sel)] or ["sensitivity"]
+        fig, grid = plt.subplots(1, len(shown), figsize=(5 * len(shown), 4.2), squeeze=False)
+        panel = dict(zip(shown, grid[0], strict=True))
+    else:
+        panel = dict(zip(kinds, axes, strict=True))
+    fig = next(iter(panel.values())).figure
+    for kind, label in (("occlude_feature", "feature removed"), ("freeze_window", "window frozen at ω₀")):
+        ax = panel.get(kind)
+        if ax is None:
+            continue
         rs = [r for r in sel if r["analysis"] == kind]
         if not rs:
             ax.set_axis_off()
@@ -514,22 +540,23 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         ax.set_title(f"occlusion: {label}", fontsize=9)
         ax.legend(fontsize=7)
     rs = [r for r in sel if r["analysis"] == "sensitivity"]
-    if rs:
+    ax = panel.get("sensitivity")
+    if rs and ax is not None:
         n_w = max(int(r["window"]) for r in rs)
         m = np.full((n_w, N_FEATURES), np.nan)
         for r in rs:
             m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
-        im = axes[2].imshow(
+        im = ax.imshow(
             m.T, aspect="auto", cmap="viridis", interpolation="nearest", extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5)
         )
-        axes[2].set_yticks(range(N_FEATURES))
-        axes[2].set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
-        axes[2].set_xticks(range(1, n_w + 1))
-        axes[2].set_xlabel("window")
-        axes[2].set_title("sensitivity: path change under ±x % of each weight (deg)", fontsize=9)
-        fig.colorbar(im, ax=axes[2], shrink=0.8)
-    else:
-        axes[2].set_axis_off()
+        ax.set_yticks(range(N_FEATURES))
+        ax.set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
+        ax.set_xticks(range(1, n_w + 1))
+        ax.set_xlabel("window")
+        ax.set_title("sensitivity: path change under ±x % of each weight (deg)", fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    elif ax is not None:
+        ax.set_axis_off()
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
@@ -563,9 +590,7 @@ def _markdown(out: dict) -> list[str]:
         ]
         for r in occ:
             lines.append(
-                f"| {r['feature']} | {r['cost_share']:.2f} | "
-                + " | ".join(_ci(r, s) for s in SETS)
-                + f" | {r['verdict']} |"
+                f"| {r['feature']} | {_share(r)} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |"
             )
         lines.append("")
     fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
@@ -590,7 +615,7 @@ def _markdown(out: dict) -> list[str]:
         ]
         for r in top:
             lines.append(
-                f"| {r['window']} | {r['feature']} | {r['cost_share']:.2f} | {r['path_change_deg']:.3f} | "
+                f"| {r['window']} | {r['feature']} | {_share(r)} | {r['path_change_deg']:.3f} | "
                 f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |"
             )
         lines.append("")

@@ -48,6 +48,16 @@ class WeightEstimator:
         if not hasattr(self, "weights_"):
             raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
 
+    def reach_features(self) -> np.ndarray | None:
+        """Φ ``(n_windows, 7)`` of the fit's own training reach under the learned weights (the mean over its
+        rollouts), on which its cost shares ``ω·Φ`` are quoted, or ``None`` when the estimator keeps no such reach
+        (then only the demonstrations' features are at hand). Not the demonstrations' Φ*: a recording's
+        position noise inflates the features of second and third derivatives (joint acceleration, torque
+        change) by up to two orders of magnitude, so shares on Φ* credit the weights with costs that hardly
+        shape the reach they predict."""
+        self._check_fitted()
+        return None
+
     def rollout_path(self) -> np.ndarray | None:
         """The joint path ``(n_nodes + 1, 2)`` of the fit's own training rollouts under the learned weights (their
         mean), or ``None`` when the estimator has no converged rollout (KKT makes none). Predictions start cold

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..doc.evaluation import TrialError, evaluate_trials
 from ..errors import InputError
-from ..features import FEATURES, N_FEATURES
+from ..features import FEATURES, N_FEATURES, cost_shares
 from ..io import atomic_write_json, read_json
 from ..validation import brief, check_file_size, check_n_nodes, require
 
@@ -64,6 +64,20 @@ class LearnedModel:
         """The fit's own reach ``(n_nodes + 1, 2)`` (rad), each prediction's cold start; None when not recorded."""
         r = self.info.get("rollout_q")
         return None if r is None else np.asarray(r, dtype=float)
+
+    @property
+    def reach_features(self) -> np.ndarray | None:
+        """Φ ``(n_windows, 7)`` of the fit's own reach, on which its cost shares and their intervals are computed
+        (:meth:`cost_shares`); None when not recorded."""
+        phi = self.info.get("reach_features")
+        return None if phi is None else np.asarray(phi, dtype=float)
+
+    def cost_shares(self) -> np.ndarray | None:
+        """Each feature's share of its window's cost on the fit's own reach, ``ω·Φ`` normalised per window
+        ``(n_windows, 7)``: the shares ``uncertainty["share_intervals"]`` bracket; None without
+        :attr:`reach_features`."""
+        phi = self.reach_features
+        return None if phi is None else cost_shares(self.weights, phi)
 
     def evaluate(
         self, trials: Sequence, backend: str | None = None, on_trial: Callable[[TrialError], None] | None = None
@@ -177,6 +191,27 @@ def check_model_dict(d, path) -> None:
                 f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}",
                 path,
             )
+
+    phi = d.get("info", {}).get("reach_features")
+    if phi is not None:
+        ok = (
+            isinstance(phi, list)
+            and len(phi) == len(w)
+            and all(
+                isinstance(row, list)
+                and len(row) == len(FEATURES)
+                and all(
+                    isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0 for v in row
+                )
+                for row in phi
+            )
+        )
+        require(
+            ok,
+            f"field 'info.reach_features': expected {len(w)} rows of {len(FEATURES)} finite numbers >= 0 (one per "
+            f"window of 'weights'), found {brief(phi)}",
+            path,
+        )
 
 
 def load_model(path: str | Path) -> LearnedModel:

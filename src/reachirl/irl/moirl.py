@@ -345,6 +345,17 @@ class MOIRL(WeightEstimator):
             ]
         )
 
+    def reach_features(self) -> np.ndarray | None:
+        """Φ ``(n_windows, 7)`` of the fit's training rollouts (their mean), seen as the demonstrations were
+        recorded, as the merit and the uncertainty's cost shares see them; ``None`` if a rollout did not
+        converge."""
+        self._check_fitted()
+        sols = getattr(self, "train_solutions_", None)
+        if not sols or not all(s.converged for s in sols):
+            return None
+        phi = self._features(self.tasks_, sols, np.array([0]))
+        return np.mean(phi[:, 0] if phi.ndim == 4 else phi, axis=0)  # with suffixes: the whole reach's
+
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 

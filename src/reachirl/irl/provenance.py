@@ -77,10 +77,11 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
         one_task = est.rollout == "per_task" and len(getattr(est, "tasks_", ())) == 1
         info["departures"] = departures(options, "mean" if one_task else est.rollout, est.tol_)
         info["seed_form"] = bool(est.seed_form)
-    path = est.rollout_path()
+    path, phi = est.rollout_path(), est.reach_features()
     info.update(
         {
             "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: a prediction's cold start
+            "reach_features": None if phi is None else phi.tolist(),  # Φ of that reach: the cost shares' base
             "n_iter": getattr(est, "n_iter_", None),
             "n_doc_solves": getattr(est, "n_doc_solves_", None),
             "n_doc_failures": getattr(est, "n_doc_failures_", None),

@@ -17,8 +17,9 @@ exponent at the scale ``τ = δm / 4`` (a move to a direction's 95 % edge raises
 the report can print (:data:`PRIOR_LOG_SD`). In the determined directions the data
 narrows the samples; in the others the prior speaks, and the intervals say so. Each window's cost shares
 ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
-percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH` is reported as
-undetermined. A few samples are solved by the DOC and tested against the fit (:func:`indistinguishable`, a
+percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH`, or does not
+contain the fit's own share, is reported as undetermined. A few samples are solved by the DOC and tested against
+the fit (:func:`indistinguishable`, a
 one-sided paired t-test over the demonstrations; ``checked``): the model is linear, the DOC is not, and the samples
 far from the fit usually fail the test (docs/method.md: a local model cannot see the other basins where costs as
 good as the fit's lie; only the prior's width covers them).
@@ -34,7 +35,7 @@ from scipy import stats
 
 from ..doc.observation import observed_state_jacobian
 from ..doc.sensitivity import weight_jacobian
-from ..features import FEATURES, N_FEATURES
+from ..features import FEATURES, N_FEATURES, cost_shares
 
 __all__ = [
     "UNDETERMINED_WIDTH",
@@ -180,18 +181,16 @@ def _ranges(ws: list[int]) -> str:
     return ", ".join(out)
 
 
-def share_intervals(shares: np.ndarray) -> dict:
+def share_intervals(shares: np.ndarray, point: np.ndarray | None = None) -> dict:
     """Per window and feature, the 95 % interval (2.5 and 97.5 percentiles) of the cost shares ``shares (K, S, 7)``
-    and whether it is determined (narrower than :data:`UNDETERMINED_WIDTH`): ``{"low", "high", "determined"}``,
-    each ``S × 7``."""
+    and whether it is determined: narrower than :data:`UNDETERMINED_WIDTH` and, given the fit's own shares
+    ``point (S, 7)``, containing that share (within 0.005, the printed precision; a fit outside its own narrow
+    interval is not a share the data pins down): ``{"low", "high", "determined"}``, each ``S × 7``."""
     lo, hi = np.percentile(shares, 2.5, axis=0), np.percentile(shares, 97.5, axis=0)
-    return {"low": lo.tolist(), "high": hi.tolist(), "determined": ((hi - lo) <= UNDETERMINED_WIDTH).tolist()}
-
-
-def _shares(w: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    c = w * phi
-    tot = c.sum(axis=-1, keepdims=True)
-    return np.divide(c, tot, out=np.zeros_like(c), where=tot > 0)
+    determined = (hi - lo) <= UNDETERMINED_WIDTH
+    if point is not None:
+        determined &= (point >= lo - 0.005) & (point <= hi + 0.005)
+    return {"low": lo.tolist(), "high": hi.tolist(), "determined": determined.tolist()}
 
 
 def laplace_posterior(
@@ -225,8 +224,10 @@ def weight_uncertainty(
 
     Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
     units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
-    ``n_interval`` draws, on the fit's own reach, and whether each is determined), ``share_samples``, ``claim``
-    (:func:`claim_verdict` over the same draws),
+    ``n_interval`` draws, on the fit's own reach, and whether each is determined; the ``n_samples`` weight
+    samples are further draws, too few to give the same percentiles), ``share_samples`` (their shares),
+    ``claim`` (:func:`claim_verdict` over the interval draws), ``prior`` (its centre and width, and the
+    intervals' ``mean_width`` and the claim's ``fraction`` under the prior alone: what the data adds),
     ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked``, ``doc_solves`` and, for several
     tasks, ``pooling``: the same intervals' mean width and determined directions from each task's demonstrations
     alone beside the pooled ones (how much pooling narrows them)."""
@@ -246,12 +247,13 @@ def weight_uncertainty(
         eta[:, cols] = mean + (L @ rng.standard_normal((cols.size, n))).T
         return est._effective(np.exp(eta).reshape(n, *est._w_fit.shape))
 
-    phi = np.mean(est._features(est.tasks_, est.train_solutions_, np.array([0])), axis=0)
+    phi = est.reach_features()
     samples = draw(n_samples)
-    shares = _shares(draw(n_interval), phi)
+    shares = cost_shares(draw(n_interval), phi)
+    point = cost_shares(est.weights_, phi)  # the fit's own shares: the ones reported and drawn
     pooling = None
     if len(est.tasks_) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
-        pooling = {"pooled": _width_record(det, share_intervals(shares)), "per_task": {}}
+        pooling = {"pooled": _width_record(det, share_intervals(shares, point)), "per_task": {}}
         for g, task_trials in _task_names(est, trials).items():
             rows = est.task_of_demo_ == g
             det_g = determination(r[rows], J[rows], free)
@@ -260,7 +262,7 @@ def weight_uncertainty(
             eta = np.tile(eta_hat, (n_interval, 1))
             eta[:, cols] = mean_g + (Lg @ rng.standard_normal((cols.size, n_interval))).T
             w_g = est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape))
-            pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(_shares(w_g, phi)))
+            pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(cost_shares(w_g, phi), point))
     errors_fit = np.sum(r**2, axis=1)
     passed = solves = 0
     for w in samples[:n_check]:
@@ -268,17 +270,25 @@ def weight_uncertainty(
         solves += runs
         if errors is not None:
             passed += indistinguishable(errors, errors_fit)
+    # the same quantities under the prior alone: what the data adds (where it determines little, next to nothing)
+    prior_rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED, 1]))
+    eta = np.tile(eta_hat, (n_interval, 1))
+    eta[:, cols] = eta_prior[cols] + PRIOR_LOG_SD * prior_rng.standard_normal((n_interval, cols.size))
+    prior_shares = cost_shares(est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape)), phi)
+    prior_widths = np.subtract(*(np.percentile(prior_shares, q, axis=0) for q in (97.5, 2.5)))
     return {
         "method": METHOD,
         "n_samples": int(n_samples),
         "weight_samples": samples.tolist(),
-        "share_samples": _shares(samples, phi).tolist(),
-        "share_intervals": share_intervals(shares),
+        "share_samples": cost_shares(samples, phi).tolist(),
+        "share_intervals": share_intervals(shares, point),
         "claim": claim_verdict(shares),
         "determination": det.to_dict(),
         "prior": {
             "center": "w0: every feature with the same share of each window's demonstrated cost",
             "log_sd": PRIOR_LOG_SD,
+            "mean_width": float(prior_widths.mean()),
+            "claim_fraction": claim_verdict(prior_shares)["fraction"],
         },
         "likelihood_tau": float(tau),
         "checked": {"solved": min(n_check, n_samples), "indistinguishable": int(passed)},
@@ -289,8 +299,8 @@ def weight_uncertainty(
 
 def claim_verdict(share_samples: np.ndarray) -> dict:
     """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
-    weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in every sample,
-    ``contradicted`` when it fails in every sample, ``undetermined`` otherwise (every: at least 97.5 %); with
+    weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in at least 97.5 % of the
+    samples, ``contradicted`` when it holds in at most 2.5 %, ``undetermined`` otherwise; with
     the fraction of samples where it holds and their number (``reason``: why the claim does not apply, else
     None). Onset and end are the first and last windows, mid-reach the others' mean.
     :func:`weight_uncertainty` applies it to the posterior's interval draws (thousands), not to the few weight
