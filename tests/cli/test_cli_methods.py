@@ -127,3 +127,30 @@ def test_plot_model(models, tiny_trials, tmp_path, cli):
 def test_plot_bad_input(args, match, tiny_trials, tmp_path, cli):
     proc = cli(*args(tmp_path, tiny_trials))
     assert proc.returncode == 2 and match in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("option", [["--rollout", "per_demo"], ["--seed-form"], ["--uncertainty", "20"]])
+@pytest.mark.parametrize("method", ["kkt", "bilevel"])
+def test_moirl_options_are_refused_for_the_other_methods(method, option, tiny_trials, tmp_path, cli):
+    """An option a method does not have is refused, not run and left out of its MODEL.json."""
+    out = tmp_path / "m.json"
+    proc = cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--method", method, *option, "--out", out)
+    assert proc.returncode == 2 and not out.exists()
+    assert f"--seed-form, --uncertainty, --rollout and --config apply to moirl and maxent, not {method}" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_seed_form_changed_by_the_run_file_says_it_departs(tiny_trials, tmp_path, cli):
+    run_file = tmp_path / "exp.toml"
+    run_file.write_text('[experimental]\nmerit = "normalised"\n')
+    out = tmp_path / "m.json"
+    # one task (one subject, one posture): the seed form's one rollout, so the run file's merit is the one departure
+    args = ["--sections", "2", "--nodes", "20", "--max-iter", "2", "--seed-form", "--subject", "S1"]
+    proc = cli("fit", tiny_trials, *args, "--config", run_file, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    departures = json.loads(out.read_text())["info"]["departures"]
+    assert departures == ["normalised merit: each state channel divided by the demonstrations' spread"]
+    assert "moirl (seed form with 1 departure(s) from it: info.departures)" in proc.stdout
+    proc = cli("fit", tiny_trials, *args, "--out", out)
+    assert proc.returncode == 0 and "moirl (seed form), 2 section(s)" in proc.stdout
+    assert json.loads(out.read_text())["info"]["departures"] == []

@@ -135,18 +135,30 @@ def test_a_rerun_into_the_folder_of_another_run_leaves_none_of_its_outputs(trial
 
     out = tmp_path / "out"
     shutil.copytree(reference_run, out)
-    stale = [out / "figures" / "methods.png", out / "models" / "kkt-P2-s1.json", out / "predictions" / "kkt-P2-s1"]
+    stale = [
+        out / "figures" / "methods.png",
+        out / "models" / "kkt-P2-s1.json",
+        out / "predictions" / "kkt-P2-s1",
+        out / "iscv_pairs.csv",
+        out / "posture_transfer.csv",
+    ]
     stale[0].write_bytes(b"old")
-    stale[1].write_text("{}")
+    a_model = json.loads(next((out / "models").glob("*.json")).read_text())
+    stale[1].write_text(json.dumps({**a_model, "info": {**a_model["info"], "unit": "kkt-P2-s1"}}))
     stale[2].mkdir()
     (stale[2] / "index.csv").write_text("id,file,set\n")
-    mine = [out / "figures" / "my_sketch.png", out / "units" / "kkt-P2-s1.json"]
+    stale[3].write_text("old pairs\n")
+    stale[4].write_text("old transfer\n")
+    mine = [out / "figures" / "my_sketch.png", out / "units" / "kkt-P2-s1.json", out / "models" / "notes.json"]
     for f in mine:
         f.write_text("keep")
+    # a model of the user's own (reachirl fit writes no info.unit) in the models folder is theirs, not the run's
+    own = out / "models" / "my_fit.json"
+    own.write_text(json.dumps({**a_model, "info": {k: v for k, v in a_model["info"].items() if k != "unit"}}))
     assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]) == 0
     assert not any(f.exists() for f in stale) and all(f.read_text() == "keep" for f in mine)
     models = [sorted(p.name for p in (d / "models").iterdir()) for d in (out, reference_run)]
-    assert models[0] == models[1]
+    assert models[0] == sorted([*models[1], "my_fit.json", "notes.json"]) and own.is_file()
 
 
 def test_local_processes_equal_in_process(trials_file, reference_run, tmp_path):

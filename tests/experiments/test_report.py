@@ -107,6 +107,16 @@ def test_a_seed_form_run_is_said_to_be_the_papers_method():
     assert lines[1] == "- **kkt:** a baseline, with its own options (not MO-IRL's)."
 
 
+def test_maxents_own_memory_is_its_method_not_a_departure():
+    """MaxEnt keeps every sampled rollout (memory = None): that defines it, so its seed form is the paper's
+    iteration with that one setting, and its default departs from the paper as MO-IRL's does, no more."""
+    seed = method_lines([_unit({"seed_form": True, "rollout": "mean", "experimental": {}}, method="maxent")])[0]
+    assert "departure" not in seed and "maxent's own memory = None" in seed and "This is the paper's method" not in seed
+    default = "\n".join(method_lines([_unit({"seed_form": False, "rollout": "per_task"}, method="maxent")]))
+    assert "experimental memory" not in default and "maxent's own memory = None" in default
+    assert "6 departure(s) from the paper" in default
+
+
 def test_convergence_axes_name_the_merit_and_where_iteration_0_is():
     hist = {("P1", 2): [{"iteration": 0, "merit": 0.5}, {"iteration": 1, "merit": 0.4}]}
     words = convergence_text({"merit": "normalised", "observe": True})

@@ -63,7 +63,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--rollout",
         choices=ROLLOUTS,
-        default="per_task",
+        default=None,
         help="MO-IRL/MaxEnt training rollouts: one per task (subject, posture) from its trials' mean start, "
         "target and duration (per_task, default: several postures or subjects learn one shared cost), "
         "one per trial (per_demo: about five times the fit time), or one for all trials (mean)",
@@ -149,14 +149,16 @@ def run(args: argparse.Namespace) -> int:
     if is_moirl:
         kwargs.update(
             max_iter=args.max_iter,
-            rollout=args.rollout,
+            rollout=args.rollout or "per_task",  # MOIRL's own default
             seed_form=args.seed_form,
             uncertainty=args.uncertainty,
             random_state=args.seed,
             experimental=experimental,
         )
-    elif args.seed_form or args.uncertainty is not None or experimental:
-        raise InputError(f"--seed-form, --uncertainty and --config apply to moirl and maxent, not {args.method}")
+    elif args.seed_form or args.uncertainty is not None or experimental or args.rollout is not None:
+        raise InputError(
+            f"--seed-form, --uncertainty, --rollout and --config apply to moirl and maxent, not {args.method}"
+        )
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:
 
@@ -211,8 +213,12 @@ def run(args: argparse.Namespace) -> int:
                 f"; pooling {len(alone)} tasks: mean share-interval width {pooled:.2f} against "
                 f"{min(alone):.2f}-{max(alone):.2f} from each task alone"
             )
+    form = ""
+    if args.seed_form:  # an [experimental] table may still change the paper's method: then it is not as written
+        n_dep = len(info.get("departures") or ())
+        form = " (seed form)" if not n_dep else f" (seed form with {n_dep} departure(s) from it: info.departures)"
     print(
-        f"wrote {args.out}: {args.method}{' (seed form)' if args.seed_form else ''}, {args.sections} section(s), "
+        f"wrote {args.out}: {args.method}{form}, {args.sections} section(s), "
         f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
         + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "")
         + extra

@@ -50,7 +50,8 @@ def unit_method(method: str, estimator_options, tol: float | None, tasks: int | 
         "options": options.to_dict(),
         "rollout": rollout,
         "tol": tol,
-        "departures": departures(options, as_paper, tol),
+        "departures": departures(options, as_paper, tol, cls._option_defaults),
+        "defining": dict(cls._option_defaults),
     }
 
 
@@ -87,17 +88,21 @@ def method_lines(units: Sequence[Mapping]) -> list[str]:
             continue
         d = described[0]
         o = d["options"]
+        own = ", ".join(f"{k} = {v!r}" for k, v in d["defining"].items())
         if not d["departures"]:
             lines.append(
                 f"- **{method}:** the seed paper's MO-IRL as written"
-                f"{' (seed form)' if d['seed_form'] else ''}: the raw subproblem with {_iteration(o)}, any fall "
+                f"{' (seed form)' if d['seed_form'] else ''}"
+                + (f" but for {method}'s own {own}" if own else "")
+                + f": the raw subproblem with {_iteration(o)}, any fall "
                 "of the full-state merit accepted, no other step, the DOC at rest at both ends over each "
-                "trial's duration. This is the paper's method."
+                "trial's duration." + ("" if own else " This is the paper's method.")
             )
             continue
         lines.append(
-            f"- **{method}:** the seed paper's MO-IRL iteration ({_iteration(o)}) with "
-            f"{len(d['departures'])} departure(s) from the paper:"
+            f"- **{method}:** the seed paper's MO-IRL iteration ({_iteration(o)})"
+            + (f", with {method}'s own {own}," if own else "")
+            + f" with {len(d['departures'])} departure(s) from the paper:"
         )
         lines += [f"  - {text}" for text in d["departures"]]
     return lines

@@ -17,6 +17,7 @@ uninterrupted one.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,6 +26,7 @@ import numpy as np
 
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
+from ..irl.model import MODEL_FORMAT
 from ..irl.provenance import versions
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
@@ -489,24 +491,38 @@ def write_report(
     return path
 
 
+def _unit_model(path: Path) -> bool:
+    """Whether ``path`` is a model a ``reproduce`` run wrote for one of its units (its ``info.unit`` is its
+    name): a model file of the user's own (``reachirl fit``) is never one."""
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    info = d.get("info") if isinstance(d, dict) else None
+    return isinstance(info, dict) and info.get("unit") == path.stem and d.get("format") == MODEL_FORMAT
+
+
 def remove_previous_outputs(run: RunResult) -> list[Path]:
     """What an earlier run into the same folder wrote and this one will not write again: its tables, report and
-    results.json (rewritten at the end), its figures (redrawn; a figure this run does not draw, such as the
-    methods' comparison of a run with more methods, would stay beside the new ones), the models and prediction
-    folders of units this run does not have. The checkpoints (``units/``) stay, to be reused. Returns what was
+    results.json (rewritten at the end; ``iscv_pairs.csv`` and ``posture_transfer.csv`` too, rewritten when
+    this run has them), its figures (redrawn; a figure this run does not draw, such as the
+    methods' comparison of a run with more methods, would stay beside the new ones), the models (those a run
+    wrote for a unit: never a model file of the user's own) and prediction folders of units this run does not
+    have. The checkpoints (``units/``) stay, to be reused. Returns what was
     removed."""
     import re
     import shutil
 
     out = Path(run.out_dir)
     keys = {*run.results, *run.pairs, *run.transfer}
-    removed = [out / n for n in ("results.json", "report.md", "table.md", "table.csv") if (out / n).is_file()]
+    tables = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
+    removed = [out / n for n in tables if (out / n).is_file()]
     names = "|".join(Path(n).stem for n in _DRAW_ORDER)
     figure = re.compile(rf"^(?:{names}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)$")
     if (out / "figures").is_dir():
         removed += [f for f in (out / "figures").iterdir() if f.is_file() and figure.match(f.name)]
     if (out / "models").is_dir():
-        removed += [f for f in (out / "models").glob("*.json") if f.stem not in keys]
+        removed += [f for f in (out / "models").glob("*.json") if f.stem not in keys and _unit_model(f)]
     for f in removed:
         f.unlink(missing_ok=True)
     if (out / "predictions").is_dir():

@@ -103,8 +103,10 @@ def resolve_options(
     return replace(base, **changes) if changes else base
 
 
-def departures(options: Options, rollout: str, tol: float) -> list[str]:
-    """Each way the fit's method departs from the seed paper's, in words (empty for the seed's form)."""
+def departures(options: Options, rollout: str, tol: float, method_defaults: Mapping | None = None) -> list[str]:
+    """Each way the fit's method departs from the seed paper's, in words (empty for the seed's form).
+    ``method_defaults``: the options that define a method built on MO-IRL's iteration (MaxEnt's ``memory=None``),
+    which are that method, not a departure of the fit."""
     out = []
     if options.observe:
         out.append(
@@ -134,7 +136,7 @@ def departures(options: Options, rollout: str, tol: float) -> list[str]:
         out.append("one rollout per task (subject, posture) from the task's mean start, target and duration")
     elif rollout == "per_demo":
         out.append("one rollout per demonstration, from its own start, target and duration")
-    base = Options() if options.scaling == "demo" else SEED_FORM
+    base = replace(Options() if options.scaling == "demo" else SEED_FORM, **dict(method_defaults or {}))
     for name in (
         "smoothness",
         "feature_cutoff",

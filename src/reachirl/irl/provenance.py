@@ -75,7 +75,9 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
         info["tol"] = est.tol_
         # from one task (subject, posture), its one rollout is the paper's rollout from the demonstrations' mean
         one_task = est.rollout == "per_task" and len(getattr(est, "tasks_", ())) == 1
-        info["departures"] = departures(options, "mean" if one_task else est.rollout, est.tol_)
+        info["departures"] = departures(
+            options, "mean" if one_task else est.rollout, est.tol_, type(est)._option_defaults
+        )
         info["seed_form"] = bool(est.seed_form)
     path, phi = est.rollout_path(), est.reach_features()
     info.update(
