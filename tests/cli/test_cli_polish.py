@@ -21,6 +21,22 @@ def test_verbose_anywhere_on_the_line(where, tmp_path, cli):
     assert proc.stderr.strip() == f"reachirl fit: error: {tmp_path / 'missing.npz'}: file not found"
 
 
+@pytest.mark.parametrize("command", ["fit", "evaluate", "simulate"])
+def test_an_unknown_option_is_the_commands_own_error(command, tmp_path, capsys):
+    from reachirl.cli import main
+
+    out = ["--out", str(tmp_path / "o.json")]
+    argv = {
+        "fit": ["fit", "t.npz", "--sections", "2", *out],
+        "evaluate": ["evaluate", "--model", "m.json", "t.npz", *out],
+        "simulate": ["simulate", "--model", "m.json", "t.npz"],
+    }[command]
+    with pytest.raises(SystemExit) as e:
+        main([*argv, "--bogus", "1"])
+    assert e.value.code == 2
+    assert capsys.readouterr().err.strip() == f"reachirl {command}: error: unrecognized arguments: --bogus 1"
+
+
 @pytest.mark.parametrize("name", sorted(_subparsers()))
 def test_every_option_has_help_with_its_default(name):
     sp = _subparsers()[name]

@@ -319,7 +319,28 @@ def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out
         assert model["info"]["postures"] == [other]  # learned on the other posture only
         row = next(r.split(",") for r in rows[1:] if r.split(",")[2] == held)
         assert int(row[5]) == 4 and int(row[8]) == 4  # S01's and S02's reaches of the held-out posture
-    assert "## Posture transfer" in (run / "report.md").read_text()
+    report = (run / "report.md").read_text()
+    assert "## Posture transfer" in report and "every other posture (one rollout per posture)" in report
+    # the fit time counts every unit this run computed, the transfer units' fits included
+    units = [json.loads(f.read_text()) for f in (run / "units").glob("*.json")]
+    assert any("xfer" in u["key"] for u in units)
+    timing = json.loads((run / "results.json").read_text())["timing"]
+    assert timing["fit_s_sum"] == pytest.approx(sum(u["fit"]["time_s"] for u in units), rel=1e-9)
+
+
+def test_the_posture_transfer_text_names_the_rollout_its_fits_used():
+    from reachirl.experiments.cost import _rollout_words
+
+    def unit(options):
+        return {"unit": {"estimator_options": options}}
+
+    assert _rollout_words({"a": unit([["rollout", "per_demo"], ["seed_form", False]])}) == (
+        "one rollout per demonstration"
+    )
+    assert _rollout_words({"a": unit({"rollout": "mean"}), "b": unit([])}) == (
+        "one rollout for every posture's trials together"
+    )
+    assert _rollout_words({"b": unit([])}) == "each method's own way"
 
 
 @pytest.mark.parametrize(

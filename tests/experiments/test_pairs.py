@@ -95,6 +95,18 @@ def test_bad_options(three_subjects, cli):
     assert e.value.code == 2
 
 
+def test_one_subject_has_no_pairs_and_the_report_says_so(tmp_path):
+    ds = datasets.toy(n_subjects=2, postures=("P2",), n_trials=3, n_nodes=20, seed=3)
+    one = tmp_path / "one.npz"
+    save_trials(one, [t for t in ds.trials if t.subject == ds.trials[0].subject])
+    out = tmp_path / "run"
+    assert main(["reproduce", "--data", str(one), "--iscv", "all-pairs", "--out", str(out), *ARGS]) == 0
+    report = (out / "report.md").read_text()
+    assert "Not run: it needs at least two subjects, and this data has 1." in report
+    assert not (out / "iscv_pairs.csv").exists() and not list((out / "figures").glob("iscv_*"))
+    assert "1 sections" not in report and "1 section" in report  # one section is said in the singular
+
+
 @pytest.mark.slow
 def test_all_pairs_dask_equals_local_processes(tmp_path):
     distributed = pytest.importorskip("dask.distributed")

@@ -58,6 +58,13 @@ def test_bad_protocol_inputs(toy):
         _config(sections=(0,))
     with pytest.raises(InputError, match="unknown method"):
         _config(methods=("magic",))
+    # a side the training subject has no trials of is named, with the sides it has
+    with pytest.raises(
+        InputError, match=r"no training trials of subject 'S01' \(left arm; its trials of this posture: right\)"
+    ):
+        split_trials(toy.trials, "P4", _config(train_side="left"))
+    with pytest.raises(InputError, match=r"\(left arm; its trials of this posture: right\)"):
+        split_trials(toy.trials, "P4", _config(cv="other-side", train_side="left"))
 
 
 def test_units_order_and_keys():

@@ -1,5 +1,7 @@
 """MuJoCo playback: the MJCF arm has the same dynamics, open-loop playback reproduces the DOC, rendering, CLI."""
 
+import json
+
 import numpy as np
 import pytest
 
@@ -131,6 +133,17 @@ def test_simulate_cli_bad_trial_is_exit_2(arm, tmp_path, capsys):
     assert main(["simulate", "--model", str(model), str(trials), "--trial", "9"]) == 2
     assert "index out of range" in capsys.readouterr().err
     assert main(["simulate", "--model", str(model), str(trials), "--render", str(tmp_path / "x.png")]) == 2
+    capsys.readouterr()
+    assert main(["simulate", "--model", str(model), str(trials), "--subject", "S9"]) == 2
+    err = capsys.readouterr().err
+    assert "S9" in err and str(trials) in err and len(err.strip().splitlines()) == 1
+
+
+def test_simulate_chooses_trials_as_fit_evaluate_and_plot_do(arm, tmp_path, capsys):
+    trials, model = _trials_file(arm, tmp_path)
+    out = tmp_path / "sim.json"
+    assert main(["simulate", "--model", str(model), str(trials), "--posture", "P2", "--out", str(out)]) == 0
+    assert [t["id"] for t in json.loads(out.read_text())["trials"]] == ["S1/P2/right/1"]
 
 
 @pytest.mark.parametrize("sex", ["M", "F"])
@@ -170,3 +183,17 @@ def test_simulate_renders_an_mp4_through_the_console_script(arm, tmp_path, cli):
         reader.close()
     assert f"wrote {out} ({n} frames)" in proc.stdout and n >= 10
     assert frame.shape == (162, 162, 3) and frame.std() > 5  # odd sizes padded to even (H.264); not blank
+
+
+def test_pd_playback_takes_the_substeps_its_default_gains_need(arm, tmp_path, capsys):
+    """Few knots make a DOC interval long; the default gains then need more MuJoCo steps per interval than 10,
+    which the default takes (an explicit --substeps stays the user's, and is refused when too few)."""
+    trials, model = _trials_file(arm, tmp_path, n_nodes=20)
+    out = tmp_path / "sim.json"
+    args = ["simulate", "--model", str(model), str(trials), "--trial", "0", "--mode", "pd"]
+    assert main([*args, "--substeps", "10"]) == 2
+    assert "--kd 5 N·m·s/rad is outside" in capsys.readouterr().err
+    assert main([*args, "--out", str(out)]) == 0
+    substeps = json.loads(out.read_text())["substeps"]
+    assert substeps > 10
+    assert main([*args, "--substeps", str(substeps), "--out", str(tmp_path / "same.json")]) == 0

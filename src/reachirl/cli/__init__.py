@@ -71,9 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
     verbose_help = "log progress details to stderr, and show the traceback of an internal error"
     parser.add_argument("-v", "--verbose", action="store_true", help=verbose_help)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser.commands = {}  # each command's parser: an unknown option is its error, named as its own
     for name in COMMANDS:
         module = importlib.import_module(f"{__name__}.{name}")
-        p = module.add_parser(sub)
+        p = parser.commands[name] = module.add_parser(sub)
         # -v anywhere on the line: SUPPRESS keeps the top-level value when the subcommand's flag is absent
         p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=verbose_help)
         p.set_defaults(_run=module.run)
@@ -83,7 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # "reachirl fit: error: ...", as the command's other errors say it
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     previous = {}
     try:

@@ -12,7 +12,15 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, int_in, number_in, refuse_overwrite, same_file
+from ._args import (
+    PREDICTION_BACKEND_HELP,
+    add_selection,
+    chosen_trials,
+    int_in,
+    number_in,
+    refuse_overwrite,
+    same_file,
+)
 
 BACKENDS = ("casadi", "crocoddyl")
 MAX_RENDER_BYTES = 1024**3  # frames of an animation, all in memory (and GIF encoding time grows with them)
@@ -47,6 +55,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="a trial to simulate, by id (subject/posture/side/trial), trial_id or 0-based index; "
         "repeat for several (default: all)",
     )
+    add_selection(p, "simulate")
     p.add_argument(
         "--backend",
         choices=BACKENDS,
@@ -55,7 +64,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--mode", choices=MODES, default="open-loop", help="torque playback (default open-loop)")
     p.add_argument(
-        "--substeps", type=int_in(1, 1000), default=10, help="MuJoCo steps per DOC interval, 1 to 1000 (default 10)"
+        "--substeps",
+        type=int_in(1, 1000),
+        default=None,
+        help="MuJoCo steps per DOC interval, 1 to 1000 (default 10, or with --mode pd the fewest from 10 up at "
+        "which --kp and --kd integrate stably)",
     )
     p.add_argument(
         "--kp",
@@ -109,6 +122,20 @@ def _select(trials, keys, path):
     return chosen
 
 
+def _pd_substeps(args, trials, n_nodes: int) -> int:
+    """The fewest MuJoCo steps per DOC interval, from 10 up, at which the PD gains integrate stably on these arms
+    (at most 1000; :func:`_check_gains` then says what is still too large)."""
+    from ..data.checks import pd_gain_limits
+
+    substeps = 10
+    while substeps < 1000:
+        kp_max, kd_max, _, _ = pd_gain_limits(trials, n_nodes, substeps)
+        if args.kp <= kp_max and args.kd <= kd_max:
+            break
+        substeps = min(1000, substeps + max(1, substeps // 4))
+    return substeps
+
+
 def _check_gains(args, trials, n_nodes: int) -> None:
     """PD gains that MuJoCo's explicit step integrates stably on these arms
     (:func:`reachirl.data.checks.pd_gain_limits`); larger ones make the playback diverge."""
@@ -152,7 +179,9 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend
-    trials = _select(load_trials(args.trials), args.trial, args.trials)
+    trials, _ = chosen_trials(args, _select(load_trials(args.trials), args.trial, args.trials))
+    if args.substeps is None:
+        args.substeps = _pd_substeps(args, trials, model.n_nodes) if args.mode == "pd" else 10
     if args.mode == "pd":
         _check_gains(args, trials, model.n_nodes)
     if args.render is not None:  # every frame is held in memory until the file is written

@@ -155,7 +155,7 @@ def write_posture_transfer(run) -> list[str]:
     lines = [
         "## Posture transfer (leave one posture out)",
         "",
-        "One cost learned on the training trials of every other posture (one rollout per posture), predicting "
+        f"One cost learned on the training trials of every other posture ({_rollout_words(run.transfer)}), predicting "
         "the held-out posture's reaches of the training subject and of the other subjects, beside the fit of "
         "that posture's own training trials (the main table's CV and training trials).",
         "",
@@ -202,6 +202,20 @@ def write_posture_transfer(run) -> list[str]:
         )
     atomic_write_text(Path(run.out_dir) / "posture_transfer.csv", buf.getvalue())
     return [*lines, ""]
+
+
+def _rollout_words(units: dict) -> str:
+    """How the posture-transfer fits rolled out their training tasks, in words (from their recorded options)."""
+    from .protocol import estimator_kwargs
+
+    words = {
+        "per_task": "one rollout per posture",
+        "per_demo": "one rollout per demonstration",
+        "mean": "one rollout for every posture's trials together",
+    }
+    opts = [estimator_kwargs(r["unit"].get("estimator_options") or ()) for r in units.values()]
+    kinds = {str(o["rollout"]) for o in opts if "rollout" in o}  # the baselines have no rollout option
+    return "; ".join(words.get(k, f"rollout {k}") for k in sorted(kinds)) or "each method's own way"
 
 
 def _fmt_row(s) -> list:

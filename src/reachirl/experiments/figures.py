@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..features import FEATURES
-from .names import natural_key
+from .names import natural_key, sections_text
 
 __all__ = [
     "plot_convergence",
@@ -194,7 +194,7 @@ def plot_weights(
             if r == 0:
                 ax.set_title(p, fontsize=10)
             if c == 0:
-                ax.set_ylabel(f"{n} section{'s' if n > 1 else ''}", fontsize=10)
+                ax.set_ylabel(sections_text(n), fontsize=10)
             if r == len(sections) - 1:
                 ax.set_xlabel("window", fontsize=10)
     if im is not None:
@@ -268,7 +268,7 @@ def plot_convergence(
             it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
-        ax.set_title(f"{n} section{'s' if n > 1 else ''}", fontsize=10)
+        ax.set_title(sections_text(n), fontsize=10)
         ax.tick_params(labelsize=9)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
         ax.set_xlabel(f"iteration (0: {start})", fontsize=9)

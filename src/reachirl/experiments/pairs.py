@@ -285,11 +285,16 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
 
     out = Path(run.out_dir)
     fig_dir = fig_dir or out / "figures"
+    head = ["## All-pairs inter-subject validation (`iscv_pairs.csv`)", ""]
+    n_subjects = len(run.dataset.subjects)
+    if n_subjects < 2:  # no pair to learn on one subject and predict another
+        note = f"Not run: it needs at least two subjects, and this data has {n_subjects}."
+        return {"rows": [], "figures": {}, "markdown": [*head, note, ""]}
     rows = pair_rows(run)
     atomic_write_text(out / "iscv_pairs.csv", to_csv(rows))
     methods, postures, sections = list(run.config.methods), list(run.postures), list(run.config.sections)
     figs: dict[str, dict] = {}
-    md = ["## All-pairs inter-subject validation (`iscv_pairs.csv`)", ""]
+    md = list(head)
     for m in methods:
         for n in sections:
             panels = [*postures, ALL] if len(postures) > 1 else postures

@@ -285,9 +285,11 @@ def split_trials(trials: Sequence[Trial], posture: str, config: ProtocolConfig) 
         pool = [t for t in mine if config.train_side is None or t.side == config.train_side]
         train, cv = _pick(pool, config.n_train, rng)
     if not train:
+        side = config.train_side or ("right" if config.cv == "other-side" else None)
+        sides = sorted({t.side for t in mine})
         raise InputError(
             f"posture {posture}: no training trials of subject {subject!r}"
-            + (f" ({config.train_side or 'right'} arm)" if config.cv == "other-side" else "")
+            + ("" if side is None else f" ({side} arm; its trials of this posture: {', '.join(sides) or 'none'})")
         )
     cv, _ = _pick(cv, config.n_cv, rng)
     if config.iscv == "all-pairs":  # n_iscv per test subject, so every pair has trials

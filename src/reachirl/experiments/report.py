@@ -32,6 +32,7 @@ from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
+from .names import sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .rendering import FigureJob, drawing
@@ -60,7 +61,7 @@ def _agreement_note(agreement: dict, n_true: int) -> str:
         return f"{np.mean(v):.2f}" if v else "—"
 
     return (
-        f"Virtual subjects, {n_true} sections (mean over postures, train / CV / ISCV): the fits' predictions lie "
+        f"Virtual subjects, {sections_text(n_true)} (mean over postures, train / CV / ISCV): the fits' predictions lie "
         + " / ".join(mean("learned_vs_true_deg", s) for s in SETS)
         + "° from the true weights' own; the true weights predict the recorded reaches to "
         + " / ".join(mean("true_vs_recorded_deg", s) for s in SETS)
@@ -175,7 +176,7 @@ def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str
     for n in sorted({n for _, n in shares}):
         keys = [k for k in shares if k[1] == n]
         if not all(k in intervals for k in keys):
-            rows.append(f"{n} section{'s' if n > 1 else ''}: no weight samples, no share is a finding")
+            rows.append(f"{sections_text(n)}: no weight samples, no share is a finding")
             continue
         found = []
         for p, _ in keys:
@@ -189,7 +190,7 @@ def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str
             f"{p} window {w + 1} {name[FEATURES[j]]} {v:.2f} [{lo:.2f}, {hi:.2f}]" for v, p, w, j, lo, hi in top
         )
         rows.append(
-            f"{n} section{'s' if n > 1 else ''}: {len(found)} of {n_cells} shares determined"
+            f"{sections_text(n)}: {len(found)} of {n_cells} shares determined"
             + (f", the largest {quoted}" if found else "")
         )
     base = (
@@ -251,10 +252,10 @@ def figure_jobs(
                 pdf,
                 arrays=arrays,
                 set_name="train",
-                title=f"{p2}, {n8} sections: training demonstrations (dashed) vs {main} predictions (solid)",
+                title=f"{p2}, {sections_text(n8)}: training demonstrations (dashed) vs {main} predictions (solid)",
             )
             figs["fig2_prediction.png"] = {
-                "caption": f"Seed Fig. 2 equivalent: posture {p2}, {n8} sections, "
+                "caption": f"Seed Fig. 2 equivalent: posture {p2}, {sections_text(n8)}, "
                 "training trials of the training subject, q (top) and q̇ (bottom)."
             }
     shares = {
@@ -306,11 +307,11 @@ def figure_jobs(
             "fig4_iscv.png",
             pdf,
             arrays_by_posture=iscv_arrays,
-            title=f"ISCV, {n8} sections: measured (dashed) vs predicted (solid)",
+            title=f"ISCV, {sections_text(n8)}: measured (dashed) vs predicted (solid)",
         )
         figs["fig4_iscv.png"] = {
             "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
-            f"({n8} sections), q (top) and q̇ (bottom) over normalised time."
+            f"({sections_text(n8)}), q (top) and q̇ (bottom) over normalised time."
         }
     hist = {
         (r["unit"]["posture"], r["unit"]["sections"]): r["history"]
@@ -352,12 +353,12 @@ def figure_jobs(
             pdf,
             learned=learned,
             true=true,
-            title=f"Virtual subjects, {n_true} sections: learned vs true weights (cost shares)",
+            title=f"Virtual subjects, {sections_text(n_true)}: learned vs true weights (cost shares)",
             flags=truth_flags,
             undetermined=truth_undetermined or None,
         )
         figs["weights_vs_truth.png"] = {
-            "caption": f"Virtual subjects, {n_true} sections: learned (top) vs true (bottom) cost shares, "
+            "caption": f"Virtual subjects, {sections_text(n_true)}: learned (top) vs true (bottom) cost shares, "
             "both on the features of the true weights' own noise-free reach; true weights = mean of the "
             "training trials' own (jittered) weights from truth.json. The hatching marks the learned shares whose "
             "95 % interval (on the fit's own reach) is wider than 0.25 or misses the fit's share: undetermined by the "
@@ -582,7 +583,7 @@ def write_outputs(run: RunResult, workers: int = 1) -> dict:
     fig_time = time.perf_counter() - t_fig
     computed = set(run.run_info.get("computed", []))
     timing = dict(run.timing)
-    every = [*results.values(), *run.pairs.values()]
+    every = [*results.values(), *run.pairs.values(), *run.transfer.values()]
     timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in every if r["key"] in computed)
     timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in every if r["key"] in computed)
     timing["figures_s"] = fig_time
@@ -678,7 +679,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             )
             test = f"{verdict}: Wilcoxon signed-rank p = {c['wilcoxon_p']:.2g} over the postures, one fit each"
         says.append(
-            f"{SET_LABELS[s]}: {hi} sections give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo}, lower in "
+            f"{SET_LABELS[s]}: {sections_text(hi)} give {b['mean']:.2f}° against {a['mean']:.2f}° with {lo}, lower in "
             f"{c['n_lower']} of {c['n']} postures (mean paired difference {c['mean_diff_deg']:+.2f}°; {test})."
         )
     per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
@@ -686,7 +687,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
     if len(per_p) > 1:
         worst = sorted(per_p, key=per_p.get, reverse=True)[:2]
         says.append(
-            f"Hardest postures in CV ({hi} sections): {', '.join(f'{p} ({per_p[p]:.2f}°)' for p in worst)} "
+            f"Hardest postures in CV ({sections_text(hi)}): {', '.join(f'{p} ({per_p[p]:.2f}°)' for p in worst)} "
             "(the seed: P3 and P5)."
         )
     if says:
