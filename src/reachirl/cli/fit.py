@@ -184,27 +184,24 @@ def run(args: argparse.Namespace) -> int:
     if unc is not None:
         det = unc["determination"]
         cells = [d for row in unc["share_intervals"]["determined"] for d in row]
+        prior = unc.get("prior") or {}
+
+        def alone(key: str, fmt) -> str:  # the same quantity under the prior alone, when recorded
+            return "" if prior.get(key) is None else f"; {fmt(prior[key])} under the prior alone"
+
+        width = np.mean(np.subtract(unc["share_intervals"]["high"], unc["share_intervals"]["low"]))
         extra = (
             f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
             f"directions determined by the trials, {cells.count(False)} of {len(cells)} cost shares undetermined "
             f"(95 % interval wider than {UNDETERMINED_WIDTH} or not containing the fit's own share; mean width "
-            f"{np.mean(np.subtract(unc['share_intervals']['high'], unc['share_intervals']['low'])):.2f}"
-            + (
-                ")"
-                if (unc.get("prior") or {}).get("mean_width") is None
-                else f", {unc['prior']['mean_width']:.2f} under the prior alone)"
-            )
+            f"{width:.2f}{alone('mean_width', lambda v: f'{v:.2f}')})"
         )
         claim = unc.get("claim") or {}
         if claim.get("fraction") is not None:
+            percent = alone("claim_fraction", lambda v: f"{100 * v:.0f} %")
             extra += (
                 f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
-                f"({100 * claim['fraction']:.0f} % of the posterior"
-                + (
-                    ")"
-                    if (unc.get("prior") or {}).get("claim_fraction") is None
-                    else f"; {100 * unc['prior']['claim_fraction']:.0f} % under the prior alone)"
-                )
+                f"({100 * claim['fraction']:.0f} % of the posterior{percent})"
             )
         if unc.get("pooling"):
             alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]

@@ -464,7 +464,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
     w = np.asarray(est.weights_, dtype=float)
     path = est.rollout_path()  # each prediction starts from the fit's own reach, moved to the trial
     phi = np.mean([t.features(unit.n_nodes, unit.sections) for t in split.train], axis=0)
-    reach = est.reach_features() if hasattr(est, "reach_features") else None
+    reach = est.reach_features()
     sets, arrays = {}, {}
     eval_time, eval_fail, eval_solves = 0.0, 0, 0
     for name, trials in split.sets().items():
