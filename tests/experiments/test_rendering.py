@@ -68,3 +68,30 @@ def test_an_error_meanwhile_ends_the_workers_at_once(tmp_path):
     assert children_gone()
     for p in tmp_path.glob("*.png"):  # a figure is there whole or not at all (a temporary may be left)
         assert p.read_bytes().endswith(b"IEND\xaeB`\x82")
+
+
+def test_workers_started_ahead_draw_the_same_files_and_end_with_their_block(tmp_path):
+    from reachirl.experiments.rendering import FigureWorkers
+
+    here, ahead_dir = tmp_path / "here", tmp_path / "ahead"
+    with drawing(jobs(here), workers=1):
+        pass
+    with FigureWorkers(2) as ahead:
+        ahead.start()
+        pool = ahead.pool
+        assert pool is not None and len(pool._processes) == 2  # started before any figure
+        with drawing(jobs(ahead_dir), workers=2, ahead=ahead) as d:
+            written = d.wait()
+        assert ahead.pool is None  # taken over by the drawing, which ended it
+    assert sorted(p.name for p in written) == sorted(p.name for p in here.iterdir())
+    for p in here.iterdir():
+        assert (ahead_dir / p.name).read_bytes() == p.read_bytes(), p.name
+    assert children_gone()
+    # started and never used (an error or a --max-units stop before the figures): ended with the block
+    with pytest.raises(RuntimeError, match="stopped"), FigureWorkers(2) as ahead:
+        ahead.start()
+        raise RuntimeError("stopped")
+    assert children_gone()
+    with FigureWorkers(1) as one:  # one worker: figures are drawn in-process, nothing is started
+        one.start()
+        assert one.pool is None

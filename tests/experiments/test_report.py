@@ -174,3 +174,16 @@ def test_the_rmse_note_says_how_each_methods_predictions_were_made():
     )
     mixed = prediction_note([_unit(observed), _unit({}, method="kkt")])
     assert mixed.startswith("the predictions of moirl are the rest-to-rest DOC") and "those of kkt, the DOC" in mixed
+
+
+def test_the_weights_figure_hatches_exactly_the_undetermined_shares():
+    shares = np.full((3, 7), 1 / 7)
+    undetermined = np.zeros((3, 7), dtype=bool)
+    undetermined[0, 2] = undetermined[2, 6] = undetermined[1, 0] = True
+    fig = fg.plot_weights({("P1", 3): shares}, ["P1"], [3], undetermined={("P1", 3): undetermined})
+    (patch,) = [p for p in fig.axes[0].patches if p.get_hatch()]
+    centres = {tuple(np.round(poly[:4].mean(axis=0), 6)) for poly in patch.get_path().to_polygons()}
+    # window w (x = w + 1) and feature j (y = j) of each hatched cell
+    assert centres == {(w + 1.0, float(j)) for w, j in zip(*np.nonzero(undetermined), strict=True)}
+    none = fg.plot_weights({("P1", 3): shares}, ["P1"], [3], undetermined={("P1", 3): np.zeros((3, 7), bool)})
+    assert not [p for p in none.axes[0].patches if p.get_hatch()]

@@ -404,6 +404,19 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     return lambda: write_run_file(out / "run.toml", resolved, header=header)
 
 
+def _stopped(result) -> int:
+    """A run stopped by --max-units: the finished units' models (`evaluate`, `plot`, `simulate` can use them
+    now) and how to finish."""
+    from ..experiments.cost import write_models
+
+    write_models(result)
+    print(
+        f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out to finish",
+        file=sys.stderr,
+    )
+    return 0
+
+
 def run(args) -> int:
     from rich.console import Console
     from rich.progress import (
@@ -416,6 +429,7 @@ def run(args) -> int:
     )
 
     from ..experiments import datasets
+    from ..experiments.rendering import FigureWorkers
     from ..experiments.report import write_outputs
     from ..experiments.runner import reproduce
 
@@ -479,6 +493,8 @@ def run(args) -> int:
     def on_done(key, res, reused):
         progress.update(state["task"], advance=1, description=f"{key}{' (reused)' if reused else ''}")
         state["done"] += 1
+        if state["total"] - state["done"] < workers:  # a core is idle until the run ends: start the figures' workers
+            ahead.start()
         if log_lines:
             how = (
                 "reused"
@@ -487,29 +503,22 @@ def run(args) -> int:
             )
             print(f"[{state['done']}/{state['total']}] {key} ({how})", file=sys.stderr, flush=True)
 
-    with progress:
-        result = reproduce(
-            dataset,
-            config,
-            out,
-            workers=workers,
-            scheduler=args.scheduler,
-            max_units=opts.get("max_units") or None,
-            data_s=data_s,
-            on_start=on_start,
-            on_done=on_done,
-        )
-    if result.stopped:
-        from ..experiments.cost import write_models
-
-        write_models(result)  # the finished units' models (`evaluate`, `plot`, `simulate` can use them now)
-        print(
-            f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out "
-            f"to finish",
-            file=sys.stderr,
-        )
-        return 0
-    outputs = write_outputs(result, workers=workers)
+    with FigureWorkers(workers) as ahead:  # ended on leaving: an error, Ctrl-C or a --max-units stop
+        with progress:
+            result = reproduce(
+                dataset,
+                config,
+                out,
+                workers=workers,
+                scheduler=args.scheduler,
+                max_units=opts.get("max_units") or None,
+                data_s=data_s,
+                on_start=on_start,
+                on_done=on_done,
+            )
+        if result.stopped:
+            return _stopped(result)
+        outputs = write_outputs(result, workers=workers, ahead=ahead)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)

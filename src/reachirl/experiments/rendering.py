@@ -17,7 +17,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["FIGURE_MEMORY_GB", "Drawing", "FigureJob", "draw", "drawing"]
+__all__ = ["FIGURE_MEMORY_GB", "Drawing", "FigureJob", "FigureWorkers", "draw", "drawing"]
 
 #: memory (address space) of one figure worker, GB
 FIGURE_MEMORY_GB = 4.0
@@ -48,17 +48,55 @@ def _ready() -> None:
     importlib.import_module(f"{__package__}.figures")
 
 
+class FigureWorkers:
+    """``workers`` figure processes, started ahead of the figures (:meth:`start`: e.g. when the run's last units
+    leave a core idle) so that their start and imports are done when the figures come. A ``with`` block ends
+    them on leaving (an error, Ctrl-C, or figures never drawn); :func:`drawing` takes them over."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = int(workers)
+        self.pool = None
+
+    def start(self) -> None:
+        """Start the processes now (once; nothing with fewer than 2 workers: figures are then drawn in-process)."""
+        if self.pool is not None or self.workers < 2:
+            return
+        from .processes import local_executor
+
+        self.pool = local_executor(self.workers, FIGURE_MEMORY_GB, _ready)
+        for _ in range(self.workers):  # one process is started per task submitted while none is idle
+            self.pool.submit(_ready)
+
+    def take(self):
+        """The started pool, handed over (None if not started)."""
+        pool, self.pool = self.pool, None
+        return pool
+
+    def stop(self) -> None:
+        if self.pool is not None:
+            from .processes import stop_workers
+
+            stop_workers(self.take())
+
+    def __enter__(self) -> FigureWorkers:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+
 class Drawing:
     """Figures being drawn; :meth:`wait` returns once every file is written (or raises the first error)."""
 
-    def __init__(self, jobs: Sequence[FigureJob], workers: int) -> None:
+    def __init__(self, jobs: Sequence[FigureJob], workers: int, ahead: FigureWorkers | None = None) -> None:
         self._jobs = list(jobs)
-        self._pool = None
+        self._pool = ahead.take() if ahead is not None else None
         self._futures: list = []
-        if workers > 1 and len(self._jobs) > 1:
+        if self._pool is None and workers > 1 and len(self._jobs) > 1:
             from .processes import local_executor
 
             self._pool = local_executor(min(workers, len(self._jobs)), FIGURE_MEMORY_GB, _ready)
+        if self._pool is not None:
             self._futures = [self._pool.submit(draw, job) for job in self._jobs]
 
     def wait(self) -> list[Path]:
@@ -86,10 +124,10 @@ class Drawing:
 
 
 @contextlib.contextmanager
-def drawing(jobs: Sequence[FigureJob], workers: int = 1) -> Iterator[Drawing]:
-    """Start drawing ``jobs`` (listed costliest first) in ``workers`` processes; the block's end waits for
-    them, an error or Ctrl-C in it ends them."""
-    d = Drawing(jobs, workers)
+def drawing(jobs: Sequence[FigureJob], workers: int = 1, ahead: FigureWorkers | None = None) -> Iterator[Drawing]:
+    """Start drawing ``jobs`` (listed costliest first) in ``workers`` processes (those of ``ahead`` when it has
+    started them); the block's end waits for them, an error or Ctrl-C in it ends them."""
+    d = Drawing(jobs, workers, ahead)
     try:
         yield d
     except BaseException:

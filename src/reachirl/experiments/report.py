@@ -35,7 +35,7 @@ from .method import convergence_text, method_lines, unit_method
 from .names import sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
-from .rendering import FigureJob, drawing
+from .rendering import FigureJob, FigureWorkers, drawing
 from .results import RunResult, load_unit_arrays
 
 __all__ = [
@@ -534,9 +534,10 @@ def remove_previous_outputs(run: RunResult) -> list[Path]:
     return removed
 
 
-def write_outputs(run: RunResult, workers: int = 1) -> dict:
+def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None = None) -> dict:
     """Every output of a finished run (see the module docstring), in turn; the figures are drawn in ``workers``
-    processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`).
+    processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`; those
+    of ``ahead`` when they were started before the run ended).
 
     The tables, ``report.md`` and last ``results.json`` are written at the end, and a previous run's are removed
     first: a folder without them is a run that has not finished (an interrupted one), never one that looks done.
@@ -566,7 +567,7 @@ def write_outputs(run: RunResult, workers: int = 1) -> dict:
     jobs, figs = figure_jobs(run, tables, truth)
     from .cost import cost_section, write_models, write_posture_transfer
 
-    with drawing(jobs, workers) as figures:  # drawn in other processes meanwhile (workers > 1)
+    with drawing(jobs, workers, ahead) as figures:  # drawn in other processes meanwhile (workers > 1)
         write_models(run)
         extra_md: list[str] = cost_section(run, truth[1] or None)
         extra_md += write_posture_transfer(run)
