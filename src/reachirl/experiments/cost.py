@@ -52,10 +52,10 @@ def _claim(unc: dict) -> dict:
     return unc.get("claim") or claim_verdict(np.asarray(unc["share_samples"]))
 
 
-def _truth_coverage(unc: dict, true_shares: np.ndarray) -> dict:
+def _truth_coverage(unc: dict, true_shares: np.ndarray) -> float:
+    """The fraction of the true shares inside the fit's intervals (within 0.005, the shares' printed precision)."""
     lo, hi = np.asarray(unc["share_intervals"]["low"]), np.asarray(unc["share_intervals"]["high"])
-    inside = (true_shares >= lo - 0.005) & (true_shares <= hi + 0.005)  # the shares' printed precision
-    return {"coverage": float(inside.mean()), "mean_width": float((hi - lo).mean())}
+    return float(np.mean((true_shares >= lo - 0.005) & (true_shares <= hi + 0.005)))
 
 
 def cost_section(run, true_shares: dict | None = None) -> list[str]:
@@ -115,7 +115,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         if true_shares:
             ts = true_shares.get(p)
             if ts is not None and np.shape(ts) == np.shape(iv["low"]):
-                row += f" {100 * _truth_coverage(u, np.asarray(ts))['coverage']:.0f} % |"
+                row += f" {100 * _truth_coverage(u, np.asarray(ts)):.0f} % |"
             else:
                 row += " — |"
         lines.append(row)

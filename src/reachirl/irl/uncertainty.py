@@ -275,7 +275,7 @@ def weight_uncertainty(
     eta = np.tile(eta_hat, (n_interval, 1))
     eta[:, cols] = eta_prior[cols] + PRIOR_LOG_SD * prior_rng.standard_normal((n_interval, cols.size))
     prior_shares = cost_shares(est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape)), phi)
-    prior_widths = np.subtract(*(np.percentile(prior_shares, q, axis=0) for q in (97.5, 2.5)))
+    prior_intervals = share_intervals(prior_shares)
     return {
         "method": METHOD,
         "n_samples": int(n_samples),
@@ -287,7 +287,7 @@ def weight_uncertainty(
         "prior": {
             "center": "w0: every feature with the same share of each window's demonstrated cost",
             "log_sd": PRIOR_LOG_SD,
-            "mean_width": float(prior_widths.mean()),
+            "mean_width": float(np.mean(np.subtract(prior_intervals["high"], prior_intervals["low"]))),
             "claim_fraction": claim_verdict(prior_shares)["fraction"],
         },
         "likelihood_tau": float(tau),
