@@ -2,7 +2,8 @@
 
 Preprocesses the UE-ADL subject shipped with reachirl (ADL001: Vicon markers, static calibration trial), learns
 8 windows of weights with MO-IRL from its right-arm reaches, predicts its left-arm reaches (mirrored), and prints
-the RMSE and each window's dominant cost (the largest share ω·Φ of the demonstrations' cost).
+the RMSE and, for each window, the cost shares ω·Φ on the fit's own reach that the training data determines
+(their 95 % interval from the weights' uncertainty narrower than 0.25); the others the data cannot tell apart.
 Run: ``.venv/bin/python examples/learn_from_ue_adl.py``.
 """
 
@@ -18,6 +19,7 @@ from reachirl.data.pipeline import preprocess_entries
 from reachirl.data.readers import ManifestEntry, read_subject_info
 from reachirl.data.ue_adl import reach_files
 from reachirl.doc.evaluation import evaluate_trials, summarise
+from reachirl.features import cost_shares
 
 SAMPLE = Path(__file__).resolve().parents[1] / "src" / "reachirl" / "data" / "ue_adl_sample"
 
@@ -32,18 +34,19 @@ def main(argv: list[str] | None = None) -> int:
     trials = preprocess_entries(entries, subject_info=read_subject_info(args.data / "subjects.csv"))
     train = [t for t in trials if t.side == "right"]
     test = [t for t in trials if t.side == "left"]
-    model = MOIRL(n_windows=args.windows).fit(train)
+    model = MOIRL(n_windows=args.windows, uncertainty=40).fit(train)
     for name, subset in (("training (right arm)", train), ("validation (left arm)", test)):
         errors = evaluate_trials(
             model.weights_, subset, model.n_nodes, observe=model.observe, path=model.rollout_path()
         )  # as `reachirl evaluate` predicts: as recorded
         r = summarise(errors)["rmse_deg"]["q"]
         print(f"{name:22s} {len(subset)} reaches: RMSE of q {r['mean']:.2f} ± {r['std']:.2f} deg")
-    shares = model.weights_ * np.mean([t.features(model.n_nodes, args.windows) for t in train], axis=0)
-    shares /= shares.sum(axis=1, keepdims=True)
+    shares = cost_shares(model.weights_, model.reach_features())  # on the fit's own reach, as the intervals
+    iv = model.uncertainty_["share_intervals"]
+    lo, hi, determined = np.asarray(iv["low"]), np.asarray(iv["high"]), np.asarray(iv["determined"])
     for s, row in enumerate(shares):
-        j = int(np.argmax(row))
-        print(f"window {s + 1}: {FEATURES[j]} ({100 * row[j]:.0f} % of the window's cost)")
+        found = [f"{FEATURES[j]} {row[j]:.2f} [{lo[s, j]:.2f}, {hi[s, j]:.2f}]" for j in np.flatnonzero(determined[s])]
+        print(f"window {s + 1}: " + ("; ".join(found) if found else "no share determined by the data"))
     print(f"{model.n_iter_} MO-IRL iterations, {model.n_doc_solves_} DOC solves, {model.fit_time_:.1f} s")
     return 0
 

@@ -1,9 +1,12 @@
 """The examples run and do what they say (each is a short script with a main())."""
 
 import importlib.util
+import re
 from pathlib import Path
 
 import pytest
+
+from reachirl import FEATURES
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -29,7 +32,12 @@ def test_learn_from_ue_adl_predicts_the_other_arm(capsys):
     lines = capsys.readouterr().out.splitlines()
     rmse = {ln.split()[0]: float(ln.split("RMSE of q ")[1].split()[0]) for ln in lines if "RMSE of q" in ln}
     assert rmse["training"] < 6 and rmse["validation"] < 10
-    assert sum(ln.startswith("window ") for ln in lines) == 8
+    windows = [ln for ln in lines if ln.startswith("window ")]
+    assert len(windows) == 8
+    quoted = re.findall(r"([a-z_]+) (\d\.\d\d) \[(\d\.\d\d), (\d\.\d\d)\]", " ".join(windows))
+    for feature, share, lo, hi in quoted:  # a quoted share lies in its own interval, which is narrow
+        assert feature in FEATURES and float(lo) - 0.01 <= float(share) <= float(hi) + 0.01
+        assert float(hi) - float(lo) <= 0.25 + 0.01
 
 
 @pytest.mark.parametrize("name", ["quickstart", "virtual_subjects"])

@@ -124,3 +124,13 @@ def test_docs_list_exactly_the_written_fields(written):
     assert sorted(doc) == sorted(got), "a schema table is missing from docs/outputs.md or from this test"
     for name in doc:
         assert sorted(doc[name]) == sorted(got[name]), f"docs/outputs.md '{name}' differs from the written file"
+
+
+def test_a_runs_models_keep_the_fits_whole_history(written):
+    """reproduce's models/<unit>.json keep the history `reachirl fit` keeps (each step's weights and sub-problem
+    iterations), not results.json's short one."""
+    fit_keys = set(json.loads((written / "model.json").read_text())["info"]["history"][-1])
+    for path in sorted((written / "run" / "models").glob("*.json")):
+        history = json.loads(path.read_text())["info"]["history"]
+        assert history, path.name
+        assert {"weights", "subproblem_iterations"} <= set(history[-1]) <= fit_keys, path.name

@@ -397,9 +397,23 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
             "it (copy it elsewhere first, or choose another --out)",
             args.config,
         )
+    from ..irl.moirl import DEFAULT_TOL
+
+    left_out = {  # an option at its default is left out of the TOML (no None there); the comment says what it is
+        "data": "the built-in virtual subjects",
+        "postures": "every posture of the data",
+        "subjects": "2 built-in virtual subjects",
+        "train_subject": "the first subject",
+        "train_side": "either arm",
+        "tol": f"{0.0 if config.seed_form else DEFAULT_TOL:g}, MO-IRL's own",
+    }
+    if resolved["data"] is not None:
+        del left_out["subjects"]  # the data's own subjects
+    defaults = [f"{k}: {v}" for k, v in left_out.items() if resolved.get(k) is None]
     header = (
         f"reachirl {__version__} reproduce: the options of this run; repeat it with "
         f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`"
+        + ("\nleft at their defaults: " + "; ".join(defaults) if defaults else "")
     )
     return lambda: write_run_file(out / "run.toml", resolved, header=header)
 

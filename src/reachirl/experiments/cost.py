@@ -23,9 +23,10 @@ def write_models(run) -> list[Path]:
     every = {**run.results, **run.pairs, **run.transfer}
     for key, r in sorted(every.items()):
         info = dict(r.get("model_info") or {"method": r["unit"]["method"]})
-        info.update(
-            {"unit": key, "backend": r["unit"]["backend"], "history": r.get("history", []), "run": str(run.out_dir)}
-        )
+        # the fit's whole history as `reachirl fit` keeps it (a unit checkpointed before it was kept: the
+        # result's short one)
+        info.setdefault("history", r.get("history", []))
+        info.update({"unit": key, "backend": r["unit"]["backend"], "run": str(run.out_dir)})
         model = LearnedModel(
             weights=np.asarray(r["weights"], dtype=float),
             n_nodes=int(r["unit"]["n_nodes"]),

@@ -490,7 +490,6 @@ def run_unit(unit: Unit, split: Split) -> dict:
         from ..irl.provenance import estimator_info
 
         model_info = estimator_info(est, unit.method, list(split.train))
-        model_info.pop("history", None)  # the result's own history, below
         model_info.pop("uncertainty", None)  # the result's own, below
     result = {
         "key": unit.key,
