@@ -88,6 +88,11 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
     model_path = run / "models" / f"{unit['key']}.json"
     model = json.loads(model_path.read_text())
     np.testing.assert_array_equal(model["weights"], unit["weights"])
+    # recorded trials are cut at a threshold: the fit's iteration 0 is where its whole-rollout stage, from ω₀, ended
+    first = model["info"]["first_stage"]
+    assert first["n_iter"] == len(first["history"]) - 1
+    assert first["history"][0]["iteration"] == 0 and first["history"][0]["merit"] == first["initial_merit"]
+    np.testing.assert_allclose(model["info"]["history"][0]["weights"], first["weights"])
     # the same weights from `fit` on the unit's training trials
     train = [t["id"] for t in unit["sets"]["train"]["trials"]]
     trials = [t for t in load_trials(recorded / "trials.npz") if t.id in train]
@@ -285,7 +290,7 @@ def test_cv_and_iscv_trials_never_reach_a_fit(recorded, monkeypatch):
         assert set(seen) == train and not train & {t.id for t in (*split.cv, *split.iscv)}
 
 
-def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out_one(recorded, tmp_path):
+def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out_one(recorded, tmp_path, capsys):
     from test_outputs_doc import documented
 
     run = tmp_path / "run"
@@ -312,6 +317,7 @@ def test_posture_transfer_learns_on_the_other_postures_and_predicts_the_held_out
         )
         == 0
     )
+    assert f"posture transfer in {run / 'posture_transfer.csv'}" in " ".join(capsys.readouterr().out.split())
     rows = (run / "posture_transfer.csv").read_text().splitlines()
     assert rows[0].split(",")[:6] == ["method", "sections", "held_out_posture", "mean", "sd", "n"]
     assert sorted(rows[0].split(",")) == sorted(documented()["posture_transfer.csv"])  # docs/outputs.md's table

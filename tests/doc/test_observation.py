@@ -104,6 +104,11 @@ def test_observed_fit_counts_both_stages_and_predicts_as_it_fitted():
     assert est.plain_fit_ is not None
     plain = MOIRL(2, n_nodes=N, max_iter=3, tol=1e-5, experimental={"observe": False}).fit(demos)
     np.testing.assert_allclose(est.plain_fit_["weights"], plain.weights_)  # the first stage is the plain fit
+    # its history runs from ω₀ to where the observed stage's history starts
+    first = est.plain_fit_["history"]
+    assert first[0]["iteration"] == 0 and first[0]["merit"] == est.plain_fit_["initial_merit"]
+    np.testing.assert_allclose(est.history_[0]["weights"], plain.weights_)
+    assert est.plain_fit_["n_iter"] == len(first) - 1 == plain.n_iter_
     pred = est.predict(demos[0])
     again = evaluate_trials(est.weights_, [demos[0]], N, observe=True, path=est.rollout_path())[0].prediction
     np.testing.assert_allclose(pred.q, again.q, atol=1e-9)  # predict starts from the fit's own rollout

@@ -9,6 +9,7 @@ import pytest
 from test_moirl import FEATURE_SCALE, N_NODES, known_weight_demos, mean_rmse, true_weights
 
 from reachirl import solve_doc
+from reachirl.data.trial import trial_from_solution
 from reachirl.irl.baselines import KKTIOC, BilevelIOC, MaxEntIRL
 from reachirl.irl.baselines.kkt import kkt_residual
 from reachirl.irl.methods import METHODS, make_estimator
@@ -95,6 +96,11 @@ def test_bilevel_respects_its_budget_and_records_every_evaluation(demos):
     best = est.history_[int(np.argmin(merits))]
     np.testing.assert_allclose(est.weights_, best["weights"])
     np.testing.assert_allclose(est.history_[0]["weights"], 0.05)  # starts where MO-IRL starts
+    # its shares are quoted on its own reach: the mean task's DOC under the learned weights, re-solved here
+    task = mean_task(demos, N_NODES)
+    reach = trial_from_solution(solve_doc(task, est.weights_), task.arm, task.target_x)
+    np.testing.assert_allclose(est.reach_features(), reach.features(N_NODES, 1), rtol=5e-3)  # two solves
+    assert KKTIOC(1, n_nodes=N_NODES).fit(demos).reach_features() is None  # KKT solves no DOC
 
 
 def test_kkt_recovers_the_true_weights_without_noise(demos):

@@ -46,7 +46,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "--max-iter",
         type=int_in(1, MAX_ITER),
         default=30,
-        help=f"iterations at most of moirl and maxent, 1 to {MAX_ITER}; bilevel and kkt ignore it (default 30)",
+        help=(
+            f"iterations at most of moirl and maxent, per stage (an observed fit runs a whole-rollout stage, then "
+            f"the observed one), 1 to {MAX_ITER}; bilevel and kkt ignore it (default 30)"
+        ),
     )
     p.add_argument(
         "--nodes",
@@ -216,8 +219,18 @@ def run(args: argparse.Namespace) -> int:
         form = " (seed form)" if not n_dep else f" (seed form with {n_dep} departure(s) from it: info.departures)"
     print(
         f"wrote {args.out}: {args.method}{form}, {args.sections} section(s), "
-        f"{info['n_iter']} iterations, {info['n_doc_solves']} DOC solves ({args.backend})"
+        f"{_iterations(info)}, {info['n_doc_solves']} DOC solves ({args.backend})"
         + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "")
         + extra
     )
     return 0
+
+
+def _iterations(info: dict) -> str:
+    """The fit's iterations in words: a one-shot method's, or each stage's of an observed MO-IRL fit."""
+    first, n = info.get("first_stage"), info.get("n_iter")
+    if info.get("method") == "kkt":
+        return "one-shot (no iterations)"
+    if first:
+        return f"{first['n_iter']} + {n} iterations (whole-rollout stage + observed stage)"
+    return f"{n} iteration{'' if n == 1 else 's'}"

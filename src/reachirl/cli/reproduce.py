@@ -40,7 +40,7 @@ RUN_KEYS = {
     "n_cv": ("CV trials per posture (default: all; 0: all)", "count"),
     "n_iscv": ("ISCV trials per posture (default: all; 0: all)", "count"),
     "nodes": (f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100; --quick 40)", "nodes"),
-    "max_iter": (f"MO-IRL iterations at most, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
+    "max_iter": (f"MO-IRL iterations at most, per stage, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
     "tol": ("MO-IRL acceptance threshold, 0 to 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
     "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
     "data_seed": ("seed of the built-in data set (default 0)", "count"),
@@ -543,9 +543,12 @@ def run(args) -> int:
         highlight=False,
     )
     out_console.print(
-        f"wrote {out / 'table.md'}, table.csv, results.json, report.md, "
-        f"{len(outputs['figures'])} figure(s) in {out / 'figures'} and the predictions in {out / 'predictions'}"
-        + (f"; all-pairs ISCV in {out / 'iscv_pairs.csv'}" if config.iscv == "all-pairs" else ""),
+        f"wrote {out / 'table.md'}, table.csv, results.json, report.md, run.toml, "
+        f"{len(outputs['figures'])} figure(s) in {out / 'figures'}, the models in {out / 'models'} and the "
+        f"predictions in {out / 'predictions'}"
+        + (f"; all-pairs ISCV in {out / 'iscv_pairs.csv'}" if config.iscv == "all-pairs" else "")
+        # written only with several postures (an earlier run's is removed first)
+        + (f"; posture transfer in {out / 'posture_transfer.csv'}" if (out / "posture_transfer.csv").is_file() else ""),
         highlight=False,
     )
     return 0

@@ -127,7 +127,8 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
             f"{k} {v}"
             for k, v in sorted(_count(r["stop_reason"] or "one-shot (no iterations)" for r in results.values()).items())
         )
-        + f" (at most {config.max_iter} iterations).",
+        + f" (at most {config.max_iter} iterations per stage; an observed fit's iterations are those of its second"
+        " stage, which starts where its whole-rollout first stage ended: MODEL.json `info.first_stage`).",
         "RMSE in degrees, mean ± population SD over trials; "
         + prediction_note([r["unit"] for r in results.values()])
         + ", compared on normalised time.",
@@ -633,7 +634,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         + "; ".join(f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS)
         + ".",
         f"- **Methods:** {', '.join(methods)}; DOC backend {config.backend}, {config.n_nodes} knots; "
-        f"at most {config.max_iter} iterations.",
+        f"at most {config.max_iter} iterations per stage.",
         *method_lines([r["unit"] for r in run.results.values()]),
         f"- **Provenance:** trials' fingerprint {desc['fingerprint']}; "
         + ", ".join(f"{name} {v}" for name, v in versions().items() if v is not None)

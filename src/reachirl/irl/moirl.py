@@ -629,6 +629,7 @@ class MOIRL(WeightEstimator):
                 "n_accepted": plain.n_accepted_,
                 "stop_reason": plain.stop_reason_,
                 "weights": plain.weights_.tolist(),
+                "history": plain.history_,  # its iteration 0 is ω₀; the observed stage's starts where it ended
             }
             # the flag judges both stages: ω₀ only if neither moved, one step only if they made one between them
             n_accepted += plain.n_accepted_

@@ -92,6 +92,8 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
             "flag": getattr(est, "flag_", None),
             "warnings": list(getattr(est, "warnings_", [])),
             "history": _jsonable(getattr(est, "history_", [])),
+            # an observed MO-IRL fit's whole-rollout first stage (its own iterations and history), else None
+            "first_stage": _jsonable(getattr(est, "plain_fit_", None)),
         }
     )
     if getattr(est, "uncertainty_", None) is not None:

@@ -22,7 +22,8 @@ from scipy.optimize import minimize
 
 from ...data.trial import Trial
 from ...doc import DocSolution, solve_doc
-from ...features import N_FEATURES
+from ...doc.observation import observed_knots
+from ...features import N_FEATURES, windowed_features
 from ..base import WeightEstimator
 from ..moirl import demonstration_states, mean_task, mixed_postures_warning
 from ..objective import merit
@@ -81,6 +82,11 @@ class BilevelIOC(WeightEstimator):
         if not self.w0 > 0:
             raise ValueError(f"w0 must be > 0 (the search is on log-weights), got {self.w0}")
         return trials
+
+    def reach_features(self) -> np.ndarray | None:
+        """Φ ``(n_windows, 7)`` of the fit's own reach: the mean task's DOC under the learned weights."""
+        self._check_fitted()
+        return getattr(self, "_reach_phi", None)
 
     def fit(self, trials: Sequence[Trial]) -> BilevelIOC:
         trials = self._check_params(trials)
@@ -154,5 +160,11 @@ class BilevelIOC(WeightEstimator):
         self.n_iter_ = n_iter
         self.fit_time_ = time.perf_counter() - t_start
         self.train_solutions_ = [sol_best] if sol_best is not None else []
+        # Φ of its reach (the mean task's DOC under the learned weights, whole: bilevel does not observe)
+        self._reach_phi = (
+            None
+            if sol_best is None
+            else windowed_features(task.arm, *observed_knots(sol_best, task, None), self.n_windows)
+        )
         self.warnings_ = [msg] if (msg := mixed_postures_warning(trials)) is not None else []
         return self
