@@ -98,6 +98,35 @@ def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
     assert not (d / "x").exists()
 
 
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"info.history": "garbage"}, "field 'info.history': expected a list of objects"),
+        ({"uncertainty": {"share_intervals": None}}, "field 'uncertainty.share_intervals': expected an object"),
+        ({"uncertainty": []}, "field 'uncertainty': expected an object or null"),
+        (
+            {"uncertainty": {"weight_samples": [[[float("nan")] * 7] * 2], "share_intervals": None}},
+            "field 'uncertainty.weight_samples': expected a list of 2 × 7 matrices of numbers >= 0",
+        ),
+    ],
+)
+def test_a_models_optional_fields_are_checked_before_any_figure(fitted, capsys, change, match):
+    """A damaged history or uncertainty record is refused before the predictions and figures, not halfway."""
+    d, trials, model = fitted
+    bad = json.loads(model.read_text())
+    for key, value in change.items():
+        if key.startswith("info."):
+            bad["info"][key[5:]] = value
+        else:
+            bad[key] = value
+    (d / "bad2.json").write_text(json.dumps(bad))
+    capsys.readouterr()
+    assert main(["plot", "--model", str(d / "bad2.json"), str(trials), "--out", str(d / "y")]) == 2
+    err = capsys.readouterr().err
+    assert match in err and len(err.strip().splitlines()) == 1, err
+    assert not (d / "y").exists()
+
+
 def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["plot", str(tmp_path / "run"), "--subject", "S01", "--out", str(tmp_path / "f")]) == 2
@@ -121,3 +150,17 @@ def test_a_negative_trial_index_is_refused(tmp_path, capsys):
         err = capsys.readouterr().err
         assert "--trial -1: index out of range, expected 0 to 1" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "f").exists() and not (tmp_path / "s.json").exists()
+
+
+def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
+    d, trials, _ = fitted
+    run = d / "run"
+    args = ["reproduce", "--data", str(trials), "--quick", "--sections", "1", "--uncertainty", "0"]
+    assert main([*args, "--workers", "1", "--no-progress", "--out", str(run)]) == 0
+    (npz,) = sorted((run / "units").glob("*.npz"))[:1]
+    npz.write_bytes(npz.read_bytes()[:100])  # truncated
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(d / "figs"), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"{npz}: damaged checkpoint" in err and "rerun `reachirl reproduce`" in err, err
+    assert len(err.splitlines()) == 1

@@ -260,3 +260,44 @@ def test_inputs_with_manifest(tmp_path, reach, synth, capsys):
     (tmp_path / "m.csv").write_text("file,subject,posture,side,static\na.trc,S1,P4,left,calib.csv\n")
     code, _, err = _run([tmp_path / "a.trc", *args], capsys)
     assert code == 2 and err.strip().endswith("calib.csv: the manifest's 'static' of a.trc: file not found"), err
+
+
+def test_the_same_recording_twice_is_refused_before_a_trials_file_is_written(tmp_path, capsys):
+    """Two inputs that make one trial id would give a trials file every other command refuses."""
+    import shutil
+
+    from reachirl.cli import main
+    from recordings import synth
+
+    raw = synth(tmp_path / "raw", ("P2",), subjects=1, trials=1)
+    (trc,) = sorted(raw.glob("*.trc"))
+    (tmp_path / "b").mkdir()
+    copy = shutil.copy(trc, tmp_path / "b" / trc.name)  # same name, another folder
+    out = tmp_path / "t.npz"
+    markers = ["--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"]
+    capsys.readouterr()
+    assert main(["preprocess", str(trc), str(copy), *markers, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{copy}: gives the trial id" in err and str(trc) in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("start", [520, 600, 700, 1000])
+def test_a_damaged_c3d_parameter_section_is_refused_not_a_crash(tmp_path, cli, start):
+    """ezc3d dies with a segfault on some damaged parameter sections: the records are walked first (run as a
+    separate process, so that a crash fails this test instead of ending the test run)."""
+    from recordings import synth
+
+    raw = synth(tmp_path / "raw", ("P2",), subjects=1, trials=1, fmt="c3d")
+    (c3d,) = sorted(raw.glob("*.c3d"))
+    data = bytearray(c3d.read_bytes())
+    data[start : start + 100] = b"\xff" * 100
+    bad = tmp_path / "bad.c3d"
+    bad.write_bytes(bytes(data))
+    markers = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
+    proc = cli("preprocess", bad, "--markers", markers, "--out", tmp_path / "t.npz")
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert proc.stderr.strip().startswith(f"reachirl preprocess: error: {bad}: not a readable C3D file (damaged")
+    assert len(proc.stderr.strip().splitlines()) == 1 and not (tmp_path / "t.npz").exists()
+    ok = cli("preprocess", c3d, "--markers", markers, "--out", tmp_path / "ok.npz")  # the undamaged file reads
+    assert ok.returncode == 0, ok.stderr

@@ -177,3 +177,33 @@ def test_a_unit_over_its_time_limit_is_stopped(trials_file, tmp_path, monkeypatc
     monkeypatch.setenv("REACHIRL_UNIT_TIMEOUT_S", "nan")
     assert main(argv) == 2
     assert "REACHIRL_UNIT_TIMEOUT_S=nan: expected a positive number" in capsys.readouterr().err
+
+
+def test_an_interrupted_runs_temporaries_are_removed_wherever_it_writes(tmp_path):
+    """Atomic writes' temporaries (``.<name>.<8 random>.<ext>``) that a killed run left, in every folder a run
+    writes, are removed; files that only look alike are kept."""
+    from reachirl.experiments.runner import clean_stale_temporaries
+
+    left = [
+        tmp_path / ".table.csv.ab12cd_3.tmp",
+        tmp_path / "units" / ".moirl-P2-s8.json.zz99yy88.tmp",
+        tmp_path / "figures" / ".fig2_prediction.png.tnvvlevp.png",
+        tmp_path / "models" / ".moirl-P2-s8.json.k2j4h6g8.tmp",
+        tmp_path / "predictions" / "moirl-P2-s6" / ".index.csv.agxgukg_.tmp",
+    ]
+    kept = [tmp_path / "predictions" / "moirl-P2-s6" / "index.csv", tmp_path / "figures" / ".keep", tmp_path / "a.tmp"]
+    for f in (*left, *kept):
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_text("x")
+    assert sorted(clean_stale_temporaries(tmp_path)) == sorted(left)
+    assert all(f.exists() for f in kept) and not any(f.exists() for f in left)
+
+
+def test_a_worker_memory_cap_too_small_to_start_is_refused(tmp_path, monkeypatch, capsys):
+    from reachirl.cli import main
+
+    monkeypatch.setenv("REACHIRL_UNIT_MEMORY_GB", "0.01")
+    assert main(["reproduce", "--quick", "--workers", "2", "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("REACHIRL_UNIT_MEMORY_GB=0.01: expected a positive number, at least 1"), err
+    assert len(err.splitlines()) == 1

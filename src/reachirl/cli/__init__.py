@@ -83,8 +83,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    parser = build_parser()
-    args, unknown = parser.parse_known_args(argv)
+    try:  # the commands' modules load for a second or two (scipy, CasADi), before the signal handlers below
+        parser = build_parser()
+        args, unknown = parser.parse_known_args(argv)
+    except KeyboardInterrupt:
+        print("reachirl: interrupted", file=sys.stderr, flush=True)
+        return 130
     if unknown:  # "reachirl fit: error: ...", as the command's other errors say it
         parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")

@@ -107,12 +107,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def _experimental(path: Path | None) -> dict | None:
-    """The ``[experimental]`` table of ``--config`` (checked where the options are defined); any other key is
-    refused, naming it (a run file of ``reproduce`` holds the protocol's keys, which ``fit`` takes as flags)."""
+def _experimental(path: Path | None, n_windows: int, seed_form: bool = False) -> dict | None:
+    """The ``[experimental]`` table of ``--config`` (checked where the options are defined, and against the fit's
+    ``n_windows``); any other key is refused, naming it (a run file of ``reproduce`` holds the protocol's keys,
+    which ``fit`` takes as flags)."""
     if path is None:
         return None
-    from ..irl.options import resolve_options
+    from ..irl.options import check_windows, resolve_options
     from .runfile import read_run_file
 
     content = read_run_file(path)
@@ -127,7 +128,7 @@ def _experimental(path: Path | None) -> dict | None:
     if not isinstance(table, dict):
         raise InputError("[experimental] must be a table of MO-IRL options", path)
     try:
-        resolve_options(False, table)
+        check_windows(resolve_options(seed_form, table), n_windows)
     except (TypeError, ValueError) as e:
         raise InputError(f"[experimental]: {e}", path) from None
     return table
@@ -143,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out)
     refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
     check_output_kind(args.out, ".json")
-    experimental = _experimental(args.config)
+    experimental = _experimental(args.config, args.sections, args.seed_form)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")

@@ -174,11 +174,10 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..validation import check_output_dir
     from .simulate import _select
 
-    out = args.out
-    if out.exists() and not out.is_dir():
-        raise InputError("exists and is not a folder; --out needs a folder", out)
+    out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
     if args.model is not None:
         from ..data.trial import load_trials
         from ..doc.evaluation import summarise

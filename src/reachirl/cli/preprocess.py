@@ -267,14 +267,28 @@ def _refuse_overwrite(args, out: Path, entries: list[ManifestEntry]) -> list:
     return inputs
 
 
+def _refuse_duplicate_ids(trials: list[Trial]) -> None:
+    """Two recordings that make the same trial id (the same file name in two folders, or a file given twice)
+    would make a trials file that every other command refuses: refused here, naming both."""
+    seen: dict[str, Trial] = {}
+    for tr in trials:
+        if tr.id in seen:
+            raise InputError(
+                f"gives the trial id {tr.id!r} of {seen[tr.id].source}; ids must be unique (give each file once, "
+                "or a manifest with distinct subjects, postures or trial names)",
+                tr.source,
+            )
+        seen[tr.id] = tr
+
+
 def run(args) -> int:
-    from ..validation import check_output_file, check_output_kind
+    from ..validation import check_output_dir, check_output_file, check_output_kind
 
     options = _options(args)
     _folder_defaults(args)
     out = check_output_file(args.out)
-    if args.export is not None and Path(args.export).exists() and not Path(args.export).is_dir():
-        raise InputError("exists and is not a folder; --export needs a folder", args.export)
+    if args.export is not None:  # before any work: a folder in which files can be written
+        check_output_dir(args.export, "--export")
     if args.manifest:
         entries = read_manifest(args.manifest)
         if args.inputs:  # the manifest describes the files given; each must be in it
@@ -313,6 +327,7 @@ def run(args) -> int:
         side=args.side,
         on_trial=lambda tr: lines.append(_summary(tr)),
     )
+    _refuse_duplicate_ids(trials)
     if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
         output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export")
     save_trials(out, trials)

@@ -249,7 +249,7 @@ def run_options(args) -> dict:
 def _valid(kind: str, v) -> bool:
     num = isinstance(v, int) and not isinstance(v, bool)
     return {
-        "names": isinstance(v, list),
+        "names": isinstance(v, list) and len(v) > 0,
         "str": isinstance(v, str),
         "count": num and 0 <= v <= 10**6,
         "nodes": num and NODES_RANGE[0] <= v <= NODES_RANGE[1],
@@ -261,6 +261,24 @@ def _valid(kind: str, v) -> bool:
         "uncertainty": num and (v == 0 or 20 <= v <= 1000),
         "workers": num and 1 <= v <= 256,
     }[kind]
+
+
+def _naming_run_file(err: InputError, args) -> InputError:
+    """``err`` (a value refused by the protocol's checks, which name the key but not where it came from) naming
+    the run file when the key's value came from it (not from a flag or ``--set``)."""
+    if err.path is not None or args.config is None:
+        return err
+    from .runfile import parse_assignment, read_run_file
+
+    overridden = {parse_assignment(t)[0] for t in args.assignments}
+    overridden |= {k for k in FLAG_KEYS if getattr(args, k) is not None}
+    overridden |= {k for k in RUN_KEYS if getattr(args, f"key_{k}", None) is not None}
+    from_file = set(read_run_file(args.config)) - overridden
+    said = {"unknown method": "methods", "train side": "train_side", "--sections": "sections", "--iscv": "iscv"}
+    msg = err.reason
+    keys = [k for k in from_file if msg.startswith((k, k.replace("_", " ")))]
+    keys += [k for text, k in said.items() if msg.startswith(text) and k in from_file]
+    return InputError(msg, args.config) if keys else err
 
 
 def _config(args, opts: dict):
@@ -458,7 +476,10 @@ def run(args) -> int:
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
-    config = _config(args, opts)
+    try:
+        config = _config(args, opts)
+    except InputError as e:
+        raise _naming_run_file(e, args) from None
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
@@ -472,7 +493,7 @@ def run(args) -> int:
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
 
     t0 = time.perf_counter()
-    if args.data is None:
+    if args.data is None and err.is_terminal:  # a note for a person watching; an error stays one line in a log
         err.print("[dim]loading the built-in virtual subjects (generated and cached on first use)…[/]")
     dataset = datasets.load(
         args.data, seed=int(opts.get("data_seed", 0)), marker_map=opts.get("markers"), n_subjects=opts.get("subjects")

@@ -49,14 +49,30 @@ def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | No
         then()
 
 
+class _Pool(cf.ProcessPoolExecutor):
+    """A pool whose workers are started with Ctrl-C ignored: a spawned worker imports for a second or two before
+    :func:`worker_init` runs, and a Ctrl-C to the terminal's process group then printed its traceback. An ignored
+    signal stays ignored across ``exec``, and Python leaves it so; the pool starts its workers in ``submit``."""
+
+    def submit(self, fn, /, *args, **kwargs):
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            return super().submit(fn, *args, **kwargs)
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            return super().submit(fn, *args, **kwargs)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+
 def local_executor(workers: int, memory_gb: float, then: Callable[[], None] | None = None) -> cf.ProcessPoolExecutor:
     """A pool of ``workers`` bounded local processes (:func:`worker_init`; ``then``: a module-level function each
     runs once started)."""
     # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
     ctx = multiprocessing.get_context("spawn")
-    return cf.ProcessPoolExecutor(
-        max_workers=workers, mp_context=ctx, initializer=worker_init, initargs=(os.getpid(), memory_gb, then)
-    )
+    return _Pool(max_workers=workers, mp_context=ctx, initializer=worker_init, initargs=(os.getpid(), memory_gb, then))
 
 
 def stop_workers(ex: cf.ProcessPoolExecutor) -> None:

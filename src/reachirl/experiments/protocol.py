@@ -87,12 +87,13 @@ class ProtocolConfig:
         object.__setattr__(self, "sections", tuple(dict.fromkeys(secs)))
         if self.iscv not in ISCV_MODES:
             raise InputError(f"--iscv must be one of {', '.join(ISCV_MODES)}, got {self.iscv!r}")
-        from ..irl.options import ROLLOUTS, resolve_options
+        from ..irl.options import ROLLOUTS, check_windows, resolve_options
 
         if self.rollout not in ROLLOUTS:
             raise InputError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
         try:  # the method's options are checked where they are defined
-            resolve_options(self.seed_form, self.experimental)
+            for s in secs:
+                check_windows(resolve_options(self.seed_form, self.experimental), s)
         except (ValueError, TypeError) as e:
             raise InputError(f"experimental: {e}") from None
         if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import json
 import logging
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..errors import InputError
 from ..io import atomic_write_bytes, atomic_write_json, npz_bytes, to_jsonable
 from .no_data import annotate_no_data
 
@@ -137,11 +139,19 @@ def _npz_problem(npz: Path, sha256: str | None) -> str | None:
 
 
 def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
+    """A unit's predictions (``units/<key>.npz``; empty if it has none). A damaged file is an ``InputError``
+    naming it: ``reproduce`` into the same folder recomputes the unit (it checks each checkpoint first)."""
     _, npz = unit_paths(out_dir, key)
     if not npz.is_file():
         return {}
-    with np.load(npz, allow_pickle=False) as z:
-        return {k: z[k] for k in z.files}
+    problem = _npz_problem(npz, None)
+    if problem is None:
+        try:
+            with np.load(npz, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+            problem = f"cannot be read ({e})"
+    raise InputError(f"damaged checkpoint, {problem}: rerun `reachirl reproduce` into this folder to recompute it", npz)
 
 
 def save_unit(out_dir: Path, payload: dict) -> dict:

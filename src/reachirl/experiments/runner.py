@@ -31,12 +31,14 @@ log = logging.getLogger(__name__)
 
 def clean_stale_temporaries(out_dir: Path) -> list[Path]:
     """Remove the temporary files of atomic writes (``.<name>.<random>.tmp`` or ``….png``) that a killed run
-    left in ``out_dir``, ``units/`` and ``figures/``. Returns what was removed."""
+    left in ``out_dir``, ``units/``, ``figures/``, ``models/`` and each unit's ``predictions/<key>/``. Returns what
+    was removed."""
     import re
 
     pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|png|json|npz|csv|md|gif|mp4)$")
     removed = []
-    for folder in (out_dir, out_dir / "units", out_dir / "figures"):
+    exports = sorted(p for p in (out_dir / "predictions").glob("*") if p.is_dir())
+    for folder in (out_dir, out_dir / "units", out_dir / "figures", out_dir / "models", *exports):
         if not folder.is_dir():
             continue
         for f in folder.iterdir():
@@ -77,18 +79,25 @@ def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float, truth_job=None
         signal.signal(signal.SIGALRM, old)
 
 
-def _env_float(name: str, default: float) -> float:
+def _env_float(name: str, default: float, least: float = 0.0) -> float:
     try:
         v = float(os.environ.get(name, default))
     except ValueError:
         raise InputError(f"environment variable {name}={os.environ[name]!r}: expected a number") from None
-    if not (v > 0 and v < float("inf")):
-        raise InputError(f"environment variable {name}={v}: expected a positive number")
+    if not (v > 0 and v >= least and v < float("inf")):
+        at_least = f", at least {least:g}" if least else ""
+        raise InputError(f"environment variable {name}={v:g}: expected a positive number{at_least}")
     return v
 
 
-def _local_executor(workers: int) -> cf.ProcessPoolExecutor:
-    return local_executor(workers, _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB))
+#: the smallest memory cap (GB) a worker can work under: Python, NumPy, SciPy and CasADi's compiled solvers take
+#: most of it before the first unit (measured: under 0.5 GB the imports and a small fit fail; under 1 GB they run)
+MIN_UNIT_MEMORY_GB = 1.0
+
+
+def unit_executor(workers: int) -> cf.ProcessPoolExecutor:
+    """Local worker processes for units (and `sensitivity`'s refits), each capped at `REACHIRL_UNIT_MEMORY_GB`."""
+    return local_executor(workers, _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB, MIN_UNIT_MEMORY_GB))
 
 
 def _dask_client(address: str):
@@ -182,7 +191,7 @@ def run_units(
             finish(payload)
     elif scheduler is None:
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
-        ex = _local_executor(min(workers, len(todo)))
+        ex = unit_executor(min(workers, len(todo)))
         try:
             futures = {
                 ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout, truth_jobs.get(u.key)): u.key

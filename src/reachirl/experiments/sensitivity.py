@@ -25,7 +25,6 @@ from __future__ import annotations
 import concurrent.futures as cf
 import json
 import logging
-import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
@@ -241,7 +240,9 @@ def _verdict(row: dict) -> str:
 
 # ---------------------------------------------------------------------- the analysis
 def _executor(workers: int):
-    return cf.ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    from .runner import unit_executor
+
+    return unit_executor(workers)  # bounded, dies with its parent, ignores Ctrl-C
 
 
 def run_sensitivity(
@@ -336,13 +337,20 @@ def run_sensitivity(
             if on_done:
                 on_done(f"{name[0]} {name[1]} {name[2] + 1}")
     else:
-        with _executor(min(workers, len(jobs))) as ex:
+        from .processes import stop_workers
+
+        ex = _executor(min(workers, len(jobs)))
+        try:
             futs = {ex.submit(fn, *args): name for name, fn, args in jobs}
             for f in cf.as_completed(futs):
                 name = futs[f]
                 done[name] = f.result()
                 if on_done:
                     on_done(f"{name[0]} {name[1]} {name[2] + 1}")
+        except BaseException:  # Ctrl-C, SIGTERM or an error: the workers (which ignore Ctrl-C) end now
+            stop_workers(ex)
+            raise
+        ex.shutdown()
 
     rows, pooled, ident = [], {}, {}
     for p, (unit, split, r) in chosen.items():

@@ -212,6 +212,55 @@ def check_model_dict(d, path) -> None:
             f"window of 'weights'), found {brief(phi)}",
             path,
         )
+    history = d.get("info", {}).get("history")
+    require(
+        history is None or (isinstance(history, list) and all(isinstance(h, dict) for h in history)),
+        f"field 'info.history': expected a list of objects (one per iteration), found {brief(history)}",
+        path,
+    )
+    _check_uncertainty(d.get("uncertainty"), len(w), path)
+
+
+def _is_matrix(m, rows: int, ok) -> bool:
+    """Whether ``m`` is ``rows`` lists of 7 values, each passing ``ok``."""
+    return (
+        isinstance(m, list)
+        and len(m) == rows
+        and all(isinstance(r, list) and len(r) == len(FEATURES) and all(ok(v) for v in r) for r in m)
+    )
+
+
+def _share(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and -1e-9 <= v <= 1 + 1e-9
+
+
+def _weight(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0
+
+
+def _check_uncertainty(unc, n_windows: int, path) -> None:
+    """The ``uncertainty`` record's arrays, where present: the samples and the intervals, one row per window."""
+    if unc is None:
+        return
+    require(isinstance(unc, dict), f"field 'uncertainty': expected an object or null, found {brief(unc)}", path)
+    for key, ok, what in (("weight_samples", _weight, "numbers >= 0"), ("share_samples", _share, "shares in [0, 1]")):
+        samples = unc.get(key)
+        require(
+            samples is None or (isinstance(samples, list) and all(_is_matrix(m, n_windows, ok) for m in samples)),
+            f"field 'uncertainty.{key}': expected a list of {n_windows} × {len(FEATURES)} matrices of {what}, "
+            f"found {brief(samples)}",
+            path,
+        )
+    iv = unc.get("share_intervals")
+    require(
+        isinstance(iv, dict)
+        and _is_matrix(iv.get("low"), n_windows, _share)
+        and _is_matrix(iv.get("high"), n_windows, _share)
+        and _is_matrix(iv.get("determined"), n_windows, lambda v: isinstance(v, bool)),
+        f"field 'uncertainty.share_intervals': expected an object with 'low', 'high' ({n_windows} × "
+        f"{len(FEATURES)} shares) and 'determined' ({n_windows} × {len(FEATURES)} booleans), found {brief(iv)}",
+        path,
+    )
 
 
 def load_model(path: str | Path) -> LearnedModel:

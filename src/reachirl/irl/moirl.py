@@ -53,7 +53,7 @@ from ..features import N_FEATURES, feature_rates, window_index, windowed_feature
 from .base import WeightEstimator
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 from .options import FIELDS as _OPTION_FIELDS
-from .options import ROLLOUTS, Options, resolve_options
+from .options import ROLLOUTS, Options, check_windows, resolve_options
 
 __all__ = [
     "MOIRL",
@@ -236,8 +236,7 @@ class MOIRL(WeightEstimator):
             raise ValueError(
                 f"uncertainty must be a number of samples from 20 to 1000, or None, got {self.uncertainty!r}"
             )
-        if any(k >= self.n_windows for k in self._o.frozen_windows):
-            raise ValueError(f"frozen_windows {self._o.frozen_windows} must be windows 0 to {self.n_windows - 1}")
+        check_windows(self._o, self.n_windows)
         self._mask = self._feature_mask()
         return trials
 

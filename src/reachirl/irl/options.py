@@ -153,6 +153,15 @@ def departures(options: Options, rollout: str, tol: float, method_defaults: Mapp
     return out
 
 
+def check_windows(options: Options, n_windows: int) -> None:
+    """The options that name windows against a fit of ``n_windows``: ``ValueError`` naming the option."""
+    frozen = sorted(set(options.frozen_windows))
+    if any(k >= n_windows for k in frozen):
+        raise ValueError(f"frozen_windows {frozen} must be windows 0 to {n_windows - 1}")
+    if len(frozen) == n_windows:
+        raise ValueError(f"frozen_windows {frozen} freezes all {n_windows} window(s): no weight is left to learn")
+
+
 def _check(o: Options) -> None:
     """Every option's range; ``ValueError`` names the option, the expected values and the value given."""
 
@@ -160,8 +169,8 @@ def _check(o: Options) -> None:
         if not ok:
             raise ValueError(msg)
 
-    need(o.observe in (True, False), f"observe must be True or False, got {o.observe!r}")
-    need(o.warm_newton in (True, False), f"warm_newton must be True or False, got {o.warm_newton!r}")
+    need(isinstance(o.observe, bool), f"observe must be True or False, got {o.observe!r}")
+    need(isinstance(o.warm_newton, bool), f"warm_newton must be True or False, got {o.warm_newton!r}")
     need(o.merit in ("state", "normalised"), f"merit must be 'state' or 'normalised', got {o.merit!r}")
     need(o.scaling in ("demo", None), f"scaling must be 'demo' or None, got {o.scaling!r}")
     need(o.fallback in ("merit", None), f"fallback must be 'merit' or None, got {o.fallback!r}")
@@ -187,13 +196,17 @@ def _check(o: Options) -> None:
         f"memory must be >= 1 or None, got {o.memory}",
     )
     need(_finite(o.shrink) and 0 < o.shrink < 1, f"shrink must be in (0, 1), got {o.shrink}")
+    need(
+        _finite(o.armijo_c1) and _finite(o.curvature_c2) and 0 < o.armijo_c1 < o.curvature_c2 < 1,
+        f"need 0 < armijo_c1 < curvature_c2 < 1 (Wolfe conditions), got {o.armijo_c1} and {o.curvature_c2}",
+    )
     need(isinstance(o.max_tries, int) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
     need(_finite(o.w0) and o.w0 > 0, f"need w0 > 0 (weights stay > 0), got {o.w0}")
     need(_finite(o.alpha0) and 0 < o.alpha0 <= 1, f"need 0 < alpha0 <= 1, got {o.alpha0}")
     need(_finite(o.beta) and o.beta >= 0, f"beta must be >= 0, got {o.beta}")
     need(_finite(o.max_ratio) and o.max_ratio > 1, f"max_ratio must be > 1, got {o.max_ratio}")
     need(_finite(o.min_step) and 0 <= o.min_step < 1, f"min_step must be in [0, 1), got {o.min_step}")
-    need(o.line_search_stop in (True, False), f"line_search_stop must be True or False, got {o.line_search_stop!r}")
+    need(isinstance(o.line_search_stop, bool), f"line_search_stop must be True or False, got {o.line_search_stop!r}")
     need(all(k >= 0 for k in o.frozen_windows), f"frozen_windows must be window indices >= 0, got {o.frozen_windows}")
     if isinstance(o.smoothness, str):
         need(o.smoothness == "cv", f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}")
@@ -209,7 +222,7 @@ def _check(o: Options) -> None:
     )
     need(isinstance(o.n_suffixes, int) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")
     need(_finite(o.l1) and o.l1 >= 0, f"l1 must be >= 0, got {o.l1}")
-    need(o.use_gamma in (True, False), f"use_gamma must be True or False, got {o.use_gamma!r}")
+    need(isinstance(o.use_gamma, bool), f"use_gamma must be True or False, got {o.use_gamma!r}")
 
 
 def _finite(x) -> bool:
