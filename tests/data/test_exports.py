@@ -26,6 +26,18 @@ def test_clashing_names_get_a_suffix(tmp_path):
     assert (tmp_path / "a_b-2.csv").exists() and (tmp_path / "a_b-2.mot").exists()
 
 
+
+def test_a_new_export_removes_the_files_an_earlier_one_listed_and_it_does_not_write(tmp_path):
+    t = np.linspace(0, 1, 5)
+    demo = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))}
+    export_trajectories(tmp_path, [TrajectoryExport(i, t, demo) for i in ("S1/T1", "S1/T2", "S1/T3")])
+    (tmp_path / "notes.csv").write_text("mine")  # not an export's: kept
+    export_trajectories(tmp_path, [TrajectoryExport("S1/T2", t, demo)])
+    files = sorted(p.name for p in tmp_path.iterdir())
+    assert files == ["S1_T2.csv", "S1_T2.mot", "index.csv", "notes.csv"]
+    assert list(pd.read_csv(tmp_path / "index.csv")["file"]) == ["S1_T2"]
+
+
 @pytest.fixture(scope="module")
 def exported(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("exp")

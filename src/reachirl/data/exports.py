@@ -131,10 +131,13 @@ def _number_lines(data: np.ndarray) -> str:
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
     """Write ``<safe id>.csv`` (and ``.mot``) per item and ``index.csv`` under ``out_dir``; returns the index.
 
-    Two ids that map to one file name get ``-2``, ``-3`` ... appended.
+    Two ids that map to one file name get ``-2``, ``-3`` ... appended. The files an earlier export listed in
+    ``out_dir``'s ``index.csv`` and this one does not write are removed, so that the folder holds what its index
+    says (a user's other files stay).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    earlier = _indexed_names(out / "index.csv")
     used: set[str] = set()
     index = [("id", "file", "set")]
     for it in items:
@@ -153,4 +156,17 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerows(index)
     atomic_write_text(out / "index.csv", buf.getvalue())
+    for name in earlier - used:
+        for suffix in (".csv", ".mot"):
+            (out / f"{name}{suffix}").unlink(missing_ok=True)
     return out / "index.csv"
+
+
+def _indexed_names(index: Path) -> set[str]:
+    """The file names (without suffix) an earlier export's ``index.csv`` lists; none if it is absent or not one."""
+    try:
+        rows = list(csv.DictReader(io.StringIO(index.read_text(encoding="utf-8"))))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return set()
+    names = {r.get("file") or "" for r in rows}
+    return {n for n in names if n and n == safe_name(n) and n != "index"}
