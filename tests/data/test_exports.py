@@ -26,7 +26,6 @@ def test_clashing_names_get_a_suffix(tmp_path):
     assert (tmp_path / "a_b-2.csv").exists() and (tmp_path / "a_b-2.mot").exists()
 
 
-
 def test_a_new_export_removes_the_files_an_earlier_one_listed_and_it_does_not_write(tmp_path):
     t = np.linspace(0, 1, 5)
     demo = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))}
