@@ -280,3 +280,14 @@ def test_builtin_dataset_full(tmp_path, monkeypatch):
         assert abs(hl[p]["duration_s"] - hl[p]["berret_duration_s"]) < 0.06, p
     arm = ArmModel.from_dict(truth["subjects"]["S01"]["arm"])
     assert arm.length > 0.6
+
+
+def test_a_data_set_written_over_an_earlier_one_leaves_no_orphan_recording(tmp_path):
+    """The folder holds what its manifest lists: the earlier set's other recordings go, a user's files stay."""
+    generate(tmp_path, SynthConfig(**{**SMALL, "postures": ("P2",), "n_trials": 2, "fmt": "mot"}))
+    (tmp_path / "notes.txt").write_text("mine")
+    generate(tmp_path, SynthConfig(**{**SMALL, "postures": ("P2",), "n_trials": 1, "fmt": "mot"}))
+    recordings = sorted(p.name for p in tmp_path.glob("*.mot"))
+    listed = sorted(line.split(",")[0] for line in (tmp_path / "manifest.csv").read_text().splitlines()[1:])
+    assert recordings == listed == [f"S{k:02d}_P2_T01.mot" for k in range(1, SMALL["n_subjects"] + 1)]
+    assert (tmp_path / "notes.txt").read_text() == "mine"

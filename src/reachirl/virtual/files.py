@@ -68,6 +68,20 @@ def _file_name(tr: SynthTrial, fmt: str) -> str:
     return f"{tr.subject}_{tr.posture}_{tr.trial_id}.{fmt}"
 
 
+def _listed_recordings(manifest: Path) -> set[str]:
+    """The recordings an earlier data set's ``manifest.csv`` lists, as this module names them (``S01_P1_T01.trc``
+    in the folder itself); none if there is no such manifest."""
+    import re
+
+    try:
+        rows = list(csv.DictReader(io.StringIO(manifest.read_text(encoding="utf-8"))))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return set()
+    pattern = re.compile(r"S\d+_P\d+_T\d+\.(trc|c3d|mot)")
+    names = {r.get("file") or "" for r in rows}
+    return {name for name in names if pattern.fullmatch(name)}
+
+
 def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
     groups = [(s, p) for s in subjects for p in config.postures]
     workers = max(1, int(config.workers))
@@ -110,7 +124,9 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
 
     Writes one file per trial (``S01_P1_T01.trc`` …), ``manifest.csv`` (``file,subject,posture,side``),
     ``subjects.csv`` (``subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m``), ``truth.json`` and
-    ``human_likeness.csv``. The same config gives byte-identical files.
+    ``human_likeness.csv``. The same config gives byte-identical files. Into the folder of an earlier data set,
+    the recordings its ``manifest.csv`` listed and this one does not write are removed (the folder holds what its
+    manifest and ``truth.json`` describe; other files stay).
     """
     config = config or SynthConfig()
     out_dir = Path(out_dir)
@@ -129,7 +145,10 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
         else:
             write_mot(out_dir / name, tr.time, tr.angles_deg, columns=("q1", "q2"))
         manifest.append([name, tr.subject, tr.posture, "right"])
+    earlier = _listed_recordings(out_dir / "manifest.csv")
     atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
+    for name in earlier - {row[0] for row in manifest}:
+        (out_dir / name).unlink(missing_ok=True)
     atomic_write_text(
         out_dir / "subjects.csv",
         _csv_text(
