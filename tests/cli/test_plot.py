@@ -164,3 +164,34 @@ def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
     err = capsys.readouterr().err.strip()
     assert f"{npz}: damaged checkpoint" in err and "rerun `reachirl reproduce`" in err, err
     assert len(err.splitlines()) == 1
+
+
+def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):
+    """LearnedModel.from_estimator keeps what prediction needs (observe, the fit's own reach): saved, loaded and
+    evaluated, it predicts the estimator's reaches."""
+    from reachirl import MOIRL
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.model import LearnedModel, load_model, save_model
+
+    _, trials_path, _ = fitted
+    trials = load_trials(trials_path)
+    est = MOIRL(2, n_nodes=N, max_iter=2).fit([t for t in trials if t.subject == "S01"])
+    model = load_model(save_model(tmp_path / "m.json", LearnedModel.from_estimator(est, trials)))
+    assert model.observe and model.rollout_q is not None and model.method == "moirl"
+    for trial, err in zip(trials[3:], model.evaluate(trials[3:]), strict=True):
+        np.testing.assert_allclose(err.prediction.q, est.predict(trial).q, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"weights": np.zeros((2, 7))}, "all weights are zero"),
+        ({"weights": np.ones((2, 7)), "n_nodes": 3}, "n_nodes"),
+        ({"weights": np.ones((2, 7)), "info": {"backend": "foo"}}, "field 'info.backend'"),
+    ],
+)
+def test_a_model_that_would_not_load_is_not_built(kwargs, match):
+    from reachirl.irl.model import LearnedModel
+
+    with pytest.raises(ValueError, match=match):
+        LearnedModel(**kwargs)

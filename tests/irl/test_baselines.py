@@ -151,6 +151,15 @@ def test_kkt_degrades_with_angle_noise(demos):
         (KKTIOC(2, pooling="median"), "pooling must be"),
         (KKTIOC(2, normalisation="unit"), "normalisation must be"),
         (MaxEntIRL(2, rollout="median"), "rollout must be"),
+        (BilevelIOC(2, max_evals="a"), "max_evals must be an integer >= 2, got 'a'"),
+        (BilevelIOC(2, failure_merit=-1.0), "failure_merit must be a number >= 1, got -1.0"),
+        (BilevelIOC(2, xtol=-1.0), "xtol must be a number > 0"),
+        (KKTIOC(2.5), "n_windows must be an integer, got 2.5"),
+        (KKTIOC(2, backend="foo"), "backend must be 'casadi' or 'crocoddyl', got 'foo'"),
+        (MOIRL(2, random_state=-1), "random_state must be an integer >= 0, got -1"),
+        (MOIRL(2, random_state=None, uncertainty=20), "random_state must be an integer >= 0"),
+        (MOIRL(2, tol="a"), "tol must be a number >= 0 and < 1, or None, got 'a'"),
+        (MOIRL(2, experimental="x"), "experimental must be a mapping"),
     ],
 )
 def test_bad_parameters_raise(demos, est, match):
@@ -186,3 +195,16 @@ def test_get_params_spans_the_class_hierarchy():
     est = MaxEntIRL(**p)
     assert est.beta == 1e-3 and est.memory is None and est.scaling == "demo"
     assert "kwargs" not in p
+
+
+@pytest.mark.parametrize("cls", [MOIRL, MaxEntIRL, BilevelIOC, KKTIOC])
+def test_every_estimator_has_scikit_learns_parameter_interface(cls):
+    """``get_params(deep=...)`` and ``set_params`` as scikit-learn's ``clone`` and searches call them."""
+    est = cls(2, n_nodes=N_NODES)
+    params = est.get_params(deep=False)
+    assert params == est.get_params(deep=True) and params["n_windows"] == 2
+    twin = cls(**params)  # what sklearn.base.clone does
+    assert twin.get_params() == params
+    assert est.set_params(n_windows=3) is est and est.get_params()["n_windows"] == 3
+    with pytest.raises(ValueError, match=f"unknown parameter 'n_window' of {cls.__name__}"):
+        est.set_params(n_window=3)

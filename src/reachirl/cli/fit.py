@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -138,7 +139,6 @@ def run(args: argparse.Namespace) -> int:
     from ..irl.methods import METHODS as CLASSES
     from ..irl.methods import make_estimator
     from ..irl.moirl import MOIRL
-    from ..irl.provenance import estimator_info
 
     console = Console(stderr=True)
     check_output_file(args.out)
@@ -176,12 +176,10 @@ def run(args: argparse.Namespace) -> int:
             kwargs["callback"] = progress
         est = make_estimator(args.method, args.sections, **kwargs)
         est.fit(trials)
-    info = estimator_info(est, args.method, trials)
-    unc = info.pop("uncertainty", None)
-    info.update({"trials": str(args.trials), "selection": chosen, "backend": args.backend})
-    save_model(
-        args.out, LearnedModel(weights=est.weights_, n_nodes=args.nodes, method=args.method, info=info, uncertainty=unc)
-    )
+    model = LearnedModel.from_estimator(est, trials)
+    model = replace(model, info={**model.info, "trials": str(args.trials), "selection": chosen})
+    info, unc = model.info, model.uncertainty
+    save_model(args.out, model)
     for msg in info["warnings"]:
         console.print(f"[bold yellow]warning:[/] {msg}")
     extra = ""

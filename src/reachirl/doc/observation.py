@@ -244,7 +244,9 @@ def observed_knots(
 def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | None) -> DocSolution:
     """``sol`` replaced by its observed part (:func:`observe`) on ``N + 1`` equally spaced knots (time from 0,
     ``q̇`` and ``τ`` as :meth:`Trial.knots` computes a demonstration's: :func:`observed_knots`), so that it is
-    compared with a trial resampled on the same knots; ``sol`` itself without a threshold."""
+    compared with a trial resampled on the same knots; ``sol`` itself without a threshold. Its ``cost``,
+    ``converged`` and solver fields stay the whole rest-to-rest DOC's: the cost is that DOC's optimum, not the
+    cost of the part returned."""
     if check_threshold(threshold) is None:
         return sol
     q, qd, tau, dt = observed_knots(sol, task, threshold)

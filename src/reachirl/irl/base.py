@@ -24,8 +24,9 @@ class WeightEstimator:
     n_nodes: int
     backend: str
 
-    def get_params(self) -> dict:
-        """The constructor's parameters and their values (over the class hierarchy)."""
+    def get_params(self, deep: bool = True) -> dict:
+        """The constructor's parameters and their values (over the class hierarchy); scikit-learn's signature
+        (``deep`` changes nothing: no parameter is an estimator), so ``sklearn.base.clone`` works."""
         names: list[str] = []
         for cls in type(self).__mro__:
             if "__init__" in cls.__dict__ and cls is not object:
@@ -34,12 +35,27 @@ class WeightEstimator:
                         names.append(p.name)
         return {k: getattr(self, k) for k in names if hasattr(self, k)}
 
+    def set_params(self, **params) -> WeightEstimator:
+        """Set constructor parameters (scikit-learn style); an unknown name is a ``ValueError`` naming it."""
+        known = self.get_params()
+        for k, v in params.items():
+            if k not in known:
+                raise ValueError(f"unknown parameter {k!r} of {type(self).__name__}; valid: {', '.join(known)}")
+            setattr(self, k, v)
+        return self
+
     def _check_trials(self, trials: Sequence[Trial]) -> list[Trial]:
         trials = list(trials)
         if not trials:
             raise ValueError("fit needs at least one demonstration")
         if not all(isinstance(t, Trial) for t in trials):
             raise TypeError("fit takes a sequence of Trial")
+        for name in ("n_windows", "n_nodes"):
+            v = getattr(self, name)
+            if not isinstance(v, int | np.integer) or isinstance(v, bool):
+                raise ValueError(f"{name} must be an integer, got {v!r}")
+        if self.backend not in ("casadi", "crocoddyl"):
+            raise ValueError(f"backend must be 'casadi' or 'crocoddyl', got {self.backend!r}")
         if not 1 <= self.n_windows <= self.n_nodes:
             raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")
         return trials
@@ -69,8 +85,10 @@ class WeightEstimator:
     def predict(self, trial_or_task: Trial | ReachingTask, warm_start: DocSolution | None = None) -> DocSolution:
         """The DOC prediction under the learned weights, from the trial's own arm, start, target and duration. An
         estimator with ``observe=True`` predicts a trial cut at a speed threshold as it was recorded
-        (:mod:`reachirl.doc.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots.
-        Without ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
+        (:mod:`reachirl.doc.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots,
+        whose ``cost`` is the whole DOC's optimum. A :class:`ReachingTask` is solved on the fit's ``n_nodes`` (its
+        own are replaced: the weights' windows and the start path are on the fit's knots). Without
+        ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
         self._check_fitted()
         path = self.rollout_path() if warm_start is None else None
         if isinstance(trial_or_task, Trial):

@@ -14,7 +14,7 @@ import numpy as np
 from ..doc.evaluation import TrialError, evaluate_trials
 from ..errors import InputError
 from ..features import FEATURES, N_FEATURES, cost_shares
-from ..io import atomic_write_json, read_json
+from ..io import atomic_write_json, read_json, to_jsonable
 from ..validation import brief, check_file_size, check_n_nodes, require
 
 __all__ = ["MODEL_FORMAT", "LearnedModel", "check_model_dict", "load_model", "save_model"]
@@ -42,6 +42,38 @@ class LearnedModel:
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ValueError("weights must be finite and >= 0")
         object.__setattr__(self, "weights", w)
+        # what load_model would refuse is refused here, so that a model saved is a model that loads
+        check_model_dict(to_jsonable(self.to_dict()), "LearnedModel")
+
+    @classmethod
+    def from_estimator(cls, est, trials: Sequence = ()) -> LearnedModel:
+        """The model of a fitted estimator (MOIRL or a baseline), as ``reachirl fit`` writes it: with its
+        provenance in ``info`` (:func:`reachirl.irl.provenance.estimator_info`), among which ``observe`` and
+        ``rollout_q``, without which the model would predict unlike the estimator (uncut, from a cold start).
+        ``trials``: the trials it was fitted on, for the record (their ids and fingerprint)."""
+        from .methods import METHODS
+        from .provenance import estimator_info
+
+        method = next((name for name, c in METHODS.items() if type(est) is c), None)
+        if method is None:
+            raise ValueError(f"not an estimator of reachirl.irl.methods.METHODS: {type(est).__name__}")
+        info = estimator_info(est, method, list(trials))
+        unc = info.pop("uncertainty", None)
+        info["backend"] = est.backend
+        return cls(weights=est.weights_, n_nodes=est.n_nodes, method=method, info=info, uncertainty=unc)
+
+    def to_dict(self) -> dict:
+        """The MODEL.json content (:func:`save_model` writes it)."""
+        return {
+            "format": MODEL_FORMAT,
+            "method": self.method,
+            "n_windows": self.n_windows,
+            "n_nodes": self.n_nodes,
+            "features": list(FEATURES),
+            "weights": self.weights,
+            "info": self.info,
+            **({} if self.uncertainty is None else {"uncertainty": self.uncertainty}),
+        }
 
     @property
     def n_windows(self) -> int:
@@ -97,19 +129,13 @@ class LearnedModel:
 
 
 def save_model(path: str | Path, model: LearnedModel) -> Path:
-    atomic_write_json(
-        path,
-        {
-            "format": MODEL_FORMAT,
-            "method": model.method,
-            "n_windows": model.n_windows,
-            "n_nodes": model.n_nodes,
-            "features": list(FEATURES),
-            "weights": model.weights,
-            "info": model.info,
-            **({} if model.uncertainty is None else {"uncertainty": model.uncertainty}),
-        },
-    )
+    """Write ``model`` as MODEL.json at ``path`` (atomically); :func:`load_model` reads it back. An estimator is
+    saved through :meth:`LearnedModel.from_estimator`."""
+    if not isinstance(model, LearnedModel):
+        raise TypeError(
+            f"save_model takes a LearnedModel (LearnedModel.from_estimator(est)), got {type(model).__name__}"
+        )
+    atomic_write_json(path, model.to_dict())
     return Path(path)
 
 

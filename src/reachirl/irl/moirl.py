@@ -31,7 +31,7 @@ from __future__ import annotations
 import copy
 import logging
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields, replace
 from typing import ClassVar, NamedTuple
 
@@ -209,16 +209,15 @@ class MOIRL(WeightEstimator):
 
     def set_params(self, **params) -> MOIRL:
         """Set constructor parameters (scikit-learn style); the resolved options follow."""
-        for k, v in params.items():
-            if k not in self.get_params():
-                raise ValueError(f"unknown parameter {k!r} of {type(self).__name__}")
-            setattr(self, k, v)
+        super().set_params(**params)
         self.__dict__.pop("_options", None)
         return self
 
     # ------------------------------------------------------------------ helpers
     def _check_params(self, trials: Sequence[Trial]) -> list[Trial]:
         self.__dict__.pop("_options", None)
+        if self.experimental is not None and not isinstance(self.experimental, Mapping):
+            raise ValueError(f"experimental must be a mapping of option names to values, got {self.experimental!r}")
         try:
             self.options_ = self._o
         except TypeError as e:
@@ -228,8 +227,16 @@ class MOIRL(WeightEstimator):
             raise ValueError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
         if not (isinstance(self.max_iter, int | np.integer) and self.max_iter >= 1):
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
+        if self.tol is not None and (not isinstance(self.tol, int | float | np.number) or isinstance(self.tol, bool)):
+            raise ValueError(f"tol must be a number >= 0 and < 1, or None, got {self.tol!r}")
         if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
             raise ValueError(f"tol must be a number >= 0 and < 1, got {self.tol}")
+        if not isinstance(self.random_state, int | np.integer) or isinstance(self.random_state, bool):
+            raise ValueError(
+                f"random_state must be an integer >= 0 (the seed of every random choice), got {self.random_state!r}"
+            )
+        if self.random_state < 0:
+            raise ValueError(f"random_state must be an integer >= 0, got {self.random_state}")
         if self.uncertainty is not None and not (
             isinstance(self.uncertainty, int | np.integer) and 20 <= self.uncertainty <= 1000
         ):

@@ -75,8 +75,13 @@ class BilevelIOC(WeightEstimator):
         trials = self._check_trials(trials)
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
-        if int(self.max_evals) < 2:
-            raise ValueError(f"max_evals must be >= 2, got {self.max_evals}")
+        if not isinstance(self.max_evals, int | np.integer) or isinstance(self.max_evals, bool) or self.max_evals < 2:
+            raise ValueError(f"max_evals must be an integer >= 2, got {self.max_evals!r}")
+        for name, least in (("xtol", 0.0), ("ftol", 0.0), ("failure_merit", 1.0)):
+            v = getattr(self, name)  # a failure merit under 1 would score a failed DOC better than the start
+            ok = isinstance(v, int | float | np.number) and not isinstance(v, bool) and np.isfinite(v)
+            if not (ok and (v >= least if least else v > 0)):
+                raise ValueError(f"{name} must be a number {'>= 1' if least else '> 0'}, got {v!r}")
         if not self.log_bound > 0:
             raise ValueError(f"log_bound must be > 0, got {self.log_bound}")
         if not self.w0 > 0:
