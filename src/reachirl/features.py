@@ -158,4 +158,6 @@ def trajectory_cost(
     weights = np.asarray(weights, dtype=float)
     if weights.ndim != 2 or weights.shape[1] != N_FEATURES:
         raise ValueError(f"weights must have shape (n_windows, {N_FEATURES}), got {weights.shape}")
+    if not np.all(np.isfinite(weights)):
+        raise ValueError("weights must be finite")
     return float(np.sum(weights * windowed_features(arm, q, qd, tau, dt, weights.shape[0])))

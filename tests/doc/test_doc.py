@@ -325,3 +325,13 @@ def test_falls_back_to_ipopt_when_fatrop_fails(arm, monkeypatch):
     assert sol.converged and sol.status.startswith("ipopt") and sol.iterations > 2
     assert sol.cost == pytest.approx(_cost_with_pinocchio(task, w, sol.q, sol.qd, sol.tau), rel=1e-8)
     assert arm.fk(sol.q[-1])[0] == pytest.approx(task.target_x, abs=1e-10)
+
+
+def test_a_wrong_warm_start_or_nan_weights_are_refused_plainly(arm):
+    task = ReachingTask(arm, q0=np.deg2rad([-90.0, 90.0]), target_x=0.9 * arm.length, duration=0.7, n_nodes=20)
+    w = np.full((2, 7), 0.05)
+    with pytest.raises(TypeError, match=r"warm_start must be a DocSolution .*, got int"):
+        solve_doc(task, w, warm_start=5)
+    sol = solve_doc(task, w)
+    with pytest.raises(ValueError, match="weights must be finite"):
+        trajectory_cost(arm, sol.q, sol.qd, sol.tau, task.dt, np.full((2, 7), np.nan))

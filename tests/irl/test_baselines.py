@@ -160,6 +160,7 @@ def test_kkt_degrades_with_angle_noise(demos):
         (MOIRL(2, random_state=None, uncertainty=20), "random_state must be an integer >= 0"),
         (MOIRL(2, tol="a"), "tol must be a number >= 0 and < 1, or None, got 'a'"),
         (MOIRL(2, experimental="x"), "experimental must be a mapping"),
+        (MOIRL(2, callback=1), "callback must be a function"),
     ],
 )
 def test_bad_parameters_raise(demos, est, match):

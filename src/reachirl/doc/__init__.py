@@ -75,6 +75,8 @@ def solve_doc(
     """
     if not isinstance(task, ReachingTask):
         raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")
+    if warm_start is not None and not isinstance(warm_start, DocSolution):
+        raise TypeError(f"warm_start must be a DocSolution (an earlier solve_doc's), got {type(warm_start).__name__}")
     w = check_weights(weights, task.n_nodes)
     scale = float(w.max())
     # ω / max(ω), rounded to 40 significant bits: ω and c·ω then give the same numbers (not merely equal to

@@ -244,6 +244,8 @@ class MOIRL(WeightEstimator):
                 f"uncertainty must be a number of samples from 20 to 1000, or None, got {self.uncertainty!r}"
             )
         check_windows(self._o, self.n_windows)
+        if self.callback is not None and not callable(self.callback):
+            raise ValueError(f"callback must be a function of an iteration's record, or None, got {self.callback!r}")
         self._mask = self._feature_mask()
         return trials
 
