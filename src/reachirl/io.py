@@ -121,6 +121,11 @@ def check_regular_file(path: str | os.PathLike, option: str | None = None) -> Pa
         raise InputError(f"{pre}is a directory, expected a file", p)
     if not stat.S_ISREG(st.st_mode):
         raise InputError(f"{pre}is not a regular file (a FIFO, device or socket); reachirl reads regular files only", p)
+    try:  # readable by this user (a file of mode 000 was reported as "not a trials file")
+        with open(p, "rb"):
+            pass
+    except OSError as e:
+        raise InputError(f"{pre}cannot read ({e.strerror or e})", p) from None
     return p
 
 

@@ -301,3 +301,58 @@ def test_a_damaged_c3d_parameter_section_is_refused_not_a_crash(tmp_path, cli, s
     assert len(proc.stderr.strip().splitlines()) == 1 and not (tmp_path / "t.npz").exists()
     ok = cli("preprocess", c3d, "--markers", markers, "--out", tmp_path / "ok.npz")  # the undamaged file reads
     assert ok.returncode == 0, ok.stderr
+
+
+def test_markers_and_a_markerset_together_are_refused(tmp_path, capsys):
+    from reachirl.cli import main
+
+    args = ["preprocess", str(tmp_path / "x.trc"), "--markers", "shoulder=A,elbow=B,wrist=C,fingertip=D"]
+    assert main([*args, "--markerset", "ue-adl", "--out", str(tmp_path / "t.npz")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "reachirl preprocess: error: give --markers or --markerset, not both (--markers would win and --markerset "
+        "be ignored)"
+    )
+
+
+def test_a_trials_file_whose_count_disagrees_with_its_list_is_refused(tiny_trials, tmp_path):
+    import io
+    import json
+    import zipfile
+
+    from reachirl.data.trial import load_trials
+    from reachirl.errors import InputError
+
+    bad = tmp_path / "bad.npz"
+    with zipfile.ZipFile(tiny_trials) as src, zipfile.ZipFile(bad, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename == "meta.json.npy":
+                arr = np.load(io.BytesIO(data), allow_pickle=False)
+                meta = json.loads(bytes(arr).decode())
+                meta["n_trials"] += 1
+                buf = io.BytesIO()
+                np.save(buf, np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8))
+                data = buf.getvalue()
+            dst.writestr(info, data)
+    with pytest.raises(InputError, match=r"meta.json: 'n_trials' is \d+ but 'trials' lists \d+"):
+        load_trials(bad)
+
+
+def test_a_file_this_user_cannot_read_says_so(tiny_trials, monkeypatch):
+    """Not "not a trials file": the reason is the permission (root reads mode-000 files, so open is made to fail)."""
+    import builtins
+
+    from reachirl.data.trial import load_trials
+    from reachirl.errors import InputError
+
+    real_open = builtins.open
+
+    def no_access(file, *args, **kwargs):
+        if str(file) == str(tiny_trials):
+            raise PermissionError(13, "Permission denied")
+        return real_open(file, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", no_access)
+    with pytest.raises(InputError, match="cannot read \\(Permission denied\\)"):
+        load_trials(tiny_trials)

@@ -285,6 +285,8 @@ def run(args) -> int:
     from ..validation import check_output_dir, check_output_file, check_output_kind
 
     options = _options(args)
+    if args.markers and args.markerset:
+        raise InputError("give --markers or --markerset, not both (--markers would win and --markerset be ignored)")
     _folder_defaults(args)
     out = check_output_file(args.out)
     if args.export is not None:  # before any work: a folder in which files can be written

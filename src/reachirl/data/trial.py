@@ -228,6 +228,13 @@ def load_trials(path: str | Path) -> list[Trial]:
                 raise InputError(f"unsupported format {found!r}, expected {TRIALS_FORMAT!r}", path)
             if not isinstance(header.get("trials"), list):
                 raise InputError("meta.json: field 'trials' must be a list", path)
+            declared = header.get("n_trials", len(header["trials"]))
+            if declared != len(header["trials"]):
+                raise InputError(
+                    f"meta.json: 'n_trials' is {declared!r} but 'trials' lists {len(header['trials'])} (a damaged "
+                    "or hand-edited file)",
+                    path,
+                )
             out = []
             for i, m in enumerate(header["trials"]):
                 check_trial_meta(m, i, path)
