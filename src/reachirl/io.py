@@ -22,6 +22,7 @@ __all__ = [
     "atomic_write_text",
     "cache_root",
     "check_regular_file",
+    "csv_column",
     "json_depth",
     "npz_bytes",
     "read_json",
@@ -157,6 +158,18 @@ def read_text(path: str | os.PathLike) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         return raw.decode("latin-1")  # decodes any bytes
+
+
+def csv_column(path: str | os.PathLike, column: str) -> set[str]:
+    """The non-empty values of ``column`` in the CSV at ``path`` (an earlier run's listing of what it wrote);
+    none when the file is absent or unreadable."""
+    import csv
+
+    try:
+        rows = list(csv.DictReader(io.StringIO(Path(path).read_text(encoding="utf-8"))))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return set()
+    return {r.get(column) or "" for r in rows} - {""}
 
 
 def read_json(path: str | os.PathLike):

@@ -195,9 +195,9 @@ OTHER_KEYS = {
 }
 
 
-def run_options(args) -> dict:
+def run_options(args) -> tuple[dict, set[str]]:
     """The run's options: the run file, then ``--set``, then the flags given; every key checked (exit 2 naming the
-    key or the file). ``experimental`` is a table."""
+    key or the file). ``experimental`` is a table. Also returns the keys whose value is the run file's."""
     from .runfile import parse_assignment, read_run_file
 
     opts: dict = {}
@@ -205,21 +205,25 @@ def run_options(args) -> dict:
     if args.config is not None:
         opts.update(read_run_file(args.config))
         where = args.config
+    from_file = set(opts)
     for text in args.assignments:
         try:
             key, value = parse_assignment(text)
         except ValueError as e:
             raise InputError(f"--set: {e}") from None
         opts[key] = value
+        from_file.discard(key)
         where = where or "--set"
     for key in FLAG_KEYS:
         v = getattr(args, key)
         if v is not None:
             opts[key] = list(v) if isinstance(v, list) else v
+            from_file.discard(key)
     for key in RUN_KEYS:
         v = getattr(args, f"key_{key}", None)
         if v is not None:
             opts[key] = list(v) if isinstance(v, list) else v
+            from_file.discard(key)
     known = {*RUN_KEYS, *OTHER_KEYS, "experimental"}
     unknown = sorted(set(opts) - known)
     if unknown:
@@ -243,7 +247,7 @@ def run_options(args) -> dict:
     for key, (what, kind) in OTHER_KEYS.items():  # e.g. seed_form = "no" once read as true
         if key in opts and opts[key] is not None and not _valid(kind, opts[key]):
             raise InputError(f"{key}: expected {what}; got {opts[key]!r}", where)
-    return opts
+    return opts, from_file
 
 
 def _valid(kind: str, v) -> bool:
@@ -263,22 +267,16 @@ def _valid(kind: str, v) -> bool:
     }[kind]
 
 
-def _naming_run_file(err: InputError, args) -> InputError:
+def _naming_run_file(err: InputError, run_file, from_file: set[str]) -> InputError:
     """``err`` (a value refused by the protocol's checks, which name the key but not where it came from) naming
-    the run file when the key's value came from it (not from a flag or ``--set``)."""
-    if err.path is not None or args.config is None:
+    ``run_file`` when the key is one of ``from_file``, those whose value is the run file's (:func:`run_options`)."""
+    if err.path is not None or run_file is None:
         return err
-    from .runfile import parse_assignment, read_run_file
-
-    overridden = {parse_assignment(t)[0] for t in args.assignments}
-    overridden |= {k for k in FLAG_KEYS if getattr(args, k) is not None}
-    overridden |= {k for k in RUN_KEYS if getattr(args, f"key_{k}", None) is not None}
-    from_file = set(read_run_file(args.config)) - overridden
     said = {"unknown method": "methods", "train side": "train_side", "--sections": "sections", "--iscv": "iscv"}
     msg = err.reason
     keys = [k for k in from_file if msg.startswith((k, k.replace("_", " ")))]
     keys += [k for text, k in said.items() if msg.startswith(text) and k in from_file]
-    return InputError(msg, args.config) if keys else err
+    return InputError(msg, run_file) if keys else err
 
 
 def _config(args, opts: dict):
@@ -471,7 +469,7 @@ def run(args) -> int:
     out = check_output_dir(args.out)
     refuse_overwrite({"--out": out}, [args.data])
     _check_scheduler(args.scheduler)
-    opts = run_options(args)
+    opts, from_file = run_options(args)
     args.quick = bool(args.quick or opts.get("quick", False))
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
@@ -479,7 +477,7 @@ def run(args) -> int:
     try:
         config = _config(args, opts)
     except InputError as e:
-        raise _naming_run_file(e, args) from None
+        raise _naming_run_file(e, args.config, from_file) from None
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")

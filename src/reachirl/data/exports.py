@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_text
+from ..io import atomic_write_text, csv_column
 from .writers import write_mot
 
 __all__ = [
@@ -137,7 +137,8 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    earlier = _indexed_names(out / "index.csv")
+    # what an earlier export listed (a file name this module made, never a path)
+    earlier = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
     used: set[str] = set()
     index = [("id", "file", "set")]
     for it in items:
@@ -160,13 +161,3 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
         for suffix in (".csv", ".mot"):
             (out / f"{name}{suffix}").unlink(missing_ok=True)
     return out / "index.csv"
-
-
-def _indexed_names(index: Path) -> set[str]:
-    """The file names (without suffix) an earlier export's ``index.csv`` lists; none if it is absent or not one."""
-    try:
-        rows = list(csv.DictReader(io.StringIO(index.read_text(encoding="utf-8"))))
-    except (OSError, UnicodeDecodeError, csv.Error):
-        return set()
-    names = {r.get("file") or "" for r in rows}
-    return {n for n in names if n and n == safe_name(n) and n != "index"}

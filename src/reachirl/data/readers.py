@@ -387,54 +387,60 @@ def read_c3d(path: str | Path) -> MarkerData:
 
 
 def _check_c3d_parameters(path: Path) -> None:
+    """Refuse a C3D file whose parameter section :func:`_c3d_parameter_problem` finds damaged, before ``ezc3d``
+    reads it (the file is mapped: only the pages the walk reads are read)."""
+    import mmap
+
+    with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
+        problem = _c3d_parameter_problem(data)
+    if problem is not None:
+        raise InputError(f"not a readable C3D file (damaged parameter section: {problem})", path)
+
+
+def _c3d_parameter_problem(data) -> str | None:
     """Walk the C3D parameter section's records (the C3D specification: each group or parameter record is a
-    name, a signed pointer to the next record and, for a parameter, its type, dimensions and data) and refuse a
-    file whose records point outside the section or hold an impossible type or size, before ``ezc3d`` reads it."""
+    name, a signed pointer to the next record and, for a parameter, its type, dimensions and data): what is
+    wrong with a record that points outside the file or holds an impossible type or size, or ``None``."""
     import struct
 
-    data = path.read_bytes()
-
-    def bad(what: str) -> InputError:
-        return InputError(f"not a readable C3D file (damaged parameter section: {what})", path)
-
     if len(data) < 512 or data[1] != 0x50:
-        return  # not a C3D header: ezc3d says so itself
+        return None  # not a C3D header: ezc3d says so itself
     start = (data[0] - 1) * 512
     if data[0] < 1 or start + 4 > len(data):
-        raise bad(f"its first block {data[0]} lies outside the file")
+        return f"its first block {data[0]} lies outside the file"
     processor = data[start + 3] - 83  # 1 Intel, 2 DEC, 3 MIPS
     if processor not in (1, 2, 3):
-        raise bad(f"unknown processor type {data[start + 3]}")
+        return f"unknown processor type {data[start + 3]}"
     order = ">" if processor == 3 else "<"
     end = len(data)  # not the section's declared block count, which some writers get wrong
     pos = start + 4
     for _ in range(100_000):
         if pos + 2 > end:
-            raise bad("a record runs past its end")
+            return "a record runs past its end"
         n_chars, ident = struct.unpack_from("bb", data, pos)
         if n_chars == 0 or ident == 0:
-            return  # the last record
+            return None  # the last record
         name_end = pos + 2 + abs(n_chars)
         if name_end + 2 > end:
-            raise bad("a record's name runs past its end")
+            return "a record's name runs past its end"
         (offset,) = struct.unpack_from(order + "h", data, name_end)
         if ident > 0:  # a parameter: its type, dimensions and data must fit
             q = name_end + 2
             if q + 2 > end:
-                raise bad("a parameter runs past its end")
+                return "a parameter runs past its end"
             kind, n_dims = struct.unpack_from("bB", data, q)
             if kind not in (-1, 1, 2, 4) or n_dims > 7 or q + 2 + n_dims > end:
-                raise bad(f"a parameter of type {kind} with {n_dims} dimensions")
-            size = abs(kind) * int(np.prod(list(data[q + 2 : q + 2 + n_dims]), dtype=np.int64))
+                return f"a parameter of type {kind} with {n_dims} dimensions"
+            size = abs(kind) * math.prod(data[q + 2 : q + 2 + n_dims])
             if q + 2 + n_dims + size > end:
-                raise bad("a parameter's data runs past its end")
+                return "a parameter's data runs past its end"
         if offset == 0:
-            return  # the last record
+            return None  # the last record
         nxt = name_end + offset
         if offset < 0 or nxt <= pos or nxt > end:
-            raise bad(f"the record at byte {pos} points to byte {nxt}")
+            return f"the record at byte {pos} points to byte {nxt}"
         pos = nxt
-    raise bad("too many records")
+    return "too many records"
 
 
 def _c3d_declared_frames(path: Path) -> int | None:

@@ -92,8 +92,8 @@ class ProtocolConfig:
         if self.rollout not in ROLLOUTS:
             raise InputError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
         try:  # the method's options are checked where they are defined
-            for s in secs:
-                check_windows(resolve_options(self.seed_form, self.experimental), s)
+            # the fewest windows is the strictest: an index they lack, or every one of them frozen
+            check_windows(resolve_options(self.seed_form, self.experimental), min(secs))
         except (ValueError, TypeError) as e:
             raise InputError(f"experimental: {e}") from None
         if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..data.trial import Trial
-from ..doc import DocSolution, ReachingTask, observation, solve_doc
+from ..doc import BACKENDS, DocSolution, ReachingTask, observation, solve_doc
 from ..doc.task import moved_path
 
 __all__ = ["WeightEstimator"]
@@ -54,7 +54,7 @@ class WeightEstimator:
             v = getattr(self, name)
             if not isinstance(v, int | np.integer) or isinstance(v, bool):
                 raise ValueError(f"{name} must be an integer, got {v!r}")
-        if self.backend not in ("casadi", "crocoddyl"):
+        if self.backend not in BACKENDS:
             raise ValueError(f"backend must be 'casadi' or 'crocoddyl', got {self.backend!r}")
         if not 1 <= self.n_windows <= self.n_nodes:
             raise ValueError(f"n_windows must be in 1..n_nodes={self.n_nodes}, got {self.n_windows}")

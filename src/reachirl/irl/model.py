@@ -220,20 +220,8 @@ def check_model_dict(d, path) -> None:
 
     phi = d.get("info", {}).get("reach_features")
     if phi is not None:
-        ok = (
-            isinstance(phi, list)
-            and len(phi) == len(w)
-            and all(
-                isinstance(row, list)
-                and len(row) == len(FEATURES)
-                and all(
-                    isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) and v >= 0 for v in row
-                )
-                for row in phi
-            )
-        )
         require(
-            ok,
+            _is_matrix(phi, len(w), _weight),
             f"field 'info.reach_features': expected {len(w)} rows of {len(FEATURES)} finite numbers >= 0 (one per "
             f"window of 'weights'), found {brief(phi)}",
             path,

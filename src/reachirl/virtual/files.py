@@ -10,6 +10,7 @@ import json
 import logging
 import multiprocessing
 import os
+import re
 import shutil
 import tempfile
 import threading
@@ -22,7 +23,7 @@ import numpy as np
 
 from ..data.writers import write_c3d, write_mot, write_trc
 from ..features import FEATURES
-from ..io import atomic_write_json, atomic_write_text, cache_root, to_jsonable
+from ..io import atomic_write_json, atomic_write_text, cache_root, csv_column, to_jsonable
 from .likeness import human_likeness
 from .population import (
     _LOG_WEIGHT_SD,
@@ -64,22 +65,12 @@ def _csv_text(header: Sequence[str], rows: Sequence[Sequence]) -> str:
     return buf.getvalue()
 
 
+#: a recording's name as :func:`_file_name` makes it (an earlier data set's, in its manifest)
+_RECORDING = re.compile(r"S\d+_P\d+_T\d+\.(trc|c3d|mot)")
+
+
 def _file_name(tr: SynthTrial, fmt: str) -> str:
     return f"{tr.subject}_{tr.posture}_{tr.trial_id}.{fmt}"
-
-
-def _listed_recordings(manifest: Path) -> set[str]:
-    """The recordings an earlier data set's ``manifest.csv`` lists, as this module names them (``S01_P1_T01.trc``
-    in the folder itself); none if there is no such manifest."""
-    import re
-
-    try:
-        rows = list(csv.DictReader(io.StringIO(manifest.read_text(encoding="utf-8"))))
-    except (OSError, UnicodeDecodeError, csv.Error):
-        return set()
-    pattern = re.compile(r"S\d+_P\d+_T\d+\.(trc|c3d|mot)")
-    names = {r.get("file") or "" for r in rows}
-    return {name for name in names if pattern.fullmatch(name)}
 
 
 def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
@@ -145,7 +136,7 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
         else:
             write_mot(out_dir / name, tr.time, tr.angles_deg, columns=("q1", "q2"))
         manifest.append([name, tr.subject, tr.posture, "right"])
-    earlier = _listed_recordings(out_dir / "manifest.csv")
+    earlier = {n for n in csv_column(out_dir / "manifest.csv", "file") if _RECORDING.fullmatch(n)}
     atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
     for name in earlier - {row[0] for row in manifest}:
         (out_dir / name).unlink(missing_ok=True)
