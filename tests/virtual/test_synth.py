@@ -210,6 +210,25 @@ def test_config_validation():
         SynthConfig(target_fraction=1.2)
 
 
+def test_a_bar_behind_or_at_the_start_is_refused(arm):
+    """A bar the start's fingertip already reaches (P2 and P4 start 0.62 and 0.64 arm lengths forward) would make
+    reaches that go backwards, which preprocessing then reads as a mirrored recording."""
+    assert recording.start_fraction("P4") == pytest.approx(arm.fk(posture_q("P4"))[0] / arm.length, abs=0.01)
+    with pytest.raises(ValueError, match=r"\(P2 at 0\.62, P4 at 0\.64 of the arm's length\).*at least 0\.74"):
+        SynthConfig(target_fraction=0.6)
+    SynthConfig(target_fraction=0.6, postures=("P1", "P3", "P5"))  # those start far enough back
+
+
+def test_the_nearest_bar_allowed_still_makes_a_forward_reach(tmp_path):
+    near = recording.start_fraction("P4") + recording.MIN_REACH_FRACTION + 0.005
+    res = generate(tmp_path, SynthConfig(n_subjects=1, n_trials=1, postures=("P4",), target_fraction=near, workers=1))
+    (trial,) = res.trials
+    arm = res.subjects[0].arm
+    x = arm.fk(trial.q_knots)[:, 0]
+    assert x[-1] - x[0] > 0.08 * arm.length  # forward, by about the margin
+    assert np.all(np.diff(x) > -1e-3 * arm.length)  # never backwards along the way
+
+
 # ---------------------------------------------------------------------- built-in data set (cache)
 def test_builtin_dataset_is_cached_atomically(tmp_path, monkeypatch):
     monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path / "cache"))
@@ -260,6 +279,13 @@ def test_cli_synth_bad_usage(tmp_path, args):
     with pytest.raises(SystemExit) as e:
         main(argv)
     assert e.value.code == 2
+
+
+def test_cli_synth_refuses_a_bar_at_the_start(tmp_path, capsys):
+    assert main(["synth", "--out", str(tmp_path / "o"), "--target-fraction", "0.55"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "use at least 0.74, or leave those postures out" in err[0]
+    assert not (tmp_path / "o").exists()
 
 
 # ---------------------------------------------------------------------- slow: the full built-in data set

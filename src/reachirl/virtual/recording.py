@@ -29,6 +29,17 @@ FORMATS = ("trc", "c3d", "mot")
 MARKERS = ("SHO", "ELB", "WRI", "FTP")
 
 
+MIN_REACH_FRACTION = 0.1
+"""The least distance, as a fraction of the arm's length, from a posture's start fingertip to the bar."""
+
+
+def start_fraction(posture: str) -> float:
+    """How far forward the fingertip starts in ``posture``, as a fraction of the arm's length (Dumas' segment
+    ratio, the same for every virtual subject up to their anthropometric jitter)."""
+    arm = ArmModel.from_anthropometrics(1.76, 70.0, "M")
+    return float(arm.fk(posture_q(posture))[0] / arm.length)
+
+
 @dataclass(frozen=True)
 class SynthConfig:
     """What to generate.
@@ -57,6 +68,15 @@ class SynthConfig:
             posture_q(p)
         if not 0.5 <= self.target_fraction < 1.0:
             raise ValueError(f"target_fraction must be in [0.5, 1), got {self.target_fraction}")
+        short = {p: f for p in self.postures if (f := start_fraction(p)) > self.target_fraction - MIN_REACH_FRACTION}
+        if short:
+            starts = ", ".join(f"{p} at {f:.2f}" for p, f in short.items())
+            raise ValueError(
+                f"target_fraction {self.target_fraction:g} puts the bar behind, or within {MIN_REACH_FRACTION:g} arm "
+                f"lengths of, the fingertip's start ({starts} of the arm's length): those reaches would go "
+                f"backwards or barely move; use at least {max(short.values()) + MIN_REACH_FRACTION:.2f}, or leave "
+                "those postures out"
+            )
         if self.rate_hz <= 0:
             raise ValueError(f"rate_hz must be > 0, got {self.rate_hz}")
         object.__setattr__(self, "postures", tuple(self.postures))

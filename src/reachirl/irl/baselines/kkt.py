@@ -27,8 +27,9 @@ On exact DOC solutions both find weights that satisfy the optimality conditions 
 the true weights only along the directions the demonstrations determine: features that shape a reach alike
 (Cartesian velocity, geodesic, joint velocity) can trade weight at no cost in the residual. On demonstrations
 that no single ``ω`` explains (trial-to-trial weight jitter, noise) both drift towards the features whose
-gradients are smallest relative to the normalisation (measured in ``benchmarks/bench_irl.py``: "gradient" was somewhat better on both). The
-DOC is invariant to the scale of ``ω``, so no rescaling is needed: ``weights_ = ω̃ / c``.
+gradients are smallest relative to the normalisation (measured in ``benchmarks/bench_irl.py``: "gradient" was
+somewhat better on both). The DOC is invariant to the scale of ``ω``, so no rescaling is needed:
+``weights_ = ω̃ / c``.
 
 No DOC is solved in the fit (``n_doc_solves_ = 0``). The method needs the demonstrations' accelerations and
 torque changes, i.e. second and third differences of the joint angles, so angle noise is amplified by
