@@ -207,3 +207,28 @@ def test_a_worker_memory_cap_too_small_to_start_is_refused(tmp_path, monkeypatch
     err = capsys.readouterr().err.strip()
     assert err.endswith("REACHIRL_UNIT_MEMORY_GB=0.01: expected a positive number, at least 1"), err
     assert len(err.splitlines()) == 1
+
+
+def test_a_units_log_messages_name_it(caplog):
+    """Several units log to one stderr: a fit's warning must say which unit it is about."""
+    import logging
+
+    from reachirl.experiments.runner import naming_unit
+
+    log = logging.getLogger("reachirl.irl.moirl")
+    with caplog.at_level(logging.WARNING), naming_unit("moirl-P4-s1"):
+        log.warning("stopped after one step (merit %.1f %% below w0's)", 21.4)
+    log.warning("after the unit")
+    assert caplog.messages == ["moirl-P4-s1: stopped after one step (merit 21.4 % below w0's)", "after the unit"]
+
+
+def test_a_workers_last_resort_names_the_unit(monkeypatch, capsys):
+    """In a worker process nothing configures logging: its messages reach stderr by the last-resort handler."""
+    import logging
+
+    from reachirl.experiments.runner import naming_unit
+
+    monkeypatch.setattr(logging.root, "handlers", [])
+    with naming_unit("moirl-P2-s8"):
+        logging.getLogger("reachirl.irl.moirl").warning("no weight samples: a degenerate rollout")
+    assert capsys.readouterr().err == "moirl-P2-s8: no weight samples: a degenerate rollout\n"

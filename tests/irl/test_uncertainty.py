@@ -64,6 +64,21 @@ def test_an_overall_rescale_of_the_weights_is_never_determined(fitted):
     assert np.linalg.norm(J @ ones) <= 1e-4 * np.linalg.norm(J, axis=(1, 2)).max()
 
 
+def test_fewer_residuals_than_log_weights_count_every_direction():
+    """One demonstration of 11 knots × 4 channels against 70 free log-weights: the 26 directions beyond the
+    residuals' rank move nothing and count as undetermined, orthonormal to the others."""
+    rng = np.random.default_rng(0)
+    free = np.ones((10, 7), dtype=bool)
+    r, J = rng.normal(size=(1, 44)), rng.normal(size=(1, 44, 70))
+    det = determination(r, J, free)
+    assert det.singular_values.shape == (70,) and det.directions.shape == (70, 10, 7)
+    assert np.all(det.singular_values[44:] == 0.0) and det.n_determined <= 44
+    v = det.directions.reshape(70, -1)
+    np.testing.assert_allclose(v @ v.T, np.eye(70), atol=1e-10)
+    np.testing.assert_allclose(J[0] @ v[44:].T, 0.0, atol=1e-10)  # they do not move the states
+    assert det.to_dict()["n_directions"] == 70
+
+
 def test_indistinguishable_is_a_one_sided_paired_test():
     fit = np.array([1.0, 2.0, 1.5, 0.8, 1.2])
     assert indistinguishable(fit + np.array([0.01, -0.02, 0.0, 0.01, -0.01]), fit)

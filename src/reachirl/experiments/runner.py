@@ -12,6 +12,7 @@ the in-process path (``workers=1``) and Dask give the same numbers.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import logging
 import os
 import time
@@ -57,6 +58,43 @@ UNIT_MEMORY_GB = 8.0
 UNIT_TIMEOUT_S = 4 * 3600
 
 
+class _NamingUnit(logging.Filter):
+    """Prefixes each log record with the unit it came from (once, however many handlers it passes)."""
+
+    def __init__(self, key: str):
+        super().__init__()
+        self.key = key
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if getattr(record, "reachirl_unit", None) is None:
+            record.reachirl_unit = self.key
+            record.msg = f"{self.key.replace('%', '%%') if record.args else self.key}: {record.msg}"
+        return True
+
+
+@contextlib.contextmanager
+def naming_unit(key: str):
+    """Within it, every log message (a fit's warning, a failed solve) names the unit ``key``: several units
+    log to the same stderr, in workers whose messages reach it through Python's last-resort handler."""
+    f = _NamingUnit(key)
+    handlers = {*logging.getLogger().handlers, logging.lastResort}
+    for h in handlers:
+        if h is not None:
+            h.addFilter(f)
+    try:
+        yield
+    finally:
+        for h in handlers:
+            if h is not None:
+                h.removeFilter(f)
+
+
+def run_named_unit(unit: Unit, split: Split, job: Mapping | None = None) -> dict:
+    """:func:`~reachirl.experiments.truth_solves.run_unit_and_truth` with its log messages naming the unit."""
+    with naming_unit(unit.key):
+        return run_unit_and_truth(unit, split, job)
+
+
 class UnitTimeoutError(Exception):
     """A unit ran longer than its time limit."""
 
@@ -73,7 +111,7 @@ def _run_unit_bounded(unit: Unit, split: Split, timeout_s: float, truth_job=None
     old = signal.signal(signal.SIGALRM, expire)
     signal.setitimer(signal.ITIMER_REAL, timeout_s)
     try:
-        return run_unit_and_truth(unit, split, truth_job)
+        return run_named_unit(unit, split, truth_job)
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, old)
@@ -181,7 +219,7 @@ def run_units(
                 payload = (
                     _run_unit_bounded(u, splits[u.split_key], timeout, job)
                     if bounded
-                    else run_unit_and_truth(u, splits[u.split_key], job)
+                    else run_named_unit(u, splits[u.split_key], job)
                 )
             except UnitTimeoutError as e:
                 raise InputError(
@@ -230,7 +268,7 @@ def run_units(
         try:
             futures = [
                 client.submit(
-                    run_unit_and_truth,
+                    run_named_unit,
                     u,
                     splits[u.split_key],
                     truth_jobs.get(u.key),

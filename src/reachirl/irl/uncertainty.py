@@ -31,7 +31,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import linalg, stats
 
 from ..doc.observation import observed_state_jacobian
 from ..doc.sensitivity import weight_jacobian
@@ -141,6 +141,9 @@ def determination(r: np.ndarray, J: np.ndarray, free: np.ndarray) -> Determinati
     D = r.shape[0]
     A = J.reshape(-1, J.shape[-1]) / np.sqrt(D)
     _, s, vt = np.linalg.svd(A, full_matrices=False)
+    if vt.shape[0] < A.shape[1]:  # fewer residuals than log-weights: the rest of the space moves nothing
+        vt = np.vstack([vt, linalg.null_space(vt).T])
+        s = np.concatenate([s, np.zeros(A.shape[1] - s.size)])
     threshold = merit_noise(np.sum(r**2, axis=1))
     n_det = int(np.sum(s**2 * np.log(2.0) ** 2 > threshold))
     dirs = np.zeros((vt.shape[0], *free.shape))
