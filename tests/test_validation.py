@@ -253,6 +253,20 @@ def test_a_truncated_c3d_is_refused(tmp_path):
         read_c3d(tmp_path / "cut.c3d")
 
 
+def test_a_truncated_long_c3d_is_refused(tmp_path):
+    """Past 65535 frames the header's 16-bit last frame saturates: it still declares at least that many."""
+    from reachirl.data.writers import write_c3d
+
+    n = 70000
+    t = np.arange(n) / 1000.0
+    write_c3d(tmp_path / "long.c3d", t, {"A": np.c_[t, np.zeros(n), np.ones(n)]})
+    data = (tmp_path / "long.c3d").read_bytes()
+    assert data[8:10] == b"\xff\xff"  # saturated
+    (tmp_path / "cut.c3d").write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputError, match=r"cut\.c3d: truncated C3D file: the header declares \d+ frames"):
+        read_c3d(tmp_path / "cut.c3d")
+
+
 def test_angles_that_wrap_are_unwrapped_and_glitches_refused():
     t = np.arange(50) / 100.0
     q = np.c_[np.linspace(-1.5, -0.5, 50), np.linspace(0.2, 1.2, 50)]

@@ -319,3 +319,46 @@ def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
     far["EL"][10, 2] = 1e308
     with pytest.raises(InputError, match=r"s\.trc: frame 11: marker 'EL' is 1e\+308 m from the lab's origin"):
         MarkerData(100.0, far, source="s.trc")
+
+
+@pytest.mark.parametrize(
+    ("marker", "name", "spoil"),
+    [
+        ("FT", "fingertip", "spike"),  # 40 mm for one frame: 4 m/s, far under the speed limit
+        ("FT", "fingertip", "freeze"),  # held for 15 frames mid-reach, then caught up
+        ("EL", "elbow", "spike"),  # the elbow is checked as well as the fingertip
+    ],
+)
+def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, name, spoil):
+    spoiled = {k: np.array(v) for k, v in reach.markers.items()}
+    mid = len(reach.t) // 2
+    if spoil == "spike":
+        spoiled[marker][mid, 0] += 0.04
+    else:
+        spoiled[marker][mid - 15 : mid] = spoiled[marker][mid - 16]
+    with pytest.raises(InputError, match=rf"s\.trc: frame \d+: the {name} jumps \d+ mm in one frame \(an acceleration"):
+        markers_to_trial(
+            MarkerData(100.0, spoiled, source="s.trc"),
+            parse_marker_map(synth.MAP),
+            subject="S1",
+            posture="P2",
+            trial_id="1",
+        )
+
+
+def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):
+    """2 mm of marker noise at 100 Hz, and the same reach sampled at 1000 Hz (second differences over 10 ms):
+    neither is a glitch, and both give the clean recording's reach."""
+    mset, kw = parse_marker_map(synth.MAP), {"subject": "S1", "posture": "P2", "trial_id": "1"}
+    clean = markers_to_trial(MarkerData(100.0, reach.markers, source="c.trc"), mset, **kw)
+    rng = np.random.default_rng(0)
+    noisy = {k: np.asarray(v) + rng.normal(0, 0.002, np.shape(v)) for k, v in reach.markers.items()}
+    t_fast = np.arange(0, reach.t[-1], 1e-3)
+    fast = {
+        k: np.column_stack([np.interp(t_fast, reach.t, np.asarray(v)[:, j]) for j in range(3)])
+        for k, v in reach.markers.items()
+    }
+    for rate, markers, tol_deg in ((100.0, noisy, 4.0), (1000.0, fast, 0.5)):  # noise moves the cut
+        trial = markers_to_trial(MarkerData(rate, markers, source="x.trc"), mset, **kw)
+        assert trial.duration == pytest.approx(clean.duration, rel=0.1)
+        assert np.degrees(np.abs(trial.q_at(50) - clean.q_at(50))).max() < tol_deg

@@ -71,12 +71,14 @@ def test_c3d_round_trip(tmp_path, prefix):
     pts = np.ones((4, 3, 12))
     pts[:3] = np.stack([mk[m] * 1000 for m in mk], axis=1).transpose(2, 1, 0)
     pts[:3, 1, 4] = np.nan
+    pts[:3, 2, 7] = 0.0  # at the lab's origin exactly, residual 0: how some writers mark an unseen point
     c["data"]["points"] = pts
     c.write(str(tmp_path / "a.c3d"))
     md = read_c3d(tmp_path / "a.c3d")
     assert md.rate == 200.0 and md.names == tuple(mk)
-    np.testing.assert_allclose(md["FT"], mk["FT"], atol=1e-6)
-    assert np.isnan(md["EL"][4]).all()
+    np.testing.assert_allclose(md["FT"][:7], mk["FT"][:7], atol=1e-6)
+    assert np.isnan(md["EL"][4]).all() and np.isnan(md[list(mk)[2]][7]).all()
+    assert np.isfinite(md[list(mk)[2]][6]).all()
 
 
 def test_mot_degrees_and_radians(tmp_path):
@@ -207,3 +209,12 @@ def test_manifest_paths_relative_to_it(tmp_path):
     m.write_text("file,subject,posture,side\nr1.trc,S1,P2,L\n")
     (e,) = read_manifest(m)
     assert e.file == tmp_path / "sub" / "r1.trc" and (e.subject, e.posture, e.side) == ("S1", "P2", "left")
+
+
+@pytest.mark.parametrize(
+    ("unit", "scale"), [("millimeter", 1e-3), ("Millimetre", 1e-3), ("centimeter", 1e-2), ("metre", 1.0)]
+)
+def test_singular_length_units_are_read(tmp_path, unit, scale):
+    p = tmp_path / "u.csv"
+    p.write_text(f"Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,{unit},{unit},{unit}\n1,0,1,2,3\n2,0,1,2,4\n")
+    np.testing.assert_allclose(read_vicon_csv(p).markers["A"][1], np.array([1.0, 2.0, 4.0]) * scale)

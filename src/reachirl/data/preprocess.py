@@ -89,6 +89,8 @@ log = logging.getLogger(__name__)
 
 #: m/s: a human fingertip peaks near 1-3 m/s in a reach and below 20 m/s in a throw; faster is a glitch
 MAX_FINGERTIP_SPEED = 30.0
+#: m/s²: a reaching hand's markers peak near 10-30 m/s² (about 3 g); 20 g from one frame to the next is a glitch
+MAX_MARKER_ACCELERATION = 200.0
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
@@ -601,6 +603,41 @@ class MarkerReconstruction:
     source: str = ""
 
 
+def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None:
+    """Refuse a joint centre that jumps (the low-pass would smear the jump into the reach): faster than any arm
+    moves (:data:`MAX_FINGERTIP_SPEED`), or with an acceleration from one frame to the next that no reaching arm
+    has (:data:`MAX_MARKER_ACCELERATION`, or 20× the recording's own median where its noise is larger): a spike,
+    a marker frozen and then caught up, or two labels swapped for a few frames."""
+    for k, x in joints.items():
+        step = np.linalg.norm(np.diff(x, axis=0), axis=1)
+        if np.nanmax(step, initial=0.0) * rate > MAX_FINGERTIP_SPEED:
+            f = int(np.nanargmax(step))
+            raise InputError(
+                f"the {k} moves {step[f] * 1000:.0f} mm in one frame ({step[f] * rate:.3g} m/s, faster than any "
+                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?",
+                src,
+                f"frame {f + 2}",
+            )
+        h = max(1, round(0.01 * rate))  # frames in 10 ms: finer, a fast recording's noise (or the kinks of a
+        # linear gap fill) would pass for acceleration
+        if x.shape[0] < 2 * h + 1:
+            continue
+        acc = np.linalg.norm(x[2 * h :] - 2.0 * x[h:-h] + x[: -2 * h], axis=1) * (rate / h) ** 2  # m/s², frames h…
+        if not np.isfinite(acc).any():
+            continue
+        limit = max(MAX_MARKER_ACCELERATION, 20.0 * float(np.nanmedian(acc)))
+        if np.nanmax(acc) > limit:
+            around = slice(int(np.nanargmax(acc)), int(np.nanargmax(acc)) + 2 * h)  # the steps it spans
+            f = around.start + int(np.nanargmax(step[around]))
+            raise InputError(
+                f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {np.nanmax(acc):.3g} m/s², "
+                f"where a reaching arm stays below {MAX_MARKER_ACCELERATION:g}): a glitch, a marker frozen and "
+                "caught up, or two labels swapped? Fix the labels, or blank those frames to be filled as a gap",
+                src,
+                f"frame {f + 2}",
+            )
+
+
 def reconstruct_markers(
     md: MarkerData,
     mset: MarkerSet,
@@ -639,17 +676,7 @@ def reconstruct_markers(
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
 
-    # a marker that jumps faster than any arm moves is a glitch (the low-pass would smear it into the reach)
-    for k in ("fingertip", "shoulder"):
-        raw = np.linalg.norm(np.diff(joints[k], axis=0), axis=1) * md.rate
-        if np.nanmax(raw, initial=0.0) > MAX_FINGERTIP_SPEED:
-            f = int(np.nanargmax(raw))
-            raise InputError(
-                f"the {k} moves {raw[f] / md.rate * 1000:.0f} mm in one frame ({raw[f]:.3g} m/s, faster than any "
-                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?",
-                src,
-                f"frame {f + 2}",
-            )
+    check_glitches(joints, md.rate, src)
     raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
         joints = {k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()}
@@ -680,7 +707,14 @@ def reconstruct_markers(
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if onset == 0 or offset == md.n_frames - 1:
-        log.warning("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
+        ends = [e for e, cut in (("before", onset == 0), ("after", offset == md.n_frames - 1)) if cut]
+        log.warning(
+            "%s: no rest %s the movement; the record's %s used%s",
+            src,
+            " or ".join(ends),
+            "edges are" if len(ends) == 2 else "edge is",
+            ": the reach may be a fragment of a longer movement" if len(ends) == 2 else "",
+        )
     rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
     disp = joints["fingertip"][offset] - joints["fingertip"][onset]
     fwd = _axis(options.forward_axis) if options.forward_axis else None

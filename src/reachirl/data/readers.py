@@ -58,10 +58,18 @@ __all__ = [
 FORMATS = ("trc", "c3d", "vicon-csv", "mot", "csv")
 _UNIT_SCALE = {
     "mm": 1e-3,
+    "millimeter": 1e-3,
+    "millimetre": 1e-3,
     "millimeters": 1e-3,
     "millimetres": 1e-3,
     "cm": 1e-2,
+    "centimeter": 1e-2,
+    "centimetre": 1e-2,
+    "centimeters": 1e-2,
+    "centimetres": 1e-2,
     "m": 1.0,
+    "meter": 1.0,
+    "metre": 1.0,
     "meters": 1.0,
     "metres": 1.0,
 }
@@ -331,8 +339,8 @@ def _vicon_label(label: str) -> tuple[str, str]:
 
 
 def read_c3d(path: str | Path) -> MarkerData:
-    """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0 or NaN → unseen; Z
-    up). A ``Subject:`` prefix is dropped from the labels, as from a Vicon CSV's names."""
+    """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0, NaN or exactly (0, 0, 0)
+    → unseen; Z up). A ``Subject:`` prefix is dropped from the labels, as from a Vicon CSV's names."""
     from ..validation import check_file_size
 
     path = Path(path)
@@ -364,7 +372,8 @@ def read_c3d(path: str | Path) -> MarkerData:
     if declared is not None and declared > pts.shape[2]:
         # ezc3d reads what is there and says nothing: a cut-off file would give a cut-off reach
         raise InputError(
-            f"truncated C3D file: the header declares {declared} frames, the file holds {pts.shape[2]}", path
+            f"truncated C3D file: the header declares {declared} frames, the file holds {pts.shape[2]}",
+            path,
         )
     if len(labels) < pts.shape[1]:
         labels += [f"M{k + 1:03d}" for k in range(len(labels), pts.shape[1])]
@@ -382,6 +391,7 @@ def read_c3d(path: str | Path) -> MarkerData:
     if resid is not None:
         r = np.asarray(resid, dtype=float).reshape(-1, pts.shape[1], pts.shape[2])[0].T
         xyz[r < 0] = np.nan
+    xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # the lab's origin exactly: how C3D writers mark an unseen point
     markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
     return MarkerData(rate=rate, markers=markers, source=str(path), up="+z", labelled_subjects=prefixes)
 
@@ -444,8 +454,8 @@ def _c3d_parameter_problem(data) -> str | None:
 
 
 def _c3d_declared_frames(path: Path) -> int | None:
-    """Frames declared by a C3D header (words 4 and 5: first and last frame), or ``None`` when unknown (16-bit
-    frame numbers saturate at 65535 in long files)."""
+    """Frames declared by a C3D header (words 4 and 5: first and last frame), or ``None`` when unknown. 16-bit
+    frame numbers saturate at 65535 in long files: a last frame of 65535 declares at least that many frames."""
     import struct
 
     try:
@@ -458,7 +468,7 @@ def _c3d_declared_frames(path: Path) -> int | None:
     counts = []
     for order in "<>":  # Intel/DEC headers are little-endian, MIPS big-endian
         first, last = struct.unpack(order + "HH", head[6:10])
-        if 1 <= first <= last < 65535:
+        if 1 <= first <= last <= 65535:  # a last frame of 65535 may be saturated: then a lower bound
             counts.append(last - first + 1)
     return min(counts) if counts else None
 
