@@ -234,7 +234,7 @@ def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)
     assert code == 2 and re.search(r"ADL001FR1\.csv: marker set 'ue-adl' needs a static trial", err)
     code, _, err = _run([tmp_path / "nope.trc", "--out", tmp_path / "o.npz"], capsys)
-    assert code == 2 and re.search(r"nope\.trc: file not found", err)
+    assert code == 2 and re.search(r"nope\.trc: file or folder not found", err)
     assert not (tmp_path / "o.npz").exists()
 
 
@@ -356,3 +356,52 @@ def test_a_file_this_user_cannot_read_says_so(tiny_trials, monkeypatch):
     monkeypatch.setattr(builtins, "open", no_access)
     with pytest.raises(InputError, match="cannot read \\(Permission denied\\)"):
         load_trials(tiny_trials)
+
+
+def test_an_export_into_the_data_folder_is_not_read_back_as_reaches(tmp_path, synth, capsys):
+    data = tmp_path / "ADL001"
+    shutil.copytree(synth.SAMPLE / "ADL001", data)
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    code, _, err = _run([data, *info, "--out", tmp_path / "a.npz", "--export", data / "processed"], capsys)
+    assert code == 0, err
+    assert (data / "processed" / "index.csv").is_file() and list((data / "processed").glob("*.mot"))
+    code, _, err = _run([data, *info, "--out", tmp_path / "b.npz"], capsys)
+    assert code == 0, err
+    assert [t.id for t in load_trials(tmp_path / "b.npz")] == [t.id for t in load_trials(tmp_path / "a.npz")]
+
+
+def test_an_input_that_does_not_exist_is_named(tmp_path, synth, capsys):
+    missing = tmp_path / "ADL009"
+    code, _, err = _run([missing, "--subject-info", synth.SAMPLE / "subjects.csv", "--out", tmp_path / "a.npz"], capsys)
+    assert code == 2
+    assert err.strip().splitlines() == [f"reachirl preprocess: error: {missing}: file or folder not found"]
+    assert not (tmp_path / "a.npz").exists()
+
+
+def test_a_y_up_c3d_that_says_so_reads_as_the_z_up_one(tmp_path, synth, capsys):
+    """OptiTrack Motive writes Y-up C3D files with POINT:Y_SCREEN = +Y: that is the up axis, over the marker set's
+    own (+Z for UE-ADL's Vicon files). Undeclared, the same file is refused with a hint naming --up-axis."""
+    import ezc3d
+
+    from reachirl.data.readers import read_vicon_csv
+    from reachirl.data.writers import write_c3d
+
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv", "--markerset", "ue-adl"]
+    for folder, declare in (("declared", True), ("silent", False)):
+        for name in ("ADL001FR1", "ADL001_static"):
+            md = read_vicon_csv(synth.SAMPLE / "ADL001" / f"{name}.csv")
+            markers = {m: 1000.0 * md[m][:, [0, 2, 1]] * [1.0, 1.0, -1.0] for m in md.names}  # (x, z, -y)
+            path = tmp_path / folder / f"{name}.c3d"
+            write_c3d(path, md.t, markers, units="mm", rate=md.rate)
+            if declare:
+                c = ezc3d.c3d(str(path))
+                c.add_parameter("POINT", "Y_SCREEN", ["+Y"])
+                c.write(str(path))
+    code, _, err = _run([tmp_path / "declared", *info, "--out", tmp_path / "y.npz"], capsys)
+    assert code == 0, err
+    code, _, err = _run([synth.SAMPLE / "ADL001" / "ADL001FR1.csv", *info, "--out", tmp_path / "z.npz"], capsys)
+    assert code == 0, err
+    (y,), (z,) = load_trials(tmp_path / "y.npz"), load_trials(tmp_path / "z.npz")
+    np.testing.assert_allclose(y.q, z.q, atol=1e-6)
+    code, _, err = _run([tmp_path / "silent", *info, "--out", tmp_path / "s.npz"], capsys)
+    assert code == 2 and "check --markers, --up-axis and --forward-axis" in err

@@ -203,17 +203,33 @@ def _options(args) -> PreprocessOptions:
         raise InputError(str(e)) from None
 
 
+def _is_export(folder: Path) -> bool:
+    """Whether ``folder`` holds reachirl's own trajectory export (``preprocess --export``, ``evaluate
+    --predictions``, a run's ``predictions/``): its ``index.csv`` starts ``id,file,set``."""
+    try:
+        with open(folder / "index.csv", encoding="utf-8") as fh:
+            return fh.readline().strip() == "id,file,set"
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 def _expand(inputs: list[str]) -> list[Path]:
+    """The motion files the INPUTs name: files as given, folders searched recursively, leaving out static trials
+    and reachirl's own exports (which an export into the data folder would otherwise add as new reaches)."""
     out: list[Path] = []
     for s in inputs:
         p = Path(s)
+        if not p.exists():
+            raise InputError("file or folder not found", p)
         if p.is_dir():
+            exports: dict[Path, bool] = {}
             found = sorted(
                 f
                 for f in p.rglob("*")
                 if f.is_file()
                 and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
                 and not f.stem.lower().endswith("_static")  # a static trial calibrates the reaches beside it
+                and not exports.setdefault(f.parent, _is_export(f.parent))
             )
             if not found:
                 raise InputError("folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p)

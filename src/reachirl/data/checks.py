@@ -83,7 +83,7 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     limits = _limits_text()
     hint = (
         "a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
-        "check --markers and --forward-axis)"
+        "check --markers, --up-axis and --forward-axis)"
     )
     q0 = trial.q[0]
     if _first_outside(q0[None], 1e-9) is not None:

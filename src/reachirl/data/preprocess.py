@@ -666,7 +666,7 @@ def reconstruct_markers(
     lengths = estimate_lengths(joints)
     _check_units(lengths, options, src)
 
-    up = _axis(options.up_axis or ms.up or md.up)
+    up = _axis(options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up)  # the file's own first
     if side == "left":
         if options.lateral_axis:
             lateral = _axis(options.lateral_axis)

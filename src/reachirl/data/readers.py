@@ -92,6 +92,7 @@ class MarkerData:
     t: np.ndarray = field(default=None)  # type: ignore[assignment]
     up: str = "+z"
     labelled_subjects: tuple[str, ...] = ()
+    up_declared: bool = False  # ``up`` is the file's own statement (C3D's POINT:Y_SCREEN), not its format's convention
 
     def __post_init__(self) -> None:
         where = self.source or None
@@ -340,7 +341,8 @@ def _vicon_label(label: str) -> tuple[str, str]:
 
 def read_c3d(path: str | Path) -> MarkerData:
     """Read the 3-D points of a C3D file with ``ezc3d`` (``POINT:UNITS``; residual < 0, NaN or exactly (0, 0, 0)
-    → unseen; Z up). A ``Subject:`` prefix is dropped from the labels, as from a Vicon CSV's names."""
+    → unseen; up: ``POINT:Y_SCREEN``, else Z). A ``Subject:`` prefix is dropped from the labels, as from a Vicon
+    CSV's names."""
     from ..validation import check_file_size
 
     path = Path(path)
@@ -360,6 +362,8 @@ def read_c3d(path: str | Path) -> MarkerData:
         rate = float(np.ravel(point["RATE"]["value"])[0])
         units = point["UNITS"]["value"] if "UNITS" in point else ["mm"]
         unit = str(units[0]).strip() if len(units) else "mm"
+        screen = point["Y_SCREEN"]["value"] if "Y_SCREEN" in point else []
+        y_screen = str(screen[0]).strip().upper() if len(screen) else ""
         pts = np.asarray(c["data"]["points"], dtype=float)  # (4, n_markers, n_frames)
         resid = c["data"]["meta_points"]["residuals"] if "meta_points" in c["data"] else None
     except (KeyError, IndexError, TypeError, ValueError) as e:
@@ -393,7 +397,16 @@ def read_c3d(path: str | Path) -> MarkerData:
         xyz[r < 0] = np.nan
     xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # the lab's origin exactly: how C3D writers mark an unseen point
     markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
-    return MarkerData(rate=rate, markers=markers, source=str(path), up="+z", labelled_subjects=prefixes)
+    # POINT:Y_SCREEN is the lab axis drawn upwards (Vicon writes +Z; OptiTrack Motive, Y up, +Y)
+    declared = y_screen in ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
+    return MarkerData(
+        rate=rate,
+        markers=markers,
+        source=str(path),
+        up=y_screen.lower() if declared else "+z",
+        labelled_subjects=prefixes,
+        up_declared=declared,
+    )
 
 
 def _check_c3d_parameters(path: Path) -> None:
