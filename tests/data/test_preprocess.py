@@ -362,3 +362,18 @@ def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):
         trial = markers_to_trial(MarkerData(rate, markers, source="x.trc"), mset, **kw)
         assert trial.duration == pytest.approx(clean.duration, rel=0.1)
         assert np.degrees(np.abs(trial.q_at(50) - clean.q_at(50))).max() < tol_deg
+
+
+def test_a_second_reach_in_the_recording_is_reported_and_a_return_is_not(reach, synth, caplog):
+    import logging
+
+    _, back = synth.min_jerk_q(reach.q[-1], reach.q[0], duration=0.6, rest=0.5)
+    _, again = synth.min_jerk_q(reach.q[0], reach.q[-1], duration=0.8, rest=0.5)
+    mset, kw = parse_marker_map(synth.MAP), {"subject": "S1", "posture": "P2", "trial_id": "1"}
+    for moves, warned in (([reach.q, back[1:]], False), ([reach.q, back[1:], again[1:]], True)):
+        caplog.clear()
+        q = np.concatenate(moves)
+        with caplog.at_level(logging.WARNING):
+            trial = markers_to_trial(MarkerData(100.0, synth.lab_markers(reach.arm, q), source="r.trc"), mset, **kw)
+        assert trial.duration < 1.0  # the first reach, either way
+        assert any("r.trc: the recording holds another reach" in m for m in caplog.messages) == warned

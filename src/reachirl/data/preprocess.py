@@ -173,7 +173,7 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
         if e - s > max_gap:
             raise InputError(
                 f"marker {name} is missing for {e - s} frames ({s + 1}-{e}), longer than the {max_gap} "
-                "frames gap filling allows",
+                "frames gap filling allows (--max-gap)",
                 source,
             )
     seen = np.flatnonzero(~missing)
@@ -417,6 +417,26 @@ def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05, reach: np.nd
     onset = int(below_before[-1]) + 1 if below_before.size else 0
     offset = p + int(below_after[0]) - 1 if below_after.size else speed.shape[0] - 1
     return onset, offset
+
+
+def other_reach(
+    speed: np.ndarray, threshold: float, fingertip: np.ndarray, onset: int, offset: int
+) -> tuple[int, int] | None:
+    """Another movement of the recording (a run of frames above ``threshold`` × the reach's peak speed, outside
+    ``onset … offset``) that takes the fingertip forward along the reach by at least half as far: a second reach
+    (a return, which goes back, is not one). Its first and last frames, or None."""
+    thr = threshold * float(np.max(speed[onset : offset + 1]))
+    moving = np.r_[False, speed >= thr, False]
+    starts = np.flatnonzero(~moving[:-1] & moving[1:])
+    ends = np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+    d = fingertip[offset] - fingertip[onset]
+    length = float(np.linalg.norm(d))
+    if length == 0.0:
+        return None
+    for a, b in zip(starts, ends, strict=True):
+        if (b < onset or a > offset) and float((fingertip[b] - fingertip[a]) @ d) / length > 0.5 * length:
+            return int(a), int(b)
+    return None
 
 
 def _reaching_peak(speed: np.ndarray, thr: float, reach: np.ndarray, p: int) -> int:
@@ -699,11 +719,19 @@ def reconstruct_markers(
             src,
         )
     reach = np.linalg.norm(joints["fingertip"] - joints["fingertip"][0], axis=1)  # away from where it rested
-    onset, offset = detect_onset_offset(
-        segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"]),
-        options.onset_threshold,
-        reach,
-    )
+    seg_speed = segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"])
+    onset, offset = detect_onset_offset(seg_speed, options.onset_threshold, reach)
+    other = other_reach(seg_speed, options.onset_threshold, joints["fingertip"], onset, offset)
+    if other is not None:
+        log.warning(
+            "%s: the recording holds another reach (%.2f-%.2f s); the trial is the one at %.2f-%.2f s. Cut the "
+            "recording to one reach per file to keep the other",
+            src,
+            t[other[0]],
+            t[other[1]],
+            t[onset],
+            t[offset],
+        )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if onset == 0 or offset == md.n_frames - 1:
