@@ -218,3 +218,22 @@ def test_singular_length_units_are_read(tmp_path, unit, scale):
     p = tmp_path / "u.csv"
     p.write_text(f"Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,{unit},{unit},{unit}\n1,0,1,2,3\n2,0,1,2,4\n")
     np.testing.assert_allclose(read_vicon_csv(p).markers["A"][1], np.array([1.0, 2.0, 4.0]) * scale)
+
+
+def test_c3d_with_another_subjects_marker_keeps_the_recorded_subjects_names(tmp_path):
+    """One stray "ADL002:FT" among ADL001's markers: ADL001's are read by their bare names (they were all left
+    prefixed, and the marker set found none of them)."""
+    ezc3d = pytest.importorskip("ezc3d")
+    mk = _markers(n=12)
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = [f"ADL001:{m}" for m in mk] + ["ADL002:FT"]
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["m"]
+    pts = np.ones((4, 4, 12))
+    pts[:3, :3] = np.stack([mk[m] for m in mk], axis=1).transpose(2, 1, 0)
+    pts[:3, 3] = 0.5
+    c["data"]["points"] = pts
+    c.write(str(tmp_path / "a.c3d"))
+    md = read_c3d(tmp_path / "a.c3d")
+    assert md.names == (*mk, "ADL002:FT")
+    np.testing.assert_allclose(md["FT"], mk["FT"], atol=1e-6)

@@ -29,6 +29,7 @@ import logging
 import math
 import os
 import re
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -390,6 +391,13 @@ def read_c3d(path: str | Path) -> MarkerData:
     prefixes = tuple(sorted({subject for subject, _ in split if subject}))
     if len(set(bare)) == len(bare):
         labels = bare
+    else:  # several subjects' markers: the subject with the most of them (the one recorded) by bare names
+        counts = Counter(subject for subject, _ in split if subject).most_common(2)
+        if counts and (len(counts) == 1 or counts[0][1] > counts[1][1]):
+            own = counts[0][0]
+            named = [name if s == own else label for (s, name), label in zip(split, labels[: len(split)], strict=True)]
+            if len(set(named)) == len(named):
+                labels = named
     scale = _unit_scale(unit, path, "POINT:UNITS")
     xyz = pts[:3].transpose(2, 1, 0) * scale  # (n_frames, n_markers, 3)
     if resid is not None:
