@@ -44,22 +44,6 @@ def test_fill_gaps_short_by_spline_long_refused():
         fill_gaps(g, max_gap=10, name="EL", source="f.trc")
 
 
-def test_a_long_gap_at_an_end_is_held_only_while_the_marker_rests():
-    t = np.linspace(0, 2, 201)
-    s = np.clip((t - 0.6) / 0.8, 0, 1)
-    x = np.stack(
-        [0.3 * (10 * s**3 - 15 * s**4 + 6 * s**5), np.zeros_like(t), np.ones_like(t)], axis=1
-    )  # rest-reach-rest
-    g = x.copy()
-    g[:40] = np.nan  # unseen during the rest before the reach (it starts at frame 61)
-    g[-50:] = np.nan  # and during the rest after it
-    np.testing.assert_allclose(fill_gaps(g, max_gap=10, name="FT"), x, atol=1e-9)
-    g = x.copy()
-    g[:80] = np.nan  # unseen until the reach is under way: holding would fake a rest
-    with pytest.raises(InputError, match=r"marker FT is missing for 80 frames \(1-80\), longer than the 10"):
-        fill_gaps(g, max_gap=10, name="FT")
-
-
 def test_lowpass_zero_lag_removes_noise():
     rate = 100.0
     t = np.arange(400) / rate

@@ -157,9 +157,7 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
     """Fill runs of NaN frames of ``x`` (``(n,)`` or ``(n, d)``) no longer than ``max_gap``.
 
     Interior runs by a cubic spline through the seen frames, runs at the ends by the nearest seen value. A
-    longer run, or a marker never seen, raises :class:`InputError` naming ``name`` and the frames (1-based); a run
-    at an end of any length is held when the marker is at rest where it is seen (the rest before or after the
-    reach, lost by the cameras), but not when it is moving there (the held value would fake a rest).
+    longer run, or a marker never seen, raises :class:`InputError` naming ``name`` and the frames (1-based).
     """
     x = np.array(x, dtype=float)
     flat = x.reshape(x.shape[0], -1)
@@ -171,17 +169,8 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
         raise InputError(f"marker {name} is never seen", source)
     d = np.diff(np.r_[0, missing.astype(int), 0])
     starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)  # [start, end)
-    step = np.linalg.norm(np.diff(flat, axis=0), axis=1)  # NaN next to an unseen frame
-    peak = float(np.nanmax(step, initial=0.0))
-
-    def at_rest(frames: np.ndarray) -> bool:  # the marker's steps there are under 5 % of its largest
-        return bool(np.all(step[frames] <= 0.05 * peak))
-
     for s, e in zip(starts, ends, strict=True):
-        held = (s == 0 and at_rest(np.arange(e, min(e + 5, n - 1)))) or (
-            e == n and at_rest(np.arange(max(s - 6, 0), s - 1))
-        )
-        if e - s > max_gap and not held:
+        if e - s > max_gap:
             raise InputError(
                 f"marker {name} is missing for {e - s} frames ({s + 1}-{e}), longer than the {max_gap} "
                 "frames gap filling allows (--max-gap)",
