@@ -368,6 +368,10 @@ def test_an_export_into_the_data_folder_is_not_read_back_as_reaches(tmp_path, sy
     code, _, err = _run([data, *info, "--out", tmp_path / "b.npz"], capsys)
     assert code == 0, err
     assert [t.id for t in load_trials(tmp_path / "b.npz")] == [t.id for t in load_trials(tmp_path / "a.npz")]
+    # the export folder given itself is read (its angle files)
+    code, _, err = _run([data / "processed", "--out", tmp_path / "c.npz", "--subject", "ADL001"], capsys)
+    assert code == 0, err
+    assert len(load_trials(tmp_path / "c.npz")) == len(load_trials(tmp_path / "a.npz"))
 
 
 def test_an_input_that_does_not_exist_is_named(tmp_path, synth, capsys):

@@ -237,3 +237,19 @@ def test_c3d_with_another_subjects_marker_keeps_the_recorded_subjects_names(tmp_
     md = read_c3d(tmp_path / "a.c3d")
     assert md.names == (*mk, "ADL002:FT")
     np.testing.assert_allclose(md["FT"], mk["FT"], atol=1e-6)
+
+
+def test_c3d_of_two_subjects_alike_is_not_guessed(tmp_path):
+    """Two subjects with three and four markers: neither is clearly the one recorded, so the names stay prefixed
+    (and a marker set then says which marker it cannot find) rather than one being picked silently."""
+    ezc3d = pytest.importorskip("ezc3d")
+    labels = ["S1:SH", "S1:EL", "S1:FT", "S2:SH", "S2:EL", "S2:FT", "S2:HEAD"]
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    c["parameters"]["POINT"]["LABELS"]["value"] = labels
+    c["parameters"]["POINT"]["UNITS"]["value"] = ["m"]
+    pts = np.ones((4, len(labels), 5))
+    pts[:3] = np.random.default_rng(0).uniform(0.1, 1.0, (3, len(labels), 5))
+    c["data"]["points"] = pts
+    c.write(str(tmp_path / "two.c3d"))
+    assert read_c3d(tmp_path / "two.c3d").names == tuple(labels)

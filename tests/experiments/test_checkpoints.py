@@ -232,3 +232,28 @@ def test_a_workers_last_resort_names_the_unit(monkeypatch, capsys):
     with naming_unit("moirl-P2-s8"):
         logging.getLogger("reachirl.irl.moirl").warning("no weight samples: a degenerate rollout")
     assert capsys.readouterr().err == "moirl-P2-s8: no weight samples: a degenerate rollout\n"
+
+
+def test_units_run_in_threads_each_name_their_own_messages(caplog):
+    """Dask runs several units at once in one worker's threads: each message names the unit of its thread."""
+    import logging
+    import threading
+
+    from reachirl.experiments.runner import naming_unit
+
+    log = logging.getLogger("reachirl.irl.moirl")
+    inside, done = threading.Barrier(2), threading.Barrier(2)
+
+    def unit(key):
+        with naming_unit(key):
+            inside.wait()  # both units entered before either logs
+            log.warning("from %s", key)
+            done.wait()
+
+    with caplog.at_level(logging.WARNING):
+        threads = [threading.Thread(target=unit, args=(k,)) for k in ("unit-A", "unit-B")]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert sorted(caplog.messages) == ["unit-A: from unit-A", "unit-B: from unit-B"]

@@ -148,7 +148,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument(
         "--up-axis",
         metavar="AXIS",
-        help="lab axis opposite gravity, e.g. +z (default: the format's, +z Vicon/C3D, +y TRC)",
+        help="lab axis opposite gravity, e.g. +z (default: a C3D file's POINT:Y_SCREEN, else the marker set's, "
+        "else the format's: +z Vicon/C3D, +y TRC)",
     )
     g.add_argument(
         "--forward-axis",
@@ -213,24 +214,35 @@ def _is_export(folder: Path) -> bool:
         return False
 
 
+def _motion_files(folder: Path) -> list[Path]:
+    """The motion files under ``folder``, leaving out static trials and reachirl's own exports below it (an export
+    into the data folder would otherwise be read back as new reaches; an export folder given itself is read)."""
+    exports: dict[Path, bool] = {folder: False}
+
+    def exported(d: Path) -> bool:
+        if d not in exports:
+            exports[d] = _is_export(d)
+        return exports[d]
+
+    return sorted(
+        f
+        for f in folder.rglob("*")
+        if f.is_file()
+        and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
+        and not f.stem.lower().endswith("_static")  # a static trial calibrates the reaches beside it
+        and not exported(f.parent)
+    )
+
+
 def _expand(inputs: list[str]) -> list[Path]:
-    """The motion files the INPUTs name: files as given, folders searched recursively, leaving out static trials
-    and reachirl's own exports (which an export into the data folder would otherwise add as new reaches)."""
+    """The motion files the INPUTs name: files as given, folders searched recursively (:func:`_motion_files`)."""
     out: list[Path] = []
     for s in inputs:
         p = Path(s)
         if not p.exists():
             raise InputError("file or folder not found", p)
         if p.is_dir():
-            exports: dict[Path, bool] = {}
-            found = sorted(
-                f
-                for f in p.rglob("*")
-                if f.is_file()
-                and (f.suffix.lower() in _EXTS or (f.suffix.lower() == ".csv" and parse_trial_name(f)))
-                and not f.stem.lower().endswith("_static")  # a static trial calibrates the reaches beside it
-                and not exports.setdefault(f.parent, _is_export(f.parent))
-            )
+            found = _motion_files(p)
             if not found:
                 raise InputError("folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p)
             out += found

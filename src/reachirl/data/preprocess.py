@@ -647,11 +647,12 @@ def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None
             continue
         limit = max(MAX_MARKER_ACCELERATION, 20.0 * float(np.nanmedian(acc)))
         if np.nanmax(acc) > limit:
+            bound = f"{limit:.3g}" if limit > MAX_MARKER_ACCELERATION else f"{MAX_MARKER_ACCELERATION:g}"
             around = slice(int(np.nanargmax(acc)), int(np.nanargmax(acc)) + 2 * h)  # the steps it spans
             f = around.start + int(np.nanargmax(step[around]))
             raise InputError(
                 f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {np.nanmax(acc):.3g} m/s², "
-                f"where a reaching arm stays below {MAX_MARKER_ACCELERATION:g}): a glitch, a marker frozen and "
+                f"above the limit of {bound}): a glitch, a marker frozen and "
                 "caught up, or two labels swapped? Fix the labels, or blank those frames to be filled as a gap",
                 src,
                 f"frame {f + 2}",
@@ -724,8 +725,8 @@ def reconstruct_markers(
     other = other_reach(seg_speed, options.onset_threshold, joints["fingertip"], onset, offset)
     if other is not None:
         log.warning(
-            "%s: the recording holds another reach (%.2f-%.2f s); the trial is the one at %.2f-%.2f s. Cut the "
-            "recording to one reach per file to keep the other",
+            "%s: the recording holds another reach (%.2f-%.2f s); the trial is the faster one, at %.2f-%.2f s. Cut "
+            "the recording to one reach per file to keep the other",
             src,
             t[other[0]],
             t[other[1]],

@@ -391,9 +391,10 @@ def read_c3d(path: str | Path) -> MarkerData:
     prefixes = tuple(sorted({subject for subject, _ in split if subject}))
     if len(set(bare)) == len(bare):
         labels = bare
-    else:  # several subjects' markers: the subject with the most of them (the one recorded) by bare names
-        counts = Counter(subject for subject, _ in split if subject).most_common(2)
-        if counts and (len(counts) == 1 or counts[0][1] > counts[1][1]):
+    else:  # a stray marker or two of another subject: the recorded subject's markers by their bare names
+        counts = Counter(subject for subject, _ in split if subject).most_common()
+        others = sum(c for _, c in counts[1:])
+        if counts and others <= 2 and counts[0][1] > 2 * others:  # clearly the subject recorded, else refused
             own = counts[0][0]
             named = [name if s == own else label for (s, name), label in zip(split, labels[: len(split)], strict=True)]
             if len(set(named)) == len(named):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import contextvars
 import logging
 import os
 import time
@@ -58,35 +59,37 @@ UNIT_MEMORY_GB = 8.0
 UNIT_TIMEOUT_S = 4 * 3600
 
 
-class _NamingUnit(logging.Filter):
-    """Prefixes each log record with the unit it came from (once, however many handlers it passes)."""
+_UNIT: contextvars.ContextVar[str | None] = contextvars.ContextVar("reachirl_unit", default=None)
 
-    def __init__(self, key: str):
-        super().__init__()
-        self.key = key
+
+class _NamingUnit(logging.Filter):
+    """Prefixes each log record with the unit being run where it was logged (:data:`_UNIT`, per thread and task:
+    Dask runs several units at once in one worker's threads), once, however many handlers it passes."""
 
     def filter(self, record: logging.LogRecord) -> bool:
-        if getattr(record, "reachirl_unit", None) is None:
-            record.reachirl_unit = self.key
-            record.msg = f"{self.key.replace('%', '%%') if record.args else self.key}: {record.msg}"
+        key = _UNIT.get()
+        if key is not None and getattr(record, "reachirl_unit", None) is None:
+            record.reachirl_unit = key
+            record.msg = f"{key.replace('%', '%%') if record.args else key}: {record.msg}"
         return True
+
+
+_NAMING = _NamingUnit()
 
 
 @contextlib.contextmanager
 def naming_unit(key: str):
-    """Within it, every log message (a fit's warning, a failed solve) names the unit ``key``: several units
-    log to the same stderr, in workers whose messages reach it through Python's last-resort handler."""
-    f = _NamingUnit(key)
-    handlers = {*logging.getLogger().handlers, logging.lastResort}
-    for h in handlers:
+    """Within it, every log message (a fit's warning, a failed solve) logged by this thread names the unit
+    ``key``: several units log to the same stderr, in workers whose messages reach it through Python's
+    last-resort handler. The filter stays on the handlers; outside a unit it changes nothing."""
+    for h in {*logging.getLogger().handlers, logging.lastResort}:
         if h is not None:
-            h.addFilter(f)
+            h.addFilter(_NAMING)  # once: a Filterer keeps a filter once
+    token = _UNIT.set(key)
     try:
         yield
     finally:
-        for h in handlers:
-            if h is not None:
-                h.removeFilter(f)
+        _UNIT.reset(token)
 
 
 def run_named_unit(unit: Unit, split: Split, job: Mapping | None = None) -> dict:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import os
 from dataclasses import dataclass, field
 
@@ -71,10 +72,11 @@ class SynthConfig:
         short = {p: f for p in self.postures if (f := start_fraction(p)) > self.target_fraction - MIN_REACH_FRACTION}
         if short:
             starts = ", ".join(f"{p} at {f:.2f}" for p, f in short.items())
+            least = math.ceil(100 * (max(short.values()) + MIN_REACH_FRACTION)) / 100
             raise ValueError(
                 f"target_fraction {self.target_fraction:g} puts the bar behind, or within {MIN_REACH_FRACTION:g} arm "
                 f"lengths of, the fingertip's start ({starts} of the arm's length): those reaches would go "
-                f"backwards or barely move; use at least {max(short.values()) + MIN_REACH_FRACTION:.2f}, or leave "
+                f"backwards or barely move; use at least {least:.2f}, or leave "
                 "those postures out"
             )
         if self.rate_hz <= 0:
