@@ -24,6 +24,12 @@ from reachirl.data.trial import load_trials, save_trials
 from reachirl.errors import InputError
 
 
+def _trial(synth, markers, rate=100.0, source="s.trc"):
+    """The trial ``markers_to_trial`` makes of ``markers`` (the synthetic marker map)."""
+    kw = {"subject": "S1", "posture": "P2", "trial_id": "1"}
+    return markers_to_trial(MarkerData(rate, markers, source=source), parse_marker_map(synth.MAP), **kw)
+
+
 def _rec(reach, synth, side="right", options=None, markers=None, **kw):
     md = MarkerData(100.0, markers or reach.markers, source="synthetic.trc")
     return reconstruct_markers(md, parse_marker_map(synth.MAP), side=side, options=options, **kw)
@@ -292,13 +298,7 @@ def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
     spiked = {k: np.array(v) for k, v in reach.markers.items()}
     spiked["FT"][55, 0] += 0.5  # 0.5 m in one frame at 100 Hz
     with pytest.raises(InputError, match=r"s\.trc: frame 5[67]: the fingertip moves 500 mm in one frame"):
-        markers_to_trial(
-            MarkerData(100.0, spiked, source="s.trc"),
-            parse_marker_map(synth.MAP),
-            subject="S1",
-            posture="P2",
-            trial_id="1",
-        )
+        _trial(synth, spiked)
     swapped = "shoulder=FT,elbow=WR,wrist=EL,fingertip=SH"
     n = len(reach.t)
     sway = np.c_[0.03 * np.sin(2 * np.pi * np.arange(n) / 100.0), np.zeros((n, 2))]  # the trunk sways 3 cm
@@ -337,20 +337,13 @@ def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, nam
     else:
         spoiled[marker][mid - 15 : mid] = spoiled[marker][mid - 16]
     with pytest.raises(InputError, match=rf"s\.trc: frame \d+: the {name} jumps \d+ mm in one frame \(an acceleration"):
-        markers_to_trial(
-            MarkerData(100.0, spoiled, source="s.trc"),
-            parse_marker_map(synth.MAP),
-            subject="S1",
-            posture="P2",
-            trial_id="1",
-        )
+        _trial(synth, spoiled)
 
 
 def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):
     """2 mm of marker noise at 100 Hz, and the same reach sampled at 1000 Hz (second differences over 10 ms):
     neither is a glitch, and both give the clean recording's reach."""
-    mset, kw = parse_marker_map(synth.MAP), {"subject": "S1", "posture": "P2", "trial_id": "1"}
-    clean = markers_to_trial(MarkerData(100.0, reach.markers, source="c.trc"), mset, **kw)
+    clean = _trial(synth, reach.markers)
     rng = np.random.default_rng(0)
     noisy = {k: np.asarray(v) + rng.normal(0, 0.002, np.shape(v)) for k, v in reach.markers.items()}
     t_fast = np.arange(0, reach.t[-1], 1e-3)
@@ -359,7 +352,7 @@ def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):
         for k, v in reach.markers.items()
     }
     for rate, markers, tol_deg in ((100.0, noisy, 4.0), (1000.0, fast, 0.5)):  # noise moves the cut
-        trial = markers_to_trial(MarkerData(rate, markers, source="x.trc"), mset, **kw)
+        trial = _trial(synth, markers, rate)
         assert trial.duration == pytest.approx(clean.duration, rel=0.1)
         assert np.degrees(np.abs(trial.q_at(50) - clean.q_at(50))).max() < tol_deg
 
@@ -369,12 +362,11 @@ def test_a_second_reach_in_the_recording_is_reported_and_a_return_is_not(reach, 
 
     _, back = synth.min_jerk_q(reach.q[-1], reach.q[0], duration=0.6, rest=0.5)
     _, again = synth.min_jerk_q(reach.q[0], reach.q[-1], duration=0.5, rest=0.5)  # faster than the first (0.8 s)
-    mset, kw = parse_marker_map(synth.MAP), {"subject": "S1", "posture": "P2", "trial_id": "1"}
     for moves, warned in (([reach.q, back[1:]], False), ([reach.q, back[1:], again[1:]], True)):
         caplog.clear()
         q = np.concatenate(moves)
         with caplog.at_level(logging.WARNING):
-            trial = markers_to_trial(MarkerData(100.0, synth.lab_markers(reach.arm, q), source="r.trc"), mset, **kw)
+            trial = _trial(synth, synth.lab_markers(reach.arm, q), source="r.trc")
         # the faster forward reach: the first alone (0.8 s), the second of the two (0.5 s)
         assert trial.duration == pytest.approx(0.5 if warned else 0.8, abs=0.15)
         assert any("r.trc: the recording holds another reach" in m for m in caplog.messages) == warned
