@@ -12,7 +12,9 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    through the seen frames (the nearest value at the ends of the record); a longer run is an
    :class:`InputError` naming the marker and the frames.
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
-   (``segment_range_m``); metres declared as mm give absurdly small ones.
+   (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
+   (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
+   10 ms, is an :class:`InputError` naming the frame.
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
 6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
@@ -23,7 +25,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    rest or into the movement, and the DOC (at rest at both ends) was asked for another reach. Clean
    recordings (UE-ADL: 0.06 mm) keep the 10 Hz speed. ``None`` always uses it, as Berret. A recording that
    also holds the return, faster than the reach, gives the reach: the movement that takes the fingertip away
-   from where it rested, not the one that brings it back.
+   from where it rested, not the one that brings it back. Another forward reach in the recording is reported
+   (:func:`other_reach`), and the faster one is kept.
 7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
    joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
    gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
