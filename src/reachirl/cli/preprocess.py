@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.exports import is_export
 from ..data.markersets import load_markerset, parse_marker_map
 from ..data.pipeline import preprocess_entries
 from ..data.preprocess import PreprocessOptions
@@ -204,16 +205,6 @@ def _options(args) -> PreprocessOptions:
         raise InputError(str(e)) from None
 
 
-def _is_export(folder: Path) -> bool:
-    """Whether ``folder`` holds reachirl's own trajectory export (``preprocess --export``, ``evaluate
-    --predictions``, a run's ``predictions/``): its ``index.csv`` starts ``id,file,set``."""
-    try:
-        with open(folder / "index.csv", encoding="utf-8") as fh:
-            return fh.readline().strip() == "id,file,set"
-    except (OSError, UnicodeDecodeError):
-        return False
-
-
 def _motion_files(folder: Path) -> list[Path]:
     """The motion files under ``folder``, leaving out static trials and reachirl's own exports below it (an export
     into the data folder would otherwise be read back as new reaches; an export folder given itself is read)."""
@@ -221,7 +212,7 @@ def _motion_files(folder: Path) -> list[Path]:
 
     def exported(d: Path) -> bool:
         if d not in exports:
-            exports[d] = _is_export(d)
+            exports[d] = is_export(d)
         return exports[d]
 
     return sorted(

@@ -128,6 +128,20 @@ def _number_lines(data: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
+INDEX_COLUMNS = ("id", "file", "set")
+"""The header of an export's ``index.csv``."""
+
+
+def is_export(folder: str | Path) -> bool:
+    """Whether ``folder`` holds an export of :func:`export_trajectories` (its ``index.csv`` has
+    :data:`INDEX_COLUMNS`)."""
+    try:
+        with open(Path(folder) / "index.csv", encoding="utf-8") as fh:
+            return fh.readline().strip() == ",".join(INDEX_COLUMNS)
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
     """Write ``<safe id>.csv`` (and ``.mot``) per item and ``index.csv`` under ``out_dir``; returns the index.
 
@@ -140,7 +154,7 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     # what an earlier export listed (a file name this module made, never a path)
     earlier = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
     used: set[str] = set()
-    index = [("id", "file", "set")]
+    index = [INDEX_COLUMNS]
     for it in items:
         base = safe_name(it.id)
         name, k = base, 1

@@ -422,16 +422,19 @@ def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05, reach: np.nd
     return onset, offset
 
 
+def _moving_runs(speed: np.ndarray, thr: float) -> tuple[np.ndarray, np.ndarray]:
+    """The first and last frames of each run of frames whose speed is at least ``thr``."""
+    moving = np.r_[False, speed >= thr, False]
+    return np.flatnonzero(~moving[:-1] & moving[1:]), np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+
+
 def other_reach(
     speed: np.ndarray, threshold: float, fingertip: np.ndarray, onset: int, offset: int
 ) -> tuple[int, int] | None:
     """Another movement of the recording (a run of frames above ``threshold`` × the reach's peak speed, outside
     ``onset … offset``) that takes the fingertip forward along the reach by at least half as far: a second reach
     (a return, which goes back, is not one). Its first and last frames, or None."""
-    thr = threshold * float(np.max(speed[onset : offset + 1]))
-    moving = np.r_[False, speed >= thr, False]
-    starts = np.flatnonzero(~moving[:-1] & moving[1:])
-    ends = np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+    starts, ends = _moving_runs(speed, threshold * float(np.max(speed[onset : offset + 1])))
     d = fingertip[offset] - fingertip[onset]
     length = float(np.linalg.norm(d))
     if length == 0.0:
@@ -445,9 +448,7 @@ def other_reach(
 def _reaching_peak(speed: np.ndarray, thr: float, reach: np.ndarray, p: int) -> int:
     """The peak of the movement (a run of frames above ``thr``) that takes the fingertip furthest from its start,
     if the one around ``p`` brings it back (a return); else ``p``."""
-    moving = np.r_[False, speed >= thr, False]
-    starts = np.flatnonzero(~moving[:-1] & moving[1:])
-    ends = np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+    starts, ends = _moving_runs(speed, thr)
     if starts.size < 2:
         return p
     extension = reach[ends] - reach[starts]
@@ -649,14 +650,13 @@ def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None
         if not np.isfinite(acc).any():
             continue
         limit = max(MAX_MARKER_ACCELERATION, 20.0 * float(np.nanmedian(acc)))
-        if np.nanmax(acc) > limit:
-            bound = f"{limit:.3g}" if limit > MAX_MARKER_ACCELERATION else f"{MAX_MARKER_ACCELERATION:g}"
-            around = slice(int(np.nanargmax(acc)), int(np.nanargmax(acc)) + 2 * h)  # the steps it spans
-            f = around.start + int(np.nanargmax(step[around]))
+        worst = int(np.nanargmax(acc))
+        if acc[worst] > limit:
+            f = worst + int(np.nanargmax(step[worst : worst + 2 * h]))  # the largest of the steps it spans
             raise InputError(
-                f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {np.nanmax(acc):.3g} m/s², "
-                f"above the limit of {bound}): a glitch, a marker frozen and "
-                "caught up, or two labels swapped? Fix the labels, or blank those frames to be filled as a gap",
+                f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {acc[worst]:.3g} m/s², "
+                f"above the limit of {limit:.3g}): a glitch, a marker frozen and caught up, or two labels swapped? "
+                "Fix the labels, or blank those frames to be filled as a gap",
                 src,
                 f"frame {f + 2}",
             )
@@ -738,15 +738,15 @@ def reconstruct_markers(
         )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
-    if onset == 0 or offset == md.n_frames - 1:
-        ends = [e for e, cut in (("before", onset == 0), ("after", offset == md.n_frames - 1)) if cut]
+    cut = {"before": onset == 0, "after": offset == md.n_frames - 1}
+    if all(cut.values()):
         log.warning(
-            "%s: no rest %s the movement; the record's %s used%s",
+            "%s: no rest before or after the movement; the record's edges are used: the reach may be a fragment of "
+            "a longer movement",
             src,
-            " or ".join(ends),
-            "edges are" if len(ends) == 2 else "edge is",
-            ": the reach may be a fragment of a longer movement" if len(ends) == 2 else "",
         )
+    elif any(cut.values()):
+        log.warning("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
     rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
     disp = joints["fingertip"][offset] - joints["fingertip"][onset]
     fwd = _axis(options.forward_axis) if options.forward_axis else None
