@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -270,6 +271,56 @@ def test_missing_marker_and_long_gap(reach, synth):
     assert np.isfinite(rec.q).all()
 
 
+def _gapped(reach, frames, marker="FT"):
+    mk = {k: np.array(v) for k, v in reach.markers.items()}
+    mk[marker][frames] = np.nan
+    return mk
+
+
+@pytest.mark.parametrize(
+    ("frames", "where"),
+    [(slice(5, 30), "before"), (slice(150, 175), "after"), (slice(0, 25), "before")],  # the reach: 0.5-1.3 s
+)
+def test_a_long_gap_in_the_rest_is_cut_off_with_a_warning(reach, synth, caplog, frames, where):
+    """A marker occluded for longer than gap filling allows while the hand rests: the trial comes from the seen
+    part of the record, the same reach as with the marker seen throughout, and a warning names the gap."""
+    noise = np.random.default_rng(3).normal(0.0, 0.0005, (len(reach.t), 3))  # 0.5 mm
+    noisy = SimpleNamespace(markers={k: np.asarray(v) + noise for k, v in reach.markers.items()})
+    seen = _trial(synth, noisy.markers)
+    with caplog.at_level("WARNING", logger="reachirl"):
+        cut = _trial(synth, _gapped(noisy, frames))
+    a, b = frames.indices(len(reach.t))[:2]
+    assert f"marker FT is missing for 25 frames ({a + 1}-{b}), in the rest {where} the reach" in caplog.text
+    assert cut.t.shape == seen.t.shape
+    np.testing.assert_allclose(cut.t, seen.t)
+    np.testing.assert_allclose(np.degrees(cut.q), np.degrees(seen.q), atol=0.05)  # the filter's edge moved
+
+
+@pytest.mark.parametrize(
+    "frames",
+    [
+        slice(25, 52),  # ends 0.02 s before the reach: its onset is not seen in rest
+        slice(65, 85),  # inside the reach
+        slice(125, 140),  # ends just after the reach's offset
+    ],
+)
+def test_a_long_gap_beside_or_inside_the_reach_is_refused(reach, synth, frames):
+    a, b = frames.indices(len(reach.t))[:2]
+    with pytest.raises(
+        InputError,
+        match=rf"s\.trc: marker FT is missing for {b - a} frames \({a + 1}-{b}\), longer than the 10 frames gap "
+        r"filling allows \(--max-gap\), and the reach is not seen in rest beside it",
+    ):
+        _trial(synth, _gapped(reach, frames))
+
+
+def test_a_glitch_after_a_gap_in_the_rest_names_the_recording_s_frame(reach, synth):
+    spiked = _gapped(reach, slice(5, 30))
+    spiked["FT"][55, 0] += 0.5
+    with pytest.raises(InputError, match=r"s\.trc: frame 5[67]: the fingertip moves 500 mm in one frame"):
+        _trial(synth, spiked)
+
+
 # ---------------------------------------------------------------------- real data (the shipped sample)
 def test_ue_adl_cast_forearm_length(synth):
     d = synth.SAMPLE / "ADL001"
@@ -283,6 +334,32 @@ def test_ue_adl_cast_forearm_length(synth):
     assert q0[1] > q1[1] + 40  # the elbow extends
     with pytest.raises(InputError, match=r"needs a static trial"):
         reconstruct_markers(read_vicon_csv(d / "ADL001FR1.csv"), load_markerset("ue-adl"))
+
+
+@pytest.mark.parametrize(
+    ("name", "side", "frames"), [("ADL001FR1", "right", (10, 45)), ("ADL001FL1", "left", (230, 300))]
+)
+def test_ue_adl_fingertip_occluded_at_rest(synth, caplog, name, side, frames):
+    """A real recording whose fingertip marker is lost for 0.35-0.7 s while the hand rests (before the reach of
+    FR1, which starts at frame 62; after the left arm's, which ends at frame 196) gives the reach it gives
+    whole."""
+    d = synth.SAMPLE / "ADL001"
+    static, md = read_vicon_csv(d / "ADL001_static.csv"), read_vicon_csv(d / f"{name}.csv")
+    tip = f"{side[0].upper()}FTP"
+    occluded = {k: np.array(v) for k, v in md.markers.items()}
+    occluded[tip][frames[0] : frames[1]] = np.nan
+    whole = reconstruct_markers(md, load_markerset("ue-adl"), static=static, side=side)
+    with caplog.at_level("WARNING", logger="reachirl"):
+        cut = reconstruct_markers(
+            MarkerData(md.rate, occluded, source=md.source), load_markerset("ue-adl"), static=static, side=side
+        )
+    assert f"marker {tip} is missing for {frames[1] - frames[0]} frames ({frames[0] + 1}-{frames[1]})" in caplog.text
+    first = cut.first_frame
+    assert first == (frames[1] if frames[0] < whole.onset else 0)
+    assert (cut.onset + first, cut.offset + first) == (whole.onset, whole.offset)
+    np.testing.assert_allclose(
+        np.degrees(cut.q[cut.onset : cut.offset + 1]), np.degrees(whole.q[whole.onset : whole.offset + 1]), atol=0.01
+    )
 
 
 def test_options_are_validated():

@@ -137,7 +137,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=int_in(0, 100000),
         default=d.max_gap_frames,
         metavar="FRAMES",
-        help="longest gap filled by a cubic spline, 0 to 100000 (default 10)",
+        help="longest gap filled by a cubic spline, 0 to 100000 (default 10); a longer one in the rest before or "
+        "after the reach is cut off, with a warning",
     )
     g.add_argument(
         "--plane",

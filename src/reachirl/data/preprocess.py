@@ -10,7 +10,9 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    look like a right arm everywhere.
 3. **Gap filling** (:func:`fill_gaps`): a run of at most ``max_gap_frames`` missing frames by a cubic spline
    through the seen frames (the nearest value at the ends of the record); a longer run is an
-   :class:`InputError` naming the marker and the frames.
+   :class:`InputError` naming the marker and the frames, unless it lies in the rest before or after the reach
+   (a marker occluded while the hand rests): the record is then cut at the gap (:func:`seen_window`), with a
+   warning, when the reach begins and ends in rest seen for :data:`MIN_SEEN_REST_S` beside it.
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
@@ -55,6 +57,7 @@ import functools
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -76,7 +79,7 @@ __all__ = [
     "detect_onset_offset",
     "estimate_lengths",
     "fill_gaps",
-    "joint_centres",
+    "joint_positions",
     "kabsch",
     "lowpass",
     "markers_to_trial",
@@ -84,6 +87,7 @@ __all__ = [
     "planar_ik_segments",
     "reconstruct_markers",
     "sagittal_basis",
+    "seen_window",
     "segmentation_cutoff",
     "segmentation_speed",
 ]
@@ -94,6 +98,10 @@ log = logging.getLogger(__name__)
 MAX_FINGERTIP_SPEED = 30.0
 #: m/s²: a reaching hand's markers peak near 10-30 m/s² (about 3 g); 20 g from one frame to the next is a glitch
 MAX_MARKER_ACCELERATION = 200.0
+
+#: s: a record cut at a gap longer than gap filling allows must show this much rest between the gap and the reach
+#: (the reach's onset or offset is then seen, not inferred at the gap's edge)
+MIN_SEEN_REST_S = 0.1
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
@@ -156,6 +164,22 @@ def _axis(spec: str) -> np.ndarray:
     return v
 
 
+def long_gaps(x: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
+    """The runs ``[start, end)`` of unseen frames of ``x`` (``(n,)`` or ``(n, d)``) longer than ``max_gap``."""
+    flat = np.asarray(x, dtype=float).reshape(np.shape(x)[0], -1)
+    missing = ~np.all(np.isfinite(flat), axis=1)
+    d = np.diff(np.r_[0, missing.astype(int), 0])
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    return [(int(s), int(e)) for s, e in zip(starts, ends, strict=True) if e - s > max_gap]
+
+
+def _gap_message(name: str, start: int, end: int, max_gap: int) -> str:
+    return (
+        f"marker {name} is missing for {end - start} frames ({start + 1}-{end}), longer than the {max_gap} "
+        "frames gap filling allows (--max-gap)"
+    )
+
+
 def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object | None = None) -> np.ndarray:
     """Fill runs of NaN frames of ``x`` (``(n,)`` or ``(n, d)``) no longer than ``max_gap``.
 
@@ -170,15 +194,8 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
     n = missing.shape[0]
     if missing.all():
         raise InputError(f"marker {name} is never seen", source)
-    d = np.diff(np.r_[0, missing.astype(int), 0])
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)  # [start, end)
-    for s, e in zip(starts, ends, strict=True):
-        if e - s > max_gap:
-            raise InputError(
-                f"marker {name} is missing for {e - s} frames ({s + 1}-{e}), longer than the {max_gap} "
-                "frames gap filling allows (--max-gap)",
-                source,
-            )
+    for s, e in long_gaps(x, max_gap):
+        raise InputError(_gap_message(name, s, e, max_gap), source)
     seen = np.flatnonzero(~missing)
     out = flat.copy()
     if seen.size >= 2:
@@ -277,10 +294,11 @@ def calibrate_static(static: MarkerData, mset: MarkerSet) -> dict[str, tuple[np.
     return out
 
 
-def joint_centres(
-    md: MarkerData, mset: MarkerSet, static: MarkerData | None = None, max_gap: int = 10
-) -> dict[str, np.ndarray]:
-    """``{joint: (n, 3)}`` in metres, gap-filled, for every joint of the (side-resolved) marker set."""
+def joint_positions(
+    md: MarkerData, mset: MarkerSet, static: MarkerData | None = None
+) -> dict[str, tuple[np.ndarray, str]]:
+    """``{joint: ((n, 3) in metres, NaN where unseen; its label for messages)}`` for every joint of the
+    (side-resolved) marker set, before gap filling."""
     calib = {}
     if mset.needs_static:
         if static is None:
@@ -298,14 +316,55 @@ def joint_centres(
             for m, a in zip(spec.markers, arrs, strict=True):
                 if np.isnan(a).all():
                     raise InputError(f"marker {m!r} ({joint}) is empty in every frame", md.source)
-            p = np.mean(arrs, axis=0)
-            label = "+".join(spec.markers)
+            out[joint] = (np.mean(arrs, axis=0), "+".join(spec.markers))
         else:
             cl = np.stack([_marker(md, m, f"{joint} cluster") for m in spec.cluster], axis=1)
-            p = cast_reconstruct(cl, *calib[joint])
-            label = f"{joint} (cluster {spec.cluster[0]}..)"
-        out[joint] = fill_gaps(p, max_gap, label, md.source)
+            out[joint] = (cast_reconstruct(cl, *calib[joint]), f"{joint} (cluster {spec.cluster[0]}..)")
     return out
+
+
+class SeenWindow(NamedTuple):
+    """The frames ``[start, stop)`` of a record that :func:`seen_window` keeps, and the gaps longer than gap
+    filling allows outside them (``(label, start, end)``, frames ``[start, end)`` of the record)."""
+
+    start: int
+    stop: int
+    gaps: tuple[tuple[str, int, int], ...]
+
+
+def seen_window(
+    positions: Mapping[str, tuple[np.ndarray, str]], max_gap: int, source: object = None, min_frames: int = 10
+) -> SeenWindow:
+    """Where a record with gaps longer than ``max_gap`` can still give a trial: of the stretches of at least
+    ``min_frames`` between such gaps (of any joint), the one over which the fingertip travels furthest, which
+    holds the reach; the whole record when no gap is that long. :func:`reconstruct_markers` then requires the
+    reach to begin and end in seen rest inside it (:data:`MIN_SEEN_REST_S`), so a gap that hides any of the
+    reach is still refused."""
+    n = next(iter(positions.values()))[0].shape[0]
+    blocked = np.zeros(n, dtype=bool)
+    gaps = []
+    for p, label in positions.values():
+        for s, e in long_gaps(p, max_gap):
+            blocked[s:e] = True
+            gaps.append((label, s, e))
+    if not gaps:
+        return SeenWindow(0, n, ())
+    gaps.sort(key=lambda g: g[1])
+    d = np.diff(np.r_[0, (~blocked).astype(int), 0])
+    runs = [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)]
+    tip = positions["fingertip"][0]
+
+    def travel(run: tuple[int, int]) -> float:
+        x = tip[run[0] : run[1]]
+        x = x[np.all(np.isfinite(x), axis=1)]
+        return float(np.linalg.norm(np.ptp(x, axis=0))) if x.shape[0] >= 2 else -1.0
+
+    runs = [r for r in runs if r[1] - r[0] >= min_frames and travel(r) > 0]
+    if not runs:
+        label, s, e = gaps[0]
+        raise InputError(_gap_message(label, s, e, max_gap), source)
+    start, stop = max(runs, key=travel)
+    return SeenWindow(start, stop, tuple(gaps))
 
 
 def mirror(points: Mapping[str, np.ndarray], lateral: np.ndarray) -> dict[str, np.ndarray]:
@@ -609,7 +668,7 @@ def _derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass(frozen=True)
 class MarkerReconstruction:
     """Everything computed from one marker file, on every frame of the record (``onset``/``offset``
-    inclusive)."""
+    inclusive), or of the part of it that a gap in the rest cut off (``first_frame``, :func:`seen_window`)."""
 
     t: np.ndarray  # (n,) s
     q: np.ndarray  # (n, 2) rad
@@ -625,13 +684,44 @@ class MarkerReconstruction:
     joints: Mapping[str, np.ndarray] = field(repr=False)  # filtered 3-D joint centres (lab frame, mirrored)
     side: str = "right"
     source: str = ""
+    first_frame: int = 0  # the record's frame (0-based) at t[0]: > 0 when a long gap in the rest was cut off
 
 
-def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None:
+def _check_window(window: SeenWindow, onset: int, offset: int, md: MarkerData, options, src) -> None:
+    """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when the
+    reach begins and ends in rest seen for :data:`MIN_SEEN_REST_S` inside the cut: the gaps then lie in the rest
+    before or after it (a marker occluded while the hand rests), reported as a warning. Otherwise the first gap
+    beside the reach is refused as :func:`fill_gaps` refuses it."""
+    rest = max(1, round(MIN_SEEN_REST_S * md.rate))
+    before = [g for g in window.gaps if g[2] <= window.start]
+    after = [g for g in window.gaps if g[1] >= window.stop]
+    if (before and onset < rest) or (after and window.stop - window.start - 1 - offset < rest):
+        label, s, e = before[-1] if before and onset < rest else after[0]
+        raise InputError(
+            _gap_message(label, s, e, options.max_gap_frames) + ", and the reach is not seen in rest beside it",
+            src,
+        )
+    for label, s, e in window.gaps:
+        log.warning(
+            "%s: marker %s is missing for %d frames (%d-%d), in the rest %s the reach; the trial is cut from "
+            "frames %d-%d",
+            src,
+            label,
+            e - s,
+            s + 1,
+            e,
+            "before" if e <= window.start else "after",
+            window.start + 1,
+            window.stop,
+        )
+
+
+def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0) -> None:
     """Refuse a joint centre that jumps (the low-pass would smear the jump into the reach): faster than any arm
     moves (:data:`MAX_FINGERTIP_SPEED`), or with an acceleration from one frame to the next that no reaching arm
     has (:data:`MAX_MARKER_ACCELERATION`, or 20× the recording's own median where its noise is larger): a spike,
-    a marker frozen and then caught up, or two labels swapped for a few frames."""
+    a marker frozen and then caught up, or two labels swapped for a few frames. ``first_frame``: the record's
+    frame at ``joints``' first row, for the messages."""
     for k, x in joints.items():
         step = np.linalg.norm(np.diff(x, axis=0), axis=1)
         if np.nanmax(step, initial=0.0) * rate > MAX_FINGERTIP_SPEED:
@@ -640,7 +730,7 @@ def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None
                 f"the {k} moves {step[f] * 1000:.0f} mm in one frame ({step[f] * rate:.3g} m/s, faster than any "
                 f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?",
                 src,
-                f"frame {f + 2}",
+                f"frame {first_frame + f + 2}",
             )
         h = max(1, round(0.01 * rate))  # frames in 10 ms: finer, a fast recording's noise (or the kinks of a
         # linear gap fill) would pass for acceleration
@@ -658,7 +748,7 @@ def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str) -> None
                 f"above the limit of {limit:.3g}): a glitch, a marker frozen and caught up, or two labels swapped? "
                 "Fix the labels, or blank those frames to be filled as a gap",
                 src,
-                f"frame {f + 2}",
+                f"frame {first_frame + f + 2}",
             )
 
 
@@ -686,7 +776,10 @@ def reconstruct_markers(
             raise InputError(f"marker set {ms.name!r} gives no {j}, needed for ik={options.ik!r}", src)
     if md.n_frames < 10:
         raise InputError(f"only {md.n_frames} frames, too few for a reach", src)
-    joints = joint_centres(md, ms, static, options.max_gap_frames)
+    positions = joint_positions(md, ms, static)
+    window = seen_window(positions, options.max_gap_frames, src, max(10, _filter_padlen(options.filter_order) + 1))
+    cropped = slice(window.start, window.stop)
+    joints = {j: fill_gaps(p[cropped], options.max_gap_frames, label, src) for j, (p, label) in positions.items()}
     lengths = estimate_lengths(joints)
     _check_units(lengths, options, src)
 
@@ -700,11 +793,11 @@ def reconstruct_markers(
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
 
-    check_glitches(joints, md.rate, src)
+    check_glitches(joints, md.rate, src, first_frame=window.start)
     raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
         joints = {k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()}
-    t = md.t
+    t = md.t[cropped]
     vel = np.gradient(joints["fingertip"], t, axis=0)
     speed = np.linalg.norm(vel, axis=1)
     if not np.isfinite(speed).all() or speed.max() < options.min_peak_speed:
@@ -738,7 +831,9 @@ def reconstruct_markers(
         )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
-    cut = {"before": onset == 0, "after": offset == md.n_frames - 1}
+    if window.gaps:
+        _check_window(window, onset, offset, md, options, src)
+    cut = {"before": onset == 0 and window.start == 0, "after": offset == len(t) - 1 and window.stop == md.n_frames}
     if all(cut.values()):
         log.warning(
             "%s: no rest before or after the movement; the record's edges are used: the reach may be a fragment of "
@@ -782,6 +877,7 @@ def reconstruct_markers(
         joints=joints,
         side=side,
         source=src,
+        first_frame=window.start,
     )
 
 
