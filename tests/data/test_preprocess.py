@@ -314,6 +314,18 @@ def test_a_long_gap_beside_or_inside_the_reach_is_refused(reach, synth, frames):
         _trial(synth, _gapped(reach, frames))
 
 
+def test_a_gap_that_hides_the_reach_or_leaves_only_its_return_is_refused(reach, synth):
+    with pytest.raises(
+        InputError, match=r"marker FT is missing for 100 frames \(41-140\), .*, and no reach is seen outside the long"
+    ):
+        _trial(synth, _gapped(reach, slice(40, 140)))
+    # the reach, 0.5 s at the bar, and the same movement back: the fingertip hidden from the rest into the reach
+    there_and_back = {k: np.concatenate([v, np.asarray(v)[::-1][1:]]) for k, v in reach.markers.items()}
+    there_and_back["FT"][5:120] = np.nan
+    with pytest.raises(InputError, match=r"\(6-120\), .*, and the movement seen after it brings the hand back"):
+        _trial(synth, there_and_back)
+
+
 def test_a_glitch_after_a_gap_in_the_rest_names_the_recording_s_frame(reach, synth):
     spiked = _gapped(reach, slice(5, 30))
     spiked["FT"][55, 0] += 0.5
@@ -360,6 +372,25 @@ def test_ue_adl_fingertip_occluded_at_rest(synth, caplog, name, side, frames):
     np.testing.assert_allclose(
         np.degrees(cut.q[cut.onset : cut.offset + 1]), np.degrees(whole.q[whole.onset : whole.offset + 1]), atol=0.01
     )
+    # the same arm: its lengths come from every frame where its joints are seen, not from the frames kept
+    for k in ("upper_arm", "forearm", "elbow_fingertip"):
+        assert cut.lengths[k] == pytest.approx(whole.lengths[k], rel=1e-3)
+
+
+def test_ue_adl_a_marker_seen_for_a_frame_in_a_long_gap_does_not_stand_for_rest(synth):
+    """Occluded from the rest into the reach but for one frame, with a short (filled) gap over the onset or the
+    offset: the one frame is not seen rest, and the gap is refused (it used to move onset or offset by 6-10
+    frames)."""
+    d = synth.SAMPLE / "ADL001"
+    static, md = read_vicon_csv(d / "ADL001_static.csv"), read_vicon_csv(d / "ADL001FR1.csv")  # reach: 62-172
+    for long, short in (((20, 55), (56, 64)), ((177, 230), (168, 176))):
+        occluded = {k: np.array(v) for k, v in md.markers.items()}
+        occluded["RFTP"][slice(*long)] = np.nan
+        occluded["RFTP"][slice(*short)] = np.nan
+        with pytest.raises(InputError, match=rf"\({long[0] + 1}-{long[1]}\), .*, and the reach is not seen in rest"):
+            reconstruct_markers(
+                MarkerData(md.rate, occluded, source=md.source), load_markerset("ue-adl"), static=static
+            )
 
 
 def test_options_are_validated():

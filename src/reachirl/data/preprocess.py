@@ -12,7 +12,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    through the seen frames (the nearest value at the ends of the record); a longer run is an
    :class:`InputError` naming the marker and the frames, unless it lies in the rest before or after the reach
    (a marker occluded while the hand rests): the record is then cut at the gap (:func:`seen_window`), with a
-   warning, when the reach begins and ends in rest seen for :data:`MIN_SEEN_REST_S` beside it.
+   warning, when the reach begins and ends in rest seen (every joint, filled frames not counted) for
+   :data:`MIN_SEEN_REST_S` beside it, and, after a gap before it, extends the arm (not a return).
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
@@ -40,7 +41,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
 8. **Planar IK**: ``"segments"`` (default): q1 from the shoulder→elbow direction and q2 from the
    elbow→``distal`` direction (fingertip by default: segment 2 of the model is forearm + hand; ``"wrist"`` for
    the anatomical elbow); ``"fingertip"``: Berret's 2-link IK of the fingertip alone (:meth:`ArmModel.ik`).
-9. **Segment lengths** (:func:`estimate_lengths`): medians over frames of the 3-D joint-centre distances. l2
+9. **Segment lengths** (:func:`estimate_lengths`): medians of the 3-D joint-centre distances over every frame of
+   the record where both joints are seen (a part cut off at a gap included). l2
    is the elbow→fingertip distance (the hand is lumped with a frozen wrist). Lengths in the subject-info file,
    when given, win; the arm is :meth:`ArmModel.from_anthropometrics` with the subject's sex, height and mass.
 10. **Derivatives and torques**: a cubic spline through the filtered angles over the whole record gives q̇ and
@@ -319,7 +321,8 @@ def joint_positions(
             out[joint] = (np.mean(arrs, axis=0), "+".join(spec.markers))
         else:
             cl = np.stack([_marker(md, m, f"{joint} cluster") for m in spec.cluster], axis=1)
-            out[joint] = (cast_reconstruct(cl, *calib[joint]), f"{joint} (cluster {spec.cluster[0]}..)")
+            label = f"{joint} cluster {'/'.join(spec.cluster)} (fewer than 3 of its markers seen)"
+            out[joint] = (cast_reconstruct(cl, *calib[joint]), label)
     return out
 
 
@@ -359,7 +362,7 @@ def seen_window(
         x = x[np.all(np.isfinite(x), axis=1)]
         return float(np.linalg.norm(np.ptp(x, axis=0))) if x.shape[0] >= 2 else -1.0
 
-    runs = [r for r in runs if r[1] - r[0] >= min_frames and travel(r) > 0]
+    runs = [r for r in runs if r[1] - r[0] >= min_frames and travel(r) >= 0.0]
     if not runs:
         label, s, e = gaps[0]
         raise InputError(_gap_message(label, s, e, max_gap), source)
@@ -598,7 +601,8 @@ def planar_ik_segments(elbow: np.ndarray, distal: np.ndarray) -> np.ndarray:
 
 def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
     """Median 3-D distances: ``upper_arm`` (shoulder→elbow), ``forearm`` (elbow→wrist), ``elbow_fingertip``,
-    ``hand`` (wrist→fingertip), ``reach`` (shoulder→fingertip), with their SDs under ``<name>_sd``."""
+    ``hand`` (wrist→fingertip), ``reach`` (shoulder→fingertip), with their SDs under ``<name>_sd``, over the frames
+    where both joints are seen (not NaN)."""
     pairs = {
         "upper_arm": ("shoulder", "elbow"),
         "forearm": ("elbow", "wrist"),
@@ -610,6 +614,7 @@ def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
     for name, (a, b) in pairs.items():
         if a in joints and b in joints:
             d = np.linalg.norm(joints[b] - joints[a], axis=1)
+            d = d[np.isfinite(d)]
             out[name] = float(np.median(d))
             out[f"{name}_sd"] = float(np.std(d))
     return out
@@ -687,20 +692,27 @@ class MarkerReconstruction:
     first_frame: int = 0  # the record's frame (0-based) at t[0]: > 0 when a long gap in the rest was cut off
 
 
-def _check_window(window: SeenWindow, onset: int, offset: int, md: MarkerData, options, src) -> None:
-    """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when the
-    reach begins and ends in rest seen for :data:`MIN_SEEN_REST_S` inside the cut: the gaps then lie in the rest
-    before or after it (a marker occluded while the hand rests), reported as a warning. Otherwise the first gap
-    beside the reach is refused as :func:`fill_gaps` refuses it."""
-    rest = max(1, round(MIN_SEEN_REST_S * md.rate))
+def _check_window(
+    window: SeenWindow, onset: int, offset: int, seen: np.ndarray, reach_length: np.ndarray, rate: float, options, src
+) -> None:
+    """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when the reach
+    begins and ends in rest *seen* (every joint, no filled frame counted) for :data:`MIN_SEEN_REST_S` inside the
+    cut, and, after a gap cut off before it, extends the arm (``reach_length``, shoulder to fingertip at onset and
+    offset): the gaps then lie in the rest before or after it (a marker occluded while the hand rests), reported
+    as a warning. Otherwise the gap beside the reach is refused as :func:`fill_gaps` refuses it. ``seen`` is the
+    cut's frames where every joint was seen."""
+    rest = max(1, round(MIN_SEEN_REST_S * rate))
     before = [g for g in window.gaps if g[2] <= window.start]
     after = [g for g in window.gaps if g[1] >= window.stop]
-    if (before and onset < rest) or (after and window.stop - window.start - 1 - offset < rest):
-        label, s, e = before[-1] if before and onset < rest else after[0]
-        raise InputError(
-            _gap_message(label, s, e, options.max_gap_frames) + ", and the reach is not seen in rest beside it",
-            src,
-        )
+    why = None
+    if before and np.count_nonzero(seen[:onset]) < rest:
+        why, gap = "the reach is not seen in rest beside it", before[-1]
+    elif after and np.count_nonzero(seen[offset + 1 :]) < rest:
+        why, gap = "the reach is not seen in rest beside it", after[0]
+    elif before and reach_length[offset] < reach_length[onset]:
+        why, gap = "the movement seen after it brings the hand back: a return, not the reach", before[-1]
+    if why is not None:
+        raise InputError(f"{_gap_message(gap[0], gap[1], gap[2], options.max_gap_frames)}, and {why}", src)
     for label, s, e in window.gaps:
         log.warning(
             "%s: marker %s is missing for %d frames (%d-%d), in the rest %s the reach; the trial is cut from "
@@ -780,7 +792,8 @@ def reconstruct_markers(
     window = seen_window(positions, options.max_gap_frames, src, max(10, _filter_padlen(options.filter_order) + 1))
     cropped = slice(window.start, window.stop)
     joints = {j: fill_gaps(p[cropped], options.max_gap_frames, label, src) for j, (p, label) in positions.items()}
-    lengths = estimate_lengths(joints)
+    # the arm from every frame where its joints are seen, cut off or not: the same reach, the same arm
+    lengths = estimate_lengths({j: p for j, (p, _) in positions.items()})
     _check_units(lengths, options, src)
 
     up = _axis(options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up)  # the file's own first
@@ -801,6 +814,12 @@ def reconstruct_markers(
     vel = np.gradient(joints["fingertip"], t, axis=0)
     speed = np.linalg.norm(vel, axis=1)
     if not np.isfinite(speed).all() or speed.max() < options.min_peak_speed:
+        if window.gaps:  # the movement is in a gap
+            label, s0, e0 = max(window.gaps, key=lambda g: g[2] - g[1])
+            raise InputError(
+                f"{_gap_message(label, s0, e0, options.max_gap_frames)}, and no reach is seen outside the long gaps",
+                src,
+            )
         raise InputError(
             f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
             f"(< {options.min_peak_speed:g} m/s)",
@@ -832,7 +851,9 @@ def reconstruct_markers(
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if window.gaps:
-        _check_window(window, onset, offset, md, options, src)
+        seen = np.all([np.all(np.isfinite(p[cropped]), axis=1) for p, _ in positions.values()], axis=0)
+        length = np.linalg.norm(joints["fingertip"] - joints["shoulder"], axis=1)
+        _check_window(window, onset, offset, seen, length, md.rate, options, src)
     cut = {"before": onset == 0 and window.start == 0, "after": offset == len(t) - 1 and window.stop == md.n_frames}
     if all(cut.values()):
         log.warning(
