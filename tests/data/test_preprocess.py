@@ -297,19 +297,19 @@ def test_a_long_gap_in_the_rest_is_cut_off_with_a_warning(reach, synth, caplog, 
 
 
 @pytest.mark.parametrize(
-    "frames",
+    ("frames", "why"),
     [
-        slice(25, 52),  # ends 0.02 s before the reach: its onset is not seen in rest
-        slice(65, 85),  # inside the reach
-        slice(125, 140),  # ends just after the reach's offset
+        (slice(25, 52), "the reach does not begin in 0.1 s of seen rest after it"),  # ends 0.02 s before the reach
+        (slice(65, 85), "the reach does not begin in 0.1 s of seen rest after it"),  # inside the reach
+        (slice(125, 140), "the reach does not end in 0.1 s of seen rest before it"),  # just after the reach
     ],
 )
-def test_a_long_gap_beside_or_inside_the_reach_is_refused(reach, synth, frames):
+def test_a_long_gap_beside_or_inside_the_reach_is_refused(reach, synth, frames, why):
     a, b = frames.indices(len(reach.t))[:2]
     with pytest.raises(
         InputError,
         match=rf"s\.trc: marker FT is missing for {b - a} frames \({a + 1}-{b}\), longer than the 10 frames gap "
-        r"filling allows \(--max-gap\), and the reach is not seen in rest beside it",
+        rf"filling allows \(--max-gap\), and {why}$",
     ):
         _trial(synth, _gapped(reach, frames))
 
@@ -322,15 +322,40 @@ def test_a_gap_that_hides_the_reach_or_leaves_only_its_return_is_refused(reach, 
     # the reach, 0.5 s at the bar, and the same movement back: the fingertip hidden from the rest into the reach
     there_and_back = {k: np.concatenate([v, np.asarray(v)[::-1][1:]]) for k, v in reach.markers.items()}
     there_and_back["FT"][5:120] = np.nan
-    with pytest.raises(InputError, match=r"\(6-120\), .*, and the movement seen after it brings the hand back"):
+    with pytest.raises(InputError, match=r"\(6-120\), .*, and the fingertip moves 20\d mm across it: the hand is not"):
+        _trial(synth, there_and_back)
+    there_and_back["FT"][:5] = np.nan  # hidden from the record's start: only the return is seen
+    with pytest.raises(InputError, match=r"\(1-120\), .*, and the movement seen after it shortens the arm: a return"):
         _trial(synth, there_and_back)
 
 
 def test_a_glitch_after_a_gap_in_the_rest_names_the_recording_s_frame(reach, synth):
-    spiked = _gapped(reach, slice(5, 30))
+    spiked = {k: np.array(v) for k, v in reach.markers.items()}
     spiked["FT"][55, 0] += 0.5
-    with pytest.raises(InputError, match=r"s\.trc: frame 5[67]: the fingertip moves 500 mm in one frame"):
+    with pytest.raises(InputError, match=r"frame 5[67]: the fingertip moves 500 mm") as whole:
         _trial(synth, spiked)
+    spiked["FT"][5:30] = np.nan  # the record is now cut at frame 31
+    with pytest.raises(InputError) as cut:
+        _trial(synth, spiked)
+    assert str(cut.value) == str(whole.value)
+
+
+def test_nested_gaps_name_the_one_beside_the_reach(reach, synth):
+    nested = _gapped(reach, slice(5, 48), "SH")  # the shoulder hidden up to 0.07 s before the reach
+    nested["FT"][10:30] = np.nan
+    with pytest.raises(InputError, match=r"marker SH is missing for 43 frames \(6-48\), .*, and the reach does not"):
+        _trial(synth, nested)
+
+
+def test_lengths_leave_out_a_pair_never_seen_together():
+    from reachirl.data.preprocess import estimate_lengths
+
+    a = np.zeros((6, 3))
+    b = np.array([[0.3, 0, 0]] * 3 + [[np.nan] * 3] * 3)
+    c = np.array([[np.nan] * 3] * 3 + [[0.3, 0.25, 0]] * 3)
+    out = estimate_lengths({"shoulder": a, "elbow": b, "fingertip": c})
+    assert out["upper_arm"] == pytest.approx(0.3) and out["reach"] == pytest.approx(np.hypot(0.3, 0.25))
+    assert "elbow_fingertip" not in out
 
 
 # ---------------------------------------------------------------------- real data (the shipped sample)
@@ -387,7 +412,10 @@ def test_ue_adl_a_marker_seen_for_a_frame_in_a_long_gap_does_not_stand_for_rest(
         occluded = {k: np.array(v) for k, v in md.markers.items()}
         occluded["RFTP"][slice(*long)] = np.nan
         occluded["RFTP"][slice(*short)] = np.nan
-        with pytest.raises(InputError, match=rf"\({long[0] + 1}-{long[1]}\), .*, and the reach is not seen in rest"):
+        with pytest.raises(
+            InputError,
+            match=rf"\({long[0] + 1}-{long[1]}\), .*, and the reach does not (begin|end) in 0.1 s of seen rest",
+        ):
             reconstruct_markers(
                 MarkerData(md.rate, occluded, source=md.source), load_markerset("ue-adl"), static=static
             )

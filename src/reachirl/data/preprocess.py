@@ -12,8 +12,10 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    through the seen frames (the nearest value at the ends of the record); a longer run is an
    :class:`InputError` naming the marker and the frames, unless it lies in the rest before or after the reach
    (a marker occluded while the hand rests): the record is then cut at the gap (:func:`seen_window`), with a
-   warning, when the reach begins and ends in rest seen (every joint, filled frames not counted) for
-   :data:`MIN_SEEN_REST_S` beside it, and, after a gap before it, extends the arm (not a return).
+   warning, when the gap is shown to lie in the rest (:func:`_check_window`): the reach begins and ends in
+   0.1 s of rest seen right before and after it, the fingertip is in the same place on both sides of the gap,
+   and what is kept is a reach (it moves the fingertip by at least a tenth of the shoulder-fingertip distance
+   and, after a gap before it, extends the arm).
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
@@ -104,6 +106,11 @@ MAX_MARKER_ACCELERATION = 200.0
 #: s: a record cut at a gap longer than gap filling allows must show this much rest between the gap and the reach
 #: (the reach's onset or offset is then seen, not inferred at the gap's edge)
 MIN_SEEN_REST_S = 0.1
+#: m: how far the fingertip may drift across a gap cut off as rest (a hand at rest drifts by millimetres)
+MAX_REST_DRIFT_M = 0.02
+#: the least fingertip movement, as a fraction of the shoulder-to-fingertip distance, of a reach seen beside a gap
+#: cut off (the virtual subjects' bars lie at least 0.1 arm lengths beyond the start)
+MIN_CUT_REACH = 0.1
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
@@ -166,13 +173,20 @@ def _axis(spec: str) -> np.ndarray:
     return v
 
 
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """The runs ``[start, end)`` of True in a boolean ``(n,)`` mask."""
+    d = np.diff(np.r_[0, np.asarray(mask, dtype=int), 0])
+    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)]
+
+
+def _seen(x: np.ndarray) -> np.ndarray:
+    """The frames of ``x`` (``(n,)`` or ``(n, d)``) with every coordinate seen (finite)."""
+    return np.all(np.isfinite(np.asarray(x, dtype=float).reshape(np.shape(x)[0], -1)), axis=1)
+
+
 def long_gaps(x: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
     """The runs ``[start, end)`` of unseen frames of ``x`` (``(n,)`` or ``(n, d)``) longer than ``max_gap``."""
-    flat = np.asarray(x, dtype=float).reshape(np.shape(x)[0], -1)
-    missing = ~np.all(np.isfinite(flat), axis=1)
-    d = np.diff(np.r_[0, missing.astype(int), 0])
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    return [(int(s), int(e)) for s, e in zip(starts, ends, strict=True) if e - s > max_gap]
+    return [(s, e) for s, e in _runs(~_seen(x)) if e - s > max_gap]
 
 
 def _gap_message(name: str, start: int, end: int, max_gap: int) -> str:
@@ -339,10 +353,13 @@ def seen_window(
     positions: Mapping[str, tuple[np.ndarray, str]], max_gap: int, source: object = None, min_frames: int = 10
 ) -> SeenWindow:
     """Where a record with gaps longer than ``max_gap`` can still give a trial: of the stretches of at least
-    ``min_frames`` between such gaps (of any joint), the one over which the fingertip travels furthest, which
-    holds the reach; the whole record when no gap is that long. :func:`reconstruct_markers` then requires the
-    reach to begin and end in seen rest inside it (:data:`MIN_SEEN_REST_S`), so a gap that hides any of the
-    reach is still refused."""
+    ``min_frames`` between such gaps (of any joint), the one where the arm extends most (the fingertip's largest
+    gain in distance from the shoulder over the stretch's first seen frame), which holds the reach rather than
+    rest or a return; the whole record when no gap is that long. :func:`reconstruct_markers` then checks that
+    every gap cut off lies in the rest (:func:`_check_window`)."""
+    for p, label in positions.values():
+        if not _seen(p).any():
+            raise InputError(f"marker {label} is never seen", source)
     n = next(iter(positions.values()))[0].shape[0]
     blocked = np.zeros(n, dtype=bool)
     gaps = []
@@ -353,20 +370,18 @@ def seen_window(
     if not gaps:
         return SeenWindow(0, n, ())
     gaps.sort(key=lambda g: g[1])
-    d = np.diff(np.r_[0, (~blocked).astype(int), 0])
-    runs = [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)]
-    tip = positions["fingertip"][0]
+    distance = np.linalg.norm(positions["fingertip"][0] - positions["shoulder"][0], axis=1)  # NaN where unseen
 
-    def travel(run: tuple[int, int]) -> float:
-        x = tip[run[0] : run[1]]
-        x = x[np.all(np.isfinite(x), axis=1)]
-        return float(np.linalg.norm(np.ptp(x, axis=0))) if x.shape[0] >= 2 else -1.0
+    def extension(run: tuple[int, int]) -> float:
+        d = distance[run[0] : run[1]]
+        d = d[np.isfinite(d)]
+        return float(d.max() - d[0]) if d.size >= 2 else -1.0
 
-    runs = [r for r in runs if r[1] - r[0] >= min_frames and travel(r) >= 0.0]
+    runs = [r for r in _runs(~blocked) if r[1] - r[0] >= min_frames and extension(r) >= 0.0]
     if not runs:
         label, s, e = gaps[0]
         raise InputError(_gap_message(label, s, e, max_gap), source)
-    start, stop = max(runs, key=travel)
+    start, stop = max(runs, key=extension)
     return SeenWindow(start, stop, tuple(gaps))
 
 
@@ -602,7 +617,7 @@ def planar_ik_segments(elbow: np.ndarray, distal: np.ndarray) -> np.ndarray:
 def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
     """Median 3-D distances: ``upper_arm`` (shoulder→elbow), ``forearm`` (elbow→wrist), ``elbow_fingertip``,
     ``hand`` (wrist→fingertip), ``reach`` (shoulder→fingertip), with their SDs under ``<name>_sd``, over the frames
-    where both joints are seen (not NaN)."""
+    where both joints are seen (not NaN); a pair never seen together is left out."""
     pairs = {
         "upper_arm": ("shoulder", "elbow"),
         "forearm": ("elbow", "wrist"),
@@ -615,6 +630,8 @@ def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
         if a in joints and b in joints:
             d = np.linalg.norm(joints[b] - joints[a], axis=1)
             d = d[np.isfinite(d)]
+            if d.size == 0:  # never seen together (gaps longer than --max-gap on alternate sides): not measured
+                continue
             out[name] = float(np.median(d))
             out[f"{name}_sd"] = float(np.std(d))
     return out
@@ -693,30 +710,64 @@ class MarkerReconstruction:
 
 
 def _check_window(
-    window: SeenWindow, onset: int, offset: int, seen: np.ndarray, reach_length: np.ndarray, rate: float, options, src
+    window: SeenWindow,
+    onset: int,
+    offset: int,
+    seen: np.ndarray,
+    positions: Mapping[str, tuple[np.ndarray, str]],
+    cut_tip: np.ndarray,
+    rate: float,
+    max_gap: int,
+    src: object,
 ) -> None:
-    """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when the reach
-    begins and ends in rest *seen* (every joint, no filled frame counted) for :data:`MIN_SEEN_REST_S` inside the
-    cut, and, after a gap cut off before it, extends the arm (``reach_length``, shoulder to fingertip at onset and
-    offset): the gaps then lie in the rest before or after it (a marker occluded while the hand rests), reported
-    as a warning. Otherwise the gap beside the reach is refused as :func:`fill_gaps` refuses it. ``seen`` is the
-    cut's frames where every joint was seen."""
+    """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when those
+    gaps lie in the rest: the reach (``onset``/``offset``, frames of the cut) begins and ends in rest seen
+    (every joint, no filled frame) for :data:`MIN_SEEN_REST_S` right before and after it; the fingertip is in
+    the same place (within :data:`MAX_REST_DRIFT_M`) on both sides of each gap it is seen beyond; after a gap
+    before it, the reach extends the arm (it is not a return); and it moves the fingertip by at least
+    :data:`MIN_CUT_REACH` of the shoulder-to-fingertip distance (not a fidget or noise while the reach is
+    hidden). Each gap cut off is then reported as a warning; otherwise the gap beside the reach is refused as
+    :func:`fill_gaps` refuses it. ``seen``: the cut's frames where every joint was seen; ``cut_tip``: the cut's
+    fingertip, gaps filled."""
     rest = max(1, round(MIN_SEEN_REST_S * rate))
     before = [g for g in window.gaps if g[2] <= window.start]
     after = [g for g in window.gaps if g[1] >= window.stop]
-    why = None
-    if before and np.count_nonzero(seen[:onset]) < rest:
-        why, gap = "the reach is not seen in rest beside it", before[-1]
-    elif after and np.count_nonzero(seen[offset + 1 :]) < rest:
-        why, gap = "the reach is not seen in rest beside it", after[0]
-    elif before and reach_length[offset] < reach_length[onset]:
-        why, gap = "the movement seen after it brings the hand back: a return, not the reach", before[-1]
+    near_before = max(before, key=lambda g: g[2]) if before else None
+    near_after = min(after, key=lambda g: g[1]) if after else None
+    tip = positions["fingertip"][0]
+    shoulder = positions["shoulder"][0]
+    tip_seen = _seen(tip)
+    distance = np.linalg.norm(tip - shoulder, axis=1)
+    on, off = window.start + onset, window.start + offset  # frames of the record
+    why = gap = None
+    if near_before and (onset < rest or not seen[onset - rest : onset].all()):
+        why, gap = f"the reach does not begin in {MIN_SEEN_REST_S:g} s of seen rest after it", near_before
+    elif near_after and (offset + rest >= len(seen) or not seen[offset + 1 : offset + 1 + rest].all()):
+        why, gap = f"the reach does not end in {MIN_SEEN_REST_S:g} s of seen rest before it", near_after
+    if why is None:
+        for g in window.gaps:
+            i = np.flatnonzero(tip_seen[: g[1]])
+            j = np.flatnonzero(tip_seen[g[2] :])
+            if i.size and j.size:
+                moved = float(np.linalg.norm(tip[g[2] + j[0]] - tip[i[-1]]))
+                inside = tip[g[1] : g[2]][tip_seen[g[1] : g[2]]]
+                if inside.shape[0] >= 2:
+                    moved = max(moved, float(np.linalg.norm(np.ptp(inside, axis=0))))
+                if moved > MAX_REST_DRIFT_M:
+                    why, gap = f"the fingertip moves {moved * 1000:.0f} mm across it: the hand is not at rest", g
+                    break
+    if why is None and near_before and np.nanmax(distance[on : off + 1]) <= distance[on]:
+        why, gap = "the movement seen after it shortens the arm: a return (a reach extends it)", near_before
+    reach = float(np.linalg.norm(cut_tip[offset] - cut_tip[onset]))
+    if why is None and not reach >= MIN_CUT_REACH * float(np.nanmedian(distance)):
+        why = f"what is seen beside it moves the fingertip only {reach * 1000:.0f} mm: not the reach"
+        gap = near_before or near_after
     if why is not None:
-        raise InputError(f"{_gap_message(gap[0], gap[1], gap[2], options.max_gap_frames)}, and {why}", src)
+        raise InputError(f"{_gap_message(gap[0], gap[1], gap[2], max_gap)}, and {why}", src)
     for label, s, e in window.gaps:
         log.warning(
-            "%s: marker %s is missing for %d frames (%d-%d), in the rest %s the reach; the trial is cut from "
-            "frames %d-%d",
+            "%s: marker %s is missing for %d frames (%d-%d), in the rest %s the reach; the record is used from "
+            "frame %d to %d",
             src,
             label,
             e - s,
@@ -851,9 +902,8 @@ def reconstruct_markers(
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if window.gaps:
-        seen = np.all([np.all(np.isfinite(p[cropped]), axis=1) for p, _ in positions.values()], axis=0)
-        length = np.linalg.norm(joints["fingertip"] - joints["shoulder"], axis=1)
-        _check_window(window, onset, offset, seen, length, md.rate, options, src)
+        seen = np.all([_seen(p[cropped]) for p, _ in positions.values()], axis=0)
+        _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
     cut = {"before": onset == 0 and window.start == 0, "after": offset == len(t) - 1 and window.stop == md.n_frames}
     if all(cut.values()):
         log.warning(
