@@ -501,8 +501,8 @@ def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05, reach: np.nd
 
 def _moving_runs(speed: np.ndarray, thr: float) -> tuple[np.ndarray, np.ndarray]:
     """The first and last frames of each run of frames whose speed is at least ``thr``."""
-    moving = np.r_[False, speed >= thr, False]
-    return np.flatnonzero(~moving[:-1] & moving[1:]), np.flatnonzero(moving[:-1] & ~moving[1:]) - 1
+    runs = np.array(_runs(speed >= thr), dtype=int).reshape(-1, 2)
+    return runs[:, 0], runs[:, 1] - 1
 
 
 def other_reach(
