@@ -49,6 +49,13 @@ def test_fill_gaps_short_by_spline_long_refused():
     g[60:75] = np.nan
     with pytest.raises(InputError, match=r"f\.trc: marker EL is missing for 15 frames \(61-75\), longer than the 10"):
         fill_gaps(g, max_gap=10, name="EL", source="f.trc")
+    one = x.copy()
+    one[50] = np.nan
+    with pytest.raises(InputError, match=r"marker EL is missing in frame 51, and gap filling is off \(--max-gap 0\)$"):
+        fill_gaps(one, max_gap=0, name="EL")
+    one[51] = np.nan
+    with pytest.raises(InputError, match=r"missing for 2 frames \(51-52\), longer than the 1 frame gap filling allows"):
+        fill_gaps(one, max_gap=1, name="EL")
 
 
 def test_lowpass_zero_lag_removes_noise():

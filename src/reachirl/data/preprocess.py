@@ -190,10 +190,11 @@ def long_gaps(x: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
 
 
 def _gap_message(name: str, start: int, end: int, max_gap: int) -> str:
-    return (
-        f"marker {name} is missing for {end - start} frames ({start + 1}-{end}), longer than the {max_gap} "
-        "frames gap filling allows (--max-gap)"
-    )
+    where = f"in frame {end}" if end - start == 1 else f"for {end - start} frames ({start + 1}-{end})"
+    if max_gap == 0:
+        return f"marker {name} is missing {where}, and gap filling is off (--max-gap 0)"
+    limit = "1 frame" if max_gap == 1 else f"{max_gap} frames"
+    return f"marker {name} is missing {where}, longer than the {limit} gap filling allows (--max-gap)"
 
 
 def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object | None = None) -> np.ndarray:
