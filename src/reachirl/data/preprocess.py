@@ -189,8 +189,13 @@ def long_gaps(x: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
     return [(s, e) for s, e in _runs(~_seen(x)) if e - s > max_gap]
 
 
+def _gap_where(start: int, end: int) -> str:
+    """Frames ``[start, end)`` (0-based) in words, 1-based: ``in frame 21``, ``for 20 frames (21-40)``."""
+    return f"in frame {end}" if end - start == 1 else f"for {end - start} frames ({start + 1}-{end})"
+
+
 def _gap_message(name: str, start: int, end: int, max_gap: int) -> str:
-    where = f"in frame {end}" if end - start == 1 else f"for {end - start} frames ({start + 1}-{end})"
+    where = _gap_where(start, end)
     if max_gap == 0:
         return f"marker {name} is missing {where}, and gap filling is off (--max-gap 0)"
     limit = "1 frame" if max_gap == 1 else f"{max_gap} frames"
@@ -767,13 +772,10 @@ def _check_window(
         raise InputError(f"{_gap_message(gap[0], gap[1], gap[2], max_gap)}, and {why}", src)
     for label, s, e in window.gaps:
         log.warning(
-            "%s: marker %s is missing for %d frames (%d-%d), in the rest %s the reach; the record is used from "
-            "frame %d to %d",
+            "%s: marker %s is missing %s, in the rest %s the reach; the record is used from frame %d to %d",
             src,
             label,
-            e - s,
-            s + 1,
-            e,
+            _gap_where(s, e),
             "before" if e <= window.start else "after",
             window.start + 1,
             window.stop,
