@@ -210,14 +210,15 @@ def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object 
     """
     x = np.array(x, dtype=float)
     flat = x.reshape(x.shape[0], -1)
-    missing = ~np.all(np.isfinite(flat), axis=1)
+    missing = ~_seen(flat)
     if not missing.any():
         return x
     n = missing.shape[0]
     if missing.all():
         raise InputError(f"marker {name} is never seen", source)
-    for s, e in long_gaps(x, max_gap):
-        raise InputError(_gap_message(name, s, e, max_gap), source)
+    for s, e in _runs(missing):
+        if e - s > max_gap:
+            raise InputError(_gap_message(name, s, e, max_gap), source)
     seen = np.flatnonzero(~missing)
     out = flat.copy()
     if seen.size >= 2:
@@ -907,7 +908,7 @@ def reconstruct_markers(
     if window.gaps:
         seen = np.all([_seen(p[cropped]) for p, _ in positions.values()], axis=0)
         _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
-    cut = {"before": onset == 0 and window.start == 0, "after": offset == len(t) - 1 and window.stop == md.n_frames}
+    cut = {"before": onset == 0, "after": offset == len(t) - 1}  # beside a gap cut off, _check_window refused it
     if all(cut.values()):
         log.warning(
             "%s: no rest before or after the movement; the record's edges are used: the reach may be a fragment of "
