@@ -195,3 +195,50 @@ def test_a_model_that_would_not_load_is_not_built(kwargs, match):
 
     with pytest.raises(ValueError, match=match):
         LearnedModel(**kwargs)
+
+
+def test_simulate_plays_the_prediction_evaluate_scores(fitted):
+    """An observed model's playback is of the reach `evaluate` scores (its part above the onset threshold, from
+    the fit's rollout), not of the DOC over the trial's own duration."""
+    pytest.importorskip("mujoco")
+    from reachirl.irl.model import load_model
+    from reachirl.sim.simulate import simulate_trial
+
+    _, path, model_path = fitted
+    model = load_model(model_path)
+    trial = next(t for t in load_trials(path) if t.subject == "S02")
+    scored = model.evaluate([trial])[0].prediction
+    played = simulate_trial(
+        trial, model.weights, model.n_nodes, substeps=1, observe=model.observe, path=model.rollout_q
+    )
+    np.testing.assert_array_equal(played.solution.q, scored.q)
+    assert played.solution.t[-1] < trial.duration / 0.9 * 0.99  # the observed part, not the rest-to-rest DOC
+    # at the DOC's own step, MuJoCo's semi-implicit Euler from the part's first (moving) state retraces it
+    assert played.result.rmse_deg["q"] < 1e-6 and abs(played.result.final_x_error) < 1e-9
+
+
+def test_simulate_leaves_a_failed_doc_out_of_its_summary(fitted, tmp_path, capsys, monkeypatch):
+    pytest.importorskip("mujoco")
+    import reachirl.sim.simulate as sim
+
+    _, path, model = fitted
+    real = sim.predict
+
+    def failing_first(trial, *args, **kwargs):
+        whole, seen = real(trial, *args, **kwargs)
+        if trial.trial_id == "T0":
+            whole, seen = replace(whole, converged=False), replace(seen, converged=False)
+        return whole, seen
+
+    monkeypatch.setattr(sim, "predict", failing_first)
+    out = tmp_path / "sim.json"
+    capsys.readouterr()
+    assert main(["simulate", "--model", str(model), str(path), "--subject", "S02", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "S02/P2/right/T0: DOC (casadi) NOT converged" in text
+    summary = next(line for line in text.splitlines() if "trials: RMSE" in line)
+    assert summary.startswith("2 of 3 trials") and summary.endswith("1 DOC failure(s) left out")
+    rows = json.loads(out.read_text())
+    assert rows["doc_failures"] == 1 and [t["doc"]["converged"] for t in rows["trials"]] == [False, True, True]
+    kept = [t["mujoco"]["rmse_deg"]["q"] for t in rows["trials"][1:]]
+    assert f"RMSE q {np.mean(kept):.3f} ± {np.std(kept):.3f}°" in summary

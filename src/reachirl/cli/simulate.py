@@ -1,9 +1,11 @@
 """``reachirl simulate --model MODEL.json TRIALS [--render OUT.gif] [--trial ID|INDEX ...] [--backend B]
 [--mode M]``.
 
-Predicts each selected trial with the learned weights, plays the DOC's torques back in MuJoCo (open loop or
-with PD tracking) and prints how far MuJoCo's reach drifts from the DOC's; optionally renders the reaches (the
-demonstrations as translucent ghosts) to a GIF or MP4.
+Predicts each selected trial with the learned weights as evaluate does (the same reach whose RMSE evaluate
+reports), plays the prediction's torques back in MuJoCo (open loop or with PD tracking) and prints how far
+MuJoCo's reach drifts from the DOC's; optionally renders the reaches (the demonstrations as translucent ghosts,
+on the same normalised time) to a GIF or MP4. A prediction whose DOC did not converge is played and reported,
+but left out of the summary over trials.
 """
 
 from __future__ import annotations
@@ -205,6 +207,8 @@ def run(args: argparse.Namespace) -> int:
             substeps=args.substeps,
             kp=args.kp,
             kd=args.kd,
+            observe=model.observe,
+            path=model.rollout_q,
         )
         sims.append(s)
         r, d = s.result, s.solution
@@ -214,13 +218,19 @@ def run(args: argparse.Namespace) -> int:
             f"{r.rmse_deg['q']:.3f}° (q1 {r.rmse_deg['q1']:.3f}°, q2 {r.rmse_deg['q2']:.3f}°), "
             f"max {r.max_abs_deg:.3f}°, final fingertip x error {1000 * r.final_x_error:+.2f} mm"
         )
-    if len(sims) > 1:
-        rm = np.array([s.result.rmse_deg["q"] for s in sims])
-        fx = np.array([abs(s.result.final_x_error) for s in sims])
-        print(
-            f"{len(sims)} trials: RMSE q {rm.mean():.3f} ± {rm.std():.3f}°, |final x error| "
-            f"{1000 * fx.mean():.2f} ± {1000 * fx.std():.2f} mm"
-        )
+    kept = [s for s in sims if s.solution.converged]
+    failed = len(sims) - len(kept)
+    if len(sims) > 1 or failed:
+        left_out = f"; {failed} DOC failure(s) left out" if failed else ""
+        if kept:
+            rm = np.array([s.result.rmse_deg["q"] for s in kept])
+            fx = np.array([abs(s.result.final_x_error) for s in kept])
+            print(
+                f"{len(kept)} of {len(sims)} trials: RMSE q {rm.mean():.3f} ± {rm.std():.3f}°, |final x error| "
+                f"{1000 * fx.mean():.2f} ± {1000 * fx.std():.2f} mm{left_out}"
+            )
+        else:
+            print(f"0 of {len(sims)} trials: every DOC failed, no summary{left_out}")
     if args.out is not None:
         atomic_write_json(
             args.out,
@@ -228,6 +238,7 @@ def run(args: argparse.Namespace) -> int:
                 "backend": backend,
                 "mode": args.mode,
                 "substeps": args.substeps,
+                "doc_failures": failed,
                 "trials": [s.summary() for s in sims],
             },
         )

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..data.trial import Trial
-from ..doc import DocSolution, ReachingTask, solve_doc
+from ..doc import DocSolution
+from ..doc.observation import observed_task, predict
 from .playback import PlaybackResult, playback
 from .render import RenderClip, render_frames, write_animation
 
@@ -55,23 +56,27 @@ def simulate_trial(
     substeps: int = 10,
     kp: float = 50.0,
     kd: float = 5.0,
+    observe: bool = False,
+    path: np.ndarray | None = None,
 ) -> TrialSimulation:
-    """Predict ``trial`` with ``solve_doc(ReachingTask.from_trial(trial, n_nodes), weights)`` and play the
-    torques in MuJoCo.
-    """
-    task = ReachingTask.from_trial(trial, n_nodes)
-    sol = solve_doc(task, weights, backend=backend)
-    if not sol.converged:
-        log.warning("trial %s: the DOC did not converge (%s)", trial.id, sol.status)
-    result, trace = playback(
-        trial.arm, sol, mode=mode, substeps=substeps, kp=kp, kd=kd, target_x=task.target_x, record=True
-    )
-    trace_t = np.linspace(0.0, task.duration, trace.shape[0])
+    """Predict ``trial`` as :func:`reachirl.doc.evaluation.evaluate_trials` does (``observe`` and ``path`` as
+    there; a model's are :attr:`~reachirl.irl.model.LearnedModel.observe` and ``rollout_q``) and play that
+    prediction's torques in MuJoCo from its first state: with ``observe``, the DOC's part above the trial's onset
+    threshold, the reach whose RMSE ``evaluate`` reports."""
+    threshold = trial.onset_threshold if observe else None
+    whole, sol = predict(trial, weights, n_nodes, threshold, backend, path=path)
+    if not whole.converged:
+        log.warning("trial %s: the DOC did not converge (%s)", trial.id, whole.status)
+    target_x = observed_task(trial, n_nodes, threshold).target_x
+    result, trace = playback(trial.arm, sol, mode=mode, substeps=substeps, kp=kp, kd=kd, target_x=target_x, record=True)
+    trace_t = np.linspace(0.0, float(sol.t[-1]), trace.shape[0])
     return TrialSimulation(trial=trial, solution=sol, result=result, trace_t=trace_t, trace_q=trace)
 
 
-def _demo_interpolant(trial: Trial):
-    t, q = trial.t, trial.q
+def _demo_interpolant(trial: Trial, duration: float):
+    """The trial's joint angles at a time of a ``duration``-long playback, on normalised time (as predictions are
+    compared with it)."""
+    t, q = trial.t / trial.duration * duration, trial.q
 
     def demo_q(s: float) -> np.ndarray:
         return np.array([np.interp(s, t, q[:, 0]), np.interp(s, t, q[:, 1])])
@@ -90,9 +95,9 @@ def render_simulations(
     """Render the simulations one after another (demonstrations as ghosts) to ``path``; returns (path,
     frames).
     """
-    clips = [
-        RenderClip(s.trial.arm, s.trace_t, s.trace_q, s.trial.target_x, _demo_interpolant(s.trial) if ghost else None)
-        for s in sims
-    ]
+    clips = []
+    for s in sims:
+        ghost_q = _demo_interpolant(s.trial, float(s.trace_t[-1])) if ghost else None
+        clips.append(RenderClip(s.trial.arm, s.trace_t, s.trace_q, s.trial.target_x, ghost_q))
     frames = render_frames(clips, fps=fps, width=width, height=height)
     return write_animation(path, frames, fps=fps)
