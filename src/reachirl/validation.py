@@ -12,10 +12,12 @@ can make a solver hang, a buffer exhaust the memory or an arithmetic overflow pr
 from __future__ import annotations
 
 import errno
+import json
 import math
 import os
 import tempfile
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -164,15 +166,38 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     return p
 
 
-def check_output_kind(path: str | os.PathLike | None, suffix: str, option: str = "--out") -> None:
+def check_output_kind(
+    path: str | os.PathLike | None,
+    suffix: str,
+    option: str = "--out",
+    kind: tuple[str, Callable[[object], bool]] | None = None,
+) -> None:
     """Before any work (once the inputs are known not to be ``path``): a file already at ``path`` is of the kind
-    the command writes (``suffix``, e.g. ``".json"``): a command replaces its own earlier output, never a file of
-    another kind given by mistake (a trials file, a model)."""
+    the command writes (``suffix``, e.g. ``".json"``; with ``kind = (name, recognises)``, a JSON file whose content
+    ``recognises`` accepts): a command replaces its own earlier output, never a file of another kind given by
+    mistake (a trials file, a model, another command's JSON, a file of the user's own)."""
     if path is None:
         return
     p = Path(path)
-    if p.is_file() and p.suffix.lower() != suffix:
+    if not p.is_file():
+        return
+    if p.suffix.lower() != suffix:
         raise InputError(f"{option}: exists and is not a {suffix} file; it would be replaced (choose another path)", p)
+    if kind is not None:
+        name, recognises = kind
+        try:
+            if p.stat().st_size > MAX_FILE_BYTES:
+                raise ValueError
+            content = json.loads(p.read_text(encoding="utf-8"))
+            ok = recognises(content)
+        except (OSError, ValueError):
+            ok = False
+        if not ok:
+            raise InputError(
+                f"{option}: exists and is not a {name} (an earlier output of this command); it would be replaced "
+                "(choose another path, or remove it first)",
+                p,
+            )
 
 
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:

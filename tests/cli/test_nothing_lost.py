@@ -236,6 +236,79 @@ def test_a_recording_guard_never_raises_inside_the_solver(ctrl_c):
     assert not interrupt_pending()
 
 
+@pytest.mark.parametrize(
+    "command, other",
+    [("evaluate", "model"), ("fit", "metrics"), ("simulate", "model"), ("fit", "user"), ("evaluate", "sim")],
+)
+def test_out_never_replaces_a_json_of_another_kind(base, tmp_path, capsys, command, other):
+    """A JSON --out that exists must be the command's own earlier output: a model, another command's JSON or a
+    file of the user's own, given by mistake, is refused and left as it was."""
+    metrics, sim = tmp_path / "metrics.json", tmp_path / "sim.json"
+    assert main(["evaluate", "--model", str(base / "model.json"), str(base / "trials.npz"), "--out", str(metrics)]) == 0
+    existing = {
+        "model": tmp_path / "model.json",
+        "metrics": metrics,
+        "sim": sim,
+        "user": tmp_path / "notes.json",
+    }[other]
+    if other == "model":
+        shutil.copy(base / "model.json", existing)
+    elif other == "sim":
+        existing.write_text('{"backend": "casadi", "mode": "pd", "substeps": 10, "trials": []}')
+    elif other == "user":
+        existing.write_text('{"my": "own notes"}')
+    before = _digest(existing)
+    capsys.readouterr()
+    argv = {
+        "evaluate": ["evaluate", "--model", base / "model.json", base / "trials.npz", "--out", existing],
+        "fit": ["fit", base / "trials.npz", "--sections", "1", "--nodes", "20", "--out", existing],
+        "simulate": [
+            "simulate",
+            "--model",
+            base / "model.json",
+            base / "trials.npz",
+            "--trial",
+            "0",
+            "--out",
+            existing,
+        ],
+    }[command]
+    argv += ["--out", existing] if command == "simulate" else []
+    kind = {"evaluate": "METRICS", "fit": "MODEL", "simulate": "SIM"}[command]
+    _fails(argv, capsys, rf"{existing.name}: --out: exists and is not a {kind}\.json \(an earlier output")
+    assert _digest(existing) == before
+
+
+def test_out_replaces_the_commands_own_earlier_output(base, tmp_path):
+    out = tmp_path / "model.json"
+    argv = ["fit", str(base / "trials.npz"), "--nodes", "20", "--max-iter", "1", "--out", str(out)]
+    assert main([*argv, "--sections", "1"]) == 0 and main([*argv, "--sections", "2"]) == 0
+    assert len(json.loads(out.read_text())["weights"]) == 2
+
+
+@pytest.mark.parametrize("command", ["preprocess", "evaluate"])
+def test_out_inside_the_export_folder_is_refused(base, tmp_path, capsys, command):
+    """--out as the index.csv that --export (or --predictions) writes would leave the trials or metrics lost."""
+    folder = tmp_path / "EX"
+    out = folder / ".." / "EX" / "index.csv"
+    argv = {
+        "preprocess": ["preprocess", base / "syn", "--markers", MARKERS, "--out", out, "--export", folder],
+        "evaluate": [
+            "evaluate",
+            "--model",
+            base / "model.json",
+            base / "trials.npz",
+            "--out",
+            out,
+            "--predictions",
+            folder,
+        ],
+    }[command]
+    option = "--export" if command == "preprocess" else "--predictions"
+    _fails(argv, capsys, rf"--out is index\.csv, a file that {option} writes into .*EX; give each output its own path")
+    assert not (folder / "index.csv").exists()
+
+
 # ---------------------------------------------------------------------- 3. only regular files are read
 @pytest.mark.parametrize("command", ["preprocess", "fit", "evaluate", "simulate"])
 def test_a_fifo_as_input_is_refused_at_once(base, tmp_path, capsys, command):

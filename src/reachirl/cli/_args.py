@@ -95,7 +95,7 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
 
 def same_file(a: Path, b: Path) -> bool:
     """Whether ``a`` and ``b`` are one file: the same path (existing or not), a symlink or a hard link."""
-    if Path(a).absolute() == Path(b).absolute():
+    if os.path.abspath(a) == os.path.abspath(b):  # abspath also folds "x/../"
         return True
     try:
         return os.path.samefile(a, b)
@@ -120,12 +120,18 @@ def refuse_overwrite(outputs: dict[str, object], inputs) -> None:
                 )
 
 
-def output_folder_files(folder: object, names, inputs, option: str) -> None:
+def output_folder_files(folder: object, names, inputs, option: str, outputs: dict[str, object] | None = None) -> None:
     """Before any work: none of the files ``names`` that a command will write into ``folder`` is one of
-    ``inputs`` (as :func:`refuse_overwrite`)."""
+    ``inputs`` (as :func:`refuse_overwrite`) or one of the command's other ``outputs`` (``{option: path}``)."""
     if folder is None:
         return
     refuse_overwrite({f"{option} ({Path(folder) / n})": Path(folder) / n for n in names}, inputs)
+    for other, path in (outputs or {}).items():
+        hit = next((n for n in names if path is not None and same_file(Path(folder) / n, Path(path))), None)
+        if hit is not None:
+            raise InputError(
+                f"{other} is {hit}, a file that {option} writes into {folder}; give each output its own path", path
+            )
 
 
 def export_names(ids) -> list[str]:
@@ -152,3 +158,26 @@ def regular_input(path: object, option: str | None = None) -> Path:
     from ..io import check_regular_file
 
     return check_regular_file(path, option)
+
+
+def _keys(*names: str) -> Callable[[object], bool]:
+    return lambda d: isinstance(d, dict) and set(names) <= d.keys()
+
+
+def _bench_json(d: object) -> bool:
+    return isinstance(d, dict) and bool(d) and set(d) <= {"doc", "predict", "backends", "irl"}  # bench's suites
+
+
+def _model_json(d: object) -> bool:
+    from ..irl.model import MODEL_FORMAT
+
+    return isinstance(d, dict) and d.get("format") == MODEL_FORMAT
+
+
+#: the JSON outputs a command may replace (its own earlier output): a name and how its content is recognised
+JSON_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
+    "fit": ("MODEL.json", _model_json),
+    "evaluate": ("METRICS.json", _keys("model", "trials_file", "summary", "trials")),
+    "simulate": ("SIM.json", _keys("backend", "mode", "substeps", "trials")),
+    "bench": ("BENCH.json", _bench_json),
+}

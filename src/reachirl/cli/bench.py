@@ -57,9 +57,10 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"unknown benchmark suite(s) {unknown}; choose from {list(SUITES)}")
     if args.out is not None:
         from ..validation import check_output_file, check_output_kind
+        from ._args import JSON_KINDS
 
         check_output_file(args.out)
-        check_output_kind(args.out, ".json")
+        check_output_kind(args.out, ".json", kind=JSON_KINDS["bench"])
     results = {}
     for suite in suites:
         module = _load(suite)

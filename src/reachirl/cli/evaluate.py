@@ -18,6 +18,7 @@ from ..irl.model import load_model
 from ..irl.provenance import fingerprint
 from ..validation import check_output_dir, check_output_file, check_output_kind
 from ._args import (
+    JSON_KINDS,
     PREDICTION_BACKEND_HELP,
     add_selection,
     chosen_trials,
@@ -106,14 +107,14 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
         check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
     refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
-    check_output_kind(args.out, ".json")
+    check_output_kind(args.out, ".json", kind=JSON_KINDS["evaluate"])
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.predictions is not None:
         names = export_names(tr.id for tr in trials)
-        output_folder_files(args.predictions, names, [args.model, args.trials, args.out], "--predictions")
+        output_folder_files(args.predictions, names, [args.model, args.trials], "--predictions", {"--out": args.out})
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))

@@ -15,7 +15,7 @@ from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
 from ..irl.uncertainty import UNDETERMINED_WIDTH
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
-from ._args import add_selection, chosen_trials, int_in, refuse_overwrite
+from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
     console = Console(stderr=True)
     check_output_file(args.out)
     refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
-    check_output_kind(args.out, ".json")
+    check_output_kind(args.out, ".json", kind=JSON_KINDS["fit"])
     experimental = _experimental(args.config, args.sections, args.seed_form)
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:

@@ -307,10 +307,11 @@ def run(args) -> int:
     options = _options(args)
     if args.markers and args.markerset:
         raise InputError("give --markers or --markerset, not both (--markers would win and --markerset be ignored)")
-    _folder_defaults(args)
     out = check_output_file(args.out)
-    if args.export is not None:  # before any work: a folder in which files can be written
+    if args.export is not None:  # before any work: a folder in which files can be written, and not the trials file's
         check_output_dir(args.export, "--export")
+        output_folder_files(args.export, ["index.csv"], [], "--export", {"--out": out})
+    _folder_defaults(args)
     if args.manifest:
         entries = read_manifest(args.manifest)
         if args.inputs:  # the manifest describes the files given; each must be in it
@@ -351,7 +352,7 @@ def run(args) -> int:
     )
     _refuse_duplicate_ids(trials)
     if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
-        output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export")
+        output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export", {"--out": out})
     save_trials(out, trials)
     if args.export is not None:
         from ..data.exports import TrajectoryExport, export_trajectories

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ._args import (
+    JSON_KINDS,
     PREDICTION_BACKEND_HELP,
     add_selection,
     chosen_trials,
@@ -171,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         if path is not None:
             check_output_file(path, opt)
     refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
-    check_output_kind(args.out, ".json")
+    check_output_kind(args.out, ".json", kind=JSON_KINDS["simulate"])
     if args.out is not None and args.render is not None and same_file(args.out, args.render):
         raise InputError("--render and --out are the same file; give each its own", args.render)
     if args.render is not None:
