@@ -128,6 +128,26 @@ def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     _same_table(out, reference_run)
 
 
+def test_a_rerun_with_other_options_stopped_early_leaves_no_earlier_results(trials_file, reference_run, tmp_path):
+    """A rerun into a finished run's folder with other options, stopped before its end (here by --max-units; an
+    interrupt stops at the same place), leaves neither the earlier tables nor its unit models beside the new
+    run.toml: the folder reads as unfinished."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main([*argv, "--seed", "1", "--max-units", "1"]) == 0
+    assert tomllib.loads((out / "run.toml").read_text())["seed"] == 1
+    finished = ("table.md", "table.csv", "report.md", "results.json")
+    assert not any((out / f).exists() for f in finished)
+    assert not list((out / "figures").glob("fig*.png")) and not list((out / "predictions").iterdir())
+    models = [json.loads(p.read_text())["info"] for p in (out / "models").glob("*.json")]
+    assert len(models) == 1  # only the new run's finished unit (the earlier run wrote 4)
+    assert main(argv) == 0  # and back to the earlier options: its units are still checkpointed, reused
+    _same_table(out, reference_run)
+
+
 def test_a_rerun_into_the_folder_of_another_run_leaves_none_of_its_outputs(trials_file, reference_run, tmp_path):
     """A run with more methods once left its methods figure, models and predictions beside the new run's; the
     checkpoints stay (to be reused), and so does a file reachirl never writes."""

@@ -460,7 +460,7 @@ def run(args) -> int:
 
     from ..experiments import datasets
     from ..experiments.rendering import FigureWorkers
-    from ..experiments.report import write_outputs
+    from ..experiments.report import remove_previous_outputs, write_outputs
     from ..experiments.runner import reproduce
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -517,6 +517,9 @@ def run(args) -> int:
     log_lines = opts.get("progress", True) and not err.is_terminal  # e.g. a log file: one line per unit
 
     def on_start(total, reused):
+        # an earlier run's results go before this run's run.toml and first unit: an interrupted rerun never leaves
+        # them looking finished beside options they were not run with (its checkpoints stay, to be reused)
+        remove_previous_outputs(out)
         write_run_toml()
         state["task"] = progress.add_task("reproduce", total=total)
         state["total"] = total

@@ -504,19 +504,18 @@ def _unit_model(path: Path) -> bool:
     return isinstance(info, dict) and info.get("unit") == path.stem and d.get("format") == MODEL_FORMAT
 
 
-def remove_previous_outputs(run: RunResult) -> list[Path]:
-    """What an earlier run into the same folder wrote and this one will not write again: its tables, report and
-    results.json (rewritten at the end; ``iscv_pairs.csv`` and ``posture_transfer.csv`` too, rewritten when
-    this run has them), its figures (redrawn; a figure this run does not draw, such as the
-    methods' comparison of a run with more methods, would stay beside the new ones), the models (those a run
-    wrote for a unit: never a model file of the user's own) and prediction folders of units this run does not
-    have. The checkpoints (``units/``) stay, to be reused. Returns what was
-    removed."""
+def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str] = frozenset()) -> list[Path]:
+    """What an earlier run into ``out_dir`` wrote and a run of units ``keys`` will not write again: its tables,
+    report and results.json (``iscv_pairs.csv`` and ``posture_transfer.csv`` too), its figures (redrawn; a figure
+    this run does not draw, such as the methods' comparison of a run with more methods, would stay beside the new
+    ones), the models (those a run wrote for a unit: never a model file of the user's own) and prediction folders
+    of units not in ``keys``. The checkpoints (``units/``) stay, to be reused. ``reachirl reproduce`` calls it
+    with no keys before its first unit, so that an interrupted rerun never leaves an earlier run's results
+    looking finished beside the new run's ``run.toml``. Returns what was removed."""
     import re
     import shutil
 
-    out = Path(run.out_dir)
-    keys = {*run.results, *run.pairs, *run.transfer}
+    out = Path(out_dir)
     tables = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
     removed = [out / n for n in tables if (out / n).is_file()]
     names = "|".join(Path(n).stem for n in _DRAW_ORDER)
@@ -529,7 +528,7 @@ def remove_previous_outputs(run: RunResult) -> list[Path]:
         f.unlink(missing_ok=True)
     if (out / "predictions").is_dir():
         for d in (out / "predictions").iterdir():
-            if d.is_dir() and d.name not in run.results and (d / "index.csv").is_file():
+            if d.is_dir() and d.name not in keys and (d / "index.csv").is_file():
                 shutil.rmtree(d)
                 removed.append(d)
     return removed
@@ -547,7 +546,7 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     """
     t0 = time.perf_counter()
     out, config = run.out_dir, run.config
-    remove_previous_outputs(run)
+    remove_previous_outputs(run.out_dir, {*run.results, *run.pairs, *run.transfer})
     postures, sections, methods = run.postures, list(config.sections), list(config.methods)
     results = run.results
     tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
