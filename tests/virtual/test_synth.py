@@ -288,6 +288,45 @@ def test_cli_synth_refuses_a_bar_at_the_start(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.parametrize("theirs", ["subjects.csv", "manifest.csv", "S01_P4_T01.trc"])
+def test_cli_synth_never_writes_over_a_folder_it_did_not_make(tmp_path, capsys, theirs):
+    """A folder of the user's own (UE-ADL's subjects.csv, a lab's manifest or recordings named as synth names
+    them) is refused before any work and left as it was; an earlier synth set is replaced."""
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / theirs).write_text("the user's own\n")
+    argv = ["synth", "--out", str(out), "--subjects", "1", "--trials", "1", "--postures", "P4", "--workers", "1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--out holds {theirs} and is not an earlier synth data set" in err[0]
+    assert (out / theirs).read_text() == "the user's own\n" and sorted(p.name for p in out.iterdir()) == [theirs]
+    (out / theirs).unlink()
+    assert main(argv) == 0 and main([*argv, "--seed", "1"]) == 0  # into its own earlier set
+    assert json.loads((out / "truth.json").read_text())["config"]["seed"] == 1
+
+
+def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_truth(tmp_path, monkeypatch):
+    """Ctrl-C while the recordings are written: the earlier set's truth.json and manifest are gone, so the folder
+    cannot be read as the earlier set with some of its recordings replaced."""
+    out = tmp_path / "o"
+    cfg = {**SMALL, "postures": ("P4",), "n_trials": 2}
+    generate(out, SynthConfig(**cfg))
+    written = []
+
+    def interrupted(path, *args, **kwargs):
+        if written:
+            raise KeyboardInterrupt
+        written.append(path)
+        return real(path, *args, **kwargs)
+
+    real = files.write_trc
+    monkeypatch.setattr(files, "write_trc", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        generate(out, SynthConfig(**{**cfg, "seed": 1}))
+    assert not any((out / n).exists() for n in ("truth.json", "manifest.csv", "subjects.csv"))
+    assert files.synth_folder_clash(out) == "S01_P4_T01.trc"  # and synth then refuses it, rather than mixing
+
+
 # ---------------------------------------------------------------------- slow: the full built-in data set
 @pytest.mark.slow
 def test_builtin_dataset_full(tmp_path, monkeypatch):

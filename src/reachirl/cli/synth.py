@@ -24,7 +24,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             "--markers shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
         ),
     )
-    p.add_argument("--out", required=True, help="output folder (created if needed)")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="output folder: a new one, one without synth's file names, or an earlier synth data set (replaced)",
+    )
     p.add_argument(
         "--subjects", type=int_in(1, 100), default=2, help="number of virtual subjects, 1 to 100 (default 2)"
     )
@@ -67,6 +71,15 @@ def run(args) -> int:
     from ..validation import check_output_dir
 
     check_output_dir(args.out)
+    from ..virtual.files import synth_folder_clash
+
+    clash = synth_folder_clash(args.out)
+    if clash is not None:
+        raise InputError(
+            f"--out holds {clash} and is not an earlier synth data set (no truth.json from reachirl synth); synth "
+            "would replace it: choose a new folder, or empty this one",
+            args.out,
+        )
     try:
         result = generate(args.out, config)
     except OSError as e:

@@ -102,6 +102,27 @@ def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
     return trials
 
 
+SYNTH_FILES = ("manifest.csv", "subjects.csv", "truth.json", "human_likeness.csv")
+"""The files ``generate`` writes beside the recordings."""
+
+
+def synth_folder_clash(out_dir: str | Path) -> str | None:
+    """The first file in ``out_dir`` that ``generate`` could replace (:data:`SYNTH_FILES`, or a recording named as
+    synth names them) when ``out_dir`` is not an earlier synth data set (one whose ``truth.json``, written last,
+    says ``reachirl synth`` made it); else None. A set interrupted before its ``truth.json`` is such a folder."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return None
+    try:
+        truth = json.loads((out_dir / "truth.json").read_text())
+        if isinstance(truth, dict) and truth.get("generator") == "reachirl.synth":
+            return None
+    except (OSError, ValueError):
+        pass
+    names = sorted(f.name for f in out_dir.iterdir())
+    return next((n for n in names if n in SYNTH_FILES or _RECORDING.fullmatch(n)), None)
+
+
 def _worker_signals() -> None:
     """A generation worker: Ctrl-C is the parent's business (it ends the workers), SIGTERM ends it at once."""
     import signal
@@ -117,7 +138,11 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
     ``subjects.csv`` (``subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m``), ``truth.json`` and
     ``human_likeness.csv``. The same config gives byte-identical files. Into the folder of an earlier data set,
     the recordings its ``manifest.csv`` listed and this one does not write are removed (the folder holds what its
-    manifest and ``truth.json`` describe; other files stay).
+    manifest and ``truth.json`` describe; other files stay). Its ``truth.json``, manifest and the other files
+    above are removed before the first recording is written and written again last (``truth.json`` the very
+    last), so an interrupted run never leaves new recordings described by the earlier set. A folder that holds
+    one of these files and is not an earlier data set (:func:`synth_folder_clash`) is refused by ``reachirl
+    synth`` before any work.
     """
     config = config or SynthConfig()
     out_dir = Path(out_dir)
@@ -126,6 +151,9 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
     subjects = tuple(draw_subject(config.seed, i) for i in range(config.n_subjects))
     trials = _run_groups(subjects, config)
     failures = sum(tr.doc_retries for tr in trials)
+    earlier = {n for n in csv_column(out_dir / "manifest.csv", "file") if _RECORDING.fullmatch(n)}
+    for name in ("truth.json", *SYNTH_FILES):  # the earlier set's description goes before its recordings change
+        (out_dir / name).unlink(missing_ok=True)
     manifest = []
     for tr in trials:
         name = _file_name(tr, config.fmt)
@@ -136,8 +164,6 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
         else:
             write_mot(out_dir / name, tr.time, tr.angles_deg, columns=("q1", "q2"))
         manifest.append([name, tr.subject, tr.posture, "right"])
-    earlier = {n for n in csv_column(out_dir / "manifest.csv", "file") if _RECORDING.fullmatch(n)}
-    atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
     for name in earlier - {row[0] for row in manifest}:
         (out_dir / name).unlink(missing_ok=True)
     atomic_write_text(
@@ -153,6 +179,7 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
         out_dir / "human_likeness.csv",
         _csv_text(keys, [[f"{r[k]:.6g}" if isinstance(r[k], float) else r[k] for k in keys] for r in hl]),
     )
+    atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
     atomic_write_json(out_dir / "truth.json", _truth(config, subjects, trials, failures, hl))
     elapsed = time.perf_counter() - t0
     log.info(
