@@ -639,3 +639,32 @@ def test_the_last_word_on_a_signal_is_never_muted(monkeypatch, capsys):
     print("noise", file=sys.stderr)
     assert cli._interrupted(argparse.Namespace(command="sensitivity"), terminated=True) == 143
     assert capsys.readouterr().err == "reachirl sensitivity: terminated\n"
+
+
+@pytest.mark.parametrize("command", ["evaluate", "preprocess"])
+def test_an_interrupted_export_leaves_no_earlier_index_or_main_output(base, tmp_path, capsys, monkeypatch, command):
+    """Ctrl-C while the trajectories are exported: the earlier run's index.csv and main output (METRICS.json, the
+    trials file) are gone, so nothing reads as finished over a mix of two runs' files; the rerun writes both."""
+    import reachirl.data.exports as ex
+
+    folder, out = tmp_path / "EX", tmp_path / ("m.json" if command == "evaluate" else "t.npz")
+    argv = {
+        "evaluate": ["evaluate", "--model", base / "model.json", base / "trials.npz", "--predictions", folder],
+        "preprocess": ["preprocess", base / "syn" / "S01_P2_T01.trc", "--markers", MARKERS, "--export", folder],
+    }[command] + ["--out", out]
+    argv = [str(a) for a in argv]
+    assert main(argv) == 0 and (folder / "index.csv").is_file() and out.is_file()
+    real, calls = ex.atomic_write_text, []
+
+    def interrupted(path, text):
+        calls.append(path)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(path, text)
+
+    monkeypatch.setattr(ex, "atomic_write_text", interrupted)
+    capsys.readouterr()
+    assert main(argv) == 130
+    assert not (folder / "index.csv").exists() and not out.exists()
+    monkeypatch.undo()
+    assert main(argv) == 0 and (folder / "index.csv").is_file() and out.is_file()

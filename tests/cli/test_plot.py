@@ -3,6 +3,7 @@ the same trial choice, and reads the model through the one checked loader."""
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -242,3 +243,66 @@ def test_simulate_leaves_a_failed_doc_out_of_its_summary(fitted, tmp_path, capsy
     assert rows["doc_failures"] == 1 and [t["doc"]["converged"] for t in rows["trials"]] == [False, True, True]
     kept = [t["mujoco"]["rmse_deg"]["q"] for t in rows["trials"][1:]]
     assert f"RMSE q {np.mean(kept):.3f} ± {np.std(kept):.3f}°" in summary
+
+
+def _figures_drawn(monkeypatch) -> dict:
+    """``{file name: (title, [(x, y) of each line of the first axes])}`` of every figure saved from now on."""
+    from reachirl.experiments import figures as fg
+
+    drawn, real = {}, fg.save
+
+    def save(fig, path, close=True):
+        lines = [(ln.get_xdata(), ln.get_ydata()) for ln in fig.axes[0].get_lines()]
+        drawn[Path(path).name] = (fig._suptitle.get_text() if fig._suptitle else "", lines)
+        real(fig, path, close=close)
+
+    monkeypatch.setattr(fg, "save", save)
+    return drawn
+
+
+def test_plot_leaves_a_failed_prediction_out_and_says_so(fitted, tmp_path, capsys, monkeypatch):
+    """A prediction whose DOC failed is not an answer of the model: it is not drawn as one, and the title counts
+    it; an earlier figure set in the folder does not stay beside the new one."""
+    import reachirl.doc.evaluation as ev
+
+    _, path, model = fitted
+    out = tmp_path / "figs"
+    out.mkdir()
+    (out / "convergence.png").write_bytes(b"an earlier model's")
+    real = ev.predict
+
+    def failing_first(trial, *args, **kwargs):
+        whole, seen = real(trial, *args, **kwargs)
+        return (whole, replace(seen, converged=False)) if trial.trial_id == "T0" else (whole, seen)
+
+    monkeypatch.setattr(ev, "predict", failing_first)
+    drawn = _figures_drawn(monkeypatch)
+    argv = ["plot", "--model", str(model), str(path), "--subject", "S02", "--no-pdf", "--out", str(out)]
+    assert main(argv) == 0
+    title, lines = drawn["prediction.png"]
+    assert "2 demonstration(s) (dashed) vs predictions (solid) (1 of 3 DOC failure(s) not drawn)" in title
+    assert len(lines) == 4  # a demonstration and a prediction for each of the two converged trials
+    assert "convergence.png" in drawn and (out / "convergence.png").read_bytes() != b"an earlier model's"
+
+
+def test_plot_draws_a_bilevel_search_per_evaluation_and_names_the_seed_form(fitted, tmp_path, monkeypatch):
+    import json as js
+
+    _, path, model = fitted
+    d = js.loads(model.read_text())
+    history = [{"evaluation": k + 1, "merit": m, "converged": True} for k, m in enumerate((0.5, 0.4, np.inf, 0.3))]
+    bilevel = tmp_path / "bilevel.json"
+    bilevel.write_text(
+        js.dumps({**d, "method": "bilevel", "info": {**d["info"], "method": "bilevel", "history": history}})
+    )
+    seed = tmp_path / "seed.json"
+    seed.write_text(js.dumps({**d, "info": {**d["info"], "seed_form": True}}))
+    drawn = _figures_drawn(monkeypatch)
+    for m, out in ((bilevel, "b"), (seed, "s")):
+        argv = ["plot", "--model", str(m), str(path), "--subject", "S02", "--no-pdf", "--out", str(tmp_path / out)]
+        assert main(argv) == 0
+        if m == bilevel:  # the convergence figure: one point per evaluation whose DOC converged
+            title, lines = drawn["convergence.png"]
+            assert title == "bilevel: merit of each evaluation"
+            assert [list(x) for x, _ in lines] == [[1, 2, 4]] and list(lines[0][1]) == [0.5, 0.4, 0.3]
+    assert all(drawn[f][0].startswith("moirl (seed form)") for f in ("prediction.png", "weights.png"))

@@ -91,6 +91,7 @@ def test_bilevel_respects_its_budget_and_records_every_evaluation(demos):
     assert len(est.history_) <= est.n_doc_solves_ <= 15
     assert est.history_[-1]["doc_solves"] == est.n_doc_solves_
     assert est.stop_reason_ == "max_evals"
+    assert any("stopped at its budget of 15 DOC solves (max_evals)" in w for w in est.warnings_)  # said, not silent
     merits = [h["merit"] for h in est.history_]
     assert est.merit_ == pytest.approx(min(merits))
     best = est.history_[int(np.argmin(merits))]

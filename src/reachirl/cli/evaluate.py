@@ -119,6 +119,12 @@ def run(args: argparse.Namespace) -> int:
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
+    # METRICS.json last, an earlier one removed first: an interrupt never leaves it beside other predictions
+    Path(args.out).unlink(missing_ok=True)
+    if args.predictions is not None:
+        from ..data.exports import export_trajectories
+
+        export_trajectories(args.predictions, prediction_exports(trials, errors))
     # a mean that cannot be computed (every DOC failed) is written with its reason, never a bare null
     atomic_write_json(
         args.out,
@@ -135,10 +141,7 @@ def run(args: argparse.Namespace) -> int:
         ),
     )
     print(summary_line(summary, backend))
-    print(f"wrote {args.out}")
     if args.predictions is not None:
-        from ..data.exports import export_trajectories
-
-        export_trajectories(args.predictions, prediction_exports(trials, errors))
         print(f"wrote {len(errors)} trajectories (.csv, .mot) and index.csv to {args.predictions}")
+    print(f"wrote {args.out}")
     return 0

@@ -219,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"wrote {args.out}: {args.method}{form}, {args.sections} section(s), "
         f"{_iterations(info)}, {info['n_doc_solves']} DOC solves ({args.backend})"
+        + (f" of which {info['n_doc_failures']} did not converge" if info.get("n_doc_failures") else "")
         + (f", {info['fit_time_s']:.1f} s" if isinstance(info["fit_time_s"], int | float) else "")
         + extra
     )

@@ -60,6 +60,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
+MODEL_FIGURES = ("prediction", "weights", "convergence")
+"""The figures of ``plot --model``, by file stem."""
+
+
 def _save(fig, out: Path, stem: str, pdf: bool, written: list[Path]) -> None:
     from ..experiments import figures as fg
 
@@ -81,20 +85,28 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
 
     n, n_nodes = model.n_windows, model.n_nodes
     written: list[Path] = []
-    demos = [t.resample(n_nodes + 1) for t in trials]
-    arrays = {
-        "trials/t": np.stack([e.prediction.t for e in errors]),
-        "trials/pred_q": np.stack([e.prediction.q for e in errors]),
-        "trials/pred_qd": np.stack([e.prediction.qd for e in errors]),
-        "trials/demo_q": np.stack([d.q for d in demos]),
-        "trials/demo_qd": np.stack([d.qd for d in demos]),
-    }
+    for stem in MODEL_FIGURES:  # an earlier set's figures go first: an interrupt or a figure not drawn never mixes
+        for ext in ("png", "pdf"):
+            (out / f"{stem}.{ext}").unlink(missing_ok=True)
+    method = model.method + (" (seed form)" if model.info.get("seed_form") else "")
+    drawn = [(t, e) for t, e in zip(trials, errors, strict=True) if e.converged]  # a failed DOC is no prediction
+    failed = len(errors) - len(drawn)
     rmse = summarise(errors)["rmse_deg"]["q"]["mean"]  # as `evaluate` reports it
-    title = (
-        f"{model.method}, {n} section{'s' if n > 1 else ''}: {len(trials)} demonstration(s) (dashed) vs "
-        "predictions (solid); " + ("no prediction converged" if rmse is None else f"mean RMSE of q {rmse:.2f}°")
-    )
-    _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
+    if drawn:
+        demos = [t.resample(n_nodes + 1) for t, _ in drawn]
+        arrays = {
+            "trials/t": np.stack([e.prediction.t for _, e in drawn]),
+            "trials/pred_q": np.stack([e.prediction.q for _, e in drawn]),
+            "trials/pred_qd": np.stack([e.prediction.qd for _, e in drawn]),
+            "trials/demo_q": np.stack([d.q for d in demos]),
+            "trials/demo_qd": np.stack([d.qd for d in demos]),
+        }
+        left_out = f" ({failed} of {len(errors)} DOC failure(s) not drawn)" if failed else ""
+        title = (
+            f"{method}, {n} section{'s' if n > 1 else ''}: {len(drawn)} demonstration(s) (dashed) vs "
+            f"predictions (solid){left_out}; mean RMSE of q {rmse:.2f}°"
+        )
+        _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     shares = model.cost_shares()  # on the fit's own reach: the shares its intervals bracket
     unc = model.uncertainty
     if shares is not None:
@@ -109,7 +121,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
             [label],
             [n],
             undetermined=undetermined,
-            title=f"{model.method}: each feature's share of its window's cost",
+            title=f"{method}: each feature's share of its window's cost",
         ),
         out,
         "weights",
@@ -117,18 +129,21 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
         written,
     )
     history = model.info.get("history") or []
-    if any(h.get("merit") is not None for h in history):
+    # MO-IRL and MaxEnt record iterations; bilevel's direct search records every DOC evaluation instead
+    x_key = next((k for k in ("iteration", "evaluation") if any(h.get(k) is not None for h in history)), None)
+    if x_key is not None and any(h.get("merit") is not None for h in history):
         from ..experiments.method import convergence_text
 
         options = model.info.get("options")  # every option in force, when the model file records them
         words = convergence_text(options if isinstance(options, dict) else {"observe": model.info.get("observe")})
         _save(
             fg.plot_convergence(
-                {(model.method, n): history},
+                {(method, n): history},
                 [n],
-                title=f"{model.method}: convergence",
+                title=f"{method}: convergence" if x_key == "iteration" else f"{method}: merit of each evaluation",
                 merit_label=words["merit_label"],
                 start=words["start"],
+                x_key=x_key,
             ),
             out,
             "convergence",

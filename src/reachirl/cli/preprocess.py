@@ -353,7 +353,8 @@ def run(args) -> int:
     _refuse_duplicate_ids(trials)
     if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
         output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export", {"--out": out})
-    save_trials(out, trials)
+    # the trials file last, an earlier one removed first: an interrupt never leaves it beside another export
+    out.unlink(missing_ok=True)
     if args.export is not None:
         from ..data.exports import TrajectoryExport, export_trajectories
 
@@ -364,6 +365,7 @@ def run(args) -> int:
                 for tr in trials
             ],
         )
+    save_trials(out, trials)
     if infos is None:
         print(
             "note: no --subject-info; masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)",

@@ -232,6 +232,12 @@ def run(args: argparse.Namespace) -> int:
             )
         else:
             print(f"0 of {len(sims)} trials: every DOC failed, no summary{left_out}")
+    for path in (args.out, args.render):  # an earlier run's go first: an interrupt never leaves one beside the other
+        if path is not None:
+            Path(path).unlink(missing_ok=True)
+    if args.render is not None:
+        path, n_frames = sim.render_simulations(sims, args.render, fps=args.fps, width=args.size, height=args.size)
+        print(f"wrote {path} ({n_frames} frames)")
     if args.out is not None:
         atomic_write_json(
             args.out,
@@ -244,7 +250,4 @@ def run(args: argparse.Namespace) -> int:
             },
         )
         print(f"wrote {args.out}")
-    if args.render is not None:
-        path, n_frames = sim.render_simulations(sims, args.render, fps=args.fps, width=args.size, height=args.size)
-        print(f"wrote {path} ({n_frames} frames)")
     return 0

@@ -147,12 +147,14 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
 
     Two ids that map to one file name get ``-2``, ``-3`` ... appended. The files an earlier export listed in
     ``out_dir``'s ``index.csv`` and this one does not write are removed, so that the folder holds what its index
-    says (a user's other files stay).
+    says (a user's other files stay). The earlier ``index.csv`` goes first and the new one is written last, so an
+    interrupted export leaves a folder without an index, never an index over a mix of two exports.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # what an earlier export listed (a file name this module made, never a path)
     earlier = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
+    (out / "index.csv").unlink(missing_ok=True)
     used: set[str] = set()
     index = [INDEX_COLUMNS]
     for it in items:

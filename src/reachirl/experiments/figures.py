@@ -251,10 +251,12 @@ def plot_convergence(
     title: str = "",
     merit_label: str = "merit m(x)",
     start: str = "the initial weights ω₀",
+    x_key: str = "iteration",
 ):
     """``histories[(posture, sections)] = [{"iteration", "merit", ...}]``: merit (log scale) per iteration.
     ``merit_label`` names the merit and its units on the y axis; ``start`` says what the weights of iteration 0
-    are (the x axis)."""
+    are (the x axis). ``x_key="evaluation"``: a direct search's history (bilevel), one point per DOC evaluation
+    whose DOC converged."""
     fig, axes = _grid(axes, 1, len(sections), (3.6 * len(sections) + 0.6, 3.2))
     postures = sorted({p for p, _ in histories}, key=natural_key)
     colours = plt.get_cmap("tab10")
@@ -265,15 +267,18 @@ def plot_convergence(
             ok = [
                 r
                 for r in h
-                if r.get("merit") is not None and r.get("iteration") is not None and r.get("accepted", True)
-            ]  # a baseline's history may lack iterations (bilevel)
-            it, m = [r["iteration"] for r in ok], [r["merit"] for r in ok]
+                if r.get("merit") is not None
+                and np.isfinite(r["merit"])
+                and r.get(x_key) is not None
+                and r.get("accepted", True)
+            ]  # a baseline's history may lack iterations (bilevel); a failed evaluation has no merit
+            it, m = [r[x_key] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
         ax.set_title(sections_text(n), fontsize=10)
         ax.tick_params(labelsize=9)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
-        ax.set_xlabel(f"iteration (0: {start})", fontsize=9)
+        ax.set_xlabel(f"iteration (0: {start})" if x_key == "iteration" else "DOC evaluation", fontsize=9)
         ax.grid(alpha=0.3, which="both")
         if c == 0:
             ax.set_ylabel(merit_label, fontsize=9)

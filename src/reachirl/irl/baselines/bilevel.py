@@ -43,7 +43,8 @@ class BilevelIOC(WeightEstimator):
     Fitted attributes: ``weights_`` (the best evaluated), ``merit_``, ``history_`` (one record per evaluation:
     merit, converged, weights, cumulative DOC solves, wall time), ``n_doc_solves_``, ``n_doc_failures_``,
     ``n_iter_`` (outer iterations of the direct search), ``fit_time_``, ``stop_reason_``, ``warnings_`` (demonstrations
-    of several postures behind the one mean-task rollout: :func:`reachirl.irl.moirl.mixed_postures_warning`).
+    of several postures behind the one mean-task rollout: :func:`reachirl.irl.moirl.mixed_postures_warning`; a
+    search stopped by ``max_evals`` rather than converged).
     """
 
     def __init__(
@@ -172,4 +173,10 @@ class BilevelIOC(WeightEstimator):
             else windowed_features(task.arm, *observed_knots(sol_best, task, None), self.n_windows)
         )
         self.warnings_ = [msg] if (msg := mixed_postures_warning(trials)) is not None else []
+        if self.stop_reason_ == "max_evals":
+            self.warnings_.append(
+                f"stopped at its budget of {self.max_evals} DOC solves (max_evals) after {n_iter} complete "
+                f"direct-search iteration(s): the weights are the best of {len(self.history_)} evaluated, not a "
+                "converged optimum"
+            )
         return self
