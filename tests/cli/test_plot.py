@@ -103,6 +103,7 @@ def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
     ("change", "match"),
     [
         ({"info.history": "garbage"}, "field 'info.history': expected a list of objects"),
+        ({"method": "foo"}, "field 'method': expected one of moirl, maxent, bilevel, kkt, found 'foo'"),
         ({"uncertainty": {"share_intervals": None}}, "field 'uncertainty.share_intervals': expected an object"),
         ({"uncertainty": []}, "field 'uncertainty': expected an object or null"),
         (

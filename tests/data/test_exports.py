@@ -31,6 +31,7 @@ def test_a_new_export_removes_the_files_an_earlier_one_listed_and_it_does_not_wr
     demo = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))}
     export_trajectories(tmp_path, [TrajectoryExport(i, t, demo) for i in ("S1/T1", "S1/T2", "S1/T3")])
     (tmp_path / "notes.csv").write_text("mine")  # not an export's: kept
+    (tmp_path / ".S1_T1.csv.k3j_x9Qa.tmp").write_text("half")  # what a killed export's atomic write left: removed
     export_trajectories(tmp_path, [TrajectoryExport("S1/T2", t, demo)])
     files = sorted(p.name for p in tmp_path.iterdir())
     assert files == ["S1_T2.csv", "S1_T2.mot", "index.csv", "notes.csv"]

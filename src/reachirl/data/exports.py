@@ -142,19 +142,26 @@ def is_export(folder: str | Path) -> bool:
         return False
 
 
+_TEMPORARY = re.compile(r"\..+\.(csv|mot)\.[A-Za-z0-9_]{8}\.tmp")
+
+
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
     """Write ``<safe id>.csv`` (and ``.mot``) per item and ``index.csv`` under ``out_dir``; returns the index.
 
     Two ids that map to one file name get ``-2``, ``-3`` ... appended. The files an earlier export listed in
     ``out_dir``'s ``index.csv`` and this one does not write are removed, so that the folder holds what its index
-    says (a user's other files stay). The earlier ``index.csv`` goes first and the new one is written last, so an
-    interrupted export leaves a folder without an index, never an index over a mix of two exports.
+    says (a user's other files stay), and so are the temporaries a killed export left. The earlier ``index.csv``
+    goes first and the new one is written last, so an interrupted export leaves a folder without an index, never
+    an index over a mix of two exports.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # what an earlier export listed (a file name this module made, never a path)
     earlier = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
     (out / "index.csv").unlink(missing_ok=True)
+    for f in out.iterdir():  # what the atomic writes of a killed export left (".<name>.csv.<random>.tmp")
+        if _TEMPORARY.fullmatch(f.name) and f.is_file():
+            f.unlink(missing_ok=True)
     used: set[str] = set()
     index = [INDEX_COLUMNS]
     for it in items:

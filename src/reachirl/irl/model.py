@@ -185,6 +185,14 @@ def check_model_dict(d, path) -> None:
     for key, typ, name in (("method", str, "a string"), ("info", dict, "an object")):
         if key in d:
             require(isinstance(d[key], typ), f"field '{key}': expected {name}, found {brief(d[key])}", path)
+    if "method" in d:
+        from .methods import METHODS  # the estimators import this module
+
+        require(
+            d["method"] in METHODS,
+            f"field 'method': expected one of {', '.join(METHODS)}, found {brief(d['method'])}",
+            path,
+        )
     observe = d.get("info", {}).get("observe")
     require(
         observe is None or isinstance(observe, bool),
