@@ -128,6 +128,25 @@ def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     _same_table(out, reference_run)
 
 
+def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monkeypatch):
+    """Ctrl-C once the report and results.json are written: still no table, so the folder reads as unfinished."""
+    import shutil
+
+    from reachirl.experiments import report
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report, "write_tables", interrupted)
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main(argv) == 130
+    assert (out / "results.json").is_file() and (out / "report.md").is_file()
+    assert not (out / "table.csv").exists() and not (out / "table.md").exists()
+
+
 def test_a_rerun_with_other_options_stopped_early_leaves_no_earlier_results(trials_file, reference_run, tmp_path):
     """A rerun into a finished run's folder with other options, stopped before its end (here by --max-units; an
     interrupt stops at the same place), leaves neither the earlier tables nor its unit models beside the new

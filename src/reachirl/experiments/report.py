@@ -145,12 +145,10 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
     return notes, doc
 
 
-def write_tables(
-    out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str], reasons: dict[str, str] | None = None
-) -> list[str]:
-    """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
+def markdown_tables(tables: dict, postures, sections, n_trials: dict) -> list[str]:
+    """The Markdown tables of ``table.md`` (and ``report.md``), one per method."""
     methods = list(tables)
-    md_tables = [
+    return [
         tb.to_markdown(
             tables[m],
             postures,
@@ -160,6 +158,13 @@ def write_tables(
         )
         for m in methods
     ]
+
+
+def write_tables(
+    out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str], reasons: dict[str, str] | None = None
+) -> list[str]:
+    """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
+    md_tables = markdown_tables(tables, postures, sections, n_trials)
     atomic_write_text(out / "table.md", "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n")
     csv = tb.to_csv(tables, postures, sections)
     atomic_write_text(out / "table.csv", csv_with_reasons(csv, reasons) if reasons is not None else csv)
@@ -539,8 +544,9 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`; those
     of ``ahead`` when they were started before the run ended).
 
-    The tables, ``report.md`` and last ``results.json`` are written at the end, and a previous run's are removed
-    first: a folder without them is a run that has not finished (an interrupted one), never one that looks done.
+    ``report.md``, ``results.json`` and last the tables are written at the end, and a previous run's are removed
+    first: a folder without ``table.csv`` is a run that has not finished (an interrupted one), never one that looks
+    done.
 
     Returns ``{"tables": {method: table}, "timing": {...}, "notes": [...], "figures": [...], "n_trials"}``.
     """
@@ -593,9 +599,11 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
     comparisons = section_comparisons(run)
-    md_tables = write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))
-    write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
+    write_report(
+        run, tables, markdown_tables(tables, postures, sections, n_trials), notes, figs, truth[2], comparisons, extra_md
+    )
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
+    write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))  # last: the run is done
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
