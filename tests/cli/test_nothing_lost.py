@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from reachirl.cli import main
+from reachirl.cli._args import same_file
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.errors import InputError, Terminated, solver_interrupts
 from reachirl.irl.model import LearnedModel, save_model
@@ -273,24 +274,36 @@ def test_out_never_replaces_a_json_of_another_kind(base, tmp_path, capsys, comma
             existing,
         ],
     }[command]
-    argv += ["--out", existing] if command == "simulate" else []
     kind = {"evaluate": "METRICS", "fit": "MODEL", "simulate": "SIM"}[command]
     _fails(argv, capsys, rf"{existing.name}: --out: exists and is not a {kind}\.json \(an earlier output")
     assert _digest(existing) == before
 
 
-def test_out_replaces_the_commands_own_earlier_output(base, tmp_path):
-    out = tmp_path / "model.json"
-    argv = ["fit", str(base / "trials.npz"), "--nodes", "20", "--max-iter", "1", "--out", str(out)]
-    assert main([*argv, "--sections", "1"]) == 0 and main([*argv, "--sections", "2"]) == 0
-    assert len(json.loads(out.read_text())["weights"]) == 2
+@pytest.mark.parametrize("command", ["fit", "evaluate", "simulate"])
+def test_out_replaces_the_commands_own_earlier_output(base, tmp_path, command):
+    out = tmp_path / f"{command}.json"
+    model, trials = str(base / "model.json"), str(base / "trials.npz")
+    first, second = {
+        "fit": (
+            ["fit", trials, "--nodes", "20", "--max-iter", "1", "--sections", "1"],
+            ["fit", trials, "--nodes", "20", "--max-iter", "1", "--sections", "2"],
+        ),
+        "evaluate": (["evaluate", "--model", model, trials], ["evaluate", "--model", model, trials]),
+        "simulate": (["simulate", "--model", model, trials, "--trial", "0"], ["simulate", "--model", model, trials]),
+    }[command]
+    assert main([*first, "--out", str(out)]) == 0 and main([*second, "--out", str(out)]) == 0
+    d = json.loads(out.read_text())
+    n = {"fit": len(d.get("weights", [])), "evaluate": len(d.get("trials", [])), "simulate": len(d.get("trials", []))}
+    assert n[command] == 2  # the second run's (fit: 2 sections; simulate: both trials)
 
 
 @pytest.mark.parametrize("command", ["preprocess", "evaluate"])
 def test_out_inside_the_export_folder_is_refused(base, tmp_path, capsys, command):
     """--out as the index.csv that --export (or --predictions) writes would leave the trials or metrics lost."""
     folder = tmp_path / "EX"
-    out = folder / ".." / "EX" / "index.csv"
+    folder.mkdir()
+    (tmp_path / "EXL").symlink_to(folder)
+    out = tmp_path / "EXL" / ".." / "EX" / ".." / "EXL" / "index.csv"  # the same file, through a link and ".."
     argv = {
         "preprocess": ["preprocess", base / "syn", "--markers", MARKERS, "--out", out, "--export", folder],
         "evaluate": [
@@ -307,6 +320,15 @@ def test_out_inside_the_export_folder_is_refused(base, tmp_path, capsys, command
     option = "--export" if command == "preprocess" else "--predictions"
     _fails(argv, capsys, rf"--out is index\.csv, a file that {option} writes into .*EX; give each output its own path")
     assert not (folder / "index.csv").exists()
+
+
+def test_a_path_through_a_link_and_dotdot_is_the_file_the_system_finds(tmp_path):
+    """``L/../EX2/index.csv`` with ``L`` a link to ``deep/a`` is ``deep/EX2/index.csv``, not ``EX2/index.csv``."""
+    (tmp_path / "deep" / "a").mkdir(parents=True)
+    (tmp_path / "L").symlink_to(tmp_path / "deep" / "a")
+    through = tmp_path / "L" / ".." / "EX2" / "index.csv"
+    assert same_file(through, tmp_path / "deep" / "EX2" / "index.csv")
+    assert not same_file(through, tmp_path / "EX2" / "index.csv")
 
 
 # ---------------------------------------------------------------------- 3. only regular files are read

@@ -128,7 +128,7 @@ def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     _same_table(out, reference_run)
 
 
-def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monkeypatch):
+def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monkeypatch, capsys):
     """Ctrl-C once the report and results.json are written: still no table, so the folder reads as unfinished."""
     import shutil
 
@@ -145,6 +145,14 @@ def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monke
     assert main(argv) == 130
     assert (out / "results.json").is_file() and (out / "report.md").is_file()
     assert not (out / "table.csv").exists() and not (out / "table.md").exists()
+    capsys.readouterr()
+    for cmd in (
+        ["plot", str(out), "--out", str(tmp_path / "f")],
+        ["sensitivity", str(out), "--out", str(tmp_path / "s")],
+    ):
+        assert main(cmd) == 2  # and the commands that read a finished run say it is not one
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "no table.csv" in err[0], err
 
 
 def test_a_rerun_with_other_options_stopped_early_leaves_no_earlier_results(trials_file, reference_run, tmp_path):
@@ -155,12 +163,19 @@ def test_a_rerun_with_other_options_stopped_early_leaves_no_earlier_results(tria
 
     out = tmp_path / "out"
     shutil.copytree(reference_run, out)
+    mine = next((out / "predictions").iterdir()) / "my_notes.txt"
+    mine.write_text("keep")  # a file of the user's own beside an export: it stays
     argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
     assert main([*argv, "--seed", "1", "--max-units", "1"]) == 0
     assert tomllib.loads((out / "run.toml").read_text())["seed"] == 1
     finished = ("table.md", "table.csv", "report.md", "results.json")
     assert not any((out / f).exists() for f in finished)
-    assert not list((out / "figures").glob("fig*.png")) and not list((out / "predictions").iterdir())
+    assert not list((out / "figures").glob("fig*.png"))
+    assert [p.relative_to(out) for p in (out / "predictions").rglob("*")] == [
+        mine.parent.relative_to(out),
+        mine.relative_to(out),
+    ]
+    assert mine.read_text() == "keep"
     models = [json.loads(p.read_text())["info"] for p in (out / "models").glob("*.json")]
     assert len(models) == 1  # only the new run's finished unit (the earlier run wrote 4)
     assert main(argv) == 0  # and back to the earlier options: its units are still checkpointed, reused

@@ -197,3 +197,20 @@ def test_pd_playback_takes_the_substeps_its_default_gains_need(arm, tmp_path, ca
     substeps = json.loads(out.read_text())["substeps"]
     assert substeps > 10
     assert main([*args, "--substeps", str(substeps), "--out", str(tmp_path / "same.json")]) == 0
+
+
+def test_pd_gain_limits_hold_for_the_longest_step_and_the_reach_played(arm, tmp_path):
+    """The gains must integrate stably at every trial's step: the longest trial's (the least stable), and for an
+    observed model the longest the reach played can be (the rest-to-rest horizon, duration / 0.9)."""
+    from dataclasses import replace
+
+    from reachirl.data.checks import pd_gain_limits
+    from reachirl.data.trial import load_trials
+
+    trials_file, _ = _trials_file(arm, tmp_path)
+    short = load_trials(trials_file)[0]
+    long = replace(short, t=2.0 * short.t)
+    kp, _, h, inertia = pd_gain_limits([short, long], 40, 10)
+    assert h == pytest.approx(long.duration / 400) and kp == pytest.approx(inertia / h**2)
+    assert pd_gain_limits([long, short], 40, 10)[2] == h  # whatever the order
+    assert pd_gain_limits([short, long], 40, 10, stretch=1 / 0.9)[2] == pytest.approx(h / 0.9)

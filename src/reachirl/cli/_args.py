@@ -94,8 +94,16 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
 
 
 def same_file(a: Path, b: Path) -> bool:
-    """Whether ``a`` and ``b`` are one file: the same path (existing or not), a symlink or a hard link."""
-    if os.path.abspath(a) == os.path.abspath(b):  # abspath also folds "x/../"
+    """Whether ``a`` and ``b`` are one file: the same path (existing or not, through symlinked folders and ``..``
+    as the file system resolves them), a symlink or a hard link."""
+
+    def real(p) -> str:  # the folder resolved by the file system (symlinks, then ".."), the name kept
+        p = Path(p)
+        if p.name in ("", ".", ".."):
+            return os.path.realpath(p)
+        return os.path.join(os.path.realpath(p.parent), p.name)
+
+    if real(a) == real(b):
         return True
     try:
         return os.path.samefile(a, b)

@@ -166,6 +166,8 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     res_path = run_dir / "results.json"
     if not res_path.is_file():
         raise InputError("not a `reachirl reproduce` folder (no results.json)", run_dir)
+    if not (run_dir / "table.csv").is_file():  # written last: the run stopped while writing its outputs
+        raise InputError("not a finished `reachirl reproduce` run: no table.csv (rerun reproduce into it)", run_dir)
     d = read_json(res_path)
     if not isinstance(d, dict) or d.get("format") != "reachirl-reproduce/1" or "units" not in d:
         raise InputError("not a results file of `reachirl reproduce` (format reachirl-reproduce/1)", res_path)

@@ -125,26 +125,34 @@ def _select(trials, keys, path):
     return chosen
 
 
-def _pd_substeps(args, trials, n_nodes: int) -> int:
+def _stretch(model) -> float:
+    """How much longer than its trial the reach played can last: an observed model plays the DOC's part above
+    the onset threshold, at most the rest-to-rest horizon ``duration / MOVING_FRACTION``."""
+    from ..doc.observation import MOVING_FRACTION
+
+    return 1.0 / MOVING_FRACTION if model.observe else 1.0
+
+
+def _pd_substeps(args, trials, n_nodes: int, stretch: float = 1.0) -> int:
     """The fewest MuJoCo steps per DOC interval, from 10 up, at which the PD gains integrate stably on these arms
     (at most 1000; :func:`_check_gains` then says what is still too large)."""
     from ..data.checks import pd_gain_limits
 
     substeps = 10
     while substeps < 1000:
-        kp_max, kd_max, _, _ = pd_gain_limits(trials, n_nodes, substeps)
+        kp_max, kd_max, _, _ = pd_gain_limits(trials, n_nodes, substeps, stretch)
         if args.kp <= kp_max and args.kd <= kd_max:
             break
         substeps = min(1000, substeps + max(1, substeps // 4))
     return substeps
 
 
-def _check_gains(args, trials, n_nodes: int) -> None:
+def _check_gains(args, trials, n_nodes: int, stretch: float = 1.0) -> None:
     """PD gains that MuJoCo's explicit step integrates stably on these arms
     (:func:`reachirl.data.checks.pd_gain_limits`); larger ones make the playback diverge."""
     from ..data.checks import pd_gain_limits
 
-    kp_max, kd_max, h, inertia = pd_gain_limits(trials, n_nodes, args.substeps)
+    kp_max, kd_max, h, inertia = pd_gain_limits(trials, n_nodes, args.substeps, stretch)
     why = (
         f"the largest that MuJoCo's step of {1000 * h:.3g} ms integrates stably on this arm (smallest inertia "
         f"{inertia:.3g} kg·m²); lower it or raise --substeps"
@@ -184,11 +192,11 @@ def run(args: argparse.Namespace) -> int:
     backend = args.backend or model.backend
     trials, _ = chosen_trials(args, _select(load_trials(args.trials), args.trial, args.trials))
     if args.substeps is None:
-        args.substeps = _pd_substeps(args, trials, model.n_nodes) if args.mode == "pd" else 10
+        args.substeps = _pd_substeps(args, trials, model.n_nodes, _stretch(model)) if args.mode == "pd" else 10
     if args.mode == "pd":
-        _check_gains(args, trials, model.n_nodes)
+        _check_gains(args, trials, model.n_nodes, _stretch(model))
     if args.render is not None:  # every frame is held in memory until the file is written
-        n_frames = sum(int(tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
+        n_frames = sum(int(_stretch(model) * tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
         n_bytes = n_frames * args.size * args.size * 3
         if n_bytes > MAX_RENDER_BYTES:
             raise InputError(
@@ -226,8 +234,9 @@ def run(args: argparse.Namespace) -> int:
         if kept:
             rm = np.array([s.result.rmse_deg["q"] for s in kept])
             fx = np.array([abs(s.result.final_x_error) for s in kept])
+            n = f"{len(kept)} of {len(sims)}" if failed else f"{len(sims)}"
             print(
-                f"{len(kept)} of {len(sims)} trials: RMSE q {rm.mean():.3f} ± {rm.std():.3f}°, |final x error| "
+                f"{n} trials: RMSE q {rm.mean():.3f} ± {rm.std():.3f}°, |final x error| "
                 f"{1000 * fx.mean():.2f} ± {1000 * fx.std():.2f} mm{left_out}"
             )
         else:

@@ -157,14 +157,15 @@ def check_model_rollout(model, path: object) -> None:
         )
 
 
-def pd_gain_limits(trials, n_nodes: int, substeps: int) -> tuple[float, float, float, float]:
-    """``(kp_max, kd_max, h, inertia)``: the largest PD gains that MuJoCo's explicit step ``h`` (the shortest
-    of the trials' ``duration / (n_nodes · substeps)``, s) integrates stably on the lightest of the trials'
-    arms, whose smallest mass-matrix eigenvalue over the elbow's range is ``inertia`` (kg·m²):
-    ``kd · h / I <= 1`` and ``kp · h² / I <= 1`` (half and a quarter of the undamped stability limits)."""
+def pd_gain_limits(trials, n_nodes: int, substeps: int, stretch: float = 1.0) -> tuple[float, float, float, float]:
+    """``(kp_max, kd_max, h, inertia)``: the largest PD gains that MuJoCo's explicit step ``h`` (the longest of
+    the trials' ``stretch · duration / (n_nodes · substeps)``, s: the reach played lasts at most ``stretch`` times
+    the trial) integrates stably on the lightest of the trials' arms, whose smallest mass-matrix eigenvalue over
+    the elbow's range is ``inertia`` (kg·m²): ``kd · h / I <= 1`` and ``kp · h² / I <= 1`` (half and a quarter
+    of the undamped stability limits; the longest step is the least stable)."""
     from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
-    h = min(tr.duration for tr in trials) / (int(n_nodes) * int(substeps))
+    h = float(stretch) * max(tr.duration for tr in trials) / (int(n_nodes) * int(substeps))
     q2 = np.linspace(DEFAULT_Q_LOWER[1], DEFAULT_Q_UPPER[1], 33)
     inertia = min(float(np.linalg.eigvalsh(tr.arm.mass_matrix(np.array([0.0, a])))[0]) for tr in trials for a in q2)
     return inertia / h**2, inertia / h, h, inertia

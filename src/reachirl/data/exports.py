@@ -36,6 +36,7 @@ __all__ = [
     "TrajectoryExport",
     "export_trajectories",
     "opensim_coordinates",
+    "remove_export",
     "safe_name",
     "trajectory_csv",
 ]
@@ -184,3 +185,19 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
         for suffix in (".csv", ".mot"):
             (out / f"{name}{suffix}").unlink(missing_ok=True)
     return out / "index.csv"
+
+
+def remove_export(out_dir: str | Path) -> None:
+    """Remove what :func:`export_trajectories` wrote into ``out_dir``: the files its ``index.csv`` lists, the
+    index, the temporaries of a killed export, and the folder once empty; a user's other files stay."""
+    out = Path(out_dir)
+    listed = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
+    for name in listed:
+        for suffix in (".csv", ".mot"):
+            (out / f"{name}{suffix}").unlink(missing_ok=True)
+    (out / "index.csv").unlink(missing_ok=True)
+    for f in out.iterdir():
+        if _TEMPORARY.fullmatch(f.name) and f.is_file():
+            f.unlink(missing_ok=True)
+    if not any(out.iterdir()):
+        out.rmdir()

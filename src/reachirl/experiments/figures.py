@@ -267,7 +267,7 @@ def plot_convergence(
             ok = [
                 r
                 for r in h
-                if r.get("merit") is not None
+                if isinstance(r.get("merit"), int | float)
                 and np.isfinite(r["merit"])
                 and r.get(x_key) is not None
                 and r.get("accepted", True)

@@ -161,10 +161,18 @@ def markdown_tables(tables: dict, postures, sections, n_trials: dict) -> list[st
 
 
 def write_tables(
-    out: Path, tables: dict, postures, sections, n_trials: dict, notes: list[str], reasons: dict[str, str] | None = None
+    out: Path,
+    tables: dict,
+    postures,
+    sections,
+    n_trials: dict,
+    notes: list[str],
+    reasons: dict[str, str] | None = None,
+    md_tables: list[str] | None = None,
 ) -> list[str]:
-    """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables."""
-    md_tables = markdown_tables(tables, postures, sections, n_trials)
+    """``table.md`` (one table per method, then the notes) and ``table.csv``; returns the Markdown tables
+    (``md_tables``: :func:`markdown_tables`, when already made)."""
+    md_tables = md_tables or markdown_tables(tables, postures, sections, n_trials)
     atomic_write_text(out / "table.md", "\n".join(md_tables) + "\n" + "\n".join(f"- {n}" for n in notes) + "\n")
     csv = tb.to_csv(tables, postures, sections)
     atomic_write_text(out / "table.csv", csv_with_reasons(csv, reasons) if reasons is not None else csv)
@@ -513,12 +521,12 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     """What an earlier run into ``out_dir`` wrote and a run of units ``keys`` will not write again: its tables,
     report and results.json (``iscv_pairs.csv`` and ``posture_transfer.csv`` too), its figures (redrawn; a figure
     this run does not draw, such as the methods' comparison of a run with more methods, would stay beside the new
-    ones), the models (those a run wrote for a unit: never a model file of the user's own) and prediction folders
-    of units not in ``keys``. The checkpoints (``units/``) stay, to be reused. ``reachirl reproduce`` calls it
-    with no keys before its first unit, so that an interrupted rerun never leaves an earlier run's results
-    looking finished beside the new run's ``run.toml``. Returns what was removed."""
+    ones), the models (those a run wrote for a unit: never a model file of the user's own) and the exports in the
+    prediction folders of units not in ``keys`` (a file of the user's own in one stays). The checkpoints
+    (``units/``) stay, to be reused. ``reachirl reproduce`` calls it with no keys before its first unit, so that
+    an interrupted rerun never leaves an earlier run's results looking finished beside the new run's
+    ``run.toml``. Returns what was removed."""
     import re
-    import shutil
 
     out = Path(out_dir)
     tables = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
@@ -532,9 +540,11 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     for f in removed:
         f.unlink(missing_ok=True)
     if (out / "predictions").is_dir():
+        from ..data.exports import remove_export
+
         for d in (out / "predictions").iterdir():
             if d.is_dir() and d.name not in keys and (d / "index.csv").is_file():
-                shutil.rmtree(d)
+                remove_export(d)  # what the export wrote; a file of the user's own in it stays
                 removed.append(d)
     return removed
 
@@ -599,11 +609,11 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
     comparisons = section_comparisons(run)
-    write_report(
-        run, tables, markdown_tables(tables, postures, sections, n_trials), notes, figs, truth[2], comparisons, extra_md
-    )
+    md_tables = markdown_tables(tables, postures, sections, n_trials)
+    write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
-    write_tables(out, tables, postures, sections, n_trials, notes, split_reasons(config))  # last: the run is done
+    reasons = split_reasons(config)
+    write_tables(out, tables, postures, sections, n_trials, notes, reasons, md_tables)  # last: the run is done
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 

@@ -109,6 +109,8 @@ def load_run(run_dir: str | Path):
     path = run_dir / "results.json"
     if not path.is_file():
         raise InputError("not a finished reproduce run: no results.json", run_dir)
+    if not (run_dir / "table.csv").is_file():  # written last: the run stopped while writing its outputs
+        raise InputError("not a finished reproduce run: no table.csv (rerun reproduce into it to finish)", run_dir)
     try:
         res = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as e:

@@ -114,9 +114,11 @@ def synth_folder_clash(out_dir: str | Path) -> str | None:
     if not out_dir.is_dir():
         return None
     try:
-        truth = json.loads((out_dir / "truth.json").read_text())
-        if isinstance(truth, dict) and truth.get("generator") == "reachirl.synth":
-            return None
+        truth_file = out_dir / "truth.json"
+        if truth_file.stat().st_size < 256 * 1024**2:  # a synth truth.json of 100 subjects is a few MB
+            truth = json.loads(truth_file.read_text())
+            if isinstance(truth, dict) and truth.get("generator") == "reachirl.synth":
+                return None
     except (OSError, ValueError):
         pass
     names = sorted(f.name for f in out_dir.iterdir())
@@ -152,7 +154,7 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
     trials = _run_groups(subjects, config)
     failures = sum(tr.doc_retries for tr in trials)
     earlier = {n for n in csv_column(out_dir / "manifest.csv", "file") if _RECORDING.fullmatch(n)}
-    for name in ("truth.json", *SYNTH_FILES):  # the earlier set's description goes before its recordings change
+    for name in SYNTH_FILES:  # the earlier set's description goes before its recordings change
         (out_dir / name).unlink(missing_ok=True)
     manifest = []
     for tr in trials:
