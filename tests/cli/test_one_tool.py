@@ -369,3 +369,34 @@ def test_a_run_file_value_of_the_wrong_kind_is_refused(tmp_path, capsys, text, m
     err = capsys.readouterr().err.strip()
     assert re.fullmatch(rf"reachirl reproduce: error: {re.escape(str(run))}: {match}", err), err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["reproduce", "fit"])
+@pytest.mark.parametrize("text", ["", "# reachirl reproduce run file\n# written by a run that was cut short\n"])
+def test_a_run_file_that_sets_nothing_is_refused(tmp_path, capsys, command, text):
+    """An empty run file, or one cut short inside its header comment, is not taken for "every default" (which
+    runs the whole protocol)."""
+    run = tmp_path / "run.toml"
+    run.write_text(text)
+    argv = {
+        "reproduce": ["reproduce", "--config", str(run), "--out", str(tmp_path / "o")],
+        "fit": [
+            "fit",
+            str(tmp_path / "t.npz"),
+            "--sections",
+            "1",
+            "--config",
+            str(run),
+            "--out",
+            str(tmp_path / "m.json"),
+        ],
+    }[command]
+    (tmp_path / "t.npz").write_bytes(b"")
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert re.fullmatch(
+        rf"reachirl {command}: error: {re.escape(str(run))}: the run file sets no option \(empty, or comments "
+        r"only\); leave --config out for the defaults",
+        err,
+    ), err
+    assert not (tmp_path / "o").exists() and not (tmp_path / "m.json").exists()

@@ -20,8 +20,9 @@ __all__ = ["dumps", "parse_assignment", "read_run_file", "write_run_file"]
 
 
 def read_run_file(path: str | Path) -> dict[str, Any]:
-    """The run file's keys; a file that is missing, not a regular file or not TOML is an :class:`InputError`
-    naming it (and the line where TOML says)."""
+    """The run file's keys; a file that is missing, not a regular file, not TOML or without a single key (empty,
+    or comments only: a file cut short, rather than a run of every default) is an :class:`InputError` naming it
+    (and the line where TOML says)."""
     p = Path(path)
     if not p.is_file():
         raise InputError(
@@ -32,11 +33,16 @@ def read_run_file(path: str | Path) -> dict[str, Any]:
         )
     try:
         with p.open("rb") as f:
-            return tomllib.load(f)
+            content = tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise InputError(f"not a TOML run file: {e}", p) from None
     except UnicodeDecodeError:
         raise InputError("not a TOML run file (not UTF-8 text)", p) from None
+    if not content:
+        raise InputError(
+            "the run file sets no option (empty, or comments only); leave --config out for the defaults", p
+        )
+    return content
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:
