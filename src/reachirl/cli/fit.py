@@ -39,7 +39,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "--sections",
         type=int_in(1, MAX_NODES),
         required=True,
-        help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes; required",
+        help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes (at most 1000); required",
     )
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
     p.add_argument("--out", type=Path, required=True, help="model JSON to write")
