@@ -260,19 +260,11 @@ def test_out_never_replaces_a_json_of_another_kind(base, tmp_path, capsys, comma
         existing.write_text('{"my": "own notes"}')
     before = _digest(existing)
     capsys.readouterr()
+    model, trials = base / "model.json", base / "trials.npz"
     argv = {
-        "evaluate": ["evaluate", "--model", base / "model.json", base / "trials.npz", "--out", existing],
-        "fit": ["fit", base / "trials.npz", "--sections", "1", "--nodes", "20", "--out", existing],
-        "simulate": [
-            "simulate",
-            "--model",
-            base / "model.json",
-            base / "trials.npz",
-            "--trial",
-            "0",
-            "--out",
-            existing,
-        ],
+        "evaluate": ["evaluate", "--model", model, trials, "--out", existing],
+        "fit": ["fit", trials, "--sections", "1", "--nodes", "20", "--out", existing],
+        "simulate": ["simulate", "--model", model, trials, "--trial", "0", "--out", existing],
     }[command]
     kind = {"evaluate": "METRICS", "fit": "MODEL", "simulate": "SIM"}[command]
     _fails(argv, capsys, rf"{existing.name}: --out: exists and is not a {kind}\.json \(an earlier output")
