@@ -17,16 +17,16 @@ import numpy as np
 from reachirl import FEATURES, MOIRL
 from reachirl.data.pipeline import preprocess_entries
 from reachirl.data.readers import ManifestEntry, read_subject_info
-from reachirl.data.ue_adl import reach_files
+from reachirl.data.ue_adl import SAMPLE_DIR, reach_files
 from reachirl.doc.evaluation import evaluate_trials, summarise
 from reachirl.features import cost_shares
-
-SAMPLE = Path(__file__).resolve().parents[1] / "src" / "reachirl" / "data" / "ue_adl_sample"
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=SAMPLE, help="a UE-ADL folder (default: the shipped sample)")
+    parser.add_argument(
+        "--data", type=Path, default=SAMPLE_DIR, help="a UE-ADL folder (default: the sample shipped in the package)"
+    )
     parser.add_argument("--windows", type=int, default=8)
     args = parser.parse_args(argv)
 
