@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import tempfile
 import zipfile
 from collections.abc import Iterator
@@ -27,6 +28,7 @@ __all__ = [
     "npz_bytes",
     "read_json",
     "read_text",
+    "remove_temporaries",
     "to_jsonable",
 ]
 
@@ -68,6 +70,22 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+#: the name of a temporary that :func:`atomic_path` made and a killed process left: ``.<name>.<random>.<suffix>``
+_TEMPORARY = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|png|json|npz|csv|md|gif|mp4)$")
+
+
+def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries of :func:`atomic_path` that a killed process left in ``folder`` (not below it);
+    returns what was removed."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    removed = [f for f in folder.iterdir() if f.is_file() and _TEMPORARY.match(f.name)]
+    for f in removed:
+        f.unlink(missing_ok=True)
+    return removed
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

@@ -172,10 +172,6 @@ def _keys(*names: str) -> Callable[[object], bool]:
     return lambda d: isinstance(d, dict) and set(names) <= d.keys()
 
 
-def _bench_json(d: object) -> bool:
-    return isinstance(d, dict) and bool(d) and set(d) <= {"doc", "predict", "backends", "irl"}  # bench's suites
-
-
 def _model_json(d: object) -> bool:
     from ..irl.model import MODEL_FORMAT
 
@@ -183,9 +179,9 @@ def _model_json(d: object) -> bool:
 
 
 #: the JSON outputs a command may replace (its own earlier output): a name and how its content is recognised
+#: (``bench`` recognises its own from its suites)
 JSON_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
     "fit": ("MODEL.json", _model_json),
     "evaluate": ("METRICS.json", _keys("model", "trials_file", "summary", "trials")),
     "simulate": ("SIM.json", _keys("backend", "mode", "substeps", "trials")),
-    "bench": ("BENCH.json", _bench_json),
 }

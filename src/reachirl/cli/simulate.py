@@ -191,12 +191,13 @@ def run(args: argparse.Namespace) -> int:
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend
     trials, _ = chosen_trials(args, _select(load_trials(args.trials), args.trial, args.trials))
+    stretch = _stretch(model)
     if args.substeps is None:
-        args.substeps = _pd_substeps(args, trials, model.n_nodes, _stretch(model)) if args.mode == "pd" else 10
+        args.substeps = _pd_substeps(args, trials, model.n_nodes, stretch) if args.mode == "pd" else 10
     if args.mode == "pd":
-        _check_gains(args, trials, model.n_nodes, _stretch(model))
+        _check_gains(args, trials, model.n_nodes, stretch)
     if args.render is not None:  # every frame is held in memory until the file is written
-        n_frames = sum(int(_stretch(model) * tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
+        n_frames = sum(int(stretch * tr.duration * args.fps) + int(0.5 * args.fps) + 2 for tr in trials)
         n_bytes = n_frames * args.size * args.size * 3
         if n_bytes > MAX_RENDER_BYTES:
             raise InputError(

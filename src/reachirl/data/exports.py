@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import atomic_write_text, csv_column
+from ..io import atomic_write_text, csv_column, remove_temporaries
 from .writers import write_mot
 
 __all__ = [
@@ -143,7 +143,16 @@ def is_export(folder: str | Path) -> bool:
         return False
 
 
-_TEMPORARY = re.compile(r"\..+\.(csv|mot)\.[A-Za-z0-9_]{8}\.tmp")
+def _listed(out: Path) -> set[str]:
+    """The file names (no suffix) an earlier export's ``index.csv`` in ``out`` lists: names this module made,
+    never a path."""
+    return {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
+
+
+def _remove(out: Path, names) -> None:
+    for name in names:
+        for suffix in (".csv", ".mot"):
+            (out / f"{name}{suffix}").unlink(missing_ok=True)
 
 
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
@@ -157,12 +166,9 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    # what an earlier export listed (a file name this module made, never a path)
-    earlier = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
+    earlier = _listed(out)
     (out / "index.csv").unlink(missing_ok=True)
-    for f in out.iterdir():  # what the atomic writes of a killed export left (".<name>.csv.<random>.tmp")
-        if _TEMPORARY.fullmatch(f.name) and f.is_file():
-            f.unlink(missing_ok=True)
+    remove_temporaries(out)  # what the atomic writes of a killed export left
     used: set[str] = set()
     index = [INDEX_COLUMNS]
     for it in items:
@@ -181,9 +187,7 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerows(index)
     atomic_write_text(out / "index.csv", buf.getvalue())
-    for name in earlier - used:
-        for suffix in (".csv", ".mot"):
-            (out / f"{name}{suffix}").unlink(missing_ok=True)
+    _remove(out, earlier - used)
     return out / "index.csv"
 
 
@@ -191,13 +195,8 @@ def remove_export(out_dir: str | Path) -> None:
     """Remove what :func:`export_trajectories` wrote into ``out_dir``: the files its ``index.csv`` lists, the
     index, the temporaries of a killed export, and the folder once empty; a user's other files stay."""
     out = Path(out_dir)
-    listed = {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
-    for name in listed:
-        for suffix in (".csv", ".mot"):
-            (out / f"{name}{suffix}").unlink(missing_ok=True)
+    _remove(out, _listed(out))
     (out / "index.csv").unlink(missing_ok=True)
-    for f in out.iterdir():
-        if _TEMPORARY.fullmatch(f.name) and f.is_file():
-            f.unlink(missing_ok=True)
+    remove_temporaries(out)
     if not any(out.iterdir()):
         out.rmdir()

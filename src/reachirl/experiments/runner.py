@@ -21,6 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import remove_temporaries
 from .processes import local_executor, stop_workers
 from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
@@ -35,18 +36,9 @@ def clean_stale_temporaries(out_dir: Path) -> list[Path]:
     """Remove the temporary files of atomic writes (``.<name>.<random>.tmp`` or ``….png``) that a killed run
     left in ``out_dir``, ``units/``, ``figures/``, ``models/`` and each unit's ``predictions/<key>/``. Returns what
     was removed."""
-    import re
-
-    pattern = re.compile(r"^\..+\.[A-Za-z0-9_]{8}\.(tmp|png|json|npz|csv|md|gif|mp4)$")
-    removed = []
     exports = sorted(p for p in (out_dir / "predictions").glob("*") if p.is_dir())
-    for folder in (out_dir, out_dir / "units", out_dir / "figures", out_dir / "models", *exports):
-        if not folder.is_dir():
-            continue
-        for f in folder.iterdir():
-            if f.is_file() and pattern.match(f.name):
-                f.unlink(missing_ok=True)
-                removed.append(f)
+    folders = (out_dir, out_dir / "units", out_dir / "figures", out_dir / "models", *exports)
+    removed = [f for folder in folders for f in remove_temporaries(folder)]
     if removed:
         log.info("removed %d temporary file(s) left by an interrupted run", len(removed))
     return removed

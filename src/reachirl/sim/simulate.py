@@ -13,7 +13,7 @@ import numpy as np
 
 from ..data.trial import Trial
 from ..doc import DocSolution
-from ..doc.observation import observed_task, predict
+from ..doc.observation import predict
 from .playback import PlaybackResult, playback
 from .render import RenderClip, render_frames, write_animation
 
@@ -67,8 +67,9 @@ def simulate_trial(
     whole, sol = predict(trial, weights, n_nodes, threshold, backend, path=path)
     if not whole.converged:
         log.warning("trial %s: the DOC did not converge (%s)", trial.id, whole.status)
-    target_x = observed_task(trial, n_nodes, threshold).target_x
-    result, trace = playback(trial.arm, sol, mode=mode, substeps=substeps, kp=kp, kd=kd, target_x=target_x, record=True)
+    result, trace = playback(
+        trial.arm, sol, mode=mode, substeps=substeps, kp=kp, kd=kd, target_x=trial.target_x, record=True
+    )
     trace_t = np.linspace(0.0, float(sol.t[-1]), trace.shape[0])
     return TrialSimulation(trial=trial, solution=sol, result=result, trace_t=trace_t, trace_q=trace)
 
