@@ -158,3 +158,71 @@ def test_effect_collinearity_finds_weights_that_move_the_path_alike():
     found = _effect_collinearity({("P2", "sensitivity", 0): {"features": feats}}, "P2", 1)
     pair = [e for e in found if e["features"] == ["joint_acceleration", "torque_change"]]
     assert pair and pair[0]["cos"] == pytest.approx(-1.0) and pair[0]["window"] == 1
+
+
+def test_an_interrupted_analysis_resumes_where_it_stopped(small_run, tmp_path):
+    from reachirl.experiments.sensitivity import job_path, to_csv
+
+    cfg = SensitivityConfig(percent=5.0)
+    whole = run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "a")
+
+    seen = []
+
+    def stop_after_four(label, reused):
+        seen.append((label, reused))
+        if len(seen) == 4:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "b", on_done=stop_after_four)
+    assert len(list((tmp_path / "b").glob("*.json"))) == 4
+    counts, labels = [], []
+    resumed = run_sensitivity(
+        small_run,
+        cfg,
+        checkpoint_dir=tmp_path / "b",
+        on_start=lambda n, reused: counts.append((n, reused)),
+        on_done=lambda label, reused: labels.append((label, reused)),
+    )
+    n_jobs = 1 + 7 + 2 + 2  # determination, one refit per feature and per window, a sensitivity job per window
+    assert counts == [(n_jobs, 4)]
+    assert [label for label, reused in labels if reused] == [label for label, _ in seen]
+    assert to_csv(resumed["rows"]) == to_csv(whole["rows"])  # the same numbers as the run never stopped
+    assert resumed["identifiability"] == whole["identifiability"]
+
+    # other options rerun only the jobs they change; an edited checkpoint is run again
+    path = job_path(tmp_path / "a", ("P2", "occlude_feature", 0))
+    body = json.loads(path.read_text())
+    body["result"]["rmse"]["train"][0] += 1.0
+    path.write_text(json.dumps(body))
+    counts.clear()
+    run_sensitivity(
+        small_run,
+        SensitivityConfig(percent=7.0),
+        checkpoint_dir=tmp_path / "a",
+        on_start=lambda n, r: counts.append((n, r)),
+    )
+    assert counts == [(n_jobs, n_jobs - 2 - 1)]  # the two windows' ±7 % and the edited refit
+
+
+def test_an_interrupted_cli_run_leaves_no_earlier_results(small_run, tmp_path, monkeypatch, capsys):
+    from reachirl.cli import main
+    from reachirl.experiments import sensitivity
+
+    out = tmp_path / "sens"
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion"]) == 0
+    assert (out / "sensitivity.csv").is_file() and (out / "figures" / "sensitivity_P2.png").is_file()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sensitivity, "occlusion_job", interrupted)
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-progress"]) == 130
+    # the earlier analysis (without occlusion) is gone, not left to pass for this one; its jobs are kept
+    assert not (out / "sensitivity.csv").exists() and not (out / "sensitivity.md").exists()
+    assert not (out / "figures" / "sensitivity_P2.png").exists()
+    assert len(list((out / "checkpoints").glob("P2-sensitivity-*.json"))) == 2
+    monkeypatch.undo()
+    capsys.readouterr()
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion"]) == 0
+    assert "3 of 3 jobs reused" in capsys.readouterr().err and (out / "sensitivity.csv").is_file()

@@ -5,7 +5,9 @@ count): refit with each feature removed and with each window's weights frozen at
 training, CV and ISCV RMSE, with a paired 95 % interval over trials), change each weight by ±x % (sensitivity:
 DOC re-solves of the training trials), and say which weight directions the training trials determine (from the
 Jacobian of the observed rollouts). Writes DIR/sensitivity.csv (one row per feature, and per window where it applies),
-DIR/sensitivity.md, DIR/identifiability.json and DIR/figures/sensitivity_<posture>.png.
+DIR/sensitivity.md, DIR/identifiability.json and DIR/figures/sensitivity_<posture>.png. Each finished refit is
+kept in DIR/checkpoints/: a run stopped early (Ctrl-C, a closed terminal) resumes there when started again with
+the same options, and sensitivity.csv, written last, marks a finished analysis.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import remove_temporaries
 from ..validation import NODES_RANGE
 from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
@@ -69,7 +72,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments.sensitivity import SensitivityConfig, run_sensitivity, write_sensitivity
+    from ..experiments.sensitivity import SensitivityConfig, remove_outputs, run_sensitivity, write_sensitivity
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     out = Path(args.out)
@@ -88,20 +91,31 @@ def run(args) -> int:
     state = {"n": 0, "total": 0}
     t0 = time.perf_counter()
 
-    def on_start(total):
+    def on_start(total, reused):
         state["total"] = total
+        remove_outputs(out)  # an earlier analysis's results never outlive this one's start
+        if reused and not args.no_progress:
+            print(f"{reused} of {total} jobs reused from {checkpoints}", file=sys.stderr, flush=True)
 
-    def on_done(name):
+    def on_done(name, reused):
         state["n"] += 1
-        if not args.no_progress:
+        if not args.no_progress and not reused:
             print(
                 f"[{state['n']}/{state['total']}] {name} ({time.perf_counter() - t0:.0f} s)",
                 file=sys.stderr,
                 flush=True,
             )
 
+    checkpoints = out / "checkpoints"
+    for folder in (out, checkpoints, out / "figures"):
+        remove_temporaries(folder)  # what a killed run was writing
     res = run_sensitivity(
-        args.run_dir, cfg, workers=args.workers or (os.cpu_count() or 1), on_start=on_start, on_done=on_done
+        args.run_dir,
+        cfg,
+        workers=args.workers or (os.cpu_count() or 1),
+        checkpoint_dir=checkpoints,
+        on_start=on_start,
+        on_done=on_done,
     )
     paths = write_sensitivity(res, out)
     print((out / "sensitivity.md").read_text(encoding="utf-8"))

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..features import FEATURES, N_FEATURES
-from ..io import atomic_write_json, atomic_write_text
+from ..io import atomic_write_json, atomic_write_text, to_jsonable
 from ..irl.moirl import MOIRL
 from .protocol import ProtocolConfig, Split, Unit, make_estimator, split_trials
 
@@ -212,6 +212,71 @@ def sensitivity_job(
     return out
 
 
+# ---------------------------------------------------------------------- checkpoints
+def _label(name: tuple) -> str:
+    p, kind, i = name
+    return f"{p} {kind}" if kind == "determination" else f"{p} {kind} {i + 1}"
+
+
+def job_path(checkpoint_dir: str | Path, name: tuple) -> Path:
+    p, kind, i = name
+    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(p))
+    return Path(checkpoint_dir) / f"{safe}-{kind}-{i}.json"
+
+
+def _job_fingerprint(name: tuple, chosen: tuple, config: SensitivityConfig) -> str:
+    """What a job's result depends on: the run unit's result as written (its checksum covers the weights and the
+    fingerprint of the unit's inputs and code), the code of the analysis, and the job's own options."""
+    import hashlib
+
+    from .protocol import code_fingerprint
+
+    unit, _, r = chosen
+    payload = {
+        "job": list(name),
+        "unit": r.get("checksum"),
+        "code": code_fingerprint(unit.method, unit.backend),
+        "analysis": hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16],
+        "percent": float(config.percent) if name[1] == "sensitivity" else None,
+    }
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def save_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str, result: dict) -> dict:
+    """Write a finished job's result (atomically) and return it as :func:`load_job` would read it back."""
+    from .results import content_checksum
+
+    path = job_path(checkpoint_dir, name)
+    if path.exists() and not path.is_file():
+        raise InputError("is not a regular file, where a job's checkpoint goes; remove it and rerun", path)
+    body = to_jsonable({"job": list(name), "fingerprint": fingerprint, "result": result})
+    body["checksum"] = content_checksum(body)
+    atomic_write_json(path, body, indent=None)
+    return body["result"]
+
+
+def load_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str) -> dict | None:
+    """A finished job's result, or ``None`` (run it) if absent, damaged, edited, or made for other inputs."""
+    from .results import _reject_constant, content_checksum
+
+    path = job_path(checkpoint_dir, name)
+    if path.exists() and not path.is_file():
+        raise InputError("is not a regular file, where a job's checkpoint goes; remove it and rerun", path)
+    if not path.is_file():
+        return None
+    try:
+        body = json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant)
+    except (OSError, ValueError, RecursionError) as e:
+        log.warning("%s: damaged (%s); running the job again", path, e)
+        return None
+    if not isinstance(body, dict) or body.get("job") != list(name) or body.get("fingerprint") != fingerprint:
+        return None
+    if body.get("checksum") != content_checksum(body) or not isinstance(body.get("result"), dict):
+        log.warning("%s: its content does not match its checksum (edited or damaged); running the job again", path)
+        return None
+    return body["result"]
+
+
 # ---------------------------------------------------------------------- statistics
 def paired_interval(d: Sequence[float], n_boot: int = 2000, seed: int = 0) -> tuple[float, float, float]:
     """Mean of the paired differences ``d`` and its 95 % bootstrap interval (seeded); NaNs without data."""
@@ -252,11 +317,17 @@ def run_sensitivity(
     config: SensitivityConfig | None = None,
     *,
     workers: int = 1,
-    on_start: Callable[[int], None] | None = None,
-    on_done: Callable[[str], None] | None = None,
+    checkpoint_dir: str | Path | None = None,
+    on_start: Callable[[int, int], None] | None = None,
+    on_done: Callable[[str, bool], None] | None = None,
 ) -> dict:
     """Occlusion, sensitivity and identifiability of the chosen units of ``run_dir`` (module docstring). Returns
-    ``{"rows": [...], "identifiability": {...}, "units": [...], "config": {...}}``."""
+    ``{"rows": [...], "identifiability": {...}, "units": [...], "config": {...}}``.
+
+    With ``checkpoint_dir``, each job (a refit, a window's weight changes, a posture's determination) is saved
+    there as it finishes and reused by a later call on the same run unit, code and options, so an interrupted
+    analysis resumes where it stopped. ``on_start(n_jobs, n_reused)`` is called once, ``on_done(label,
+    reused)`` per job."""
 
     config = config or SensitivityConfig()
     dataset, pconfig, results, train_subject = load_run(run_dir)
@@ -307,6 +378,7 @@ def run_sensitivity(
 
     jobs = []  # (name, fn, args)
     for p, (unit, split, r) in chosen.items():
+        jobs.append(((p, "determination", 0), determination_job, (unit, split)))
         if config.occlusion:
             for j in range(N_FEATURES):
                 jobs.append(((p, "occlude_feature", j), occlusion_job, (unit, split, (j,), ())))
@@ -330,37 +402,50 @@ def run_sensitivity(
                         ),
                     )
                 )
-    if on_start:
-        on_start(len(jobs))
     done: dict = {}
-    if workers <= 1:
-        for name, fn, args in jobs:
-            done[name] = fn(*args)
-            if on_done:
-                on_done(f"{name[0]} {name[1]} {name[2] + 1}")
+    todo, fingerprints = [], {}
+    for name, fn, args in jobs:
+        fingerprints[name] = _job_fingerprint(name, chosen[name[0]], config)
+        res = None if checkpoint_dir is None else load_job(checkpoint_dir, name, fingerprints[name])
+        if res is None:
+            todo.append((name, fn, args))
+        else:
+            done[name] = res
+    if on_start:
+        on_start(len(jobs), len(done))
+    for name in list(done):
+        if on_done:
+            on_done(_label(name), True)
+
+    def finish(name, res) -> None:  # every result as a resumed run reads it back
+        fp = fingerprints[name]
+        done[name] = to_jsonable(res) if checkpoint_dir is None else save_job(checkpoint_dir, name, fp, res)
+        if on_done:
+            on_done(_label(name), False)
+
+    if workers <= 1 or len(todo) <= 1:
+        for name, fn, args in todo:
+            finish(name, fn(*args))
     else:
         from .processes import stop_workers
 
-        ex = _executor(min(workers, len(jobs)))
+        ex = _executor(min(workers, len(todo)))
         try:
-            futs = {ex.submit(fn, *args): name for name, fn, args in jobs}
+            futs = {ex.submit(fn, *args): name for name, fn, args in todo}
             for f in cf.as_completed(futs):
-                name = futs[f]
-                done[name] = f.result()
-                if on_done:
-                    on_done(f"{name[0]} {name[1]} {name[2] + 1}")
+                finish(futs[f], f.result())
         except BaseException:  # Ctrl-C, SIGTERM or an error: the workers (which ignore Ctrl-C) end now
             stop_workers(ex)
             raise
         ex.shutdown()
 
     rows, pooled, ident = [], {}, {}
-    for p, (unit, split, r) in chosen.items():
+    for p, (_, _, r) in chosen.items():
         shares = np.asarray(r["cost_shares"])
         unc = r.get("uncertainty")
         determined = None if not unc else np.asarray(unc["share_intervals"]["determined"], dtype=bool)
         base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
-        ident[p] = _determination(unit, split)
+        ident[p] = dict(done[(p, "determination", 0)])
         ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
         ident[p]["key"] = r["key"]
         ident[p]["flag"] = r.get("flag")
@@ -372,7 +457,7 @@ def run_sensitivity(
                     continue
                 row = _row(method, p, sections, kind, i, shares, determined=determined)
                 for s in SETS:
-                    d = np.asarray(res["rmse"][s]) - base[s]
+                    d = np.asarray(res["rmse"][s], dtype=float) - base[s]
                     pooled.setdefault((kind, i, s), []).extend(d.tolist())
                     row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
                         d, config.n_boot, config.seed
@@ -383,12 +468,12 @@ def run_sensitivity(
             res = done.get((p, "sensitivity", s))
             if res is None:
                 continue
-            b = np.asarray(res["base"])
+            b = np.asarray(res["base"], dtype=float)
             for j, rec in enumerate(res["features"]):
                 row = _row(method, p, sections, "sensitivity", j, shares, window=s, determined=determined)
-                row["plus_delta_deg"] = float(np.mean(np.asarray(rec["plus"]) - b))
-                row["minus_delta_deg"] = float(np.mean(np.asarray(rec["minus"]) - b))
-                row["path_change_deg"] = float(np.mean(rec["path_plus"] + rec["path_minus"]))
+                row["plus_delta_deg"] = float(np.mean(np.asarray(rec["plus"], dtype=float) - b))
+                row["minus_delta_deg"] = float(np.mean(np.asarray(rec["minus"], dtype=float) - b))
+                row["path_change_deg"] = float(np.mean(np.asarray(rec["path_plus"] + rec["path_minus"], dtype=float)))
                 pooled.setdefault(("sensitivity", s, j), []).append(row)
                 rows.append(row)
     if len(chosen) > 1:  # ALL: every posture's trials pooled
@@ -646,11 +731,12 @@ def _markdown(out: dict) -> list[str]:
     return lines
 
 
-def _determination(unit, split) -> dict:
+def determination_job(unit: Unit, split: Split) -> dict:
     """The unit's fit again (deterministic: the run's weights) and what its training trials determine
     (:func:`reachirl.irl.uncertainty.determination`); ``None`` for a method without rollouts."""
     from ..irl.uncertainty import determination, residuals_and_jacobian
 
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
     est = make_estimator(unit)
     if not isinstance(est, MOIRL):
         return {"determination": None}
@@ -681,17 +767,24 @@ def _ci(r, s) -> str:
     return f"{m:+.3f} [{r[f'{s}_ci_lo']:+.3f}, {r[f'{s}_ci_hi']:+.3f}]"
 
 
+def remove_outputs(out_dir: str | Path) -> None:
+    """Remove an earlier analysis's outputs from ``out_dir`` (its checkpoints stay, to be reused), so that a rerun
+    stopped early never leaves them looking like its own."""
+    out_dir = Path(out_dir)
+    for name in ("sensitivity.csv", "sensitivity.md", "identifiability.json"):
+        (out_dir / name).unlink(missing_ok=True)
+    for fig in sorted((out_dir / "figures").glob("sensitivity_*.png")) if (out_dir / "figures").is_dir() else ():
+        fig.unlink(missing_ok=True)
+
+
 def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
-    """``sensitivity.csv``, ``sensitivity.md``, ``identifiability.json`` and ``figures/sensitivity_<posture>.png``
-    under ``out_dir``; returns the paths."""
+    """``figures/sensitivity_<posture>.png``, ``identifiability.json``, ``sensitivity.md`` and, last (so that a
+    folder without it is unfinished), ``sensitivity.csv`` under ``out_dir``; returns the paths."""
     from .figures import save
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    paths = [out_dir / "sensitivity.csv", out_dir / "sensitivity.md", out_dir / "identifiability.json"]
-    atomic_write_text(paths[0], to_csv(out["rows"]))
-    atomic_write_text(paths[1], "\n".join(_markdown(out)))
-    atomic_write_json(paths[2], {"config": out["config"], "units": out["units"], "postures": out["identifiability"]})
+    paths = []
     for p in sorted({r["posture"] for r in out["rows"]}):
         fig = plot_sensitivity(
             out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} section(s), posture {p}"
@@ -700,4 +793,8 @@ def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
         path.parent.mkdir(parents=True, exist_ok=True)
         save(fig, path)
         paths.append(path)
-    return paths
+    ident, md, csv = out_dir / "identifiability.json", out_dir / "sensitivity.md", out_dir / "sensitivity.csv"
+    atomic_write_json(ident, {"config": out["config"], "units": out["units"], "postures": out["identifiability"]})
+    atomic_write_text(md, "\n".join(_markdown(out)))
+    atomic_write_text(csv, to_csv(out["rows"]))
+    return [csv, md, ident, *paths]
