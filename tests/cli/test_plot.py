@@ -154,6 +154,63 @@ def test_a_negative_trial_index_is_refused(tmp_path, capsys):
     assert not (tmp_path / "f").exists() and not (tmp_path / "s.json").exists()
 
 
+def test_a_trial_index_counts_among_the_selected_trials(tmp_path, capsys, monkeypatch):
+    """`--posture P2 --trial 0` is the file's first P2 trial (once the index counted in the whole file, whose
+    first trial is P1's, and the choice was refused); an index past the selection says how many it holds."""
+    from reachirl.cli import main
+    from reachirl.cli import plot as plot_cli
+    from reachirl.data.trial import save_trials
+    from reachirl.experiments import datasets
+    from reachirl.irl.model import LearnedModel, save_model
+
+    path = tmp_path / "t.npz"
+    save_trials(path, datasets.toy(n_subjects=1, postures=("P1", "P2"), n_trials=2, n_nodes=20, seed=1).trials)
+    model = save_model(tmp_path / "m.json", LearnedModel(np.full((1, 7), 0.1), n_nodes=20))
+    drawn = []
+    monkeypatch.setattr(
+        plot_cli, "model_figures", lambda m, trials, *a, **k: drawn.append([t.id for t in trials]) or []
+    )
+    plot = ["plot", "--model", str(model), str(path), "--out", str(tmp_path / "f")]
+    assert main([*plot, "--posture", "P2", "--trial", "1", "--trial", "S01_P2_T01"]) == 0
+    assert main([*plot, "--trial", "3"]) == 0  # without a choice, the index counts in the whole file
+    assert main([*plot, "--subject", "S01", "--side", "right", "--trial", "0"]) == 0  # every trial chosen
+    assert drawn == [
+        ["S01/P2/right/S01_P2_T02", "S01/P2/right/S01_P2_T01"],
+        ["S01/P2/right/S01_P2_T02"],
+        ["S01/P1/right/S01_P1_T01"],
+    ]
+    simulate = ["simulate", "--model", str(model), str(path), "--out", str(tmp_path / "s.json")]
+    for command in (plot, simulate):
+        for extra, said in (
+            (
+                ["--posture", "P2", "--trial", "2"],
+                "--trial 2: index out of range, expected 0 to 1 (the selection --posture P2 holds 2 of the file's 4 "
+                "trials)",
+            ),
+            (
+                ["--subject", "S01", "--posture", "P1", "--trial", "-1"],
+                "--trial -1: index out of range, expected 0 to 1 (the selection --subject S01 --posture P1 holds 2 "
+                "of the file's 4 trials)",
+            ),
+            (["--trial", "4"], "--trial 4: index out of range, expected 0 to 3 (the file holds 4 trials)"),
+            (
+                ["--posture", "P2", "--trial", "S01_P1_T01"],
+                "--trial S01_P1_T01: S01/P1/right/S01_P1_T01 is not among the selected trials (the selection "
+                "--posture P2 holds 2 of the file's 4 trials)",
+            ),
+            (
+                ["--posture", "P2", "--trial", "T9"],
+                "--trial T9: no trial with that id, trial_id or index (the selection --posture P2 holds 2 of the "
+                "file's 4 trials)",
+            ),
+        ):
+            capsys.readouterr()
+            assert main([*command, *extra]) == 2
+            err = capsys.readouterr().err.strip()
+            assert err.endswith(f"{path}: {said}") and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "s.json").exists()
+
+
 def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
     d, trials, _ = fitted
     run = d / "run"

@@ -144,6 +144,17 @@ def test_simulate_chooses_trials_as_fit_evaluate_and_plot_do(arm, tmp_path, caps
     out = tmp_path / "sim.json"
     assert main(["simulate", "--model", str(model), str(trials), "--posture", "P2", "--out", str(out)]) == 0
     assert [t["id"] for t in json.loads(out.read_text())["trials"]] == ["S1/P2/right/1"]
+    # --trial's index counts among the selected trials: the first P2 one, though trial_id "0" is P1's
+    p2, out = ["simulate", "--model", str(model), str(trials), "--posture", "P2"], tmp_path / "first_p2.json"
+    assert main([*p2, "--trial", "0", "--out", str(out)]) == 0
+    assert [t["id"] for t in json.loads(out.read_text())["trials"]] == ["S1/P2/right/1"]
+    capsys.readouterr()
+    assert main([*p2, "--trial", "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(
+        f"{trials}: --trial 2: index out of range, expected 0 to 0 (the selection --posture P2 holds 1 of the "
+        "file's 2 trials)"
+    )
 
 
 @pytest.mark.parametrize("sex", ["M", "F"])

@@ -1,15 +1,15 @@
 """``reachirl plot --model MODEL.json TRIALS --out DIR`` or ``reachirl plot RUN_DIR --out DIR``: figures as PNG
 and PDF.
 
-With a model: ``--subject/--posture/--side`` (and ``--trial``) choose the trials; each is predicted from its own
-start exactly as ``evaluate`` predicts it (the same function: the same RMSE, printed as ``evaluate`` prints it),
-and DIR gets
-``prediction.png`` (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each
-feature's share of its window's cost on the fit's own reach, the shares its intervals bracket; undetermined
-shares hatched) and ``convergence.png`` (the fit's merit per iteration, when
-the model file holds a history). With a ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``,
-``fig3_weights``, ``fig4_iscv``, ``convergence``, ``methods``) drawn again from its ``results.json`` and
-``units/``. Every figure is written as ``.png`` and ``.pdf``.
+With a model: ``--subject/--posture/--side`` choose the trials, and ``--trial`` picks among them (by id, trial_id
+or index among the selected trials, 0-based); each is predicted from its own start exactly as ``evaluate`` predicts
+it (the same function: the same RMSE, printed as ``evaluate`` prints it), and DIR gets ``prediction.png``
+(demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each feature's share of its
+window's cost on the fit's own reach, the shares its intervals bracket; undetermined shares hatched) and
+``convergence.png`` (the fit's merit per iteration, when the model file holds a history). With a
+``reachirl reproduce`` folder: the run's figures (``fig2_prediction``, ``fig3_weights``, ``fig4_iscv``,
+``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
+``.png`` and ``.pdf``.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, add_selection, chosen_trials
+from ._args import PREDICTION_BACKEND_HELP, add_selection
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -47,7 +47,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         action="append",
         default=None,
         metavar="ID|INDEX",
-        help="with --model: plot only this trial (id, trial_id or 0-based index); repeat for several (default: all)",
+        help="with --model: plot only this trial of those --subject/--posture/--side select (id, trial_id or "
+        "0-based index among the selected trials); repeat for several (default: every selected trial)",
     )
     p.add_argument(
         "--backend",
@@ -204,8 +205,7 @@ def run(args: argparse.Namespace) -> int:
         if args.source.is_dir():
             raise InputError("is a folder; with --model, give a trials file", args.source)
         model = load_model(args.model)
-        trials = _select(load_trials(args.source), args.trial, args.source)
-        trials, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": args.source}), trials)
+        trials = _select(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)
         print(summary_line(summarise(errors), args.backend or model.backend))
         written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)

@@ -1,7 +1,10 @@
 """``reachirl simulate --model MODEL.json TRIALS [--render OUT.gif] [--trial ID|INDEX ...] [--backend B]
 [--mode M]``.
 
-Predicts each selected trial with the learned weights as evaluate does (the same reach whose RMSE evaluate
+``--subject/--posture/--side`` select trials of TRIALS, and ``--trial`` picks among the selected ones: by id,
+trial_id or index (the N-th selected trial, 0-based; ``--posture P2 --trial 0`` is the file's first P2 trial).
+
+Predicts each chosen trial with the learned weights as evaluate does (the same reach whose RMSE evaluate
 reports), plays the prediction's torques back in MuJoCo (open loop or with PD tracking) and prints how far
 MuJoCo's reach drifts from the DOC's; optionally renders the reaches (the demonstrations as translucent ghosts,
 on the same normalised time) to a GIF or MP4. A prediction whose DOC did not converge is played and reported,
@@ -55,8 +58,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
         action="append",
         default=None,
         metavar="ID|INDEX",
-        help="a trial to simulate, by id (subject/posture/side/trial), trial_id or 0-based index; "
-        "repeat for several (default: all)",
+        help="a trial to simulate, among those --subject/--posture/--side select: by id (subject/posture/side/"
+        "trial), trial_id or 0-based index among the selected trials; repeat for several (default: every selected "
+        "trial)",
     )
     add_selection(p, "simulate")
     p.add_argument(
@@ -104,23 +108,51 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def _select(trials, keys, path):
-    if not keys:
-        return list(trials)
+def _held(args, selected, trials) -> str:
+    """How many trials the selection holds, in words: of the whole file, or of what --subject/--posture/--side
+    choose."""
+    given = [
+        f"--{name} {' '.join(v) if isinstance(v, list) else v}"
+        for name in ("subject", "posture", "side")
+        if (v := getattr(args, name, None)) is not None
+    ]
+    n = len(trials)
+    if not given:
+        return f"the file holds {n} trial{'s' if n != 1 else ''}"
+    return f"the selection {' '.join(given)} holds {len(selected)} of the file's {n} trial{'s' if n != 1 else ''}"
+
+
+def _select(args, trials, path) -> list:
+    """Those of ``trials`` (read from the file ``path``, which an error names) that ``--subject/--posture/--side``
+    select (:func:`reachirl.cli._args.chosen_trials`), then of these the ones ``--trial`` names, in the order
+    given (all of them without ``--trial``).
+
+    A key is a selected trial's id or trial_id, else an integer: the index of a trial among the selected ones (the
+    N-th selected, 0-based). An index out of range, a key naming only trials the selection leaves out, or one naming
+    none raises :class:`InputError` saying how many trials the selection holds."""
+    selected, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": path}), trials)
+    if not args.trial:
+        return selected
     chosen = []
-    for key in keys:
-        hits = [t for t in trials if key in (t.id, t.trial_id)]
-        if not hits and key.lstrip("-").isdigit():
+    for key in args.trial:
+        hits = [t for t in selected if key in (t.id, t.trial_id)]
+        if not hits and key.removeprefix("-").isdecimal():
             i = int(key)
-            if not 0 <= i < len(trials):
+            if not 0 <= i < len(selected):
                 raise InputError(
-                    f"--trial {key}: index out of range, expected 0 to {len(trials) - 1} (the file holds "
-                    f"{len(trials)} trials)",
+                    f"--trial {key}: index out of range, expected 0 to {len(selected) - 1} "
+                    f"({_held(args, selected, trials)})",
                     path,
                 )
-            hits = [trials[i]]
+            hits = [selected[i]]
         if not hits:
-            raise InputError(f"--trial {key}: no trial with that id, trial_id or index", path)
+            left_out = [t.id for t in trials if key in (t.id, t.trial_id)]
+            what = (
+                f"{left_out[0]} is not among the selected trials"
+                if left_out
+                else "no trial with that id, trial_id or index"
+            )
+            raise InputError(f"--trial {key}: {what} ({_held(args, selected, trials)})", path)
         chosen.extend(hits)
     return chosen
 
@@ -190,7 +222,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend
-    trials, _ = chosen_trials(args, _select(load_trials(args.trials), args.trial, args.trials))
+    trials = _select(args, load_trials(args.trials), args.trials)
     stretch = _stretch(model)
     if args.substeps is None:
         args.substeps = _pd_substeps(args, trials, model.n_nodes, stretch) if args.mode == "pd" else 10
