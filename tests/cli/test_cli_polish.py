@@ -97,3 +97,27 @@ def test_a_selection_given_twice_keeps_both(argv, dest, expected):
     # `--subject S01 --subject S02` once kept S02 only, and fitted half the trials without a word; the protocol's
     # options (`reproduce --sections`, ...) keep argparse's rule instead: the last one given wins, as over a run file
     assert getattr(build_parser().parse_args(argv), dest) == expected
+
+
+def test_reproduce_help_shows_the_run_file_keys_as_flags():
+    """`reproduce --help` lists every run-file key that is also a flag in one group, each with its range and default
+    on one line (they were hidden, named only as keys in the description), and hides no option."""
+    from reachirl.cli.reproduce import RUN_KEYS
+
+    sp = _subparsers()["reproduce"]
+    (group,) = [g for g in sp._action_groups if g.title == "run-file keys, also accepted as flags"]
+    flags = {"methods": "--method", "progress": "--no-progress"}
+    expected = {flags.get(k, "--" + k.replace("_", "-")) for k in RUN_KEYS} | {"--uncertainty"}
+    assert {s for a in group._group_actions for s in a.option_strings} == expected
+    for a in group._group_actions:
+        assert a.help not in (None, argparse.SUPPRESS) and "default" in a.help and len(a.help) < 120, a.help
+    assert not [a.dest for a in sp._actions if a.help == argparse.SUPPRESS]  # --set included
+    text = sp.format_help()
+    words = " ".join(text.split())
+    for flag in expected:
+        assert flag in text
+    assert "--n-train N training trials per posture, 0 to 1000000 (default 10; --quick 3; 0: all)" in words
+    assert "--set KEY=VALUE a run-file key" in words
+    assert len(text.splitlines()) < 120  # a screenful or two, not a listing
+    args = build_parser().parse_args(["reproduce", "--n-train", "0", "--no-progress", "--method", "moirl", "kkt"])
+    assert (args.key_n_train, args.key_progress, args.key_methods) == (0, False, ["moirl", "kkt"])

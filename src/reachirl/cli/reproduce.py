@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import textwrap
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -30,37 +31,53 @@ QUICK = {"n_train": 3, "n_cv": 3, "n_iscv": 3, "nodes": 40, "max_iter": 5}
 FULL = {"n_train": 10, "n_cv": None, "n_iscv": None, "nodes": 100, "max_iter": 30}
 
 RUN_KEYS = {
-    # key: (what it is, check) -- the keys of a run file (--config RUN.toml, --set KEY=VALUE) beside the flags
-    "postures": ("postures to run (default: every posture of the data)", "names"),
+    # key: (what it is, check) -- the keys of a run file (--config RUN.toml, --set KEY=VALUE) beside the flags;
+    # each is also a flag, --key-name, whose help is this text (progress: --no-progress, with its own)
+    "postures": (
+        "postures to run (default: every posture of the data; --quick: P2 and P4, else the first two)",
+        "names",
+    ),
     "methods": ("moirl (default) and/or baselines maxent, bilevel, kkt; the first is the main table", "names"),
     "train_subject": ("subject to learn from (default: the first one)", "str"),
     "train_side": ("learn from this arm's reaches only: right or left (default: either)", "str"),
     "cv": ("rest (the subject's other trials; default) or other-side (its other arm, mirrored)", "str"),
-    "n_train": ("training trials per posture (default 10; 0: all)", "count"),
-    "n_cv": ("CV trials per posture (default: all; 0: all)", "count"),
-    "n_iscv": ("ISCV trials per posture (default: all; 0: all)", "count"),
+    "n_train": ("training trials per posture, 0 to 1000000 (default 10; --quick 3; 0: all)", "count"),
+    "n_cv": ("CV trials per posture, 0 to 1000000 (default: all; --quick 3; 0: all)", "count"),
+    "n_iscv": ("ISCV trials per posture, 0 to 1000000 (default: all; --quick 3; 0: all)", "count"),
     "nodes": (f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100; --quick 40)", "nodes"),
     "max_iter": (f"MO-IRL iterations at most, per stage, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
-    "tol": ("MO-IRL acceptance threshold, 0 to 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
+    "tol": ("MO-IRL acceptance threshold, from 0 to below 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
     "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
-    "data_seed": ("seed of the built-in data set (default 0)", "count"),
-    "markers": ("shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder", "str"),
-    "max_units": ("stop after N new units; rerun into the same --out to resume (default: no limit)", "count"),
-    "progress": ("show a progress bar (default true)", "bool"),
+    "data_seed": ("seed of the built-in data set, 0 to 1000000 (default 0)", "count"),
+    "markers": (
+        "shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder (default: its truth.json's, else the built-in "
+        "marker sets)",
+        "str",
+    ),
+    "max_units": (
+        "stop after N new units, 0 to 1000000; rerun into the same --out to resume (default: no limit; 0: no limit)",
+        "count",
+    ),
+    "progress": ("show a progress bar, true or false (default true)", "bool"),
 }
 """Run-file keys; an ``[experimental]`` table holds MO-IRL's :class:`reachirl.irl.options.Options` fields."""
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
+    keys_text = textwrap.fill(
+        "Run-file keys are set in a --config RUN.toml file, by --set KEY=VALUE (repeatable) or by flags, each over "
+        "the ones before: "
+        + ", ".join((*(k for k in FLAG_KEYS if k != "uncertainty"), "quick"))
+        + " and data by the options of those names, the keys of the group 'run-file keys' below by its flags "
+        "(key_name as --key-name; methods as --method; progress = false as --no-progress). An [experimental] table "
+        "holds MO-IRL options (docs/usage.md).",
+        width=110,
+        break_on_hyphens=False,
+    )
     p = subparsers.add_parser(
         "reproduce",
         help="run the seed paper's protocol and write its table and figures",
-        description=__doc__.replace("``", "") + "\nRun-file keys (--config RUN.toml, --set KEY=VALUE (repeatable), "
-        "or the flag --key-name VALUE; progress: --no-progress; methods: --method):\n"
-        + "\n".join(f"  {k}: {v[0]}" for k, v in RUN_KEYS.items())
-        + "\n  uncertainty: weight samples per MO-IRL fit of the main table, 20 to 1000, or 0 for none (default 40):"
-        " the cost-share intervals of the models, figures and report (also --uncertainty K)"
-        + "\n  [experimental]: MO-IRL options (docs/usage.md)",
+        description=__doc__.replace("``", "") + "\n" + keys_text,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
@@ -134,13 +151,6 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="also learn one cost on every posture but one and predict the held-out one (posture_transfer.csv)",
     )
     p.add_argument(
-        "--uncertainty",
-        type=int_in(0, 1000),
-        default=None,
-        metavar="K",
-        help=argparse.SUPPRESS,  # a run-file key, listed in the description
-    )
-    p.add_argument(
         "--config",
         type=Path,
         metavar="RUN.toml",
@@ -152,20 +162,52 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         default=[],
         metavar="KEY=VALUE",
         dest="assignments",
-        help=argparse.SUPPRESS,  # listed in the description
+        help='a run-file key, the value read as TOML (n_train=0, postures=["P2"]); repeatable (default: none)',
     )
-    # every run-file key is also a flag (--n-train 0), listed in the description rather than as an option
-    for key, (_, kind) in RUN_KEYS.items():
+    keys = p.add_argument_group("run-file keys, also accepted as flags")
+    for key, (what, kind) in RUN_KEYS.items():
         name = "method" if key == "methods" else key.replace("_", "-")
-        flag = "--no-progress" if key == "progress" else f"--{name}"
-        if kind == "bool":
-            p.add_argument(flag, dest=f"key_{key}", action="store_false", default=None, help=argparse.SUPPRESS)
+        if kind == "bool":  # progress: the flag turns it off
+            keys.add_argument(
+                "--no-progress",
+                dest=f"key_{key}",
+                action="store_false",
+                default=None,
+                help="no progress bar, nor its line per unit in a log (progress = false; default: shown)",
+            )
         elif kind == "names":
-            p.add_argument(flag, dest=f"key_{key}", nargs="+", default=None, help=argparse.SUPPRESS)
+            keys.add_argument(f"--{name}", dest=f"key_{key}", nargs="+", default=None, metavar="NAME", help=what)
         else:
-            p.add_argument(flag, dest=f"key_{key}", type=KEY_TYPES[kind], default=None, help=argparse.SUPPRESS)
+            keys.add_argument(
+                f"--{name}", dest=f"key_{key}", type=KEY_TYPES[kind], default=None, metavar=KEY_METAVARS[key], help=what
+            )
+    keys.add_argument(
+        "--uncertainty",
+        type=int_in(0, 1000),
+        default=None,
+        metavar="K",
+        help="weight samples per main-table MO-IRL fit, for its cost-share intervals, 20 to 1000, or 0 for none "
+        "(default 40)",
+    )
     return p
 
+
+KEY_METAVARS = {
+    "train_subject": "ID",
+    "train_side": "SIDE",
+    "cv": "SET",
+    "n_train": "N",
+    "n_cv": "N",
+    "n_iscv": "N",
+    "nodes": "N",
+    "max_iter": "N",
+    "tol": "X",
+    "rollout": "KIND",
+    "data_seed": "N",
+    "markers": "MAP",
+    "max_units": "N",
+}
+"""The value's name in the flag of each run-file key that takes one."""
 
 KEY_TYPES = {
     "str": str,
