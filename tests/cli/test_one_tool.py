@@ -167,6 +167,32 @@ def test_a_run_file_with_an_unknown_key_is_refused_naming_it(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_run_file_says_how_to_run_but_not_where_to_write(tmp_path, capsys, monkeypatch):
+    rf = tmp_path / "run.toml"
+    rf.write_text('out = "elsewhere"\n')
+    assert main(["reproduce", "--config", str(rf), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "run.toml: out: not a run-file key; give --out DIR on the command line" in err
+    rf.write_text("subjects = 1\n")
+    assert main(["reproduce", "--config", str(rf), "--out", str(tmp_path / "o")]) == 2
+    assert "subjects: expected a number of built-in virtual subjects, 2 to 100" in capsys.readouterr().err
+    rf.write_text('workers = 1\nscheduler = "nohost"\n')  # read, and checked as the flags are
+    assert main(["reproduce", "--config", str(rf), "--out", str(tmp_path / "o")]) == 2
+    assert "--scheduler 'nohost': expected an address like tcp://HOST:PORT" in capsys.readouterr().err
+    seen = {}
+
+    def stop(units, splits, out_dir, *, workers=1, scheduler=None, **kw):
+        seen.update(workers=workers, scheduler=scheduler)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("reachirl.experiments.runner.run_units", stop)
+    rf.write_text("workers = 1\nquick = true\n")
+    assert main(["reproduce", "--config", str(rf), "--out", str(tmp_path / "o"), "--no-progress"]) == 130
+    assert seen == {"workers": 1, "scheduler": None}
+    assert main(["reproduce", "--config", str(rf), "--workers", "2", "--out", str(tmp_path / "o")]) == 130
+    assert seen["workers"] == 2  # the flag wins
+
+
 def test_a_pooled_fit_given_one_task_is_the_single_task_fit(p2):
     pooled = MOIRL(2, **FAST).fit(p2)  # one rollout per (subject, posture): here one
     single = MOIRL(2, rollout="mean", **FAST).fit(p2)
@@ -358,7 +384,7 @@ def test_the_posture_transfer_text_names_the_rollout_its_fits_used():
         ("posture_transfer = 1", r"posture_transfer: expected true or false; got 1"),
         ("uncertainty = 40.5", r"uncertainty: expected weight samples, 20 to 1000, or 0 for none; got 40\.5"),
         ("sections = [8, 0]", r"sections: expected a list of section counts, each 1 or more; got \[8, 0\]"),
-        ("subjects = 0", r"subjects: expected a number of built-in virtual subjects, 1 to 100; got 0"),
+        ("subjects = 0", r"subjects: expected a number of built-in virtual subjects, 2 to 100; got 0"),
     ],
 )
 def test_a_run_file_value_of_the_wrong_kind_is_refused(tmp_path, capsys, text, match):

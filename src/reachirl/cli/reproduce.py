@@ -223,7 +223,7 @@ FLAG_KEYS = ("sections", "seed", "subjects", "iscv", "backend", "seed_form", "po
 OTHER_KEYS = {
     "sections": ("a list of section counts, each 1 or more", "sections"),
     "seed": ("a seed, 0 or more", "count"),
-    "subjects": (f"a number of built-in virtual subjects, 1 to {MAX_SUBJECTS}", "subjects"),
+    "subjects": (f"a number of built-in virtual subjects, 2 to {MAX_SUBJECTS}", "subjects"),
     "iscv": ('"one" or "all-pairs"', "str"),
     "backend": ('"casadi" or "crocoddyl"', "str"),
     "seed_form": ("true or false", "bool"),
@@ -233,8 +233,9 @@ OTHER_KEYS = {
     "data": ("a path", "str"),
     "scheduler": ("a Dask scheduler address", "str"),
     "workers": ("a number of worker processes, 1 to 256", "workers"),
-    "out": ("a folder", "str"),
 }
+# options of how a run is carried out, not of its results: on the command line only
+COMMAND_LINE_ONLY = {"out": "--out DIR"}
 
 
 def run_options(args) -> tuple[dict, set[str]]:
@@ -266,6 +267,9 @@ def run_options(args) -> tuple[dict, set[str]]:
         if v is not None:
             opts[key] = list(v) if isinstance(v, list) else v
             from_file.discard(key)
+    for key, flag in COMMAND_LINE_ONLY.items():
+        if key in opts:
+            raise InputError(f"{key}: not a run-file key; give {flag} on the command line", where)
     known = {*RUN_KEYS, *OTHER_KEYS, "experimental"}
     unknown = sorted(set(opts) - known)
     if unknown:
@@ -303,7 +307,7 @@ def _valid(kind: str, v) -> bool:
         "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= 0.5,
         "bool": isinstance(v, bool),
         "sections": isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v),
-        "subjects": num and 1 <= v <= MAX_SUBJECTS,
+        "subjects": num and 2 <= v <= MAX_SUBJECTS,
         "uncertainty": num and (v == 0 or 20 <= v <= 1000),
         "workers": num and 1 <= v <= 256,
     }[kind]
@@ -510,8 +514,10 @@ def run(args) -> int:
 
     out = check_output_dir(args.out)
     refuse_overwrite({"--out": out}, [args.data])
-    _check_scheduler(args.scheduler)
     opts, from_file = run_options(args)
+    args.workers = args.workers or opts.get("workers")  # how the run is carried out: the flag, else the run file
+    args.scheduler = args.scheduler or opts.get("scheduler")
+    _check_scheduler(args.scheduler)
     args.quick = bool(args.quick or opts.get("quick", False))
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
