@@ -238,6 +238,27 @@ def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     assert not (tmp_path / "o.npz").exists()
 
 
+@pytest.mark.parametrize(
+    ("name", "pattern"),
+    [
+        (
+            "ADL001FR1angles.csv",
+            r"ADL001FR1angles\.csv: the data authors' joint angles of ADL001FR1\.csv, not a recording",
+        ),
+        ("ADL001_static.csv", r"ADL001_static\.csv: a static calibration trial, not a reach"),
+    ],
+)
+def test_a_glob_of_a_ue_adl_folder_names_the_file_that_is_not_a_reach(tmp_path, synth, capsys, name, pattern):
+    # `preprocess ADL001/*.csv` names the authors' angles and the static trial beside the reaches
+    reach = synth.SAMPLE / "ADL001" / "ADL001FR1.csv"
+    out = tmp_path / "o.npz"
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    code, _, err = _run([reach, synth.SAMPLE / "ADL001" / name, *info, "--out", out], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert re.search(pattern, err), err
+    assert not out.exists()
+
+
 def test_one_bad_file_writes_nothing(tmp_path, synth, reach, capsys):
     (tmp_path / "good.trc").write_text(synth.trc_text(reach.markers, up="y"))
     (tmp_path / "bad.trc").write_text("PathFileType\t4\n")

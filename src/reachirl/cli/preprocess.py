@@ -239,8 +239,26 @@ def _expand(inputs: list[str]) -> list[Path]:
                 raise InputError("folder holds no motion files (*.trc, *.c3d, *.mot, *.sto, UE-ADL reaches)", p)
             out += found
         else:
+            _refuse_non_reach(p)
             out.append(p)
     return out
+
+
+def _refuse_non_reach(p: Path) -> None:
+    """A file given by name that is not a reach, as a shell glob (``ADL001/*.csv``) names them beside the reaches:
+    a static trial, or UE-ADL's joint angles of the data's authors (a folder scan leaves both out)."""
+    if p.stem.lower().endswith("_static"):
+        raise InputError(
+            "a static calibration trial, not a reach: leave it out of the INPUTs (it is found beside each reach, "
+            "or give it with --static)",
+            p,
+        )
+    if p.suffix.lower() == ".csv" and p.stem.lower().endswith("angles") and parse_trial_name(p.with_name(p.stem[:-6])):
+        raise InputError(
+            f"the data authors' joint angles of {p.stem[:-6]}{p.suffix}, not a recording: give the reach files "
+            "(ADLxxxF[RL]n.csv) or their folder",
+            p,
+        )
 
 
 def _summary(tr: Trial) -> str:
