@@ -129,6 +129,29 @@ def test_build_table_all_rows():
     assert csv_text.splitlines()[0].startswith("method,posture,joint,train_1_mean,train_1_std,train_1_n")
 
 
+def test_all_row_over_one_posture_with_trials_gives_the_trials_spread():
+    # two postures run, but only A has ISCV trials (no other subject recorded B): the ALL row is A's trials,
+    # not A's mean ± 0 (an SD over one posture mean)
+    def unit(p, iscv):
+        def trials(vals):
+            return [
+                {"id": str(i), "rmse_deg": {"q1": v, "q2": v, "q": v}, "converged": True} for i, v in enumerate(vals)
+            ]
+
+        sets = {"train": trials([1.0, 2.0]), "cv": trials([1.0]), "iscv": trials(iscv)}
+        return {
+            "key": p,
+            "unit": {"method": "moirl", "posture": p, "sections": 1},
+            "sets": {s: {"trials": v} for s, v in sets.items()},
+        }
+
+    res = {"a": unit("A", [1.0, 3.0]), "b": unit("B", [])}
+    t = tables.build_table(res, "moirl", ["A", "B"], [1])
+    assert t["ALL"]["iscv"][1]["q"]["mean"] == pytest.approx(2.0)
+    assert t["ALL"]["iscv"][1]["q"]["std"] == pytest.approx(1.0)
+    assert t["ALL"]["train"][1]["q"]["std"] == pytest.approx(0.0)  # two posture means, equal: a real 0
+
+
 def test_checkpoints_resume_and_reject_other_inputs(toy, tmp_path):
     cfg = _config(sections=(1,), max_iter=2)
     splits = {p: split_trials(toy.trials, p, cfg) for p in ("P2", "P4")}

@@ -37,7 +37,7 @@ ALL = "ALL"
 ALL_TRIALS = "ALL (trials)"
 ALL_CONVENTION = (
     "ALL = mean over postures of the per-posture mean RMSE ± SD of those posture means "
-    "(the seed's convention; with a single posture, its trials); "
+    "(the seed's convention; with a single posture of trials in the set, its trials); "
     "ALL (trials) = mean ± SD over every trial of every posture pooled."
 )
 
@@ -304,7 +304,7 @@ def build_table(results: dict[str, dict], method: str, postures: Sequence[str], 
                 cell["flag"] = r.get("flag") if r else None
                 table[p][s][n] = cell
             table[ALL_TRIALS][s][n] = {**{j: _stats(pooled[j]) for j in JOINTS}, "doc_failures": fails_all}
-            if len(postures) == 1:  # an SD over one posture mean would read ± 0: give the trials' spread
+            if len(means["q"]) <= 1:  # an SD over one posture mean would read ± 0: give the trials' spread
                 table[ALL][s][n] = {
                     k: dict(v) if isinstance(v, dict) else v for k, v in table[ALL_TRIALS][s][n].items()
                 }
