@@ -271,3 +271,26 @@ def test_a_selection_no_trial_matches_exits_2_naming_the_file(mixed_file, tmp_pa
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and re.search(match, err), err
     assert not (tmp_path / "m.json").exists()
+
+
+def test_trials_cut_at_two_thresholds_are_refused_naming_the_file(trials_file, tmp_path, capsys):
+    # a trials file merged from two `preprocess --threshold` runs: one rollout cannot be seen two ways
+    from dataclasses import replace
+
+    from reachirl import MOIRL
+    from reachirl.data.trial import load_trials
+    from reachirl.errors import InputError
+
+    trials = [replace(t, onset_threshold=0.05 if i < 2 else 0.1) for i, t in enumerate(load_trials(trials_file))]
+    with pytest.raises(InputError, match=r"cut at different onset thresholds \[0\.05, 0\.1\]"):
+        MOIRL(n_windows=1, n_nodes=20, max_iter=1).fit(trials)
+    mixed = tmp_path / "two_thresholds.npz"
+    save_trials(mixed, trials)
+    out = tmp_path / "m.json"
+    assert main(["fit", str(mixed), "--sections", "1", "--nodes", "20", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert re.search(
+        r"^reachirl fit: error: \S*two_thresholds\.npz: .*different onset thresholds.*--rollout per_demo", err
+    )
+    assert not out.exists()

@@ -175,7 +175,12 @@ def run(args: argparse.Namespace) -> int:
         if is_moirl:  # the baselines take no progress callback
             kwargs["callback"] = progress
         est = make_estimator(args.method, args.sections, **kwargs)
-        est.fit(trials)
+        try:
+            est.fit(trials)
+        except InputError as e:  # the trials do not go together (e.g. cut at two thresholds): name their file
+            if e.path is not None:
+                raise
+            raise InputError(e.reason, args.trials) from None
     model = LearnedModel.from_estimator(est, trials)
     model = replace(model, info={**model.info, "trials": str(args.trials), "selection": chosen})
     info, unc = model.info, model.uncertainty

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from ..data.trial import Trial
+from ..errors import InputError
 from ..features import euler_knots
 from . import DocSolution, ReachingTask, solve_doc
 from .task import moved_path
@@ -67,12 +68,17 @@ def check_threshold(threshold: float | None) -> float | None:
 
 def common_threshold(trials: Sequence[Trial]) -> float | None:
     """The onset threshold all ``trials`` were cut at (``None`` if any was not cut); trials cut at different
-    thresholds raise ``ValueError`` (one rollout cannot be seen two ways)."""
+    thresholds raise :class:`~reachirl.errors.InputError`, a ``ValueError`` (one rollout cannot be seen two ways:
+    a trials file merged from two ``preprocess --threshold`` runs)."""
     found = {t.onset_threshold for t in trials}
     if None in found:
         return None
     if len(found) > 1:
-        raise ValueError(f"the trials were cut at different onset thresholds {sorted(found)}; fit them apart")
+        raise InputError(
+            f"the trials of one rollout were cut at different onset thresholds {sorted(found)} (preprocess "
+            "--threshold); preprocess them at one threshold, fit them apart, or fit one rollout per trial "
+            "(--rollout per_demo)"
+        )
     return found.pop() if found else None
 
 
