@@ -294,3 +294,29 @@ def test_trials_cut_at_two_thresholds_are_refused_naming_the_file(trials_file, t
         r"^reachirl fit: error: \S*two_thresholds\.npz: .*different onset thresholds.*--rollout per_demo", err
     )
     assert not out.exists()
+
+
+def test_reproduce_refuses_trials_cut_at_two_thresholds_before_any_work(trials_file, tmp_path, capsys):
+    from dataclasses import replace
+
+    from reachirl.data.trial import load_trials
+
+    trials = load_trials(trials_file)
+    first = (trials[0].subject, trials[0].posture)
+    mixed = [
+        replace(t, onset_threshold=0.1 if (t.subject, t.posture) == first and i % 2 else 0.05)
+        for i, t in enumerate(trials)
+    ]
+    path = tmp_path / "two_thresholds.npz"
+    save_trials(path, mixed)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "table.csv").write_text("an earlier run's table\n")
+    args = ["reproduce", "--data", str(path), "--quick", "--workers", "1", "--out", str(out), "--no-progress"]
+    assert main([*args, "--postures", first[1]]) == 2
+    err = capsys.readouterr().err.strip()
+    assert re.search(
+        rf"^reachirl reproduce: error: \S*two_thresholds\.npz: {first[0]} {first[1]}: .*--rollout per_demo", err
+    )
+    assert len(err.splitlines()) == 1, err
+    assert (out / "table.csv").read_text() == "an earlier run's table\n" and not (out / "run.toml").exists()

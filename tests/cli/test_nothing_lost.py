@@ -682,3 +682,27 @@ def test_an_interrupted_export_leaves_no_earlier_index_or_main_output(base, tmp_
     assert not (folder / "index.csv").exists() and not out.exists()
     monkeypatch.undo()
     assert main(argv) == 0 and (folder / "index.csv").is_file() and out.is_file()
+
+
+def test_stdout_closed_by_its_reader_is_not_an_internal_error(tmp_path):
+    """`reachirl preprocess ... | head -1`: the reader goes away; no traceback, no "internal error", not 0."""
+    import subprocess
+    import sys
+
+    from reachirl.data.ue_adl import SAMPLE_DIR
+
+    r, w = os.pipe()
+    os.close(r)  # a reader that has already gone: the first write is a broken pipe
+    exe = Path(sys.executable).parent / "reachirl"
+    try:
+        proc = subprocess.run(
+            [str(exe), "preprocess", str(SAMPLE_DIR), "--markerset", "ue-adl", "--out", str(tmp_path / "t.npz")],
+            stdout=w,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=300,
+        )
+    finally:
+        os.close(w)
+    assert proc.returncode == 141 and "rror" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert (tmp_path / "t.npz").is_file()  # written before the printout

@@ -11,6 +11,7 @@ from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, make_units, split_trials
 from reachirl.experiments.sensitivity import (
     COLUMNS,
+    SETS,
     SensitivityConfig,
     occlusion_job,
     run_sensitivity,
@@ -95,8 +96,9 @@ def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
     assert {r["sections"] for r in rows} == {"2"}
     for r in rows:
         if r["analysis"] != "sensitivity":
-            lo, m, hi = float(r["cv_ci_lo"]), float(r["cv_delta_deg"]), float(r["cv_ci_hi"])
-            assert lo <= m <= hi and r["verdict"].split(" (")[0] in ("needed", "not needed", "better without")
+            # 3 training, 1 CV and 4 ISCV trials: a mean change each, and no set large enough for an interval
+            assert all(r[f"{s}_delta_deg"] != "" and r[f"{s}_ci_lo"] == r[f"{s}_ci_hi"] == "" for s in SETS)
+            assert r["verdict"] == "too few trials (fewer than 5 in every set)"
         else:
             assert float(r["path_change_deg"]) >= 0
     # each share says whether the fit's weight samples determine it, as the run's intervals do
@@ -116,7 +118,7 @@ def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
     assert ident["determination"]["n_directions"] == 14  # what the training trials determine, not fixed weights
     md = (out / "sensitivity.md").read_text()
     assert "Which costs the data needs" in md and "weight directions determined" in md
-    assert "bootstrap" not in md and "fixed" not in md
+    assert "bootstrap" not in md and "fixed" not in md and "nan" not in md and "[too few trials]" in md
     if not all(all(row) for row in determined):
         assert "(undetermined)" in md  # a share the data does not determine is never printed bare
 
@@ -147,6 +149,20 @@ def test_bad_options(small_run, tmp_path, cli):
         run_sensitivity(small_run, SensitivityConfig(postures=("P9",)))
     with pytest.raises(InputError, match=r"--method 'maxent' was not run"):
         run_sensitivity(small_run, SensitivityConfig(method="maxent"))
+
+
+def test_a_verdict_needs_five_paired_trials_in_a_set():
+    from reachirl.experiments.sensitivity import _verdict, paired_interval
+
+    assert np.isnan(paired_interval([0.3, 0.4])[1])  # two of the same sign are no 95 % finding
+    m, lo, hi = paired_interval([0.3, 0.4, 0.35, 0.5, 0.45])
+    assert m == pytest.approx(0.4) and 0.3 <= lo < m < hi <= 0.5
+    row = {}
+    for s, d in (("cv", [0.3, 0.4]), ("iscv", [0.3, 0.4, 0.35, 0.5, 0.45]), ("train", [-0.1] * 6)):
+        row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(d)
+    assert _verdict(row) == "needed (iscv)"  # the CV set is passed over, not read as a finding
+    row["iscv_ci_lo"] = row["iscv_ci_hi"] = row["train_ci_lo"] = row["train_ci_hi"] = float("nan")
+    assert _verdict(row) == "too few trials (fewer than 5 in every set)"
 
 
 def test_effect_collinearity_finds_weights_that_move_the_path_alike():

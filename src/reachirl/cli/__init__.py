@@ -3,7 +3,7 @@
 Each subcommand lives in its own module of this package with ``add_parser(subparsers)`` and ``run(args) -> int``.
 Exit codes: 0 success; 2 bad usage or bad input (one line naming the file and the problem); 1 internal error;
 130 on Ctrl-C and 143 on SIGTERM, also when compiled code swallowed the interrupt (the signal is recorded, and
-nothing is written after it).
+nothing is written after it); 141, silently, when standard output's reader closed it (``| head``).
 """
 
 from __future__ import annotations
@@ -142,6 +142,11 @@ def _run_command(args) -> int:
             raise
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # stdout's reader went away (`| head`): the rest of the output is not wanted
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # nor the interpreter's last flush
+        os.close(devnull)
+        return 141  # as a process ended by SIGPIPE: not a success
     except OSError as e:  # a path the user gave cannot be read or written (checked up front where possible)
         from ..validation import PATH_ERRNOS
 

@@ -284,6 +284,25 @@ def run_units(
     return RunSummary(results, computed, reused, stopped)
 
 
+def check_thresholds(units: Sequence[Unit], splits: Mapping, source) -> None:
+    """Before any work: each rollout of an observed unit (one per subject and posture of its training trials, unless
+    ``rollout = "per_demo"``) must see trials cut at one onset threshold (:func:`~reachirl.doc.observation.
+    common_threshold`); otherwise an :class:`InputError` naming ``source``."""
+    from ..doc.observation import common_threshold
+
+    for u in units:
+        if not u.observe or dict(u.estimator_options).get("rollout") == "per_demo":
+            continue
+        groups: dict = {}
+        for t in splits[u.split_key].train:
+            groups.setdefault((t.subject, t.posture), []).append(t)
+        for (subject, posture), group in groups.items():
+            try:
+                common_threshold(group)
+            except InputError as e:
+                raise InputError(f"{subject} {posture}: {e.reason}", source) from None
+
+
 def reproduce(
     dataset,
     config,
@@ -323,6 +342,7 @@ def reproduce(
     if config.posture_transfer:
         splits.update(transfer_splits(splits, postures))
     units = [u for u in make_units(postures, config, pair_training_subjects(trials, config)) if u.split_key in splits]
+    check_thresholds(units, splits, dataset.source)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(out_dir)

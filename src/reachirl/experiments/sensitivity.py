@@ -16,8 +16,9 @@ For each chosen unit (by default: the run's first method, every posture, its lar
 
 A feature (or window) is **needed** when its occlusion raises the held-out RMSE (CV, else ISCV, else training)
 with a 95 % interval above 0; **better without** when the interval is below 0; otherwise **not needed** (the
-data cannot tell the fit with it from the fit without it). Rows of posture ``ALL`` pool the trials of every
-posture. Each refit is a pure function of its inputs, run in local processes with ``workers > 1``.
+data cannot tell the fit with it from the fit without it); a set of fewer than :data:`MIN_PAIRED` trials gives
+no interval, and with no set large enough the verdict says **too few trials**. Rows of posture ``ALL`` pool the
+trials of every posture. Each refit is a pure function of its inputs, run in local processes with ``workers > 1``.
 """
 
 from __future__ import annotations
@@ -278,14 +279,20 @@ def load_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str) -> dict 
 
 
 # ---------------------------------------------------------------------- statistics
+#: paired trials needed for an interval: a bootstrap over fewer only spans the few differences (with two, both of
+#: the same sign would read as a 95 % finding, a 1-in-4 chance under no effect)
+MIN_PAIRED = 5
+
+
 def paired_interval(d: Sequence[float], n_boot: int = 2000, seed: int = 0) -> tuple[float, float, float]:
-    """Mean of the paired differences ``d`` and its 95 % bootstrap interval (seeded); NaNs without data."""
+    """Mean of the paired differences ``d`` and its 95 % bootstrap interval (seeded); NaNs without data, and a mean
+    with a NaN interval from fewer than :data:`MIN_PAIRED` differences."""
     d = np.asarray(d, dtype=float)
     d = d[np.isfinite(d)]
     if d.size == 0:
         return float("nan"), float("nan"), float("nan")
-    if d.size == 1:
-        return float(d[0]), float(d[0]), float(d[0])
+    if d.size < MIN_PAIRED:
+        return float(d.mean()), float("nan"), float("nan")
     rng = np.random.default_rng(seed)
     boot = d[rng.integers(0, d.size, size=(int(n_boot), d.size))].mean(axis=1)
     lo, hi = np.quantile(boot, [0.025, 0.975])
@@ -302,6 +309,8 @@ def _verdict(row: dict) -> str:
         if hi < 0:
             return f"better without ({s})"
         return f"not needed ({s})"
+    if any(row.get(f"{s}_delta_deg") is not None and np.isfinite(row[f"{s}_delta_deg"]) for s in SETS):
+        return f"too few trials (fewer than {MIN_PAIRED} in every set)"
     return ""
 
 
@@ -764,7 +773,10 @@ def _ci(r, s) -> str:
     m = r[f"{s}_delta_deg"]
     if m is None or not np.isfinite(m):
         return "—"
-    return f"{m:+.3f} [{r[f'{s}_ci_lo']:+.3f}, {r[f'{s}_ci_hi']:+.3f}]"
+    lo, hi = r[f"{s}_ci_lo"], r[f"{s}_ci_hi"]
+    if lo is None or not np.isfinite(lo):
+        return f"{m:+.3f} [too few trials]"
+    return f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]"
 
 
 def remove_outputs(out_dir: str | Path) -> None:
