@@ -117,10 +117,19 @@ def test_from_anthropometrics_defaults_scale_with_height():
     assert 0.2 < short.l1 < 0.3 and 0.3 < short.l2 < 0.5
 
 
+def test_sex_is_read_as_m_f_male_or_female():
+    assert [ArmModel.from_anthropometrics(1.7, 70, s).m1 for s in ("M", "male", " MALE ")] == [
+        ArmModel.from_anthropometrics(1.7, 70, "M").m1
+    ] * 3
+    assert ArmModel.from_anthropometrics(1.7, 70, "female").m1 == ArmModel.from_anthropometrics(1.7, 70, "F").m1
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
         ({"height_m": 1.7, "mass_kg": 70, "sex": "X"}, "sex must be"),
+        ({"height_m": 1.7, "mass_kg": 70, "sex": "Mouse"}, "sex must be"),  # not read as its first letter
+        ({"height_m": 1.7, "mass_kg": 70, "sex": "fmale"}, "sex must be"),
         ({"height_m": 170, "mass_kg": 70, "sex": "M"}, "height_m must be"),
         ({"height_m": 1.7, "mass_kg": 0.07, "sex": "M"}, "mass_kg must be"),
         ({"height_m": 1.7, "mass_kg": 70, "sex": "M", "forearm_m": 270}, "forearm length must be in metres"),

@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DUMAS_2007", "ArmModel"]
+__all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DUMAS_2007", "ArmModel", "sex_key"]
 
 #: the joints' range of motion (rad), (q1, q2): the shoulder from full extension behind the body to well overhead
 #: (-150° to 120°), the elbow from slight hyper-extension to full flexion (-5° to 160°). A reach's default joint
@@ -52,6 +52,12 @@ DUMAS_2007 = {
 }
 # Stature the mean lengths above belong to; default lengths are scaled by height / this.
 _REFERENCE_HEIGHT_M = {"M": 1.77, "F": 1.64}
+
+
+def sex_key(text) -> str | None:
+    """The key of Dumas 2007's tables for a sex as written in a subject table: ``"M"`` for M or male, ``"F"`` for F or
+    female (any case), ``None`` for anything else."""
+    return {"M": "M", "MALE": "M", "F": "F", "FEMALE": "F"}.get(str(text).strip().upper())
 
 
 @dataclass(frozen=True)
@@ -107,9 +113,9 @@ class ArmModel:
         The hand (wrist centre to fingertip) is lumped onto the forearm with the parallel-axis theorem, so
         ``l2 = forearm_m + hand_m`` and the fingertip is the end-effector.
         """
-        key = str(sex).strip().upper()[:1]
-        if key not in DUMAS_2007:
-            raise ValueError(f"sex must be 'M' or 'F', got {sex!r}")
+        key = sex_key(sex)
+        if key is None:
+            raise ValueError(f"sex must be 'M' or 'F' (or 'male', 'female'), got {sex!r}")
         if not (0.5 < float(height_m) < 2.6):
             raise ValueError(f"height_m must be a plausible stature in metres, got {height_m}")
         if not (10.0 < float(mass_kg) < 300.0):

@@ -190,6 +190,7 @@ def test_fit_and_evaluate_take_the_chosen_trials_only(mixed_file, tmp_path, caps
                 str(mixed_file),
                 "--subject",
                 "S2",
+                "S2",
                 "--side",
                 "right",
                 "--out",

@@ -87,7 +87,10 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
     when none was given: every trial)."""
     from ..data.trial import select_trials
 
-    chosen = {"subjects": args.subject, "postures": args.posture, "sides": None if args.side is None else [args.side]}
+    def once(values):  # `--subject S01 S01` chooses S01, and is recorded so
+        return None if values is None else list(dict.fromkeys(values))
+
+    chosen = {"subjects": once(args.subject), "postures": once(args.posture), "sides": once(args.side and [args.side])}
     if all(v is None for v in chosen.values()):
         return trials, None
     return select_trials(trials, **chosen, path=args.trials), chosen

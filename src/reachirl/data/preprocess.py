@@ -457,7 +457,8 @@ def segmentation_cutoff(
         if speed_noise(f) <= target:
             return float(f)
     log.warning(
-        "%s: the markers' noise (%.2g mm RMS) is large for a reach this slow; onset and offset are "
+        "%s: the recording's noise (%.2g mm RMS, markers or angles seen at the fingertip) is large for a reach "
+        "this slow; onset and offset are "
         "found on a %g Hz speed and may still wander",
         source,
         np.sqrt(noise_var) * 1000,

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arm import sex_key
 from ..errors import InputError
 from ..io import read_text
 
@@ -840,9 +841,9 @@ def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
         sid = r["subject"]
         if not sid:
             raise InputError("empty subject id", path, where)
-        sex = r["sex"].upper()[:1]
-        if sex not in ("M", "F"):
-            raise InputError(f"sex must be M or F, got {r['sex']!r}", path, where)
+        sex = sex_key(r["sex"])
+        if sex is None:
+            raise InputError(f"sex must be M or F (or male, female), got {r['sex']!r}", path, where)
         h = _float(r["height_m"], path, line, "height_m")
         m = _float(r["mass_kg"], path, line, "mass_kg")
         if not 0.5 < h < 2.6:
