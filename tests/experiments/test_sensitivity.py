@@ -242,3 +242,27 @@ def test_an_interrupted_cli_run_leaves_no_earlier_results(small_run, tmp_path, m
     capsys.readouterr()
     assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion"]) == 0
     assert "3 of 3 jobs reused" in capsys.readouterr().err and (out / "sensitivity.csv").is_file()
+
+
+def test_a_checkpoint_fingerprint_covers_the_modules_the_jobs_compute_with():
+    # a job's checkpoint is reused while these files are unchanged: every DOC/IRL module that MO-IRL, the
+    # determination or the DOC backend imports must be among them, else an edit there is never seen
+    import ast
+    from pathlib import Path
+
+    import reachirl
+    from reachirl.experiments.protocol import _CODE_COMMON
+    from reachirl.experiments.sensitivity import _ANALYSIS_CODE
+
+    root = Path(reachirl.__file__).parent
+    covered = {*_CODE_COMMON, *_ANALYSIS_CODE, "doc/casadi.py"}
+    needed = set()
+    for name in ("irl/moirl.py", "irl/uncertainty.py", "doc/casadi.py", "doc/observation.py"):
+        package = Path(name).parent
+        for node in ast.walk(ast.parse((root / name).read_text())):
+            if isinstance(node, ast.ImportFrom) and node.level and node.module:
+                base = package if node.level == 1 else package.parent
+                path = (base / node.module.replace(".", "/")).with_suffix(".py").as_posix()
+                if path.split("/")[0] in ("doc", "irl") and (root / path).is_file():
+                    needed.add(path)
+    assert needed - covered - {"doc/compiled.py"} == set()  # compiled.py: the same functions, compiled

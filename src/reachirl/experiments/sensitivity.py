@@ -24,6 +24,7 @@ trials of every posture. Each refit is a pure function of its inputs, run in loc
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import json
 import logging
 import os
@@ -225,6 +226,31 @@ def job_path(checkpoint_dir: str | Path, name: tuple) -> Path:
     return Path(checkpoint_dir) / f"{safe}-{kind}-{i}.json"
 
 
+#: the modules the jobs use beyond a unit's own (:func:`reachirl.experiments.protocol.code_fingerprint`): this
+#: one, the determination (irl/uncertainty.py, doc/sensitivity.py), MO-IRL's option defaults and the DOC's
+#: dynamics and solver
+_ANALYSIS_CODE = (
+    "experiments/sensitivity.py",
+    "irl/uncertainty.py",
+    "irl/options.py",
+    "doc/sensitivity.py",
+    "doc/symbolic.py",
+    "doc/newton.py",
+)
+
+
+@functools.lru_cache(maxsize=1)
+def _analysis_fingerprint() -> str:
+    import hashlib
+
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for name in _ANALYSIS_CODE:
+        h.update(name.encode())
+        h.update((root / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def _job_fingerprint(name: tuple, chosen: tuple, config: SensitivityConfig) -> str:
     """What a job's result depends on: the run unit's result as written (its checksum covers the weights and the
     fingerprint of the unit's inputs and code), the code of the analysis, and the job's own options."""
@@ -237,7 +263,7 @@ def _job_fingerprint(name: tuple, chosen: tuple, config: SensitivityConfig) -> s
         "job": list(name),
         "unit": r.get("checksum"),
         "code": code_fingerprint(unit.method, unit.backend),
-        "analysis": hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16],
+        "analysis": _analysis_fingerprint(),
         "percent": float(config.percent) if name[1] == "sensitivity" else None,
     }
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:16]
