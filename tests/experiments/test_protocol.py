@@ -194,3 +194,27 @@ def test_dataset_load_errors(tmp_path):
         datasets.load(tmp_path / "missing.npz")
     with pytest.raises(InputError, match="manifest"):
         datasets.load(tmp_path)  # a folder without manifest.csv
+
+
+def test_check_thresholds_groups_rollouts_as_moirl_does():
+    # rollout = "mean": a posture-transfer unit's one rollout spans the other postures' trials, which a file merged
+    # from two `preprocess --threshold` runs (one per posture) cut at two thresholds; MO-IRL would refuse it mid-run
+    from dataclasses import replace
+
+    from reachirl.experiments.protocol import transfer_splits
+    from reachirl.experiments.runner import check_thresholds
+
+    postures = ["P1", "P2", "P4"]
+    toy = datasets.toy(n_subjects=2, postures=tuple(postures), n_trials=4, n_nodes=20, seed=5)
+    trials = [replace(t, onset_threshold=0.05 if t.posture == "P2" else 0.1) for t in toy.trials]
+    for rollout, refused in (("mean", True), ("per_task", False), ("per_demo", False)):
+        cfg = _config(sections=(1,), rollout=rollout, posture_transfer=True)
+        splits = {p: split_trials(trials, p, cfg) for p in postures}
+        splits.update(transfer_splits(splits, postures))
+        units = make_units(postures, cfg)
+        if refused:
+            with pytest.raises(InputError, match=r"^data\.npz: S01 P2, P4: .*different onset thresholds"):
+                check_thresholds(units, splits, "data.npz")
+        else:
+            check_thresholds(units, splits, "data.npz")
+        check_thresholds([u for u in units if u.held_out_posture is None], splits, "data.npz")  # one posture each

@@ -285,22 +285,27 @@ def run_units(
 
 
 def check_thresholds(units: Sequence[Unit], splits: Mapping, source) -> None:
-    """Before any work: each rollout of an observed unit (one per subject and posture of its training trials, unless
-    ``rollout = "per_demo"``) must see trials cut at one onset threshold (:func:`~reachirl.doc.observation.
-    common_threshold`); otherwise an :class:`InputError` naming ``source``."""
+    """Before any work: each rollout of an observed unit must see trials cut at one onset threshold
+    (:func:`~reachirl.doc.observation.common_threshold`), the rollouts grouped as MO-IRL groups them
+    (:meth:`reachirl.irl.moirl.MOIRL._groups`: one per subject and posture of its training trials, one for all of
+    them with ``rollout = "mean"``, none to check with ``"per_demo"``); otherwise an :class:`InputError` naming
+    ``source``."""
     from ..doc.observation import common_threshold
 
     for u in units:
-        if not u.observe or dict(u.estimator_options).get("rollout") == "per_demo":
+        rollout = dict(u.estimator_options).get("rollout", "per_task")
+        if not u.observe or rollout == "per_demo":
             continue
         groups: dict = {}
         for t in splits[u.split_key].train:
-            groups.setdefault((t.subject, t.posture), []).append(t)
-        for (subject, posture), group in groups.items():
+            groups.setdefault(() if rollout == "mean" else (t.subject, t.posture), []).append(t)
+        for group in groups.values():
             try:
                 common_threshold(group)
             except InputError as e:
-                raise InputError(f"{subject} {posture}: {e.reason}", source) from None
+                subjects = ", ".join(dict.fromkeys(t.subject for t in group))
+                postures = ", ".join(dict.fromkeys(t.posture for t in group))
+                raise InputError(f"{subjects} {postures}: {e.reason}", source) from None
 
 
 def reproduce(
