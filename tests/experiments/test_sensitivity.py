@@ -266,3 +266,19 @@ def test_a_checkpoint_fingerprint_covers_the_modules_the_jobs_compute_with():
                 if path.split("/")[0] in ("doc", "irl") and (root / path).is_file():
                     needed.add(path)
     assert needed - covered - {"doc/compiled.py"} == set()  # compiled.py: the same functions, compiled
+
+
+@pytest.mark.parametrize("name", ["checkpoints", "figures"])
+def test_a_file_where_a_folder_of_the_analysis_goes_is_refused_before_any_work(tmp_path, capsys, name):
+    from reachirl.cli import main
+
+    out = tmp_path / "sens"
+    out.mkdir()
+    (out / name).write_text("not a folder")
+    (out / "sensitivity.csv").write_text("an earlier analysis\n")
+    assert main(["sensitivity", str(tmp_path / "no_run"), "--out", str(out), "--workers", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.endswith(
+        f"{out / name}: exists and is not a folder; sensitivity writes into it (remove it)"
+    ), err
+    assert (out / "sensitivity.csv").read_text() == "an earlier analysis\n"

@@ -107,6 +107,9 @@ def run(args) -> int:
             )
 
     checkpoints = out / "checkpoints"
+    for folder in (checkpoints, out / "figures"):  # before any work: a job's checkpoint would fail after it
+        if folder.exists() and not folder.is_dir():
+            raise InputError("exists and is not a folder; sensitivity writes into it (remove it)", folder)
     for folder in (out, checkpoints, out / "figures"):
         remove_temporaries(folder)  # what a killed run was writing
     res = run_sensitivity(
