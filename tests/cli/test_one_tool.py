@@ -178,7 +178,11 @@ def test_a_run_file_says_how_to_run_but_not_where_to_write(tmp_path, capsys, mon
     assert "subjects: expected a number of built-in virtual subjects, 2 to 100" in capsys.readouterr().err
     rf.write_text('workers = 1\nscheduler = "nohost"\n')  # read, and checked as the flags are
     assert main(["reproduce", "--config", str(rf), "--out", str(tmp_path / "o")]) == 2
-    assert "--scheduler 'nohost': expected an address like tcp://HOST:PORT" in capsys.readouterr().err
+    assert "run.toml: scheduler: 'nohost': expected an address like tcp://HOST:PORT" in capsys.readouterr().err
+    assert main(["reproduce", "--set", 'scheduler="nohost"', "--out", str(tmp_path / "o")]) == 2
+    assert "error: --set: scheduler: 'nohost': expected an address" in capsys.readouterr().err
+    assert main(["reproduce", "--config", str(rf), "--scheduler", "x y", "--out", str(tmp_path / "o")]) == 2
+    assert "error: --scheduler 'x y': expected an address" in capsys.readouterr().err  # the flag's, named so
     seen = {}
 
     def stop(units, splits, out_dir, *, workers=1, scheduler=None, **kw):

@@ -516,8 +516,15 @@ def run(args) -> int:
     refuse_overwrite({"--out": out}, [args.data])
     opts, from_file = run_options(args)
     args.workers = args.workers or opts.get("workers")  # how the run is carried out: the flag, else the run file
+    from_flag = args.scheduler is not None
     args.scheduler = args.scheduler or opts.get("scheduler")
-    _check_scheduler(args.scheduler)
+    try:
+        _check_scheduler(args.scheduler)
+    except InputError as e:  # a run file's (or --set's) address: named as its key, where it came from
+        if from_flag:
+            raise
+        where = args.config if "scheduler" in from_file else "--set"
+        raise InputError(e.reason.replace("--scheduler ", "scheduler: ", 1), where) from None
     args.quick = bool(args.quick or opts.get("quick", False))
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
