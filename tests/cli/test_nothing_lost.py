@@ -706,3 +706,14 @@ def test_stdout_closed_by_its_reader_is_not_an_internal_error(tmp_path):
         os.close(w)
     assert proc.returncode == 141 and "rror" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
     assert (tmp_path / "t.npz").is_file()  # written before the printout
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_an_internal_error(monkeypatch, capsys):
+    from reachirl.cli import main, preprocess
+
+    def broken(args):
+        raise BrokenPipeError(32, "Broken pipe")  # e.g. a worker's pipe, while stdout is fine
+
+    monkeypatch.setattr(preprocess, "run", broken)
+    assert main(["preprocess", "x.c3d", "--out", "y.npz"]) == 1
+    assert "internal error: BrokenPipeError" in capsys.readouterr().err

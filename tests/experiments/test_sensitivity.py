@@ -207,7 +207,7 @@ def test_an_interrupted_analysis_resumes_where_it_stopped(small_run, tmp_path):
     assert resumed["identifiability"] == whole["identifiability"]
 
     # other options rerun only the jobs they change; an edited checkpoint is run again
-    path = job_path(tmp_path / "a", ("P2", "occlude_feature", 0))
+    path = job_path(tmp_path / "a", "moirl-P2-s2", ("P2", "occlude_feature", 0))
     body = json.loads(path.read_text())
     body["result"]["rmse"]["train"][0] += 1.0
     path.write_text(json.dumps(body))
@@ -237,7 +237,7 @@ def test_an_interrupted_cli_run_leaves_no_earlier_results(small_run, tmp_path, m
     # the earlier analysis (without occlusion) is gone, not left to pass for this one; its jobs are kept
     assert not (out / "sensitivity.csv").exists() and not (out / "sensitivity.md").exists()
     assert not (out / "figures" / "sensitivity_P2.png").exists()
-    assert len(list((out / "checkpoints").glob("P2-sensitivity-*.json"))) == 2
+    assert len(list((out / "checkpoints").glob("moirl-P2-s2-sensitivity-*.json"))) == 2
     monkeypatch.undo()
     capsys.readouterr()
     assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion"]) == 0

@@ -142,7 +142,9 @@ def _run_command(args) -> int:
             raise
         print(f"reachirl {args.command}: error: {e}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # stdout's reader went away (`| head`): the rest of the output is not wanted
+    except BrokenPipeError as e:  # stdout's reader went away (`| head`): the rest of the output is not wanted
+        if not _stdout_broken():
+            return _internal_error(args, e)  # another pipe (a worker's): not the reader's choice
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # nor the interpreter's last flush
         os.close(devnull)
@@ -166,13 +168,29 @@ def _run_command(args) -> int:
             raise
         return _interrupted(args, isinstance(e, Terminated))
     except Exception as e:  # an internal error: say so in one line; -v for the traceback
-        if args.verbose or errors.signalled() is not None:
-            raise
-        print(
-            f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
-            file=sys.stderr,
-        )
-        return 1
+        return _internal_error(args, e)
+
+
+def _internal_error(args, e: BaseException) -> int:
+    if args.verbose or errors.signalled() is not None:
+        raise e
+    print(
+        f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
+        file=sys.stderr,
+    )
+    return 1
+
+
+def _stdout_broken() -> bool:
+    """Whether standard output is a pipe whose reader has gone (the poll reports an error on its end)."""
+    import select
+
+    try:
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poll.poll(0))
+    except (OSError, ValueError, AttributeError):  # no file descriptor (a test's capture), or no poll
+        return False
 
 
 if __name__ == "__main__":

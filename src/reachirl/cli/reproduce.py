@@ -69,8 +69,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "the ones before: "
         + ", ".join((*(k for k in FLAG_KEYS if k != "uncertainty"), "quick"))
         + " and data by the options of those names, the keys of the group 'run-file keys' below by its flags "
-        "(key_name as --key-name; methods as --method; progress = false as --no-progress). An [experimental] table "
-        "holds MO-IRL options (docs/usage.md).",
+        "(key_name as --key-name; methods as --method; progress = false as --no-progress). A run file may also set "
+        "workers and scheduler (the flags win), not out. An [experimental] table holds MO-IRL options "
+        "(docs/usage.md).",
         width=110,
         break_on_hyphens=False,
     )

@@ -5,9 +5,10 @@ count): refit with each feature removed and with each window's weights frozen at
 training, CV and ISCV RMSE, with a paired 95 % interval over trials), change each weight by ±x % (sensitivity:
 DOC re-solves of the training trials), and say which weight directions the training trials determine (from the
 Jacobian of the observed rollouts). Writes DIR/sensitivity.csv (one row per feature, and per window where it applies),
-DIR/sensitivity.md, DIR/identifiability.json and DIR/figures/sensitivity_<posture>.png. Each finished refit is
-kept in DIR/checkpoints/: a run stopped early (Ctrl-C, a closed terminal) resumes there when started again with
-the same options, and sensitivity.csv, written last, marks a finished analysis.
+DIR/sensitivity.md, DIR/identifiability.json and DIR/figures/sensitivity_<posture>.png. Each finished job (a
+refit, a window's ±X %, a posture's determination) is kept in DIR/checkpoints/: a run stopped early (Ctrl-C, a
+closed terminal) resumes there when started again, running only the jobs whose inputs changed (another --percent
+reruns the ±X % jobs alone), and sensitivity.csv, written last, marks a finished analysis.
 """
 
 from __future__ import annotations

@@ -220,10 +220,11 @@ def _label(name: tuple) -> str:
     return f"{p} {kind}" if kind == "determination" else f"{p} {kind} {i + 1}"
 
 
-def job_path(checkpoint_dir: str | Path, name: tuple) -> Path:
-    p, kind, i = name
-    safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in str(p))
-    return Path(checkpoint_dir) / f"{safe}-{kind}-{i}.json"
+def job_path(checkpoint_dir: str | Path, unit_key: str, name: tuple) -> Path:
+    """Where job ``name`` of the run unit ``unit_key`` (method, posture and sections, as ``units/`` names it) is
+    kept: analyses of other methods or section counts into the same folder keep their own."""
+    _, kind, i = name
+    return Path(checkpoint_dir) / f"{unit_key}-{kind}-{i}.json"
 
 
 #: the modules the jobs use beyond a unit's own (:func:`reachirl.experiments.protocol.code_fingerprint`): this
@@ -269,11 +270,10 @@ def _job_fingerprint(name: tuple, chosen: tuple, config: SensitivityConfig) -> s
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def save_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str, result: dict) -> dict:
+def save_job(path: Path, name: tuple, fingerprint: str, result: dict) -> dict:
     """Write a finished job's result (atomically) and return it as :func:`load_job` would read it back."""
     from .results import content_checksum
 
-    path = job_path(checkpoint_dir, name)
     if path.exists() and not path.is_file():
         raise InputError("is not a regular file, where a job's checkpoint goes; remove it and rerun", path)
     body = to_jsonable({"job": list(name), "fingerprint": fingerprint, "result": result})
@@ -282,11 +282,10 @@ def save_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str, result: 
     return body["result"]
 
 
-def load_job(checkpoint_dir: str | Path, name: tuple, fingerprint: str) -> dict | None:
+def load_job(path: Path, name: tuple, fingerprint: str) -> dict | None:
     """A finished job's result, or ``None`` (run it) if absent, damaged, edited, or made for other inputs."""
     from .results import _reject_constant, content_checksum
 
-    path = job_path(checkpoint_dir, name)
     if path.exists() and not path.is_file():
         raise InputError("is not a regular file, where a job's checkpoint goes; remove it and rerun", path)
     if not path.is_file():
@@ -389,6 +388,7 @@ def run_sensitivity(
                 and r["unit"]["posture"] == p
                 and int(r["unit"]["sections"]) == sections
                 and not r["unit"].get("train_subject")
+                and not r["unit"].get("held_out_posture")  # a posture-transfer unit names its held-out posture
             ),
             None,
         )
@@ -438,10 +438,12 @@ def run_sensitivity(
                     )
                 )
     done: dict = {}
-    todo, fingerprints = [], {}
+    todo, fingerprints, paths = [], {}, {}
     for name, fn, args in jobs:
         fingerprints[name] = _job_fingerprint(name, chosen[name[0]], config)
-        res = None if checkpoint_dir is None else load_job(checkpoint_dir, name, fingerprints[name])
+        if checkpoint_dir is not None:
+            paths[name] = job_path(checkpoint_dir, chosen[name[0]][2]["key"], name)
+        res = None if checkpoint_dir is None else load_job(paths[name], name, fingerprints[name])
         if res is None:
             todo.append((name, fn, args))
         else:
@@ -454,7 +456,7 @@ def run_sensitivity(
 
     def finish(name, res) -> None:  # every result as a resumed run reads it back
         fp = fingerprints[name]
-        done[name] = to_jsonable(res) if checkpoint_dir is None else save_job(checkpoint_dir, name, fp, res)
+        done[name] = to_jsonable(res) if checkpoint_dir is None else save_job(paths[name], name, fp, res)
         if on_done:
             on_done(_label(name), False)
 
