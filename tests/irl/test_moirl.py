@@ -370,3 +370,22 @@ def test_all_zero_weights_are_refused(arm):
     task = ReachingTask(arm, np.deg2rad([-90.0, 90.0]), 0.9 * arm.length, 0.7, n_nodes=N_NODES)
     with pytest.raises(ValueError, match="weights are all zero"):
         solve_doc(task, np.zeros((2, 7)))
+
+
+def test_a_fit_without_weight_samples_warns_once_and_keeps_its_other_warnings(arm, monkeypatch):
+    from reachirl.irl import uncertainty
+
+    def degenerate(*args, **kwargs):
+        raise ValueError("the KKT matrix is singular")
+
+    monkeypatch.setattr(uncertainty, "weight_uncertainty", degenerate)
+    demos = [
+        replace(d, posture=p, trial_id=f"{p}{i}")
+        for p, (i, d) in zip(("P2", "P4"), enumerate(known_weight_demos(arm, true_weights(1), 2, 20)), strict=True)
+    ]
+    est = MOIRL(1, n_nodes=20, max_iter=1, rollout="mean", uncertainty=20).fit(demos)
+    assert est.uncertainty_ is None
+    assert [w for w in est.warnings_ if w.startswith("no weight samples")] == [
+        "no weight samples: the KKT matrix is singular"
+    ]
+    assert any(w.startswith("the demonstrations span 2 postures") for w in est.warnings_)

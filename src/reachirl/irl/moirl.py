@@ -426,7 +426,7 @@ class MOIRL(WeightEstimator):
             smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
-        msg = mixed_postures_warning(trials) if self.rollout == "mean" else None
+        msgs = [mixed_postures_warning(trials) if self.rollout == "mean" else None]
         self.uncertainty_ = None
         if self.uncertainty is not None:
             from .uncertainty import weight_uncertainty
@@ -434,10 +434,8 @@ class MOIRL(WeightEstimator):
             try:
                 self.uncertainty_ = weight_uncertainty(self, trials, int(self.uncertainty), self.random_state)
             except ValueError as e:  # an unconverged or degenerate rollout has no sensitivity
-                msg = f"no weight samples: {e}"
-                self.warnings_ = [*self.warnings_, msg]
-                log.warning(msg)
-        if msg is not None:
+                msgs.append(f"no weight samples: {e}")
+        for msg in filter(None, msgs):
             self.warnings_ = [*self.warnings_, msg]
             log.warning(msg)
         self.fit_time_ = time.perf_counter() - t_start
