@@ -158,6 +158,30 @@ def test_two_trials_with_one_id_are_refused(files):
         load_trials(_with_meta(files, "dup.npz", same_id))
 
 
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"trial_id": "0"}, r"trial 1 has the id 'S1/P2/right/0' of trial 0; ids must be unique"),
+        ({"target_x": -0.1}, r"trial 0 \(S1/P2/right/0\): field 'target_x' = -0\.1 m is outside the arm's reach"),
+        ({"degrees": True}, r"trial 0 \(S1/P2/right/0\): the start q0 = \(-1145\.9°, 5156\.6°\) lies outside"),
+    ],
+)
+def test_save_trials_refuses_what_load_trials_would(files, tmp_path, change, match):
+    # a file saved is a file that loads: trial_from_solution's default ids, a target behind the shoulder or angles
+    # in degrees were written, and refused only when the file was read back
+    from dataclasses import replace
+
+    trials = load_trials(files / "trials.npz")
+    if change.pop("degrees", False):
+        trials = [replace(t, q=np.rad2deg(t.q), x0=None) for t in trials]
+    trials = [replace(t, **change) for t in trials]
+    with pytest.raises(InputError, match=r"out\.npz: " + match):
+        save_trials(tmp_path / "out.npz", trials)
+    assert not (tmp_path / "out.npz").exists()
+    with pytest.raises(TypeError, match="save_trials takes a sequence of Trial, got a dict"):
+        save_trials(tmp_path / "out.npz", [{"q": trials[0].q}])
+
+
 def test_a_duration_outside_a_reach_is_refused(files):
     path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
     with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):

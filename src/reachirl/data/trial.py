@@ -177,10 +177,15 @@ class Trial:
 
 # ---------------------------------------------------------------------- file format
 def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
-    """Write trials to ``path`` exactly (one NPZ), atomically."""
+    """Write trials to ``path`` exactly (one NPZ), atomically. What :func:`load_trials` would refuse is refused
+    here (:class:`InputError` naming the trial), so that a file saved is a file that loads."""
     trials = list(trials)
     if not trials:
         raise ValueError("no trials to save")
+    bad = next((tr for tr in trials if not isinstance(tr, Trial)), None)
+    if bad is not None:
+        raise TypeError(f"save_trials takes a sequence of Trial, got a {type(bad).__name__}")
+    _check_file_trials(trials, path)
     arrays: dict[str, np.ndarray] = {}
     meta = []
     for i, tr in enumerate(trials):
@@ -210,7 +215,7 @@ def load_trials(path: str | Path) -> list[Trial]:
     """Read a trials file written by :func:`save_trials`; any problem raises :class:`InputError` naming it."""
     from ..io import check_regular_file
     from ..validation import check_npz_file
-    from .checks import check_start_and_target, check_trial_meta, check_trial_physics
+    from .checks import check_trial_meta
 
     path = check_regular_file(path)  # a FIFO or a device would block or never end
     if not zipfile.is_zipfile(path):
@@ -268,14 +273,23 @@ def load_trials(path: str | Path) -> list[Trial]:
         raise InputError(f"malformed trials file ({type(e).__name__}: {str(e)[:120]})", path) from None
     if not out:
         raise InputError("the file holds no trials", path)
+    _check_file_trials(out, path)
+    return out
+
+
+def _check_file_trials(trials: Sequence[Trial], path: object) -> None:
+    """What a trials file holds, checked on saving and on loading: each trial can be planned by the DOC
+    (:func:`~reachirl.data.checks.check_trial_physics`, :func:`~reachirl.data.checks.check_start_and_target`),
+    and their ids are unique."""
+    from .checks import check_start_and_target, check_trial_physics
+
     seen: dict[str, int] = {}
-    for i, tr in enumerate(out):
+    for i, tr in enumerate(trials):
         check_trial_physics(tr, i, path)
         check_start_and_target(tr, path, f"trial {i} ({tr.id})")
         if tr.id in seen:  # its predictions, exports and METRICS rows would be told apart by nothing
             raise InputError(f"trial {i} has the id {tr.id!r} of trial {seen[tr.id]}; ids must be unique", path)
         seen[tr.id] = i
-    return out
 
 
 def _trial_in_file(path: Path, i: int, meta: dict, make) -> Trial:
