@@ -305,6 +305,20 @@ def test_empty_trials_and_wrong_types_raise():
         MOIRL(2).fit([np.zeros(3)])
 
 
+@pytest.mark.parametrize("given", ["trial", "trials.npz", "path", None])
+def test_fit_names_what_it_was_given_instead_of_trials(demos, given):
+    # fit(trial) said "'Trial' object is not iterable", fit("trials.npz") "fit takes a sequence of Trial" about a
+    # character
+    from pathlib import Path
+
+    arg = {"trial": demos[0], "path": Path("trials.npz")}.get(given, given)
+    with pytest.raises(
+        TypeError,
+        match=rf"fit takes a sequence of Trial \(a trials file is read by .*\), got a {type(arg).__name__}$",
+    ):
+        MOIRL(2).fit(arg)
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

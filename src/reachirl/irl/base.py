@@ -4,8 +4,9 @@ and prediction by the DOC under the learned weights."""
 from __future__ import annotations
 
 import inspect
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import replace
+from os import PathLike
 
 import numpy as np
 
@@ -45,6 +46,11 @@ class WeightEstimator:
         return self
 
     def _check_trials(self, trials: Sequence[Trial]) -> list[Trial]:
+        if isinstance(trials, Trial | str | PathLike) or not isinstance(trials, Iterable):
+            raise TypeError(
+                f"fit takes a sequence of Trial (a trials file is read by reachirl.data.trial.load_trials), "
+                f"got a {type(trials).__name__}"
+            )
         trials = list(trials)
         if not trials:
             raise ValueError("fit needs at least one demonstration")
