@@ -182,6 +182,24 @@ def test_save_trials_refuses_what_load_trials_would(files, tmp_path, change, mat
         save_trials(tmp_path / "out.npz", [{"q": trials[0].q}])
 
 
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"target_x": None}, r"target_x must be a number \(m\), got None$"),
+        ({"target_x": np.array([0.5, 0.1])}, r"target_x must be a number \(m\), got array\(\[0\.5, 0\.1\]\)$"),
+        ({"q": [[0.0, 1.0]] * 5 + [[1.0]]}, r"q must be an array of numbers, got \[\[0\.0, 1\.0\]"),
+        ({"t": "0.7 s"}, r"t must be an array of numbers, got '0\.7 s'$"),
+    ],
+)
+def test_a_trial_of_non_numbers_names_the_field(files, change, match):
+    # numpy's own words named no field ("ufunc 'isfinite' not supported for the input types", "setting an array
+    # element with a sequence")
+    from dataclasses import replace
+
+    with pytest.raises(InputError, match=r"^trial S1/P2/0: " + match):
+        replace(load_trials(files / "trials.npz")[0], **change)
+
+
 def test_a_duration_outside_a_reach_is_refused(files):
     path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
     with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):

@@ -271,6 +271,8 @@ def test_a_reach_fatrop_solved_is_not_solved_again_by_ipopt(arm):
         (np.ones((8, 6)), r"weights must have shape \(n_windows, 7\)"),
         (np.full((2, 7), np.nan), "weights must be finite"),
         (np.ones((200, 7)), "200 windows do not fit in 100 intervals"),
+        ([[0.05] * 7, [0.05] * 6], r"weights must be numbers of shape \(n_windows, 7\), got \[\[0\.05"),
+        ("low", r"weights must be numbers of shape \(n_windows, 7\), got 'low'"),
     ],
 )
 def test_bad_weights_raise(solved, weights, match):
@@ -291,6 +293,22 @@ def test_bad_backend_and_task(arm, solved):
         ReachingTask(arm, [0.0, 1.0], 0.5, -1)
     with pytest.raises(ValueError, match=r"q0 must have shape \(2,\)"):
         ReachingTask(arm, [0.0, 1.0, 2.0], 0.5, 0.7)
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (([0.0, 1.0], None, 0.7), r"^target_x must be a number \(m\), got None$"),
+        (([0.0, 1.0], np.array([0.5]), 0.7), r"^target_x must be a number \(m\), got array\(\[0\.5\]\)$"),
+        (([0.0, 1.0], 0.5, "0.7 s"), r"^duration must be a number \(s\), got '0\.7 s'$"),
+        (("q0", 0.5, 0.7), r"^q0 must be 2 numbers, got 'q0'$"),
+    ],
+)
+def test_a_task_of_non_numbers_names_the_field(arm, args, match):
+    # numpy's and float()'s own words ("float() argument must be a string or a real number, not 'NoneType'",
+    # "only 0-dimensional arrays can be converted to Python scalars") named no field
+    with pytest.raises(ValueError, match=match):
+        ReachingTask(arm, *args)
 
 
 def test_agrees_with_a_plain_multiple_shooting_formulation(arm):

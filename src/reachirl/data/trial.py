@@ -21,6 +21,7 @@ from ..arm import ArmModel
 from ..errors import InputError
 from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
+from ..validation import brief
 
 __all__ = [
     "TRIALS_FORMAT",
@@ -67,7 +68,7 @@ class Trial:
 
     def __post_init__(self) -> None:
         where = self.source or f"trial {self.subject}/{self.posture}/{self.trial_id}"
-        t = np.asarray(self.t, dtype=float).reshape(-1)
+        t = _floats("t", self.t, where).reshape(-1)
         n = t.shape[0]
         if n < 4:
             raise InputError(f"a trial needs at least 4 samples, got {n}", where)
@@ -75,7 +76,7 @@ class Trial:
             raise InputError("time must be finite and strictly increasing", where)
         object.__setattr__(self, "t", t - t[0])
         for name in ("q", "qd", "qdd", "tau"):
-            a = np.asarray(getattr(self, name), dtype=float)
+            a = _floats(name, getattr(self, name), where)
             if a.shape != (n, 2):
                 raise InputError(f"{name} has shape {a.shape}, expected ({n}, 2)", where)
             if not np.all(np.isfinite(a)):
@@ -83,15 +84,19 @@ class Trial:
             a = a.copy()
             a.setflags(write=False)
             object.__setattr__(self, name, a)
-        x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else np.asarray(self.x0, dtype=float).reshape(-1)
+        x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else _floats("x0", self.x0, where).reshape(-1)
         if x0.shape != (4,) or not np.all(np.isfinite(x0)):
             raise InputError(f"x0 must be 4 finite numbers (q1, q2, qd1, qd2), got shape {x0.shape}", where)
         object.__setattr__(self, "x0", x0)
         if not isinstance(self.arm, ArmModel):
             raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)
-        if not np.isfinite(self.target_x) or abs(self.target_x) > self.arm.length:
-            raise InputError(f"target_x {self.target_x} m is unreachable by an arm {self.arm.length:.3f} m long", where)
-        object.__setattr__(self, "target_x", float(self.target_x))
+        try:
+            target_x = float(self.target_x)
+        except (TypeError, ValueError):
+            raise InputError(f"target_x must be a number (m), got {brief(self.target_x)}", where) from None
+        if not np.isfinite(target_x) or abs(target_x) > self.arm.length:
+            raise InputError(f"target_x {target_x} m is unreachable by an arm {self.arm.length:.3f} m long", where)
+        object.__setattr__(self, "target_x", target_x)
         if self.side not in ("right", "left"):
             raise InputError(f"side must be 'right' or 'left', got {self.side!r}", where)
         for name in ("subject", "posture", "trial_id", "source"):
@@ -173,6 +178,14 @@ class Trial:
 
         q, qd, tau = self.knots(n_nodes)
         return windowed_features(self.arm, q, qd, tau, self.duration / n_nodes, n_windows)
+
+
+def _floats(name: str, v, where: str) -> np.ndarray:
+    """``v`` as an array of floats; anything else (text, ragged rows) is an :class:`InputError` naming ``name``."""
+    try:
+        return np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be an array of numbers, got {brief(v)}", where) from None
 
 
 # ---------------------------------------------------------------------- file format

@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 
 from ..features import N_FEATURES
+from ..validation import brief
 from .task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, DocSolution, ReachingTask
 
 __all__ = [
@@ -29,7 +30,10 @@ BACKENDS = ("casadi", "crocoddyl")
 
 def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
     """Validate DOC weights: shape ``(n_windows, 7)``, finite, ``>= 0``. Returns a float copy."""
-    w = np.array(weights, dtype=float)
+    try:
+        w = np.array(weights, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"weights must be numbers of shape (n_windows, {N_FEATURES}), got {brief(weights)}") from None
     if w.ndim == 1 and w.shape[0] == N_FEATURES:
         w = w[None, :]
     if w.ndim != 2 or w.shape[1] != N_FEATURES or w.shape[0] < 1:

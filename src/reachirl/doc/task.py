@@ -24,7 +24,7 @@ import numpy as np
 
 from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, ArmModel
 from ..features import euler_knots
-from ..validation import check_arm, check_duration, check_n_nodes
+from ..validation import brief, check_arm, check_duration, check_n_nodes
 
 __all__ = [
     "DEFAULT_QD_MAX",
@@ -41,7 +41,10 @@ __all__ = [
 
 
 def _vec2(name: str, v) -> np.ndarray:
-    a = np.asarray(v, dtype=float).reshape(-1)
+    try:
+        a = np.asarray(v, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be 2 numbers, got {brief(v)}") from None
     if a.shape != (2,):
         raise ValueError(f"{name} must have shape (2,), got {np.shape(v)}")
     if not np.all(np.isfinite(a)):
@@ -68,8 +71,11 @@ class ReachingTask:
             raise TypeError(f"arm must be an ArmModel, got {type(self.arm).__name__}")
         for name in ("q0", "q_lower", "q_upper", "qd_max"):
             object.__setattr__(self, name, _vec2(name, getattr(self, name)))
-        object.__setattr__(self, "target_x", float(self.target_x))
-        object.__setattr__(self, "duration", float(self.duration))
+        for name, unit in (("target_x", "m"), ("duration", "s")):
+            try:
+                object.__setattr__(self, name, float(getattr(self, name)))
+            except (TypeError, ValueError):
+                raise ValueError(f"{name} must be a number ({unit}), got {brief(getattr(self, name))}") from None
         if not np.isfinite(self.target_x):
             raise ValueError(f"target_x must be finite, got {self.target_x}")
         if not (np.isfinite(self.duration) and self.duration > 0):
