@@ -11,6 +11,7 @@ from moirl_settings import moirl_params, whole_rollout_moirl
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import trial_from_solution
 from reachirl.doc.evaluation import evaluate_trials
+from reachirl.errors import InputError
 from reachirl.irl import moirl as moirl_module
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import subproblem_objective
@@ -317,6 +318,27 @@ def test_fit_names_what_it_was_given_instead_of_trials(demos, given):
         match=rf"fit takes a sequence of Trial \(a trials file is read by .*\), got a {type(arg).__name__}$",
     ):
         MOIRL(2).fit(arg)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ("degrees", r"the start q0 = \(-\d+\.\d°, 5\d{3}\.\d°\) lies outside the joint limits q1 in"),
+        ("start_velocity", r"field 'x0': the start velocity q̇1 = 100 rad/s is outside \[-10, 10\] rad/s"),
+        ("target_behind", r"field 'target_x' = -0\.1 m is outside the arm's reach"),
+    ],
+)
+def test_fit_refuses_the_trials_a_trials_file_may_not_hold(demos, change, match):
+    # load_trials refuses these, but a Trial made in Python went into the fit: angles in degrees failed on the
+    # mean task's start without naming a trial, a start velocity in deg/s was learned from
+    t = demos[1]
+    bad = {
+        "degrees": lambda: replace(t, q=np.rad2deg(t.q), x0=None),
+        "start_velocity": lambda: replace(t, x0=np.r_[t.x0[:2], 100.0, 0.0]),
+        "target_behind": lambda: replace(t, target_x=-0.1),
+    }[change]()
+    with pytest.raises(InputError, match=r"^trial 1 \(virtual//right/1\): " + match):
+        MOIRL(2, n_nodes=N_NODES).fit([demos[0], bad])
 
 
 def test_predict_before_fit_raises(demos):
