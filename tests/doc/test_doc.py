@@ -295,6 +295,14 @@ def test_bad_backend_and_task(arm, solved):
         ReachingTask(arm, [0.0, 1.0, 2.0], 0.5, 0.7)
 
 
+def test_joint_limits_in_degrees_are_refused(arm):
+    # [-150, 120] "rad" bounded nothing: the DOC was solved without joint limits
+    with pytest.raises(ValueError, match=r"^q_upper \[120\. 160\.\] is beyond a full turn of a joint: radians"):
+        ReachingTask(arm, [0.0, 1.5], 0.5, 0.7, q_upper=[120.0, 160.0])
+    with pytest.raises(ValueError, match=r"^q_lower \[-150\.   -5\.\] is beyond a full turn"):
+        ReachingTask(arm, [0.0, 1.5], 0.5, 0.7, q_lower=[-150.0, -5.0], q_upper=[120.0, 160.0])
+
+
 @pytest.mark.parametrize(
     ("args", "match"),
     [

@@ -85,6 +85,9 @@ class ReachingTask:
         check_duration(self.duration, "ReachingTask")
         check_arm(self.arm, "ReachingTask")
         object.__setattr__(self, "n_nodes", check_n_nodes(self.n_nodes, "ReachingTask"))
+        for name in ("q_lower", "q_upper"):
+            if np.any(np.abs(getattr(self, name)) > 2 * np.pi):
+                raise ValueError(f"{name} {getattr(self, name)} is beyond a full turn of a joint: radians are expected")
         if np.any(self.q_lower >= self.q_upper):
             raise ValueError(f"q_lower {self.q_lower} must be below q_upper {self.q_upper}")
         if np.any(self.qd_max <= 0):
