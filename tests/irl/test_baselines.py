@@ -115,6 +115,7 @@ def test_kkt_recovers_the_true_weights_without_noise(demos):
     assert kkt_residual(true_weights(2), demos, N_NODES) < 1e-2
     assert est.relative_weights_.sum() == pytest.approx(1.0)
     assert mean_rmse(est.weights_, demos) < 0.05
+    assert est.warnings_ == []  # every estimator has them (MO-IRL's, MaxEnt's and bilevel's say what to doubt)
 
 
 def test_kkt_per_demo_pooling_averages_each_demonstrations_weights(demos):

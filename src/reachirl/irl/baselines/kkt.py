@@ -159,7 +159,7 @@ class KKTIOC(WeightEstimator):
 
     Fitted attributes: ``weights_ (n_windows, 7)``, ``relative_weights_`` (``ω̃``, summing to 1),
     ``residual_`` (relative stationarity residual), ``history_`` (one record), ``n_doc_solves_ = 0``,
-    ``n_iter_ = 1``, ``fit_time_``.
+    ``n_iter_ = 1``, ``fit_time_``, ``warnings_`` (none: the fit is one NNLS).
     """
 
     def __init__(
@@ -223,6 +223,7 @@ class KKTIOC(WeightEstimator):
         self.n_doc_solves_ = 0
         self.n_doc_failures_ = 0
         self.n_iter_ = 1
+        self.warnings_ = []
         self.fit_time_ = time.perf_counter() - t0
         self.history_ = [
             {
