@@ -11,6 +11,7 @@ from reachirl import FEATURES, ArmModel
 from reachirl import virtual as synth
 from reachirl.cli import main
 from reachirl.data.writers import read_mot_simple, read_trc_simple
+from reachirl.errors import InputError
 from reachirl.virtual import (
     BERRET_POSTURES_DEG,
     MARKERS,
@@ -298,7 +299,7 @@ def test_cli_synth_never_writes_over_a_folder_it_did_not_make(tmp_path, capsys, 
     argv = ["synth", "--out", str(out), "--subjects", "1", "--trials", "1", "--postures", "P4", "--workers", "1"]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and f"--out holds {theirs} and is not an earlier synth data set" in err[0]
+    assert len(err) == 1 and f"--out holds {theirs} and is not a synth data set" in err[0]
     assert (out / theirs).read_text() == "the user's own\n" and sorted(p.name for p in out.iterdir()) == [theirs]
     (out / theirs).unlink()
     assert main(argv) == 0 and main([*argv, "--seed", "1"]) == 0  # into its own earlier set
@@ -307,7 +308,7 @@ def test_cli_synth_never_writes_over_a_folder_it_did_not_make(tmp_path, capsys, 
 
 def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_truth(tmp_path, monkeypatch):
     """Ctrl-C while the recordings are written: the earlier set's truth.json and manifest are gone, so the folder
-    cannot be read as the earlier set with some of its recordings replaced."""
+    cannot be read as the earlier set with some of its recordings replaced; synth rerun into it finishes it."""
     out = tmp_path / "o"
     cfg = {**SMALL, "postures": ("P4",), "n_trials": 2}
     generate(out, SynthConfig(**cfg))
@@ -324,7 +325,20 @@ def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_trut
     with pytest.raises(KeyboardInterrupt):
         generate(out, SynthConfig(**{**cfg, "seed": 1}))
     assert not any((out / n).exists() for n in ("truth.json", "manifest.csv", "subjects.csv"))
-    assert files.synth_folder_clash(out) == "S01_P4_T01.trc"  # and synth then refuses it, rather than mixing
+    assert (out / files.INCOMPLETE).is_file() and files.synth_folder_clash(out) is None  # synth's own, unfinished
+    from reachirl.cli import main
+    from reachirl.experiments.datasets import preprocess_folder
+
+    with pytest.raises(InputError, match=r"an unfinished synth data set \(synth-incomplete\.json"):
+        preprocess_folder(out, marker_map="shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP")  # never read as a set
+    argv = ["preprocess", str(out), "--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"]
+    assert main([*argv, "--out", str(tmp_path / "t.npz")]) == 2 and not (tmp_path / "t.npz").exists()
+    monkeypatch.undo()
+    done = generate(out, SynthConfig(**{**cfg, "seed": 1, "n_trials": 1}))  # a smaller set finishes it
+    listed = [r["file"] for r in csv.DictReader(open(out / "manifest.csv"))]
+    assert listed == ["S01_P4_T01.trc"] and len(done.trials) == 1
+    assert sorted(p.name for p in out.iterdir()) == sorted([*listed, *files.SYNTH_FILES])  # no earlier T02
+    assert json.loads((out / "truth.json").read_text())["config"]["seed"] == 1
 
 
 # ---------------------------------------------------------------------- slow: the full built-in data set

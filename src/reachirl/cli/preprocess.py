@@ -277,6 +277,9 @@ def _folder_defaults(args) -> None:
     if args.manifest or len(args.inputs) != 1 or not Path(args.inputs[0]).is_dir():
         return
     folder = Path(args.inputs[0])
+    from ..virtual.files import refuse_unfinished
+
+    refuse_unfinished(folder)
     if (folder / "manifest.csv").is_file():
         args.manifest = str(folder / "manifest.csv")
         args.inputs = []

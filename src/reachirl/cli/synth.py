@@ -27,8 +27,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--out",
         required=True,
-        help="output folder: a new one, one without synth's file names, or a finished earlier synth data set "
-        "(replaced; an interrupted one is refused: empty it)",
+        help="output folder: a new one, one without synth's file names, or an earlier synth data set (replaced; "
+        "one interrupted while its files were written is finished)",
     )
     p.add_argument(
         "--subjects", type=int_in(1, 100), default=2, help="number of virtual subjects, 1 to 100 (default 2)"
@@ -77,9 +77,8 @@ def run(args) -> int:
     clash = synth_folder_clash(args.out)
     if clash is not None:
         raise InputError(
-            f"--out holds {clash} and is not an earlier synth data set (no truth.json from reachirl synth, which a "
-            "set is given last, so an interrupted one has none); synth would replace it: choose a new folder, or "
-            "empty this one",
+            f"--out holds {clash} and is not a synth data set (no truth.json or synth-incomplete.json from reachirl "
+            "synth); synth would replace it: choose a new folder, or empty this one",
             args.out,
         )
     try:

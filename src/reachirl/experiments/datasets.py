@@ -87,8 +87,10 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
     from ..data.pipeline import preprocess_entries, preprocess_manifest
     from ..data.readers import ManifestEntry, read_subject_info
     from ..data.ue_adl import reach_files
+    from ..virtual.files import refuse_unfinished
 
     folder = Path(folder)
+    refuse_unfinished(folder)
     manifest = _find(folder, _MANIFEST_NAMES)
     info_path = _find(folder, _SUBJECT_NAMES)
     if manifest is None:  # a UE-ADL folder: its reach files, each with its static trial beside it

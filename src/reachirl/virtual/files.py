@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data.writers import write_c3d, write_mot, write_trc
+from ..errors import InputError
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text, cache_root, csv_column, to_jsonable
 from .likeness import human_likeness
@@ -105,22 +106,43 @@ def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
 SYNTH_FILES = ("manifest.csv", "subjects.csv", "truth.json", "human_likeness.csv")
 """The files ``generate`` writes beside the recordings."""
 
+INCOMPLETE = "synth-incomplete.json"
+"""Present while ``generate`` writes a data set (removed once ``truth.json`` is written): a folder holding it is a
+set that was interrupted, which a rerun finishes; it lists the recordings that set was writing."""
+
+
+def refuse_unfinished(folder: str | Path) -> None:
+    """An :class:`InputError` when ``folder`` is a synth data set interrupted while its files were written
+    (:data:`INCOMPLETE`): its recordings are a part of a set, described by nothing."""
+    if (Path(folder) / INCOMPLETE).is_file():
+        raise InputError(
+            f"an unfinished synth data set ({INCOMPLETE}: interrupted while its files were written); rerun "
+            "`reachirl synth --out` into it to finish it",
+            folder,
+        )
+
+
+def _ours(path: Path, max_bytes: int = 256 * 1024**2) -> dict | None:
+    """``path`` read as JSON when ``reachirl synth`` wrote it (its ``generator``), else None."""
+    try:
+        if path.stat().st_size < max_bytes:  # a synth truth.json of 100 subjects is a few MB
+            data = json.loads(path.read_text())
+            if isinstance(data, dict) and data.get("generator") == "reachirl.synth":
+                return data
+    except (OSError, ValueError):
+        pass
+    return None
+
 
 def synth_folder_clash(out_dir: str | Path) -> str | None:
     """The first file in ``out_dir`` that ``generate`` could replace (:data:`SYNTH_FILES`, or a recording named as
     synth names them) when ``out_dir`` is not an earlier synth data set (one whose ``truth.json``, written last,
-    says ``reachirl synth`` made it); else None. A set interrupted before its ``truth.json`` is such a folder."""
+    says ``reachirl synth`` made it, or one interrupted while it was written: :data:`INCOMPLETE`); else None."""
     out_dir = Path(out_dir)
     if not out_dir.is_dir():
         return None
-    try:
-        truth_file = out_dir / "truth.json"
-        if truth_file.stat().st_size < 256 * 1024**2:  # a synth truth.json of 100 subjects is a few MB
-            truth = json.loads(truth_file.read_text())
-            if isinstance(truth, dict) and truth.get("generator") == "reachirl.synth":
-                return None
-    except (OSError, ValueError):
-        pass
+    if _ours(out_dir / "truth.json") is not None or _ours(out_dir / INCOMPLETE) is not None:
+        return None
     names = sorted(f.name for f in out_dir.iterdir())
     return next((n for n in names if n in SYNTH_FILES or _RECORDING.fullmatch(n)), None)
 
@@ -136,15 +158,16 @@ def _worker_signals() -> None:
 def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthResult:
     """Generate the virtual data set of ``config`` into ``out_dir`` (created if needed).
 
-    Writes one file per trial (``S01_P1_T01.trc`` …), ``manifest.csv`` (``file,subject,posture,side``),
-    ``subjects.csv`` (``subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m``), ``truth.json`` and
-    ``human_likeness.csv``. The same config gives byte-identical files. Into the folder of an earlier data set,
-    the recordings its ``manifest.csv`` listed and this one does not write are removed (the folder holds what its
-    manifest and ``truth.json`` describe; other files stay). Its ``truth.json``, manifest and the other files
-    above are removed before the first recording is written and written again last (``truth.json`` the very
-    last), so an interrupted run never leaves new recordings described by the earlier set. A folder that holds
-    one of these files and is not an earlier data set (:func:`synth_folder_clash`) is refused by ``reachirl
-    synth`` before any work.
+        Writes one file per trial (``S01_P1_T01.trc`` …), ``manifest.csv`` (``file,subject,posture,side``),
+        ``subjects.csv`` (``subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m``), ``truth.json`` and
+        ``human_likeness.csv``. The same config gives byte-identical files. Into the folder of an earlier data set,
+        the recordings its ``manifest.csv`` listed and this one does not write are removed (the folder holds what its
+        manifest and ``truth.json`` describe; other files stay). Its ``truth.json``, manifest and the other files
+        above are removed before the first recording is written and written again last (``truth.json`` the very
+        last), so an interrupted run never leaves new recordings described by the earlier set; while the recordings are
+    written, :data:`INCOMPLETE` says so (a rerun into the folder finishes it). A folder that holds
+        one of these files and is not an earlier data set (:func:`synth_folder_clash`) is refused by ``reachirl
+        synth`` before any work.
     """
     config = config or SynthConfig()
     out_dir = Path(out_dir)
@@ -153,9 +176,13 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
     subjects = tuple(draw_subject(config.seed, i) for i in range(config.n_subjects))
     trials = _run_groups(subjects, config)
     failures = sum(tr.doc_retries for tr in trials)
-    earlier = {n for n in csv_column(out_dir / "manifest.csv", "file") if _RECORDING.fullmatch(n)}
+    earlier = set(csv_column(out_dir / "manifest.csv", "file"))
+    earlier |= set((_ours(out_dir / INCOMPLETE) or {}).get("recordings") or ())  # an interrupted set's
+    earlier = {n for n in earlier if isinstance(n, str) and _RECORDING.fullmatch(n)}
     for name in SYNTH_FILES:  # the earlier set's description goes before its recordings change
         (out_dir / name).unlink(missing_ok=True)
+    names = [_file_name(tr, config.fmt) for tr in trials]
+    atomic_write_json(out_dir / INCOMPLETE, {"generator": "reachirl.synth", "recordings": sorted(earlier | set(names))})
     manifest = []
     for tr in trials:
         name = _file_name(tr, config.fmt)
@@ -183,6 +210,7 @@ def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthRes
     )
     atomic_write_text(out_dir / "manifest.csv", _csv_text(("file", "subject", "posture", "side"), manifest))
     atomic_write_json(out_dir / "truth.json", _truth(config, subjects, trials, failures, hl))
+    (out_dir / INCOMPLETE).unlink(missing_ok=True)
     elapsed = time.perf_counter() - t0
     log.info(
         "generated %d trials of %d subjects in %.1f s (%d DOC failures redrawn)",
