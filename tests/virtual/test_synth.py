@@ -326,7 +326,6 @@ def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_trut
         generate(out, SynthConfig(**{**cfg, "seed": 1}))
     assert not any((out / n).exists() for n in ("truth.json", "manifest.csv", "subjects.csv"))
     assert (out / files.INCOMPLETE).is_file() and files.synth_folder_clash(out) is None  # synth's own, unfinished
-    from reachirl.cli import main
     from reachirl.experiments.datasets import preprocess_folder
 
     with pytest.raises(InputError, match=r"an unfinished synth data set \(synth-incomplete\.json"):
