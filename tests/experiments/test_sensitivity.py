@@ -179,46 +179,49 @@ def test_effect_collinearity_finds_weights_that_move_the_path_alike():
 def test_an_interrupted_analysis_resumes_where_it_stopped(small_run, tmp_path):
     from reachirl.experiments.sensitivity import job_path, to_csv
 
-    cfg = SensitivityConfig(percent=5.0)
+    cfg = SensitivityConfig(percent=5.0, occlusion=False)  # the refits are checkpointed alike (the CLI's test)
     whole = run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "a")
 
     seen = []
 
-    def stop_after_four(label, reused):
+    def stop_after_two(label, reused):
         seen.append((label, reused))
-        if len(seen) == 4:
+        if len(seen) == 2:
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "b", on_done=stop_after_four)
-    assert len(list((tmp_path / "b").glob("*.json"))) == 4
+        run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "b", on_done=stop_after_two)
+    assert len(list((tmp_path / "b").glob("*.json"))) == 2
     counts, labels = [], []
+
+    def count(n, reused):
+        counts.append((n, reused))
+
     resumed = run_sensitivity(
         small_run,
         cfg,
         checkpoint_dir=tmp_path / "b",
-        on_start=lambda n, reused: counts.append((n, reused)),
+        on_start=count,
         on_done=lambda label, reused: labels.append((label, reused)),
     )
-    n_jobs = 1 + 7 + 2 + 2  # determination, one refit per feature and per window, a sensitivity job per window
-    assert counts == [(n_jobs, 4)]
+    n_jobs = 1 + 2  # the determination, and a ±5 % job per window
+    assert counts == [(n_jobs, 2)]
     assert [label for label, reused in labels if reused] == [label for label, _ in seen]
     assert to_csv(resumed["rows"]) == to_csv(whole["rows"])  # the same numbers as the run never stopped
     assert resumed["identifiability"] == whole["identifiability"]
 
-    # other options rerun only the jobs they change; an edited checkpoint is run again
-    path = job_path(tmp_path / "a", "moirl-P2-s2", ("P2", "occlude_feature", 0))
+    # an edited checkpoint is run again; another --percent reruns the ±X % jobs alone
+    path = job_path(tmp_path / "a", "moirl-P2-s2", ("P2", "sensitivity", 0))
     body = json.loads(path.read_text())
-    body["result"]["rmse"]["train"][0] += 1.0
+    body["result"]["base"][0] += 1.0
     path.write_text(json.dumps(body))
     counts.clear()
+    again = run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "a", on_start=count)
+    assert counts == [(n_jobs, n_jobs - 1)] and to_csv(again["rows"]) == to_csv(whole["rows"])
     run_sensitivity(
-        small_run,
-        SensitivityConfig(percent=7.0),
-        checkpoint_dir=tmp_path / "a",
-        on_start=lambda n, r: counts.append((n, r)),
+        small_run, SensitivityConfig(percent=7.0, occlusion=False), checkpoint_dir=tmp_path / "a", on_start=count
     )
-    assert counts == [(n_jobs, n_jobs - 2 - 1)]  # the two windows' ±7 % and the edited refit
+    assert counts[-1] == (n_jobs, 1)  # the determination's
 
 
 def test_an_interrupted_cli_run_leaves_no_earlier_results(small_run, tmp_path, monkeypatch, capsys):
