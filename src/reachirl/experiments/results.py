@@ -78,6 +78,16 @@ def _reject_constant(name: str):
     raise ValueError(f"non-finite number {name}")
 
 
+def read_checkpoint(path: Path, then: str):
+    """The JSON content of the checkpoint ``path`` (a non-finite number refused), or ``None`` after a warning
+    saying it is damaged and what happens ``then``."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant)
+    except (OSError, ValueError, RecursionError) as e:
+        log.warning("%s: damaged (%s); %s", path, e, then)
+        return None
+
+
 def _check_unit_paths(js: Path, npz: Path) -> None:
     from ..errors import InputError
 
@@ -95,10 +105,8 @@ def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict |
     _check_unit_paths(js, npz)
     if not js.is_file():
         return None
-    try:
-        res = json.loads(js.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (OSError, ValueError, RecursionError) as e:
-        log.warning("%s: damaged (%s); recomputing the unit", js, e)
+    res = read_checkpoint(js, "recomputing the unit")
+    if res is None:
         return None
     if not isinstance(res, dict) or res.get("key") != key:
         log.warning("%s: not a unit result of %s; recomputing the unit", js, key)

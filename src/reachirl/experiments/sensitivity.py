@@ -284,17 +284,13 @@ def save_job(path: Path, name: tuple, fingerprint: str, result: dict) -> dict:
 
 def load_job(path: Path, name: tuple, fingerprint: str) -> dict | None:
     """A finished job's result, or ``None`` (run it) if absent, damaged, edited, or made for other inputs."""
-    from .results import _reject_constant, content_checksum
+    from .results import content_checksum, read_checkpoint
 
     if path.exists() and not path.is_file():
         raise InputError("is not a regular file, where a job's checkpoint goes; remove it and rerun", path)
     if not path.is_file():
         return None
-    try:
-        body = json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (OSError, ValueError, RecursionError) as e:
-        log.warning("%s: damaged (%s); running the job again", path, e)
-        return None
+    body = read_checkpoint(path, "running the job again")
     if not isinstance(body, dict) or body.get("job") != list(name) or body.get("fingerprint") != fingerprint:
         return None
     if body.get("checksum") != content_checksum(body) or not isinstance(body.get("result"), dict):
