@@ -124,7 +124,7 @@ def test_cli_writes_one_row_per_feature_and_window(small_run, tmp_path, cli):
 
 
 def test_without_occlusion_the_figure_has_the_sensitivity_panel_alone():
-    from reachirl.experiments.sensitivity import plot_sensitivity
+    from reachirl.experiments.sensitivity_outputs import plot_sensitivity
 
     rows = [
         {"posture": "P2", "analysis": "sensitivity", "window": str(w), "feature": f, "path_change_deg": 0.1 * w}
@@ -177,7 +177,8 @@ def test_effect_collinearity_finds_weights_that_move_the_path_alike():
 
 
 def test_an_interrupted_analysis_resumes_where_it_stopped(small_run, tmp_path):
-    from reachirl.experiments.sensitivity import job_path, to_csv
+    from reachirl.experiments.sensitivity import job_path
+    from reachirl.experiments.sensitivity_outputs import to_csv
 
     cfg = SensitivityConfig(percent=5.0, occlusion=False)  # the refits are checkpointed alike (the CLI's test)
     whole = run_sensitivity(small_run, cfg, checkpoint_dir=tmp_path / "a")

@@ -73,7 +73,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    from ..experiments.sensitivity import SensitivityConfig, remove_outputs, run_sensitivity, write_sensitivity
+    from ..experiments.sensitivity import SensitivityConfig, run_sensitivity
+    from ..experiments.sensitivity_outputs import remove_outputs, write_sensitivity
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     out = Path(args.out)

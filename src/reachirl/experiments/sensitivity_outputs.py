@@ -1,0 +1,240 @@
+"""The outputs of ``reachirl sensitivity`` (:mod:`reachirl.experiments.sensitivity`): ``sensitivity.csv``,
+``sensitivity.md``, ``identifiability.json`` and a figure per posture."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..features import FEATURES, N_FEATURES
+from ..io import atomic_write_json, atomic_write_text
+from .sensitivity import ALL, COLUMNS, SETS
+
+__all__ = ["plot_sensitivity", "remove_outputs", "to_csv", "write_sensitivity"]
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return "" if not np.isfinite(v) else f"{v:.4f}"
+    return str(v)
+
+
+def to_csv(rows: Sequence[dict]) -> str:
+    return "\n".join([",".join(COLUMNS), *(",".join(_fmt(r[c]) for c in COLUMNS) for r in rows)]) + "\n"
+
+
+def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str = ""):
+    """Three panels for ``posture``: occlusion of each feature and freezing of each window (RMSE change on the
+    held-out set with its 95 % interval, and on the training set), and the path change under ±x % of each
+    weight (window × feature)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .figures import SHORT
+
+    sel = [r for r in rows if r["posture"] == posture]
+    kinds = ("occlude_feature", "freeze_window", "sensitivity")
+    if axes is None:  # a panel per analysis that was run (--no-occlusion: the sensitivity alone)
+        shown = [k for k in kinds if any(r["analysis"] == k for r in sel)] or ["sensitivity"]
+        fig, grid = plt.subplots(1, len(shown), figsize=(5 * len(shown), 4.2), squeeze=False)
+        panel = dict(zip(shown, grid[0], strict=True))
+    else:
+        panel = dict(zip(kinds, axes, strict=True))
+    fig = next(iter(panel.values())).figure
+    for kind, label in (("occlude_feature", "feature removed"), ("freeze_window", "window frozen at ω₀")):
+        ax = panel.get(kind)
+        if ax is None:
+            continue
+        rs = [r for r in sel if r["analysis"] == kind]
+        if not rs:
+            ax.set_axis_off()
+            continue
+        x = np.arange(len(rs))
+        for k, (s, c) in enumerate((("train", "tab:gray"), ("cv", "tab:blue"), ("iscv", "tab:orange"))):
+            m = np.array([np.nan if r[f"{s}_delta_deg"] is None else r[f"{s}_delta_deg"] for r in rs], float)
+            if not np.isfinite(m).any():
+                continue
+            lo = np.array([r[f"{s}_ci_lo"] for r in rs], float)
+            hi = np.array([r[f"{s}_ci_hi"] for r in rs], float)
+            ax.bar(
+                x + (k - 1) * 0.27,
+                m,
+                0.27,
+                color=c,
+                label=s.upper() if s != "train" else "training",
+                yerr=np.vstack([m - lo, hi - m]),
+                capsize=2,
+                error_kw={"lw": 0.8},
+            )
+        ax.axhline(0, color="k", lw=0.6)
+        names = [SHORT.get(r["feature"], r["feature"]) if kind == "occlude_feature" else f"w{r['window']}" for r in rs]
+        ax.set_xticks(x)
+        ax.set_xticklabels(
+            names,
+            rotation=45 if kind == "occlude_feature" else 0,
+            ha="right" if kind == "occlude_feature" else "center",
+            fontsize=8,
+        )
+        ax.set_ylabel("RMSE change of q (deg), refit − full fit")
+        ax.set_title(f"occlusion: {label}", fontsize=9)
+        ax.legend(fontsize=7)
+    rs = [r for r in sel if r["analysis"] == "sensitivity"]
+    ax = panel.get("sensitivity")
+    if rs and ax is not None:
+        n_w = max(int(r["window"]) for r in rs)
+        m = np.full((n_w, N_FEATURES), np.nan)
+        for r in rs:
+            m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
+        im = ax.imshow(
+            m.T, aspect="auto", cmap="viridis", interpolation="nearest", extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5)
+        )
+        ax.set_yticks(range(N_FEATURES))
+        ax.set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
+        ax.set_xticks(range(1, n_w + 1))
+        ax.set_xlabel("window")
+        ax.set_title("sensitivity: path change under ±x % of each weight (deg)", fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.8)
+    elif ax is not None:
+        ax.set_axis_off()
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def _markdown(out: dict) -> list[str]:
+    cfg, rows = out["config"], out["rows"]
+    post = ALL if any(r["posture"] == ALL for r in rows) else cfg["postures"][0]
+    lines = [
+        f"# reachirl sensitivity: {cfg['method']}, {cfg['sections']} section(s), postures {', '.join(cfg['postures'])}",
+        "",
+    ]
+    occ = sorted(
+        [r for r in rows if r["posture"] == post and r["analysis"] == "occlude_feature"],
+        key=lambda r: (
+            -(
+                r["cv_delta_deg"]
+                if r["cv_delta_deg"] is not None and np.isfinite(r["cv_delta_deg"])
+                else r["train_delta_deg"] or 0.0
+            )
+        ),
+    )
+    if occ:
+        lines += [
+            f"## Which costs the data needs (posture {post}; refit without each feature)",
+            "",
+            "| feature | mean cost share | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | "
+            "Δ ISCV (deg) [95 % CI] | verdict |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in occ:
+            lines.append(
+                f"| {r['feature']} | {_share(r)} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |"
+            )
+        lines.append("")
+    fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
+    if fr:
+        lines += [
+            f"## Which windows need learning (posture {post}; window frozen at ω₀)",
+            "",
+            "| window | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | Δ ISCV (deg) [95 % CI] | verdict |",
+            "|---|---|---|---|---|",
+        ]
+        for r in fr:
+            lines.append(f"| {r['window']} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |")
+        lines.append("")
+    sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
+    if sens:
+        top = sorted(sens, key=lambda r: -r["path_change_deg"])[:5]
+        lines += [
+            f"## Most sensitive weights (±{cfg['percent']:g} %, posture {post})",
+            "",
+            "| window | feature | cost share | path change (deg) | Δ RMSE + (deg) | Δ RMSE − (deg) |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in top:
+            lines.append(
+                f"| {r['window']} | {r['feature']} | {_share(r)} | {r['path_change_deg']:.3f} | "
+                f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |"
+            )
+        lines.append("")
+    lines += ["## What the training data determines", ""]
+    for p, d in out["identifiability"].items():
+        det = d.get("determination")
+        head = f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}): "
+        if det is None:
+            lines.append(head + "no sensitivity of this method's fit (only MO-IRL and MaxEnt make rollouts).")
+            continue
+        lines.append(
+            head + f"{det['n_determined']} of {det['n_directions']} weight directions determined "
+            f"(most determined: {det['determined'][0] if det['determined'] else 'none'}; least: "
+            f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); weights with nearly collinear "
+            f"effects on the path (|cos| ≥ 0.9, per window): {_effects(d.get('effect_collinearity') or [])}."
+        )
+    lines.append("")
+    return lines
+
+
+def _share(row: dict) -> str:
+    """A row's cost share as the report prints it: marked where the fit's weight samples do not determine it."""
+    mark = {True: "", False: " (undetermined)", None: " (no samples)"}[row.get("cost_share_determined")]
+    return f"{row['cost_share']:.2f}{mark}"
+
+
+def _effects(items: list[dict]) -> str:
+    if not items:
+        return "none (or no sensitivity run)"
+    count: dict[tuple, list] = {}
+    for e in items:
+        count.setdefault(tuple(e["features"]), []).append(e["window"])
+    top = sorted(count.items(), key=lambda kv: -len(kv[1]))[:4]
+    return ", ".join(f"{a}–{b} (windows {', '.join(map(str, w))})" for (a, b), w in top)
+
+
+def _ci(r, s) -> str:
+    m = r[f"{s}_delta_deg"]
+    if m is None or not np.isfinite(m):
+        return "—"
+    lo, hi = r[f"{s}_ci_lo"], r[f"{s}_ci_hi"]
+    if lo is None or not np.isfinite(lo):
+        return f"{m:+.3f} [too few trials]"
+    return f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]"
+
+
+def remove_outputs(out_dir: str | Path) -> None:
+    """Remove an earlier analysis's outputs from ``out_dir`` (its checkpoints stay, to be reused), so that a rerun
+    stopped early never leaves them looking like its own."""
+    out_dir = Path(out_dir)
+    for name in ("sensitivity.csv", "sensitivity.md", "identifiability.json"):
+        (out_dir / name).unlink(missing_ok=True)
+    for fig in sorted((out_dir / "figures").glob("sensitivity_*.png")) if (out_dir / "figures").is_dir() else ():
+        fig.unlink(missing_ok=True)
+
+
+def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
+    """``figures/sensitivity_<posture>.png``, ``identifiability.json``, ``sensitivity.md`` and, last (so that a
+    folder without it is unfinished), ``sensitivity.csv`` under ``out_dir``; returns the paths."""
+    from .figures import save
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for p in sorted({r["posture"] for r in out["rows"]}):
+        fig = plot_sensitivity(
+            out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} section(s), posture {p}"
+        )
+        path = out_dir / "figures" / f"sensitivity_{p}.png"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save(fig, path)
+        paths.append(path)
+    ident, md, csv = out_dir / "identifiability.json", out_dir / "sensitivity.md", out_dir / "sensitivity.csv"
+    atomic_write_json(ident, {"config": out["config"], "units": out["units"], "postures": out["identifiability"]})
+    atomic_write_text(md, "\n".join(_markdown(out)))
+    atomic_write_text(csv, to_csv(out["rows"]))
+    return [csv, md, ident, *paths]
