@@ -158,11 +158,7 @@ def _run_command(args) -> int:
             where = e.filename if e.filename is not None else "a file"
             print(f"reachirl {args.command}: error: {where}: {e.strerror or e}", file=sys.stderr)
             return 2
-        print(
-            f"reachirl {args.command}: internal error: {type(e).__name__}: {e} (rerun with -v for details)",
-            file=sys.stderr,
-        )
-        return 1
+        return _internal_error(args, e)
     except KeyboardInterrupt as e:
         if errors.signalled() is not None:
             raise

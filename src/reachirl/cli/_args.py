@@ -96,6 +96,55 @@ def chosen_trials(args: argparse.Namespace, trials: list) -> tuple[list, dict | 
     return select_trials(trials, **chosen, path=args.trials), chosen
 
 
+def _held(args: argparse.Namespace, selected: list, trials: list) -> str:
+    """How many trials the selection holds, in words: of the whole file, or of what --subject/--posture/--side
+    choose."""
+    given = [
+        f"--{name} {' '.join(v) if isinstance(v, list) else v}"
+        for name in ("subject", "posture", "side")
+        if (v := getattr(args, name, None)) is not None
+    ]
+    n = len(trials)
+    if not given:
+        return f"the file holds {n} trial{'s' if n != 1 else ''}"
+    return f"the selection {' '.join(given)} holds {len(selected)} of the file's {n} trial{'s' if n != 1 else ''}"
+
+
+def picked_trials(args: argparse.Namespace, trials: list, path) -> list:
+    """Those of ``trials`` (read from the file ``path``, which an error names) that ``--subject/--posture/--side``
+    select (:func:`chosen_trials`), then of these the ones ``--trial`` names, in the order
+    given (all of them without ``--trial``).
+
+    A key is a selected trial's id or trial_id, else an integer: the index of a trial among the selected ones (the
+    N-th selected, 0-based). An index out of range, a key naming only trials the selection leaves out, or one naming
+    none raises :class:`InputError` saying how many trials the selection holds."""
+    selected, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": path}), trials)
+    if not args.trial:
+        return selected
+    chosen = []
+    for key in args.trial:
+        hits = [t for t in selected if key in (t.id, t.trial_id)]
+        if not hits and key.removeprefix("-").isdecimal():
+            i = int(key)
+            if not 0 <= i < len(selected):
+                raise InputError(
+                    f"--trial {key}: index out of range, expected 0 to {len(selected) - 1} "
+                    f"({_held(args, selected, trials)})",
+                    path,
+                )
+            hits = [selected[i]]
+        if not hits:
+            left_out = [t.id for t in trials if key in (t.id, t.trial_id)]
+            what = (
+                f"{left_out[0]} is not among the selected trials"
+                if left_out
+                else "no trial with that id, trial_id or index"
+            )
+            raise InputError(f"--trial {key}: {what} ({_held(args, selected, trials)})", path)
+        chosen.extend(hits)
+    return chosen
+
+
 def same_file(a: Path, b: Path) -> bool:
     """Whether ``a`` and ``b`` are one file: the same path (existing or not, through symlinked folders and ``..``
     as the file system resolves them), a symlink or a hard link."""

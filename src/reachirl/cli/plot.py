@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, add_selection
+from ._args import PREDICTION_BACKEND_HELP, add_selection, picked_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -193,7 +193,6 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
 
 def run(args: argparse.Namespace) -> int:
     from ..validation import check_output_dir
-    from .simulate import _select
 
     out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
     if args.model is not None:
@@ -205,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
         if args.source.is_dir():
             raise InputError("is a folder; with --model, give a trials file", args.source)
         model = load_model(args.model)
-        trials = _select(args, load_trials(args.source), args.source)
+        trials = picked_trials(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)
         print(summary_line(summarise(errors), args.backend or model.backend))
         written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)

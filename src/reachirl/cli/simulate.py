@@ -21,9 +21,9 @@ from ._args import (
     JSON_KINDS,
     PREDICTION_BACKEND_HELP,
     add_selection,
-    chosen_trials,
     int_in,
     number_in,
+    picked_trials,
     refuse_overwrite,
     same_file,
 )
@@ -108,55 +108,6 @@ def add_parser(sub) -> argparse.ArgumentParser:
     return p
 
 
-def _held(args, selected, trials) -> str:
-    """How many trials the selection holds, in words: of the whole file, or of what --subject/--posture/--side
-    choose."""
-    given = [
-        f"--{name} {' '.join(v) if isinstance(v, list) else v}"
-        for name in ("subject", "posture", "side")
-        if (v := getattr(args, name, None)) is not None
-    ]
-    n = len(trials)
-    if not given:
-        return f"the file holds {n} trial{'s' if n != 1 else ''}"
-    return f"the selection {' '.join(given)} holds {len(selected)} of the file's {n} trial{'s' if n != 1 else ''}"
-
-
-def _select(args, trials, path) -> list:
-    """Those of ``trials`` (read from the file ``path``, which an error names) that ``--subject/--posture/--side``
-    select (:func:`reachirl.cli._args.chosen_trials`), then of these the ones ``--trial`` names, in the order
-    given (all of them without ``--trial``).
-
-    A key is a selected trial's id or trial_id, else an integer: the index of a trial among the selected ones (the
-    N-th selected, 0-based). An index out of range, a key naming only trials the selection leaves out, or one naming
-    none raises :class:`InputError` saying how many trials the selection holds."""
-    selected, _ = chosen_trials(argparse.Namespace(**{**vars(args), "trials": path}), trials)
-    if not args.trial:
-        return selected
-    chosen = []
-    for key in args.trial:
-        hits = [t for t in selected if key in (t.id, t.trial_id)]
-        if not hits and key.removeprefix("-").isdecimal():
-            i = int(key)
-            if not 0 <= i < len(selected):
-                raise InputError(
-                    f"--trial {key}: index out of range, expected 0 to {len(selected) - 1} "
-                    f"({_held(args, selected, trials)})",
-                    path,
-                )
-            hits = [selected[i]]
-        if not hits:
-            left_out = [t.id for t in trials if key in (t.id, t.trial_id)]
-            what = (
-                f"{left_out[0]} is not among the selected trials"
-                if left_out
-                else "no trial with that id, trial_id or index"
-            )
-            raise InputError(f"--trial {key}: {what} ({_held(args, selected, trials)})", path)
-        chosen.extend(hits)
-    return chosen
-
-
 def _stretch(model) -> float:
     """How much longer than its trial the reach played can last: an observed model plays the DOC's part above
     the onset threshold, at most the rest-to-rest horizon ``duration / MOVING_FRACTION``."""
@@ -222,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend
-    trials = _select(args, load_trials(args.trials), args.trials)
+    trials = picked_trials(args, load_trials(args.trials), args.trials)
     stretch = _stretch(model)
     if args.substeps is None:
         args.substeps = _pd_substeps(args, trials, model.n_nodes, stretch) if args.mode == "pd" else 10

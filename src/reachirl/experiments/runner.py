@@ -287,19 +287,17 @@ def run_units(
 def check_thresholds(units: Sequence[Unit], splits: Mapping, source) -> None:
     """Before any work: each rollout of an observed unit must see trials cut at one onset threshold
     (:func:`~reachirl.doc.observation.common_threshold`), the rollouts grouped as MO-IRL groups them
-    (:meth:`reachirl.irl.moirl.MOIRL._groups`: one per subject and posture of its training trials, one for all of
-    them with ``rollout = "mean"``, none to check with ``"per_demo"``); otherwise an :class:`InputError` naming
-    ``source``."""
+    (:func:`reachirl.irl.moirl.rollout_groups`); otherwise an :class:`InputError` naming ``source``."""
     from ..doc.observation import common_threshold
+    from ..irl.moirl import rollout_groups
 
     for u in units:
         rollout = dict(u.estimator_options).get("rollout", "per_task")
         if not u.observe or rollout == "per_demo":
             continue
-        groups: dict = {}
-        for t in splits[u.split_key].train:
-            groups.setdefault(() if rollout == "mean" else (t.subject, t.posture), []).append(t)
-        for group in groups.values():
+        train = list(splits[u.split_key].train)
+        of = rollout_groups(train, rollout)
+        for group in ([t for t, g in zip(train, of, strict=True) if g == r] for r in dict.fromkeys(of.tolist())):
             try:
                 common_threshold(group)
             except InputError as e:

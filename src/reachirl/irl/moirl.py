@@ -64,6 +64,7 @@ __all__ = [
     "mean_task",
     "mixed_postures_warning",
     "multimodal_accept",
+    "rollout_groups",
 ]
 
 DEFAULT_TOL = 1e-4
@@ -116,6 +117,17 @@ class _Step(NamedTuple):
     solves: int
     failures: int
     recovered: int
+
+
+def rollout_groups(trials: Sequence[Trial], rollout: str) -> np.ndarray:
+    """Each trial's rollout index, ``(D,)``, under ``rollout``: one for all (``"mean"``), one per trial
+    (``"per_demo"``) or one per subject and posture (``"per_task"``)."""
+    if rollout == "mean":
+        return np.zeros(len(trials), dtype=int)
+    if rollout == "per_demo":
+        return np.arange(len(trials))
+    keys = list(dict.fromkeys((t.subject, t.posture) for t in trials))
+    return np.array([keys.index((t.subject, t.posture)) for t in trials])
 
 
 class MOIRL(WeightEstimator):
@@ -270,12 +282,7 @@ class MOIRL(WeightEstimator):
 
     def _groups(self, trials: Sequence[Trial]) -> np.ndarray:
         """Each demonstration's rollout index, ``(D,)``."""
-        if self.rollout == "mean":
-            return np.zeros(len(trials), dtype=int)
-        if self.rollout == "per_demo":
-            return np.arange(len(trials))
-        keys = list(dict.fromkeys((t.subject, t.posture) for t in trials))
-        return np.array([keys.index((t.subject, t.posture)) for t in trials])
+        return rollout_groups(trials, self.rollout)
 
     def _tasks(self, trials: Sequence[Trial]) -> list[ReachingTask]:
         """The rollouts' tasks; sets ``self._thresholds`` (each rollout's onset threshold, or ``None``) and
