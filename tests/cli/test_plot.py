@@ -239,6 +239,14 @@ def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):
     assert model.observe and model.rollout_q is not None and model.method == "moirl"
     for trial, err in zip(trials[3:], model.evaluate(trials[3:]), strict=True):
         np.testing.assert_allclose(err.prediction.q, est.predict(trial).q, atol=1e-9)
+        np.testing.assert_allclose(model.predict(trial).q, est.predict(trial).q, atol=1e-9)
+    # a task given on other knots is solved on the model's, from the fit's own reach, as the estimator does
+    task = ReachingTask(ARM, posture_q("P2") + np.deg2rad([2.0, -2.0]), 0.95 * ARM.length, 0.8, n_nodes=2 * N)
+    sol = model.predict(task)
+    assert sol.converged and sol.q.shape == (N + 1, 2)
+    np.testing.assert_allclose(sol.q, est.predict(task).q, atol=1e-9)
+    with pytest.raises(TypeError, match="predict takes a Trial or a ReachingTask, got str"):
+        model.predict("trials.npz")
 
 
 @pytest.mark.parametrize(

@@ -235,6 +235,15 @@ def _filter_padlen(order: int) -> int:
     return 3 * (2 * ((order + 1) // 2) + 1)
 
 
+@functools.lru_cache(maxsize=64)
+def _butter_sos(order: int, wn: float) -> np.ndarray:
+    """The low-pass Butterworth's second-order sections (designed once per order and normalised cutoff: a trial
+    filters every marker alike)."""
+    sos = butter(order, wn, btype="low", output="sos")
+    sos.flags.writeable = False  # shared by every call: each takes a copy (sosfiltfilt needs a writable one)
+    return sos
+
+
 def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source: object | None = None):
     """Zero-lag Butterworth low-pass along axis 0 (``butter(order, cutoff)`` applied forward and backward)."""
     x = np.asarray(x, dtype=float)
@@ -244,7 +253,7 @@ def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source
             f"the {cutoff_hz:g} Hz low-pass needs a sampling rate above {2 * cutoff_hz:g} Hz, got {rate:g} Hz",
             source,
         )
-    sos = butter(order, cutoff_hz / nyq, btype="low", output="sos")
+    sos = _butter_sos(order, cutoff_hz / nyq).copy()
     padlen = _filter_padlen(order)
     if x.shape[0] <= padlen:
         raise InputError(f"too short to filter: {x.shape[0]} frames, need more than {padlen}", source)

@@ -314,9 +314,15 @@ def read_trc(path: str | Path) -> MarkerData:
             )
         last_line = i
         times.append(_float(cells[1], path, i, "Time"))
-        rows.append(
-            [_float(c, path, i, names[(j - 2) // 3], allow_empty=True) for j, c in enumerate(cells[2:n_cols], start=2)]
-        )
+        try:  # the common row: every cell a number or empty
+            rows.append([float(c) if c else math.nan for c in cells[2:n_cols]])
+        except ValueError:  # a blank or non-numeric cell: read cell by cell, naming the one at fault
+            rows.append(
+                [
+                    _float(c, path, i, names[(j - 2) // 3], allow_empty=True)
+                    for j, c in enumerate(cells[2:n_cols], start=2)
+                ]
+            )
     if not rows:
         raise InputError("no data rows after the header", path)
     _check_row_count(len(rows), declared, "NumFrames", "frames", path, last_line)

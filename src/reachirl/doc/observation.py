@@ -44,6 +44,7 @@ __all__ = [
     "observed_state_jacobian",
     "observed_task",
     "predict",
+    "predict_reach",
     "rest_to_rest",
 ]
 
@@ -113,6 +114,32 @@ def predict(
     # Newton from the moved path; a warm start (the same task under other weights) is fatrop's
     sol = solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess, newton=warm_start is None)
     return sol, observed_solution(sol, task, threshold)
+
+
+def predict_reach(
+    trial_or_task: Trial | ReachingTask,
+    weights: np.ndarray,
+    n_nodes: int,
+    observe: bool,
+    backend: str = "casadi",
+    warm_start: DocSolution | None = None,
+    path: np.ndarray | None = None,
+) -> DocSolution:
+    """A fitted model's prediction (an estimator's ``predict``, a saved model's
+    :meth:`~reachirl.irl.model.LearnedModel.predict`): for a :class:`~reachirl.data.trial.Trial`, the DOC from its
+    own arm, start, target and duration, seen as it was recorded when ``observe`` (:func:`predict`'s ``seen``); for a
+    :class:`ReachingTask`, its DOC on ``n_nodes`` knots (the task's own are replaced: the weights' windows and
+    ``path`` are on the model's knots). Without ``warm_start`` the solve starts from ``path`` moved to the task,
+    when given."""
+    path = path if warm_start is None else None
+    if isinstance(trial_or_task, Trial):
+        threshold = trial_or_task.onset_threshold if observe else None
+        return predict(trial_or_task, weights, n_nodes, threshold, backend, warm_start, path)[1]
+    if not isinstance(trial_or_task, ReachingTask):
+        raise TypeError(f"predict takes a Trial or a ReachingTask, got {type(trial_or_task).__name__}")
+    task = trial_or_task if trial_or_task.n_nodes == n_nodes else replace(trial_or_task, n_nodes=n_nodes)
+    guess = None if path is None else moved_path(task, path)
+    return solve_doc(task, weights, backend=backend, warm_start=warm_start, guess=guess)
 
 
 class _Cut(NamedTuple):

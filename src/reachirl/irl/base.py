@@ -5,15 +5,13 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Iterable, Sequence
-from dataclasses import replace
 from os import PathLike
 
 import numpy as np
 
 from ..data.checks import check_start_and_target, check_trial_physics
 from ..data.trial import Trial
-from ..doc import BACKENDS, DocSolution, ReachingTask, observation, solve_doc
-from ..doc.task import moved_path
+from ..doc import BACKENDS, DocSolution, ReachingTask, observation
 
 __all__ = ["WeightEstimator"]
 
@@ -101,17 +99,7 @@ class WeightEstimator:
         ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
         self._check_fitted()
         path = self.rollout_path() if warm_start is None else None
-        if isinstance(trial_or_task, Trial):
-            threshold = trial_or_task.onset_threshold if getattr(self, "observe", False) else None
-            _, seen = observation.predict(
-                trial_or_task, self.weights_, self.n_nodes, threshold, self.backend, warm_start, path
-            )
-            return seen
-        if isinstance(trial_or_task, ReachingTask):
-            task = trial_or_task
-            if task.n_nodes != self.n_nodes:
-                task = replace(task, n_nodes=self.n_nodes)
-        else:
-            raise TypeError(f"predict takes a Trial or a ReachingTask, got {type(trial_or_task).__name__}")
-        guess = None if path is None else moved_path(task, path)
-        return solve_doc(task, self.weights_, backend=self.backend, warm_start=warm_start, guess=guess)
+        observe = bool(getattr(self, "observe", False))
+        return observation.predict_reach(
+            trial_or_task, self.weights_, self.n_nodes, observe, self.backend, warm_start, path
+        )

@@ -11,7 +11,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..data.trial import Trial
+from ..doc import DocSolution, ReachingTask
 from ..doc.evaluation import TrialError, evaluate_trials
+from ..doc.observation import predict_reach
 from ..errors import InputError
 from ..features import FEATURES, N_FEATURES, cost_shares
 from ..io import atomic_write_json, read_json, to_jsonable
@@ -110,6 +113,24 @@ class LearnedModel:
         :attr:`reach_features`."""
         phi = self.reach_features
         return None if phi is None else cost_shares(self.weights, phi)
+
+    def predict(
+        self, trial_or_task: Trial | ReachingTask, backend: str | None = None, warm_start: DocSolution | None = None
+    ) -> DocSolution:
+        """The DOC prediction of one trial or task under this model, as the estimator that was saved predicts it
+        (``predict`` of :class:`~reachirl.irl.base.WeightEstimator`): a trial cut at its speed threshold is
+        predicted as it was recorded when the fit was (:attr:`observe`), each solve starts from :attr:`rollout_q`
+        moved to the task, and a task is solved on the model's :attr:`n_nodes`; on ``backend`` (default: the
+        fit's, :attr:`backend`)."""
+        return predict_reach(
+            trial_or_task,
+            self.weights,
+            self.n_nodes,
+            self.observe,
+            backend or self.backend,
+            warm_start,
+            self.rollout_q,
+        )
 
     def evaluate(
         self, trials: Sequence, backend: str | None = None, on_trial: Callable[[TrialError], None] | None = None
