@@ -187,3 +187,76 @@ def test_the_weights_figure_hatches_exactly_the_undetermined_shares():
     assert centres == {(w + 1.0, float(j)) for w, j in zip(*np.nonzero(undetermined), strict=True)}
     none = fg.plot_weights({("P1", 3): shares}, ["P1"], [3], undetermined={("P1", 3): np.zeros((3, 7), bool)})
     assert not [p for p in none.axes[0].patches if p.get_hatch()]
+
+
+def _hatched_cells(ax) -> set:
+    patches = [p for p in ax.patches if p.get_hatch()]
+    return {tuple(np.round(poly[:4].mean(axis=0), 6)) for p in patches for poly in p.get_path().to_polygons()}
+
+
+def test_a_fit_without_weight_samples_is_hatched_whole_beside_fits_with_them():
+    # P2's fit has no samples (its uncertainty failed): under the caveat "hatched: undetermined", an unhatched
+    # panel would read as determined shares
+    shares = {("P1", 2): np.full((2, 7), 1 / 7), ("P2", 2): np.full((2, 7), 1 / 7)}
+    fig = fg.plot_weights(shares, ["P1", "P2"], [2], undetermined={("P1", 2): np.zeros((2, 7), bool)})
+    assert not _hatched_cells(fig.axes[0])
+    assert _hatched_cells(fig.axes[1]) == {(w + 1.0, float(j)) for w in range(2) for j in range(7)}
+    assert any("no weight samples" in t.get_text() for t in fig.axes[1].texts)
+    assert not any("no weight samples" in t.get_text() for t in fig.axes[0].texts)
+    truth = fg.plot_truth(
+        {"P1": shares[("P1", 2)], "P2": shares[("P2", 2)]},
+        {"P1": shares[("P1", 2)], "P2": shares[("P2", 2)]},
+        undetermined={"P1": np.zeros((2, 7), bool)},
+    )
+    assert len(_hatched_cells(truth.axes[1])) == 14 and not _hatched_cells(truth.axes[0])
+
+
+def test_weights_vs_truth_says_its_shares_are_on_the_truths_reach_not_the_fits():
+    from reachirl.experiments.report import truth_reach_words
+
+    shares = {"P1": np.full((2, 7), 1 / 7)}
+    fig = fg.plot_truth(shares, shares, undetermined={"P1": np.zeros((2, 7), bool)}, on="the true weights' own reach")
+    footer = " ".join(t.get_text() for t in fig.texts)
+    assert "shares on the fit's own reach" not in footer
+    assert "both rows' shares on the true weights' own reach" in footer and "on the fit's own reach" in footer
+    metrics = {"P1": {"shares_on": "true_rollout"}, "P3": {"shares_on": "demonstrations"}}
+    assert truth_reach_words(metrics).endswith("(P3: the training demonstrations', where that reach did not converge)")
+    assert truth_reach_words({"P1": {"shares_on": "true_rollout"}}) == "the true weights' own noise-free reach"
+    assert truth_reach_words({"P1": {"shares_on": "demonstrations"}}).startswith("the training demonstrations")
+
+
+def test_the_learned_dominant_features_at_the_ends_say_how_many_are_determined():
+    from reachirl.experiments.report import ends_determined_words
+
+    acc, tq = FEATURES.index("joint_acceleration"), FEATURES.index("joint_torque")
+    determined = np.zeros((3, 7), bool)
+    determined[0, acc] = True  # P1's first window: its dominant feature's share is determined
+    determined[2, acc] = True  # not P1's last window's dominant feature (joint torque)
+    results = {
+        "moirl-P1-s3": {
+            "unit": {"method": "moirl", "posture": "P1", "sections": 3},
+            "uncertainty": {"share_intervals": {"determined": determined.tolist()}},
+        },
+        "moirl-P2-s3": {"unit": {"method": "moirl", "posture": "P2", "sections": 3}, "uncertainty": None},
+    }
+    metrics = {
+        "P1": {"sections": 3, "learned_dominant": [FEATURES[acc], FEATURES[tq], FEATURES[tq]]},
+        "P2": {"sections": 3, "learned_dominant": [FEATURES[acc]] * 3},
+    }
+    words = ends_determined_words(results, "moirl", metrics)
+    assert words.startswith("1 of 4 of those shares") and "2 without weight samples" in words
+    assert words.endswith("not a finding")
+    assert ends_determined_words(results, "moirl", {"P2": metrics["P2"]}) == "no weight samples: not a finding"
+
+
+def test_the_hardest_postures_are_a_ranking_of_means_with_their_spread():
+    from reachirl.experiments.report import hardest_words
+
+    tab = {
+        p: {"cv": {8: {"q": {"mean": m, "std": sd, "n": 10}}}}
+        for p, m, sd in (("P1", 0.72, 0.27), ("P2", 1.21, 0.35), ("P3", 1.33, 0.31), ("P5", 1.39, 0.85))
+    }
+    words = hardest_words(tab, ["P1", "P2", "P3", "P5"], 8)
+    assert "P5 (1.39 ± 0.85°), P3 (1.33 ± 0.31°), then P2 (1.21 ± 0.35°)" in words
+    assert "not tested" in words and "Hardest" not in words
+

@@ -54,6 +54,37 @@ CAVEAT = (
     "undetermined (95 % interval of the share wider than 0.25, or missing the fit's share), not a finding."
 )
 NO_SAMPLES = "No weight samples (fit --uncertainty): no share here is a finding."
+PANEL_NO_SAMPLES = "no weight samples:\nnot a finding"
+TRUTH_CAVEAT = (
+    "Learned weights are one cost among several that explain the reaches; both rows' shares on {on}; hatched: "
+    "the learned share is undetermined (its 95 % interval, on the fit's own reach, wider than 0.25 or missing the "
+    "fit's share there), not a finding."
+)
+
+
+def _panel_undetermined(undetermined: dict | None, key, shape) -> np.ndarray | None:
+    """The hatching of one panel: its fit's undetermined shares; every share when the figure has intervals but
+    this fit has none (an unhatched panel under the caveat would read as determined); None without any."""
+    if not undetermined:
+        return None
+    u = undetermined.get(key)
+    return np.ones(shape, dtype=bool) if u is None else u
+
+
+def _mark_no_samples(ax, undetermined: dict | None, key) -> None:
+    """Say on a panel that its fit has no weight samples, where the figure's other fits have them."""
+    if undetermined and key not in undetermined:
+        ax.text(
+            0.5,
+            0.02,
+            PANEL_NO_SAMPLES,
+            transform=ax.transAxes,
+            ha="center",
+            va="bottom",
+            fontsize=7,
+            color="white",
+            bbox={"facecolor": "black", "alpha": 0.6, "edgecolor": "none"},
+        )
 
 
 def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
@@ -191,7 +222,9 @@ def plot_weights(
             if s is None:
                 ax.set_axis_off()
                 continue
-            im = _share_heatmap(ax, s, feature_labels=c == 0, undetermined=(undetermined or {}).get((p, n)))
+            hatch = _panel_undetermined(undetermined, (p, n), np.shape(s))
+            im = _share_heatmap(ax, s, feature_labels=c == 0, undetermined=hatch)
+            _mark_no_samples(ax, undetermined, (p, n))
             _mark_flag(ax, (flags or {}).get((p, n)))
             if r == 0:
                 ax.set_title(p, fontsize=10)
@@ -290,23 +323,29 @@ def plot_convergence(
 
 
 def plot_truth(
-    learned: dict, true: dict, axes=None, title: str = "", flags: dict | None = None, undetermined: dict | None = None
+    learned: dict,
+    true: dict,
+    axes=None,
+    title: str = "",
+    flags: dict | None = None,
+    undetermined: dict | None = None,
+    on: str = "the true weights' own noise-free reach",
 ):
-    """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares; learned (top) vs true
-    (bottom), postures in natural order (P2 before P10). ``flags[posture]`` marks learned panels whose fit
-    never left ω₀ or made one step; ``undetermined[posture]`` hatches the learned shares whose interval is
-    wide."""
+    """``learned[posture]``, ``true[posture]``: ``(n_windows, 7)`` cost shares, both on the features ``on`` names;
+    learned (top) vs true (bottom), postures in natural order (P2 before P10). ``flags[posture]`` marks learned
+    panels whose fit never left ω₀ or made one step; ``undetermined[posture]`` hatches the learned shares whose
+    interval (on the fit's own reach) is wide."""
     postures = sorted((p for p in learned if p in true), key=natural_key)
     fig, axes = _grid(axes, 2, max(1, len(postures)), (2.5 * max(1, len(postures)) + 1.5, 5.2))
     im = None
     for c, p in enumerate(postures):
         for r, (label, d) in enumerate((("learned", learned), ("true", true))):
             ax = axes[r, c]
-            im = _share_heatmap(
-                ax, d[p], feature_labels=c == 0, undetermined=(undetermined or {}).get(p) if r == 0 else None
-            )
+            hatch = _panel_undetermined(undetermined, p, np.shape(d[p])) if r == 0 else None
+            im = _share_heatmap(ax, d[p], feature_labels=c == 0, undetermined=hatch)
             if r == 0:
                 ax.set_title(p, fontsize=9)
+                _mark_no_samples(ax, undetermined, p)
                 _mark_flag(ax, (flags or {}).get(p))
             if c == 0:
                 ax.set_ylabel(label, fontsize=9)
@@ -315,7 +354,7 @@ def plot_truth(
     if im is not None:
         fig.colorbar(im, ax=axes, shrink=0.8, label="share of the window's cost")
     fig.suptitle(title or "Virtual subjects: learned vs true weights (cost shares)")
-    fig.text(0.01, -0.03, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
+    fig.text(0.01, -0.03, TRUTH_CAVEAT.format(on=on) if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
     return fig
 
 

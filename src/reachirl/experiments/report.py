@@ -32,7 +32,7 @@ from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
-from .names import sections_text
+from .names import natural_key, sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .rendering import FigureJob, FigureWorkers, drawing
@@ -177,6 +177,59 @@ def write_tables(
     csv = tb.to_csv(tables, postures, sections)
     atomic_write_text(out / "table.csv", csv_with_reasons(csv, reasons) if reasons is not None else csv)
     return md_tables
+
+
+def hardest_words(tab: dict, postures: Sequence[str], sections: int) -> str:
+    """The postures with the highest mean CV RMSE of q at ``sections``, each with its SD over trials, and the next
+    one: a ranking of means over the trials of one fit per posture, which no test compares."""
+    cell = {p: tab[p]["cv"][sections]["q"] for p in postures}
+    ranked = sorted(cell, key=lambda p: cell[p]["mean"], reverse=True)
+
+    def fmt(p):
+        sd = cell[p].get("std")
+        return f"{p} ({cell[p]['mean']:.2f}{'' if sd is None else f' ± {sd:.2f}'}°)"
+
+    nxt = f", then {fmt(ranked[2])}" if len(ranked) > 2 else ""
+    return (
+        f"Highest mean CV RMSE ({sections_text(sections)}): {', '.join(fmt(p) for p in ranked[:2])}{nxt} (mean ± SD "
+        "over the trials; a ranking of means, not tested: one fit per posture) (the seed's hardest: P3 and P5)."
+    )
+
+
+def ends_determined_words(results: dict, method: str, truth_metrics: dict) -> str:
+    """How many of the learned dominant features' shares at onset and end (first and last windows, per posture of
+    the truth comparison) the fits' weight samples determine (``share_intervals.determined``, on the fit's own
+    reach), in words: a dominant feature is a finding only where its share is determined."""
+    by = {(r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values() if r["unit"]["method"] == method}
+    n = n_det = n_missing = 0
+    for p, m in truth_metrics.items():
+        r = by.get((p, m["sections"]))
+        iv = ((r or {}).get("uncertainty") or {}).get("share_intervals")
+        for i in (0, -1):
+            n += 1
+            if iv is None:
+                n_missing += 1
+                continue
+            n_det += bool(iv["determined"][i][FEATURES.index(m["learned_dominant"][i])])
+    if n_missing == n:
+        return "no weight samples: not a finding"
+    words = f"{n_det} of {n} of those shares (posture × first and last window) determined by the data"
+    if n_missing:
+        words += f", {n_missing} without weight samples"
+    return words + ("" if n_det == n else "; the others undetermined: not a finding")
+
+
+def truth_reach_words(truth_metrics: dict) -> str:
+    """Whose features the learned and true shares of the truth comparison are weighed on, in words, from each
+    posture's ``shares_on`` (:func:`~reachirl.experiments.analysis.truth_comparison`: the true weights' own
+    noise-free reach, or the demonstrations' where that DOC failed)."""
+    demos = sorted((p for p, m in truth_metrics.items() if m.get("shares_on") == "demonstrations"), key=natural_key)
+    reach = "the true weights' own noise-free reach"
+    if not demos:
+        return reach
+    if len(demos) == len(truth_metrics):
+        return "the training demonstrations (the true weights' own reach did not converge)"
+    return f"{reach} ({', '.join(demos)}: the training demonstrations', where that reach did not converge)"
 
 
 def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str:
@@ -360,6 +413,7 @@ def figure_jobs(
             for r in results.values()
             if r["unit"]["method"] == main and r["unit"]["sections"] == n_true and r.get("uncertainty")
         }
+        on = truth_reach_words(truth_metrics)
         jobs["weights_vs_truth.png"] = _job(
             "plot_truth",
             fig_dir,
@@ -370,10 +424,11 @@ def figure_jobs(
             title=f"Virtual subjects, {sections_text(n_true)}: learned vs true weights (cost shares)",
             flags=truth_flags,
             undetermined=truth_undetermined or None,
+            on=on,
         )
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {sections_text(n_true)}: learned (top) vs true (bottom) cost shares, "
-            "both on the features of the true weights' own noise-free reach; true weights = mean of the "
+            f"both on the features of {on}; true weights = mean of the "
             "training trials' own (jittered) weights from truth.json. The hatching marks the learned shares whose "
             "95 % interval (on the fit's own reach) is wider than 0.25 or misses the fit's share: undetermined by the "
             "data, not a finding."
@@ -704,11 +759,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
     per_p = {p: tab[p]["cv"].get(hi, {}).get("q", {}).get("mean") for p in postures}
     per_p = {p: v for p, v in per_p.items() if v is not None}
     if len(per_p) > 1:
-        worst = sorted(per_p, key=per_p.get, reverse=True)[:2]
-        says.append(
-            f"Hardest postures in CV ({sections_text(hi)}): {', '.join(f'{p} ({per_p[p]:.2f}°)' for p in worst)} "
-            "(the seed: P3 and P5)."
-        )
+        says.append(hardest_words(tab, list(per_p), hi))
     if says:
         lines += ["What they show: " + " ".join(says), ""]
     lines += ["### The seed's Table II (its own human data: not the data above)", "", tb.seed_markdown()]
@@ -721,9 +772,10 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             "",
             "Per posture: total-variation distance between learned and true cost shares (0 = same, 1 = "
             "disjoint; mean over windows), correlation of the shares, and how often the dominant "
-            "feature of a window agrees. Both sets of weights are weighed on the features of the true "
-            "weights' own noise-free reach (the DOC over the training trials' mean task), not on the "
-            "recorded reaches', whose noise inflates joint acceleration and torque change.",
+            "feature of a window agrees. Both sets of weights are weighed on the features of "
+            + truth_reach_words(truth_metrics)
+            + " (the DOC over the training trials' mean task), not on the recorded reaches', whose noise "
+            "inflates joint acceleration and torque change.",
             "",
             "| posture | total variation | correlation | dominant feature agrees |",
             "|---|---|---|---|",
@@ -765,8 +817,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         lines += [
             "At movement onset and termination (first and last windows) the true weights make "
             f"{', '.join(ends_true)} dominate; the learned weights' point estimates give {', '.join(ends_learned)} "
-            "(not a finding where the next section, What the data determines about the cost, finds those shares "
-            "undetermined).",
+            f"({ends_determined_words(run.results, main, truth_metrics)}).",
             "",
         ]
     lines += list(extra_md)
