@@ -260,3 +260,10 @@ def test_the_hardest_postures_are_a_ranking_of_means_with_their_spread():
     assert "P5 (1.39 ± 0.85°), P3 (1.33 ± 0.31°), then P2 (1.21 ± 0.35°)" in words
     assert "not tested" in words and "Hardest" not in words
 
+
+def test_the_scale_free_departure_says_where_the_weights_start():
+    from reachirl.irl.options import departures, resolve_options
+
+    (text,) = [d for d in departures(resolve_options(False, {"w0": 0.1}), "mean", 1e-4) if "scale-free" in d]
+    assert "ω₀ = 0.1 and β in those coordinates" in text and "not at 0.1 each" in text
+    assert not [d for d in departures(resolve_options(True), "mean", 0.0) if "scale-free" in d]

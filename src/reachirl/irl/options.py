@@ -118,7 +118,9 @@ def departures(options: Options, rollout: str, tol: float, method_defaults: Mapp
     if options.scaling == "demo":
         out.append(
             f"scale-free steps: the subproblem in normalised coordinates, a multiplicative step with a trust "
-            f"region of at most x{options.max_ratio:g} per iteration"
+            f"region of at most x{options.max_ratio:g} per iteration; ω₀ = {options.w0:g} and β in those "
+            f"coordinates (the weights start with every feature at the same share of each window's demonstrated "
+            f"cost, not at {options.w0:g} each; β weighs the log-step)"
         )
     if options.fallback == "merit":
         out.append(
