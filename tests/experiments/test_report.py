@@ -267,3 +267,27 @@ def test_the_scale_free_departure_says_where_the_weights_start():
     (text,) = [d for d in departures(resolve_options(False, {"w0": 0.1}), "mean", 1e-4) if "scale-free" in d]
     assert "ω₀ = 0.1 and β in those coordinates" in text and "not at 0.1 each" in text
     assert not [d for d in departures(resolve_options(True), "mean", 0.0) if "scale-free" in d]
+
+
+def test_the_cost_section_says_how_many_re_solved_samples_are_as_good_as_the_fit():
+    from types import SimpleNamespace
+
+    from reachirl.experiments.cost import cost_section
+
+    unc = {
+        "determination": {"n_determined": 1, "n_directions": 14, "determined": ["energy (window 1) together"]},
+        "share_intervals": {"low": np.zeros((2, 7)).tolist(), "high": np.ones((2, 7)).tolist(), "determined": []},
+        "prior": {"mean_width": 0.99, "claim_fraction": None},
+        "claim": {"verdict": "not applicable", "fraction": None},
+        "checked": {"solved": 10, "indistinguishable": 0},
+    }
+    unc["share_intervals"]["determined"] = np.zeros((2, 7), bool).tolist()
+    run = SimpleNamespace(
+        results={"moirl-P1-s2": {"key": "moirl-P1-s2", "unit": {"posture": "P1"}, "uncertainty": unc}}
+    )
+    lines = cost_section(run)
+    (header,) = [line for line in lines if line.startswith("| unit |")]
+    (row,) = [line for line in lines if line.startswith("| moirl-P1-s2 |")]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    assert cells["samples as good as the fit"] == "0 of 10"
+    assert any("not costs shown to explain the reaches equally well" in line for line in lines)
