@@ -286,3 +286,34 @@ def test_a_file_where_a_folder_of_the_analysis_goes_is_refused_before_any_work(t
         f"{out / name}: exists and is not a folder; sensitivity writes into it (remove it)"
     ), err
     assert (out / "sensitivity.csv").read_text() == "an earlier analysis\n"
+
+
+def test_a_pooled_verdict_is_shown_with_the_postures_own_and_says_what_its_interval_covers():
+    from reachirl.experiments.sensitivity import ALL, _row
+    from reachirl.experiments.sensitivity_outputs import _markdown
+
+    shares = np.full((2, 7), 1 / 7)
+    rows = []
+    for posture, verdict in (
+        ("P1", "needed (cv)"),
+        ("P2", "not needed (cv)"),
+        ("P3", "not needed (cv)"),
+        (ALL, "needed (cv)"),
+    ):
+        row = _row("moirl", posture, 2, "occlude_feature", 0, shares)
+        for s in SETS:
+            row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = 0.2, 0.1, 0.3
+        row["verdict"] = verdict
+        rows.append(row)
+    out = {
+        "config": {"method": "moirl", "sections": 2, "postures": ["P1", "P2", "P3"], "percent": 10.0},
+        "rows": rows,
+        "identifiability": {},
+    }
+    md = "\n".join(_markdown(out))
+    (line,) = [x for x in md.splitlines() if x.startswith(f"| {FEATURES[0]} |")]
+    assert line.endswith("| needed (cv); postures: not needed 2, needed 1 |")
+    assert "given the two fits" in md and "not how uncertain their weights are" in md
+    assert f"{ALL} pools every posture's trials" in md
+    one = "\n".join(_markdown({**out, "rows": rows[:1], "config": {**out["config"], "postures": ["P1"]}}))
+    assert "postures:" not in one and "pools every posture" not in one and "given the two fits" in one

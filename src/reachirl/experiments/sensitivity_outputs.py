@@ -125,6 +125,20 @@ def _markdown(out: dict) -> list[str]:
             )
         ),
     )
+    if occ or any(r["analysis"] == "freeze_window" for r in rows):
+        lines += [
+            "Δ: RMSE of q of the refit minus the full fit's, mean over trials. 95 % CI: the paired differences "
+            "resampled over the trials, given the two fits (each held as it is): whether these fits predict these "
+            "trials differently, not how uncertain their weights are."
+            + (
+                f" {ALL} pools every posture's trials, which share their posture's fits, as if independent: its "
+                "interval is narrower than the postures' fits warrant, and each verdict is followed by the "
+                "postures' own verdicts."
+                if post == ALL
+                else ""
+            ),
+            "",
+        ]
     if occ:
         lines += [
             f"## Which costs the data needs (posture {post}; refit without each feature)",
@@ -135,7 +149,9 @@ def _markdown(out: dict) -> list[str]:
         ]
         for r in occ:
             lines.append(
-                f"| {r['feature']} | {_share(r)} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |"
+                f"| {r['feature']} | {_share(r)} | "
+                + " | ".join(_ci(r, s) for s in SETS)
+                + f" | {r['verdict']}{_postures_verdicts(rows, r)} |"
             )
         lines.append("")
     fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
@@ -147,7 +163,11 @@ def _markdown(out: dict) -> list[str]:
             "|---|---|---|---|---|",
         ]
         for r in fr:
-            lines.append(f"| {r['window']} | " + " | ".join(_ci(r, s) for s in SETS) + f" | {r['verdict']} |")
+            lines.append(
+                f"| {r['window']} | "
+                + " | ".join(_ci(r, s) for s in SETS)
+                + f" | {r['verdict']}{_postures_verdicts(rows, r)} |"
+            )
         lines.append("")
     sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
     if sens:
@@ -179,6 +199,26 @@ def _markdown(out: dict) -> list[str]:
         )
     lines.append("")
     return lines
+
+
+def _postures_verdicts(rows: Sequence[dict], row: dict) -> str:
+    """For a row of posture ``ALL``: the verdicts of the same occlusion in each posture, counted (the pooled
+    interval holds each posture's fits as they are; the postures are the fits); nothing for a posture's row."""
+    if row["posture"] != ALL:
+        return ""
+    same = [
+        r
+        for r in rows
+        if r["posture"] != ALL
+        and r["analysis"] == row["analysis"]
+        and r["feature"] == row["feature"]
+        and r["window"] == row["window"]
+    ]
+    counts: dict[str, int] = {}
+    for r in same:
+        word = (r["verdict"] or "no verdict").split(" (")[0]
+        counts[word] = counts.get(word, 0) + 1
+    return "; postures: " + ", ".join(f"{w} {n}" for w, n in sorted(counts.items(), key=lambda kv: -kv[1]))
 
 
 def _share(row: dict) -> str:
