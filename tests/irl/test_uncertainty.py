@@ -92,6 +92,11 @@ def test_directions_are_said_in_words():
     v = np.zeros((3, 7))
     v[0, ACC], v[2, ACC], v[1, FEATURES.index("joint_torque")] = 0.6, 0.6, -0.5
     assert describe_direction(v) == "joint_acceleration (windows 1, 3) against joint_torque (window 2)"
+    one = np.zeros((3, 7))
+    one[0, FEATURES.index("energy")] = 1.0
+    assert describe_direction(one) == "energy (window 1) alone"
+    one[1, FEATURES.index("energy")] = 0.8
+    assert describe_direction(one) == "energy (windows 1-2) together"
 
 
 def test_the_claim_is_supported_contradicted_or_undetermined_over_the_samples():

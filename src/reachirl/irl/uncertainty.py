@@ -156,7 +156,8 @@ def determination(r: np.ndarray, J: np.ndarray, free: np.ndarray) -> Determinati
 
 def describe_direction(v: np.ndarray, top: int = 4) -> str:
     """A direction in log-weights ``(S, 7)`` in words: its largest entries, grouped by feature and sign, e.g.
-    "joint_acceleration (windows 1, 8) against joint_torque (windows 3-5)"."""
+    "joint_acceleration (windows 1, 8) against joint_torque (windows 3-5)", "energy (windows 2-3) together" when
+    every entry moves the same way, "energy (window 1) alone" for a single one."""
     v = np.asarray(v, dtype=float)
     mass = v**2
     order = np.argsort(mass.ravel())[::-1]
@@ -172,7 +173,7 @@ def describe_direction(v: np.ndarray, top: int = 4) -> str:
 
     if pos and neg:
         return f"{words(pos)} against {words(neg)}"
-    return f"{words(pos or neg)} together"
+    return f"{words(pos or neg)} {'alone' if len(keep) == 1 else 'together'}"
 
 
 def _ranges(ws: list[int]) -> str:
