@@ -259,6 +259,8 @@ def test_the_hardest_postures_are_a_ranking_of_means_with_their_spread():
     words = hardest_words(tab, ["P1", "P2", "P3", "P5"], 8)
     assert "P5 (1.39 ± 0.85°), P3 (1.33 ± 0.31°), then P2 (1.21 ± 0.35°)" in words
     assert "not tested" in words and "Hardest" not in words
+    two = hardest_words(tab, ["P2", "P5"], 8)  # two postures: one above the other, not both "highest"
+    assert "Higher mean CV RMSE (8 sections): P5 (1.39 ± 0.85°) than P2 (1.21 ± 0.35°)" in two
 
 
 def test_the_scale_free_departure_says_where_the_weights_start():

@@ -189,10 +189,14 @@ def hardest_words(tab: dict, postures: Sequence[str], sections: int) -> str:
         sd = cell[p].get("std")
         return f"{p} ({cell[p]['mean']:.2f}{'' if sd is None else f' ± {sd:.2f}'}°)"
 
-    nxt = f", then {fmt(ranked[2])}" if len(ranked) > 2 else ""
+    if len(ranked) == 2:
+        head = f"Higher mean CV RMSE ({sections_text(sections)}): {fmt(ranked[0])} than {fmt(ranked[1])}"
+    else:
+        nxt = f", then {fmt(ranked[2])}" if len(ranked) > 2 else ""
+        head = f"Highest mean CV RMSE ({sections_text(sections)}): {', '.join(fmt(p) for p in ranked[:2])}{nxt}"
     return (
-        f"Highest mean CV RMSE ({sections_text(sections)}): {', '.join(fmt(p) for p in ranked[:2])}{nxt} (mean ± SD "
-        "over the trials; a ranking of means, not tested: one fit per posture) (the seed's hardest: P3 and P5)."
+        f"{head} (mean ± SD over the trials; a ranking of means, not tested: one fit per posture) (the seed's "
+        "hardest: P3 and P5)."
     )
 
 
