@@ -98,26 +98,73 @@ def resolve_name(name: str, available_names: Iterable[str]) -> str | None:
     return low[0] if len(low) == 1 else None
 
 
+def _names(value, where: str, origin: str) -> tuple[str, ...]:
+    """A marker set's list of marker names at ``where``, each a non-empty string."""
+    if not (isinstance(value, list) and all(isinstance(n, str) and n.strip() for n in value)):
+        raise InputError(f"marker set: {where} must be a list of marker names, found {_brief(value)}", origin)
+    return tuple(value)
+
+
+def _brief(value) -> str:
+    text = json.dumps(value) if not isinstance(value, str) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 def _from_dict(d: Mapping, origin: str) -> MarkerSet:
-    try:
-        joints = {}
-        for j, s in d["joints"].items():
-            joints[j] = JointSpec(
-                markers=tuple(s.get("markers", ())),
-                landmarks=tuple(s.get("landmarks", ())),
-                cluster=tuple(s.get("cluster", ())),
-                optional=bool(s.get("optional", False)),
+    """A :class:`MarkerSet` from the parsed JSON ``d`` of ``origin``, each field checked: any problem is an
+    :class:`InputError` naming ``origin`` and the field."""
+    if not isinstance(d, dict):
+        raise InputError(f"marker set: expected a JSON object, found {type(d).__name__}", origin)
+    if not isinstance(d.get("joints"), dict):
+        raise InputError(f"marker set: 'joints' must be an object of joints, found {_brief(d.get('joints'))}", origin)
+    joints = {}
+    for j, s in d["joints"].items():
+        if not isinstance(s, dict):
+            raise InputError(f"marker set: joint {j!r} must be an object, found {_brief(s)}", origin)
+        unknown = set(s) - {"markers", "landmarks", "cluster", "optional"}
+        if unknown:
+            raise InputError(
+                f"marker set: joint {j!r} has unknown key(s) {', '.join(sorted(unknown))} (expected markers, "
+                "landmarks, cluster, optional)",
+                origin,
             )
-        return MarkerSet(
-            name=str(d.get("name", origin)),
-            joints=joints,
-            side_prefix=dict(d.get("side_prefix", {"right": "", "left": ""})),
-            static=d.get("static"),
-            up=d.get("up"),
-            description=str(d.get("description", "")),
+        optional = s.get("optional", False)
+        if not isinstance(optional, bool):
+            raise InputError(f"marker set: joints.{j}.optional must be true or false, found {_brief(optional)}", origin)
+        joints[j] = JointSpec(
+            **{k: _names(s[k], f"joints.{j}.{k}", origin) for k in ("markers", "landmarks", "cluster") if k in s},
+            optional=optional,
         )
-    except (KeyError, AttributeError, TypeError) as e:
-        raise InputError(f"malformed marker set ({type(e).__name__}: {e})", origin) from None
+    prefix = d.get("side_prefix", {"right": "", "left": ""})
+    if not (isinstance(prefix, dict) and all(k in ("right", "left") and isinstance(v, str) for k, v in prefix.items())):
+        raise InputError(
+            f"marker set: 'side_prefix' must map right and left to strings, found {_brief(prefix)}", origin
+        )
+    for key in ("name", "description", "static", "up"):
+        if d.get(key) is not None and not isinstance(d[key], str):
+            raise InputError(f"marker set: '{key}' must be a string, found {_brief(d[key])}", origin)
+    up = d.get("up")
+    if up is not None and up.strip().lower().lstrip("+-") not in ("x", "y", "z"):
+        raise InputError(f"marker set: 'up' must be one of ±x, ±y, ±z, found {up!r}", origin)
+    static = d.get("static")
+    if static is not None:
+        try:
+            static.format(subject="S")
+        except (KeyError, IndexError, ValueError):
+            raise InputError(
+                f"marker set: 'static' may hold only {{subject}} as a placeholder, found {static!r}", origin
+            ) from None
+    try:
+        return MarkerSet(
+            name=d.get("name") or origin,
+            joints=joints,
+            side_prefix=dict(prefix),
+            static=static,
+            up=up,
+            description=d.get("description") or "",
+        )
+    except InputError as e:  # the set's own checks (joints, clusters) name the set; name its file too
+        raise InputError(e.reason, origin) from None
 
 
 def available() -> tuple[str, ...]:
