@@ -213,6 +213,20 @@ def test_manifest_paths_relative_to_it(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("read", "text"),
+    [
+        (read_subject_info, "subject,sex,height_m,mass_kg,height_m\nS1,M,1.76,70,1.20\n"),
+        (read_manifest, "file,subject,posture,subject\nr1.trc,S1,P2,S2\n"),
+    ],
+)
+def test_a_column_named_twice_is_refused_not_read_from_the_last(tmp_path, read, text):
+    p = tmp_path / "info.csv"
+    p.write_text(text)
+    with pytest.raises(InputError, match=r"info\.csv: line 1: column\(s\) (height_m|subject) appear more than once"):
+        read(p)
+
+
+@pytest.mark.parametrize(
     ("unit", "scale"), [("millimeter", 1e-3), ("Millimetre", 1e-3), ("centimeter", 1e-2), ("metre", 1.0)]
 )
 def test_singular_length_units_are_read(tmp_path, unit, scale):

@@ -804,6 +804,13 @@ def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[st
 def _csv_rows(path: Path, reader: csv.DictReader, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
     fields_ = [f.strip() for f in (reader.fieldnames or [])]
     reader.fieldnames = fields_
+    twice = sorted({f for f in fields_ if f and fields_.count(f) > 1})
+    if twice:  # csv.DictReader would keep the last column of a name and drop the others, silently
+        raise InputError(
+            f"column(s) {', '.join(twice)} appear more than once in the header; which one holds the value is ambiguous",
+            path,
+            "line 1",
+        )
     missing = [c for c in required if c not in fields_]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)} (has: {', '.join(fields_)})", path, "line 1")
