@@ -627,6 +627,16 @@ def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int,
         found = [k for k, h in enumerate(low) if re.sub(r"_(deg|rad)$", "", h) in _Q_ALIASES[q]]
         if not found:
             raise InputError(f"no '{q}' column (columns: {', '.join(header)})", path, f"line {line}")
+        # one angle in two units (reachirl's exports: demo_q1_rad, demo_q1_deg) is one column; two angles
+        # (r_shoulder_elev and l_shoulder_elev: both arms) are not, and the first would be taken silently
+        bases = list(dict.fromkeys(re.sub(r"_(deg|rad)$", "", low[k]) for k in found))
+        if len(bases) > 1:
+            names = " and ".join(header[k].strip() for k in found)
+            raise InputError(
+                f"columns {names} all give {q}: which one is the reach is ambiguous (one arm's angles per file)",
+                path,
+                f"line {line}",
+            )
         idx.append(found[0])
     return time, idx[0], idx[1]
 
