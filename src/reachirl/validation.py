@@ -17,6 +17,7 @@ import math
 import os
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -174,8 +175,9 @@ def check_output_kind(
 ) -> None:
     """Before any work (once the inputs are known not to be ``path``): a file already at ``path`` is of the kind
     the command writes (``suffix``, e.g. ``".json"``; with ``kind = (name, recognises)``, a JSON file whose content
-    ``recognises`` accepts): a command replaces its own earlier output, never a file of another kind given by
-    mistake (a trials file, a model, another command's JSON, a file of the user's own)."""
+    ``recognises`` accepts, or for ``".npz"`` an NPZ whose ``meta.json`` entry it accepts): a command replaces its
+    own earlier output, never a file of another kind given by mistake (a trials file, a model, another command's
+    JSON, another program's NPZ, a file of the user's own)."""
     if path is None:
         return
     p = Path(path)
@@ -188,9 +190,9 @@ def check_output_kind(
         try:
             if p.stat().st_size > MAX_FILE_BYTES:
                 raise ValueError
-            content = json.loads(p.read_text(encoding="utf-8"))
+            content = _npz_meta(p) if suffix == ".npz" else json.loads(p.read_text(encoding="utf-8"))
             ok = recognises(content)
-        except (OSError, ValueError):
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error):
             ok = False
         if not ok:
             raise InputError(
@@ -198,6 +200,18 @@ def check_output_kind(
                 "(choose another path, or remove it first)",
                 p,
             )
+
+
+def _npz_meta(path: Path):
+    """The parsed ``meta.json`` entry of the NPZ at ``path`` (a reachirl trials file's header); raises
+    ``KeyError`` without one, and ``ValueError`` or a zip error when it cannot be read (no pickle)."""
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo("meta.json.npy")
+        if info.file_size > MAX_FILE_BYTES:
+            raise ValueError("meta.json too large")
+        with zf.open(info) as fh:
+            arr = np.lib.format.read_array(fh, allow_pickle=False)
+    return json.loads(bytes(arr).decode("utf-8"))
 
 
 def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:

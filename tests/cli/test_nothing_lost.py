@@ -271,6 +271,26 @@ def test_out_never_replaces_a_json_of_another_kind(base, tmp_path, capsys, comma
     assert _digest(existing) == before
 
 
+@pytest.mark.parametrize("other", ["numpy", "damaged"])
+def test_preprocess_out_never_replaces_an_npz_that_is_not_a_trials_file(base, tmp_path, capsys, other):
+    """An NPZ --out that exists must be preprocess's own earlier trials file: another program's NPZ (or one that
+    cannot be read as a trials file), given by mistake, is refused and left as it was; a trials file is replaced."""
+    existing = tmp_path / "data.npz"
+    if other == "numpy":
+        np.savez(existing, recording=np.arange(5.0))
+    else:
+        existing.write_bytes((base / "trials.npz").read_bytes()[:500])
+    before = _digest(existing)
+    recording = sorted((base / "syn").glob("*.trc"))[0]
+    argv = ["preprocess", recording, "--markers", MARKERS, "--out", existing]
+    _fails(argv, capsys, r"data\.npz: --out: exists and is not a reachirl trials file \(an earlier output")
+    assert _digest(existing) == before
+    own = tmp_path / "own.npz"
+    save_trials(own, load_trials(base / "trials.npz")[:2])
+    assert main(["preprocess", str(recording), "--markers", MARKERS, "--out", str(own)]) == 0
+    assert len(load_trials(own)) == 1
+
+
 @pytest.mark.parametrize("command", ["fit", "evaluate", "simulate"])
 def test_out_replaces_the_commands_own_earlier_output(base, tmp_path, command):
     out = tmp_path / f"{command}.json"

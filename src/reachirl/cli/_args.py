@@ -237,3 +237,13 @@ JSON_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
     "evaluate": ("METRICS.json", _keys("model", "trials_file", "summary", "trials")),
     "simulate": ("SIM.json", _keys("backend", "mode", "substeps", "trials")),
 }
+
+
+def _trials_header(d: object) -> bool:
+    from ..data.trial import TRIALS_FORMAT
+
+    return isinstance(d, dict) and d.get("format") == TRIALS_FORMAT
+
+
+#: the trials file ``preprocess`` may replace (its own earlier output), recognised by its ``meta.json`` header
+TRIALS_KIND: tuple[str, Callable[[object], bool]] = ("reachirl trials file", _trials_header)

@@ -28,7 +28,15 @@ from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_i
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
-from ._args import export_names, int_in, number_in, output_folder_files, refuse_overwrite, regular_input
+from ._args import (
+    TRIALS_KIND,
+    export_names,
+    int_in,
+    number_in,
+    output_folder_files,
+    refuse_overwrite,
+    regular_input,
+)
 
 _EXTS = (".trc", ".c3d", ".mot", ".sto")
 
@@ -353,7 +361,7 @@ def run(args) -> int:
         if e.static is not None:
             regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
     inputs = _refuse_overwrite(args, out, entries)
-    check_output_kind(out, ".npz")
+    check_output_kind(out, ".npz", kind=TRIALS_KIND)
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (
         parse_marker_map(args.markers) if args.markers else (load_markerset(args.markerset) if args.markerset else None)
