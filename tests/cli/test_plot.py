@@ -99,6 +99,24 @@ def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
     assert not (d / "x").exists()
 
 
+@pytest.mark.parametrize(("which", "name"), [("model", "weights.png"), ("trials", "prediction.pdf")])
+def test_plot_never_writes_over_an_input_named_as_one_of_its_figures(fitted, tmp_path, capsys, which, name):
+    """--out DIR where DIR/<figure> is the model or the trials file read (the earlier figures are removed first,
+    even with --no-pdf): refused before anything is removed or drawn, the input left as it was."""
+    _, trials, model = fitted
+    inputs = {"model": model, "trials": trials}
+    victim = tmp_path / name
+    victim.write_bytes(inputs[which].read_bytes())
+    inputs[which] = victim
+    capsys.readouterr()
+    argv = ["plot", "--model", str(inputs["model"]), str(inputs["trials"]), "--trial", "0", "--no-pdf"]
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--out ({victim}) is the input file {victim}; it would be overwritten" in err[0], err
+    assert victim.read_bytes() == (model if which == "model" else trials).read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
 @pytest.mark.parametrize(
     ("change", "match"),
     [

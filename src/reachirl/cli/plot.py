@@ -18,7 +18,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, add_selection, picked_trials
+from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -203,6 +203,9 @@ def run(args: argparse.Namespace) -> int:
 
         if args.source.is_dir():
             raise InputError("is a folder; with --model, give a trials file", args.source)
+        # the figures' files (an earlier set's go first) are never the model or the trials file read
+        names = [f"{stem}.{ext}" for stem in MODEL_FIGURES for ext in ("png", "pdf")]
+        output_folder_files(out, names, [args.model, args.source], "--out")
         model = load_model(args.model)
         trials = picked_trials(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)
