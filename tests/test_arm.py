@@ -140,6 +140,25 @@ def test_from_anthropometrics_rejects_bad_input(kwargs, match):
         ArmModel.from_anthropometrics(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"height_m": None}, TypeError, r"height_m must be a number \(m\), got None"),
+        ({"height_m": "tall"}, ValueError, r"height_m must be a number \(m\), got 'tall'"),
+        ({"mass_kg": np.array([70.0, 80.0])}, TypeError, r"mass_kg must be a number \(kg\), got array"),
+        ({"mass_kg": True}, TypeError, r"mass_kg must be a number \(kg\), got True"),
+        ({"upper_arm_m": [0.3]}, TypeError, r"upper_arm_m must be a number \(m\), got \[0\.3\]"),
+    ],
+)
+def test_from_anthropometrics_names_a_field_that_is_not_a_number(kwargs, error, match):
+    """None, text, an array or a list name the field (float() and numpy's own words named none; a mass given
+    as text failed multiplying a string)."""
+    with pytest.raises(error, match=match):
+        ArmModel.from_anthropometrics(**{"height_m": 1.7, "mass_kg": 70, "sex": "M", **kwargs})
+    text = ArmModel.from_anthropometrics(height_m="1.7", mass_kg="70", sex="M")  # numbers as text, as float() reads
+    assert text == ArmModel.from_anthropometrics(height_m=1.7, mass_kg=70.0, sex="M")
+
+
 def test_arm_model_validates_fields():
     with pytest.raises(ValueError, match="l1 must be > 0"):
         ArmModel(l1=0, l2=0.4, m1=2, m2=1.5, c1=0.0, c2=0.2, i1=0.01, i2=0.02)

@@ -113,19 +113,31 @@ class ArmModel:
         The hand (wrist centre to fingertip) is lumped onto the forearm with the parallel-axis theorem, so
         ``l2 = forearm_m + hand_m`` and the fingertip is the end-effector.
         """
+        from .validation import brief
+
+        def number(name: str, v, unit: str) -> float:  # text, None or an array names the field, not float()
+            if isinstance(v, bool):
+                raise TypeError(f"{name} must be a number ({unit}), got {v!r}")
+            try:
+                return float(v)
+            except (TypeError, ValueError):
+                error = ValueError if isinstance(v, str) else TypeError  # float()'s own kinds of error
+                raise error(f"{name} must be a number ({unit}), got {brief(v)}") from None
+
         key = sex_key(sex)
         if key is None:
             raise ValueError(f"sex must be 'M' or 'F' (or 'male', 'female'), got {sex!r}")
-        if not (0.5 < float(height_m) < 2.6):
+        height_m, mass_kg = number("height_m", height_m, "m"), number("mass_kg", mass_kg, "kg")
+        if not (0.5 < height_m < 2.6):
             raise ValueError(f"height_m must be a plausible stature in metres, got {height_m}")
-        if not (10.0 < float(mass_kg) < 300.0):
+        if not (10.0 < mass_kg < 300.0):
             raise ValueError(f"mass_kg must be a plausible body mass in kg, got {mass_kg}")
         table = DUMAS_2007[key]
-        scale = float(height_m) / _REFERENCE_HEIGHT_M[key]
+        scale = height_m / _REFERENCE_HEIGHT_M[key]
 
         def segment(name: str, length: float | None) -> tuple[float, float, float, float]:
             mass_pct, com_pct, r_pct, mean_len = table[name]
-            length = mean_len * scale if length is None else float(length)
+            length = mean_len * scale if length is None else number(f"{name}_m", length, "m")
             if not (0.02 < length < 1.0):
                 raise ValueError(f"{name} length must be in metres (0.02-1.0), got {length}")
             m = mass_pct / 100.0 * mass_kg
