@@ -163,6 +163,33 @@ def test_evaluate_predictions_never_overwrite_an_input(base, tmp_path, capsys):
     assert trials[0].id == "S01/P2/right/S01_P2_T01"
 
 
+@pytest.mark.parametrize("command", ["evaluate", "preprocess"])
+def test_an_export_never_replaces_the_users_own_files(base, tmp_path, capsys, command):
+    """An export replaces only an earlier export's files: an index.csv of the user's own, or a file its name would
+    take that the earlier export's index does not list, is refused and left as it was."""
+    folder = tmp_path / "EX"
+    folder.mkdir()
+    trials, recording = base / "trials.npz", sorted((base / "syn").glob("*.trc"))[0]
+    argv = {
+        "evaluate": ["evaluate", "--model", base / "model.json", trials, "--out", tmp_path / "o.json"],
+        "preprocess": ["preprocess", recording, "--markers", MARKERS, "--out", tmp_path / "o.npz"],
+    }[command]
+    option = {"evaluate": "--predictions", "preprocess": "--export"}[command]
+    mine = folder / "index.csv"
+    mine.write_text("subject,note\nS01,my own table\n")
+    _fails([*argv, option, folder], capsys, rf"index\.csv: {option}: exists and is not the index of an earlier export")
+    assert mine.read_text() == "subject,note\nS01,my own table\n" and not (tmp_path / argv[-1]).exists()
+    mine.unlink()
+    assert main([*map(str, argv), option, str(folder)]) == 0  # an export, then a file of the user's own beside it
+    name = next(p for p in sorted(folder.glob("*.csv")) if p.name != "index.csv").name
+    (folder / name).unlink()
+    (folder / "index.csv").write_text("id,file,set\n")  # an earlier export that did not write that name
+    (folder / name).write_text("my own file\n")
+    capsys.readouterr()
+    _fails([*argv, option, folder], capsys, rf"{name}: {option}: exists and is not a file of the earlier export")
+    assert (folder / name).read_text() == "my own file\n"
+
+
 def test_reproduce_and_sensitivity_refuse_their_input_folder_as_output(base, tmp_path, capsys):
     syn = tmp_path / "syn"
     shutil.copytree(base / "syn", syn)

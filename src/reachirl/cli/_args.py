@@ -194,6 +194,35 @@ def output_folder_files(folder: object, names, inputs, option: str, outputs: dic
             )
 
 
+def refuse_foreign_export_files(folder: object, names, option: str) -> None:
+    """Before any work: an export into ``folder`` (writing ``names``, :func:`export_names`) replaces only an earlier
+    export's files. An ``index.csv`` that is not an export's, or a file of ``names`` that the earlier export's index
+    does not list, is the user's own: refused (:class:`InputError` naming it). Without an index (none yet, or an
+    export interrupted after removing it) the files cannot be told apart and are replaced as before."""
+    from ..data.exports import INDEX_COLUMNS, is_export, listed_names
+
+    if folder is None or not Path(folder).is_dir():
+        return
+    folder = Path(folder)
+    index = folder / "index.csv"
+    if not index.exists():
+        return
+    if not is_export(folder):
+        raise InputError(
+            f"{option}: exists and is not the index of an earlier export (its header is not "
+            f"{','.join(INDEX_COLUMNS)}); it would be replaced (choose another folder, or remove it first)",
+            index,
+        )
+    earlier = listed_names(folder)
+    for n in names:
+        if n != "index.csv" and (folder / n).exists() and Path(n).stem not in earlier:
+            raise InputError(
+                f"{option}: exists and is not a file of the earlier export in {folder} (its index.csv does not "
+                "list it); it would be replaced (choose another folder, or remove it first)",
+                folder / n,
+            )
+
+
 def export_names(ids) -> list[str]:
     """The files that :func:`reachirl.data.exports.export_trajectories` writes for trials ``ids``: ``<name>.csv``,
     ``<name>.mot`` per id (a repeated name gets ``-2``, ``-3`` …) and ``index.csv``."""

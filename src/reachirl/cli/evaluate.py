@@ -24,6 +24,7 @@ from ._args import (
     chosen_trials,
     export_names,
     output_folder_files,
+    refuse_foreign_export_files,
     refuse_overwrite,
 )
 
@@ -115,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if args.predictions is not None:
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.predictions, names, [args.model, args.trials], "--predictions", {"--out": args.out})
+        refuse_foreign_export_files(args.predictions, names, "--predictions")
     with Progress(transient=True, console=Console(stderr=True)) as progress:
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))

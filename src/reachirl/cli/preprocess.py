@@ -34,6 +34,7 @@ from ._args import (
     int_in,
     number_in,
     output_folder_files,
+    refuse_foreign_export_files,
     refuse_overwrite,
     regular_input,
 )
@@ -340,6 +341,7 @@ def run(args) -> int:
     if args.export is not None:  # before any work: a folder in which files can be written, and not the trials file's
         check_output_dir(args.export, "--export")
         output_folder_files(args.export, ["index.csv"], [], "--export", {"--out": out})
+        refuse_foreign_export_files(args.export, ["index.csv"], "--export")
     _folder_defaults(args)
     if args.manifest:
         entries = read_manifest(args.manifest)
@@ -381,7 +383,9 @@ def run(args) -> int:
     )
     _refuse_duplicate_ids(trials)
     if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
-        output_folder_files(args.export, export_names(tr.id for tr in trials), inputs, "--export", {"--out": out})
+        names = export_names(tr.id for tr in trials)
+        output_folder_files(args.export, names, inputs, "--export", {"--out": out})
+        refuse_foreign_export_files(args.export, names, "--export")
     # the trials file last, an earlier one removed first: an interrupt never leaves it beside another export
     out.unlink(missing_ok=True)
     if args.export is not None:

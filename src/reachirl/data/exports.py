@@ -35,6 +35,7 @@ __all__ = [
     "MOT_COLUMNS",
     "TrajectoryExport",
     "export_trajectories",
+    "listed_names",
     "opensim_coordinates",
     "remove_export",
     "safe_name",
@@ -143,9 +144,10 @@ def is_export(folder: str | Path) -> bool:
         return False
 
 
-def _listed(out: Path) -> set[str]:
+def listed_names(out: str | Path) -> set[str]:
     """The file names (no suffix) an earlier export's ``index.csv`` in ``out`` lists: names this module made,
     never a path."""
+    out = Path(out)
     return {n for n in csv_column(out / "index.csv", "file") if n == safe_name(n) and n != "index"}
 
 
@@ -166,7 +168,7 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    earlier = _listed(out)
+    earlier = listed_names(out)
     (out / "index.csv").unlink(missing_ok=True)
     remove_temporaries(out)  # what the atomic writes of a killed export left
     used: set[str] = set()
@@ -195,7 +197,7 @@ def remove_export(out_dir: str | Path) -> None:
     """Remove what :func:`export_trajectories` wrote into ``out_dir``: the files its ``index.csv`` lists, the
     index, the temporaries of a killed export, and the folder once empty; a user's other files stay."""
     out = Path(out_dir)
-    _remove(out, _listed(out))
+    _remove(out, listed_names(out))
     (out / "index.csv").unlink(missing_ok=True)
     remove_temporaries(out)
     if not any(out.iterdir()):
