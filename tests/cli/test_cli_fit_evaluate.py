@@ -313,6 +313,8 @@ def test_reproduce_refuses_trials_cut_at_two_thresholds_before_any_work(trials_f
     out = tmp_path / "run"
     out.mkdir()
     (out / "table.csv").write_text("an earlier run's table\n")
+    earlier = "# reachirl 0.1.0 reproduce: the options of this run; repeat it with ...\nquick = true\n"
+    (out / "run.toml").write_text(earlier)  # an earlier run's folder (a folder of the user's own is refused)
     args = ["reproduce", "--data", str(path), "--quick", "--workers", "1", "--out", str(out), "--no-progress"]
     assert main([*args, "--postures", first[1]]) == 2
     err = capsys.readouterr().err.strip()
@@ -320,4 +322,4 @@ def test_reproduce_refuses_trials_cut_at_two_thresholds_before_any_work(trials_f
         rf"^reachirl reproduce: error: \S*two_thresholds\.npz: {first[0]} {first[1]}: .*--rollout per_demo", err
     )
     assert len(err.splitlines()) == 1, err
-    assert (out / "table.csv").read_text() == "an earlier run's table\n" and not (out / "run.toml").exists()
+    assert (out / "table.csv").read_text() == "an earlier run's table\n" and (out / "run.toml").read_text() == earlier

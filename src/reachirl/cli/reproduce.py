@@ -481,6 +481,44 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     return lambda: write_run_file(out / "run.toml", resolved, header=header)
 
 
+#: the files a run writes at the top of its --out (an earlier run's are replaced or removed)
+RUN_FILES = ("run.toml", "results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
+
+
+def _is_run_toml(path: Path) -> bool:
+    """Whether ``path`` is a run file a ``reproduce`` run wrote into its folder (by its first line)."""
+    import re
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            first = fh.readline(1000)
+    except (OSError, UnicodeDecodeError):
+        return False
+    return re.match(r"^# reachirl \S+ reproduce: the options of this run", first) is not None
+
+
+def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
+    """Before any work: the files a run replaces or removes at the top of ``out`` (:data:`RUN_FILES`) are an
+    earlier run's, never the user's own: in a folder without a run's ``run.toml`` (a folder of the user's own,
+    given as --out) such a file is refused (:class:`InputError` naming it), and so is a ``run.toml`` that no run
+    wrote, unless it is the --config given."""
+    from ._args import same_file
+
+    if not out.is_dir():
+        return
+    toml = out / "run.toml"
+    if _is_run_toml(toml):
+        return
+    given = config is not None and toml.exists() and same_file(Path(config), toml)
+    present = [n for n in RUN_FILES if (out / n).exists() and not (n == "run.toml" and given)]
+    if present:
+        raise InputError(
+            "--out: exists in a folder that holds no earlier `reachirl reproduce` run (no run.toml written by "
+            "one); the run would replace or remove it (choose another --out, or remove it first)",
+            out / present[0],
+        )
+
+
 def _stopped(result) -> int:
     """A run stopped by --max-units: the finished units' models (`evaluate`, `plot`, `simulate` can use them
     now) and how to finish."""
@@ -530,6 +568,7 @@ def run(args) -> int:
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
+    _refuse_foreign_run_files(out, args.config)
     try:
         config = _config(args, opts)
     except InputError as e:
