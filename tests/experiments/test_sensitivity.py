@@ -317,3 +317,18 @@ def test_a_pooled_verdict_is_shown_with_the_postures_own_and_says_what_its_inter
     assert f"{ALL} pools every posture's trials" in md
     one = "\n".join(_markdown({**out, "rows": rows[:1], "config": {**out["config"], "postures": ["P1"]}}))
     assert "postures:" not in one and "pools every posture" not in one and "given the two fits" in one
+
+
+@pytest.mark.parametrize("name", ["identifiability.json", "sensitivity.md", "sensitivity.csv"])
+def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_analysis(small_run, tmp_path, capsys, name):
+    """--out of the user's own holding a file the analysis removes at its start: refused before any work, the file
+    left as it was (an earlier analysis's folder is still rerun into: test_an_interrupted_cli_run_...)."""
+    from reachirl.cli import main
+
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / name).write_text('{"my": "notes"}\n')
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{name}: --out: exists in a folder that holds no earlier `reachirl sensitivity`" in err[0]
+    assert (out / name).read_text() == '{"my": "notes"}\n' and sorted(p.name for p in out.iterdir()) == [name]

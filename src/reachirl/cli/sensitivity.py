@@ -112,6 +112,7 @@ def run(args) -> int:
     for folder in (checkpoints, out / "figures"):  # before any work: a job's checkpoint would fail after it
         if folder.exists() and not folder.is_dir():
             raise InputError("exists and is not a folder; sensitivity writes into it (remove it)", folder)
+    _refuse_foreign_outputs(out)
     for folder in (out, checkpoints, out / "figures"):
         remove_temporaries(folder)  # what a killed run was writing
     res = run_sensitivity(
@@ -126,3 +127,29 @@ def run(args) -> int:
     print((out / "sensitivity.md").read_text(encoding="utf-8"))
     print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+#: the files an analysis writes at the top of its --out, and removes at a rerun's start
+OUTPUT_FILES = ("identifiability.json", "sensitivity.md", "sensitivity.csv")
+
+
+def _refuse_foreign_outputs(out: Path) -> None:
+    """Before any work: the files of :data:`OUTPUT_FILES` in ``out`` are an earlier analysis's (its
+    ``identifiability.json``, written first, is recognised), never the user's own: a folder that holds one without
+    an analysis's ``identifiability.json`` is refused (:class:`InputError` naming the file), not cleared."""
+    import json
+
+    present = [n for n in OUTPUT_FILES if (out / n).exists()]
+    if not present:
+        return
+    try:
+        d = json.loads((out / "identifiability.json").read_text(encoding="utf-8"))
+        ours = isinstance(d, dict) and {"config", "units", "postures"} <= d.keys()
+    except (OSError, ValueError):
+        ours = False
+    if not ours:
+        raise InputError(
+            "--out: exists in a folder that holds no earlier `reachirl sensitivity` analysis (no identifiability.json "
+            "written by one); the analysis would replace or remove it (choose another --out, or remove it first)",
+            out / present[0],
+        )
