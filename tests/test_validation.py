@@ -200,6 +200,23 @@ def test_a_trial_of_non_numbers_names_the_field(files, change, match):
         replace(load_trials(files / "trials.npz")[0], **change)
 
 
+@pytest.mark.parametrize(
+    ("field", "change", "match"),
+    [
+        ("q", lambda a: a + 1e-3j, r"q must be an array of real numbers, got complex numbers \(dtype complex128\)$"),
+        ("t", lambda a: a.astype(complex), r"t must be an array of real numbers, got complex numbers"),
+        ("x0", lambda a: a > 0, r"x0 must be an array of real numbers, got booleans \(dtype bool\)$"),
+    ],
+)
+def test_a_trial_of_complex_or_boolean_arrays_names_the_field(files, field, change, match):
+    # a cast to float dropped the imaginary part (numpy only warned) and read booleans as 0 and 1 rad
+    from dataclasses import replace
+
+    trial = load_trials(files / "trials.npz")[0]
+    with pytest.raises(InputError, match=r"^trial S1/P2/0: " + match):
+        replace(trial, **{field: change(getattr(trial, field))})
+
+
 def test_a_duration_outside_a_reach_is_refused(files):
     path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
     with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):

@@ -76,6 +76,21 @@ def brief(v) -> str:
     return f"{float(v):.6g}"
 
 
+def not_real(v) -> str | None:
+    """What makes ``v`` no array of real numbers although a cast to float would take it: complex numbers (the cast
+    drops their imaginary part, numpy only warns) or booleans (read as 0 and 1); ``None`` otherwise (text and
+    ragged rows are the cast's own to refuse)."""
+    try:
+        kind = np.asarray(v).dtype
+    except (TypeError, ValueError):
+        return None
+    if kind.kind == "c":
+        return f"complex numbers (dtype {kind})"
+    if kind.kind == "b":
+        return f"booleans (dtype {kind})"
+    return None
+
+
 def check_n_nodes(n, where: object | None = None, name: str = "n_nodes") -> int:
     """``n`` as an int in :data:`NODES_RANGE`."""
     lo, hi = NODES_RANGE

@@ -273,6 +273,8 @@ def test_a_reach_fatrop_solved_is_not_solved_again_by_ipopt(arm):
         (np.ones((200, 7)), "200 windows do not fit in 100 intervals"),
         ([[0.05] * 7, [0.05] * 6], r"weights must be numbers of shape \(n_windows, 7\), got \[\[0\.05"),
         ("low", r"weights must be numbers of shape \(n_windows, 7\), got 'low'"),
+        (np.full((2, 7), 0.05) + 1e-3j, r"weights must be real numbers, got complex numbers \(dtype complex128\)"),
+        (np.ones((2, 7), bool), r"weights must be real numbers, got booleans \(dtype bool\)"),
     ],
 )
 def test_bad_weights_raise(solved, weights, match):
@@ -310,6 +312,7 @@ def test_joint_limits_in_degrees_are_refused(arm):
         (([0.0, 1.0], np.array([0.5]), 0.7), r"^target_x must be a number \(m\), got array\(\[0\.5\]\)$"),
         (([0.0, 1.0], 0.5, "0.7 s"), r"^duration must be a number \(s\), got '0\.7 s'$"),
         (("q0", 0.5, 0.7), r"^q0 must be 2 numbers, got 'q0'$"),
+        ((np.array([-1.5, 1.5]) + 0.1j, 0.5, 0.7), r"^q0 must be 2 real numbers, got complex numbers"),
     ],
 )
 def test_a_task_of_non_numbers_names_the_field(arm, args, match):
@@ -317,6 +320,14 @@ def test_a_task_of_non_numbers_names_the_field(arm, args, match):
     # "only 0-dimensional arrays can be converted to Python scalars") named no field
     with pytest.raises(ValueError, match=match):
         ReachingTask(arm, *args)
+
+
+def test_a_model_of_complex_weights_is_not_built():
+    # the cast to float dropped the imaginary part, with a ComplexWarning only
+    from reachirl.irl.model import LearnedModel
+
+    with pytest.raises(ValueError, match=r"^weights must be real numbers, got complex numbers"):
+        LearnedModel(weights=np.full((2, 7), 0.05) + 1e-3j, n_nodes=20)
 
 
 def test_agrees_with_a_plain_multiple_shooting_formulation(arm):

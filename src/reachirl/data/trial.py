@@ -181,7 +181,12 @@ class Trial:
 
 
 def _floats(name: str, v, where: str) -> np.ndarray:
-    """``v`` as an array of floats; anything else (text, ragged rows) is an :class:`InputError` naming ``name``."""
+    """``v`` as an array of floats; anything else (text, ragged rows, complex numbers whose imaginary part a cast
+    would drop, booleans) is an :class:`InputError` naming ``name``."""
+    from ..validation import not_real
+
+    if (what := not_real(v)) is not None:
+        raise InputError(f"{name} must be an array of real numbers, got {what}", where)
     try:
         return np.asarray(v, dtype=float)
     except (TypeError, ValueError):

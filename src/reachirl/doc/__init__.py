@@ -11,7 +11,7 @@ import dataclasses
 import numpy as np
 
 from ..features import N_FEATURES
-from ..validation import brief
+from ..validation import brief, not_real
 from .task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, DocSolution, ReachingTask
 
 __all__ = [
@@ -30,6 +30,8 @@ BACKENDS = ("casadi", "crocoddyl")
 
 def check_weights(weights, n_nodes: int | None = None) -> np.ndarray:
     """Validate DOC weights: shape ``(n_windows, 7)``, finite, ``>= 0``. Returns a float copy."""
+    if (what := not_real(weights)) is not None:
+        raise ValueError(f"weights must be real numbers, got {what}")
     try:
         w = np.array(weights, dtype=float)
     except (TypeError, ValueError):

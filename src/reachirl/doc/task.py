@@ -24,7 +24,7 @@ import numpy as np
 
 from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, ArmModel
 from ..features import euler_knots
-from ..validation import brief, check_arm, check_duration, check_n_nodes
+from ..validation import brief, check_arm, check_duration, check_n_nodes, not_real
 
 __all__ = [
     "DEFAULT_QD_MAX",
@@ -41,6 +41,8 @@ __all__ = [
 
 
 def _vec2(name: str, v) -> np.ndarray:
+    if (what := not_real(v)) is not None:
+        raise ValueError(f"{name} must be 2 real numbers, got {what}")
     try:
         a = np.asarray(v, dtype=float).reshape(-1)
     except (TypeError, ValueError):

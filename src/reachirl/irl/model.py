@@ -18,7 +18,7 @@ from ..doc.observation import predict_reach
 from ..errors import InputError
 from ..features import FEATURES, N_FEATURES, cost_shares
 from ..io import atomic_write_json, read_json, to_jsonable
-from ..validation import brief, check_file_size, check_n_nodes, require
+from ..validation import brief, check_file_size, check_n_nodes, not_real, require
 
 __all__ = ["MODEL_FORMAT", "LearnedModel", "check_model_dict", "load_model", "save_model"]
 
@@ -39,6 +39,8 @@ class LearnedModel:
     uncertainty: dict | None = None  # weight samples and share intervals (reachirl.irl.uncertainty)
 
     def __post_init__(self) -> None:
+        if (what := not_real(self.weights)) is not None:
+            raise ValueError(f"weights must be real numbers, got {what}")
         w = np.asarray(self.weights, dtype=float)
         if w.ndim != 2 or w.shape[1] != N_FEATURES:
             raise ValueError(f"weights must have shape (n_windows, {N_FEATURES}), got {w.shape}")
