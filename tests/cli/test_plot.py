@@ -2,6 +2,7 @@
 the same trial choice, and reads the model through the one checked loader."""
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -241,6 +242,47 @@ def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
     err = capsys.readouterr().err.strip()
     assert f"{npz}: damaged checkpoint" in err and "rerun `reachirl reproduce`" in err, err
     assert len(err.splitlines()) == 1
+
+
+@pytest.fixture(scope="module")
+def run_folder(fitted):
+    d, trials, _ = fitted
+    run = d / "run_for_results"
+    args = ["reproduce", "--data", str(trials), "--quick", "--sections", "1", "--uncertainty", "0", "--max-iter", "1"]
+    assert main([*args, "--workers", "1", "--no-progress", "--out", str(run)]) == 0
+    return run
+
+
+def _protocol(d, key, value):
+    d["protocol"][key] = value
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda d: _protocol(d, "sections", "abc"), r"field 'protocol\.sections': expected a list of integers"),
+        (lambda d: _protocol(d, "methods", 5), r"field 'protocol\.methods': expected a list of strings, found 5"),
+        (lambda d: _protocol(d, "sections", [1, 999]), r"field 'protocol': --sections 999 exceeds the \d+ DOC"),
+        (lambda d: d.update(protocol=[1]), r"field 'protocol': expected an object, found list"),
+        (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),
+        (lambda d: d.update(units={"a": 1}), r"field 'units': expected a list of objects"),
+        (lambda d: d["units"][0].pop("sets"), r"malformed results file \(KeyError: 'sets'\)"),
+        (lambda d: d["units"][0].update(history=5), r"malformed results file \(TypeError: "),
+    ],
+)
+def test_plot_of_a_run_with_a_damaged_results_file_names_it(run_folder, tmp_path, capsys, change, match):
+    """results.json damaged or edited by hand: exit 2 naming the file and the field, not an internal error."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    d = json.loads((run / "results.json").read_text())
+    change(d)
+    (run / "results.json").write_text(json.dumps(d))
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(tmp_path / "figs"), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
 
 
 def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):

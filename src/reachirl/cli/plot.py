@@ -15,6 +15,7 @@ window's cost on the fit's own reach, the shares its intervals bracket; undeterm
 from __future__ import annotations
 
 import argparse
+import contextlib
 from pathlib import Path
 
 from ..errors import InputError
@@ -154,6 +155,23 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     return written
 
 
+@contextlib.contextmanager
+def _malformed(res_path: Path):
+    """A unit record of ``results.json`` that lacks a field or holds one of the wrong kind (a damaged or hand-edited
+    file: its units are not checksummed as their checkpoints are) is an :class:`InputError` naming the file, not an
+    internal error."""
+    try:
+        yield
+    except InputError:
+        raise
+    except (KeyError, TypeError, IndexError, AttributeError, ValueError) as e:
+        raise InputError(
+            f"malformed results file ({type(e).__name__}: {str(e)[:120]}); rerun `reachirl reproduce` into the "
+            "folder to write it again",
+            res_path,
+        ) from None
+
+
 def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     """A ``reproduce`` folder's figures drawn again from ``results.json`` and ``units/``."""
     from dataclasses import fields
@@ -163,6 +181,7 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     from ..experiments.report import write_figures
     from ..experiments.results import RunResult, RunSummary
     from ..io import read_json
+    from ..validation import brief
 
     res_path = run_dir / "results.json"
     if not res_path.is_file():
@@ -172,12 +191,41 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     d = read_json(res_path)
     if not isinstance(d, dict) or d.get("format") != "reachirl-reproduce/1" or "units" not in d:
         raise InputError("not a results file of `reachirl reproduce` (format reachirl-reproduce/1)", res_path)
-    proto = d.get("protocol", {})
-    config = ProtocolConfig(**{f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto})
-    results = {u["key"]: u for u in d["units"]}
-    postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in d["units"]}))
+    proto, units = d.get("protocol", {}), d["units"]
+    if not isinstance(proto, dict):
+        raise InputError(f"field 'protocol': expected an object, found {type(proto).__name__}", res_path)
+
+    def good_unit(u):
+        return (
+            isinstance(u, dict)
+            and isinstance(u.get("key"), str)
+            and isinstance(u.get("unit"), dict)
+            and isinstance(u["unit"].get("posture"), str)
+        )
+
+    if not (isinstance(units, list) and all(good_unit(u) for u in units)):
+        bad = next((i for i, u in enumerate(units) if not good_unit(u)), None) if isinstance(units, list) else None
+        where = "" if bad is None else f", unit {bad}"
+        raise InputError(
+            f"field 'units'{where}: expected a list of objects with a 'key' and a 'unit' with its 'posture'", res_path
+        )
+    for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
+        v = proto.get(key)
+        if v is not None and not (
+            isinstance(v, list) and all(isinstance(x, kind) and not isinstance(x, bool) for x in v)
+        ):
+            what = "integers" if kind is int else "strings"
+            raise InputError(f"field 'protocol.{key}': expected a list of {what}, found {brief(v)}", res_path)
+    try:
+        config = ProtocolConfig(**{f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto})
+    except (InputError, TypeError, ValueError) as e:  # its checks speak of the options that set each field
+        reason = e.reason if isinstance(e, InputError) else str(e)
+        raise InputError(f"field 'protocol': {reason}", res_path) from None
+    results = {u["key"]: u for u in units}
+    postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in units}))
     sections, methods = list(config.sections), list(config.methods)
-    tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
+    with _malformed(res_path):
+        tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
     run = RunResult(
         out_dir=run_dir,
         dataset=None,
@@ -187,7 +235,8 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
         split_sizes={},
         summary=RunSummary(results, [], list(results), False),
     )
-    figs = write_figures(run, tables, ({}, {}, {}), fig_dir=out, pdf=pdf)
+    with _malformed(res_path):
+        figs = write_figures(run, tables, ({}, {}, {}), fig_dir=out, pdf=pdf)
     return [out / f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
 
 
