@@ -332,3 +332,30 @@ def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_analysis(small_r
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{name}: --out: exists in a folder that holds no earlier `reachirl sensitivity`" in err[0]
     assert (out / name).read_text() == '{"my": "notes"}\n' and sorted(p.name for p in out.iterdir()) == [name]
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (lambda d: d["protocol"].update(sections="abc"), r"field 'protocol\.sections': expected a list of integers"),
+        (lambda d: d.update(protocol=[1]), r"field 'protocol': expected an object, found list"),
+        (lambda d: d.update(data=[1]), r"field 'data': expected an object, found list"),
+        (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),
+    ],
+)
+def test_a_damaged_results_file_is_named_not_an_internal_error(small_run, tmp_path, capsys, change, match):
+    import re
+    import shutil
+
+    from reachirl.cli import main
+
+    run = tmp_path / "run"
+    shutil.copytree(small_run, run)
+    d = json.loads((run / "results.json").read_text())
+    change(d)
+    (run / "results.json").write_text(json.dumps(d))
+    out = tmp_path / "sens"
+    assert main(["sensitivity", str(run), "--out", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
+    assert not out.exists()

@@ -179,9 +179,8 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     from ..experiments import tables as tb
     from ..experiments.protocol import ProtocolConfig
     from ..experiments.report import write_figures
-    from ..experiments.results import RunResult, RunSummary
+    from ..experiments.results import RunResult, RunSummary, check_results_file, protocol_config
     from ..io import read_json
-    from ..validation import brief
 
     res_path = run_dir / "results.json"
     if not res_path.is_file():
@@ -191,36 +190,9 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     d = read_json(res_path)
     if not isinstance(d, dict) or d.get("format") != "reachirl-reproduce/1" or "units" not in d:
         raise InputError("not a results file of `reachirl reproduce` (format reachirl-reproduce/1)", res_path)
-    proto, units = d.get("protocol", {}), d["units"]
-    if not isinstance(proto, dict):
-        raise InputError(f"field 'protocol': expected an object, found {type(proto).__name__}", res_path)
-
-    def good_unit(u):
-        return (
-            isinstance(u, dict)
-            and isinstance(u.get("key"), str)
-            and isinstance(u.get("unit"), dict)
-            and isinstance(u["unit"].get("posture"), str)
-        )
-
-    if not (isinstance(units, list) and all(good_unit(u) for u in units)):
-        bad = next((i for i, u in enumerate(units) if not good_unit(u)), None) if isinstance(units, list) else None
-        where = "" if bad is None else f", unit {bad}"
-        raise InputError(
-            f"field 'units'{where}: expected a list of objects with a 'key' and a 'unit' with its 'posture'", res_path
-        )
-    for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
-        v = proto.get(key)
-        if v is not None and not (
-            isinstance(v, list) and all(isinstance(x, kind) and not isinstance(x, bool) for x in v)
-        ):
-            what = "integers" if kind is int else "strings"
-            raise InputError(f"field 'protocol.{key}': expected a list of {what}, found {brief(v)}", res_path)
-    try:
-        config = ProtocolConfig(**{f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto})
-    except (InputError, TypeError, ValueError) as e:  # its checks speak of the options that set each field
-        reason = e.reason if isinstance(e, InputError) else str(e)
-        raise InputError(f"field 'protocol': {reason}", res_path) from None
+    check_results_file(d, res_path)
+    proto, units = d.get("protocol") or {}, d["units"]
+    config = protocol_config({f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto}, res_path)
     results = {u["key"]: u for u in units}
     postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in units}))
     sections, methods = list(config.sections), list(config.methods)

@@ -179,3 +179,50 @@ def save_unit(out_dir: Path, payload: dict) -> dict:
     res["checksum"] = content_checksum(res)  # of the content as written, and of the inputs' fingerprint
     atomic_write_json(js, res)
     return json.loads(js.read_text(encoding="utf-8"))  # exactly what a resumed run would read
+
+
+def check_results_file(d, path) -> None:
+    """The parts of a ``results.json`` (``d``, read from ``path``) that ``plot RUN_DIR`` and ``sensitivity`` build
+    on: ``data`` and ``protocol`` objects, the protocol's lists, and ``units`` a list of objects with a ``key`` and
+    a ``unit`` naming its ``posture``. A damaged or hand-edited file is an :class:`InputError` naming the file and
+    the field."""
+    from ..validation import brief
+
+    for key in ("data", "protocol"):
+        if d.get(key) is not None and not isinstance(d[key], dict):
+            raise InputError(f"field '{key}': expected an object, found {type(d[key]).__name__}", path)
+    proto, units = d.get("protocol") or {}, d.get("units")
+
+    def good_unit(u) -> bool:
+        return (
+            isinstance(u, dict)
+            and isinstance(u.get("key"), str)
+            and isinstance(u.get("unit"), dict)
+            and isinstance(u["unit"].get("posture"), str)
+        )
+
+    if not (isinstance(units, list) and all(good_unit(u) for u in units)):
+        bad = next((i for i, u in enumerate(units) if not good_unit(u)), None) if isinstance(units, list) else None
+        where = "" if bad is None else f", unit {bad}"
+        raise InputError(
+            f"field 'units'{where}: expected a list of objects with a 'key' and a 'unit' with its 'posture'", path
+        )
+    for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
+        v = proto.get(key)
+        if v is not None and not (
+            isinstance(v, list) and all(isinstance(x, kind) and not isinstance(x, bool) for x in v)
+        ):
+            what = "integers" if kind is int else "strings"
+            raise InputError(f"field 'protocol.{key}': expected a list of {what}, found {brief(v)}", path)
+
+
+def protocol_config(kw: dict, path):
+    """``ProtocolConfig(**kw)`` of a results file's protocol: its checks (which speak of the options that set each
+    field) name the file and the field ``protocol``."""
+    from .protocol import ProtocolConfig
+
+    try:
+        return ProtocolConfig(**kw)
+    except (InputError, TypeError, ValueError) as e:
+        reason = e.reason if isinstance(e, InputError) else str(e)
+        raise InputError(f"field 'protocol': {reason}", path) from None

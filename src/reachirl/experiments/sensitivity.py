@@ -102,7 +102,7 @@ def load_run(run_dir: str | Path):
     """``(dataset, config, results, train_subject)`` of a finished ``reproduce`` run folder. The data are loaded
     again from where the run found them and must have the run's fingerprint."""
     from .datasets import Dataset, fingerprint, load, preprocess_folder
-    from .results import load_unit
+    from .results import check_results_file, load_unit, protocol_config
 
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
@@ -116,6 +116,9 @@ def load_run(run_dir: str | Path):
         res = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as e:
         raise InputError(f"unreadable ({e})", path) from None
+    if not isinstance(res, dict):
+        raise InputError(f"expected a JSON object (a reproduce run's results), found a {type(res).__name__}", path)
+    check_results_file(res, path)
     data, proto = res.get("data") or {}, res.get("protocol") or {}
     kind, source = data.get("kind"), str(data.get("source", ""))
     if kind == "builtin":
@@ -135,7 +138,7 @@ def load_run(run_dir: str | Path):
         if kw.get(k) is not None:
             kw[k] = tuple(kw[k])
     kw["postures"] = tuple(proto.get("postures_run") or kw.get("postures") or ())
-    config = ProtocolConfig(**kw)
+    config = protocol_config(kw, path)
     results = {}
     for u in res.get("units", []):
         r = load_unit(run_dir, u["key"])
