@@ -279,10 +279,25 @@ def test_plot_of_a_run_with_a_damaged_results_file_names_it(run_folder, tmp_path
     d = json.loads((run / "results.json").read_text())
     change(d)
     (run / "results.json").write_text(json.dumps(d))
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / "fig3_weights.png").write_bytes(b"an earlier figure")
     capsys.readouterr()
-    assert main(["plot", str(run), "--out", str(tmp_path / "figs"), "--no-pdf"]) == 2
+    assert main(["plot", str(run), "--out", str(figs), "--no-pdf"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
+    # no figure of the failed drawing is left, nor a mix with the earlier set
+    assert [p.name for p in figs.iterdir()] == ["fig3_weights.png"]
+    assert (figs / "fig3_weights.png").read_bytes() == b"an earlier figure"
+
+
+def test_plot_of_a_run_replaces_the_figures_once_all_are_drawn(run_folder, tmp_path):
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / ".plot-partial-killed").mkdir()  # what a killed drawing left
+    assert main(["plot", str(run_folder), "--out", str(figs), "--no-pdf"]) == 0
+    names = sorted(p.name for p in figs.iterdir())
+    assert names and all(n.endswith(".png") for n in names) and "fig3_weights.png" in names, names
 
 
 def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):

@@ -207,9 +207,35 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
         split_sizes={},
         summary=RunSummary(results, [], list(results), False),
     )
-    with _malformed(res_path):
-        figs = write_figures(run, tables, ({}, {}, {}), fig_dir=out, pdf=pdf)
-    return [out / f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
+    return _drawn_whole(
+        out, lambda fig_dir: write_figures(run, tables, ({}, {}, {}), fig_dir=fig_dir, pdf=pdf), pdf, res_path
+    )
+
+
+PARTIAL_PREFIX = ".plot-partial-"
+"""The folder a run's figures are drawn in before they replace those in --out."""
+
+
+def _drawn_whole(out: Path, draw, pdf: bool, res_path: Path) -> list[Path]:
+    """The figures ``draw(folder)`` writes, drawn in a hidden folder of ``out`` and moved into ``out`` only once
+    every one is drawn: a figure that fails (a damaged results file) leaves ``out`` as it was, with no mix of new
+    and earlier figures. A hidden folder a killed run left is removed first."""
+    import os
+    import shutil
+    import tempfile
+
+    for stale in out.glob(f"{PARTIAL_PREFIX}*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
+    try:
+        with _malformed(res_path):
+            figs = draw(tmp)
+        names = [f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
+        for n in names:
+            os.replace(tmp / n, out / n)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return [out / n for n in names]
 
 
 def run(args: argparse.Namespace) -> int:
