@@ -167,6 +167,22 @@ def test_vicon_csv_rows_left_out_are_unseen_frames(tmp_path):
     assert np.all(np.isnan(x[3:6]))
 
 
+def test_a_lab_in_millimetres_declared_as_metres_is_named_as_such(tmp_path, synth):
+    mk = {k: v * 1000.0 for k, v in _markers(n=5).items()}  # the values of a file in mm
+    (tmp_path / "m.trc").write_text(synth.trc_text(mk, units="m"))
+    with pytest.raises(
+        InputError,
+        match=r"m\.trc: frame \d+: marker 'SH' is .* m from the lab's origin, beyond any lab "
+        r"\(1000 m\): millimetres declared as metres\? \(the file's units\)",
+    ):
+        read_trc(tmp_path / "m.trc")
+    mk = _markers(n=5)
+    mk["SH"][2] = 1e6  # m: far beyond even that, a corrupt value
+    (tmp_path / "c.trc").write_text(synth.trc_text(mk, units="mm"))
+    with pytest.raises(InputError, match=r"c\.trc: frame 3: marker 'SH' is 1e\+06 m .*: a corrupt value\?"):
+        read_trc(tmp_path / "c.trc")
+
+
 def test_trc_time_not_increasing(tmp_path, synth):
     text = synth.trc_text(_markers(n=5)).replace("\t0.02000\t", "\t0.00500\t")
     (tmp_path / "t.trc").write_text(text)

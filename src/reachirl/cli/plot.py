@@ -224,6 +224,7 @@ def _drawn_whole(out: Path, draw, pdf: bool, res_path: Path) -> list[Path]:
     import shutil
     import tempfile
 
+    out.mkdir(parents=True, exist_ok=True)
     for stale in out.glob(f"{PARTIAL_PREFIX}*"):
         shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))

@@ -115,9 +115,12 @@ class MarkerData:
             far = np.abs(a) > MAX_MARKER_COORDINATE  # NaN (unseen) is not far; inf is
             if np.any(far):
                 k = int(np.flatnonzero(np.any(far, axis=1))[0])
+                dist = float(np.abs(a[k]).max())
+                # a lab-sized distance times 1000: millimetres declared (or taken) as metres
+                why = "millimetres declared as metres? (the file's units)" if dist <= 1e3 * 30.0 else "a corrupt value?"
                 raise InputError(
-                    f"marker {name!r} is {np.abs(a[k]).max():.3g} m from the lab's origin, beyond any lab "
-                    f"({MAX_MARKER_COORDINATE:.0f} m): a corrupt value?",
+                    f"marker {name!r} is {dist:.3g} m from the lab's origin, beyond any lab "
+                    f"({MAX_MARKER_COORDINATE:.0f} m): {why}",
                     where,
                     f"frame {k + 1}",
                 )
