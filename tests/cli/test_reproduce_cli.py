@@ -353,3 +353,22 @@ def test_a_run_toml_given_as_config_is_not_taken_for_the_users_own_file(trials_f
     code = main(["reproduce", "--config", str(out / "run.toml"), "--out", str(out), "--workers", "1", *ARGS])
     err = capsys.readouterr().err
     assert code == 2 and "--config is this run folder's own run.toml, and the options given change it" in err, err
+
+
+@pytest.mark.parametrize("toml", ["removed", "header_edited_out"])
+def test_an_earlier_runs_folder_is_rerun_into_without_its_run_toml_header(trials_file, reference_run, tmp_path, toml):
+    """A run's folder whose run.toml is gone (a version that wrote none) or lost its comment lines to an edit is
+    still an earlier run's (its results.json says so): rerunning into it (`make run`) is not refused."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)
+    run_toml = out / "run.toml"
+    if toml == "removed":
+        run_toml.unlink()
+        argv = ["--data", str(trials_file), *ARGS]
+    else:
+        run_toml.write_text("".join(x for x in run_toml.read_text().splitlines(True) if not x.startswith("#")))
+        argv = ["--config", str(run_toml), "--no-progress"]
+    assert main(["reproduce", *argv, "--out", str(out), "--workers", "1"]) == 0
+    _same_table(out, reference_run)

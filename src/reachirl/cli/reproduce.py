@@ -497,24 +497,38 @@ def _is_run_toml(path: Path) -> bool:
     return re.match(r"^# reachirl \S+ reproduce: the options of this run", first) is not None
 
 
+def _is_run_results(path: Path) -> bool:
+    """Whether ``path`` is a ``results.json`` a ``reproduce`` run wrote (by its format): a run folder of a version
+    that wrote no run.toml, or whose run.toml lost its first line to an edit."""
+    from ..errors import InputError
+    from ..experiments.report import RESULTS_FORMAT
+    from ..io import read_json
+
+    try:
+        d = read_json(path) if path.is_file() else None
+    except InputError:
+        return False
+    return isinstance(d, dict) and d.get("format") == RESULTS_FORMAT
+
+
 def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
     """Before any work: the files a run replaces or removes at the top of ``out`` (:data:`RUN_FILES`) are an
-    earlier run's, never the user's own: in a folder without a run's ``run.toml`` (a folder of the user's own,
-    given as --out) such a file is refused (:class:`InputError` naming it), and so is a ``run.toml`` that no run
-    wrote, unless it is the --config given."""
+    earlier run's, never the user's own: in a folder without a run's ``run.toml`` or ``results.json`` (a folder of
+    the user's own, given as --out) such a file is refused (:class:`InputError` naming it), and so is a
+    ``run.toml`` that no run wrote, unless it is the --config given."""
     from ._args import same_file
 
     if not out.is_dir():
         return
     toml = out / "run.toml"
-    if _is_run_toml(toml):
+    if _is_run_toml(toml) or _is_run_results(out / "results.json"):
         return
     given = config is not None and toml.exists() and same_file(Path(config), toml)
     present = [n for n in RUN_FILES if (out / n).exists() and not (n == "run.toml" and given)]
     if present:
         raise InputError(
-            "--out: exists in a folder that holds no earlier `reachirl reproduce` run (no run.toml written by "
-            "one); the run would replace or remove it (choose another --out, or remove it first)",
+            "--out: exists in a folder that holds no earlier `reachirl reproduce` run (no run.toml or results.json "
+            "written by one); the run would replace or remove it (choose another --out, or remove it first)",
             out / present[0],
         )
 
