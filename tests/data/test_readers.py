@@ -258,6 +258,16 @@ def test_a_column_named_twice_is_refused_not_read_from_the_last(tmp_path, read, 
         read(p)
 
 
+def test_a_column_the_reader_ignores_may_be_named_twice(tmp_path):
+    # a spreadsheet's second "notes" column holds nothing the reader takes: the file is read, not refused
+    p = tmp_path / "info.csv"
+    p.write_text("subject,notes,sex,height_m,mass_kg,notes\nS1,a,M,1.76,70,b\n")
+    assert read_subject_info(p)["S1"].height_m == 1.76
+    m = tmp_path / "manifest.csv"
+    m.write_text("file,notes,subject,posture,notes\nr1.trc,a,S1,P2,b\n")
+    assert [e.subject for e in read_manifest(m)] == ["S1"]
+
+
 @pytest.mark.parametrize(
     ("unit", "scale"), [("millimeter", 1e-3), ("Millimetre", 1e-3), ("centimeter", 1e-2), ("metre", 1.0)]
 )

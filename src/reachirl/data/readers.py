@@ -805,20 +805,28 @@ class SubjectInfo:
         return self.upper_arm_m, self.forearm_m, self.hand_m
 
 
-def _csv_dicts(path: Path, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
+def _csv_dicts(
+    path: Path, required: tuple[str, ...], optional: tuple[str, ...] = ()
+) -> list[tuple[int, dict[str, str]]]:
+    """The rows of the CSV at ``path`` as ``(line, {column: cell})``; ``required`` columns must be there, and a
+    column read (``required`` or ``optional``) must not be named twice."""
     text = read_text(path)
     reader = csv.DictReader(io.StringIO(text))
     try:
-        return _csv_rows(path, reader, required)
+        return _csv_rows(path, reader, required, optional)
     except csv.Error as e:  # e.g. a stray carriage return inside a field
         raise InputError(f"not a readable CSV ({e})", path, f"line {reader.line_num}") from None
 
 
-def _csv_rows(path: Path, reader: csv.DictReader, required: tuple[str, ...]) -> list[tuple[int, dict[str, str]]]:
+def _csv_rows(
+    path: Path, reader: csv.DictReader, required: tuple[str, ...], optional: tuple[str, ...] = ()
+) -> list[tuple[int, dict[str, str]]]:
     fields_ = [f.strip() for f in (reader.fieldnames or [])]
     reader.fieldnames = fields_
-    twice = sorted({f for f in fields_ if f and fields_.count(f) > 1})
-    if twice:  # csv.DictReader would keep the last column of a name and drop the others, silently
+    # a column read named twice: csv.DictReader would keep the last one and drop the others, silently (a column
+    # the reader ignores, such as a spreadsheet's second "notes", may repeat)
+    twice = sorted({f for f in (*required, *optional) if fields_.count(f) > 1})
+    if twice:
         raise InputError(
             f"column(s) {', '.join(twice)} appear more than once in the header; which one holds the value is ambiguous",
             path,
@@ -860,7 +868,7 @@ def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
       them in reachirl's layout if you want to keep them.
     """
     path = Path(path)
-    rows = _csv_dicts(path, ("subject", "sex", "height_m", "mass_kg"))
+    rows = _csv_dicts(path, ("subject", "sex", "height_m", "mass_kg"), ("upper_arm_m", "forearm_m", "hand_m"))
     out: dict[str, SubjectInfo] = {}
     for line, r in rows:
         where = f"line {line}"
@@ -904,7 +912,7 @@ def read_manifest(path: str | Path) -> list[ManifestEntry]:
     the
     manifest's folder."""
     path = Path(path)
-    rows = _csv_dicts(path, ("file", "subject", "posture"))
+    rows = _csv_dicts(path, ("file", "subject", "posture"), ("side", "static"))
     out = []
     seen: dict[str, int] = {}
     for line, r in rows:
