@@ -481,10 +481,6 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     return lambda: write_run_file(out / "run.toml", resolved, header=header)
 
 
-#: the files a run writes at the top of its --out (an earlier run's are replaced or removed)
-RUN_FILES = ("run.toml", "results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
-
-
 def _is_run_toml(path: Path) -> bool:
     """Whether ``path`` is a run file a ``reproduce`` run wrote into its folder (by its first line)."""
     import re
@@ -512,10 +508,12 @@ def _is_run_results(path: Path) -> bool:
 
 
 def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
-    """Before any work: the files a run replaces or removes at the top of ``out`` (:data:`RUN_FILES`) are an
+    """Before any work: the files a run replaces or removes at the top of ``out`` (``run.toml`` and
+    :data:`~reachirl.experiments.report.RUN_OUTPUT_FILES`) are an
     earlier run's, never the user's own: in a folder without a run's ``run.toml`` or ``results.json`` (a folder of
     the user's own, given as --out) such a file is refused (:class:`InputError` naming it), and so is a
     ``run.toml`` that no run wrote, unless it is the --config given."""
+    from ..experiments.report import RUN_OUTPUT_FILES
     from ._args import same_file
 
     if not out.is_dir():
@@ -524,7 +522,7 @@ def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
     if _is_run_toml(toml) or _is_run_results(out / "results.json"):
         return
     given = config is not None and toml.exists() and same_file(Path(config), toml)
-    present = [n for n in RUN_FILES if (out / n).exists() and not (n == "run.toml" and given)]
+    present = [n for n in ("run.toml", *RUN_OUTPUT_FILES) if (out / n).exists() and not (n == "run.toml" and given)]
     if present:
         raise InputError(
             "--out: exists in a folder that holds no earlier `reachirl reproduce` run (no run.toml or results.json "

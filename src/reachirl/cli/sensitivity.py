@@ -129,25 +129,15 @@ def run(args) -> int:
     return 0
 
 
-#: the files an analysis writes at the top of its --out, and removes at a rerun's start
-OUTPUT_FILES = ("identifiability.json", "sensitivity.md", "sensitivity.csv")
-
-
 def _refuse_foreign_outputs(out: Path) -> None:
-    """Before any work: the files of :data:`OUTPUT_FILES` in ``out`` are an earlier analysis's (its
-    ``identifiability.json``, written first, is recognised), never the user's own: a folder that holds one without
-    an analysis's ``identifiability.json`` is refused (:class:`InputError` naming the file), not cleared."""
-    import json
+    """Before any work: the files of :data:`~reachirl.experiments.sensitivity_outputs.OUTPUT_FILES` in ``out`` are
+    an earlier analysis's (:func:`~reachirl.experiments.sensitivity_outputs.is_analysis`), never the user's own: a
+    folder that holds one without an analysis's ``identifiability.json`` is refused (:class:`InputError` naming the
+    file), not cleared."""
+    from ..experiments.sensitivity_outputs import OUTPUT_FILES, is_analysis
 
     present = [n for n in OUTPUT_FILES if (out / n).exists()]
-    if not present:
-        return
-    try:
-        d = json.loads((out / "identifiability.json").read_text(encoding="utf-8"))
-        ours = isinstance(d, dict) and {"config", "units", "postures"} <= d.keys()
-    except (OSError, ValueError):
-        ours = False
-    if not ours:
+    if present and not is_analysis(out):
         raise InputError(
             "--out: exists in a folder that holds no earlier `reachirl sensitivity` analysis (no identifiability.json "
             "written by one); the analysis would replace or remove it (choose another --out, or remove it first)",

@@ -576,6 +576,10 @@ def _unit_model(path: Path) -> bool:
     return isinstance(info, dict) and info.get("unit") == path.stem and d.get("format") == MODEL_FORMAT
 
 
+#: the files a run writes at the top of its folder besides run.toml (an earlier run's are removed first)
+RUN_OUTPUT_FILES = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
+
+
 def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str] = frozenset()) -> list[Path]:
     """What an earlier run into ``out_dir`` wrote and a run of units ``keys`` will not write again: its tables,
     report and results.json (``iscv_pairs.csv`` and ``posture_transfer.csv`` too), its figures (redrawn; a figure
@@ -588,8 +592,7 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     import re
 
     out = Path(out_dir)
-    tables = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
-    removed = [out / n for n in tables if (out / n).is_file()]
+    removed = [out / n for n in RUN_OUTPUT_FILES if (out / n).is_file()]
     names = "|".join(Path(n).stem for n in _DRAW_ORDER)
     figure = re.compile(rf"^(?:{names}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)$")
     if (out / "figures").is_dir():

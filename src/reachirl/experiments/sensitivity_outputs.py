@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -247,11 +248,25 @@ def _ci(r, s) -> str:
     return f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]"
 
 
+#: the files an analysis writes at the top of its folder (identifiability.json first: :func:`write_sensitivity`)
+OUTPUT_FILES = ("identifiability.json", "sensitivity.md", "sensitivity.csv")
+
+
+def is_analysis(out_dir: str | Path) -> bool:
+    """Whether ``out_dir`` holds an earlier analysis: an ``identifiability.json`` as :func:`write_sensitivity`
+    writes it (written before the others, so an analysis stopped while writing them has it)."""
+    try:
+        d = json.loads((Path(out_dir) / "identifiability.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(d, dict) and {"config", "units", "postures"} <= d.keys()
+
+
 def remove_outputs(out_dir: str | Path) -> None:
     """Remove an earlier analysis's outputs from ``out_dir`` (its checkpoints stay, to be reused), so that a rerun
     stopped early never leaves them looking like its own."""
     out_dir = Path(out_dir)
-    for name in ("sensitivity.csv", "sensitivity.md", "identifiability.json"):
+    for name in OUTPUT_FILES:
         (out_dir / name).unlink(missing_ok=True)
     for fig in sorted((out_dir / "figures").glob("sensitivity_*.png")) if (out_dir / "figures").is_dir() else ():
         fig.unlink(missing_ok=True)
