@@ -310,3 +310,19 @@ def test_c3d_of_two_subjects_alike_is_not_guessed(tmp_path):
     c["data"]["points"] = pts
     c.write(str(tmp_path / "two.c3d"))
     assert read_c3d(tmp_path / "two.c3d").names == tuple(labels)
+
+
+def test_trc_rows_read_alike_whether_each_cell_is_a_number_or_not(tmp_path):
+    """A row of numbers is read in one pass, a row with a blank cell cell by cell: both read a cell alike (signs,
+    exponents, NaN, spaces around it, Windows line endings, a tab ending the line)."""
+    head = (
+        "PathFileType\t4\t(X/Y/Z)\tt.trc\r\nDataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\r\n"
+        "100\t100\t2\t2\tm\r\nFrame#\tTime\tA\t\t\tB\t\t\r\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\r\n"
+    )
+    cells = "1e-1\t+1\t-0\t NaN \tnan\t 2.5"
+    p = tmp_path / "t.trc"
+    p.write_bytes(f"{head}1\t0\t{cells}\t\r\n2\t0.01\t{cells.replace('nan', ' ')}\t\r\n".encode())
+    m = read_trc(p)
+    for marker, row in (("A", [0.1, 1.0, -0.0]), ("B", [np.nan, np.nan, 2.5])):
+        np.testing.assert_array_equal(m.markers[marker], [row, row])
+    assert np.signbit(m.markers["A"][:, 2]).all()
