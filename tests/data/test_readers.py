@@ -228,7 +228,7 @@ def test_manifest_paths_relative_to_it(tmp_path):
     assert e.file == tmp_path / "sub" / "r1.trc" and (e.subject, e.posture, e.side) == ("S1", "P2", "left")
 
 
-def test_angles_of_two_arms_in_one_file_are_refused_not_read_as_the_first(tmp_path):
+def test_angles_of_two_arms_in_one_file_are_read_for_the_side_given_not_as_the_first(tmp_path):
     rows = "\n".join(f"{k / 100:.2f}\t0\t10\t{-90 + k}\t{90 - k}" for k in range(50))
     p = tmp_path / "both.mot"
     p.write_text(
@@ -237,6 +237,10 @@ def test_angles_of_two_arms_in_one_file_are_refused_not_read_as_the_first(tmp_pa
     )
     with pytest.raises(InputError, match=r"both\.mot: line 6: columns r_shoulder_elev and l_shoulder_elev all give q1"):
         read_mot(p)
+    # given the arm, its own columns (the shoulder's 90° offset of OpenSim's elevation on either side)
+    left, right = read_mot(p, side="left"), read_file(p, side="right")
+    np.testing.assert_allclose(np.degrees(left.q[:3]), [[-180, 90], [-179, 89], [-178, 88]], atol=1e-9)
+    np.testing.assert_allclose(np.degrees(right.q[:3]), [[-90, 10]] * 3, atol=1e-9)
     c = tmp_path / "one.csv"  # one angle in two units (reachirl's own exports) is one column
     c.write_text(
         "time_s,demo_q1_rad,demo_q2_rad,demo_q1_deg,demo_q2_deg\n0,-1.5,1.5,-85.9,85.9\n0.01,-1.4,1.4,-80.2,80.2\n"

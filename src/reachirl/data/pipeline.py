@@ -60,7 +60,7 @@ def preprocess_entries(
         if subject_info is not None and subj not in subject_info:
             raise InputError(f"subject {subj!r} is not in the subject-info file", e.file)
         info = subject_info[subj] if subject_info is not None else DEFAULT_SUBJECT
-        data = read_file(e.file, fmt)
+        data = read_file(e.file, fmt, side=sd)
         common = {
             "subject": subj,
             "posture": post,

@@ -620,7 +620,12 @@ def _q1_offset(name: str) -> float:
     return _Q1_OFFSET_RAD.get(re.sub(r"_(deg|rad)$", "", name.strip().lower()), 0.0)
 
 
-def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int, int]:
+_SIDE_PREFIX = {"right": "r_", "left": "l_"}
+
+
+def _find_q_columns(header: list[str], path: Path, line: int, side: str | None = None) -> tuple[int, int, int]:
+    """The time, q1 and q2 columns. A file of both arms' angles (``r_shoulder_elev`` and ``l_shoulder_elev``, as
+    OpenSim writes them) gives the ``side`` arm's (``"right"``/``"left"``); without a side it is refused."""
     low = [h.strip().lower() for h in header]
     time = next((k for k, h in enumerate(low) if h in _TIME_ALIASES), None)
     if time is None:
@@ -633,10 +638,15 @@ def _find_q_columns(header: list[str], path: Path, line: int) -> tuple[int, int,
         # one angle in two units (reachirl's exports: demo_q1_rad, demo_q1_deg) is one column; two angles
         # (r_shoulder_elev and l_shoulder_elev: both arms) are not, and the first would be taken silently
         bases = list(dict.fromkeys(re.sub(r"_(deg|rad)$", "", low[k]) for k in found))
+        if len(bases) > 1 and side in _SIDE_PREFIX:  # both arms' columns: the side's
+            sided = [k for k in found if low[k].startswith(_SIDE_PREFIX[side])]
+            if len({re.sub(r"_(deg|rad)$", "", low[k]) for k in sided}) == 1:
+                found, bases = sided, bases[:1]
         if len(bases) > 1:
             names = " and ".join(header[k].strip() for k in found)
             raise InputError(
-                f"columns {names} all give {q}: which one is the reach is ambiguous (one arm's angles per file)",
+                f"columns {names} all give {q}: which one is the reach is ambiguous (give the arm: --side or "
+                "the manifest's side column, for a file of both arms' angles)",
                 path,
                 f"line {line}",
             )
@@ -660,7 +670,7 @@ def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path:
     return np.asarray(rows)
 
 
-def read_mot(path: str | Path) -> AngleData:
+def read_mot(path: str | Path, side: str | None = None) -> AngleData:
     """Read an OpenSim MOT/STO motion file: ``inDegrees=yes|no`` in the header, then ``endheader``, then a
     ``time q1 q2 ...`` header row (tab- or space-separated). Column names: ``q1``/``q2`` (or
     ``shoulder``/``elbow``)
@@ -694,7 +704,7 @@ def read_mot(path: str | Path) -> AngleData:
             path,
             f"line {n_columns[1]}",
         )
-    it, i1, i2 = _find_q_columns(header, path, hdr_k + 1)
+    it, i1, i2 = _find_q_columns(header, path, hdr_k + 1, side)
     a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
     last_line = max(k for k in range(hdr_k, len(lines)) if lines[k].strip()) + 1
     _check_row_count(a.shape[0], declared, "nRows", "rows", path, last_line)
@@ -703,7 +713,7 @@ def read_mot(path: str | Path) -> AngleData:
     return AngleData(t=a[:, it], q=q, source=str(path))
 
 
-def read_angles_csv(path: str | Path) -> AngleData:
+def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
     """Read a ``time,q1,q2`` CSV (radians unless ``_deg`` suffixes or a ``# units: deg`` line say degrees)."""
     path = Path(path)
     lines = read_text(path).splitlines()
@@ -720,7 +730,7 @@ def read_angles_csv(path: str | Path) -> AngleData:
     if k >= len(lines):
         raise InputError("no header row", path)
     header = next(csv.reader([lines[k]]))
-    it, i1, i2 = _find_q_columns(header, path, k + 1)
+    it, i1, i2 = _find_q_columns(header, path, k + 1, side)
     suffixes = {re.search(r"_(deg|rad)$", header[i].strip().lower()) for i in (i1, i2)}
     sfx = {m.group(1) for m in suffixes if m}
     if len(sfx) > 1:
@@ -753,8 +763,9 @@ def detect_format(path: str | Path) -> str:
     raise InputError(f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path)
 
 
-def read_file(path: str | Path, fmt: str = "auto") -> MarkerData | AngleData:
-    """Read any supported file: markers (:class:`MarkerData`) or joint angles (:class:`AngleData`)."""
+def read_file(path: str | Path, fmt: str = "auto", side: str | None = None) -> MarkerData | AngleData:
+    """Read any supported file: markers (:class:`MarkerData`) or joint angles (:class:`AngleData`; ``side``: the
+    arm whose angles a file of both arms' holds is read)."""
     fmt = detect_format(path) if fmt in ("auto", None) else fmt
     readers = {
         "trc": read_trc,
@@ -765,7 +776,7 @@ def read_file(path: str | Path, fmt: str = "auto") -> MarkerData | AngleData:
     }
     if fmt not in readers:
         raise InputError(f"unknown format {fmt!r}, expected one of auto, {', '.join(FORMATS)}", path)
-    return readers[fmt](path)
+    return readers[fmt](path, side) if fmt in ("mot", "csv") else readers[fmt](path)
 
 
 def read_markers(path: str | Path, fmt: str = "auto") -> MarkerData:
