@@ -8,19 +8,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from reachirl.data.kinematics import cast_reconstruct, kabsch
 from reachirl.data.markersets import load_markerset, parse_marker_map
-from reachirl.data.preprocess import (
-    PreprocessOptions,
-    angles_to_trial,
-    cast_reconstruct,
-    detect_onset_offset,
-    fill_gaps,
-    kabsch,
-    lowpass,
-    markers_to_trial,
-    reconstruct_markers,
-)
+from reachirl.data.preprocess import PreprocessOptions, angles_to_trial, markers_to_trial, reconstruct_markers
 from reachirl.data.readers import AngleData, MarkerData, SubjectInfo, read_vicon_csv
+from reachirl.data.segmentation import detect_onset_offset
+from reachirl.data.signal import fill_gaps, lowpass
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.errors import InputError
 
@@ -355,7 +348,7 @@ def test_nested_gaps_name_the_one_beside_the_reach(reach, synth):
 
 
 def test_lengths_leave_out_a_pair_never_seen_together():
-    from reachirl.data.preprocess import estimate_lengths
+    from reachirl.data.kinematics import estimate_lengths
 
     a = np.zeros((6, 3))
     b = np.array([[0.3, 0, 0]] * 3 + [[np.nan] * 3] * 3)

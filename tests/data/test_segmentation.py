@@ -4,14 +4,9 @@ import numpy as np
 import pytest
 
 from reachirl.cli import main
-from reachirl.data.preprocess import (
-    PreprocessOptions,
-    _noise_gains,
-    detect_onset_offset,
-    lowpass,
-    segmentation_cutoff,
-    segmentation_speed,
-)
+from reachirl.data.preprocess import PreprocessOptions
+from reachirl.data.segmentation import detect_onset_offset, segmentation_cutoff, segmentation_speed
+from reachirl.data.signal import lowpass, noise_gains
 
 RATE = 100.0
 
@@ -63,7 +58,7 @@ def test_the_noise_model_predicts_the_speed_noise():
     rng = np.random.default_rng(11)
     sigma, n = 0.0015, 20000
     x = sigma * rng.standard_normal((n, 3))
-    res_gain, vel_gain = _noise_gains(RATE, 10.0, 5)
+    res_gain, vel_gain = noise_gains(RATE, 10.0, 5)
     residual = x - lowpass(x, RATE, 10.0, 5)
     assert np.sqrt(np.mean(residual**2) / res_gain) == pytest.approx(sigma, rel=0.02)
     v = np.gradient(lowpass(x, RATE, 10.0, 5), 1.0 / RATE, axis=0)

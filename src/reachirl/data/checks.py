@@ -114,7 +114,7 @@ def check_segment_lengths(
     info_lengths: Mapping[str, float | None], measured: Mapping[str, float], path: object, subject: str = ""
 ) -> None:
     """Segment lengths of the subject info (``upper_arm_m``, ``forearm_m``, ``hand_m``; ``None``: not given)
-    against the markers' measured ones (:func:`reachirl.data.preprocess.estimate_lengths`): more than
+    against the markers' measured ones (:func:`reachirl.data.kinematics.estimate_lengths`): more than
     :data:`LENGTH_TOLERANCE` apart, the planned reach would miss the recorded target."""
     ua, fa, hand = (info_lengths.get(k) for k in ("upper_arm_m", "forearm_m", "hand_m"))
     pairs = [("upper_arm_m", ua, "upper_arm", "shoulder to elbow")]

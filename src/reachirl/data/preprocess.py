@@ -1,5 +1,9 @@
 """From marker trajectories (or joint angles) to a validated :class:`~reachirl.data.trial.Trial`.
 
+This module runs the steps in order; they live in :mod:`~reachirl.data.kinematics` (joint centres, mirror, plane,
+angles, lengths, the arm), :mod:`~reachirl.data.signal` (gaps, filters, derivatives) and
+:mod:`~reachirl.data.segmentation` (the stretch kept, onset and offset, another reach).
+
 The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Berret et al. 2011):
 
 1. **Joint centres** from the marker set: a marker, a midpoint of markers, or an anatomical landmark
@@ -57,20 +61,44 @@ Nothing here prints; problems are :class:`InputError` with the file and frame, n
 
 from __future__ import annotations
 
-import functools
 import logging
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt, sosfreqz
 
-from ..arm import DUMAS_2007, ArmModel
+from ..arm import ArmModel
 from ..errors import InputError
-from .markersets import MarkerSet, resolve_name
+from .kinematics import (
+    build_arm,
+    check_units,
+    estimate_lengths,
+    joint_positions,
+    lab_axis,
+    mirror,
+    planar_ik_segments,
+    sagittal_basis,
+)
+from .markersets import MarkerSet
+from .options import PreprocessOptions
 from .readers import AngleData, MarkerData, SubjectInfo
+from .segmentation import (
+    SeenWindow,
+    detect_onset_offset,
+    other_reach,
+    seen_window,
+    segmentation_speed,
+)
+from .signal import (
+    derivatives,
+    fill_gaps,
+    filter_padlen,
+    gap_message,
+    gap_where,
+    lowpass,
+    seen_frames,
+)
 from .trial import Trial
 
 __all__ = [
@@ -78,22 +106,9 @@ __all__ = [
     "MarkerReconstruction",
     "PreprocessOptions",
     "angles_to_trial",
-    "calibrate_static",
-    "cast_reconstruct",
-    "detect_onset_offset",
-    "estimate_lengths",
-    "fill_gaps",
-    "joint_positions",
-    "kabsch",
-    "lowpass",
+    "check_glitches",
     "markers_to_trial",
-    "mirror",
-    "planar_ik_segments",
     "reconstruct_markers",
-    "sagittal_basis",
-    "seen_window",
-    "segmentation_cutoff",
-    "segmentation_speed",
 ]
 
 log = logging.getLogger(__name__)
@@ -114,593 +129,6 @@ MIN_CUT_REACH = 0.1
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
-
-
-@dataclass(frozen=True)
-class PreprocessOptions:
-    """Every preprocessing choice; see the module docstring for what each step does."""
-
-    max_gap_frames: int = 10
-    cutoff_hz: float | None = 10.0  # None: no filtering
-    filter_order: int = 5
-    onset_threshold: float = 0.05  # fraction of the peak fingertip speed
-    segment_cutoff_hz: float | str | None = "auto"  # low-pass of the speed that finds onset/offset (Hz, or
-    # "auto": as low as the markers' noise needs, see segmentation_cutoff); None: cutoff_hz's speed (Berret)
-    min_peak_speed: float = 0.05  # m/s; below it there is no movement
-    plane: str = "pca"  # "pca" | "vertical" | "axes"
-    up_axis: str | None = None  # lab axis opposite gravity, e.g. "+z"; None: the file format's convention
-    forward_axis: str | None = None  # for plane="axes"; None: the horizontal lab axis the fingertip moves along
-    lateral_axis: str | None = None  # for mirroring; None: the horizontal lab axis normal to the movement
-    ik: str = "segments"  # "segments" | "fingertip"
-    distal: str = "fingertip"  # q2 from elbow→"fingertip" or elbow→"wrist" (ik="segments")
-    n_samples: int | None = None  # resample onset→offset to this many points (Berret: 200); None keeps frames
-    segment_range_m: tuple[float, float] = (
-        0.08,
-        0.9,
-    )  # plausible median joint-centre distances (units check)
-    pca_max_tilt_deg: float = 30.0  # a principal plane further than this from vertical is not trusted ...
-    pca_max_flatness: float = 0.5  # ... nor one whose 3rd singular value exceeds this × the 2nd; then "vertical"
-
-    def __post_init__(self) -> None:
-        if self.plane not in ("pca", "vertical", "axes"):
-            raise ValueError(f"plane must be 'pca', 'vertical' or 'axes', got {self.plane!r}")
-        if self.ik not in ("segments", "fingertip"):
-            raise ValueError(f"ik must be 'segments' or 'fingertip', got {self.ik!r}")
-        if self.distal not in ("fingertip", "wrist"):
-            raise ValueError(f"distal must be 'fingertip' or 'wrist', got {self.distal!r}")
-        if not 0 < self.onset_threshold < 1:
-            raise ValueError(f"onset_threshold must be in (0, 1), got {self.onset_threshold}")
-        if self.max_gap_frames < 0:
-            raise ValueError("max_gap_frames must be >= 0")
-        if self.cutoff_hz is not None and self.cutoff_hz <= 0:
-            raise ValueError("cutoff_hz must be > 0 or None")
-        fc = self.segment_cutoff_hz
-        if fc is not None and fc != "auto" and (isinstance(fc, str) or not fc > 0):
-            raise ValueError(f"segment_cutoff_hz must be 'auto', a number > 0 or None, got {fc!r}")
-        if self.n_samples is not None and self.n_samples < 4:
-            raise ValueError("n_samples must be >= 4")
-
-
-# ---------------------------------------------------------------------- small steps
-def _axis(spec: str) -> np.ndarray:
-    s = spec.strip().lower()
-    sign = -1.0 if s.startswith("-") else 1.0
-    key = s.lstrip("+-")
-    if key not in ("x", "y", "z"):
-        raise InputError(f"axis must be one of ±x, ±y, ±z, got {spec!r}")
-    v = np.zeros(3)
-    v["xyz".index(key)] = sign
-    return v
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """The runs ``[start, end)`` of True in a boolean ``(n,)`` mask."""
-    d = np.diff(np.r_[0, np.asarray(mask, dtype=int), 0])
-    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)]
-
-
-def _seen(x: np.ndarray) -> np.ndarray:
-    """The frames of ``x`` (``(n,)`` or ``(n, d)``) with every coordinate seen (finite)."""
-    return np.all(np.isfinite(np.asarray(x, dtype=float).reshape(np.shape(x)[0], -1)), axis=1)
-
-
-def long_gaps(x: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
-    """The runs ``[start, end)`` of unseen frames of ``x`` (``(n,)`` or ``(n, d)``) longer than ``max_gap``."""
-    return [(s, e) for s, e in _runs(~_seen(x)) if e - s > max_gap]
-
-
-def _gap_where(start: int, end: int) -> str:
-    """Frames ``[start, end)`` (0-based) in words, 1-based: ``in frame 21``, ``for 20 frames (21-40)``."""
-    return f"in frame {end}" if end - start == 1 else f"for {end - start} frames ({start + 1}-{end})"
-
-
-def _gap_message(name: str, start: int, end: int, max_gap: int) -> str:
-    where = _gap_where(start, end)
-    if max_gap == 0:
-        return f"marker {name} is missing {where}, and gap filling is off (--max-gap 0)"
-    limit = "1 frame" if max_gap == 1 else f"{max_gap} frames"
-    return f"marker {name} is missing {where}, longer than the {limit} gap filling allows (--max-gap)"
-
-
-def fill_gaps(x: np.ndarray, max_gap: int, name: str = "marker", source: object | None = None) -> np.ndarray:
-    """Fill runs of NaN frames of ``x`` (``(n,)`` or ``(n, d)``) no longer than ``max_gap``.
-
-    Interior runs by a cubic spline through the seen frames, runs at the ends by the nearest seen value. A
-    longer run, or a marker never seen, raises :class:`InputError` naming ``name`` and the frames (1-based).
-    """
-    x = np.array(x, dtype=float)
-    flat = x.reshape(x.shape[0], -1)
-    missing = ~_seen(flat)
-    if not missing.any():
-        return x
-    n = missing.shape[0]
-    if missing.all():
-        raise InputError(f"marker {name} is never seen", source)
-    for s, e in _runs(missing):
-        if e - s > max_gap:
-            raise InputError(_gap_message(name, s, e, max_gap), source)
-    seen = np.flatnonzero(~missing)
-    out = flat.copy()
-    if seen.size >= 2:
-        cs = CubicSpline(seen, flat[seen], axis=0)
-        interior = missing & (np.arange(n) > seen[0]) & (np.arange(n) < seen[-1])
-        out[interior] = cs(np.flatnonzero(interior))
-    out[: seen[0]] = flat[seen[0]]
-    out[seen[-1] + 1 :] = flat[seen[-1]]
-    return out.reshape(x.shape)
-
-
-def _filter_padlen(order: int) -> int:
-    """The edge padding of :func:`lowpass`'s ``sosfiltfilt`` (a record must be longer than this)."""
-    return 3 * (2 * ((order + 1) // 2) + 1)
-
-
-@functools.lru_cache(maxsize=64)
-def _butter_sos(order: int, wn: float) -> np.ndarray:
-    """The low-pass Butterworth's second-order sections (designed once per order and normalised cutoff: a trial
-    filters every marker alike)."""
-    sos = butter(order, wn, btype="low", output="sos")
-    sos.flags.writeable = False  # shared by every call: each takes a copy (sosfiltfilt needs a writable one)
-    return sos
-
-
-def lowpass(x: np.ndarray, rate: float, cutoff_hz: float, order: int = 5, source: object | None = None):
-    """Zero-lag Butterworth low-pass along axis 0 (``butter(order, cutoff)`` applied forward and backward)."""
-    x = np.asarray(x, dtype=float)
-    nyq = rate / 2.0
-    if cutoff_hz >= nyq:
-        raise InputError(
-            f"the {cutoff_hz:g} Hz low-pass needs a sampling rate above {2 * cutoff_hz:g} Hz, got {rate:g} Hz",
-            source,
-        )
-    sos = _butter_sos(order, cutoff_hz / nyq).copy()
-    padlen = _filter_padlen(order)
-    if x.shape[0] <= padlen:
-        raise InputError(f"too short to filter: {x.shape[0]} frames, need more than {padlen}", source)
-    return sosfiltfilt(sos, x, axis=0)
-
-
-def kabsch(ref: np.ndarray, cur: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares rigid transform with ``cur ≈ ref @ R.T + t``; ``ref``, ``cur`` are ``(..., k, 3)``.
-
-    Returns ``R (..., 3, 3)`` (a proper rotation) and ``t (..., 3)``.
-    """
-    ref = np.asarray(ref, dtype=float)
-    cur = np.asarray(cur, dtype=float)
-    rc, cc = ref.mean(axis=-2, keepdims=True), cur.mean(axis=-2, keepdims=True)
-    H = np.swapaxes(ref - rc, -1, -2) @ (cur - cc)  # (..., 3, 3)
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))
-    D = np.zeros(H.shape)
-    D[..., 0, 0] = 1.0
-    D[..., 1, 1] = 1.0
-    D[..., 2, 2] = d
-    R = np.swapaxes(Vt, -1, -2) @ D @ np.swapaxes(U, -1, -2)
-    t = cc[..., 0, :] - np.einsum("...ij,...j->...i", R, rc[..., 0, :])
-    return R, t
-
-
-def cast_reconstruct(cluster: np.ndarray, ref_cluster: np.ndarray, ref_point: np.ndarray) -> np.ndarray:
-    """Carry ``ref_point`` (static) into each frame by the rigid fit of ``cluster (n, k, 3)`` to ``ref_cluster
-    (k, 3)``. Frames with fewer than 3 seen cluster markers give NaN."""
-    cluster = np.asarray(cluster, dtype=float)
-    n, k, _ = cluster.shape
-    seen = np.all(np.isfinite(cluster), axis=2)
-    out = np.full((n, 3), np.nan)
-    full = seen.all(axis=1)
-    if full.any():
-        R, t = kabsch(np.broadcast_to(ref_cluster, (int(full.sum()), k, 3)), cluster[full])
-        out[full] = np.einsum("nij,j->ni", R, ref_point) + t
-    for i in np.flatnonzero(~full & (seen.sum(axis=1) >= 3)):
-        R, t = kabsch(ref_cluster[seen[i]], cluster[i, seen[i]])
-        out[i] = R @ ref_point + t
-    return out
-
-
-def _marker(md: MarkerData, name: str, role: str) -> np.ndarray:
-    found = resolve_name(name, md.names)
-    if found is None:
-        shown = ", ".join(md.names[:12]) + (" …" if len(md.names) > 12 else "")
-        raise InputError(f"marker {name!r} ({role}) not found (markers: {shown})", md.source)
-    return md[found]
-
-
-def calibrate_static(static: MarkerData, mset: MarkerSet) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """For each joint given by landmarks: ``(ref_cluster (k, 3), ref_point (3,))`` from the static trial, the
-    mean
-    over the frames where the cluster and the landmarks are all seen."""
-    out = {}
-    for joint, spec in mset.joints.items():
-        if not spec.needs_static:
-            continue
-        cl = np.stack([_marker(static, m, f"{joint} cluster") for m in spec.cluster], axis=1)
-        lm = np.stack([_marker(static, m, f"{joint} landmark") for m in spec.landmarks], axis=1)
-        ok = np.all(np.isfinite(cl), axis=(1, 2)) & np.all(np.isfinite(lm), axis=(1, 2))
-        if not ok.any():
-            raise InputError(
-                f"no frame sees the {joint}'s cluster {list(spec.cluster)} and landmarks "
-                f"{list(spec.landmarks)} together",
-                static.source,
-            )
-        out[joint] = (cl[ok].mean(axis=0), lm[ok].mean(axis=(0, 1)))
-    return out
-
-
-def joint_positions(
-    md: MarkerData, mset: MarkerSet, static: MarkerData | None = None
-) -> dict[str, tuple[np.ndarray, str]]:
-    """``{joint: ((n, 3) in metres, NaN where unseen; its label for messages)}`` for every joint of the
-    (side-resolved) marker set, before gap filling."""
-    calib = {}
-    if mset.needs_static:
-        if static is None:
-            raise InputError(
-                f"marker set {mset.name!r} needs a static trial (--static) to place the joint centres",
-                md.source,
-            )
-        calib = calibrate_static(static, mset)
-    out = {}
-    for joint, spec in mset.joints.items():
-        if spec.markers:
-            if spec.optional and any(resolve_name(m, md.names) is None for m in spec.markers):
-                continue
-            arrs = [_marker(md, m, joint) for m in spec.markers]
-            for m, a in zip(spec.markers, arrs, strict=True):
-                if np.isnan(a).all():
-                    raise InputError(f"marker {m!r} ({joint}) is empty in every frame", md.source)
-            out[joint] = (np.mean(arrs, axis=0), "+".join(spec.markers))
-        else:
-            cl = np.stack([_marker(md, m, f"{joint} cluster") for m in spec.cluster], axis=1)
-            label = f"{joint} cluster {'/'.join(spec.cluster)} (fewer than 3 of its markers seen)"
-            out[joint] = (cast_reconstruct(cl, *calib[joint]), label)
-    return out
-
-
-class SeenWindow(NamedTuple):
-    """The frames ``[start, stop)`` of a record that :func:`seen_window` keeps, and the gaps longer than gap
-    filling allows outside them (``(label, start, end)``, frames ``[start, end)`` of the record)."""
-
-    start: int
-    stop: int
-    gaps: tuple[tuple[str, int, int], ...]
-
-
-def seen_window(
-    positions: Mapping[str, tuple[np.ndarray, str]], max_gap: int, source: object = None, min_frames: int = 10
-) -> SeenWindow:
-    """Where a record with gaps longer than ``max_gap`` can still give a trial: of the stretches of at least
-    ``min_frames`` between such gaps (of any joint), the one where the arm extends most (the fingertip's largest
-    gain in distance from the shoulder over the stretch's first seen frame), which holds the reach rather than
-    rest or a return; the whole record when no gap is that long. :func:`reconstruct_markers` then checks that
-    every gap cut off lies in the rest (:func:`_check_window`)."""
-    for p, label in positions.values():
-        if not _seen(p).any():
-            raise InputError(f"marker {label} is never seen", source)
-    n = next(iter(positions.values()))[0].shape[0]
-    blocked = np.zeros(n, dtype=bool)
-    gaps = []
-    for p, label in positions.values():
-        for s, e in long_gaps(p, max_gap):
-            blocked[s:e] = True
-            gaps.append((label, s, e))
-    if not gaps:
-        return SeenWindow(0, n, ())
-    gaps.sort(key=lambda g: g[1])
-    distance = np.linalg.norm(positions["fingertip"][0] - positions["shoulder"][0], axis=1)  # NaN where unseen
-
-    def extension(run: tuple[int, int]) -> float:
-        d = distance[run[0] : run[1]]
-        d = d[np.isfinite(d)]
-        return float(d.max() - d[0]) if d.size >= 2 else -1.0
-
-    runs = [r for r in _runs(~blocked) if r[1] - r[0] >= min_frames and extension(r) >= 0.0]
-    if not runs:
-        label, s, e = gaps[0]
-        raise InputError(_gap_message(label, s, e, max_gap), source)
-    start, stop = max(runs, key=extension)
-    return SeenWindow(start, stop, tuple(gaps))
-
-
-def mirror(points: Mapping[str, np.ndarray], lateral: np.ndarray) -> dict[str, np.ndarray]:
-    """Reflect 3-D points across the plane normal to the unit vector ``lateral`` (left arm → right arm)."""
-    lateral = np.asarray(lateral, dtype=float)
-    P = np.eye(3) - 2 * np.outer(lateral, lateral)
-    return {k: np.asarray(v) @ P.T for k, v in points.items()}
-
-
-SEGMENT_NOISE_FRACTION = 0.25  # "auto": the onset speed's marker noise at most this fraction of the threshold
-MIN_SEGMENT_CUTOFF_HZ = 3.0  # "auto" goes no lower: below it the filter reshapes a reach's speed profile
-
-
-@functools.lru_cache(maxsize=256)
-def _noise_gains(rate: float, cutoff_hz: float, order: int) -> tuple[float, float]:
-    """For white noise of variance 1 on one axis: the variance left in ``x − lowpass(x)`` and the variance of
-    ``gradient(lowpass(x))`` (the zero-lag filter's power response is ``|H|⁴``, the central difference's
-    ``(rate · sin ω)²``)."""
-    sos = butter(order, cutoff_hz / (rate / 2.0), btype="low", output="sos")
-    w = np.linspace(0.0, np.pi, 4097)
-    h2 = np.abs(sosfreqz(sos, worN=w)[1]) ** 2  # filtfilt's amplitude response
-    return float(np.mean((1.0 - h2) ** 2)), float(np.mean(h2**2 * (rate * np.sin(w)) ** 2))
-
-
-def segmentation_cutoff(
-    t: np.ndarray,
-    points: np.ndarray,
-    peak_speed: float,
-    options: PreprocessOptions,
-    source: object | None = None,
-    filtered: np.ndarray | None = None,
-) -> float | None:
-    """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
-    ``cutoff_hz`` speed (Berret's).
-
-    A number in ``options.segment_cutoff_hz`` is used as given (when below ``cutoff_hz``). ``"auto"`` measures
-    the markers' noise and lowers the cutoff only as far as it must: the noise is the RMS of ``points`` above
-    ``cutoff_hz`` (what the angles' filter removes, rescaled by the share of white noise it holds); from it
-    the filter's response predicts the RMS noise of the speed at each cutoff, and the highest cutoff (in
-    0.5 Hz steps, not below ``MIN_SEGMENT_CUTOFF_HZ``) whose noise is at most ``SEGMENT_NOISE_FRACTION`` of
-    the threshold speed (``onset_threshold`` × ``peak_speed``) is taken. Clean recordings keep the
-    ``cutoff_hz`` speed; 1.5 mm of noise on a 0.8 m/s reach at 100 Hz gives about 4 Hz. ``filtered`` is
-    ``points`` already low-passed at ``cutoff_hz``, when the caller has it."""
-    fc, base = options.segment_cutoff_hz, options.cutoff_hz
-    if fc is None or base is None:
-        return None
-    rate = 1.0 / float(np.median(np.diff(t)))
-    if t.shape[0] <= _filter_padlen(options.filter_order) or base >= rate / 2:
-        return None
-    if fc != "auto":
-        return float(fc) if float(fc) < base else None
-    points = np.asarray(points, dtype=float).reshape(t.shape[0], -1)
-    if filtered is None:
-        filtered = lowpass(points, rate, base, options.filter_order, source)
-    gains = functools.partial(_noise_gains, round(rate, 6), order=options.filter_order)  # cached per rate
-    noise_var = float(np.mean((points - filtered.reshape(points.shape)) ** 2)) / gains(float(base))[0]  # per axis
-
-    def speed_noise(f: float) -> float:
-        return float(np.sqrt(points.shape[1] * noise_var * gains(float(f))[1]))
-
-    target = SEGMENT_NOISE_FRACTION * options.onset_threshold * peak_speed
-    if speed_noise(base) <= target:
-        return None
-    for f in np.arange(base - 0.5, MIN_SEGMENT_CUTOFF_HZ - 1e-9, -0.5):
-        if speed_noise(f) <= target:
-            return float(f)
-    log.warning(
-        "%s: the recording's noise (%.2g mm RMS, markers or angles seen at the fingertip) is large for a reach "
-        "this slow; onset and offset are "
-        "found on a %g Hz speed and may still wander",
-        source,
-        np.sqrt(noise_var) * 1000,
-        MIN_SEGMENT_CUTOFF_HZ,
-    )
-    return MIN_SEGMENT_CUTOFF_HZ
-
-
-def segmentation_speed(
-    t: np.ndarray,
-    points: np.ndarray,
-    speed: np.ndarray,
-    options: PreprocessOptions,
-    source: object | None = None,
-    filtered: np.ndarray | None = None,
-) -> np.ndarray:
-    """The fingertip speed that onset and offset are found on: ``points`` ``(n, d)`` (the fingertip, before
-    the angles' filter) low-passed at :func:`segmentation_cutoff`, differentiated and normed; ``speed`` (the
-    ``cutoff_hz`` speed) as is when that is ``None``. ``filtered``: see :func:`segmentation_cutoff`."""
-    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source, filtered)
-    if fc is None:
-        return speed
-    rate = 1.0 / float(np.median(np.diff(t)))
-    smooth = lowpass(points, rate, fc, options.filter_order, source)
-    return np.linalg.norm(np.gradient(smooth, t, axis=0), axis=1)
-
-
-def detect_onset_offset(speed: np.ndarray, threshold: float = 0.05, reach: np.ndarray | None = None) -> tuple[int, int]:
-    """Onset and offset frames (inclusive) of the main movement: around the speed peak, the first frames
-    where the speed falls below ``threshold`` × peak bound the movement. Without rest before (after), the
-    record's first (last) frame is used.
-
-    ``reach`` (the fingertip's distance from where the recording starts, per frame): a recording may hold the
-    reach and the return from it. When the fastest movement brings the fingertip back towards its start and
-    another one, separated from it by rest, takes it away, that one is the reach."""
-    speed = np.asarray(speed, dtype=float)
-    p = int(np.argmax(speed))
-    thr = threshold * speed[p]
-    if reach is not None:
-        p = _reaching_peak(speed, thr, np.asarray(reach, dtype=float), p)
-        thr = threshold * speed[p]  # the reach's own peak
-    below_before = np.flatnonzero(speed[:p] < thr)
-    below_after = np.flatnonzero(speed[p:] < thr)
-    onset = int(below_before[-1]) + 1 if below_before.size else 0
-    offset = p + int(below_after[0]) - 1 if below_after.size else speed.shape[0] - 1
-    return onset, offset
-
-
-def _moving_runs(speed: np.ndarray, thr: float) -> tuple[np.ndarray, np.ndarray]:
-    """The first and last frames of each run of frames whose speed is at least ``thr``."""
-    runs = np.array(_runs(speed >= thr), dtype=int).reshape(-1, 2)
-    return runs[:, 0], runs[:, 1] - 1
-
-
-def other_reach(
-    speed: np.ndarray, threshold: float, fingertip: np.ndarray, onset: int, offset: int
-) -> tuple[int, int] | None:
-    """Another movement of the recording (a run of frames above ``threshold`` × the reach's peak speed, outside
-    ``onset … offset``) that takes the fingertip forward along the reach by at least half as far: a second reach
-    (a return, which goes back, is not one). Its first and last frames, or None."""
-    starts, ends = _moving_runs(speed, threshold * float(np.max(speed[onset : offset + 1])))
-    d = fingertip[offset] - fingertip[onset]
-    length = float(np.linalg.norm(d))
-    if length == 0.0:
-        return None
-    for a, b in zip(starts, ends, strict=True):
-        if (b < onset or a > offset) and float((fingertip[b] - fingertip[a]) @ d) / length > 0.5 * length:
-            return int(a), int(b)
-    return None
-
-
-def _reaching_peak(speed: np.ndarray, thr: float, reach: np.ndarray, p: int) -> int:
-    """The peak of the movement (a run of frames above ``thr``) that takes the fingertip furthest from its start,
-    if the one around ``p`` brings it back (a return); else ``p``."""
-    starts, ends = _moving_runs(speed, thr)
-    if starts.size < 2:
-        return p
-    extension = reach[ends] - reach[starts]
-    own = int(np.flatnonzero((starts <= p) & (p <= ends))[0])
-    best = int(np.argmax(extension))
-    if extension[own] >= 0 or extension[best] <= 0:
-        return p
-    return int(starts[best] + np.argmax(speed[starts[best] : ends[best] + 1]))
-
-
-def sagittal_basis(
-    rel: Mapping[str, np.ndarray],
-    up: np.ndarray,
-    displacement: np.ndarray,
-    options: PreprocessOptions,
-    forward: np.ndarray | None = None,
-    source: object | None = None,
-) -> np.ndarray:
-    """``(3, 3)`` rows ``forward, up, normal`` of the sagittal plane.
-
-    ``rel`` are the joint centres relative to the shoulder over the movement; ``up`` the lab's up;
-    ``displacement`` the fingertip's onset→offset displacement (gives the forward sign).
-    """
-    up = up / np.linalg.norm(up)
-    plane = options.plane
-    if plane == "pca":
-        pts = np.concatenate([np.asarray(v) for v in rel.values()], axis=0)
-        pts = pts[np.all(np.isfinite(pts), axis=1)]
-        _, s, Vt = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
-        normal = Vt[2]
-        up_p = up - (up @ normal) * normal
-        tilt = np.degrees(np.arccos(min(1.0, np.linalg.norm(up_p))))
-        if s[2] > options.pca_max_flatness * s[1] or tilt > options.pca_max_tilt_deg:
-            log.info(
-                "%s: principal plane ill-defined (singular values %s, %.0f° from vertical); using the "
-                "vertical plane of the fingertip's path",
-                source,
-                np.round(s, 3),
-                tilt,
-            )
-            plane = "vertical"
-        else:
-            up_p /= np.linalg.norm(up_p)
-            fwd = np.cross(up_p, normal)
-    if plane == "vertical":
-        up_p = up
-        fpath = np.asarray(rel["fingertip"])
-        h = fpath - np.outer(fpath @ up, up)
-        h = h[np.all(np.isfinite(h), axis=1)]
-        _, _, Vt = np.linalg.svd(h - h.mean(axis=0), full_matrices=False)
-        fwd = Vt[0] - (Vt[0] @ up) * up
-        fwd /= np.linalg.norm(fwd)
-    elif plane == "axes":
-        up_p = up
-        if forward is None:
-            h = displacement - (displacement @ up) * up
-            k = int(np.argmax(np.abs(h)))
-            fwd = np.zeros(3)
-            fwd[k] = 1.0
-        else:
-            fwd = forward - (forward @ up) * up
-            if np.linalg.norm(fwd) < 0.5:  # ±x, ±y, ±z: the same axis as up, or its opposite
-                raise InputError(
-                    "--forward-axis is the up axis (or its opposite); with --plane axes it must be "
-                    "a horizontal lab axis, e.g. --up-axis +y --forward-axis +x",
-                    source,
-                )
-        fwd /= np.linalg.norm(fwd)
-    if fwd @ displacement < 0:
-        fwd = -fwd
-    normal = np.cross(fwd, up_p)
-    return np.stack([fwd, up_p, normal])
-
-
-def planar_ik_segments(elbow: np.ndarray, distal: np.ndarray) -> np.ndarray:
-    """``q (n, 2)`` from planar shoulder→elbow and elbow→distal vectors (shoulder at the origin).
-
-    q1 = atan2 of the upper arm, q2 = the distal segment's angle minus q1 (both unwrapped over time, q2
-    wrapped to (-π, π] at the first frame).
-    """
-    a1 = np.unwrap(np.arctan2(elbow[:, 1], elbow[:, 0]))
-    seg = distal - elbow
-    a2 = np.unwrap(np.arctan2(seg[:, 1], seg[:, 0]))
-    q2 = a2 - a1
-    q2 -= 2 * np.pi * np.round(q2[0] / (2 * np.pi))
-    return np.stack([a1, q2], axis=1)
-
-
-def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Median 3-D distances: ``upper_arm`` (shoulder→elbow), ``forearm`` (elbow→wrist), ``elbow_fingertip``,
-    ``hand`` (wrist→fingertip), ``reach`` (shoulder→fingertip), with their SDs under ``<name>_sd``, over the frames
-    where both joints are seen (not NaN); a pair never seen together is left out."""
-    pairs = {
-        "upper_arm": ("shoulder", "elbow"),
-        "forearm": ("elbow", "wrist"),
-        "elbow_fingertip": ("elbow", "fingertip"),
-        "hand": ("wrist", "fingertip"),
-        "reach": ("shoulder", "fingertip"),
-    }
-    out = {}
-    for name, (a, b) in pairs.items():
-        if a in joints and b in joints:
-            d = np.linalg.norm(joints[b] - joints[a], axis=1)
-            d = d[np.isfinite(d)]
-            if d.size == 0:  # never seen together (gaps longer than --max-gap on alternate sides): not measured
-                continue
-            out[name] = float(np.median(d))
-            out[f"{name}_sd"] = float(np.std(d))
-    return out
-
-
-def _check_units(lengths: Mapping[str, float], options: PreprocessOptions, source: object) -> None:
-    lo, hi = options.segment_range_m
-    for name in ("upper_arm", "forearm", "reach", "elbow_fingertip"):
-        if name not in lengths:
-            continue
-        v = lengths[name]
-        if v < lo:
-            raise InputError(
-                f"units look wrong: the median {name.replace('_', ' ')} distance is {v * 1000:.3g} mm, "
-                f"absurdly small for an arm (metres declared as mm?)",
-                source,
-            )
-        if v > hi:
-            raise InputError(
-                f"units look wrong: the median {name.replace('_', ' ')} distance is {v:.3g} m, "
-                f"absurdly large for an arm (mm declared as metres?)",
-                source,
-            )
-
-
-def build_arm(info: SubjectInfo, side: str, measured: Mapping[str, float] | None = None) -> ArmModel:
-    """The subject's arm: sex, height, mass from ``info``; lengths from ``info`` when given, else ``measured``
-    (``upper_arm``, ``forearm``, ``elbow_fingertip``), else Dumas' means scaled by height."""
-    measured = measured or {}
-    ua, fa, hand = info.lengths(side)
-    ua = ua if ua is not None else measured.get("upper_arm")
-    if fa is None and hand is None and "elbow_fingertip" in measured:
-        l2 = measured["elbow_fingertip"]
-        if "forearm" in measured and measured["forearm"] < l2 - 0.02:
-            fa = measured["forearm"]
-        else:  # split elbow→fingertip by Dumas' forearm:hand ratio
-            t = DUMAS_2007[info.sex]
-            fa = l2 * t["forearm"][3] / (t["forearm"][3] + t["hand"][3])
-        hand = l2 - fa
-    elif fa is None:
-        fa = measured.get("forearm")
-    try:
-        return ArmModel.from_anthropometrics(
-            info.height_m, info.mass_kg, info.sex, upper_arm_m=ua, forearm_m=fa, hand_m=hand
-        )
-    except ValueError as e:
-        raise InputError(f"cannot build subject {info.subject}'s arm: {e}") from None
-
-
-def _derivatives(t: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    cs = CubicSpline(t, q, axis=0)
-    return cs(t, 1), cs(t, 2)
 
 
 # ---------------------------------------------------------------------- markers → trial
@@ -753,7 +181,7 @@ def _check_window(
     near_after = min(after, key=lambda g: g[1]) if after else None
     tip = positions["fingertip"][0]
     shoulder = positions["shoulder"][0]
-    tip_seen = _seen(tip)
+    tip_seen = seen_frames(tip)
     distance = np.linalg.norm(tip - shoulder, axis=1)
     on, off = window.start + onset, window.start + offset  # frames of the record
     why = gap = None
@@ -780,13 +208,13 @@ def _check_window(
         why = f"what is seen beside it moves the fingertip only {reach * 1000:.0f} mm: not the reach"
         gap = near_before or near_after
     if why is not None:
-        raise InputError(f"{_gap_message(gap[0], gap[1], gap[2], max_gap)}, and {why}", src)
+        raise InputError(f"{gap_message(gap[0], gap[1], gap[2], max_gap)}, and {why}", src)
     for label, s, e in window.gaps:
         log.warning(
             "%s: marker %s is missing %s, in the rest %s the reach; the record is used from frame %d to %d",
             src,
             label,
-            _gap_where(s, e),
+            gap_where(s, e),
             "before" if e <= window.start else "after",
             window.start + 1,
             window.stop,
@@ -854,17 +282,17 @@ def reconstruct_markers(
     if md.n_frames < 10:
         raise InputError(f"only {md.n_frames} frames, too few for a reach", src)
     positions = joint_positions(md, ms, static)
-    window = seen_window(positions, options.max_gap_frames, src, max(10, _filter_padlen(options.filter_order) + 1))
+    window = seen_window(positions, options.max_gap_frames, src, max(10, filter_padlen(options.filter_order) + 1))
     cropped = slice(window.start, window.stop)
     joints = {j: fill_gaps(p[cropped], options.max_gap_frames, label, src) for j, (p, label) in positions.items()}
     # the arm from every frame where its joints are seen, cut off or not: the same reach, the same arm
     lengths = estimate_lengths({j: p for j, (p, _) in positions.items()})
-    _check_units(lengths, options, src)
+    check_units(lengths, options, src)
 
-    up = _axis(options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up)  # the file's own first
+    up = lab_axis(options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up)  # the file's own first
     if side == "left":
         if options.lateral_axis:
-            lateral = _axis(options.lateral_axis)
+            lateral = lab_axis(options.lateral_axis)
         else:  # the horizontal lab axis along which the fingertip ranges least
             rng = np.ptp(joints["fingertip"], axis=0)
             cand = [k for k in range(3) if abs(up[k]) < 0.5]
@@ -882,7 +310,7 @@ def reconstruct_markers(
         if window.gaps:  # the movement is in a gap
             label, s0, e0 = max(window.gaps, key=lambda g: g[2] - g[1])
             raise InputError(
-                f"{_gap_message(label, s0, e0, options.max_gap_frames)}, and no reach is seen outside the long gaps",
+                f"{gap_message(label, s0, e0, options.max_gap_frames)}, and no reach is seen outside the long gaps",
                 src,
             )
         raise InputError(
@@ -916,7 +344,7 @@ def reconstruct_markers(
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if window.gaps:
-        seen = np.all([_seen(p[cropped]) for p, _ in positions.values()], axis=0)
+        seen = np.all([seen_frames(p[cropped]) for p, _ in positions.values()], axis=0)
         _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
     cut = {"before": onset == 0, "after": offset == len(t) - 1}  # beside a gap cut off, _check_window refused it
     if all(cut.values()):
@@ -929,7 +357,7 @@ def reconstruct_markers(
         log.warning("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
     rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
     disp = joints["fingertip"][offset] - joints["fingertip"][onset]
-    fwd = _axis(options.forward_axis) if options.forward_axis else None
+    fwd = lab_axis(options.forward_axis) if options.forward_axis else None
     basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
 
@@ -946,7 +374,7 @@ def reconstruct_markers(
             q = arm.ik(planar["fingertip"])
         except ValueError as e:
             raise InputError(f"fingertip IK failed: {e}; the arm is too short for the markers", src) from None
-    qd, qdd = _derivatives(t, q)
+    qd, qdd = derivatives(t, q)
     return MarkerReconstruction(
         t=t,
         q=q,
@@ -1075,11 +503,11 @@ def angles_to_trial(
     rate = 1.0 / float(np.median(np.diff(t)))
     q_seen = q
     if options.cutoff_hz is not None:
-        if options.cutoff_hz < rate / 2 and t.shape[0] > _filter_padlen(options.filter_order):
+        if options.cutoff_hz < rate / 2 and t.shape[0] > filter_padlen(options.filter_order):
             q = lowpass(q, rate, options.cutoff_hz, options.filter_order, src)
         else:
             log.info("%s: %d samples at %.3g Hz, not filtered", src, t.shape[0], rate)
-    qd, qdd = _derivatives(t, q)
+    qd, qdd = derivatives(t, q)
     speed = arm.fingertip_speed(q, qd)
     if speed.max() < options.min_peak_speed:
         raise InputError(

@@ -42,7 +42,7 @@ class Trial:
     """One reach. Time ``t (n,)`` starts at 0 (the onset) and ends at ``duration`` (the offset).
 
     ``onset_threshold`` says how the reach was cut from its recording: where the fingertip speed crosses that
-    fraction of its peak (:func:`reachirl.data.preprocess.detect_onset_offset`), so the trial starts and ends
+    fraction of its peak (:func:`reachirl.data.segmentation.detect_onset_offset`), so the trial starts and ends
     moving; ``None`` for a trial that was not cut (a DOC solution, a file from before the field existed).
 
     ``q``, ``qd``, ``qdd``, ``tau`` have shape ``(n, 2)`` (rad, rad/s, rad/s², N·m; ``tau`` from inverse

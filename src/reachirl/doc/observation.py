@@ -194,7 +194,7 @@ def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name:
     """The part of ``sol`` (a solution of ``task``) where the fingertip speed is above ``threshold`` × its peak,
     as a trial sampled on ``4 N + 1`` points from the knots' cubic spline (``q̇``, ``q̈`` its derivatives, ``τ``
     by inverse dynamics); the whole solution without a threshold. The onset and offset are the first samples
-    around the peak where the speed crosses the threshold (as :func:`reachirl.data.preprocess.detect_onset_offset`
+    around the peak where the speed crosses the threshold (as :func:`reachirl.data.segmentation.detect_onset_offset`
     finds them in a recording), refined linearly between the speed's samples."""
     arm, n = task.arm, task.n_nodes
     cut = _cut(sol, task, threshold)

@@ -5,7 +5,7 @@ A joint is either
 * ``markers``: the midpoint of markers recorded in the trial itself (one marker: the marker), or
 * ``landmarks`` + ``cluster``: the midpoint of anatomical landmarks recorded only in a **static** trial,
   carried into each frame of the reach by a least-squares rigid fit of a marker cluster (the calibrated
-  anatomical system technique, see :func:`reachirl.data.preprocess.cast_reconstruct`).
+  anatomical system technique, see :func:`reachirl.data.kinematics.cast_reconstruct`).
 
 Presets are the JSON files of this folder (``default``, ``ue-adl``); ``{S}`` in a name is the side prefix
 (``R``/``L`` for UE-ADL). :func:`parse_marker_map` builds a set from
