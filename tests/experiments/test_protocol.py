@@ -218,3 +218,24 @@ def test_check_thresholds_groups_rollouts_as_moirl_does():
         else:
             check_thresholds(units, splits, "data.npz")
         check_thresholds([u for u in units if u.held_out_posture is None], splits, "data.npz")  # one posture each
+
+
+def test_scheduler_that_fails_to_connect_is_one_line_at_once(tmp_path):
+    # a tls:// address without a TLS configuration fails inside Client(); the half-made client, left to the garbage
+    # collector, closed at exit 30 s later with a traceback on stderr
+    import subprocess
+    import sys
+
+    pytest.importorskip("dask.distributed")
+    code = (
+        "from reachirl.errors import InputError\n"
+        "from reachirl.experiments.runner import _dask_client\n"
+        "try:\n"
+        "    _dask_client('tls://127.0.0.1:1')\n"
+        "except InputError as e:\n"
+        "    print(e.reason)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert done.returncode == 0
+    assert done.stdout.startswith("cannot connect to the Dask scheduler (TypeError: TLS expects")
+    assert done.stderr == ""

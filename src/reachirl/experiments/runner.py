@@ -138,9 +138,14 @@ def _dask_client(address: str):
         from dask.distributed import Client
     except ImportError as e:  # pragma: no cover
         raise InputError(f"--scheduler needs dask.distributed ({e})") from None
+    client = Client.__new__(Client)  # a handle on it even when its connection fails: closed here, not at exit
     try:
-        return Client(address, timeout="15s", set_as_default=False)
+        client.__init__(address, timeout="15s", set_as_default=False)
+        return client
     except Exception as e:  # OSError, TimeoutError, ValueError, a protocol whose package is missing, ...
+        # a client left to the garbage collector closes at exit: 30 s later, with a traceback on stderr
+        with contextlib.suppress(Exception):
+            client.close(timeout=5)
         raise InputError(
             f"cannot connect to the Dask scheduler ({type(e).__name__}: {str(e)[:200]})", address
         ) from None
