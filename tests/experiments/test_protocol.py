@@ -220,6 +220,28 @@ def test_check_thresholds_groups_rollouts_as_moirl_does():
         check_thresholds([u for u in units if u.held_out_posture is None], splits, "data.npz")  # one posture each
 
 
+def test_unreachable_scheduler_changes_nothing_on_disk(toy, tmp_path, monkeypatch):
+    # the scheduler is reached before on_start, which clears an earlier run's outputs and writes run.toml
+    from reachirl.experiments import runner
+
+    def unreachable(address):
+        raise InputError("cannot connect to the Dask scheduler (OSError: refused)", address)
+
+    monkeypatch.setattr(runner, "_dask_client", unreachable)
+    cfg = _config(sections=(1,))
+    splits = {p: split_trials(toy.trials, p, cfg) for p in ("P2", "P4")}
+    started = []
+    with pytest.raises(InputError, match="cannot connect to the Dask scheduler"):
+        run_units(
+            make_units(["P2", "P4"], cfg),
+            splits,
+            tmp_path,
+            scheduler="tcp://127.0.0.1:1",
+            on_start=lambda total, reused: started.append(total),
+        )
+    assert started == [] and list(tmp_path.iterdir()) == []
+
+
 def test_scheduler_that_fails_to_connect_is_one_line_at_once(tmp_path):
     # a tls:// address without a TLS configuration fails inside Client(); the half-made client, left to the garbage
     # collector, closed at exit 30 s later with a traceback on stderr

@@ -184,12 +184,20 @@ def run_units(
             reused.append(u.key)
         else:
             todo.append((u, fp))
-    if on_start:
-        on_start(len(units), len(reused))
-    for k in reused:
-        if on_done:
-            on_done(k, results[k], True)
     limit = len(todo) if max_units is None else max(0, min(int(max_units), len(todo)))
+    # connected before on_start (which clears an earlier run's outputs and writes run.toml): a scheduler that cannot
+    # be reached changes nothing on disk
+    client = _dask_client(scheduler) if scheduler is not None and limit > 0 else None
+    try:
+        if on_start:
+            on_start(len(units), len(reused))
+        for k in reused:
+            if on_done:
+                on_done(k, results[k], True)
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     stopped = limit < len(todo)
     todo = todo[:limit] if scheduler is None and workers <= 1 else todo
     computed: list[str] = []
@@ -264,7 +272,6 @@ def run_units(
     else:
         from dask.distributed import as_completed
 
-        client = _dask_client(scheduler)
         try:
             futures = [
                 client.submit(
