@@ -165,6 +165,17 @@ def test_same_seed_same_bytes_different_seed_different(tmp_path, fmt):
             assert a[name] != c[name]
 
 
+def test_a_posture_named_twice_is_recorded_once(tmp_path):
+    # --postures P2 P2 listed each recording twice in manifest.csv and truth.json, which preprocess then refused
+    cfg = {**SMALL, "postures": ("P2",), "n_trials": 1}
+    twice = generate(tmp_path / "twice", SynthConfig(**{**cfg, "postures": ("P2", "P2")}))
+    assert twice.config.postures == ("P2",) and len(twice.trials) == 1
+    rows = list(csv.DictReader(open(tmp_path / "twice" / "manifest.csv")))
+    assert [r["file"] for r in rows] == ["S01_P2_T01.trc"]
+    assert len(json.loads((tmp_path / "twice" / "truth.json").read_text())["subjects"]["S01"]["trials"]["P2"]) == 1
+    assert _bytes(twice.out_dir) == _bytes(generate(tmp_path / "once", SynthConfig(**cfg)).out_dir)
+
+
 def test_mot_output(tmp_path):
     res = generate(tmp_path, SynthConfig(**{**SMALL, "postures": ("P3",), "n_trials": 1, "fmt": "mot"}))
     _, cols, hdr = read_mot_simple(tmp_path / "S01_P3_T01.mot")

@@ -59,6 +59,8 @@ class SynthConfig:
     workers: int = 2
 
     def __post_init__(self) -> None:
+        # a posture named twice is recorded once: twice would write each file once but list it twice
+        object.__setattr__(self, "postures", tuple(dict.fromkeys(self.postures)))
         if int(self.n_subjects) < 1 or int(self.n_trials) < 1:
             raise ValueError(f"need at least 1 subject and 1 trial, got {self.n_subjects} and {self.n_trials}")
         if int(self.seed) < 0:
@@ -81,7 +83,6 @@ class SynthConfig:
             )
         if self.rate_hz <= 0:
             raise ValueError(f"rate_hz must be > 0, got {self.rate_hz}")
-        object.__setattr__(self, "postures", tuple(self.postures))
 
 
 @dataclass(frozen=True)
