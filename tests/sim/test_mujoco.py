@@ -157,6 +157,20 @@ def test_simulate_chooses_trials_as_fit_evaluate_and_plot_do(arm, tmp_path, caps
     )
 
 
+def test_simulate_plays_a_trial_named_twice_once(arm, tmp_path, capsys):
+    # by index and by id: one reach, not two in SIM.json and in the summary over trials
+    trials, model = _trials_file(arm, tmp_path)
+    out = tmp_path / "sim.json"
+    argv = ["simulate", "--model", str(model), str(trials), "--posture", "P2", "--out", str(out)]
+    assert main([*argv, "--trial", "0", "--trial", "S1/P2/right/1", "--trial", "0"]) == 0
+    assert [t["id"] for t in json.loads(out.read_text())["trials"]] == ["S1/P2/right/1"]
+    assert " trials: RMSE q" not in capsys.readouterr().out  # one trial: no summary over trials
+    assert (
+        main(["simulate", "--model", str(model), str(trials), "--trial", "1", "--trial", "0", "--out", str(out)]) == 0
+    )
+    assert [t["id"] for t in json.loads(out.read_text())["trials"]] == ["S1/P2/right/1", "S1/P1/right/0"]
+
+
 @pytest.mark.parametrize("sex", ["M", "F"])
 def test_mjcf_compiles_for_any_body_size(sex):
     """MuJoCo checks A + B >= C on each inertia; exact halves failed after rounding for some subjects."""

@@ -113,7 +113,7 @@ def _held(args: argparse.Namespace, selected: list, trials: list) -> str:
 def picked_trials(args: argparse.Namespace, trials: list, path) -> list:
     """Those of ``trials`` (read from the file ``path``, which an error names) that ``--subject/--posture/--side``
     select (:func:`chosen_trials`), then of these the ones ``--trial`` names, in the order
-    given (all of them without ``--trial``).
+    given, each once (all of them without ``--trial``).
 
     A key is a selected trial's id or trial_id, else an integer: the index of a trial among the selected ones (the
     N-th selected, 0-based). An index out of range, a key naming only trials the selection leaves out, or one naming
@@ -142,7 +142,8 @@ def picked_trials(args: argparse.Namespace, trials: list, path) -> list:
             )
             raise InputError(f"--trial {key}: {what} ({_held(args, selected, trials)})", path)
         chosen.extend(hits)
-    return chosen
+    # a trial named twice (by id and by index) is one trial: not played, drawn or counted in a summary twice
+    return list({id(t): t for t in chosen}.values())
 
 
 def same_file(a: Path, b: Path) -> bool:
