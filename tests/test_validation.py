@@ -373,7 +373,11 @@ CLI_CASES = [
     ),
     (
         ["reproduce", "--data", "{T}", "--scheduler", "foo://bar:1", "--out", "{D}/o"],
-        r"--scheduler 'foo://bar:1': expected an address like tcp://HOST:PORT",
+        r"--scheduler 'foo://bar:1': expected an address like tcp://HOST:PORT \(protocols: tcp, tls, ws, wss, ucx\)",
+    ),
+    (
+        ["reproduce", "--data", "{T}", "--scheduler", "inproc://bar:1", "--out", "{D}/o"],
+        r"--scheduler 'inproc://bar:1': expected an address like tcp://HOST:PORT",
     ),
     (["reproduce", "--data", "{T}", "--method", "bogus", "--out", "{D}/o"], r"unknown method 'bogus'"),
 ]

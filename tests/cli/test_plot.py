@@ -386,6 +386,29 @@ def test_simulate_leaves_a_failed_doc_out_of_its_summary(fitted, tmp_path, capsy
     assert f"RMSE q {np.mean(kept):.3f} ± {np.std(kept):.3f}°" in summary
 
 
+def test_a_doc_answer_with_non_finite_values_is_a_failure_counted_not_a_crash(fitted, tmp_path, capsys, monkeypatch):
+    """A solver that reports success over NaN knots: the prediction is not converged (DocSolution refuses the
+    report), is not cut at the speed threshold, and evaluate counts it as a DOC failure and exits 0."""
+    import reachirl.doc.observation as ob
+
+    _, path, model = fitted
+    real, calls = ob.solve_doc, []
+
+    def nan_once(task, *args, **kwargs):  # the first prediction's knots NaN, its solver's report kept
+        sol = real(task, *args, **kwargs)
+        calls.append(task)
+        return replace(sol, q=np.full_like(sol.q, np.nan)) if len(calls) == 1 else sol
+
+    monkeypatch.setattr(ob, "solve_doc", nan_once)
+    out = tmp_path / "metrics.json"
+    capsys.readouterr()
+    assert main(["evaluate", "--model", str(model), str(path), "--subject", "S02", "--out", str(out)]) == 0
+    metrics = json.loads(out.read_text())
+    assert metrics["summary"]["doc_failures"] == 1 and metrics["summary"]["n_included"] == 2
+    failed = [t for t in metrics["trials"] if not t["converged"]]
+    assert len(failed) == 1 and failed[0]["rmse_deg"]["q"] is None
+
+
 def _figures_drawn(monkeypatch) -> dict:
     """``{file name: (title, [(x, y) of each line of the first axes])}`` of every figure saved from now on."""
     from reachirl.experiments import figures as fg

@@ -396,7 +396,8 @@ def _print_table(console, outputs, config, postures) -> None:
         console.print(t)
 
 
-SCHEDULER_PROTOCOLS = ("tcp", "tls", "inproc", "ws", "wss", "ucx")
+#: the transports a scheduler of another process is reached by (Dask's inproc:// is within one process: not one)
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 
 
 def _check_scheduler(address: str | None) -> None:

@@ -185,8 +185,8 @@ def run(args: argparse.Namespace) -> int:
         if n_bytes > MAX_RENDER_BYTES:
             raise InputError(
                 f"--render: {len(trials)} trial(s) at --fps {args.fps:g} and --size {args.size} make {n_frames} "
-                f"frames ({n_bytes / 1024**3:.1f} GB); choose fewer --trial, a lower --fps or a smaller --size "
-                f"(at most {MAX_RENDER_BYTES / 1024**3:.0f} GB)",
+                f"frames ({n_bytes / 1024**3:.3g} GiB); choose fewer --trial, a lower --fps or a smaller --size "
+                f"(at most {MAX_RENDER_BYTES / 1024**3:g} GiB)",
                 args.render,
             )
     sims = []

@@ -280,7 +280,7 @@ def observed_solution(sol: DocSolution, task: ReachingTask, threshold: float | N
     compared with a trial resampled on the same knots; ``sol`` itself without a threshold. Its ``cost``,
     ``converged`` and solver fields stay the whole rest-to-rest DOC's: the cost is that DOC's optimum, not the
     cost of the part returned."""
-    if check_threshold(threshold) is None:
+    if check_threshold(threshold) is None or not sol.finite:  # non-finite: a failure, counted, with nothing to cut
         return sol
     q, qd, tau, dt = observed_knots(sol, task, threshold)
     return DocSolution(

@@ -142,6 +142,15 @@ class DocSolution:
         for name, shape in (("q", (n + 1, 2)), ("qd", (n + 1, 2)), ("tau", (n, 2))):
             if np.shape(getattr(self, name)) != shape:
                 raise ValueError(f"DocSolution.{name} must have shape {shape}, got {np.shape(getattr(self, name))}")
+        if not self.finite and self.converged:  # a solver's report is not taken over its own numbers
+            object.__setattr__(self, "converged", False)
+            object.__setattr__(self, "status", f"{self.status} (non-finite values)".strip())
+
+    @property
+    def finite(self) -> bool:
+        """Whether every knot of ``q``, ``q̇`` and ``τ`` is a finite number (a solution with none is never
+        converged)."""
+        return bool(np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.qd)) and np.all(np.isfinite(self.tau)))
 
     @property
     def state(self) -> np.ndarray:
