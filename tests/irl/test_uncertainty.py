@@ -202,6 +202,17 @@ def test_a_pooled_fit_says_how_much_pooling_narrows_the_intervals(recorded):
     assert pooling["pooled"]["n_determined"] >= min(r["n_determined"] for r in pooling["per_task"].values())
 
 
+@pytest.mark.parametrize("rollout", ["per_demo", "mean"])
+def test_pooling_compares_the_data_s_tasks_whatever_the_rollouts(recorded, rollout):
+    # docs/outputs.md: pooling is there with trials of several (subject, posture) tasks, per_task by subject/posture;
+    # per_demo listed each trial as a task (and pooled one posture), mean left several postures without a record
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"])
+    est = MOIRL(1, n_nodes=20, max_iter=1, rollout=rollout, uncertainty=20).fit(trials)
+    assert sorted(est.uncertainty_["pooling"]["per_task"]) == ["S01/P2", "S01/P4"]
+    one = select_trials(trials, postures=["P2"])
+    assert MOIRL(1, n_nodes=20, max_iter=1, rollout=rollout, uncertainty=20).fit(one).uncertainty_["pooling"] is None
+
+
 def test_a_fit_whose_rollout_has_no_sensitivity_says_so_instead_of_failing(fitted, monkeypatch):
     from reachirl.irl import uncertainty
 

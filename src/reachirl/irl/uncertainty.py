@@ -256,10 +256,11 @@ def weight_uncertainty(
     shares = cost_shares(draw(n_interval), phi)
     point = cost_shares(est.weights_, phi)  # the fit's own shares: the ones reported and drawn
     pooling = None
-    if len(est.tasks_) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
+    task_of = _task_names(trials)
+    if len(set(task_of)) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
         pooling = {"pooled": _width_record(det, share_intervals(shares, point)), "per_task": {}}
-        for g, task_trials in _task_names(est, trials).items():
-            rows = est.task_of_demo_ == g
+        for task_trials in dict.fromkeys(task_of):
+            rows = np.array([name == task_trials for name in task_of])
             det_g = determination(r[rows], J[rows], free)
             mean_g, cov_g, _ = laplace_posterior(r[rows], J[rows], eta_hat[cols], eta_prior[cols])
             Lg = np.linalg.cholesky(cov_g + 1e-12 * np.eye(cov_g.shape[0]))
@@ -329,12 +330,10 @@ def _width_record(det: Determination, intervals: dict) -> dict:
     }
 
 
-def _task_names(est, trials) -> dict[int, str]:
-    """Each rollout's task as ``subject/posture`` (``per_demo``: the trial's id)."""
-    names = {}
-    for t, g in zip(trials, est.task_of_demo_, strict=True):
-        names.setdefault(int(g), t.id if est.rollout == "per_demo" else f"{t.subject}/{t.posture}")
-    return names
+def _task_names(trials) -> list[str]:
+    """Each demonstration's task as ``subject/posture``, whatever the rollouts (one per task, per demonstration
+    or one for all): the tasks ``pooling`` compares are the data's, not the fit's rollouts."""
+    return [f"{t.subject}/{t.posture}" for t in trials]
 
 
 def rollout_errors(est, w: np.ndarray) -> tuple[np.ndarray | None, list, int]:
