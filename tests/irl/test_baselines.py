@@ -211,3 +211,14 @@ def test_every_estimator_has_scikit_learns_parameter_interface(cls):
     assert est.set_params(n_windows=3) is est and est.get_params()["n_windows"] == 3
     with pytest.raises(ValueError, match=f"unknown parameter 'n_window' of {cls.__name__}"):
         est.set_params(n_window=3)
+
+
+def test_bilevel_on_several_postures_points_to_a_fix_it_can_use(recorded):
+    # bilevel has one mean-task rollout and no --rollout (fit refuses it): its warning must not advise one
+    from reachirl.data.trial import load_trials, select_trials
+
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"])
+    est = BilevelIOC(1, n_nodes=20, max_evals=2).fit(trials)
+    (msg,) = [w for w in est.warnings_ if "span 2 postures (P2, P4)" in w]
+    assert "per_demo" not in msg and "rollout per demonstration" not in msg
+    assert "moirl or maxent" in msg

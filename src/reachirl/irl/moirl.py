@@ -840,15 +840,22 @@ def _is_rescale(w: np.ndarray, dw: np.ndarray, rtol: float = 1e-9) -> bool:
     return bool(np.ptp(ratio) <= rtol * np.max(np.abs(ratio)))
 
 
-def mixed_postures_warning(trials: Sequence[Trial]) -> str | None:
-    """The warning for demonstrations of several postures fitted through one mean-task rollout, or ``None``."""
+def mixed_postures_warning(trials: Sequence[Trial], other_rollouts: bool = True) -> str | None:
+    """The warning for demonstrations of several postures fitted through one mean-task rollout, or ``None``.
+    ``other_rollouts``: the method can roll out otherwise (MO-IRL, MaxEnt), so the warning names it; bilevel
+    cannot (it has no ``--rollout``), and is pointed to a method that can."""
     postures = sorted({t.posture for t in trials})
     if len(postures) < 2:
         return None
+    other = (
+        "or use one rollout per posture or per demonstration (--rollout per_task, per_demo)"
+        if other_rollouts
+        else "or learn one cost shared by them with moirl or maxent (one rollout per posture; bilevel has only the one)"
+    )
     return (
         f"the demonstrations span {len(postures)} postures ({', '.join(postures)}): the one training rollout "
-        "starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
-        "--posture), or use one rollout per demonstration"
+        f"starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
+        f"--posture), {other}"
     )
 
 

@@ -172,7 +172,7 @@ class BilevelIOC(WeightEstimator):
             if sol_best is None
             else windowed_features(task.arm, *observed_knots(sol_best, task, None), self.n_windows)
         )
-        self.warnings_ = [msg] if (msg := mixed_postures_warning(trials)) is not None else []
+        self.warnings_ = [msg] if (msg := mixed_postures_warning(trials, other_rollouts=False)) is not None else []
         if self.stop_reason_ == "max_evals":
             self.warnings_.append(
                 f"stopped at its budget of {self.max_evals} DOC solves (max_evals) after {n_iter} complete "
