@@ -125,3 +125,19 @@ def test_all_pairs_dask_equals_local_processes(tmp_path):
     write_outputs(remote)
     for name in ("table.csv", "iscv_pairs.csv"):
         assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes()
+
+
+def test_a_study_the_data_cannot_have_is_said_on_the_terminal_not_claimed_written(tmp_path, capsys):
+    # one subject, one posture: --iscv all-pairs and --posture-transfer write no CSV; the closing line claimed
+    # iscv_pairs.csv as written and said nothing of the posture transfer
+    ds = datasets.toy(n_subjects=2, postures=("P2",), n_trials=3, n_nodes=20, seed=3)
+    one = tmp_path / "one.npz"
+    save_trials(one, [t for t in ds.trials if t.subject == ds.trials[0].subject])
+    out = tmp_path / "run"
+    argv = ["reproduce", "--data", str(one), "--iscv", "all-pairs", "--posture-transfer", "--out", str(out), *ARGS]
+    assert main(argv) == 0
+    said = " ".join(capsys.readouterr().out.split())
+    assert not (out / "iscv_pairs.csv").exists() and not (out / "posture_transfer.csv").exists()
+    assert "all-pairs ISCV in" not in said and "posture transfer in" not in said
+    assert "no all-pairs ISCV (iscv_pairs.csv not written): it needs at least two subjects" in said
+    assert "no posture transfer (posture_transfer.csv not written): it needs at least two postures" in said

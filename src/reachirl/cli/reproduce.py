@@ -672,13 +672,21 @@ def run(args) -> int:
         f"evaluation {tm['evaluation_s_sum']:.1f} s over the workers), figures/report {tm['report_s']:.1f} s",
         highlight=False,
     )
+    # each written only when the data allows it (an earlier run's is removed first); asked for and not written:
+    # said here as report.md says it, not left for the reader to find missing
+    extras = []
+    for asked, name, what, needs in (
+        (config.iscv == "all-pairs", "iscv_pairs.csv", "all-pairs ISCV", "two subjects"),
+        (config.posture_transfer, "posture_transfer.csv", "posture transfer", "two postures"),
+    ):
+        if (out / name).is_file():
+            extras.append(f"; {what} in {out / name}")
+        elif asked:
+            extras.append(f"; no {what} ({name} not written): it needs at least {needs} (report.md)")
     out_console.print(
         f"wrote {out / 'table.md'}, table.csv, results.json, report.md, run.toml, "
         f"{len(outputs['figures'])} figure(s) in {out / 'figures'}, the models in {out / 'models'} and the "
-        f"predictions in {out / 'predictions'}"
-        + (f"; all-pairs ISCV in {out / 'iscv_pairs.csv'}" if config.iscv == "all-pairs" else "")
-        # written only with several postures (an earlier run's is removed first)
-        + (f"; posture transfer in {out / 'posture_transfer.csv'}" if (out / "posture_transfer.csv").is_file() else ""),
+        f"predictions in {out / 'predictions'}" + "".join(extras),
         highlight=False,
     )
     return 0
