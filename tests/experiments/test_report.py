@@ -293,3 +293,24 @@ def test_the_cost_section_says_how_many_re_solved_samples_are_as_good_as_the_fit
     cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
     assert cells["samples as good as the fit"] == "0 of 10"
     assert any("not costs shown to explain the reaches equally well" in line for line in lines)
+
+
+@pytest.mark.parametrize(
+    ("methods", "uncertainty", "said"),
+    [
+        (("kkt",), 40, "drawn for moirl and maxent fits only, and this run's method (kkt) has none"),
+        (("kkt", "bilevel"), 40, "`--method moirl kkt bilevel`"),
+        (("moirl",), 40, "though they were asked for (`uncertainty = 40`)"),
+        (("moirl",), 0, "rerun with `--uncertainty` to quote a share"),
+    ],
+)
+def test_a_run_without_weight_samples_says_why(methods, uncertainty, said):
+    # reproduce --method kkt --uncertainty 40 told the reader to rerun with --uncertainty, which it had
+    from types import SimpleNamespace
+
+    from reachirl.experiments.cost import cost_section
+
+    run = SimpleNamespace(results={}, config=SimpleNamespace(methods=methods, uncertainty=uncertainty))
+    text = " ".join(cost_section(run))
+    assert said in text
+    assert ("rerun with `--uncertainty`" in text) == (uncertainty == 0)

@@ -53,6 +53,29 @@ def _claim(unc: dict) -> dict:
     return unc.get("claim") or claim_verdict(np.asarray(unc["share_samples"]))
 
 
+def _no_samples(run) -> str:
+    """Why no fit of the run has weight samples, and what to rerun with."""
+    from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.moirl import MOIRL
+
+    config = getattr(run, "config", None)
+    methods = list(getattr(config, "methods", ()) or ())
+    sampled = [m for m in methods if m in AVAILABLE and issubclass(AVAILABLE[m], MOIRL)]
+    if methods and not sampled:  # --uncertainty was in force, but only MO-IRL and MaxEnt fits draw samples
+        return (
+            f"No fit of this run has weight samples: they are drawn for moirl and maxent fits only, and this run's "
+            f"method{'s' if len(methods) > 1 else ''} ({', '.join(methods)}) "
+            f"{'have' if len(methods) > 1 else 'has'} none; add moirl (`--method moirl {' '.join(methods)}`) "
+            "to quote a share."
+        )
+    if config is not None and getattr(config, "uncertainty", 0):
+        return (
+            "No fit of this run has weight samples, though they were asked for (`uncertainty = "
+            f"{config.uncertainty}`): the fits' `warnings` in results.json say why."
+        )
+    return "No fit of this run has weight samples: rerun with `--uncertainty` to quote a share."
+
+
 def _truth_coverage(unc: dict, true_shares: np.ndarray) -> float:
     """The fraction of the true shares inside the fit's intervals (within 0.005, the shares' printed precision)."""
     lo, hi = np.asarray(unc["share_intervals"]["low"]), np.asarray(unc["share_intervals"]["high"])
@@ -92,7 +115,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
     ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
     if not rows:
-        return [*lines, "No fit of this run has weight samples: rerun with `--uncertainty` to quote a share.", ""]
+        return [*lines, _no_samples(run), ""]
     lines += [
         "| unit | determined directions | shares undetermined | mean width (prior alone) | claim (prior alone) | "
         "most determined direction | samples as good as the fit |"
