@@ -376,7 +376,12 @@ def test_the_posture_transfer_text_names_the_rollout_its_fits_used():
         "one rollout per demonstration"
     )
     assert _rollout_words({"a": unit({"rollout": "mean"}), "b": unit([])}) == (
-        "one rollout for every posture's trials together"
+        "one rollout for every posture's trials together; baseline: its own way"
+    )
+    # reproduce --method moirl kkt --posture-transfer: the rollout words are MO-IRL's, not KKT's (it has none)
+    kkt = {"unit": {"method": "kkt", "estimator_options": []}}
+    assert _rollout_words({"a": unit([["rollout", "per_task"]]), "b": kkt}) == (
+        "one rollout per posture; kkt: its own way"
     )
     assert _rollout_words({"b": unit([])}) == "each method's own way"
 

@@ -252,7 +252,13 @@ def _rollout_words(units: dict) -> str:
     }
     opts = [estimator_kwargs(r["unit"].get("estimator_options") or ()) for r in units.values()]
     kinds = {str(o["rollout"]) for o in opts if "rollout" in o}  # the baselines have no rollout option
-    return "; ".join(words.get(k, f"rollout {k}") for k in sorted(kinds)) or "each method's own way"
+    said = "; ".join(words.get(k, f"rollout {k}") for k in sorted(kinds))
+    # beside MO-IRL's, a baseline's fits (KKT: no rollout; bilevel: one from the mean task) are not those words
+    pairs = zip(units.values(), opts, strict=True)
+    others = sorted({str(r["unit"].get("method", "baseline")) for r, o in pairs if "rollout" not in o})
+    if said and others:
+        return f"{said}; {', '.join(others)}: {'each its' if len(others) > 1 else 'its'} own way"
+    return said or "each method's own way"
 
 
 def _fmt_row(s) -> list:
