@@ -217,6 +217,23 @@ def test_a_trial_of_complex_or_boolean_arrays_names_the_field(files, field, chan
         replace(trial, **{field: change(getattr(trial, field))})
 
 
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"subject": "S1/left"}, r"subject 'S1/left' must not contain '/' \(it separates the parts of a trial's id\)"),
+        ({"trial_id": "T1\nT2"}, r"trial_id 'T1\\nT2' must not contain '/' .* or a control character"),
+        ({"posture": "P\t2"}, r"posture 'P\\t2' must not contain"),
+    ],
+)
+def test_a_name_that_would_break_the_trials_id_is_refused(files, change, match):
+    # "S1/left" made the id S1/left/P2/right/0, read back as another subject's; a line break split CSV rows
+    from dataclasses import replace
+
+    trial = load_trials(files / "trials.npz")[0]
+    with pytest.raises(InputError, match=match):
+        replace(trial, **change)
+
+
 def test_a_duration_outside_a_reach_is_refused(files):
     path = _with_array(files, "dur.npz", "0/t.npy", lambda a: a * 1e-6)
     with pytest.raises(InputError, match=r"trial 0 .*: duration 7e-07 s is outside the range of a reach"):

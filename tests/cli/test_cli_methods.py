@@ -82,6 +82,11 @@ def test_reproduce_every_method(tiny_trials, tmp_path, cli):
     assert "(seed's subjects, not comparable)" in report and "chosen at random (seed 0)" in report
     assert res["comparisons"] == {} and "What they show" not in report
     assert res["method"]["moirl"]["departures"] and res["method"]["kkt"] is None
+    # each unit's stop reason as its model file gives it (null for KKT, which does not iterate)
+    for u in res["units"]:
+        model = json.loads((out / "models" / f"{u['key']}.json").read_text())
+        assert u["stop_reason"] == model["info"]["stop_reason"], u["key"]
+    assert {u["stop_reason"] for u in res["units"] if u["unit"]["method"] == "kkt"} == {None}
     # every trial of every set of every unit is exported (docs/outputs.md)
     for u in res["units"]:
         index = (out / "predictions" / u["key"] / "index.csv").read_text().splitlines()

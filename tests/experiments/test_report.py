@@ -314,3 +314,27 @@ def test_a_run_without_weight_samples_says_why(methods, uncertainty, said):
     text = " ".join(cost_section(run))
     assert said in text
     assert ("rerun with `--uncertainty`" in text) == (uncertainty == 0)
+
+
+def test_the_fits_warnings_reach_the_report_notes_with_the_units_they_came_from():
+    from reachirl.experiments.protocol import ProtocolConfig
+    from reachirl.experiments.report import _notes
+
+    def unit(key, warnings):
+        return {
+            "key": key,
+            "fit": {"doc_solves": 10, "doc_failures": 0},
+            "evaluation": {"doc_solves": 5, "doc_failures": 0},
+            "stop_reason": "converged",
+            "unit": {"method": "bilevel", "observe": False},
+            "weights": [[1.0] * 7],
+            "warnings": warnings,
+        }
+
+    budget = "stopped at its budget of 400 DOC solves (max_evals) after 3 complete iterations"
+    results = {k: unit(k, w) for k, w in (("bilevel-P2-s1", [budget]), ("bilevel-P4-s1", [budget]), ("x", []))}
+    notes, _ = _notes(results, ProtocolConfig())
+    (line,) = [n for n in notes if n.startswith("Fit warnings")]
+    assert line == f"Fit warnings (also in each model's `info.warnings`): bilevel-P2-s1, bilevel-P4-s1: {budget}."
+    quiet, _ = _notes({"x": unit("x", [])}, ProtocolConfig())
+    assert not [n for n in quiet if n.startswith("Fit warnings")]

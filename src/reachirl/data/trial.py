@@ -101,6 +101,14 @@ class Trial:
             raise InputError(f"side must be 'right' or 'left', got {self.side!r}", where)
         for name in ("subject", "posture", "trial_id", "source"):
             object.__setattr__(self, name, str(getattr(self, name)))
+        for name in ("subject", "posture", "trial_id"):  # the parts of the trial's id, and of file names
+            v = getattr(self, name)
+            if "/" in v or not v.isprintable():
+                raise InputError(
+                    f"{name} {v!r} must not contain '/' (it separates the parts of a trial's id) or a control "
+                    "character (a line break, a tab)",
+                    where,
+                )
         th = self.onset_threshold
         if th is not None:
             if isinstance(th, bool) or not isinstance(th, int | float | np.number) or not 0.0 < float(th) < 1.0:

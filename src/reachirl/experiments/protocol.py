@@ -507,7 +507,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
         "cost_shares_on": "demonstrations" if reach is None else "fit_reach",
         "history": _history(est),
         "n_iter": int(getattr(est, "n_iter_", len(_history(est)) - 1)),
-        "stop_reason": str(getattr(est, "stop_reason_", "")),
+        "stop_reason": None if (why := getattr(est, "stop_reason_", None)) is None else str(why),  # as MODEL.json
         "flag": getattr(est, "flag_", None),
         "warnings": list(getattr(est, "warnings_", [])),
         "smoothness": getattr(est, "smoothness_", None),

@@ -135,6 +135,16 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
     ]
     flagged = sorted(f"{r['key']} ({r['flag']})" for r in results.values() if r.get("flag"))
     notes.append("Fits flagged: " + (", ".join(flagged) if flagged else "none") + ". " + tb.FLAG_NOTE)
+    warned: dict[str, list[str]] = {}  # each warning of the fits (MODEL.json info.warnings) with the units it came from
+    for r in sorted(results.values(), key=lambda r: r["key"]):
+        for w in r.get("warnings") or []:
+            warned.setdefault(str(w), []).append(r["key"])
+    if warned:
+        notes.append(
+            "Fit warnings (also in each model's `info.warnings`): "
+            + "; ".join(f"{', '.join(keys)}: {w}" for w, keys in warned.items())
+            + "."
+        )
     zero = sorted(r["key"] for r in results.values() if not np.any(np.asarray(r["weights"]) > 0))
     if zero:
         notes.append(
