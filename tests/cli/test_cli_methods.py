@@ -159,3 +159,14 @@ def test_a_seed_form_changed_by_the_run_file_says_it_departs(tiny_trials, tmp_pa
     proc = cli("fit", tiny_trials, *args, "--out", out)
     assert proc.returncode == 0 and "moirl (seed form), 2 section(s)" in proc.stdout
     assert json.loads(out.read_text())["info"]["departures"] == []
+
+
+def test_uncertainty_asked_of_methods_without_samples_is_noted(tiny_trials, tmp_path, cli):
+    args = ["--data", tiny_trials, "--sections", "1", "--nodes", "20", "--n-train", "2", "--workers", "1"]
+    proc = cli("reproduce", *args, "--method", "kkt", "--uncertainty", "40", "--no-progress", "--out", tmp_path / "k")
+    assert proc.returncode == 0, proc.stderr
+    assert "note: --uncertainty 40 draws weight samples for moirl and maxent fits only; --method kkt has none" in (
+        proc.stderr
+    )
+    report = (tmp_path / "k" / "report.md").read_text()
+    assert "they are drawn for moirl and maxent fits only" in report

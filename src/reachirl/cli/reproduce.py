@@ -590,12 +590,19 @@ def run(args) -> int:
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
     from ..irl.methods import METHODS
+    from ..irl.moirl import MOIRL
 
     unknown = [m for m in config.methods if m not in METHODS]
     if unknown:
         raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
+    if opts.get("uncertainty") and not any(issubclass(METHODS[m], MOIRL) for m in config.methods):
+        print(
+            f"note: --uncertainty {opts['uncertainty']} draws weight samples for moirl and maxent fits only; "
+            f"--method {' '.join(config.methods)} has none",
+            file=sys.stderr,
+        )
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
 
     t0 = time.perf_counter()
