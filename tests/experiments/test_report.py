@@ -338,3 +338,8 @@ def test_the_fits_warnings_reach_the_report_notes_with_the_units_they_came_from(
     assert line == f"Fit warnings (also in each model's `info.warnings`): bilevel-P2-s1, bilevel-P4-s1: {budget}."
     quiet, _ = _notes({"x": unit("x", [])}, ProtocolConfig())
     assert not [n for n in quiet if n.startswith("Fit warnings")]
+    # --max-iter is MO-IRL's: a run of baselines alone says how they stop instead
+    (ended,) = [n for n in notes if n.startswith("Fits ended by")]
+    assert f"at most {ProtocolConfig().max_iter} iterations per stage" in ended
+    (baselines,) = [n for n in _notes(results, ProtocolConfig(methods=("bilevel", "kkt")))[0] if "ended by" in n]
+    assert "iterations per stage" not in baselines and "not at --max-iter" in baselines

@@ -229,6 +229,12 @@ def test_a_bar_behind_or_at_the_start_is_refused(arm):
     with pytest.raises(ValueError, match=r"\(P2 at 0\.62, P4 at 0\.64 of the arm's length\).*at least 0\.74"):
         SynthConfig(target_fraction=0.6)
     SynthConfig(target_fraction=0.6, postures=("P1", "P3", "P5"))  # those start far enough back
+    # the bounds synth --help gives: 0.72 or more with P2, 0.74 or more with P4
+    SynthConfig(target_fraction=0.72, postures=("P2",))
+    SynthConfig(target_fraction=0.74, postures=("P4",))
+    for fraction, posture in ((0.71, "P2"), (0.73, "P4")):
+        with pytest.raises(ValueError, match="puts the bar behind"):
+            SynthConfig(target_fraction=fraction, postures=(posture,))
 
 
 def test_the_nearest_bar_allowed_still_makes_a_forward_reach(tmp_path):

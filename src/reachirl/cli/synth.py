@@ -48,7 +48,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=float_in(0.5, 1.0),
         default=0.95,
         help="bar distance as a fraction of arm length (default 0.95, the seed's; Berret used 0.85); at least 0.1 "
-        "beyond every chosen posture's start fingertip, so 0.74 or more with P2 or P4",
+        "beyond every chosen posture's start fingertip, so 0.72 or more with P2 and 0.74 or more with P4",
     )
     p.add_argument("--workers", type=int_in(1, 256), default=2, help="worker processes, 1 to 256 (default 2)")
     return p

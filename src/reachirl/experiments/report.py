@@ -110,6 +110,14 @@ def prediction_note(units) -> str:
     return f"the predictions of {', '.join(seen)} are {OBSERVED}; those of {', '.join(whole)}, {WHOLE}"
 
 
+def _iterates(method: str) -> bool:
+    """Whether ``method``'s fits iterate up to ``max_iter`` per stage (MO-IRL and the estimators built on it)."""
+    from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.moirl import MOIRL
+
+    return method in AVAILABLE and issubclass(AVAILABLE[method], MOIRL)
+
+
 def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
     fit_solves = sum(r["fit"]["doc_solves"] for r in results.values())
     fit_fail = sum(r["fit"]["doc_failures"] for r in results.values())
@@ -127,8 +135,12 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
             f"{k} {v}"
             for k, v in sorted(_count(r["stop_reason"] or "one-shot (no iterations)" for r in results.values()).items())
         )
-        + f" (at most {config.max_iter} iterations per stage; an observed fit's iterations are those of its second"
-        " stage, which starts where its whole-rollout first stage ended: MODEL.json `info.first_stage`).",
+        + (
+            f" (at most {config.max_iter} iterations per stage; an observed fit's iterations are those of its second"
+            " stage, which starts where its whole-rollout first stage ended: MODEL.json `info.first_stage`)."
+            if any(_iterates(m) for m in config.methods)
+            else " (KKT solves once; bilevel stops at its own budget of DOC solves, not at --max-iter)."
+        ),
         "RMSE in degrees, mean ± population SD over trials; "
         + prediction_note([r["unit"] for r in results.values()])
         + ", compared on normalised time.",
