@@ -207,16 +207,17 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
         split_sizes={},
         summary=RunSummary(results, [], list(results), False),
     )
-    return _drawn_whole(
-        out, lambda fig_dir: write_figures(run, tables, ({}, {}, {}), fig_dir=fig_dir, pdf=pdf), pdf, res_path
-    )
+    with _malformed(res_path):
+        return _drawn_whole(
+            out, lambda fig_dir: write_figures(run, tables, ({}, {}, {}), fig_dir=fig_dir, pdf=pdf), pdf
+        )
 
 
 PARTIAL_PREFIX = ".plot-partial-"
 """The folder a run's figures are drawn in before they replace those in --out."""
 
 
-def _drawn_whole(out: Path, draw, pdf: bool, res_path: Path) -> list[Path]:
+def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     """The figures ``draw(folder)`` writes, drawn in a hidden folder of ``out`` and moved into ``out`` only once
     every one is drawn: a figure that fails (a damaged results file) leaves ``out`` as it was, with no mix of new
     and earlier figures. A hidden folder a killed run left is removed first."""
@@ -229,8 +230,7 @@ def _drawn_whole(out: Path, draw, pdf: bool, res_path: Path) -> list[Path]:
         shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
     try:
-        with _malformed(res_path):
-            figs = draw(tmp)
+        figs = draw(tmp)
         names = [f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
         for n in names:
             os.replace(tmp / n, out / n)

@@ -414,6 +414,10 @@ def _check_scheduler(address: str | None) -> None:
         )
 
 
+RUN_FILE_HEADER = "reproduce: the options of this run"
+"""What the first line of a run's own ``run.toml`` says after ``# reachirl VERSION``."""
+
+
 def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     """What writes ``DIR/run.toml``: every option the run uses, so that ``reproduce --config DIR/run.toml`` repeats
     it (called once the units are ready to run, so that a stopped or interrupted run has it too).
@@ -475,7 +479,7 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
         del left_out["subjects"]  # the data's own subjects
     defaults = [f"{k}: {v}" for k, v in left_out.items() if resolved.get(k) is None]
     header = (
-        f"reachirl {__version__} reproduce: the options of this run; repeat it with "
+        f"reachirl {__version__} {RUN_FILE_HEADER}; repeat it with "
         f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`"
         + ("\nleft at their defaults: " + "; ".join(defaults) if defaults else "")
     )
@@ -484,14 +488,13 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
 
 def _is_run_toml(path: Path) -> bool:
     """Whether ``path`` is a run file a ``reproduce`` run wrote into its folder (by its first line)."""
-    import re
-
     try:
         with open(path, encoding="utf-8") as fh:
             first = fh.readline(1000)
     except (OSError, UnicodeDecodeError):
         return False
-    return re.match(r"^# reachirl \S+ reproduce: the options of this run", first) is not None
+    words = first.split(" ", 3)  # "#", "reachirl", the version, the rest
+    return len(words) == 4 and words[:2] == ["#", "reachirl"] and words[3].startswith(RUN_FILE_HEADER)
 
 
 def _is_run_results(path: Path) -> bool:
@@ -589,15 +592,14 @@ def run(args) -> int:
     too_many = [n for n in config.sections if n > config.n_nodes]
     if too_many:
         raise InputError(f"--sections {too_many[0]}: more sections than the DOC's {config.n_nodes} intervals (--nodes)")
-    from ..irl.methods import METHODS
-    from ..irl.moirl import MOIRL
+    from ..irl.methods import METHODS, builds_on_moirl
 
     unknown = [m for m in config.methods if m not in METHODS]
     if unknown:
         raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
-    if opts.get("uncertainty") and not any(issubclass(METHODS[m], MOIRL) for m in config.methods):
+    if opts.get("uncertainty") and not any(builds_on_moirl(m) for m in config.methods):
         print(
             f"note: --uncertainty {opts['uncertainty']} draws weight samples for moirl and maxent fits only; "
             f"--method {' '.join(config.methods)} has none",

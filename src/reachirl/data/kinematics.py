@@ -23,24 +23,12 @@ __all__ = [
     "estimate_lengths",
     "joint_positions",
     "kabsch",
-    "lab_axis",
     "mirror",
     "planar_ik_segments",
     "sagittal_basis",
 ]
 
 log = logging.getLogger(__name__)
-
-
-def lab_axis(spec: str) -> np.ndarray:
-    s = spec.strip().lower()
-    sign = -1.0 if s.startswith("-") else 1.0
-    key = s.lstrip("+-")
-    if key not in ("x", "y", "z"):
-        raise InputError(f"axis must be one of ±x, ±y, ±z, got {spec!r}")
-    v = np.zeros(3)
-    v["xyz".index(key)] = sign
-    return v
 
 
 def kabsch(ref: np.ndarray, cur: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

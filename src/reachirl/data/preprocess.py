@@ -75,12 +75,11 @@ from .kinematics import (
     check_units,
     estimate_lengths,
     joint_positions,
-    lab_axis,
     mirror,
     planar_ik_segments,
     sagittal_basis,
 )
-from .markersets import MarkerSet
+from .markersets import MarkerSet, lab_axis
 from .options import PreprocessOptions
 from .readers import AngleData, MarkerData, SubjectInfo
 from .segmentation import (

@@ -616,8 +616,13 @@ _TIME_ALIASES = ("time", "time_s")  # time_s: reachirl's own exports (reachirl.d
 _Q1_OFFSET_RAD = {"r_shoulder_elev": -np.pi / 2, "l_shoulder_elev": -np.pi / 2}
 
 
+def _angle_name(column: str) -> str:
+    """A column's angle, without its unit suffix: ``demo_q1_deg`` and ``demo_q1_rad`` are ``demo_q1``."""
+    return re.sub(r"_(deg|rad)$", "", column.strip().lower())
+
+
 def _q1_offset(name: str) -> float:
-    return _Q1_OFFSET_RAD.get(re.sub(r"_(deg|rad)$", "", name.strip().lower()), 0.0)
+    return _Q1_OFFSET_RAD.get(_angle_name(name), 0.0)
 
 
 _SIDE_PREFIX = {"right": "r_", "left": "l_"}
@@ -632,15 +637,15 @@ def _find_q_columns(header: list[str], path: Path, line: int, side: str | None =
         raise InputError(f"no 'time' column (columns: {', '.join(header)})", path, f"line {line}")
     idx = []
     for q in ("q1", "q2"):
-        found = [k for k, h in enumerate(low) if re.sub(r"_(deg|rad)$", "", h) in _Q_ALIASES[q]]
+        found = [k for k, h in enumerate(low) if _angle_name(h) in _Q_ALIASES[q]]
         if not found:
             raise InputError(f"no '{q}' column (columns: {', '.join(header)})", path, f"line {line}")
         # one angle in two units (reachirl's exports: demo_q1_rad, demo_q1_deg) is one column; two angles
         # (r_shoulder_elev and l_shoulder_elev: both arms) are not, and the first would be taken silently
-        bases = list(dict.fromkeys(re.sub(r"_(deg|rad)$", "", low[k]) for k in found))
+        bases = list(dict.fromkeys(_angle_name(low[k]) for k in found))
         if len(bases) > 1 and side in _SIDE_PREFIX:  # both arms' columns: the side's
             sided = [k for k in found if low[k].startswith(_SIDE_PREFIX[side])]
-            if len({re.sub(r"_(deg|rad)$", "", low[k]) for k in sided}) == 1:
+            if len({_angle_name(low[k]) for k in sided}) == 1:
                 found, bases = sided, bases[:1]
         if len(bases) > 1:
             names = " and ".join(header[k].strip() for k in found)

@@ -21,7 +21,7 @@ from ..arm import ArmModel
 from ..errors import InputError
 from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
-from ..validation import brief
+from ..validation import brief, not_real
 
 __all__ = [
     "TRIALS_FORMAT",
@@ -191,8 +191,6 @@ class Trial:
 def _floats(name: str, v, where: str) -> np.ndarray:
     """``v`` as an array of floats; anything else (text, ragged rows, complex numbers whose imaginary part a cast
     would drop, booleans) is an :class:`InputError` naming ``name``."""
-    from ..validation import not_real
-
     if (what := not_real(v)) is not None:
         raise InputError(f"{name} must be an array of real numbers, got {what}", where)
     try:

@@ -55,12 +55,11 @@ def _claim(unc: dict) -> dict:
 
 def _no_samples(run) -> str:
     """Why no fit of the run has weight samples, and what to rerun with."""
-    from ..irl.methods import METHODS as AVAILABLE
-    from ..irl.moirl import MOIRL
+    from ..irl.methods import builds_on_moirl
 
     config = getattr(run, "config", None)
     methods = list(getattr(config, "methods", ()) or ())
-    sampled = [m for m in methods if m in AVAILABLE and issubclass(AVAILABLE[m], MOIRL)]
+    sampled = [m for m in methods if builds_on_moirl(m)]
     if methods and not sampled:  # --uncertainty was in force, but only MO-IRL and MaxEnt fits draw samples
         return (
             f"No fit of this run has weight samples: they are drawn for moirl and maxent fits only, and this run's "

@@ -356,11 +356,9 @@ def _method_options(method: str, config: ProtocolConfig) -> tuple:
     """The unit options of ``method``: ``rollout``, ``seed_form``, ``experimental`` and ``uncertainty`` for MO-IRL
     and the estimators built on it (MaxEnt); bilevel and KKT fit whole reaches with their own defaults. Sorted
     ``(key, value)`` pairs, ``experimental`` as sorted pairs too (hashable)."""
-    from ..irl.methods import METHODS as AVAILABLE
-    from ..irl.moirl import MOIRL
+    from ..irl.methods import builds_on_moirl
 
-    cls = AVAILABLE.get(method)
-    if cls is None or not issubclass(cls, MOIRL):
+    if not builds_on_moirl(method):
         return ()
     opts = {
         "rollout": config.rollout,

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text
+from ..irl.methods import builds_on_moirl
 from ..irl.model import MODEL_FORMAT
 from ..irl.provenance import versions
 from . import tables as tb
@@ -110,14 +111,6 @@ def prediction_note(units) -> str:
     return f"the predictions of {', '.join(seen)} are {OBSERVED}; those of {', '.join(whole)}, {WHOLE}"
 
 
-def _iterates(method: str) -> bool:
-    """Whether ``method``'s fits iterate up to ``max_iter`` per stage (MO-IRL and the estimators built on it)."""
-    from ..irl.methods import METHODS as AVAILABLE
-    from ..irl.moirl import MOIRL
-
-    return method in AVAILABLE and issubclass(AVAILABLE[method], MOIRL)
-
-
 def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str], dict]:
     fit_solves = sum(r["fit"]["doc_solves"] for r in results.values())
     fit_fail = sum(r["fit"]["doc_failures"] for r in results.values())
@@ -138,7 +131,7 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
         + (
             f" (at most {config.max_iter} iterations per stage; an observed fit's iterations are those of its second"
             " stage, which starts where its whole-rollout first stage ended: MODEL.json `info.first_stage`)."
-            if any(_iterates(m) for m in config.methods)
+            if any(builds_on_moirl(m) for m in config.methods)
             else " (KKT solves once; bilevel stops at its own budget of DOC solves, not at --max-iter)."
         ),
         "RMSE in degrees, mean ± population SD over trials; "

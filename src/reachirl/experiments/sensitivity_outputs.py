@@ -148,12 +148,7 @@ def _markdown(out: dict) -> list[str]:
             "Δ ISCV (deg) [95 % CI] | verdict |",
             "|---|---|---|---|---|---|",
         ]
-        for r in occ:
-            lines.append(
-                f"| {r['feature']} | {_share(r)} | "
-                + " | ".join(_ci(r, s) for s in SETS)
-                + f" | {r['verdict']}{_postures_verdicts(rows, r)} |"
-            )
+        lines += [f"| {r['feature']} | {_share(r)} | {_verdict_cells(rows, r)}" for r in occ]
         lines.append("")
     fr = [r for r in rows if r["posture"] == post and r["analysis"] == "freeze_window"]
     if fr:
@@ -163,12 +158,7 @@ def _markdown(out: dict) -> list[str]:
             "| window | Δ training (deg) [95 % CI] | Δ CV (deg) [95 % CI] | Δ ISCV (deg) [95 % CI] | verdict |",
             "|---|---|---|---|---|",
         ]
-        for r in fr:
-            lines.append(
-                f"| {r['window']} | "
-                + " | ".join(_ci(r, s) for s in SETS)
-                + f" | {r['verdict']}{_postures_verdicts(rows, r)} |"
-            )
+        lines += [f"| {r['window']} | {_verdict_cells(rows, r)}" for r in fr]
         lines.append("")
     sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
     if sens:
@@ -200,6 +190,12 @@ def _markdown(out: dict) -> list[str]:
         )
     lines.append("")
     return lines
+
+
+def _verdict_cells(rows: Sequence[dict], row: dict) -> str:
+    """A refit's last cells in the report: its paired Δ with the 95 % interval per set, then its verdict (for
+    ``ALL``, followed by the postures' own)."""
+    return " | ".join(_ci(row, s) for s in SETS) + f" | {row['verdict']}{_postures_verdicts(rows, row)} |"
 
 
 def _postures_verdicts(rows: Sequence[dict], row: dict) -> str:

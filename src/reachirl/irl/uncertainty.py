@@ -256,11 +256,11 @@ def weight_uncertainty(
     shares = cost_shares(draw(n_interval), phi)
     point = cost_shares(est.weights_, phi)  # the fit's own shares: the ones reported and drawn
     pooling = None
-    task_of = _task_names(trials)
+    task_of = np.array(_task_names(trials))
     if len(set(task_of)) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
         pooling = {"pooled": _width_record(det, share_intervals(shares, point)), "per_task": {}}
-        for task_trials in dict.fromkeys(task_of):
-            rows = np.array([name == task_trials for name in task_of])
+        for task_trials in dict.fromkeys(task_of.tolist()):
+            rows = task_of == task_trials
             det_g = determination(r[rows], J[rows], free)
             mean_g, cov_g, _ = laplace_posterior(r[rows], J[rows], eta_hat[cols], eta_prior[cols])
             Lg = np.linalg.cholesky(cov_g + 1e-12 * np.eye(cov_g.shape[0]))

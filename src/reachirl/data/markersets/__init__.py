@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from ...errors import InputError
 
 __all__ = [
@@ -27,6 +29,7 @@ __all__ = [
     "JointSpec",
     "MarkerSet",
     "available",
+    "lab_axis",
     "load_markerset",
     "parse_marker_map",
     "resolve_name",
@@ -98,6 +101,18 @@ def resolve_name(name: str, available_names: Iterable[str]) -> str | None:
     return low[0] if len(low) == 1 else None
 
 
+def lab_axis(spec: str) -> np.ndarray:
+    """The unit vector of a lab axis ``±x``, ``±y`` or ``±z`` (a marker set's ``up``, ``--up-axis``)."""
+    s = spec.strip().lower()
+    sign = -1.0 if s.startswith("-") else 1.0
+    key = s.lstrip("+-")
+    if key not in ("x", "y", "z"):
+        raise InputError(f"axis must be one of ±x, ±y, ±z, got {spec!r}")
+    v = np.zeros(3)
+    v["xyz".index(key)] = sign
+    return v
+
+
 def _names(value, where: str, origin: str) -> tuple[str, ...]:
     """A marker set's list of marker names at ``where``, each a non-empty string."""
     if not (isinstance(value, list) and all(isinstance(n, str) and n.strip() for n in value)):
@@ -144,8 +159,11 @@ def _from_dict(d: Mapping, origin: str) -> MarkerSet:
         if d.get(key) is not None and not isinstance(d[key], str):
             raise InputError(f"marker set: '{key}' must be a string, found {_brief(d[key])}", origin)
     up = d.get("up")
-    if up is not None and up.strip().lower().lstrip("+-") not in ("x", "y", "z"):
-        raise InputError(f"marker set: 'up' must be one of ±x, ±y, ±z, found {up!r}", origin)
+    if up is not None:
+        try:
+            lab_axis(up)
+        except InputError:
+            raise InputError(f"marker set: 'up' must be one of ±x, ±y, ±z, found {up!r}", origin) from None
     static = d.get("static")
     if static is not None:
         try:
