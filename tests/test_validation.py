@@ -11,17 +11,21 @@ import sys
 import time
 import zipfile
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from reachirl import ReachingTask, solve_doc
+from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.data.readers import AngleData, read_c3d
 from reachirl.data.trial import load_trials, save_trials, trial_from_solution
+from reachirl.doc import check_weights
 from reachirl.errors import InputError
+from reachirl.experiments.protocol import ProtocolConfig
 from reachirl.io import read_json, read_text
 from reachirl.irl.model import LearnedModel, load_model, save_model
+from reachirl.irl.options import resolve_options
 from reachirl.validation import check_output_dir, check_output_file
 
 REACHIRL = str(Path(sys.executable).with_name("reachirl"))
@@ -217,6 +221,99 @@ def test_a_trial_of_complex_or_boolean_arrays_names_the_field(files, field, chan
         replace(trial, **{field: change(getattr(trial, field))})
 
 
+_ROW = [0.1] * 6
+#: each door a list of numbers (or a number) comes through, given a boolean where a number belongs: how to build
+#: it from a trial ``tr``, the exception type and what it must say
+BOOLEAN_CASES = [
+    pytest.param(
+        lambda tr: LearnedModel(weights=[[True, *_ROW]], n_nodes=20),
+        ValueError,
+        r"^weights must be real numbers, got a boolean \(true\) among the numbers, at \[0\]\[0\]$",
+        id="model weights",
+    ),
+    pytest.param(
+        lambda tr: check_weights([[*_ROW, 0.1], [*_ROW, False]]),
+        ValueError,
+        r"^weights must be real numbers, got a boolean \(false\) among the numbers, at \[1\]\[6\]$",
+        id="doc weights",
+    ),
+    pytest.param(
+        lambda tr: replace(tr, q=[list(r) for r in tr.q[:-1]] + [[tr.q[-1][0], True]]),
+        InputError,
+        r"^trial S1/P2/0: q must be an array of real numbers, got a boolean \(true\) among the numbers, at "
+        r"\[\d+\]\[1\]$",
+        id="trial q",
+    ),
+    pytest.param(
+        lambda tr: ReachingTask(tr.arm, [True, 1.5], 0.5, 0.7),
+        ValueError,
+        r"^q0 must be 2 real numbers, got a boolean \(true\) among the numbers, at \[0\]$",
+        id="task q0",
+    ),
+    pytest.param(
+        lambda tr: ReachingTask(tr.arm, [0.0, 1.5], 0.5, True),
+        ValueError,
+        r"^duration must be a number \(s\)",
+        id="task duration",
+    ),
+    pytest.param(
+        lambda tr: replace(tr, target_x=True),
+        InputError,
+        r"target_x must be a number \(m\), got True$",
+        id="trial target_x",
+    ),
+    pytest.param(
+        lambda tr: ArmModel(**{**tr.arm.to_dict(), "m1": True}),
+        ValueError,
+        r"ArmModel\.m1 must be a number",
+        id="arm field",
+    ),
+    pytest.param(
+        lambda tr: resolve_options(experimental={"frozen_windows": [True, 0]}),
+        ValueError,
+        r"^frozen_windows must be a list of window indices \(integers\), got a boolean \(true\) among the "
+        r"numbers, at \[0\]$",
+        id="frozen_windows bool",
+    ),
+    pytest.param(
+        lambda tr: resolve_options(experimental={"frozen_windows": [0.5]}),
+        ValueError,
+        r"frozen_windows must be a list of window indices \(integers\), got \[0\.5\]$",
+        id="frozen_windows fraction",
+    ),
+    pytest.param(
+        lambda tr: resolve_options(experimental={"beta": True}), ValueError, r"^beta must be >= 0, got True$", id="beta"
+    ),
+    pytest.param(
+        lambda tr: resolve_options(experimental={"max_tries": True}),
+        ValueError,
+        r"^max_tries must be an integer",
+        id="max_tries",
+    ),
+    pytest.param(
+        lambda tr: ProtocolConfig(sections=(True, 6)),
+        InputError,
+        r"^--sections must be positive integers, got a boolean \(true\) among the numbers, at \[0\]$",
+        id="protocol sections",
+    ),
+    pytest.param(
+        lambda tr: ProtocolConfig(n_train=True),
+        InputError,
+        r"^n_train must be a number, got True$",
+        id="protocol n_train",
+    ),
+]
+
+
+@pytest.mark.parametrize(("build", "kind", "match"), BOOLEAN_CASES)
+def test_a_boolean_is_never_read_as_a_number(files, build, kind, match):
+    # [[true, 0.1, ...]] of a JSON or TOML file is a Python list mixing bool and float, which np.asarray casts to
+    # [[1.0, 0.1, ...]] (only arrays of booleans were refused); frozen_windows = [true] froze window 1
+    trial = load_trials(files / "trials.npz")[0]
+    with pytest.raises(kind, match=match):
+        build(trial)
+
+
 @pytest.mark.parametrize(
     ("change", "match"),
     [
@@ -259,6 +356,8 @@ def test_a_duration_outside_a_reach_is_refused(files):
         ),
         ({"weights": [[1] * 7, [1]]}, r"field 'weights', row 1: expected 7 numbers, found \[1\]"),
         ({"info": [1]}, r"field 'info': expected an object"),
+        ({"weights": [[True] + [0.1] * 6]}, r"field 'weights', row 0: expected 7 numbers, found \[True, 0\.1"),
+        ({"weights": [[0.1] * 7], "n_windows": True}, r"field 'n_windows' = True but 'weights' has 1 rows"),
     ],
 )
 def test_model_fields_are_checked(files, change, match):

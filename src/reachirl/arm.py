@@ -18,6 +18,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .validation import number
+
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DUMAS_2007", "ArmModel", "sex_key"]
 
 #: the joints' range of motion (rad), (q1, q2): the shoulder from full extension behind the body to well overhead
@@ -82,7 +84,7 @@ class ArmModel:
         for f in fields(self):
             v = getattr(self, f.name)
             try:
-                v = float(v)
+                v = number(v)
             except (TypeError, ValueError):
                 raise ValueError(f"ArmModel.{f.name} must be a number, got {v!r}") from None
             if not np.isfinite(v):

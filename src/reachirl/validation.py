@@ -40,6 +40,8 @@ __all__ = [
     "check_npz_file",
     "check_output_dir",
     "check_output_file",
+    "not_real",
+    "number",
     "require",
 ]
 
@@ -76,10 +78,19 @@ def brief(v) -> str:
     return f"{float(v):.6g}"
 
 
+def number(v) -> float:
+    """``float(v)``, but a boolean (``true`` of a JSON or TOML file) is a ``TypeError``, not 1.0."""
+    if isinstance(v, bool | np.bool_):
+        raise TypeError(f"expected a number, got a boolean ({v!r})")
+    return float(v)
+
+
 def not_real(v) -> str | None:
     """What makes ``v`` no array of real numbers although a cast to float would take it: complex numbers (the cast
-    drops their imaginary part, numpy only warns) or booleans (read as 0 and 1); ``None`` otherwise (text and
-    ragged rows are the cast's own to refuse)."""
+    drops their imaginary part, numpy only warns) or booleans (read as 0 and 1), an array of them or one among
+    the numbers of a list (``[[true, 0.1]]`` of a JSON or TOML file casts to ``[[1.0, 0.1]]``); ``None`` otherwise
+    (text and ragged rows are the cast's own to refuse). The check of every numeric list read from a file or
+    given to an API."""
     try:
         kind = np.asarray(v).dtype
     except (TypeError, ValueError):
@@ -88,7 +99,23 @@ def not_real(v) -> str | None:
         return f"complex numbers (dtype {kind})"
     if kind.kind == "b":
         return f"booleans (dtype {kind})"
+    hit = _boolean_item(v)
+    if hit is not None:
+        value, index = hit
+        return f"a boolean ({str(value).lower()}) among the numbers, at {''.join(f'[{i}]' for i in index)}"
     return None
+
+
+def _boolean_item(v) -> tuple[bool, tuple[int, ...]] | None:
+    """The first boolean among the items of ``v``, nested lists and tuples (or an object array) that cast to an
+    array, with its index; ``None`` when there is none. An array of numbers holds none (its dtype says so)."""
+    if not (isinstance(v, list | tuple) or (isinstance(v, np.ndarray) and v.dtype == object)):
+        return None
+    items = np.asarray(v, dtype=object)
+    if not {bool, np.bool_} & set(map(type, items.flat)):  # a million numbers in 50 ms
+        return None
+    k = next(k for k, x in enumerate(items.flat) if isinstance(x, bool | np.bool_))
+    return bool(items.flat[k]), tuple(int(i) for i in np.unravel_index(k, items.shape))
 
 
 def check_n_nodes(n, where: object | None = None, name: str = "n_nodes") -> int:
@@ -104,7 +131,7 @@ def check_n_nodes(n, where: object | None = None, name: str = "n_nodes") -> int:
 def check_duration(duration, where: object | None = None) -> float:
     lo, hi = DURATION_RANGE
     try:
-        d = float(duration)
+        d = number(duration)
     except (TypeError, ValueError):
         raise InputError(
             f"duration must be a number of seconds in [{lo}, {hi}], got {brief(duration)}", where

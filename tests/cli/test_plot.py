@@ -268,6 +268,13 @@ def _protocol(d, key, value):
         (lambda d: d.update(units={"a": 1}), r"field 'units': expected a list of objects"),
         (lambda d: d["units"][0].pop("sets"), r"malformed results file \(KeyError: 'sets'\)"),
         (lambda d: d["units"][0].update(history=5), r"malformed results file \(TypeError: "),
+        # a boolean among the weights was drawn as 1, "n_train": true read as 1 trial
+        (
+            lambda d: d["units"][0]["weights"][0].__setitem__(2, True),
+            r"field 'units', unit 0 \(.+\), 'weights': expected numbers, found a boolean \(true\) among the numbers, "
+            r"at \[0\]\[2\]$",
+        ),
+        (lambda d: _protocol(d, "n_train", True), r"field 'protocol': n_train must be a number, got True$"),
     ],
 )
 def test_plot_of_a_run_with_a_damaged_results_file_names_it(run_folder, tmp_path, capsys, change, match):

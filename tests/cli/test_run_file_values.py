@@ -20,6 +20,13 @@ def _run_file(tmp_path, text: str):
         ("frozen_windows = [7]", "frozen_windows [7] must be windows 0 to 1"),
         ("warm_newton = 1", "warm_newton must be True or False, got 1"),
         ("armijo_c1 = 2.0", "need 0 < armijo_c1 < curvature_c2 < 1"),
+        # read as [1, 0] (freezing every window) before booleans among numbers were refused
+        (
+            "frozen_windows = [true, 0]",
+            "frozen_windows must be a list of window indices (integers), got a boolean (true) among the numbers, at "
+            "[0]",
+        ),
+        ("max_tries = true", "max_tries must be an integer >= 1, got True"),
     ],
 )
 def test_fit_refuses_a_bad_experimental_value_naming_the_run_file(tiny_trials, tmp_path, capsys, table, match):
@@ -39,6 +46,10 @@ def test_fit_refuses_a_bad_experimental_value_naming_the_run_file(tiny_trials, t
         ('rollout = "sideways"', "rollout must be one of"),
         ("methods = []", "methods: "),
         ("[experimental]\nfrozen_windows = [0]", "freezes all 1 window"),
+        (
+            "[experimental]\nfrozen_windows = [false]",
+            "frozen_windows must be a list of window indices (integers), got booleans",
+        ),
     ],
 )
 def test_reproduce_names_the_run_file_a_bad_value_came_from(tmp_path, capsys, text, match):

@@ -21,7 +21,7 @@ from ..arm import ArmModel
 from ..errors import InputError
 from ..features import euler_knots
 from ..io import atomic_write_bytes, npz_bytes
-from ..validation import brief, not_real
+from ..validation import brief, not_real, number
 
 __all__ = [
     "TRIALS_FORMAT",
@@ -91,7 +91,7 @@ class Trial:
         if not isinstance(self.arm, ArmModel):
             raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)
         try:
-            target_x = float(self.target_x)
+            target_x = number(self.target_x)
         except (TypeError, ValueError):
             raise InputError(f"target_x must be a number (m), got {brief(self.target_x)}", where) from None
         if not np.isfinite(target_x) or abs(target_x) > self.arm.length:

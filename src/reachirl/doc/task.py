@@ -24,7 +24,7 @@ import numpy as np
 
 from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, ArmModel
 from ..features import euler_knots
-from ..validation import brief, check_arm, check_duration, check_n_nodes, not_real
+from ..validation import brief, check_arm, check_duration, check_n_nodes, not_real, number
 
 __all__ = [
     "DEFAULT_QD_MAX",
@@ -75,7 +75,7 @@ class ReachingTask:
             object.__setattr__(self, name, _vec2(name, getattr(self, name)))
         for name, unit in (("target_x", "m"), ("duration", "s")):
             try:
-                object.__setattr__(self, name, float(getattr(self, name)))
+                object.__setattr__(self, name, number(getattr(self, name)))
             except (TypeError, ValueError):
                 raise ValueError(f"{name} must be a number ({unit}), got {brief(getattr(self, name))}") from None
         if not np.isfinite(self.target_x):

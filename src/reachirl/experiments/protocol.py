@@ -33,6 +33,7 @@ import numpy as np
 from ..data.trial import Trial
 from ..errors import InputError
 from ..features import cost_shares
+from ..validation import not_real
 from .datasets import fingerprint
 
 __all__ = [
@@ -79,6 +80,11 @@ class ProtocolConfig:
     posture_transfer: bool = False  # also learn on every posture but one and predict the held-out one
 
     def __post_init__(self) -> None:
+        if (what := not_real(list(self.sections))) is not None:
+            raise InputError(f"--sections must be positive integers, got {what}")
+        for name in ("seed", "n_train", "n_cv", "n_iscv", "n_nodes", "max_iter", "tol", "uncertainty"):
+            if isinstance(getattr(self, name), bool | np.bool_):  # a results.json's "n_train": true is not 1
+                raise InputError(f"{name} must be a number, got {getattr(self, name)!r}")
         secs = tuple(int(s) for s in self.sections)
         if not secs or any(s < 1 for s in secs):
             raise InputError(f"--sections must be positive integers, got {list(self.sections)}")

@@ -186,7 +186,7 @@ def check_results_file(d, path) -> None:
     on: ``data`` and ``protocol`` objects, the protocol's lists, and ``units`` a list of objects with a ``key`` and
     a ``unit`` naming its ``posture``. A damaged or hand-edited file is an :class:`InputError` naming the file and
     the field."""
-    from ..validation import brief
+    from ..validation import brief, not_real
 
     for key in ("data", "protocol"):
         if d.get(key) is not None and not isinstance(d[key], dict):
@@ -207,6 +207,10 @@ def check_results_file(d, path) -> None:
         raise InputError(
             f"field 'units'{where}: expected a list of objects with a 'key' and a 'unit' with its 'posture'", path
         )
+    for i, u in enumerate(units):  # the matrices plot draws: a boolean among them is no weight or share
+        for key in ("weights", "cost_shares"):
+            if (what := not_real(u.get(key))) is not None:
+                raise InputError(f"field 'units', unit {i} ({u['key']}), '{key}': expected numbers, found {what}", path)
     for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
         v = proto.get(key)
         if v is not None and not (

@@ -201,7 +201,7 @@ def check_model_dict(d, path) -> None:
     require(len(w) <= n_nodes, f"field 'weights': {len(w)} windows do not fit in n_nodes = {n_nodes} intervals", path)
     if "n_windows" in d:
         require(
-            d["n_windows"] == len(w),
+            d["n_windows"] == len(w) and not isinstance(d["n_windows"], bool),
             f"field 'n_windows' = {brief(d['n_windows'])} but 'weights' has {len(w)} rows",
             path,
         )

@@ -10,11 +10,13 @@ the measurements behind the variants that stay off.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 import numpy as np
+
+from ..validation import not_real
 
 __all__ = ["ROLLOUTS", "SEED_FORM", "Options", "departures", "resolve_options"]
 
@@ -78,7 +80,7 @@ class Options:
     warm_newton: bool = False
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "frozen_windows", tuple(int(k) for k in self.frozen_windows))
+        object.__setattr__(self, "frozen_windows", _window_indices(self.frozen_windows))
         _check(self)
 
     def to_dict(self) -> dict[str, Any]:
@@ -194,7 +196,7 @@ def _check(o: Options) -> None:
         "acceptance='multimodal' compares whole rollouts' torques: not with observe=True",
     )
     need(
-        o.memory is None or (isinstance(o.memory, int) and o.memory >= 1),
+        o.memory is None or (_integer(o.memory) and o.memory >= 1),
         f"memory must be >= 1 or None, got {o.memory}",
     )
     need(_finite(o.shrink) and 0 < o.shrink < 1, f"shrink must be in (0, 1), got {o.shrink}")
@@ -202,7 +204,7 @@ def _check(o: Options) -> None:
         _finite(o.armijo_c1) and _finite(o.curvature_c2) and 0 < o.armijo_c1 < o.curvature_c2 < 1,
         f"need 0 < armijo_c1 < curvature_c2 < 1 (Wolfe conditions), got {o.armijo_c1} and {o.curvature_c2}",
     )
-    need(isinstance(o.max_tries, int) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
+    need(_integer(o.max_tries) and o.max_tries >= 1, f"max_tries must be an integer >= 1, got {o.max_tries}")
     need(_finite(o.w0) and o.w0 > 0, f"need w0 > 0 (weights stay > 0), got {o.w0}")
     need(_finite(o.alpha0) and 0 < o.alpha0 <= 1, f"need 0 < alpha0 <= 1, got {o.alpha0}")
     need(_finite(o.beta) and o.beta >= 0, f"beta must be >= 0, got {o.beta}")
@@ -217,17 +219,37 @@ def _check(o: Options) -> None:
             _finite(o.smoothness) and o.smoothness >= 0,
             f"smoothness must be a number >= 0 or 'cv', got {o.smoothness!r}",
         )
-    need(isinstance(o.cv_folds, int) and o.cv_folds >= 2, f"cv_folds must be >= 2 (an integer), got {o.cv_folds}")
+    need(_integer(o.cv_folds) and o.cv_folds >= 2, f"cv_folds must be >= 2 (an integer), got {o.cv_folds}")
     need(
         o.feature_cutoff is None or (_finite(o.feature_cutoff) and o.feature_cutoff > 0),
         f"feature_cutoff must be a frequency > 0 (Hz) or None, got {o.feature_cutoff}",
     )
-    need(isinstance(o.n_suffixes, int) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")
+    need(_integer(o.n_suffixes) and o.n_suffixes >= 0, f"n_suffixes must be an integer >= 0, got {o.n_suffixes}")
     need(_finite(o.l1) and o.l1 >= 0, f"l1 must be >= 0, got {o.l1}")
     need(isinstance(o.use_gamma, bool), f"use_gamma must be True or False, got {o.use_gamma!r}")
 
 
+def _window_indices(v) -> tuple[int, ...]:
+    """``frozen_windows`` as a tuple of ints: a boolean (``[true, 1]`` of a run file) or a fraction among them is
+    refused, not cast to 1 or truncated."""
+    ks = [k.item() if isinstance(k, np.generic) else k for k in v] if isinstance(v, Iterable | np.ndarray) else v
+    what = repr(v) if isinstance(v, str) or ks is v else not_real(ks)
+    if what is None and not all(_integer(k) for k in ks):
+        what = repr(ks)
+    if what is not None:
+        raise ValueError(f"frozen_windows must be a list of window indices (integers), got {what}")
+    return tuple(ks)
+
+
+def _integer(x) -> bool:
+    """An int (a boolean is none)."""
+    return isinstance(x, int | np.integer) and not isinstance(x, bool)
+
+
 def _finite(x) -> bool:
+    """A finite real number (a boolean is none: ``beta = true`` is no weight)."""
+    if isinstance(x, bool | np.bool_):
+        return False
     try:
         return bool(np.isfinite(float(x)))
     except (TypeError, ValueError):
