@@ -318,6 +318,42 @@ def test_preprocess_out_never_replaces_an_npz_that_is_not_a_trials_file(base, tm
     assert len(load_trials(own)) == 1
 
 
+def _npz_with_header(path: Path, header: dict) -> Path:
+    np.savez(path, **{"meta.json": np.frombuffer(json.dumps(header).encode(), dtype=np.uint8), "0/t": np.arange(5.0)})
+    return path
+
+
+@pytest.mark.parametrize("fmt", ["reachirl-trials-cache/1", "reachirl-trials/1.5", "other-tool/1", 1])
+def test_preprocess_out_refuses_an_npz_whose_header_is_not_a_trials_files(base, tmp_path, capsys, fmt):
+    existing = _npz_with_header(tmp_path / "data.npz", {"format": fmt, "trials": []})
+    before = _digest(existing)
+    recording = sorted((base / "syn").glob("*.trc"))[0]
+    argv = ["preprocess", recording, "--markers", MARKERS, "--out", existing]
+    _fails(argv, capsys, r"data\.npz: --out: exists and is not a reachirl trials file \(an earlier output")
+    assert _digest(existing) == before
+
+
+def test_preprocess_out_replaces_a_trials_file_of_another_format_version(base, tmp_path, capsys, monkeypatch):
+    """A trials file that an older (or newer) reachirl wrote is preprocess's own output too: it is replaced, not
+    refused as if it were another program's NPZ (it was, since only the current format's header was recognised)."""
+    import reachirl.data.trial as trial_module
+
+    older, trials = tmp_path / "older.npz", load_trials(base / "trials.npz")[:2]
+    with monkeypatch.context() as m:  # what a reachirl of format version 0 wrote
+        m.setattr(trial_module, "TRIALS_FORMAT", "reachirl-trials/0")
+        save_trials(older, trials)
+    with pytest.raises(InputError, match=r"unsupported format 'reachirl-trials/0', .*run `reachirl preprocess` again"):
+        load_trials(older)
+    recording = sorted((base / "syn").glob("*.trc"))[0]
+    assert main(["preprocess", str(recording), "--markers", MARKERS, "--out", str(older)]) == 0
+    assert len(load_trials(older)) == 1
+    # and a reachirl of the next format version replaces a file of this one
+    current = save_trials(tmp_path / "current.npz", trials)
+    monkeypatch.setattr(trial_module, "TRIALS_FORMAT", "reachirl-trials/2")
+    assert main(["preprocess", str(recording), "--markers", MARKERS, "--out", str(current)]) == 0
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize("command", ["fit", "evaluate", "simulate"])
 def test_out_replaces_the_commands_own_earlier_output(base, tmp_path, command):
     out = tmp_path / f"{command}.json"

@@ -270,10 +270,11 @@ JSON_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
 
 
 def _trials_header(d: object) -> bool:
-    from ..data.trial import TRIALS_FORMAT
+    from ..data.trial import is_trials_header
 
-    return isinstance(d, dict) and d.get("format") == TRIALS_FORMAT
+    return is_trials_header(d)
 
 
-#: the trials file ``preprocess`` may replace (its own earlier output), recognised by its ``meta.json`` header
+#: the trials file ``preprocess`` may replace (its own earlier output, of this reachirl or an older one),
+#: recognised by its ``meta.json`` header
 TRIALS_KIND: tuple[str, Callable[[object], bool]] = ("reachirl trials file", _trials_header)

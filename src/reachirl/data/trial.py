@@ -7,6 +7,7 @@ the scalar fields and each trial's :class:`~reachirl.arm.ArmModel`. It never hol
 from __future__ import annotations
 
 import json
+import re
 import zipfile
 import zlib
 from collections.abc import Sequence
@@ -26,6 +27,7 @@ from ..validation import brief, not_real, number
 __all__ = [
     "TRIALS_FORMAT",
     "Trial",
+    "is_trials_header",
     "load_trials",
     "save_trials",
     "select_trials",
@@ -34,6 +36,8 @@ __all__ = [
 ]
 
 TRIALS_FORMAT = "reachirl-trials/1"
+#: the ``format`` of a trials file's header in every version of it, :data:`TRIALS_FORMAT` and those before and after
+_ANY_TRIALS_FORMAT = re.compile(r"reachirl-trials/[0-9]+")
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
 
 
@@ -200,6 +204,14 @@ def _floats(name: str, v, where: str) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------- file format
+def is_trials_header(header) -> bool:
+    """Whether ``header`` (a parsed ``meta.json`` entry) is a reachirl trials file's, of this version of the format
+    or another (``reachirl-trials/<N>``: a file an older reachirl wrote is one, though :func:`load_trials` reads
+    only :data:`TRIALS_FORMAT`)."""
+    fmt = header.get("format") if isinstance(header, dict) else None
+    return isinstance(fmt, str) and _ANY_TRIALS_FORMAT.fullmatch(fmt) is not None
+
+
 def save_trials(path: str | Path, trials: Sequence[Trial]) -> Path:
     """Write trials to ``path`` exactly (one NPZ), atomically. What :func:`load_trials` would refuse is refused
     here (:class:`InputError` naming the trial), so that a file saved is a file that loads."""
@@ -254,7 +266,8 @@ def load_trials(path: str | Path) -> list[Trial]:
             header = json.loads(bytes(z["meta.json"]).decode("utf-8"))
             if not isinstance(header, dict) or header.get("format") != TRIALS_FORMAT:
                 found = header.get("format") if isinstance(header, dict) else type(header).__name__
-                raise InputError(f"unsupported format {found!r}, expected {TRIALS_FORMAT!r}", path)
+                again = "; run `reachirl preprocess` again to rewrite it" if is_trials_header(header) else ""
+                raise InputError(f"unsupported format {found!r}, expected {TRIALS_FORMAT!r}{again}", path)
             if not isinstance(header.get("trials"), list):
                 raise InputError("meta.json: field 'trials' must be a list", path)
             declared = header.get("n_trials", len(header["trials"]))
