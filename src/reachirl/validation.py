@@ -217,9 +217,10 @@ def check_output_kind(
 ) -> None:
     """Before any work (once the inputs are known not to be ``path``): a file already at ``path`` is of the kind
     the command writes (``suffix``, e.g. ``".json"``; with ``kind = (name, recognises)``, a JSON file whose content
-    ``recognises`` accepts, or for ``".npz"`` an NPZ whose ``meta.json`` entry it accepts): a command replaces its
-    own earlier output, never a file of another kind given by mistake (a trials file, a model, another command's
-    JSON, another program's NPZ, a file of the user's own)."""
+    ``recognises`` accepts, for ``".npz"`` an NPZ whose ``meta.json`` entry it accepts, for any other suffix a
+    file whose first :data:`HEAD_BYTES` bytes it accepts, e.g. a GIF's magic): a command replaces its own earlier
+    output, never a file of another kind given by mistake (a trials file, a model, another command's JSON, another
+    program's NPZ, a file of the user's own)."""
     if path is None:
         return
     p = Path(path)
@@ -230,9 +231,13 @@ def check_output_kind(
     if kind is not None:
         name, recognises = kind
         try:
-            if p.stat().st_size > MAX_FILE_BYTES:
+            if suffix not in (".npz", ".json"):
+                with open(p, "rb") as fh:
+                    content = fh.read(HEAD_BYTES)
+            elif p.stat().st_size > MAX_FILE_BYTES:
                 raise ValueError
-            content = _npz_meta(p) if suffix == ".npz" else json.loads(p.read_text(encoding="utf-8"))
+            else:
+                content = _npz_meta(p) if suffix == ".npz" else json.loads(p.read_text(encoding="utf-8"))
             ok = recognises(content)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error):
             ok = False
@@ -242,6 +247,10 @@ def check_output_kind(
                 "(choose another path, or remove it first)",
                 p,
             )
+
+
+#: how much of an existing output :func:`check_output_kind` reads to recognise a binary file by its magic bytes
+HEAD_BYTES = 64
 
 
 def _npz_meta(path: Path):

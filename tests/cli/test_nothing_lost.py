@@ -9,6 +9,7 @@ import hashlib
 import io
 import json
 import os
+import re
 import shutil
 import signal
 import zipfile
@@ -126,6 +127,88 @@ def test_simulate_refuses_one_file_for_its_two_outputs(base, tmp_path, capsys):
     argv = ["simulate", "--model", base / "model.json", base / "trials.npz", "--out", out, "--render", out]
     _fails(argv, capsys, r"r\.gif: --render and --out are the same file; give each its own$")
     assert not out.exists()
+
+
+def _small_frames(monkeypatch) -> None:
+    """simulate renders 3 frames of 16 × 16 pixels (MuJoCo's offscreen renderer is not needed)."""
+    import reachirl.sim.simulate as sim
+
+    frames = [np.full((16, 16, 3), 40 * k, dtype=np.uint8) for k in range(3)]
+    monkeypatch.setattr(sim, "render_frames", lambda clips, **kw: list(frames))
+
+
+def _animation(path: Path, suffix: str) -> Path:
+    """A GIF or an MP4 of the user's own (or an earlier render) at ``path``."""
+    import imageio.v3 as iio
+
+    frames = np.stack([np.full((16, 16, 3), v, dtype=np.uint8) for v in (0, 200)])
+    if suffix == ".gif":
+        iio.imwrite(path, frames, duration=[100, 100], loop=0)
+    else:
+        iio.imwrite(path, frames, plugin="FFMPEG", fps=10, codec="libx264", macro_block_size=1)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "what"),
+    [
+        pytest.param("notes.gif", b"my notes, named .gif by mistake", "GIF animation", id="text"),
+        pytest.param("clip.gif", b"\x89PNG\r\n\x1a\n" + bytes(64), "GIF animation", id="png"),
+        pytest.param("clip.mp4", b"GIF89a" + bytes(64), "MP4 video", id="gif-named-mp4"),
+        pytest.param("clip.mp4", b"", "MP4 video", id="empty"),
+    ],
+)
+def test_simulate_render_never_replaces_a_file_that_is_not_an_animation(base, tmp_path, capsys, name, content, what):
+    """--render replaced whatever was at its path: a file of the user's own that is not the GIF or MP4 its name
+    says is refused before any work and left as it was."""
+    existing = tmp_path / name
+    existing.write_bytes(content)
+    argv = ["simulate", "--model", base / "model.json", base / "trials.npz", "--render", existing]
+    _fails(
+        argv,
+        capsys,
+        rf"{re.escape(name)}: --render: exists and is not a {what} \(an earlier output of this command\); it would be "
+        r"replaced \(choose another path, or remove it first\)$",
+    )
+    assert existing.read_bytes() == content
+
+
+@pytest.mark.parametrize("which", ["trials", "model"])
+def test_simulate_render_is_never_an_input(base, tmp_path, capsys, which):
+    """--render through a symlink to an input (which would be replaced by the animation) is refused."""
+    victim = base / ("trials.npz" if which == "trials" else "model.json")
+    before = _digest(victim)
+    render = _link("symlink", victim, tmp_path / "r.gif")
+    argv = ["simulate", "--model", base / "model.json", base / "trials.npz", "--render", render]
+    _fails(argv, capsys, rf"r\.gif: --render is the input file .*{victim.name}; it would be overwritten")
+    assert _digest(victim) == before
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_simulate_render_replaces_an_animation_atomically(base, tmp_path, capsys, monkeypatch, suffix):
+    """A GIF or MP4 at --render (an earlier render, or the user's own) is replaced, through a temporary file in the
+    same folder: a render interrupted while written leaves the earlier animation as it was and no half file."""
+    import imageio.v3 as iio
+
+    render = _animation(tmp_path / f"reach{suffix}", suffix)
+    before = _digest(render)
+    _small_frames(monkeypatch)
+    argv = [str(a) for a in ["simulate", "--model", base / "model.json", base / "trials.npz", "--trial", "0"]]
+    argv += ["--render", str(render)]
+    real = iio.imwrite
+
+    def cut_short(path, *args, **kwargs):
+        Path(path).write_bytes(b"GIF89a half a file")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(iio, "imwrite", cut_short)
+    assert main(argv) == 130
+    assert _digest(render) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == [render.name]  # no temporary left
+    monkeypatch.setattr(iio, "imwrite", real)
+    assert main(argv) == 0
+    assert _digest(render) != before and f"wrote {render} (3 frames)" in capsys.readouterr().out
+    assert len(iio.imread(render, index=None, **({"plugin": "FFMPEG"} if suffix == ".mp4" else {}))) == 3
 
 
 def test_evaluate_checks_every_output_before_writing_any(base, tmp_path, capsys):

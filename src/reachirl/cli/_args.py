@@ -269,6 +269,22 @@ JSON_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
 }
 
 
+def _gif(head: bytes) -> bool:
+    return head[:6] in (b"GIF87a", b"GIF89a")
+
+
+def _mp4(head: bytes) -> bool:
+    return head[4:8] == b"ftyp"  # an ISO media file opens with its ftyp box
+
+
+#: the animations ``simulate --render`` may replace, by suffix: a file that is what its name says (its magic bytes),
+#: as simulate writes it; a file of another kind named .gif or .mp4 by mistake is refused
+ANIMATION_KINDS: dict[str, tuple[str, Callable[[object], bool]]] = {
+    ".gif": ("GIF animation", _gif),
+    ".mp4": ("MP4 video", _mp4),
+}
+
+
 def _trials_header(d: object) -> bool:
     from ..data.trial import is_trials_header
 

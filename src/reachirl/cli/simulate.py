@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ._args import (
+    ANIMATION_KINDS,
     JSON_KINDS,
     PREDICTION_BACKEND_HELP,
     add_selection,
@@ -51,7 +52,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="OUT.gif",
-        help="write an animation, .gif or .mp4 (H.264) (default: none)",
+        help="write an animation, .gif or .mp4 (H.264); a file already there is replaced only when it is a GIF or "
+        "MP4 as named (default: none)",
     )
     p.add_argument(
         "--trial",
@@ -157,13 +159,16 @@ def run(args: argparse.Namespace) -> int:
     from ..sim.render import osmesa_available
     from ..validation import check_output_file, check_output_kind
 
-    if args.render is not None and args.render.suffix.lower() not in (".gif", ".mp4"):
+    if args.render is not None and args.render.suffix.lower() not in ANIMATION_KINDS:
         raise InputError("the animation must end in .gif or .mp4", args.render)
     for opt, path in (("--out", args.out), ("--render", args.render)):
         if path is not None:
             check_output_file(path, opt)
     refuse_overwrite({"--out": args.out, "--render": args.render}, [args.model, args.trials])
     check_output_kind(args.out, ".json", kind=JSON_KINDS["simulate"])
+    if args.render is not None:  # an animation replaces an animation, never a file of the user's named so
+        suffix = args.render.suffix.lower()
+        check_output_kind(args.render, suffix, "--render", ANIMATION_KINDS[suffix])
     if args.out is not None and args.render is not None and same_file(args.out, args.render):
         raise InputError("--render and --out are the same file; give each its own", args.render)
     if args.render is not None:
@@ -225,8 +230,8 @@ def run(args: argparse.Namespace) -> int:
             )
         else:
             print(f"0 of {len(sims)} trials: every DOC failed, no summary{left_out}")
-    for path in (args.out, args.render):  # an earlier run's go first: an interrupt never leaves one beside the other
-        if path is not None:
+    if args.out is not None and args.render is not None:  # an earlier run's pair goes first: an interrupt never
+        for path in (args.out, args.render):  # leaves one beside the other (each alone is replaced atomically)
             Path(path).unlink(missing_ok=True)
     if args.render is not None:
         path, n_frames = sim.render_simulations(sims, args.render, fps=args.fps, width=args.size, height=args.size)
