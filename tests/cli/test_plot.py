@@ -267,7 +267,34 @@ def _protocol(d, key, value):
         (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),
         (lambda d: d.update(units={"a": 1}), r"field 'units': expected a list of objects"),
         (lambda d: d["units"][0].pop("sets"), r"malformed results file \(KeyError: 'sets'\)"),
-        (lambda d: d["units"][0].update(history=5), r"malformed results file \(TypeError: "),
+        (lambda d: d["units"][0]["sets"].pop("cv"), r"malformed results file \(KeyError: 'cv'\)"),
+        (
+            lambda d: d["units"][0].update(history=5),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'history': expected a list of objects whose 'iteration' is a "
+            r"number, found 5",
+        ),
+        (
+            lambda d: d["units"][0]["history"].append({"iteration": "one"}),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'history': expected a list of objects",
+        ),
+        (
+            lambda d: d["units"][0].update(cost_shares="abc"),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'cost_shares': expected rows of 7 numbers \(one per window\), "
+            r"found 'abc'",
+        ),
+        (
+            lambda d: d["units"][0].update(cost_shares=[[0.5, 0.5]]),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'cost_shares': expected rows of 7 numbers",
+        ),
+        (
+            lambda d: d["units"][0].update(flag=[1]),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'flag': expected a string or null, found \[1\]",
+        ),
+        (
+            lambda d: d["units"][0].update(uncertainty={"share_intervals": {"determined": [True]}}),
+            r"field 'units', unit 0 \(moirl-P2-s1\): 'uncertainty\.share_intervals\.determined': expected booleans "
+            r"shaped as 'cost_shares' \(1 × 7\), found \[True\]",
+        ),
         # a boolean among the weights was drawn as 1, "n_train": true read as 1 trial
         (
             lambda d: d["units"][0]["weights"][0].__setitem__(2, True),
@@ -294,6 +321,28 @@ def test_plot_of_a_run_with_a_damaged_results_file_names_it(run_folder, tmp_path
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
     # no figure of the failed drawing is left, nor a mix with the earlier set
+    assert [p.name for p in figs.iterdir()] == ["fig3_weights.png"]
+    assert (figs / "fig3_weights.png").read_bytes() == b"an earlier figure"
+
+
+@pytest.mark.parametrize("error", [TypeError, KeyError, ValueError, ZeroDivisionError])
+def test_plot_of_a_run_reports_a_drawing_bug_as_an_internal_error(run_folder, tmp_path, capsys, monkeypatch, error):
+    """An error of the drawing code itself is the program's (exit 1, internal error), not a malformed results file;
+    the figures of --out are left as they were."""
+    from reachirl.experiments import figures
+
+    def broken(*args, **kwargs):
+        raise error("a bug in the figure code")
+
+    monkeypatch.setattr(figures, "plot_weights", broken)
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / "fig3_weights.png").write_bytes(b"an earlier figure")
+    capsys.readouterr()
+    assert main(["plot", str(run_folder), "--out", str(figs), "--no-pdf"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"reachirl plot: internal error: {error.__name__}: "), err
+    assert "a bug in the figure code" in err[0] and "malformed" not in err[0], err
     assert [p.name for p in figs.iterdir()] == ["fig3_weights.png"]
     assert (figs / "fig3_weights.png").read_bytes() == b"an earlier figure"
 
