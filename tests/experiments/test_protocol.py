@@ -220,7 +220,7 @@ def test_check_thresholds_groups_rollouts_as_moirl_does():
         check_thresholds([u for u in units if u.held_out_posture is None], splits, "data.npz")  # one posture each
 
 
-def test_unreachable_scheduler_changes_nothing_on_disk(toy, tmp_path, monkeypatch):
+def test_unreachable_scheduler_changes_nothing_on_disk(toy, tmp_path, monkeypatch, capsys):
     # the scheduler is reached before on_start, which clears an earlier run's outputs and writes run.toml
     from reachirl.experiments import runner
 
@@ -240,6 +240,25 @@ def test_unreachable_scheduler_changes_nothing_on_disk(toy, tmp_path, monkeypatc
             on_start=lambda total, reused: started.append(total),
         )
     assert started == [] and list(tmp_path.iterdir()) == []
+    # nor is an output folder made for the run left behind; one that existed is left as it was
+    from reachirl.cli import main
+    from reachirl.data.trial import save_trials
+
+    with pytest.raises(InputError, match="cannot connect to the Dask scheduler"):
+        reproduce(toy, cfg, tmp_path / "new" / "out", scheduler="tcp://127.0.0.1:1")
+    assert list(tmp_path.iterdir()) == []
+    data = save_trials(tmp_path / "trials.npz", toy.trials)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("the user's")
+    for out in (tmp_path / "new" / "out", mine):
+        capsys.readouterr()
+        argv = ["reproduce", "--data", str(data), "--out", str(out), "--scheduler", "tcp://127.0.0.1:1", "--quick"]
+        assert main([*argv, "--sections", "1", "--no-progress"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "tcp://127.0.0.1:1: cannot connect to the Dask scheduler" in err[0], err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine", "trials.npz"]
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"] and (mine / "notes.txt").read_text() == "the user's"
 
 
 def test_scheduler_that_fails_to_connect_is_one_line_at_once(tmp_path):

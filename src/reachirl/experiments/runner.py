@@ -359,8 +359,14 @@ def reproduce(
     units = [u for u in make_units(postures, config, pair_training_subjects(trials, config)) if u.split_key in splits]
     check_thresholds(units, splits, dataset.source)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     clean_stale_temporaries(out_dir)
+
+    def start(total: int, reused: int) -> None:
+        # the folder is made once the run starts (its scheduler reached): a run that fails before leaves none
+        out_dir.mkdir(parents=True, exist_ok=True)
+        if on_start:
+            on_start(total, reused)
+
     t0 = time.perf_counter()
     summary = run_units(
         units,
@@ -369,7 +375,7 @@ def reproduce(
         workers=workers,
         scheduler=scheduler,
         max_units=max_units,
-        on_start=on_start,
+        on_start=start,
         on_done=on_done,
         truth_jobs=truth_jobs(units, splits, getattr(dataset, "truth", None), config.methods[0]),
     )
