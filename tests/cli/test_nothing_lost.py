@@ -887,3 +887,23 @@ def test_a_broken_pipe_that_is_not_stdout_is_an_internal_error(monkeypatch, caps
     monkeypatch.setattr(preprocess, "run", broken)
     assert main(["preprocess", "x.c3d", "--out", "y.npz"]) == 1
     assert "internal error: BrokenPipeError" in capsys.readouterr().err
+
+
+def test_sigterm_while_the_commands_load_is_said_and_exits_143():
+    """The commands' modules load for a second or two before any work; a SIGTERM then ended the process with no
+    word (killed by the signal) instead of exit 143 and "terminated", as Ctrl-C there gave 130."""
+    import subprocess
+    import sys
+
+    script = (
+        "import os, signal, sys, time\n"
+        "import reachirl.cli as cli\n"
+        "def loading():\n"
+        "    os.kill(os.getpid(), signal.SIGTERM)\n"
+        "    time.sleep(10)\n"
+        "cli.build_parser = loading\n"
+        "sys.exit(cli.main(['fit', 'trials.npz']))\n"
+    )
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 143, p.stderr
+    assert p.stderr == "reachirl: terminated\n"

@@ -81,26 +81,36 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    try:  # the commands' modules load for a second or two (scipy, CasADi), before the signal handlers below
-        parser = build_parser()
-        args, unknown = parser.parse_known_args(argv)
-    except KeyboardInterrupt:
-        print("reachirl: interrupted", file=sys.stderr, flush=True)
-        return 130
-    if unknown:  # "reachirl fit: error: ...", as the command's other errors say it
-        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+def _catch_signals() -> dict:
+    """The command line's SIGTERM and Ctrl-C handlers; returns the handlers they replace (none when ``main`` runs
+    in another thread than the main one: the signals are then left alone)."""
     previous = {}
     try:
         previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # an ignored Ctrl-C stays ignored
             previous[signal.SIGINT] = signal.signal(signal.SIGINT, _on_sigint)
-    except ValueError:  # not the main thread (main() called from a thread): leave the signals alone
+    except ValueError:
         pass
-    errors.track_signals(bool(previous), lambda signum: _arm_watchdog(args.command, signum))
+    return previous
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    # caught from the start: the commands' modules load for a second or two (scipy, CasADi), and a SIGTERM then
+    # ended the process without a word
+    previous = _catch_signals()
     try:
+        try:
+            parser = build_parser()
+            args, unknown = parser.parse_known_args(argv)
+        except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM (Terminated) while loading: nothing was done
+            terminated = isinstance(e, Terminated)
+            print(f"reachirl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr, flush=True)
+            return 143 if terminated else 130
+        if unknown:  # "reachirl fit: error: ...", as the command's other errors say it
+            parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
+        logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+        errors.track_signals(bool(previous), lambda signum: _arm_watchdog(args.command, signum))
         return _run(args)
     finally:
         for sig, handler in previous.items():
