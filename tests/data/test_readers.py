@@ -52,6 +52,28 @@ def test_vicon_csv_bom_prefix_and_gaps(tmp_path, synth):
     assert np.isnan(md["FT"][5:8]).all() and np.isfinite(md["FT"][8]).all()
 
 
+_DEVICES = "Devices\n1000\n,,Imported AMTI 1 - Force\nFrame,Sub Frame,Fx,Fy,Fz\n,,N,N,N\n1,0,0,0,1\n1,1,0,0,2\n\n"
+
+
+def test_vicon_csv_with_devices_block_first(tmp_path, synth):
+    """Nexus writes the Devices (and Joints, Model Outputs, Segments) blocks before Trajectories when they are
+    exported too: the Trajectories block is read wherever it is (such a file was taken for an angle CSV)."""
+    mk = _markers()
+    p = tmp_path / "v.csv"
+    p.write_text("\ufeff" + _DEVICES + synth.vicon_text(mk).lstrip("\ufeff"), encoding="utf-8")
+    assert detect_format(p) == "vicon-csv"
+    md = read_file(p)
+    assert md.names == ("SH", "EL", "FT") and md.rate == 100.0
+    np.testing.assert_allclose(md["EL"], mk["EL"], atol=1e-8)
+    trajectories = "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1\n"
+    (tmp_path / "bad.csv").write_text(_DEVICES + trajectories)
+    with pytest.raises(InputError, match=r"bad\.csv: line 14: truncated row: 3 fields, expected 5"):
+        read_file(tmp_path / "bad.csv")
+    (tmp_path / "dev.csv").write_text(_DEVICES)
+    with pytest.raises(InputError, match=r"dev\.csv: no 'Trajectories' block \(the file's blocks: Devices\)"):
+        read_file(tmp_path / "dev.csv")
+
+
 def test_vicon_csv_real_sample(synth):
     md = read_vicon_csv(synth.SAMPLE / "ADL001" / "ADL001FR1.csv")
     assert md.n_frames == 339 and len(md.names) == 49 and md.rate == 100.0

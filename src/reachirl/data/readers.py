@@ -58,6 +58,7 @@ __all__ = [
 ]
 
 FORMATS = ("trc", "c3d", "vicon-csv", "mot", "csv")
+VICON_BLOCKS = ("Trajectories", "Devices", "Joints", "Model Outputs", "Segments")  # a Nexus CSV export's blocks
 _UNIT_SCALE = {
     "mm": 1e-3,
     "millimeter": 1e-3,
@@ -509,27 +510,34 @@ def _c3d_declared_frames(path: Path) -> int | None:
 def read_vicon_csv(path: str | Path) -> MarkerData:
     """Read a Vicon Nexus "Trajectories" CSV export (UE-ADL's format).
 
-    Line 1 ``Trajectories``, line 2 the rate, line 3 the marker names (``Subject:Marker``, one per X/Y/Z
-    triplet), line 4 ``Frame,Sub Frame,X,Y,Z,...``, line 5 the units, data from line 6 until a blank line
-    (another block may follow). Empty cells are unseen markers (NaN), and so are the frames whose rows are missing
-    (the ``Frame`` column skips them): gap filling then treats both alike. The ``Subject:`` prefix is dropped from
-    the names.
+    The ``Trajectories`` block: its line ``Trajectories``, then the rate, the marker names (``Subject:Marker``,
+    one per X/Y/Z triplet), ``Frame,Sub Frame,X,Y,Z,...``, the units, and data until a blank line. Other blocks
+    (``Devices``, ``Joints``, ``Model Outputs``, ``Segments``, which Nexus writes before it when they are
+    exported too) may come before or after it. Empty cells are unseen markers (NaN), and so are the frames whose
+    rows are missing (the ``Frame`` column skips them): gap filling then treats both alike. The ``Subject:``
+    prefix is dropped from the names.
     """
     path = Path(path)
     text = read_text(path)
     lines = text.splitlines()
-    if lines[0].split(",")[0].strip() != "Trajectories":
+    starts = [i for i, line in enumerate(lines) if i == 0 or not lines[i - 1].strip(", \t")]  # a block's first line
+    blocks = [lines[i].split(",")[0].strip() for i in starts if lines[i].strip(", \t")]
+    if "Trajectories" not in blocks:
+        if lines[0].split(",")[0].strip() in VICON_BLOCKS:
+            raise InputError(f"no 'Trajectories' block (the file's blocks: {', '.join(blocks)})", path)
         raise InputError("not a Vicon 'Trajectories' CSV (line 1 should be 'Trajectories')", path, "line 1")
+    top = next(i for i in starts if lines[i].split(",")[0].strip() == "Trajectories")  # line top + 1
+    lines = lines[top:]
     if len(lines) < 5:
         raise InputError("truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path)
-    rate = _float(lines[1].split(",")[0], path, 2, "rate")
+    rate = _float(lines[1].split(",")[0], path, top + 2, "rate")
     if not (np.isfinite(rate) and rate > 0):
-        raise InputError(f"sampling rate must be a positive number, got {rate:g}", path, "line 2")
+        raise InputError(f"sampling rate must be a positive number, got {rate:g}", path, f"line {top + 2}")
     names_row = next(csv.reader([lines[2]]))
     axes_row = next(csv.reader([lines[3]]))
     units_row = next(csv.reader([lines[4]]))
     if len(axes_row) < 2 or axes_row[0].strip() != "Frame":
-        raise InputError("line 4 should start with 'Frame,Sub Frame'", path, "line 4")
+        raise InputError(f"line {top + 4} should start with 'Frame,Sub Frame'", path, f"line {top + 4}")
     cols: dict[str, int] = {}
     prefixes: set[str] = set()
     for j, cell in enumerate(names_row):
@@ -540,12 +548,12 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         if subject:
             prefixes.add(subject)
         if name in cols:
-            raise InputError(f"duplicate marker name {name!r}", path, "line 3")
+            raise InputError(f"duplicate marker name {name!r}", path, f"line {top + 3}")
         if j + 2 >= len(axes_row) or [a.strip() for a in axes_row[j : j + 3]] != ["X", "Y", "Z"]:
-            raise InputError(f"marker {name!r} is not followed by X,Y,Z columns", path, "line 4")
+            raise InputError(f"marker {name!r} is not followed by X,Y,Z columns", path, f"line {top + 4}")
         cols[name] = j
     if not cols:
-        raise InputError("no marker names", path, "line 3")
+        raise InputError("no marker names", path, f"line {top + 3}")
     n_cols = max(cols.values()) + 3
     unit = None
     for j in cols.values():
@@ -554,10 +562,10 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
             if unit is None:
                 unit = u
             elif u != unit:
-                raise InputError(f"mixed units {unit!r} and {u!r}", path, "line 5")
-    scale = _unit_scale(unit or "", path, "line 5")
+                raise InputError(f"mixed units {unit!r} and {u!r}", path, f"line {top + 5}")
+    scale = _unit_scale(unit or "", path, f"line {top + 5}")
     rows, frames = [], []
-    for i, line in enumerate(lines[5:], start=6):
+    for i, line in enumerate(lines[5:], start=top + 6):
         if not line.strip(", \t"):
             break  # end of the Trajectories block
         cells = line.split(",")
@@ -573,18 +581,18 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         raise InputError(
             f"frame numbers not increasing ({frames_a[bad[0]]:g} then {frames_a[bad[0] + 1]:g})",
             path,
-            f"line {bad[0] + 7}",
+            f"line {top + bad[0] + 7}",
         )
     if np.any(frames_a != np.round(frames_a)):
         k = int(np.flatnonzero(frames_a != np.round(frames_a))[0])
-        raise InputError(f"frame number {frames_a[k]:g} is not a whole number", path, f"line {k + 6}")
+        raise InputError(f"frame number {frames_a[k]:g} is not a whole number", path, f"line {top + k + 6}")
     index = (frames_a - frames_a[0]).astype(np.int64)
     if index[-1] + 1 > 2 * len(rows) + 1000:  # not dropped rows: a corrupt frame number
         k = int(np.argmax(np.diff(index)))  # the largest jump
         raise InputError(
             f"frame numbers jump from {frames_a[k]:g} to {frames_a[k + 1]:g}: a corrupt frame number?",
             path,
-            f"line {k + 7}",
+            f"line {top + k + 7}",
         )
     a = np.full((int(index[-1]) + 1, len(rows[0])), np.nan)
     a[index] = np.asarray(rows) * scale  # a frame whose row is missing stays unseen (NaN)
@@ -764,7 +772,7 @@ def detect_format(path: str | Path) -> str:
         return "mot"
     if ext in (".csv", ".txt"):
         first = read_text(path).lstrip().split("\n", 1)[0]
-        return "vicon-csv" if first.split(",")[0].strip() == "Trajectories" else "csv"
+        return "vicon-csv" if first.split(",")[0].strip() in VICON_BLOCKS else "csv"
     raise InputError(f"cannot tell the format from the extension {ext!r}; give --format {'|'.join(FORMATS)}", path)
 
 
