@@ -8,7 +8,8 @@ import pytest
 from reachirl.experiments import figures as fg
 from reachirl.experiments.analysis import paired_comparison
 from reachirl.experiments.method import convergence_text, method_lines
-from reachirl.experiments.report import prediction_note, weights_caption
+from reachirl.experiments.protocol import ProtocolConfig
+from reachirl.experiments.report import prediction_note, protocol_line, weights_caption
 from reachirl.features import FEATURES
 
 
@@ -343,3 +344,34 @@ def test_the_fits_warnings_reach_the_report_notes_with_the_units_they_came_from(
     assert f"at most {ProtocolConfig().max_iter} iterations per stage" in ended
     (baselines,) = [n for n in _notes(results, ProtocolConfig(methods=("bilevel", "kkt")))[0] if "ended by" in n]
     assert "iterations per stage" not in baselines and "not at --max-iter" in baselines
+
+
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [
+        (
+            {},
+            "learn from 10 trial(s) of subject S1 chosen at random (seed 0) (when a posture has fewer, all of them), "
+            "cross-validate on its other trials,",
+        ),
+        # --train-side with --cv rest: the training and CV trials are of that arm only (the report did not say so)
+        (
+            {"train_side": "left"},
+            "learn from 10 trial(s) of subject S1 (left arm) chosen at random (seed 0) (when a posture has fewer, "
+            "all of them), cross-validate on its other left-arm trials (its other arm's are not used),",
+        ),
+        (
+            {"cv": "other-side"},
+            "(right arm) chosen at random (seed 0) (when a posture has fewer, all of them), "
+            "cross-validate on its other-arm reaches (mirrored),",
+        ),
+        # --n-train 0 takes every trial: no "when a posture has fewer"
+        (
+            {"n_train": None, "cv": "other-side", "train_side": "left"},
+            "learn from all the trials of subject S1 (left "
+            "arm), cross-validate on its other-arm reaches (mirrored), ISCV",
+        ),
+    ],
+)
+def test_the_protocol_line_names_the_arm_the_training_takes(options, said):
+    assert said in protocol_line(ProtocolConfig(**options), "S1", ["P2"])

@@ -694,6 +694,29 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
+def protocol_line(config: ProtocolConfig, train_subject: str, postures: Sequence[str]) -> str:
+    """The report's line saying which trials each set takes (as :func:`~reachirl.experiments.protocol.split_trials`
+    chooses them): the arm is named whenever the training takes one arm only (``train_side``, or ``cv =
+    "other-side"``, which learns from the right arm unless told otherwise)."""
+    arm = config.train_side or ("right" if config.cv == "other-side" else None)
+    of_arm = f" ({arm} arm)" if arm else ""
+    learn = (
+        f"all the trials of subject {train_subject}{of_arm}"
+        if config.n_train is None
+        else f"{config.n_train} trial(s) of subject {train_subject}{of_arm} chosen at random (seed {config.seed}) "
+        "(when a posture has fewer, all of them)"
+    )
+    if config.cv == "other-side":
+        cv = "its other-arm reaches (mirrored)"
+    else:
+        cv = f"its other {arm}-arm trials (its other arm's are not used)" if arm else "its other trials"
+    return (
+        f"- **Protocol (seed §II-D):** per posture ({', '.join(postures)}) and section count "
+        f"({', '.join(map(str, config.sections))}): learn from {learn}, cross-validate on {cv}, ISCV on the other "
+        "subjects' trials of the same posture."
+    )
+
+
 def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
     dataset, config, postures = run.dataset, run.config, run.postures
     train_subject, split_sizes, timing, run_info = run.train_subject, run.split_sizes, run.timing, run.run_info
@@ -713,17 +736,7 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             if virtual
             else ""
         ),
-        f"- **Protocol (seed §II-D):** per posture ({', '.join(postures)}) and section count "
-        f"({', '.join(map(str, sections))}): learn from "
-        + (
-            f"all the trials of subject {train_subject} "
-            if config.n_train is None
-            else f"{config.n_train} trial(s) of subject {train_subject} chosen at random (seed {config.seed}) "
-        )
-        + f"{'(' + (config.train_side or 'right') + ' arm) ' if config.cv == 'other-side' else ''}"
-        "(when a posture has fewer, all of them), cross-validate on "
-        + ("its other-arm reaches (mirrored)" if config.cv == "other-side" else "its other trials")
-        + ", ISCV on the other subjects' trials of the same posture.",
+        protocol_line(config, train_subject, postures),
         "- **Trials per posture:** "
         + "; ".join(f"{SET_LABELS[s]} " + ", ".join(f"{p}: {split_sizes[s][p]}" for p in postures) for s in SETS)
         + ".",
