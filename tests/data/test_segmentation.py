@@ -1,5 +1,7 @@
 """Onset and offset on a noisy fingertip: the harder low-pass of the segmentation speed."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -51,6 +53,31 @@ def test_auto_lowers_the_cutoff_only_as_far_as_the_noise_needs():
     assert cut[0.0] is None and cut[0.05] is None  # clean (UE-ADL's markers: 0.06 mm): Berret's speed
     assert 4.0 <= cut[1.0] <= 6.0 and 3.5 <= cut[1.5] <= 5.0 and 3.0 <= cut[2.0] <= 4.5
     assert cut[1.0] >= cut[1.5] >= cut[2.0] >= cut[6.0] == 3.0  # never below the floor
+
+
+@pytest.mark.parametrize(
+    ("noise_mm", "threshold", "said"),
+    [
+        (
+            6.0,
+            0.05,
+            r"noise \(6 mm RMS.*\) is large beside the onset threshold's speed \(50 mm/s: --threshold "
+            r"0\.05 of the peak 1\.00 m/s\)",
+        ),
+        # clean markers and a tiny --threshold: the threshold, not the reach, is what the noise is large beside
+        (
+            0.1,
+            0.001,
+            r"noise \(0\.1 mm RMS.*\) is large beside the onset threshold's speed \(1 mm/s: --threshold "
+            r"0\.001 of the peak 1\.00 m/s\)",
+        ),
+    ],
+)
+def test_the_noise_warning_names_the_threshold_speed_it_is_large_beside(caplog, noise_mm, threshold, said):
+    """It said 'large for a reach this slow' of 0.1 mm of noise on a 1 m/s reach (--threshold 0.001)."""
+    t, p = _reach(noise_mm / 1000, 3)
+    assert segmentation_cutoff(t, p, 1.0, PreprocessOptions(onset_threshold=threshold), "r.trc") == 3.0
+    assert re.search(r"r\.trc: the recording's " + said + r"; onset and offset are found on a 3 Hz speed", caplog.text)
 
 
 def test_the_noise_model_predicts_the_speed_noise():

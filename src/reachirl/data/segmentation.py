@@ -122,11 +122,14 @@ def segmentation_cutoff(
         if speed_noise(f) <= target:
             return float(f)
     log.warning(
-        "%s: the recording's noise (%.2g mm RMS, markers or angles seen at the fingertip) is large for a reach "
-        "this slow; onset and offset are "
-        "found on a %g Hz speed and may still wander",
+        "%s: the recording's noise (%.2g mm RMS, markers or angles seen at the fingertip) is large beside the "
+        "onset threshold's speed (%.2g mm/s: --threshold %g of the peak %.2f m/s); onset and offset are found on "
+        "a %g Hz speed and may still wander",
         source,
         np.sqrt(noise_var) * 1000,
+        options.onset_threshold * peak_speed * 1000,
+        options.onset_threshold,
+        peak_speed,
         MIN_SEGMENT_CUTOFF_HZ,
     )
     return MIN_SEGMENT_CUTOFF_HZ
