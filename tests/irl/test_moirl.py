@@ -425,3 +425,22 @@ def test_a_fit_without_weight_samples_warns_once_and_keeps_its_other_warnings(ar
         "no weight samples: the KKT matrix is singular"
     ]
     assert any(w.startswith("the demonstrations span 2 postures") for w in est.warnings_)
+
+
+def test_a_rollout_of_cut_and_uncut_trials_is_compared_whole_and_says_so(arm):
+    """A trial without rest before or after (not cut at a threshold) made its task's rollout whole for every
+    trial of it, silently: the fit then ran without its observed stage while MODEL.json listed observed rollouts."""
+    cut = [replace(d, onset_threshold=0.05) for d in known_weight_demos(arm, true_weights(1), 3, 20)]
+    demos = [*cut[:2], replace(cut[2], onset_threshold=None)]
+    est = _MOIRL(1, n_nodes=20, max_iter=1).fit(demos)
+    assert est.plain_fit_ is None  # no observed stage: the one rollout is whole
+    (msg,) = [w for w in est.warnings_ if "not cut at a speed threshold" in w]
+    assert msg.startswith(
+        "1 trial(s) not cut at a speed threshold (no rest before or after the reach: virtual//right/2) share a "
+        "training rollout with 2 that were: that rollout is compared whole"
+    )
+    for ok in (
+        _MOIRL(1, n_nodes=20, max_iter=1).fit(cut),
+        _MOIRL(1, n_nodes=20, max_iter=1, rollout="per_demo").fit(demos),
+    ):
+        assert not [w for w in ok.warnings_ if "not cut at a speed threshold" in w]

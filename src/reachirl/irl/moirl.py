@@ -433,7 +433,10 @@ class MOIRL(WeightEstimator):
             smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
-        msgs = [mixed_postures_warning(trials) if self.rollout == "mean" else None]
+        msgs = [
+            mixed_postures_warning(trials) if self.rollout == "mean" else None,
+            uncut_trials_warning(trials, self._of, self._thresholds) if self._o.observe else None,
+        ]
         self.uncertainty_ = None
         if self.uncertainty is not None:
             from .uncertainty import weight_uncertainty
@@ -856,6 +859,26 @@ def mixed_postures_warning(trials: Sequence[Trial], other_rollouts: bool = True)
         f"the demonstrations span {len(postures)} postures ({', '.join(postures)}): the one training rollout "
         f"starts from their mean posture, which none of them has; fit each posture apart (reachirl fit "
         f"--posture), {other}"
+    )
+
+
+def uncut_trials_warning(trials: Sequence[Trial], groups: np.ndarray, thresholds: Sequence) -> str | None:
+    """The warning for a rollout that cannot be observed because some of its demonstrations were not cut at a
+    speed threshold (a record without rest before or after the reach) while others were: the rollout is then
+    compared whole with all of them (:func:`~reachirl.doc.observation.common_threshold`), or ``None``."""
+    uncut, cut = [], 0
+    for r, th in enumerate(thresholds):
+        members = [t for t, g in zip(trials, groups, strict=True) if g == r]
+        if th is None and any(t.onset_threshold is not None for t in members):
+            uncut += [t.id for t in members if t.onset_threshold is None]
+            cut += sum(t.onset_threshold is not None for t in members)
+    if not uncut:
+        return None
+    shown = ", ".join(uncut[:5]) + (f" and {len(uncut) - 5} more" if len(uncut) > 5 else "")
+    return (
+        f"{len(uncut)} trial(s) not cut at a speed threshold (no rest before or after the reach: {shown}) share "
+        f"a training rollout with {cut} that were: that rollout is compared whole with all of them, not as they "
+        "were recorded (observed rollouts); leave those trials out, or fit one rollout per trial (--rollout per_demo)"
     )
 
 
