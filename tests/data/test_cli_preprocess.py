@@ -430,3 +430,19 @@ def test_a_y_up_c3d_that_says_so_reads_as_the_z_up_one(tmp_path, synth, capsys):
     np.testing.assert_allclose(y.q, z.q, atol=1e-6)
     code, _, err = _run([tmp_path / "silent", *info, "--out", tmp_path / "s.npz"], capsys)
     assert code == 2 and "check --markers, --up-axis and --forward-axis" in err
+
+
+@pytest.mark.parametrize("form", [["--up-axis", "-z"], ["--up-axis=-z"], ["--up-axis", "-Z", "--forward-axis", "-x"]])
+def test_a_negative_up_axis_is_taken_as_written(tmp_path, reach, synth, capsys, form):
+    """``--up-axis -z`` (a lab whose z points down) was refused by argparse, 'expected one argument': a value
+    starting with '-' read as an option. It now reads as --up-axis=-z."""
+    down = {m: p * [1.0, 1.0, -1.0] for m, p in reach.markers.items()}  # the lab's z axis points down
+    (tmp_path / "up.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    (tmp_path / "down.trc").write_text(synth.trc_text(down))
+    args = ["--markers", synth.MAP, "--subject", "S9", "--posture", "P3"]
+    code, _, err = _run([tmp_path / "up.trc", *args, "--out", tmp_path / "up.npz"], capsys)
+    assert code == 0, err
+    code, _, err = _run([tmp_path / "down.trc", *args, *form, "--out", tmp_path / "down.npz"], capsys)
+    assert code == 0, err
+    (up,), (down,) = load_trials(tmp_path / "up.npz"), load_trials(tmp_path / "down.npz")
+    np.testing.assert_allclose(down.q, up.q, atol=1e-6)

@@ -12,6 +12,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import signal
 import sys
 import threading
@@ -66,6 +67,21 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
+SIGNED_AXIS_OPTIONS = ("--up-axis", "--forward-axis")
+"""Options whose value may start with '-' (``-z``), which argparse would otherwise read as an option."""
+
+
+def _signed_axes(argv: list[str]) -> list[str]:
+    """``--up-axis -z`` as ``--up-axis=-z`` (argparse refused it: 'expected one argument')."""
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1] in SIGNED_AXIS_OPTIONS and re.fullmatch(r"-[xyzXYZ]", str(tok)):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
     verbose_help = "log progress details to stderr, and show the traceback of an internal error"
@@ -102,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         try:
             parser = build_parser()
-            args, unknown = parser.parse_known_args(argv)
+            args, unknown = parser.parse_known_args(_signed_axes(sys.argv[1:] if argv is None else list(argv)))
         except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM (Terminated) while loading: nothing was done
             terminated = isinstance(e, Terminated)
             print(f"reachirl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr, flush=True)
