@@ -446,3 +446,21 @@ def test_a_negative_up_axis_is_taken_as_written(tmp_path, reach, synth, capsys, 
     assert code == 0, err
     (up,), (down,) = load_trials(tmp_path / "up.npz"), load_trials(tmp_path / "down.npz")
     np.testing.assert_allclose(down.q, up.q, atol=1e-6)
+
+
+def test_a_file_cut_in_its_last_number_is_named_as_cut_short(tmp_path, reach, synth, capsys):
+    """A file cut short inside its last row's last number has every field: the number cut off reads as a jump in
+    the last frame, which was refused as 'a glitch in the markers?'. The last frame's jump now says the file may be
+    cut short; a jump inside the record keeps its own words."""
+    text = synth.trc_text(reach.markers, up="y").rstrip("\n")
+    head, last = text.rsplit("\n", 1)
+    cells = last.split("\t")
+    cells[-1] = cells[-1][: cells[-1].index(".") - 2]  # "-604.262" cut to "-6": a hundred times shorter
+    (tmp_path / "cut.trc").write_text(head + "\n" + "\t".join(cells))
+    n = len(head.split("\n")) - 5
+    code, _, err = _run([tmp_path / "cut.trc", "--markers", synth.MAP, "--out", tmp_path / "o.npz"], capsys)
+    assert code == 2 and re.search(
+        rf"cut\.trc: frame {n}: the \w+ (moves|jumps) \d+ mm in one frame .*: the record's last frame: a file cut "
+        r"short in its last row\?$",
+        err.strip(),
+    ), err

@@ -220,19 +220,28 @@ def _check_window(
         )
 
 
-def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0) -> None:
+def check_glitches(
+    joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0, n_frames: int | None = None
+) -> None:
     """Refuse a joint centre that jumps (the low-pass would smear the jump into the reach): faster than any arm
     moves (:data:`MAX_FINGERTIP_SPEED`), or with an acceleration from one frame to the next that no reaching arm
     has (:data:`MAX_MARKER_ACCELERATION`, or 20× the recording's own median where its noise is larger): a spike,
     a marker frozen and then caught up, or two labels swapped for a few frames. ``first_frame``: the record's
-    frame at ``joints``' first row, for the messages."""
+    frame at ``joints``' first row, for the messages; ``n_frames``: the record's frame count (a jump into its last
+    frame is named as a file cut short in its last row, a number cut off)."""
+
+    def cause(f: int, usual: str) -> str:  # f: the step into row f + 1
+        if n_frames is not None and first_frame + f + 2 == n_frames:
+            return "the record's last frame: a file cut short in its last row?"
+        return usual
+
     for k, x in joints.items():
         step = np.linalg.norm(np.diff(x, axis=0), axis=1)
         if np.nanmax(step, initial=0.0) * rate > MAX_FINGERTIP_SPEED:
             f = int(np.nanargmax(step))
             raise InputError(
                 f"the {k} moves {step[f] * 1000:.0f} mm in one frame ({step[f] * rate:.3g} m/s, faster than any "
-                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): a glitch in the markers?",
+                f"arm's {MAX_FINGERTIP_SPEED:g} m/s): {cause(f, 'a glitch in the markers?')}",
                 src,
                 f"frame {first_frame + f + 2}",
             )
@@ -249,8 +258,12 @@ def check_glitches(joints: dict[str, np.ndarray], rate: float, src: str, first_f
             f = worst + int(np.nanargmax(step[worst : worst + 2 * h]))  # the largest of the steps it spans
             raise InputError(
                 f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {acc[worst]:.3g} m/s², "
-                f"above the limit of {limit:.3g}): a glitch, a marker frozen and caught up, or two labels swapped? "
-                "Fix the labels, or blank those frames to be filled as a gap",
+                f"above the limit of {limit:.3g}): "
+                + cause(
+                    f,
+                    "a glitch, a marker frozen and caught up, or two labels swapped? Fix the labels, or blank those "
+                    "frames to be filled as a gap",
+                ),
                 src,
                 f"frame {first_frame + f + 2}",
             )
@@ -298,7 +311,7 @@ def reconstruct_markers(
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
 
-    check_glitches(joints, md.rate, src, first_frame=window.start)
+    check_glitches(joints, md.rate, src, first_frame=window.start, n_frames=md.n_frames)
     raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
         joints = {k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()}
