@@ -464,3 +464,35 @@ def test_a_file_cut_in_its_last_number_is_named_as_cut_short(tmp_path, reach, sy
         r"short in its last row\?$",
         err.strip(),
     ), err
+
+
+def test_a_left_arms_angle_file_is_a_left_trial(tmp_path, capsys):
+    """A MOT of the left arm's angles alone (reachirl's own export of a left trial) was read as a right-arm trial
+    when no side was given: labelled right, built on the right arm, in the wrong set of --cv other-side. The arm
+    its columns name is the trial's; a side given against them is refused; a file of both arms' stays the right's."""
+    k = np.arange(150)
+    s = np.clip((k - 40) / 60, 0, 1)
+    mj = 10 * s**3 - 15 * s**4 + 6 * s**5
+    elev, flex = 5 + 45 * mj, 85 - 40 * mj  # a reach: shoulder elevation up, elbow extending
+    rows = "\n".join(f"{i / 100:.2f}\t{e:.4f}\t{f:.4f}" for i, e, f in zip(k, elev, flex, strict=True))
+    head = f"nRows={k.size}\nnColumns=3\ninDegrees=yes\nendheader\n"
+    (tmp_path / "l.mot").write_text(f"l\n{head}time\tl_shoulder_elev\tl_elbow_flex\n{rows}\n")
+    code, _, err = _run([tmp_path / "l.mot", "--subject", "S1", "--out", tmp_path / "l.npz"], capsys)
+    assert code == 0, err
+    (tr,) = load_trials(tmp_path / "l.npz")
+    assert tr.side == "left" and tr.id == "S1/default/left/l"
+    code, _, err = _run([tmp_path / "l.mot", "--side", "right", "--out", tmp_path / "r.npz"], capsys)
+    assert code == 2 and re.search(
+        r"l\.mot: its angle columns are the left arm's, but the trial is given as the right arm's \(give --side left",
+        err,
+    ), err
+    both = "\n".join(
+        f"{i / 100:.2f}\t{e:.4f}\t{f:.4f}\t{e:.4f}\t{f:.4f}" for i, e, f in zip(k, elev, flex, strict=True)
+    )
+    (tmp_path / "b.mot").write_text(
+        f"b\n{head.replace('nColumns=3', 'nColumns=5')}time\tr_shoulder_elev\tr_elbow_flex\tl_shoulder_elev\t"
+        f"l_elbow_flex\n{both}\n"
+    )
+    code, _, err = _run([tmp_path / "b.mot", "--out", tmp_path / "b.npz"], capsys)
+    assert code == 0, err
+    assert load_trials(tmp_path / "b.npz")[0].side == "right"

@@ -16,7 +16,7 @@ from ..errors import InputError
 from .checks import check_start_and_target, check_trial_posture
 from .markersets import MarkerSet, load_markerset, resolve_name
 from .preprocess import DEFAULT_SUBJECT, PreprocessOptions, angles_to_trial, markers_to_trial
-from .readers import ManifestEntry, MarkerData, SubjectInfo, read_file, read_manifest, read_subject_info
+from .readers import AngleData, ManifestEntry, MarkerData, SubjectInfo, read_file, read_manifest, read_subject_info
 from .trial import Trial
 from .ue_adl import find_static, parse_trial_name
 
@@ -54,13 +54,22 @@ def preprocess_entries(
     for e in entries:
         ue = parse_trial_name(e.file)
         subj = e.subject or subject or (ue[0] if ue else e.file.stem)
-        sd = e.side or side or (ue[1] if ue else "right")
+        given = e.side or side or (ue[1] if ue else None)
+        sd = given or "right"
         post = e.posture or posture or ("forward" if ue else "default")
         trial_id = ue[2] if ue else e.file.stem
         if subject_info is not None and subj not in subject_info:
             raise InputError(f"subject {subj!r} is not in the subject-info file", e.file)
         info = subject_info[subj] if subject_info is not None else DEFAULT_SUBJECT
         data = read_file(e.file, fmt, side=sd)
+        if isinstance(data, AngleData) and data.side is not None and data.side != sd:
+            if given is not None:  # read as the other arm's, it would be labelled and built as this one
+                raise InputError(
+                    f"its angle columns are the {data.side} arm's, but the trial is given as the {sd} arm's (give "
+                    f"--side {data.side} or the manifest's side column)",
+                    e.file,
+                )
+            sd = data.side  # no side given: the arm the columns name (reachirl's own export of a left trial)
         common = {
             "subject": subj,
             "posture": post,

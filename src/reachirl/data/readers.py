@@ -157,11 +157,13 @@ MAX_JOINT_SPEED = 100.0  # rad/s (~5700°/s): human joints peak near 20-30 rad/s
 
 @dataclass(frozen=True)
 class AngleData:
-    """Joint angles ``q (n, 2)`` in radians (model convention) at times ``t (n,)`` in seconds."""
+    """Joint angles ``q (n, 2)`` in radians (model convention) at times ``t (n,)`` in seconds; ``side``: the arm
+    the file's columns name (``r_shoulder_elev``: right), ``None`` when they name none."""
 
     t: np.ndarray
     q: np.ndarray
     source: str = ""
+    side: str | None = None  # the arm the file's angle columns name (r_/l_ prefix, OpenSim's), or None
 
     def __post_init__(self) -> None:
         where = self.source or None
@@ -667,6 +669,12 @@ def _find_q_columns(header: list[str], path: Path, line: int, side: str | None =
     return time, idx[0], idx[1]
 
 
+def _columns_side(header: list[str], i1: int, i2: int) -> str | None:
+    """The arm both angle columns name by their prefix (``l_shoulder_elev``, ``l_elbow_flex``: left), or None."""
+    names = [header[k].strip().lower() for k in (i1, i2)]
+    return next((s for s, pre in _SIDE_PREFIX.items() if all(n.startswith(pre) for n in names)), None)
+
+
 def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path: Path, names: list[str]):
     rows = []
     for i, line in enumerate(lines[start:], start=start + 1):
@@ -723,7 +731,7 @@ def read_mot(path: str | Path, side: str | None = None) -> AngleData:
     _check_row_count(a.shape[0], declared, "nRows", "rows", path, last_line)
     q = np.radians(a[:, [i1, i2]]) if in_degrees else a[:, [i1, i2]]
     q[:, 0] += _q1_offset(header[i1])
-    return AngleData(t=a[:, it], q=q, source=str(path))
+    return AngleData(t=a[:, it], q=q, source=str(path), side=_columns_side(header, i1, i2))
 
 
 def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
@@ -756,7 +764,7 @@ def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
     a = _angle_rows(lines, k + 1, ",", max(it, i1, i2) + 1, path, header)
     q = np.radians(a[:, [i1, i2]]) if units == "deg" else a[:, [i1, i2]]
     q[:, 0] += _q1_offset(header[i1])
-    return AngleData(t=a[:, it], q=q, source=str(path))
+    return AngleData(t=a[:, it], q=q, source=str(path), side=_columns_side(header, i1, i2))
 
 
 # ---------------------------------------------------------------------- dispatch
