@@ -496,3 +496,20 @@ def test_a_left_arms_angle_file_is_a_left_trial(tmp_path, capsys):
     code, _, err = _run([tmp_path / "b.mot", "--out", tmp_path / "b.npz"], capsys)
     assert code == 0, err
     assert load_trials(tmp_path / "b.npz")[0].side == "right"
+
+
+def test_a_lateral_forward_axis_is_refused_not_projected_into_nonsense(tmp_path, reach, synth, capsys):
+    """--plane axes with the lab's lateral axis as --forward-axis projected a forward reach into the frontal plane:
+    it was written as a trial (peak fingertip speed 9.7 m/s, q2 to 153°). The forward axis the reach goes along
+    (or the one found) still reads it."""
+    (tmp_path / "r.trc").write_text(synth.trc_text(reach.markers, up="y"))  # here z is forward, x lateral
+    args = [tmp_path / "r.trc", "--markers", synth.MAP, "--plane", "axes", "--out", tmp_path / "o.npz"]
+    code, _, err = _run([*args, "--forward-axis", "x"], capsys)
+    assert code == 2 and re.search(
+        r"r\.trc: the fingertip moves \d+ mm across the plane of the up and forward axes \(--plane axes\) and \d+ mm "
+        r"along its forward axis, from onset to offset: is the forward axis the lab's lateral one\?",
+        err,
+    ), err
+    for ok in ([*args, "--forward-axis", "z"], args):
+        code, _, err = _run(ok, capsys)
+        assert code == 0, err

@@ -192,6 +192,14 @@ def sagittal_basis(
                     source,
                 )
         fwd /= np.linalg.norm(fwd)
+        along, across = abs(float(displacement @ fwd)), abs(float(displacement @ np.cross(fwd, up_p)))
+        if across > along:  # the reach runs across the plane more than along it: the forward axis is the lateral
+            raise InputError(
+                f"the fingertip moves {across * 1000:.0f} mm across the plane of the up and forward axes (--plane "
+                f"axes) and {along * 1000:.0f} mm along its forward axis, from onset to offset: is the forward axis "
+                "the lab's lateral one? (check --forward-axis and --up-axis, or use --plane pca)",
+                source,
+            )
     if fwd @ displacement < 0:
         fwd = -fwd
     normal = np.cross(fwd, up_p)
