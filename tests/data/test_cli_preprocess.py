@@ -432,7 +432,9 @@ def test_a_y_up_c3d_that_says_so_reads_as_the_z_up_one(tmp_path, synth, capsys):
     assert code == 2 and "check --markers, --up-axis and --forward-axis" in err
 
 
-@pytest.mark.parametrize("form", [["--up-axis", "-z"], ["--up-axis=-z"], ["--up-axis", "-Z", "--forward-axis", "-x"]])
+@pytest.mark.parametrize(
+    "form", [["--up-axis", "-z"], ["--up-axis=-z"], ["--up-axis", "-Z", "--plane", "axes", "--forward-axis", "-y"]]
+)
 def test_a_negative_up_axis_is_taken_as_written(tmp_path, reach, synth, capsys, form):
     """``--up-axis -z`` (a lab whose z points down) was refused by argparse, 'expected one argument': a value
     starting with '-' read as an option. It now reads as --up-axis=-z."""
@@ -440,7 +442,8 @@ def test_a_negative_up_axis_is_taken_as_written(tmp_path, reach, synth, capsys, 
     (tmp_path / "up.trc").write_text(synth.trc_text(reach.markers, up="y"))
     (tmp_path / "down.trc").write_text(synth.trc_text(down))
     args = ["--markers", synth.MAP, "--subject", "S9", "--posture", "P3"]
-    code, _, err = _run([tmp_path / "up.trc", *args, "--out", tmp_path / "up.npz"], capsys)
+    plane = ["--plane", "axes"] if "axes" in form else []  # the same plane for both
+    code, _, err = _run([tmp_path / "up.trc", *args, *plane, "--out", tmp_path / "up.npz"], capsys)
     assert code == 0, err
     code, _, err = _run([tmp_path / "down.trc", *args, *form, "--out", tmp_path / "down.npz"], capsys)
     assert code == 0, err
@@ -513,3 +516,13 @@ def test_a_lateral_forward_axis_is_refused_not_projected_into_nonsense(tmp_path,
     for ok in ([*args, "--forward-axis", "z"], args):
         code, _, err = _run(ok, capsys)
         assert code == 0, err
+
+
+def test_a_forward_axis_without_plane_axes_is_refused_not_ignored(tmp_path, reach, synth, capsys):
+    """--forward-axis is read by --plane axes only; with the default plane (pca) it was taken and left unused."""
+    (tmp_path / "r.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    code, _, err = _run(
+        [tmp_path / "r.trc", "--markers", synth.MAP, "--forward-axis", "z", "--out", tmp_path / "o.npz"], capsys
+    )
+    assert code == 2 and "--forward-axis is used with --plane axes only, not --plane pca" in err, err
+    assert not (tmp_path / "o.npz").exists()

@@ -191,6 +191,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _options(args) -> PreprocessOptions:
+    if args.forward_axis and args.plane != "axes":  # it would be left unused: the plane comes from the markers
+        raise InputError(f"--forward-axis is used with --plane axes only, not --plane {args.plane}")
     up, fwd = (a.strip().lower().lstrip("+-") if a else None for a in (args.up_axis, args.forward_axis))
     if up is not None and up == fwd:
         raise InputError(
