@@ -526,3 +526,15 @@ def test_a_forward_axis_without_plane_axes_is_refused_not_ignored(tmp_path, reac
     )
     assert code == 2 and "--forward-axis is used with --plane axes only, not --plane pca" in err, err
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_a_static_trial_a_marker_map_never_reads_is_refused(tmp_path, reach, synth, capsys):
+    """--static with a marker map (every joint from the file's own markers) was taken and left unread: the user
+    believed the joint centres calibrated on it."""
+    (tmp_path / "r.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    (tmp_path / "s.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    code, _, err = _run(
+        [tmp_path / "r.trc", "--markers", synth.MAP, "--static", tmp_path / "s.trc", "--out", tmp_path / "o.npz"],
+        capsys,
+    )
+    assert code == 2 and re.search(r"r\.trc: a static trial is given \(.*s\.trc\), but marker set 'custom'", err), err

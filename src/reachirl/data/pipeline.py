@@ -81,6 +81,13 @@ def preprocess_entries(
         if isinstance(data, MarkerData):
             mset = markers or auto_markerset(data)
             static_md = None
+            if not mset.needs_static and (e.static or static):  # it would be left unread
+                raise InputError(
+                    f"a static trial is given ({e.static or static}), but marker set {mset.name!r} places every "
+                    "joint from this file's markers and reads none: leave it out, or give a marker set with "
+                    "landmarks (--markerset)",
+                    e.file,
+                )
             if mset.needs_static:
                 sp = e.static or static or (find_static(e.file, subj, mset.static) if mset.static else None)
                 if sp is None:
