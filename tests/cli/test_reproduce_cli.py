@@ -311,14 +311,17 @@ def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, refere
     [
         (["--data", "{tmp}/missing.npz"], "no such file"),
         (["--data", "{tmp}/empty.npz"], "empty.npz"),
-        (["--data", "{trials}", "--postures", "P9"], "unknown posture"),
-        (["--data", "{trials}", "--train-subject", "S99"], "unknown training subject"),
+        # what the data cannot give the protocol names the data
+        (["--data", "{trials}", "--postures", "P9"], "{trials}: unknown posture"),
+        (["--data", "{trials}", "--train-subject", "S99"], "{trials}: unknown training subject"),
+        (["--data", "{trials}", "--train-side", "left"], "{trials}: posture P2: no training trials of subject"),
         (["--data", "{trials}", "--method", "magic"], "unknown method"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, extra, message):
     (tmp_path / "empty.npz").write_bytes(b"")
     extra = [e.format(tmp=tmp_path, trials=trials_file) for e in extra]
+    message = message.format(trials=trials_file.resolve())
     code = main(["reproduce", "--out", str(tmp_path / "out"), "--no-progress", *extra])
     err = capsys.readouterr().err
     assert code == 2

@@ -349,13 +349,18 @@ def reproduce(
     trials = list(dataset.trials)
     if not trials:
         raise InputError("no trials to run the protocol on", dataset.source)
-    postures = resolve_postures(trials, config)
-    subject = resolve_train_subject(trials, config)
-    splits = {p: split_trials(trials, p, config) for p in postures}
+    try:  # what the data cannot give the protocol (a posture, a subject, a side) is the data's: named with it
+        postures = resolve_postures(trials, config)
+        subject = resolve_train_subject(trials, config)
+        splits = {p: split_trials(trials, p, config) for p in postures}
+        splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
+        if config.posture_transfer:
+            splits.update(transfer_splits(splits, postures))
+    except InputError as e:
+        if e.path is not None:
+            raise
+        raise InputError(e.reason, dataset.source) from None
     split_sizes = {s: {p: len(splits[p].sets()[s]) for p in postures} for s in ("train", "cv", "iscv")}
-    splits.update(pair_splits(trials, postures, config))  # --iscv all-pairs: every other training subject
-    if config.posture_transfer:
-        splits.update(transfer_splits(splits, postures))
     units = [u for u in make_units(postures, config, pair_training_subjects(trials, config)) if u.split_key in splits]
     check_thresholds(units, splits, dataset.source)
     out_dir = Path(out_dir)
