@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.predictions, names, [args.model, args.trials], "--predictions", {"--out": args.out})
         refuse_foreign_export_files(args.predictions, names, "--predictions")
-    with Progress(transient=True, console=Console(stderr=True)) as progress:
+    err = Console(stderr=True)
+    with Progress(transient=True, console=err, disable=not err.is_terminal) as progress:  # a log: no blank line
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
