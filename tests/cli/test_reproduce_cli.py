@@ -332,6 +332,8 @@ def test_bad_usage_exits_2(capsys):
     with pytest.raises(SystemExit) as e:
         main(["reproduce", "--sections", "0"])
     assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "reachirl reproduce: error: argument --sections: expected an integer in [1, 1000], got 0" in err, err
 
 
 @pytest.mark.slow

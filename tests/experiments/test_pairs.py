@@ -80,7 +80,7 @@ def test_main_table_unchanged_and_resume(pairs_run, three_subjects, tmp_path, ca
     assert (pairs_run / "iscv_pairs.csv").read_text() == before
 
 
-def test_bad_options(three_subjects, cli):
+def test_bad_options(three_subjects, cli, capsys):
     with pytest.raises(InputError, match="--iscv must be one of"):
         ProtocolConfig(iscv="some")
     with pytest.raises(InputError, match="cannot be combined with --data"):
@@ -90,9 +90,11 @@ def test_bad_options(three_subjects, cli):
     proc = cli("reproduce", "--data", three_subjects, "--subjects", "4", "--out", "x", "--no-progress")
     assert proc.returncode == 2 and "cannot be combined with --data" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+    capsys.readouterr()
     with pytest.raises(SystemExit) as e:
         main(["reproduce", "--iscv", "every", "--out", "x"])
     assert e.value.code == 2
+    assert "argument --iscv: invalid choice: 'every' (choose from 'one', 'all-pairs')" in capsys.readouterr().err
 
 
 def test_one_subject_has_no_pairs_and_the_report_says_so(tmp_path):

@@ -290,13 +290,23 @@ def test_cli_synth(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "args", [["--trials", "0"], ["--seed", "-1"], ["--format", "xls"], ["--target-fraction", "1.5"], []]
+    ("args", "message"),
+    [
+        (["--trials", "0"], "argument --trials: expected an integer in [1, 1000], got 0"),
+        (["--seed", "-1"], "argument --seed: expected an integer >= 0, got -1"),
+        (["--format", "xls"], "argument --format: invalid choice: 'xls'"),
+        (["--target-fraction", "1.5"], "argument --target-fraction: expected a number in [0.5, 1.0), got 1.5"),
+        ([], "the following arguments are required: --out"),
+    ],
 )
-def test_cli_synth_bad_usage(tmp_path, args):
+def test_cli_synth_bad_usage(tmp_path, capsys, args, message):
     argv = ["synth", *args] if args == [] else ["synth", "--out", str(tmp_path / "o"), *args]
     with pytest.raises(SystemExit) as e:
         main(argv)
     assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert f"reachirl synth: error: {message}" in err, err
+    assert not (tmp_path / "o").exists()
 
 
 def test_cli_synth_refuses_a_bar_at_the_start(tmp_path, capsys):
