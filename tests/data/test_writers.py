@@ -44,7 +44,12 @@ def test_trc_round_trip_and_header(tmp_path, markers):
 def test_trc_gaps_are_empty_fields(tmp_path, markers):
     t, m = markers
     m["FTP"][3:6] = np.nan
-    _, m2, _ = read_trc_simple(write_trc(tmp_path / "g.trc", t, m))
+    path = write_trc(tmp_path / "g.trc", t, m)
+    rows = [line.split("\t") for line in path.read_text().splitlines()[6:]]
+    assert [r[11:14] for r in rows[3:6]] == [["", "", ""]] * 3  # FTP, the 4th marker: frames 4-6 empty
+    assert all(len(r) == 14 and "" not in r for i, r in enumerate(rows) if i not in (3, 4, 5))
+    assert all("" not in r[:11] for r in rows[3:6])  # the other markers are there
+    _, m2, _ = read_trc_simple(path)
     assert np.isnan(m2["FTP"][3:6]).all() and np.isfinite(m2["FTP"][6:]).all()
 
 
