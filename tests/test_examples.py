@@ -40,12 +40,12 @@ def test_learn_from_ue_adl_predicts_the_other_arm(capsys):
         assert float(hi) - float(lo) <= 0.25 + 0.01
 
 
-@pytest.mark.parametrize("name", ["quickstart", "virtual_subjects"])
-def test_examples_need_an_output_path(name, capsys):
+@pytest.mark.parametrize(("name", "option"), [("quickstart", "--out"), ("virtual_subjects", "--figure")])
+def test_examples_need_an_output_path(name, option, capsys):
     """No default output: an example never writes into the repository or the current folder unasked."""
     with pytest.raises(SystemExit) as e:
         load(name).main([])
-    assert e.value.code == 2 and "required" in capsys.readouterr().err
+    assert e.value.code == 2 and f"error: the following arguments are required: {option}\n" in capsys.readouterr().err
 
 
 def test_one_cost_across_subjects_needs_three_subjects(recorded, capsys):

@@ -140,7 +140,8 @@ def test_usage_error_exits_2(capsys):
     with pytest.raises(SystemExit) as e:
         main(["fit"])
     assert e.value.code == 2
-    assert "required" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "reachirl fit: error: the following arguments are required: trials, --sections, --out" in err, err
 
 
 @pytest.fixture(scope="module")
