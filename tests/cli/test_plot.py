@@ -260,8 +260,15 @@ def _protocol(d, key, value):
 @pytest.mark.parametrize(
     ("change", "match"),
     [
-        (lambda d: _protocol(d, "sections", "abc"), r"field 'protocol\.sections': expected a list of integers"),
-        (lambda d: _protocol(d, "methods", 5), r"field 'protocol\.methods': expected a list of strings, found 5"),
+        (
+            lambda d: _protocol(d, "sections", "abc"),
+            r"field 'protocol\.sections': expected a non-empty list of integers",
+        ),
+        (
+            lambda d: _protocol(d, "methods", 5),
+            r"field 'protocol\.methods': expected a non-empty list of strings, found 5",
+        ),
+        (lambda d: _protocol(d, "methods", []), r"field 'protocol\.methods': expected a non-empty list of strings"),
         (lambda d: _protocol(d, "sections", [1, 999]), r"field 'protocol': --sections 999 exceeds the \d+ DOC"),
         (lambda d: d.update(protocol=[1]), r"field 'protocol': expected an object, found list"),
         (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),

@@ -337,7 +337,18 @@ def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_analysis(small_r
 @pytest.mark.parametrize(
     ("change", "match"),
     [
-        (lambda d: d["protocol"].update(sections="abc"), r"field 'protocol\.sections': expected a list of integers"),
+        (
+            lambda d: d["protocol"].update(sections="abc"),
+            r"field 'protocol\.sections': expected a non-empty list of integers",
+        ),
+        (
+            lambda d: d["protocol"].update(methods=[]),
+            r"field 'protocol\.methods': expected a non-empty list of strings",
+        ),
+        (
+            lambda d: d["protocol"].update(postures=[], postures_run=[]),
+            r"field 'protocol\.postures': expected a non-empty list of strings",
+        ),
         (lambda d: d.update(protocol=[1]), r"field 'protocol': expected an object, found list"),
         (lambda d: d.update(data=[1]), r"field 'data': expected an object, found list"),
         (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),

@@ -213,11 +213,11 @@ def check_results_file(d, path) -> None:
                 raise InputError(f"field 'units', unit {i} ({u['key']}), '{key}': expected numbers, found {what}", path)
     for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
         v = proto.get(key)
-        if v is not None and not (
-            isinstance(v, list) and all(isinstance(x, kind) and not isinstance(x, bool) for x in v)
+        if v is not None and not (  # a run has at least one of each: an empty list is an edited file
+            isinstance(v, list) and v and all(isinstance(x, kind) and not isinstance(x, bool) for x in v)
         ):
             what = "integers" if kind is int else "strings"
-            raise InputError(f"field 'protocol.{key}': expected a list of {what}, found {brief(v)}", path)
+            raise InputError(f"field 'protocol.{key}': expected a non-empty list of {what}, found {brief(v)}", path)
 
 
 def protocol_config(kw: dict, path):
