@@ -370,3 +370,16 @@ def test_a_damaged_results_file_is_named_not_an_internal_error(small_run, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
     assert not out.exists()
+
+
+def test_an_out_folder_below_a_file_is_refused_before_any_work(small_run, tmp_path, capsys):
+    """--out FILE/sub: one line saying FILE is a file, before the run is loaded (not an OSError from the first
+    write, after the jobs were counted)."""
+    from reachirl.cli import main
+
+    (tmp_path / "notes.txt").write_text("mine\n")
+    out = tmp_path / "notes.txt" / "sens"
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith(f"{out}: --out: {tmp_path / 'notes.txt'} is a file, not a folder"), err
+    assert (tmp_path / "notes.txt").read_text() == "mine\n"

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import remove_temporaries
-from ..validation import NODES_RANGE
+from ..validation import NODES_RANGE, check_output_dir
 from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
 #: local worker processes at most (as reproduce's --workers)
@@ -80,6 +80,7 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a folder; --out needs a folder", out)
+    check_output_dir(out)  # before any work: a folder in which files can be written (not below a file)
     refuse_overwrite({"--out": out}, [args.run_dir])
     cfg = SensitivityConfig(
         percent=args.percent,
