@@ -383,3 +383,41 @@ def test_an_out_folder_below_a_file_is_refused_before_any_work(small_run, tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].endswith(f"{out}: --out: {tmp_path / 'notes.txt'} is a file, not a folder"), err
     assert (tmp_path / "notes.txt").read_text() == "mine\n"
+
+
+def _drop(path):
+    path.unlink()
+
+
+def _edit(path):
+    d = json.loads(path.read_text())
+    d["weights"][0][0] *= 2
+    path.write_text(json.dumps(d))
+
+
+@pytest.mark.parametrize(
+    ("name", "damage", "match"),
+    [
+        ("moirl-P2-s2.json", _drop, "missing: the checkpoint of the run's unit moirl-P2-s2"),
+        ("moirl-P2-s2.json", _edit, r"its content does not match its checksum \(edited or damaged\): the checkpoint"),
+        ("moirl-P2-s2.npz", _drop, "missing: the checkpoint of the run's unit moirl-P2-s2"),
+    ],
+)
+def test_a_damaged_unit_checkpoint_is_named_in_one_line(small_run, tmp_path, capsys, name, damage, match):
+    """The analysed unit's checkpoint missing or edited: exit 2 naming that file, and no warning that the unit is
+    being recomputed (sensitivity recomputes no unit); a damaged checkpoint of a unit not analysed is no matter."""
+    import re
+    import shutil
+
+    from reachirl.cli import main
+
+    run = tmp_path / "run"
+    shutil.copytree(small_run, run)
+    damage(run / "units" / name)
+    (run / "units" / "moirl-P2-s1.json").write_text("damaged")  # not analysed: passed over in silence
+    out = tmp_path / "sens"
+    assert main(["sensitivity", str(run), "--out", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(re.escape(f"{run / 'units' / name}: ") + match, err[0]), err
+    assert f"rerun `reachirl reproduce` into {run} to recompute it" in err[0]
+    assert not out.exists()

@@ -99,33 +99,41 @@ def _check_unit_paths(js: Path, npz: Path) -> None:
 def load_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> dict | None:
     """A finished unit's result, or ``None`` (recompute it) if absent, damaged, edited (its ``checksum`` does not
     match its content), holding a non-finite number, for other inputs (other fingerprint), or if its NPZ is
-    missing, damaged or not the one its JSON was written with (SHA-256). A folder or other non-file where the
-    checkpoint goes raises :class:`~reachirl.errors.InputError` naming it."""
+    missing, damaged or not the one its JSON was written with (SHA-256); a damaged one is warned about. A folder or
+    other non-file where the checkpoint goes raises :class:`~reachirl.errors.InputError` naming it."""
+    res, problem = read_unit(out_dir, key, fingerprint)
+    if problem is not None and not (problem[0].suffix == ".json" and problem[1] == "missing"):  # not run yet
+        log.warning("%s: %s; recomputing the unit", *problem)
+    return res
+
+
+def read_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> tuple[dict | None, tuple[Path, str] | None]:
+    """``(result, None)`` for a finished unit as :func:`load_unit` reuses it; otherwise ``(None, (file, what is
+    wrong))``, e.g. ``(units/<key>.json, "missing")``, or ``(None, None)`` for a unit of other inputs (another
+    ``fingerprint``). Logs nothing: the caller says what follows."""
     js, npz = unit_paths(out_dir, key)
     _check_unit_paths(js, npz)
     if not js.is_file():
-        return None
-    res = read_checkpoint(js, "recomputing the unit")
-    if res is None:
-        return None
+        return None, (js, "missing")
+    try:
+        res = json.loads(js.read_text(encoding="utf-8"), parse_constant=_reject_constant)
+    except (OSError, ValueError, RecursionError) as e:
+        return None, (js, f"damaged ({e})")
     if not isinstance(res, dict) or res.get("key") != key:
-        log.warning("%s: not a unit result of %s; recomputing the unit", js, key)
-        return None
+        return None, (js, f"not a unit result of {key}")
     if fingerprint is not None and res.get("fingerprint") != fingerprint:
-        return None
+        return None, None
     try:
         same = res.get("checksum") == content_checksum(res)
     except (TypeError, ValueError):
         same = False
     if not same:
-        log.warning("%s: its content does not match its checksum (edited or damaged); recomputing the unit", js)
-        return None
+        return None, (js, "its content does not match its checksum (edited or damaged)")
     if res.get("has_arrays"):
         problem = _npz_problem(npz, res.get("npz_sha256"))
         if problem:
-            log.warning("%s: %s; recomputing the unit", npz, problem)
-            return None
-    return res
+            return None, (npz, problem)
+    return res, None
 
 
 def _npz_problem(npz: Path, sha256: str | None) -> str | None:

@@ -46,6 +46,7 @@ __all__ = [
     "SensitivityConfig",
     "load_run",
     "run_sensitivity",
+    "run_unit",
 ]
 
 log = logging.getLogger(__name__)
@@ -99,10 +100,11 @@ class SensitivityConfig:
 
 # ---------------------------------------------------------------------- the run
 def load_run(run_dir: str | Path):
-    """``(dataset, config, results, train_subject)`` of a finished ``reproduce`` run folder. The data are loaded
-    again from where the run found them and must have the run's fingerprint."""
+    """``(dataset, config, units, train_subject)`` of a finished ``reproduce`` run folder, ``units`` its
+    ``results.json`` entries by key (:func:`run_unit` reads a unit's checkpoint). The data are loaded again from
+    where the run found them and must have the run's fingerprint."""
     from .datasets import Dataset, fingerprint, load, preprocess_folder
-    from .results import check_results_file, load_unit, protocol_config
+    from .results import check_results_file, protocol_config
 
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
@@ -139,12 +141,24 @@ def load_run(run_dir: str | Path):
             kw[k] = tuple(kw[k])
     kw["postures"] = tuple(proto.get("postures_run") or kw.get("postures") or ())
     config = protocol_config(kw, path)
-    results = {}
-    for u in res.get("units", []):
-        r = load_unit(run_dir, u["key"])
-        if r is not None:
-            results[u["key"]] = r
-    return dataset, config, results, str(proto.get("train_subject"))
+    units = {u["key"]: u for u in res.get("units", [])}
+    return dataset, config, units, str(proto.get("train_subject"))
+
+
+def run_unit(run_dir: str | Path, key: str) -> dict:
+    """The checkpoint ``units/<key>.json`` of a finished run's unit (as ``reproduce`` reuses it); a missing,
+    damaged or edited one is an :class:`InputError` naming the file (the analysis recomputes no unit)."""
+    from .results import read_unit
+
+    res, problem = read_unit(Path(run_dir), key)
+    if res is None:
+        path, what = problem
+        raise InputError(
+            f"{what}: the checkpoint of the run's unit {key}; rerun `reachirl reproduce` into {run_dir} to "
+            "recompute it",
+            path,
+        )
+    return res
 
 
 # ---------------------------------------------------------------------- constrained MO-IRL
@@ -381,7 +395,7 @@ def run_sensitivity(
     reused)`` per job."""
 
     config = config or SensitivityConfig()
-    dataset, pconfig, results, train_subject = load_run(run_dir)
+    dataset, pconfig, units, train_subject = load_run(run_dir)
     method = config.method or pconfig.methods[0]
     if method not in pconfig.methods:
         raise InputError(f"--method {method!r} was not run; the run has {', '.join(pconfig.methods)}")
@@ -397,20 +411,21 @@ def run_sensitivity(
     trials = list(dataset.trials)
     chosen = {}
     for p in postures:
-        r = next(
+        key = next(
             (
-                r
-                for r in results.values()
-                if r["unit"]["method"] == method
-                and r["unit"]["posture"] == p
-                and int(r["unit"]["sections"]) == sections
-                and not r["unit"].get("train_subject")
-                and not r["unit"].get("held_out_posture")  # a posture-transfer unit names its held-out posture
+                k
+                for k, e in units.items()
+                if e["unit"].get("method") == method
+                and e["unit"]["posture"] == p
+                and e["unit"].get("sections") == sections
+                and not e["unit"].get("train_subject")
+                and not e["unit"].get("held_out_posture")  # a posture-transfer unit names its held-out posture
             ),
             None,
         )
-        if r is None:
-            raise InputError(f"the run has no finished unit {method}, {p}, {sections} sections", run_dir)
+        if key is None:
+            raise InputError(f"the run has no unit {method}, {p}, {sections} sections", Path(run_dir) / "results.json")
+        r = run_unit(run_dir, key)
         split = split_trials(trials, p, pconfig)
         if [t.id for t in split.train] != [e["id"] for e in r["sets"]["train"]["trials"]]:
             raise InputError(f"{r['key']}: the training trials differ from the run's", run_dir)
