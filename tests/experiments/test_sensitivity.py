@@ -421,3 +421,21 @@ def test_a_damaged_unit_checkpoint_is_named_in_one_line(small_run, tmp_path, cap
     assert len(err) == 1 and re.search(re.escape(f"{run / 'units' / name}: ") + match, err[0]), err
     assert f"rerun `reachirl reproduce` into {run} to recompute it" in err[0]
     assert not out.exists()
+
+
+def test_a_method_without_determination_still_reports_its_weight_changes_effects():
+    """A fit without rollouts (KKT) has no determination, but its ±x % changes ran: the report says which part is
+    missing, not that the method has no sensitivity, and lists the effects' collinearity found."""
+    from reachirl.experiments.sensitivity_outputs import _markdown
+
+    pair = {"window": 2, "features": ["geodesic", "joint_velocity"], "cos": 0.97}
+    out = {
+        "config": {"method": "kkt", "sections": 2, "postures": ["P2"], "percent": 10.0},
+        "rows": [],
+        "identifiability": {
+            "P2": {"determination": None, "effect_collinearity": [pair], "key": "kkt-P2-s2", "flag": None}
+        },
+    }
+    (line,) = [x for x in _markdown(out) if x.startswith("- **P2**")]
+    assert "no sensitivity" not in line and "not computed for this method" in line
+    assert "geodesic–joint_velocity (windows 2)" in line

@@ -179,14 +179,20 @@ def _markdown(out: dict) -> list[str]:
     for p, d in out["identifiability"].items():
         det = d.get("determination")
         head = f"- **{p}** ({d['key']}{', flag ' + d['flag'] if d.get('flag') else ''}): "
-        if det is None:
-            lines.append(head + "no sensitivity of this method's fit (only MO-IRL and MaxEnt make rollouts).")
+        effects = (
+            f"weights with nearly collinear effects on the path (|cos| ≥ 0.9, per window): "
+            f"{_effects(d.get('effect_collinearity') or [])}."
+        )
+        if det is None:  # the ±x % changes still ran, and their effects are compared
+            lines.append(
+                head + "which weight directions the training data determines is not computed for this method "
+                "(only MO-IRL and MaxEnt fit from rollouts); " + effects
+            )
             continue
         lines.append(
             head + f"{det['n_determined']} of {det['n_directions']} weight directions determined "
             f"(most determined: {det['determined'][0] if det['determined'] else 'none'}; least: "
-            f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); weights with nearly collinear "
-            f"effects on the path (|cos| ≥ 0.9, per window): {_effects(d.get('effect_collinearity') or [])}."
+            f"{det['undetermined'][-1] if det['undetermined'] else 'none'}); " + effects
         )
     lines.append("")
     return lines
