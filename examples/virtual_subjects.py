@@ -26,17 +26,47 @@ from reachirl.virtual import (
 )
 
 
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return n
+
+
+def _figure_path(parser: argparse.ArgumentParser, path: Path, option: str) -> Path:
+    """Before any work: ``path`` is a file that matplotlib can write by its suffix (``.png``, ``.pdf``, ...), in a
+    folder that exists or can be made; otherwise exit 2 with one line naming it."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    from reachirl.errors import InputError
+    from reachirl.validation import check_output_file
+
+    try:
+        check_output_file(path, option)
+    except InputError as e:
+        parser.error(str(e))
+    kinds = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix.lower().lstrip(".") not in kinds:
+        known = ", ".join(f".{k}" for k in sorted(kinds))
+        parser.error(f"{path}: {option}: expected a figure file name ending in one of {known}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--figure", type=Path, required=True, help="where to save the posture figure (PNG)")
-    parser.add_argument("--trials", type=int, default=5, help="trials per posture (default 5)")
+    parser.add_argument("--trials", type=_positive, default=5, help="trials per posture, at least 1 (default 5)")
     args = parser.parse_args(argv)
+    _figure_path(parser, args.figure, "--figure")
 
     import matplotlib
 
     matplotlib.use("Agg")
     fig = plot_postures()
-    args.figure.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.figure, dpi=110)
     print(f"posture figure: {args.figure}")
 

@@ -64,3 +64,38 @@ def test_one_cost_across_subjects_compares_pooled_and_single_fits(tmp_path, caps
     assert load("one_cost_across_subjects").main(["--data", str(tmp_path / "t.npz"), "--windows", "2"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 4 and lines[-1].startswith("mean: pooled ")
+
+
+@pytest.mark.parametrize(("name", "option"), [("quickstart", "--out"), ("virtual_subjects", "--figure")])
+@pytest.mark.parametrize(
+    ("where", "match"),
+    [
+        ("folder", r"{path}: {option}: is a folder, expected a file path"),
+        ("figure.txt", r"{path}: {option}: expected a figure file name ending in one of \.avif, .*\.png"),
+        ("figure", r"{path}: {option}: expected a figure file name ending in one of"),
+        ("notes.txt/figure.png", r"{parent}: {option}: {parent} is a file, not a folder"),
+    ],
+)
+def test_examples_refuse_a_bad_figure_path_before_any_work(tmp_path, capsys, name, option, where, match):
+    """A folder, a name matplotlib cannot write (or would silently give another name: no suffix) or a path below a
+    file: exit 2 with the path named, before any solve (not a traceback after them, nor 'wrote' a file that was
+    written elsewhere)."""
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "notes.txt").write_text("mine\n")
+    path = tmp_path / where
+    with pytest.raises(SystemExit) as e:
+        load(name).main([option, str(path)])
+    captured = capsys.readouterr()
+    assert e.value.code == 2 and captured.out == ""
+    want = match.format(path=re.escape(str(path)), parent=re.escape(str(path.parent)), option=option)
+    assert re.search(want, captured.err.splitlines()[-1]), captured.err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["folder", "notes.txt"]
+
+
+def test_virtual_subjects_needs_a_trial(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        load("virtual_subjects").main(["--figure", str(tmp_path / "p.png"), "--trials", "0"])
+    assert e.value.code == 2 and "argument --trials: expected a whole number of at least 1, got '0'" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "p.png").exists()
