@@ -1,6 +1,7 @@
 """The examples run and do what they say (each is a short script with a main())."""
 
 import importlib.util
+import json
 import re
 from pathlib import Path
 
@@ -99,3 +100,54 @@ def test_virtual_subjects_needs_a_trial(tmp_path, capsys):
         capsys.readouterr().err
     )
     assert not (tmp_path / "p.png").exists()
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory, cli):
+    """A quick reproduce run on the built-in virtual subjects: 40 knots, 3 training trials, P2, 8 sections."""
+    out = tmp_path_factory.mktemp("arm") / "run"
+    proc = cli(
+        "reproduce", "--quick", "--sections", "8", "--postures", "P2", "--uncertainty", "0", "--workers", "1",
+        "--no-progress", "--out", out,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_arm_sensitivity_predicts_the_runs_own_training_reach(quick_run, monkeypatch, capsys):
+    """The mean reach is the run's training trials' (3 here, not the protocol's default 10) on the run's knots
+    (40, not 100), with the weights of the run's main fit."""
+    import numpy as np
+
+    module = load("arm_sensitivity")
+    seen, weights = [], []
+    real_mean_task = module.mean_task
+
+    def mean_task(trials, n_nodes):
+        seen.append((len(trials), n_nodes))
+        return real_mean_task(trials, n_nodes)
+
+    def predict(task, threshold, w, arm):
+        weights.append(np.asarray(w))
+        return np.zeros((task.n_nodes + 1, 2))
+
+    monkeypatch.setattr(module, "mean_task", mean_task)
+    monkeypatch.setattr(module, "_predict", predict)
+    assert module.main([str(quick_run)]) == 0
+    assert seen[0] == (3, 40)
+    unit = json.loads((quick_run / "units" / "moirl-P2-s8.json").read_text())
+    assert any(np.array_equal(w, np.asarray(unit["weights"])) for w in weights)
+    assert capsys.readouterr().out.startswith("P2 | own arm:")
+
+
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [
+        (["--data-seed", "1"], r"--data-seed 1: not the seed of the run's virtual subjects"),
+        (["--sections", "5"], r"run: no MO-IRL fit with 5 sections; the run has 8 sections of moirl"),
+    ],
+)
+def test_arm_sensitivity_refuses_what_the_run_does_not_hold(quick_run, capsys, args, match):
+    with pytest.raises(SystemExit) as e:
+        load("arm_sensitivity").main([str(quick_run), *args])
+    assert e.value.code == 2 and re.search(match, capsys.readouterr().err.splitlines()[-1])
