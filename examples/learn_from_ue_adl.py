@@ -19,7 +19,18 @@ from reachirl.data.pipeline import preprocess_entries
 from reachirl.data.readers import ManifestEntry, read_subject_info
 from reachirl.data.ue_adl import SAMPLE_DIR, reach_files
 from reachirl.doc.evaluation import evaluate_trials, summarise
+from reachirl.errors import InputError
 from reachirl.features import cost_shares
+
+
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return n
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -27,11 +38,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--data", type=Path, default=SAMPLE_DIR, help="a UE-ADL folder (default: the sample shipped in the package)"
     )
-    parser.add_argument("--windows", type=int, default=8)
+    parser.add_argument("--windows", type=_positive, default=8, help="weight windows, at least 1 (default 8)")
     args = parser.parse_args(argv)
 
-    entries = [ManifestEntry(file=f, subject="", posture="") for f in reach_files(args.data)]
-    trials = preprocess_entries(entries, subject_info=read_subject_info(args.data / "subjects.csv"))
+    try:  # a folder that is not UE-ADL's, or a damaged recording: one line naming it
+        entries = [ManifestEntry(file=f, subject="", posture="") for f in reach_files(args.data)]
+        trials = preprocess_entries(entries, subject_info=read_subject_info(args.data / "subjects.csv"))
+    except InputError as e:
+        parser.error(str(e))
     train = [t for t in trials if t.side == "right"]
     test = [t for t in trials if t.side == "left"]
     model = MOIRL(n_windows=args.windows, uncertainty=40).fit(train)

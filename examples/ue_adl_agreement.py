@@ -15,6 +15,7 @@ import argparse
 
 from reachirl.data.preprocess import PreprocessOptions
 from reachirl.data.ue_adl import SAMPLE_DIR, agreement, agreement_markdown
+from reachirl.errors import InputError
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -29,7 +30,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plane", choices=("pca", "vertical"), default="pca")
     parser.add_argument("--per-trial", action="store_true", help="also list every trial")
     args = parser.parse_args(argv)
-    rows, trials = agreement(args.root, PreprocessOptions(distal=args.distal, plane=args.plane))
+    try:
+        rows, trials = agreement(args.root, PreprocessOptions(distal=args.distal, plane=args.plane))
+    except InputError as e:  # not a UE-ADL folder, or a damaged recording: one line naming it
+        parser.error(str(e))
     print(agreement_markdown(rows))
     if args.per_trial:
         print("\n| trial | frames ours/theirs | shoulder r | elbow r | forearm mm (SD) |\n|---|---|---|---|---|")

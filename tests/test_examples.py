@@ -151,3 +151,21 @@ def test_arm_sensitivity_refuses_what_the_run_does_not_hold(quick_run, capsys, a
     with pytest.raises(SystemExit) as e:
         load("arm_sensitivity").main([str(quick_run), *args])
     assert e.value.code == 2 and re.search(match, capsys.readouterr().err.splitlines()[-1])
+
+
+@pytest.mark.parametrize(
+    ("name", "args", "match"),
+    [
+        ("learn_from_ue_adl", ["--data", "{missing}"], "{missing}: not a folder"),
+        ("learn_from_ue_adl", ["--windows", "0"], "argument --windows: expected a whole number of at least 1, got '0'"),
+        ("one_cost_across_subjects", ["--data", "{missing}"], "{missing}: file not found"),
+        ("ue_adl_agreement", ["--root", "{missing}"], "{missing}: not a folder"),
+    ],
+)
+def test_examples_refuse_bad_input_in_one_line(tmp_path, capsys, name, args, match):
+    """Not an InputError's (or ValueError's) traceback: exit 2 with the file and what is wrong."""
+    missing = str(tmp_path / "missing")
+    with pytest.raises(SystemExit) as e:
+        load(name).main([a.format(missing=missing) for a in args])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.splitlines()[-1].endswith(match.format(missing=missing)), err
