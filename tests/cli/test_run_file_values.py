@@ -61,6 +61,15 @@ def test_reproduce_names_the_run_file_a_bad_value_came_from(tmp_path, capsys, te
     assert not (tmp_path / "run" / "results.json").exists()
 
 
+def test_an_empty_sections_list_is_refused_not_taken_for_the_default(tmp_path, capsys):
+    """methods = [] and postures = [] were refused; sections = [] ran the default 1, 6 and 8 in silence."""
+    cfg = _run_file(tmp_path, "sections = []\n")
+    assert main(["reproduce", "--quick", "--config", str(cfg), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"{cfg}: sections: expected a list of section counts, each 1 or more; got []"), err
+    assert not (tmp_path / "run").exists()
+
+
 def test_a_flag_that_overrides_the_run_file_is_not_blamed_on_it(tmp_path, capsys):
     cfg = _run_file(tmp_path, 'cv = "rest"\n')
     args = ["reproduce", "--quick", "--config", str(cfg), "--set", "cv=foo", "--out", str(tmp_path / "run")]

@@ -307,7 +307,9 @@ def _valid(kind: str, v) -> bool:
         "iters": num and 1 <= v <= MAX_ITER,
         "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= 0.5,
         "bool": isinstance(v, bool),
-        "sections": isinstance(v, list) and all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v),
+        "sections": isinstance(v, list)
+        and len(v) > 0
+        and all(isinstance(x, int) and not isinstance(x, bool) and x >= 1 for x in v),
         "subjects": num and 2 <= v <= MAX_SUBJECTS,
         "uncertainty": num and (v == 0 or 20 <= v <= 1000),
         "workers": num and 1 <= v <= 256,
