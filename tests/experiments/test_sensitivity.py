@@ -385,6 +385,25 @@ def test_an_out_folder_below_a_file_is_refused_before_any_work(small_run, tmp_pa
     assert (tmp_path / "notes.txt").read_text() == "mine\n"
 
 
+@pytest.mark.parametrize("inside", ["units", "figures/analysis"])
+def test_an_out_folder_inside_the_runs_own_folders_is_refused(small_run, capsys, inside):
+    """--out RUN/units or RUN/figures/x mixed the analysis into the run's checkpoints or figures."""
+    from reachirl.cli import main
+
+    before = sorted(p.name for p in (small_run / "units").iterdir())
+    out = small_run / inside
+    assert main(["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    name = inside.split("/")[0]
+    assert len(err) == 1 and err[0].endswith(
+        f"{out}: --out is inside the run's own {name}/ folder, which "
+        "`reachirl reproduce` writes; give the analysis a folder of its own "
+        f"(e.g. {small_run.resolve() / 'sensitivity'})"
+    ), err
+    assert sorted(p.name for p in (small_run / "units").iterdir()) == before
+    assert not (small_run / "figures" / "analysis").exists()
+
+
 def _drop(path):
     path.unlink()
 
