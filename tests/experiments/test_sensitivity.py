@@ -352,6 +352,16 @@ def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_analysis(small_r
         (lambda d: d.update(protocol=[1]), r"field 'protocol': expected an object, found list"),
         (lambda d: d.update(data=[1]), r"field 'data': expected an object, found list"),
         (lambda d: d["units"][0].pop("key"), r"field 'units', unit 0: expected a list of objects with a 'key'"),
+        # the run was recorded as "None" and analysed
+        (
+            lambda d: d["protocol"].update(train_subject=None),
+            r"field 'protocol': train_subject must name the run's training subject, got None$",
+        ),
+        # the data moved away: named by the run's record of it, not only by the missing path
+        (
+            lambda d: d["data"].update(source="/nonexistent/trials.npz"),
+            r"the run's data cannot be loaded again \(/nonexistent/trials\.npz: ",
+        ),
     ],
 )
 def test_a_damaged_results_file_is_named_not_an_internal_error(small_run, tmp_path, capsys, change, match):

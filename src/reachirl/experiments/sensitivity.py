@@ -39,6 +39,7 @@ from ..errors import InputError
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, to_jsonable
 from ..irl.moirl import MOIRL
+from ..validation import brief
 from .protocol import ProtocolConfig, Split, Unit, make_estimator, split_trials
 
 __all__ = [
@@ -129,7 +130,10 @@ def load_run(run_dir: str | Path):
             raise InputError(f"the run's built-in data folder is gone ({folder}); rerun reproduce", path)
         dataset = Dataset(tuple(preprocess_folder(folder)), source, "builtin")
     elif kind in ("folder", "trials-file"):
-        dataset = load(source)
+        try:
+            dataset = load(source)
+        except InputError as e:  # moved, removed or edited: the run's record of it is what names it
+            raise InputError(f"the run's data cannot be loaded again ({e})", path) from None
     else:
         raise InputError(f"the run's data ({kind or 'unknown'}: {source}) cannot be loaded again", path)
     if data.get("fingerprint") and fingerprint(dataset.trials) != data["fingerprint"]:
@@ -142,7 +146,12 @@ def load_run(run_dir: str | Path):
     kw["postures"] = tuple(proto.get("postures_run") or kw.get("postures") or ())
     config = protocol_config(kw, path)
     units = {u["key"]: u for u in res.get("units", [])}
-    return dataset, config, units, str(proto.get("train_subject"))
+    subject = proto.get("train_subject")
+    if not isinstance(subject, str) or not subject:
+        raise InputError(
+            f"field 'protocol': train_subject must name the run's training subject, got {brief(subject)}", path
+        )
+    return dataset, config, units, subject
 
 
 def run_unit(run_dir: str | Path, key: str) -> dict:
