@@ -36,6 +36,7 @@ import numpy as np
 from reachirl import ReachingTask, solve_doc
 from reachirl.data.trial import Trial
 from reachirl.doc.evaluation import evaluate_trials, rmse_deg, summarise
+from reachirl.io import atomic_write_text
 from reachirl.irl.methods import make_estimator
 from reachirl.irl.moirl import demonstration_states, mean_task
 from reachirl.irl.objective import merit
@@ -353,8 +354,8 @@ def run(quick: bool = False, out_dir=None, seed: int = 0) -> dict:
     if out_dir is not None:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        _atomic_write(out / "bench_irl.json", json.dumps(result, indent=2, default=_json_default))
-        _atomic_write(out / "bench_irl.md", markdown(result))
+        atomic_write_text(out / "bench_irl.json", json.dumps(result, indent=2, default=_json_default))
+        atomic_write_text(out / "bench_irl.md", markdown(result))
     return result
 
 
@@ -427,12 +428,6 @@ def _json_default(o):
     if isinstance(o, np.generic):
         return o.item()
     raise TypeError(type(o).__name__)
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
 
 
 def markdown(result: dict) -> str:

@@ -63,9 +63,13 @@ def run(args: argparse.Namespace) -> int:
 
         check_output_file(args.out)
         check_output_kind(args.out, ".json", kind=("BENCH.json", bench_json))
+        if "irl" in suites:  # its report folder beside --out, checked before any suite runs
+            from ..validation import check_output_dir
+
+            check_output_dir(args.out.parent / "bench_irl", "the irl suite's report folder (beside --out)")
+    modules = {suite: _load(suite) for suite in suites}  # a suite missing is said before the others run
     results = {}
-    for suite in suites:
-        module = _load(suite)
+    for suite, module in modules.items():
         t0 = time.perf_counter()
         print(f"== {suite} ==", flush=True)
         quick = {
