@@ -467,4 +467,7 @@ def test_a_method_without_determination_still_reports_its_weight_changes_effects
     }
     (line,) = [x for x in _markdown(out) if x.startswith("- **P2**")]
     assert "no sensitivity" not in line and "not computed for this method" in line
-    assert "geodesic–joint_velocity (windows 2)" in line
+    assert "geodesic–joint_velocity (window 2)" in line  # one window: singular
+    out["identifiability"]["P2"]["effect_collinearity"] = [pair, {**pair, "window": 1}]
+    (line,) = [x for x in _markdown(out) if x.startswith("- **P2**")]
+    assert "geodesic–joint_velocity (windows 2, 1)" in line

@@ -237,7 +237,7 @@ def _effects(items: list[dict]) -> str:
     for e in items:
         count.setdefault(tuple(e["features"]), []).append(e["window"])
     top = sorted(count.items(), key=lambda kv: -len(kv[1]))[:4]
-    return ", ".join(f"{a}–{b} (windows {', '.join(map(str, w))})" for (a, b), w in top)
+    return ", ".join(f"{a}–{b} (window{'s' if len(w) > 1 else ''} {', '.join(map(str, w))})" for (a, b), w in top)
 
 
 def _ci(r, s) -> str:
