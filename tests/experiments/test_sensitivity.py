@@ -136,6 +136,11 @@ def test_without_occlusion_the_figure_has_the_sensitivity_panel_alone():
     assert len(titles) == 2 and titles[0].startswith("sensitivity")  # the panel and its colour bar; no blank half
 
 
+def test_a_posture_named_twice_is_analysed_once():
+    """--postures P2 P2 listed P2 twice in sensitivity.md's header (and ran its jobs under one key twice)."""
+    assert SensitivityConfig(postures=("P2", "P4", "P2")).postures == ("P2", "P4")
+
+
 def test_bad_options(small_run, tmp_path, cli):
     with pytest.raises(InputError, match="--percent must be in"):
         SensitivityConfig(percent=0)

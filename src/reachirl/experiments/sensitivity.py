@@ -91,6 +91,8 @@ class SensitivityConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        if self.postures is not None:  # a posture named twice is analysed, and listed, once
+            object.__setattr__(self, "postures", tuple(dict.fromkeys(self.postures)))
         if not 0 < float(self.percent) < 100:
             raise InputError(f"--percent must be in (0, 100), got {self.percent}")
         if self.sections is not None and int(self.sections) < 1:
