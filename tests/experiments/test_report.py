@@ -294,6 +294,11 @@ def test_the_cost_section_says_how_many_re_solved_samples_are_as_good_as_the_fit
     cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
     assert cells["samples as good as the fit"] == "0 of 10"
     assert any("not costs shown to explain the reaches equally well" in line for line in lines)
+    # a sample whose DOC failed is said apart, not hidden among the solved ones
+    unc["checked"] = {"solved": 7, "failed": 3, "indistinguishable": 0}
+    (row,) = [line for line in cost_section(run) if line.startswith("| moirl-P1-s2 |")]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    assert cells["samples as good as the fit"] == "0 of 7 (3 DOC failed)"
 
 
 @pytest.mark.parametrize(

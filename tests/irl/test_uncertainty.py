@@ -213,6 +213,26 @@ def test_pooling_compares_the_data_s_tasks_whatever_the_rollouts(recorded, rollo
     assert MOIRL(1, n_nodes=20, max_iter=1, rollout=rollout, uncertainty=20).fit(one).uncertainty_["pooling"] is None
 
 
+def test_a_checked_sample_whose_doc_failed_is_counted_as_failed_not_as_solved(fitted, monkeypatch):
+    """A solver failure is counted and reported apart: before, ``solved`` was always ``n_check`` and a sample
+    whose re-solve failed passed for one the demonstrations tell apart from the fit."""
+    from reachirl.irl import uncertainty
+
+    est, trials = fitted
+    real, calls = uncertainty.rollout_errors, []
+
+    def every_other_fails(est_, w):
+        calls.append(1)
+        errors, cand, runs = real(est_, w)
+        return (None if len(calls) % 2 else errors), cand, runs
+
+    monkeypatch.setattr(uncertainty, "rollout_errors", every_other_fails)
+    u = uncertainty.weight_uncertainty(est, trials, n_samples=20, n_check=4)
+    assert len(calls) == 4
+    assert u["checked"]["failed"] == 2 and u["checked"]["solved"] == 2
+    assert 0 <= u["checked"]["indistinguishable"] <= 2
+
+
 def test_a_fit_whose_rollout_has_no_sensitivity_says_so_instead_of_failing(fitted, monkeypatch):
     from reachirl.irl import uncertainty
 

@@ -154,9 +154,10 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
 
 def _checked(checked: dict | None) -> str:
     """How many of the weight samples re-solved by the DOC the demonstrations cannot tell from the fit."""
+    failed = f" ({checked['failed']} DOC failed)" if checked and checked.get("failed") else ""
     if not checked or not checked.get("solved"):
-        return "—"
-    return f"{checked['indistinguishable']} of {checked['solved']}"
+        return f"—{failed}"
+    return f"{checked['indistinguishable']} of {checked['solved']}{failed}"
 
 
 def write_posture_transfer(run) -> list[str]:

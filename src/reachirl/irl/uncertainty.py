@@ -224,7 +224,8 @@ def weight_uncertainty(
     The prior centres every free log-weight on ``ω₀`` (every feature with the same share of each window's
     demonstrated cost), with a standard deviation of a factor 250 (:data:`PRIOR_LOG_SD`); the data's likelihood is
     the merit's Gauss-Newton model at the fit. ``n_check`` samples are solved by the DOC and tested with
-    :func:`indistinguishable` (``checked``: how many pass: the model is linear, the DOC is not).
+    :func:`indistinguishable` (``checked``: how many were solved, how many of those pass (the model is linear, the
+    DOC is not), and how many ``failed``: a sample whose DOC did not converge is counted there, not as solved).
 
     Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
     units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
@@ -269,11 +270,13 @@ def weight_uncertainty(
             w_g = est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape))
             pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(cost_shares(w_g, phi), point))
     errors_fit = np.sum(r**2, axis=1)
-    passed = solves = 0
+    passed = solves = failed = 0
     for w in samples[:n_check]:
         errors, _, runs = rollout_errors(est, w)
         solves += runs
-        if errors is not None:
+        if errors is None:  # a DOC failure: counted apart, neither solved nor told apart from the fit
+            failed += 1
+        else:
             passed += indistinguishable(errors, errors_fit)
     # the same quantities under the prior alone: what the data adds (where it determines little, next to nothing)
     prior_rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED, 1]))
@@ -296,7 +299,11 @@ def weight_uncertainty(
             "claim_fraction": claim_verdict(prior_shares)["fraction"],
         },
         "likelihood_tau": float(tau),
-        "checked": {"solved": min(n_check, n_samples), "indistinguishable": int(passed)},
+        "checked": {
+            "solved": min(n_check, n_samples) - failed,
+            "failed": int(failed),
+            "indistinguishable": int(passed),
+        },
         "doc_solves": int(solves),
         "pooling": pooling,
     }
