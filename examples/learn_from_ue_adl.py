@@ -23,23 +23,15 @@ from reachirl.errors import InputError
 from reachirl.features import cost_shares
 
 
-def _positive(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
-    return n
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--data", type=Path, default=SAMPLE_DIR, help="a UE-ADL folder (default: the sample shipped in the package)"
     )
-    parser.add_argument("--windows", type=_positive, default=8, help="weight windows, at least 1 (default 8)")
+    parser.add_argument("--windows", type=int, default=8, help="weight windows, at least 1 (default 8)")
     args = parser.parse_args(argv)
+    if args.windows < 1:
+        parser.error(f"argument --windows: expected a whole number of at least 1, got {args.windows}")
 
     try:  # a folder that is not UE-ADL's, or a damaged recording: one line naming it
         entries = [ManifestEntry(file=f, subject="", posture="") for f in reach_files(args.data)]

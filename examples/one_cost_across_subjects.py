@@ -26,22 +26,14 @@ def _rmse(model: MOIRL, trials) -> float:
     return float(summarise(errors)["rmse_deg"]["q"]["mean"])
 
 
-def _positive(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
-    return n
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True, help="a trials file of several subjects")
-    parser.add_argument("--windows", type=_positive, default=8, help="weight windows, at least 1 (default 8)")
+    parser.add_argument("--windows", type=int, default=8, help="weight windows, at least 1 (default 8)")
     parser.add_argument("--side", default="right", help="the arm to learn and predict (default right)")
     args = parser.parse_args(argv)
+    if args.windows < 1:
+        parser.error(f"argument --windows: expected a whole number of at least 1, got {args.windows}")
 
     try:
         trials = [t for t in load_trials(args.data) if t.side == args.side]

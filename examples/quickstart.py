@@ -17,34 +17,19 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
+from reachirl.errors import InputError
+from reachirl.validation import check_figure_file
 from reachirl.virtual import posture_q
-
-
-def _figure_path(parser: argparse.ArgumentParser, path: Path, option: str) -> Path:
-    """Before any work: ``path`` is a file that matplotlib can write by its suffix (``.png``, ``.pdf``, ...), in a
-    folder that exists or can be made; otherwise exit 2 with one line naming it."""
-    from matplotlib.backend_bases import FigureCanvasBase
-
-    from reachirl.errors import InputError
-    from reachirl.validation import check_output_file
-
-    try:
-        check_output_file(path, option)
-    except InputError as e:
-        parser.error(str(e))
-    kinds = FigureCanvasBase.get_supported_filetypes()
-    if path.suffix.lower().lstrip(".") not in kinds:
-        known = ", ".join(f".{k}" for k in sorted(kinds))
-        parser.error(f"{path}: {option}: expected a figure file name ending in one of {known}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="figure to write (PNG)")
     args = parser.parse_args(argv)
-    _figure_path(parser, args.out, "--out")
+    try:  # before any work: a figure file matplotlib can write, in a folder that can be made
+        check_figure_file(args.out, "--out").parent.mkdir(parents=True, exist_ok=True)
+    except InputError as e:
+        parser.error(str(e))
 
     arm = ArmModel.from_anthropometrics(height_m=1.76, mass_kg=70.0, sex="M")
     task = ReachingTask(arm, q0=posture_q("P2"), target_x=0.95 * arm.length, duration=0.75)

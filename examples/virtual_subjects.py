@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from reachirl import FEATURES
+from reachirl.errors import InputError
+from reachirl.validation import check_figure_file
 from reachirl.virtual import (
     FEATURE_SCALE,
     RELATIVE_IMPORTANCE,
@@ -26,42 +28,17 @@ from reachirl.virtual import (
 )
 
 
-def _positive(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
-    return n
-
-
-def _figure_path(parser: argparse.ArgumentParser, path: Path, option: str) -> Path:
-    """Before any work: ``path`` is a file that matplotlib can write by its suffix (``.png``, ``.pdf``, ...), in a
-    folder that exists or can be made; otherwise exit 2 with one line naming it."""
-    from matplotlib.backend_bases import FigureCanvasBase
-
-    from reachirl.errors import InputError
-    from reachirl.validation import check_output_file
-
-    try:
-        check_output_file(path, option)
-    except InputError as e:
-        parser.error(str(e))
-    kinds = FigureCanvasBase.get_supported_filetypes()
-    if path.suffix.lower().lstrip(".") not in kinds:
-        known = ", ".join(f".{k}" for k in sorted(kinds))
-        parser.error(f"{path}: {option}: expected a figure file name ending in one of {known}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return path
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--figure", type=Path, required=True, help="where to save the posture figure (PNG)")
-    parser.add_argument("--trials", type=_positive, default=5, help="trials per posture, at least 1 (default 5)")
+    parser.add_argument("--trials", type=int, default=5, help="trials per posture, at least 1 (default 5)")
     args = parser.parse_args(argv)
-    _figure_path(parser, args.figure, "--figure")
+    if args.trials < 1:
+        parser.error(f"argument --trials: expected a whole number of at least 1, got {args.trials}")
+    try:  # before any work: a figure file matplotlib can write, in a folder that can be made
+        check_figure_file(args.figure, "--figure").parent.mkdir(parents=True, exist_ok=True)
+    except InputError as e:
+        parser.error(str(e))
 
     import matplotlib
 

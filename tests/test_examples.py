@@ -96,7 +96,7 @@ def test_examples_refuse_a_bad_figure_path_before_any_work(tmp_path, capsys, nam
 def test_virtual_subjects_needs_a_trial(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         load("virtual_subjects").main(["--figure", str(tmp_path / "p.png"), "--trials", "0"])
-    assert e.value.code == 2 and "argument --trials: expected a whole number of at least 1, got '0'" in (
+    assert e.value.code == 2 and "argument --trials: expected a whole number of at least 1, got 0" in (
         capsys.readouterr().err
     )
     assert not (tmp_path / "p.png").exists()
@@ -157,7 +157,7 @@ def test_arm_sensitivity_refuses_what_the_run_does_not_hold(quick_run, capsys, a
     ("name", "args", "match"),
     [
         ("learn_from_ue_adl", ["--data", "{missing}"], "{missing}: not a folder"),
-        ("learn_from_ue_adl", ["--windows", "0"], "argument --windows: expected a whole number of at least 1, got '0'"),
+        ("learn_from_ue_adl", ["--windows", "0"], "argument --windows: expected a whole number of at least 1, got 0"),
         ("one_cost_across_subjects", ["--data", "{missing}"], "{missing}: file not found"),
         ("ue_adl_agreement", ["--root", "{missing}"], "{missing}: not a folder"),
     ],

@@ -276,6 +276,19 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
     return p
 
 
+def check_figure_file(path: str | os.PathLike, option: str = "--out") -> Path:
+    """Before any work: ``path`` can be written atomically (:func:`check_output_file`) and names a format that
+    matplotlib writes by its suffix (``.png``, ``.pdf``, ...). Returns it as a :class:`Path`."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    p = check_output_file(path, option)
+    kinds = FigureCanvasBase.get_supported_filetypes()
+    if p.suffix.lower().lstrip(".") not in kinds:
+        known = ", ".join(f".{k}" for k in sorted(kinds))
+        raise InputError(f"{option}: expected a figure file name ending in one of {known}", p)
+    return p
+
+
 #: errno values of an OSError that concern a path the user gave (not a bug of reachirl)
 PATH_ERRNOS = frozenset(
     getattr(errno, n)
