@@ -173,58 +173,6 @@ def _malformed(res_path: Path):
         ) from None
 
 
-def _check_drawn(u: dict, where: str, res_path: Path) -> None:
-    """The fields of a unit record that the figures draw as they are read (the others are read into the tables and
-    the captions first, under :func:`_malformed`): ``cost_shares`` a table of numbers with a column per feature,
-    ``uncertainty.share_intervals.determined`` booleans of its shape, ``flag`` a string and ``history`` a list of
-    objects whose ``iteration`` is a number; each may be null. Anything else is an
-    :class:`InputError` naming the file, the unit and the field."""
-    import numpy as np
-
-    from ..features import N_FEATURES
-    from ..validation import brief
-
-    def array(v, kinds: str) -> np.ndarray | None:
-        try:
-            a = np.asarray(v)
-        except (TypeError, ValueError):  # ragged rows
-            return None
-        return a if a.dtype.kind in kinds and a.ndim == 2 and a.shape[0] > 0 else None
-
-    shares = u.get("cost_shares")
-    if shares is not None and ((s := array(shares, "iuf")) is None or s.shape[1] != N_FEATURES):
-        raise InputError(
-            f"{where}: 'cost_shares': expected rows of {N_FEATURES} numbers (one per window), found {brief(shares)}",
-            res_path,
-        )
-    if u.get("uncertainty") and shares is not None:  # its hatching
-        try:
-            det = u["uncertainty"]["share_intervals"]["determined"]
-        except (KeyError, TypeError):
-            det = None
-        if (d := array(det, "b")) is None or d.shape != np.shape(shares):
-            raise InputError(
-                f"{where}: 'uncertainty.share_intervals.determined': expected booleans shaped as 'cost_shares' "
-                f"({len(shares)} × {N_FEATURES}), found {brief(det)}",
-                res_path,
-            )
-    if u.get("flag") is not None and not isinstance(u["flag"], str):
-        raise InputError(f"{where}: 'flag': expected a string or null, found {brief(u['flag'])}", res_path)
-    history = u.get("history")
-    if history is not None and not (
-        isinstance(history, list)
-        and all(
-            isinstance(h, dict)
-            and (h.get("iteration") is None or type(h["iteration"]) in (int, float))  # the x axis of its merit
-            for h in history
-        )
-    ):
-        raise InputError(
-            f"{where}: 'history': expected a list of objects whose 'iteration' is a number, found {brief(history)}",
-            res_path,
-        )
-
-
 def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     """A ``reproduce`` folder's figures drawn again from ``results.json`` and ``units/``."""
     from dataclasses import fields
@@ -246,8 +194,6 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
         raise InputError("not a results file of `reachirl reproduce` (format reachirl-reproduce/1)", res_path)
     check_results_file(d, res_path)
     proto, units = d.get("protocol") or {}, d["units"]
-    for i, u in enumerate(units):
-        _check_drawn(u, f"field 'units', unit {i} ({u['key']})", res_path)
     config = protocol_config({f.name: proto[f.name] for f in fields(ProtocolConfig) if f.name in proto}, res_path)
     results = {u["key"]: u for u in units}
     postures = list(proto.get("postures_run") or sorted({u["unit"]["posture"] for u in units}))

@@ -78,14 +78,22 @@ def _reject_constant(name: str):
     raise ValueError(f"non-finite number {name}")
 
 
+def _parse_checkpoint(path: Path) -> tuple[object, str | None]:
+    """``(content, None)`` of the JSON checkpoint ``path`` (a non-finite number refused), or ``(None, what is
+    wrong)``."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant), None
+    except (OSError, ValueError, RecursionError) as e:
+        return None, f"damaged ({e})"
+
+
 def read_checkpoint(path: Path, then: str):
     """The JSON content of the checkpoint ``path`` (a non-finite number refused), or ``None`` after a warning
     saying it is damaged and what happens ``then``."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (OSError, ValueError, RecursionError) as e:
-        log.warning("%s: damaged (%s); %s", path, e, then)
-        return None
+    content, problem = _parse_checkpoint(path)
+    if problem is not None:
+        log.warning("%s: %s; %s", path, problem, then)
+    return content
 
 
 def _check_unit_paths(js: Path, npz: Path) -> None:
@@ -115,10 +123,9 @@ def read_unit(out_dir: Path, key: str, fingerprint: str | None = None) -> tuple[
     _check_unit_paths(js, npz)
     if not js.is_file():
         return None, (js, "missing")
-    try:
-        res = json.loads(js.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (OSError, ValueError, RecursionError) as e:
-        return None, (js, f"damaged ({e})")
+    res, problem = _parse_checkpoint(js)
+    if problem is not None:
+        return None, (js, problem)
     if not isinstance(res, dict) or res.get("key") != key:
         return None, (js, f"not a unit result of {key}")
     if fingerprint is not None and res.get("fingerprint") != fingerprint:
@@ -219,6 +226,7 @@ def check_results_file(d, path) -> None:
         for key in ("weights", "cost_shares"):
             if (what := not_real(u.get(key))) is not None:
                 raise InputError(f"field 'units', unit {i} ({u['key']}), '{key}': expected numbers, found {what}", path)
+        _check_drawn(u, f"field 'units', unit {i} ({u['key']})", path)
     for key, kind in (("sections", int), ("methods", str), ("postures", str), ("postures_run", str)):
         v = proto.get(key)
         if v is not None and not (  # a run has at least one of each: an empty list is an edited file
@@ -226,6 +234,56 @@ def check_results_file(d, path) -> None:
         ):
             what = "integers" if kind is int else "strings"
             raise InputError(f"field 'protocol.{key}': expected a non-empty list of {what}, found {brief(v)}", path)
+
+
+def _check_drawn(u: dict, where: str, path) -> None:
+    """The fields of a unit record that ``plot``'s figures draw as they are read (the others are read into the
+    tables and the captions first, where a missing one is named): ``cost_shares`` a table of numbers with a column
+    per feature, ``uncertainty.share_intervals.determined`` booleans of its shape, ``flag`` a string and
+    ``history`` a list of objects whose ``iteration`` is a number; each may be null. Anything else is an
+    :class:`InputError` naming the file, the unit and the field."""
+    from ..features import N_FEATURES
+    from ..validation import brief
+
+    def array(v, kinds: str) -> np.ndarray | None:
+        try:
+            a = np.asarray(v)
+        except (TypeError, ValueError):  # ragged rows
+            return None
+        return a if a.dtype.kind in kinds and a.ndim == 2 and a.shape[0] > 0 else None
+
+    shares = u.get("cost_shares")
+    if shares is not None and ((s := array(shares, "iuf")) is None or s.shape[1] != N_FEATURES):
+        raise InputError(
+            f"{where}: 'cost_shares': expected rows of {N_FEATURES} numbers (one per window), found {brief(shares)}",
+            path,
+        )
+    if u.get("uncertainty") and shares is not None:  # its hatching
+        try:
+            det = u["uncertainty"]["share_intervals"]["determined"]
+        except (KeyError, TypeError):
+            det = None
+        if (d := array(det, "b")) is None or d.shape != np.shape(shares):
+            raise InputError(
+                f"{where}: 'uncertainty.share_intervals.determined': expected booleans shaped as 'cost_shares' "
+                f"({len(shares)} × {N_FEATURES}), found {brief(det)}",
+                path,
+            )
+    if u.get("flag") is not None and not isinstance(u["flag"], str):
+        raise InputError(f"{where}: 'flag': expected a string or null, found {brief(u['flag'])}", path)
+    history = u.get("history")
+    if history is not None and not (
+        isinstance(history, list)
+        and all(
+            isinstance(h, dict)
+            and (h.get("iteration") is None or type(h["iteration"]) in (int, float))  # the x axis of its merit
+            for h in history
+        )
+    ):
+        raise InputError(
+            f"{where}: 'history': expected a list of objects whose 'iteration' is a number, found {brief(history)}",
+            path,
+        )
 
 
 def protocol_config(kw: dict, path):
