@@ -308,3 +308,19 @@ def test_a_narrow_interval_that_misses_the_fits_share_is_not_determined():
     assert not share_intervals(draws, outside)["determined"][0][0]  # the fit lies outside its own narrow interval
     assert not share_intervals(draws, inside)["determined"][0][1]  # wide: undetermined wherever the fit lies
     assert share_intervals(draws)["determined"][0][0]  # without the fit's shares: the width alone
+
+
+def test_uncertainty_true_is_the_bare_flag_s_default_and_false_is_none(recorded):
+    # design.md: `fit ... --uncertainty` (and `MOIRL(..., uncertainty=...)`); the bare flag draws 40 samples, and
+    # MOIRL(uncertainty=True) refused True ("must be a number of samples") instead of doing the same
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
+    est = MOIRL(1, n_nodes=20, max_iter=1, uncertainty=True).fit(trials)
+    assert est.uncertainty_["n_samples"] == 40
+    assert np.shape(est.uncertainty_["weight_samples"]) == (40, 1, 7)
+    from reachirl.cli import build_parser
+
+    bare = build_parser().parse_args(["fit", "t.npz", "--sections", "1", "--out", "m.json", "--uncertainty"])
+    assert bare.uncertainty == est.uncertainty_["n_samples"]  # the same number as the bare flag
+    assert MOIRL(1, n_nodes=20, max_iter=1, uncertainty=False).fit(trials).uncertainty_ is None
+    with pytest.raises(ValueError, match=r"uncertainty must be a number of samples from 20 to 1000, True \(40\)"):
+        MOIRL(1, uncertainty=1000.5).fit(trials)

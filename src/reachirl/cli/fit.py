@@ -13,7 +13,7 @@ from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
-from ..irl.uncertainty import UNDETERMINED_WIDTH
+from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
 from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite
 
@@ -83,12 +83,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "--uncertainty",
         type=int_in(20, 1000),
         nargs="?",
-        const=40,
+        const=DEFAULT_SAMPLES,
         default=None,
         metavar="K",
-        help="MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default 40 when given) from the weights' "
-        "posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad prior: "
-        "docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
+        help=f"MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default {DEFAULT_SAMPLES} when given) from "
+        "the weights' posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad "
+        "prior: docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
         "takes 1.3-2.7x a plain fit's CPU time)",
     )
     p.add_argument(

@@ -142,7 +142,8 @@ class MOIRL(WeightEstimator):
     * ``n_nodes``, ``backend``: the DOC's knots and solver stack (``"casadi"`` or ``"crocoddyl"``).
     * ``seed_form``: the paper's method exactly as written (:data:`reachirl.irl.options.SEED_FORM`).
     * ``uncertainty``: a number ``K ≥ 20`` of weight samples from the weights' posterior given the training data
-      and the share intervals (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``.
+      and the share intervals (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``; ``True`` is
+      :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES` (40, as ``reachirl fit --uncertainty``), ``False`` none.
     * ``random_state``: the seed of every random choice (the uncertainty's samples).
     * ``feature_mask``: ``(7,)`` or ``(n_windows, 7)`` booleans; a ``False`` feature is left out of the cost
       (weight 0, never learned). ``None``: every feature.
@@ -249,17 +250,28 @@ class MOIRL(WeightEstimator):
             )
         if self.random_state < 0:
             raise ValueError(f"random_state must be an integer >= 0, got {self.random_state}")
-        if self.uncertainty is not None and not (
-            isinstance(self.uncertainty, int | np.integer) and 20 <= self.uncertainty <= 1000
-        ):
-            raise ValueError(
-                f"uncertainty must be a number of samples from 20 to 1000, or None, got {self.uncertainty!r}"
-            )
+        self._n_samples()  # checked before any solve
         check_windows(self._o, self.n_windows)
         if self.callback is not None and not callable(self.callback):
             raise ValueError(f"callback must be a function of an iteration's record, or None, got {self.callback!r}")
         self._mask = self._feature_mask()
         return trials
+
+    def _n_samples(self) -> int | None:
+        """The weight samples ``uncertainty`` asks for: its number, :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES`
+        for ``True`` (the bare ``reachirl fit --uncertainty``), ``None`` for ``None`` or ``False``."""
+        from .uncertainty import DEFAULT_SAMPLES
+
+        u = self.uncertainty
+        if u is None or u is False:
+            return None
+        if u is True:
+            return DEFAULT_SAMPLES
+        if not (isinstance(u, int | np.integer) and 20 <= u <= 1000):
+            raise ValueError(
+                f"uncertainty must be a number of samples from 20 to 1000, True ({DEFAULT_SAMPLES}) or None, got {u!r}"
+            )
+        return int(u)
 
     def _feature_mask(self) -> np.ndarray:
         """``(n_windows, 7)`` booleans: the features in the cost."""
@@ -438,11 +450,12 @@ class MOIRL(WeightEstimator):
             uncut_trials_warning(trials, self._of, self._thresholds) if self._o.observe else None,
         ]
         self.uncertainty_ = None
-        if self.uncertainty is not None:
+        n_samples = self._n_samples()
+        if n_samples is not None:
             from .uncertainty import weight_uncertainty
 
             try:
-                self.uncertainty_ = weight_uncertainty(self, trials, int(self.uncertainty), self.random_state)
+                self.uncertainty_ = weight_uncertainty(self, trials, n_samples, self.random_state)
             except ValueError as e:  # an unconverged or degenerate rollout has no sensitivity
                 msgs.append(f"no weight samples: {e}")
         for msg in filter(None, msgs):

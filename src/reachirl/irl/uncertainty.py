@@ -56,6 +56,10 @@ log = logging.getLogger(__name__)
 
 _ACC = FEATURES.index("joint_acceleration")
 
+DEFAULT_SAMPLES = 40
+"""Weight samples drawn when asked for without a number: ``reachirl fit --uncertainty`` and
+``MOIRL(uncertainty=True)``."""
+
 UNDETERMINED_WIDTH = 0.25
 """A share whose interval is wider than this is shown as undetermined, not as a finding."""
 
