@@ -125,6 +125,12 @@ class Trial:
         return float(self.t[-1])
 
     @property
+    def target(self) -> float:
+        """The reach's target, the bar's x: ``target_x`` (m) under the name of the design notes' data path
+        (``Trial (q, q̇, q̈, τ, x0, target, duration, subject, posture)``)."""
+        return self.target_x
+
+    @property
     def id(self) -> str:
         return f"{self.subject}/{self.posture}/{self.side}/{self.trial_id}"
 
