@@ -33,7 +33,9 @@ def test_the_python_names_and_signatures():
         "joint_torque",
     )
     for name in ("FEATURES", "ArmModel", "ReachingTask", "solve_doc", "DocSolution", "MOIRL"):
-        assert name in reachirl.__all__ and hasattr(reachirl, name)
+        # dir() (inspect.getmembers, help) left out MOIRL, which the package imports on first use
+        assert name in reachirl.__all__ and name in dir(reachirl) and hasattr(reachirl, name)
+    assert dict(inspect.getmembers(reachirl))["MOIRL"] is MOIRL
     assert ArmModel.__dataclass_params__.frozen
     assert [f.name for f in dataclasses.fields(ArmModel)] == ["l1", "l2", "m1", "m2", "c1", "c2", "i1", "i2", "gravity"]
     assert ArmModel.__dataclass_fields__["gravity"].default == 9.81

@@ -30,3 +30,8 @@ def __getattr__(name: str):
 
         return MOIRL
     raise AttributeError(f"module 'reachirl' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    # the lazy MOIRL too: dir(), inspect.getmembers and help() list every public name
+    return sorted({*globals(), *__all__})
