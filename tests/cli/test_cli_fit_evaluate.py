@@ -326,3 +326,15 @@ def test_reproduce_refuses_trials_cut_at_two_thresholds_before_any_work(trials_f
     )
     assert len(err.splitlines()) == 1, err
     assert (out / "table.csv").read_text() == "an earlier run's table\n" and (out / "run.toml").read_text() == earlier
+
+
+def test_fit_says_each_warning_once_on_stderr(tiny_trials, tmp_path, cli):
+    """A fit warning was said twice: logged while fitting (``WARNING ...``) and printed after it (``warning: ...``).
+    Now once, on stderr, after the fit; nothing of it on stdout."""
+    model = tmp_path / "m.json"
+    proc = cli("fit", tiny_trials, "--sections", "1", "--nodes", "20", "--max-iter", "1", "--out", model)
+    assert proc.returncode == 0, proc.stderr
+    (warning,) = json.loads(model.read_text())["info"]["warnings"]  # one iteration: a fit of one step
+    assert "stopped after one step" in warning
+    assert proc.stderr.count(warning) == 1 and f"warning: {warning}\n" in proc.stderr, proc.stderr
+    assert warning not in proc.stdout, proc.stdout

@@ -102,14 +102,16 @@ def test_resume_gives_the_same_table(trials_file, reference_run, tmp_path, capsy
     _same_table(out, reference_run)
 
 
-def test_the_fits_warnings_are_said_on_stderr_at_the_end(trials_file, tmp_path, capsys):
+def test_the_fits_warnings_are_said_on_stderr_at_the_end(trials_file, tmp_path, capsys, caplog):
     """Each fit warning (report.md's notes) is a line of its own on stderr naming its unit, at the end of the run;
-    also for a unit reused from its checkpoint, whose fit logged nothing in this run."""
+    also for a unit reused from its checkpoint, whose fit logged nothing in this run. Only there: a unit computed
+    in this run logged it too while it ran, so that it was said twice."""
     out = tmp_path / "out"
     argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", "--quick"]
     argv += ["--sections", "1", "--max-iter", "1", "--no-progress"]  # one iteration: each fit warns of one step
     for reused in (0, 2):  # computed, then every unit reused
         capsys.readouterr()
+        caplog.clear()
         assert main(argv) == 0
         err = capsys.readouterr().err.splitlines()
         res = json.loads((out / "results.json").read_text())
@@ -117,6 +119,7 @@ def test_the_fits_warnings_are_said_on_stderr_at_the_end(trials_file, tmp_path, 
         said = [f"warning: {u['key']}: {w}" for u in res["units"] for w in u["warnings"]]
         assert len(said) == 2 and all("stopped after one step" in s for s in said), said
         assert err[-2:] == said, err
+        assert not [r.getMessage() for r in caplog.records if "stopped after one step" in r.getMessage()]
 
 
 def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(

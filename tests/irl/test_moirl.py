@@ -444,3 +444,21 @@ def test_a_rollout_of_cut_and_uncut_trials_is_compared_whole_and_says_so(arm):
         _MOIRL(1, n_nodes=20, max_iter=1, rollout="per_demo").fit(demos),
     ):
         assert not [w for w in ok.warnings_ if "not cut at a speed threshold" in w]
+
+
+def test_a_fit_logs_its_warnings_unless_its_caller_shows_them(arm, caplog):
+    """Outside ``caller_shows_fit_warnings`` (a Python user's fit) each of ``warnings_`` is logged once; within it
+    (``reachirl fit``, a ``reproduce`` unit: they say ``warnings_`` themselves) none is, and ``warnings_`` is the
+    same."""
+    import logging
+
+    from reachirl.irl.base import caller_shows_fit_warnings
+
+    demos = known_weight_demos(arm, true_weights(1), 2, 20)
+    with caplog.at_level(logging.WARNING):
+        est = _MOIRL(1, n_nodes=20, max_iter=1).fit(demos)
+    assert est.warnings_ and [r.getMessage() for r in caplog.records] == est.warnings_
+    caplog.clear()
+    with caplog.at_level(logging.WARNING), caller_shows_fit_warnings():
+        quiet = _MOIRL(1, n_nodes=20, max_iter=1).fit(demos)
+    assert quiet.warnings_ == est.warnings_ and not caplog.records

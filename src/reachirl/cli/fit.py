@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -136,6 +137,7 @@ def _experimental(path: Path | None, n_windows: int, seed_form: bool = False) ->
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..irl.base import caller_shows_fit_warnings
     from ..irl.methods import METHODS as CLASSES
     from ..irl.methods import make_estimator
     from ..irl.moirl import MOIRL
@@ -176,7 +178,8 @@ def run(args: argparse.Namespace) -> int:
             kwargs["callback"] = progress
         est = make_estimator(args.method, args.sections, **kwargs)
         try:
-            est.fit(trials)
+            with caller_shows_fit_warnings():  # said once, below, from the model's info.warnings
+                est.fit(trials)
         except InputError as e:  # the trials do not go together (e.g. cut at two thresholds): name their file
             if e.path is not None:
                 raise
@@ -185,8 +188,8 @@ def run(args: argparse.Namespace) -> int:
     model = replace(model, info={**model.info, "trials": str(args.trials), "selection": chosen})
     info, unc = model.info, model.uncertainty
     save_model(args.out, model)
-    for msg in info["warnings"]:
-        console.print(f"[bold yellow]warning:[/] {msg}")
+    for msg in info["warnings"]:  # one line each, on stderr (the fit logged none of them)
+        print(f"warning: {msg}", file=sys.stderr)
     extra = ""
     if unc is not None:
         det = unc["determination"]

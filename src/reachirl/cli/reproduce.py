@@ -700,7 +700,8 @@ def run(args) -> int:
         f"predictions in {out / 'predictions'}" + "".join(extras),
         highlight=False,
     )
-    # the fits' warnings (report.md's notes), said last: a reused unit's, or a Dask worker's, were never logged here
+    # the fits' warnings (report.md's notes), said last and only here: a unit's fit logs none of them (a reused
+    # unit's, or a Dask worker's, would never reach this terminal as a log line), so each is said once
     for r in sorted(result.results.values(), key=lambda r: r["key"]):
         for w in r.get("warnings") or []:
             print(f"warning: {r['key']}: {w}", file=sys.stderr)

@@ -71,7 +71,7 @@ _NAMING = _NamingUnit()
 
 @contextlib.contextmanager
 def naming_unit(key: str):
-    """Within it, every log message (a fit's warning, a failed solve) logged by this thread names the unit
+    """Within it, every log message (e.g. a failed solve) logged by this thread names the unit
     ``key``: several units log to the same stderr, in workers whose messages reach it through Python's
     last-resort handler. The filter stays on the handlers; outside a unit it changes nothing."""
     for h in {*logging.getLogger().handlers, logging.lastResort}:
@@ -85,8 +85,13 @@ def naming_unit(key: str):
 
 
 def run_named_unit(unit: Unit, split: Split, job: Mapping | None = None) -> dict:
-    """:func:`~reachirl.experiments.truth_solves.run_unit_and_truth` with its log messages naming the unit."""
-    with naming_unit(unit.key):
+    """:func:`~reachirl.experiments.truth_solves.run_unit_and_truth` with its log messages naming the unit. The
+    fit's own warnings are not logged: they are in the unit's result (``warnings``), which reaches the user from
+    the checkpoint whether the unit ran here, in a worker or on Dask, or was reused (``reproduce`` lists them at
+    the end, ``report.md`` in its notes)."""
+    from ..irl.base import caller_shows_fit_warnings
+
+    with naming_unit(unit.key), caller_shows_fit_warnings():
         return run_unit_and_truth(unit, split, job)
 
 

@@ -3,8 +3,11 @@ and prediction by the DOC under the learned weights."""
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import inspect
-from collections.abc import Iterable, Sequence
+import logging
+from collections.abc import Iterable, Iterator, Sequence
 from os import PathLike
 
 import numpy as np
@@ -13,7 +16,28 @@ from ..data.checks import check_start_and_target, check_trial_physics
 from ..data.trial import Trial
 from ..doc import BACKENDS, DocSolution, ReachingTask, observation
 
-__all__ = ["WeightEstimator"]
+__all__ = ["WeightEstimator", "caller_shows_fit_warnings", "log_fit_warning"]
+
+_CALLER_SHOWS = contextvars.ContextVar("reachirl_caller_shows_fit_warnings", default=False)
+
+
+@contextlib.contextmanager
+def caller_shows_fit_warnings() -> Iterator[None]:
+    """Within it (in this thread or task), a fit logs none of the warnings it records in ``warnings_``: the caller
+    shows each of them itself, once (``reachirl fit`` after the fit, ``reachirl reproduce`` in its closing list of
+    the units' warnings), so that none is said twice. Its other log messages (a failed solve) are logged."""
+    token = _CALLER_SHOWS.set(True)
+    try:
+        yield
+    finally:
+        _CALLER_SHOWS.reset(token)
+
+
+def log_fit_warning(logger: logging.Logger, msg: str) -> None:
+    """Log ``msg``, a warning the fit also records in its ``warnings_``, unless the caller shows those itself
+    (:func:`caller_shows_fit_warnings`)."""
+    if not _CALLER_SHOWS.get():
+        logger.warning(msg)
 
 
 class WeightEstimator:

@@ -50,7 +50,7 @@ from ..doc.observation import (
 )
 from ..doc.sensitivity import weight_jacobian
 from ..features import N_FEATURES, feature_rates, window_index, windowed_features
-from .base import WeightEstimator
+from .base import WeightEstimator, log_fit_warning
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 from .options import FIELDS as _OPTION_FIELDS
 from .options import ROLLOUTS, Options, check_windows, resolve_options
@@ -460,7 +460,7 @@ class MOIRL(WeightEstimator):
                 msgs.append(f"no weight samples: {e}")
         for msg in filter(None, msgs):
             self.warnings_ = [*self.warnings_, msg]
-            log.warning(msg)
+            log_fit_warning(log, msg)
         self.fit_time_ = time.perf_counter() - t_start
         return self
 
@@ -669,7 +669,7 @@ class MOIRL(WeightEstimator):
         self.warnings_ = fit_warnings(best_iteration, n_accepted, initial_merit, m)
         if not getattr(self, "_first_stage", False):  # the first stage of an observed fit is judged with it
             for msg in self.warnings_:
-                log.warning(msg)
+                log_fit_warning(log, msg)
 
     def _line_search(
         self, w, dw, m, sols, tasks, x_demos, phi_star, starts, guesses, channels, tol: float | None = None
