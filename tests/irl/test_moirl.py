@@ -13,6 +13,7 @@ from reachirl.data.trial import trial_from_solution
 from reachirl.doc.evaluation import evaluate_trials
 from reachirl.errors import InputError
 from reachirl.irl import moirl as moirl_module
+from reachirl.irl.model import LearnedModel
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import subproblem_objective
 
@@ -439,11 +440,14 @@ def test_a_rollout_of_cut_and_uncut_trials_is_compared_whole_and_says_so(arm):
         "1 trial(s) not cut at a speed threshold (no rest before or after the reach: virtual//right/2) share a "
         "training rollout with 2 that were: that rollout is compared whole"
     )
-    for ok in (
-        _MOIRL(1, n_nodes=20, max_iter=1).fit(cut),
-        _MOIRL(1, n_nodes=20, max_iter=1, rollout="per_demo").fit(demos),
-    ):
+    # what the model says: the option, and that no trial was compared as recorded (it said every trial was)
+    info = LearnedModel.from_estimator(est, demos).info
+    assert info["observe"] is True and info["observed_trial_ids"] == []
+    for rollout, trials, seen in (("per_task", cut, cut), ("per_demo", demos, cut[:2])):
+        ok = _MOIRL(1, n_nodes=20, max_iter=1, rollout=rollout).fit(trials)
         assert not [w for w in ok.warnings_ if "not cut at a speed threshold" in w]
+        info = LearnedModel.from_estimator(ok, trials).info
+        assert info["observed_trial_ids"] == [t.id for t in seen], rollout
 
 
 def test_a_fit_logs_its_warnings_unless_its_caller_shows_them(arm, caplog):

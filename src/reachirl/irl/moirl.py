@@ -158,7 +158,9 @@ class MOIRL(WeightEstimator):
     rescued), wall time), ``merit_``, ``initial_merit_``, ``best_iteration_``, ``n_doc_solves_``,
     ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``, ``smoothness_``, ``cv_scores_``, ``plain_fit_`` (the
     whole-rollout first stage of an observed fit, else ``None``), ``tasks_`` (the rollouts' tasks),
-    ``train_solutions_``, ``task_of_demo_`` (each demonstration's rollout), ``uncertainty_`` (with
+    ``train_solutions_``, ``task_of_demo_`` (each demonstration's rollout), ``observed_`` (``(D,)`` booleans:
+    which demonstrations were compared with their rollout as recorded, cut at their threshold; with ``observe``,
+    those whose rollout's demonstrations were all cut at one), ``uncertainty_`` (with
     ``uncertainty``) and ``warnings_`` (a fit that never left ``ω₀``, or made a single step, says so).
     """
 
@@ -639,6 +641,9 @@ class MOIRL(WeightEstimator):
         self._w_fit = w  # removed features keep a weight > 0 here, for the multiplicative step
         self.weights_ = self._effective(w)
         self.tasks_, self.task_of_demo_, self._channels = tasks, self._of.copy(), channels
+        # which demonstrations were compared with their rollout as recorded (a rollout whose demonstrations were all
+        # cut at one threshold); the others with the whole rollout, whatever `observe` says
+        self.observed_ = np.array([self._thresholds[r] is not None for r in self._of], dtype=bool)
         self._x_demos, self._guesses = x_demos, guesses
         self.merit_ = m
         self.initial_merit_ = self.history_[0]["merit"]

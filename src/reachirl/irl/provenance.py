@@ -52,16 +52,23 @@ def _jsonable(v):
 def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
     """The provenance of a fitted estimator: ``method``, ``parameters`` (its constructor's, callback left out),
     for MO-IRL ``options`` (every :class:`~reachirl.irl.options.Options` field in force), ``tol`` and
-    ``departures`` (each way the method departs from the seed paper's), ``observe``, ``versions``,
+    ``departures`` (each way the method departs from the seed paper's), ``observe`` (the option: how a trial cut
+    at a threshold is fitted and predicted), ``observed_trial_ids`` (the training trials the fit did compare as
+    recorded: ``observe`` and all of their rollout's trials cut at one threshold), ``versions``,
     ``trials_fingerprint``, the trial ids, counts, the history and the fit's warnings, and ``uncertainty``
     when it was computed."""
     from .options import departures
 
     params = {k: _jsonable(v) for k, v in est.get_params().items() if k != "callback"}
+    seen = getattr(est, "observed_", None)  # MO-IRL's; the baselines compare whole rollouts
+    if seen is None or len(seen) != len(trials):  # no record, or not told the trials it was fitted on
+        seen = [False] * len(trials)
     info = {
         "method": method,
         "parameters": params,
         "observe": bool(getattr(est, "observe", False)),
+        # what the fit did with it: the training trials compared with their rollout as recorded (the others, whole)
+        "observed_trial_ids": [t.id for t, o in zip(trials, seen, strict=True) if bool(o)],
         "versions": versions(),
         "trials_fingerprint": fingerprint(trials),
         "trial_ids": [t.id for t in trials],
