@@ -338,3 +338,19 @@ def test_fit_says_each_warning_once_on_stderr(tiny_trials, tmp_path, cli):
     assert "stopped after one step" in warning
     assert proc.stderr.count(warning) == 1 and f"warning: {warning}\n" in proc.stderr, proc.stderr
     assert warning not in proc.stdout, proc.stdout
+
+
+def test_model_and_metrics_name_the_trials_file_alike(tiny_trials, tmp_path, monkeypatch, capsys):
+    """MODEL.json's info.trials kept the path as typed (relative, through a symlink) where METRICS.json's
+    trials_file is absolute and resolved: both are now the resolved absolute path."""
+    import shutil
+
+    (tmp_path / "data").mkdir()
+    real = tmp_path / "data" / "t.npz"
+    shutil.copy(tiny_trials, real)
+    (tmp_path / "link.npz").symlink_to(real)
+    monkeypatch.chdir(tmp_path)
+    assert main(["fit", "link.npz", "--sections", "1", "--nodes", "20", "--max-iter", "1", "--out", "m.json"]) == 0
+    assert main(["evaluate", "--model", "m.json", "link.npz", "--out", "metrics.json"]) == 0
+    named = json.loads((tmp_path / "m.json").read_text())["info"]["trials"]
+    assert named == json.loads((tmp_path / "metrics.json").read_text())["trials_file"] == str(real.resolve())

@@ -185,7 +185,9 @@ def run(args: argparse.Namespace) -> int:
                 raise
             raise InputError(e.reason, args.trials) from None
     model = LearnedModel.from_estimator(est, trials)
-    model = replace(model, info={**model.info, "trials": str(args.trials), "selection": chosen})
+    # the trials file as METRICS.json names it: absolute, resolved (a relative path means nothing elsewhere)
+    trials_file = str(Path(args.trials).resolve())
+    model = replace(model, info={**model.info, "trials": trials_file, "selection": chosen})
     info, unc = model.info, model.uncertainty
     save_model(args.out, model)
     for msg in info["warnings"]:  # one line each, on stderr (the fit logged none of them)
