@@ -397,3 +397,21 @@ def test_an_earlier_runs_folder_is_rerun_into_without_its_run_toml_header(trials
         argv = ["--config", str(run_toml), "--no-progress"]
     assert main(["reproduce", *argv, "--out", str(out), "--workers", "1"]) == 0
     _same_table(out, reference_run)
+
+
+def test_a_units_checkpoint_has_its_models_info(trials_file, tmp_path, monkeypatch):
+    """A checkpoint's model_info lacked the keys its models/<key>.json info has (backend, unit, run); now it has
+    them all, with the same values, the run folder absolute though --out was given relative."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["reproduce", "--data", str(trials_file), "--out", "out", "--workers", "1", "--quick"]
+    assert main([*argv, "--sections", "1", "--max-iter", "1", "--no-progress"]) == 0
+    out = (tmp_path / "out").resolve()
+    keys = sorted(p.stem for p in (out / "units").glob("*.json"))
+    assert keys
+    for key in keys:
+        kept = json.loads((out / "units" / f"{key}.json").read_text())["model_info"]
+        info = json.loads((out / "models" / f"{key}.json").read_text())["info"]
+        assert sorted(kept) == sorted(info), key
+        assert kept["unit"] == info["unit"] == key
+        assert kept["backend"] == info["backend"] == "casadi"
+        assert kept["run"] == info["run"] == str(out)

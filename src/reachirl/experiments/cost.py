@@ -26,7 +26,9 @@ def write_models(run) -> list[Path]:
         # the fit's whole history as `reachirl fit` keeps it (a unit checkpointed before it was kept: the
         # result's short one)
         info.setdefault("history", r.get("history", []))
-        info.update({"unit": key, "backend": r["unit"]["backend"], "run": str(run.out_dir)})
+        # as the checkpoint's model_info has them (one written before it did: from the unit); "run" is this
+        # run's folder, where the checkpoint may name the one it was computed in (a folder moved since)
+        info.update({"unit": key, "backend": r["unit"]["backend"], "run": str(Path(run.out_dir).resolve())})
         model = LearnedModel(
             weights=np.asarray(r["weights"], dtype=float),
             n_nodes=int(r["unit"]["n_nodes"]),

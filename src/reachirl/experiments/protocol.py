@@ -51,7 +51,8 @@ SETS = ("train", "cv", "iscv")
 SET_LABELS = {"train": "Training", "cv": "CV", "iscv": "ISCV"}
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
 ISCV_MODES = ("one", "all-pairs")
-RESULT_VERSION = 2  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
+RESULT_VERSION = 3  # bump when a unit's result changes for the same inputs (invalidates checkpoints)
+# 3: model_info holds the keys of the unit's MODEL.json info (backend, unit, run)
 
 
 @dataclass(frozen=True)
@@ -496,6 +497,7 @@ def run_unit(unit: Unit, split: Split) -> dict:
 
         model_info = estimator_info(est, unit.method, list(split.train))
         model_info.pop("uncertainty", None)  # the result's own, below
+        model_info["unit"] = unit.key  # and "run", the run folder, from the coordinator (runner.run_units)
     result = {
         "key": unit.key,
         "model_info": model_info,

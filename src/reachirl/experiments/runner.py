@@ -213,6 +213,8 @@ def run_units(
     def finish(payload: dict) -> None:
         # the coordinator's fingerprint: a remote worker may hash other source files
         payload["result"]["fingerprint"] = fingerprints[payload["result"]["key"]]
+        if isinstance(payload["result"].get("model_info"), dict):  # as the unit's models/<key>.json names it
+            payload["result"]["model_info"]["run"] = str(out_dir.resolve())
         res = save_unit(out_dir, payload)
         results[res["key"]] = res
         computed.append(res["key"])

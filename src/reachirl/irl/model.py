@@ -64,7 +64,6 @@ class LearnedModel:
             raise ValueError(f"not an estimator of reachirl.irl.methods.METHODS: {type(est).__name__}")
         info = estimator_info(est, method, list(trials))
         unc = info.pop("uncertainty", None)
-        info["backend"] = est.backend
         return cls(weights=est.weights_, n_nodes=est.n_nodes, method=method, info=info, uncertainty=unc)
 
     def to_dict(self) -> dict:

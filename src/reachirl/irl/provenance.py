@@ -54,7 +54,7 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
     for MO-IRL ``options`` (every :class:`~reachirl.irl.options.Options` field in force), ``tol`` and
     ``departures`` (each way the method departs from the seed paper's), ``observe`` (the option: how a trial cut
     at a threshold is fitted and predicted), ``observed_trial_ids`` (the training trials the fit did compare as
-    recorded: ``observe`` and all of their rollout's trials cut at one threshold), ``versions``,
+    recorded: ``observe`` and all of their rollout's trials cut at one threshold), ``backend``, ``versions``,
     ``trials_fingerprint``, the trial ids, counts, the history and the fit's warnings, and ``uncertainty``
     when it was computed."""
     from .options import departures
@@ -70,6 +70,7 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
         # what the fit did with it: the training trials compared with their rollout as recorded (the others, whole)
         "observed_trial_ids": [t.id for t, o in zip(trials, seen, strict=True) if bool(o)],
         "versions": versions(),
+        "backend": est.backend,  # the DOC backend of the fit's solves, which its predictions use unless told
         "trials_fingerprint": fingerprint(trials),
         "trial_ids": [t.id for t in trials],
         "n_trials": len(trials),
