@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reachirl.cli import OneLineParser
 from reachirl.doc import solve_doc
 from reachirl.doc.observation import common_threshold, observe, rest_to_rest
 from reachirl.errors import InputError
@@ -41,7 +42,7 @@ def _predict(task, threshold: float, weights: np.ndarray, arm) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=Path, help="output folder of `reachirl reproduce` on built-in virtual subjects")
     parser.add_argument("--data-seed", type=int, default=0, help="the run's --data-seed (checked against the run)")
     parser.add_argument("--sections", type=int, default=8)

@@ -9,12 +9,12 @@ Run: ``.venv/bin/python examples/learn_from_ue_adl.py``.
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
 
 from reachirl import FEATURES, MOIRL
+from reachirl.cli import OneLineParser
 from reachirl.data.pipeline import preprocess_entries
 from reachirl.data.readers import ManifestEntry, read_subject_info
 from reachirl.data.ue_adl import SAMPLE_DIR, reach_files
@@ -24,7 +24,7 @@ from reachirl.features import cost_shares
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--data", type=Path, default=SAMPLE_DIR, help="a UE-ADL folder (default: the sample shipped in the package)"
     )

@@ -10,12 +10,12 @@ subjects, e.g. from ``reachirl preprocess path/to/ue_adl/ADL0* --markerset ue-ad
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
 
 from reachirl import MOIRL
+from reachirl.cli import OneLineParser
 from reachirl.data.trial import load_trials
 from reachirl.doc.evaluation import evaluate_trials, summarise
 from reachirl.errors import InputError
@@ -27,7 +27,7 @@ def _rmse(model: MOIRL, trials) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, required=True, help="a trials file of several subjects")
     parser.add_argument("--windows", type=int, default=8, help="weight windows, at least 1 (default 8)")
     parser.add_argument("--side", default="right", help="the arm to learn and predict (default right)")

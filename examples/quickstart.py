@@ -7,7 +7,6 @@ the fingertip paths. Run: ``.venv/bin/python examples/quickstart.py --out /tmp/q
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import matplotlib
@@ -17,13 +16,14 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
+from reachirl.cli import OneLineParser
 from reachirl.errors import InputError
 from reachirl.validation import check_figure_file
 from reachirl.virtual import posture_q
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="figure to write (PNG)")
     args = parser.parse_args(argv)
     try:  # before any work: a figure file matplotlib can write, in a folder that can be made

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import argparse
 
+from reachirl.cli import OneLineParser
 from reachirl.data.preprocess import PreprocessOptions
 from reachirl.data.ue_adl import SAMPLE_DIR, agreement, agreement_markdown
 from reachirl.errors import InputError
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = OneLineParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--root", default=str(SAMPLE_DIR), help="UE-ADL folder (subjects.csv, ADLxxx/)")
     parser.add_argument(
         "--distal",

@@ -9,13 +9,13 @@ initial postures under the chosen angle reading and under the rejected one (the 
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from reachirl import FEATURES
+from reachirl.cli import OneLineParser
 from reachirl.errors import InputError
 from reachirl.validation import check_figure_file
 from reachirl.virtual import (
@@ -29,7 +29,7 @@ from reachirl.virtual import (
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = OneLineParser(description=__doc__.splitlines()[0])
     parser.add_argument("--figure", type=Path, required=True, help="where to save the posture figure (PNG)")
     parser.add_argument("--trials", type=int, default=5, help="trials per posture, at least 1 (default 5)")
     args = parser.parse_args(argv)

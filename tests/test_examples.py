@@ -19,6 +19,13 @@ def load(name: str):
     return module
 
 
+def one_line(err: str) -> str:
+    """The one line an example says on bad input: argparse's usage line came before it."""
+    lines = err.splitlines()
+    assert len(lines) == 1 and not lines[0].startswith("usage:"), err
+    return lines[0]
+
+
 def test_quickstart_writes_its_figure(tmp_path, capsys):
     out = tmp_path / "q.png"
     assert load("quickstart").main(["--out", str(out)]) == 0
@@ -46,13 +53,14 @@ def test_examples_need_an_output_path(name, option, capsys):
     """No default output: an example never writes into the repository or the current folder unasked."""
     with pytest.raises(SystemExit) as e:
         load(name).main([])
-    assert e.value.code == 2 and f"error: the following arguments are required: {option}\n" in capsys.readouterr().err
+    assert e.value.code == 2
+    assert one_line(capsys.readouterr().err).endswith(f"error: the following arguments are required: {option}")
 
 
 def test_one_cost_across_subjects_needs_three_subjects(recorded, capsys):
     with pytest.raises(SystemExit) as e:
         load("one_cost_across_subjects").main(["--data", str(recorded / "trials.npz")])
-    assert e.value.code == 2 and "needs at least 3 subjects, found 2" in capsys.readouterr().err
+    assert e.value.code == 2 and "needs at least 3 subjects, found 2" in one_line(capsys.readouterr().err)
 
 
 @pytest.mark.slow
@@ -89,14 +97,14 @@ def test_examples_refuse_a_bad_figure_path_before_any_work(tmp_path, capsys, nam
     captured = capsys.readouterr()
     assert e.value.code == 2 and captured.out == ""
     want = match.format(path=re.escape(str(path)), parent=re.escape(str(path.parent)), option=option)
-    assert re.search(want, captured.err.splitlines()[-1]), captured.err
+    assert re.search(want, one_line(captured.err)), captured.err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder", "notes.txt"]
 
 
 def test_virtual_subjects_needs_a_trial(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         load("virtual_subjects").main(["--figure", str(tmp_path / "p.png"), "--trials", "0"])
-    assert e.value.code == 2 and "argument --trials: expected a whole number of at least 1, got 0" in (
+    assert e.value.code == 2 and "argument --trials: expected a whole number of at least 1, got 0" in one_line(
         capsys.readouterr().err
     )
     assert not (tmp_path / "p.png").exists()
@@ -150,7 +158,7 @@ def test_arm_sensitivity_predicts_the_runs_own_training_reach(quick_run, monkeyp
 def test_arm_sensitivity_refuses_what_the_run_does_not_hold(quick_run, capsys, args, match):
     with pytest.raises(SystemExit) as e:
         load("arm_sensitivity").main([str(quick_run), *args])
-    assert e.value.code == 2 and re.search(match, capsys.readouterr().err.splitlines()[-1])
+    assert e.value.code == 2 and re.search(match, one_line(capsys.readouterr().err))
 
 
 @pytest.mark.parametrize(
@@ -160,12 +168,24 @@ def test_arm_sensitivity_refuses_what_the_run_does_not_hold(quick_run, capsys, a
         ("learn_from_ue_adl", ["--windows", "0"], "argument --windows: expected a whole number of at least 1, got 0"),
         ("one_cost_across_subjects", ["--data", "{missing}"], "{missing}: file not found"),
         ("ue_adl_agreement", ["--root", "{missing}"], "{missing}: not a folder"),
+        (
+            "arm_sensitivity",
+            ["{missing}"],
+            "{missing}: no such run folder (expected the --out folder of `reachirl reproduce`)",
+        ),
+        ("quickstart", ["--out", "{missing}.png", "--bogus"], "error: unrecognized arguments: --bogus"),
+        (
+            "virtual_subjects",
+            ["--figure", "{missing}.png", "--trials", "many"],
+            "argument --trials: invalid int value: 'many'",
+        ),
     ],
 )
 def test_examples_refuse_bad_input_in_one_line(tmp_path, capsys, name, args, match):
-    """Not an InputError's (or ValueError's) traceback: exit 2 with the file and what is wrong."""
+    """Not an InputError's (or ValueError's) traceback, nor argparse's usage line before the error: exit 2 with one
+    line naming the file or option and what is wrong."""
     missing = str(tmp_path / "missing")
     with pytest.raises(SystemExit) as e:
         load(name).main([a.format(missing=missing) for a in args])
     err = capsys.readouterr().err
-    assert e.value.code == 2 and err.splitlines()[-1].endswith(match.format(missing=missing)), err
+    assert e.value.code == 2 and one_line(err).endswith(match.format(missing=missing)), err

@@ -62,8 +62,11 @@ def _on_sigint(signum, frame):
     raise KeyboardInterrupt
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, exit 2
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage error is one line, ``PROG: error: MESSAGE``, and exit 2 (argparse's own
+    prints its usage first): the command line's, and the examples' (``examples/*.py``)."""
+
+    def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
@@ -83,10 +86,10 @@ def _signed_axes(argv: list[str]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
+    parser = OneLineParser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
     verbose_help = "log progress details to stderr, and show the traceback of an internal error"
     parser.add_argument("-v", "--verbose", action="store_true", help=verbose_help)
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     parser.commands = {}  # each command's parser: an unknown option is its error, named as its own
     for name in COMMANDS:
         module = importlib.import_module(f"{__name__}.{name}")
