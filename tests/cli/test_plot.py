@@ -253,6 +253,18 @@ def run_folder(fitted):
     return run
 
 
+def _earlier_figure(path: Path) -> bytes:
+    """A figure an earlier `plot` wrote (reachirl's, which a new one may replace); returns its bytes."""
+    import matplotlib.pyplot as plt
+
+    from reachirl.experiments.figures import save
+
+    fig = plt.figure()
+    plt.plot([0, 1])
+    save(fig, path)
+    return path.read_bytes()
+
+
 def _protocol(d, key, value):
     d["protocol"][key] = value
 
@@ -322,14 +334,14 @@ def test_plot_of_a_run_with_a_damaged_results_file_names_it(run_folder, tmp_path
     (run / "results.json").write_text(json.dumps(d))
     figs = tmp_path / "figs"
     figs.mkdir()
-    (figs / "fig3_weights.png").write_bytes(b"an earlier figure")
+    earlier = _earlier_figure(figs / "fig3_weights.png")
     capsys.readouterr()
     assert main(["plot", str(run), "--out", str(figs), "--no-pdf"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(re.escape(f"{run / 'results.json'}: ") + match, err[0]), err
     # no figure of the failed drawing is left, nor a mix with the earlier set
     assert [p.name for p in figs.iterdir()] == ["fig3_weights.png"]
-    assert (figs / "fig3_weights.png").read_bytes() == b"an earlier figure"
+    assert (figs / "fig3_weights.png").read_bytes() == earlier
 
 
 @pytest.mark.parametrize("error", [TypeError, KeyError, ValueError, ZeroDivisionError])
@@ -344,14 +356,14 @@ def test_plot_of_a_run_reports_a_drawing_bug_as_an_internal_error(run_folder, tm
     monkeypatch.setattr(figures, "plot_weights", broken)
     figs = tmp_path / "figs"
     figs.mkdir()
-    (figs / "fig3_weights.png").write_bytes(b"an earlier figure")
+    earlier = _earlier_figure(figs / "fig3_weights.png")
     capsys.readouterr()
     assert main(["plot", str(run_folder), "--out", str(figs), "--no-pdf"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith(f"reachirl plot: internal error: {error.__name__}: "), err
     assert "a bug in the figure code" in err[0] and "malformed" not in err[0], err
     assert [p.name for p in figs.iterdir()] == ["fig3_weights.png"]
-    assert (figs / "fig3_weights.png").read_bytes() == b"an earlier figure"
+    assert (figs / "fig3_weights.png").read_bytes() == earlier
 
 
 def test_plot_of_a_run_replaces_the_figures_once_all_are_drawn(run_folder, tmp_path):
@@ -495,7 +507,7 @@ def test_plot_leaves_a_failed_prediction_out_and_says_so(fitted, tmp_path, capsy
     _, path, model = fitted
     out = tmp_path / "figs"
     out.mkdir()
-    (out / "convergence.png").write_bytes(b"an earlier model's")
+    earlier = _earlier_figure(out / "convergence.png")  # an earlier model's
     real = ev.predict
 
     def failing_first(trial, *args, **kwargs):
@@ -509,7 +521,7 @@ def test_plot_leaves_a_failed_prediction_out_and_says_so(fitted, tmp_path, capsy
     title, lines = drawn["prediction.png"]
     assert "2 demonstration(s) (dashed) vs predictions (solid) (1 of 3 DOC failure(s) not drawn)" in title
     assert len(lines) == 4  # a demonstration and a prediction for each of the two converged trials
-    assert "convergence.png" in drawn and (out / "convergence.png").read_bytes() != b"an earlier model's"
+    assert "convergence.png" in drawn and (out / "convergence.png").read_bytes() != earlier
 
 
 def test_plot_draws_a_bilevel_search_per_evaluation_and_names_the_seed_form(fitted, tmp_path, monkeypatch):
@@ -533,3 +545,48 @@ def test_plot_draws_a_bilevel_search_per_evaluation_and_names_the_seed_form(fitt
             assert title == "bilevel: merit of each evaluation"
             assert [list(x) for x, _ in lines] == [[1, 2, 4]] and list(lines[0][1]) == [0.5, 0.4, 0.3]
     assert all(drawn[f][0].startswith("moirl (seed form)") for f in ("prediction.png", "weights.png"))
+
+
+def _users_figure(path: Path) -> bytes:
+    """A figure of the user's own, saved by matplotlib without reachirl's mark (as any other program's)."""
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure()
+    plt.plot([0, 1], [1, 0])
+    fig.savefig(path)
+    plt.close(fig)
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("name", ["prediction.png", "weights.pdf", "convergence.png"])
+def test_plot_never_replaces_a_figure_of_the_users_own(fitted, tmp_path, capsys, name):
+    """`plot --model` replaced (or, for a PDF with --no-pdf, removed) any file of --out named as one of its
+    figures. A file reachirl did not write (no reachirl mark in its metadata) is refused before any work, naming
+    it; reachirl's own figures are replaced as before."""
+    _, trials, model = fitted
+    mine = _users_figure(tmp_path / name)
+    capsys.readouterr()
+    argv = ["plot", "--model", str(model), str(trials), "--trial", "0", "--no-pdf", "--out", str(tmp_path)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"reachirl plot: error: {tmp_path / name}: --out: exists and is not a figure written by reachirl (no "
+        "reachirl mark in its metadata); it would be replaced (choose another folder, or remove it first)"
+    ], err
+    assert (tmp_path / name).read_bytes() == mine and sorted(p.name for p in tmp_path.iterdir()) == [name]
+    # reachirl's own figures, from an earlier plot, are replaced
+    (tmp_path / name).unlink()
+    argv.remove("--no-pdf")  # PNG and PDF
+    assert main(argv) == 0 and main(argv) == 0
+    assert {"prediction.png", "prediction.pdf", "weights.png", "weights.pdf"} <= {p.name for p in tmp_path.iterdir()}
+
+
+def test_plot_of_a_run_never_replaces_a_figure_of_the_users_own(run_folder, tmp_path, capsys):
+    """Nor `plot RUN_DIR`: refused before drawing, --out left as it was."""
+    mine = _users_figure(tmp_path / "fig3_weights.png")
+    capsys.readouterr()
+    assert main(["plot", str(run_folder), "--out", str(tmp_path), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{tmp_path / 'fig3_weights.png'}: --out: exists and is not a figure written by" in err[0]
+    assert (tmp_path / "fig3_weights.png").read_bytes() == mine
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fig3_weights.png"]

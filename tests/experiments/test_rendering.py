@@ -95,3 +95,25 @@ def test_workers_started_ahead_draw_the_same_files_and_end_with_their_block(tmp_
     with FigureWorkers(1) as one:  # one worker: figures are drawn in-process, nothing is started
         one.start()
         assert one.pool is None
+
+
+def test_reachirls_figures_are_told_from_others(tmp_path):
+    """What `plot` may replace: a PNG or PDF saved by figures.save carries reachirl's mark in its metadata; the same
+    figure saved by matplotlib otherwise, another file under a figure's name or an empty one do not."""
+    import shutil
+
+    import matplotlib.pyplot as plt
+
+    from reachirl.experiments.figures import is_marked_figure, save
+
+    for ext in ("png", "pdf"):
+        fig = plt.figure()
+        plt.plot([0, 1], [1, 0])
+        fig.savefig(tmp_path / f"theirs.{ext}", metadata={"Software" if ext == "png" else "Creator": "someone"})
+        save(fig, tmp_path / f"ours.{ext}")
+        assert is_marked_figure(tmp_path / f"ours.{ext}") and not is_marked_figure(tmp_path / f"theirs.{ext}")
+    shutil.copy(tmp_path / "ours.pdf", tmp_path / "renamed.png")
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "notes.pdf").write_text("reachirl\n")
+    for name in ("renamed.png", "empty.png", "notes.pdf", "missing.png"):
+        assert not is_marked_figure(tmp_path / name), name

@@ -195,6 +195,25 @@ def output_folder_files(folder: object, names, inputs, option: str, outputs: dic
             )
 
 
+def refuse_foreign_figures(folder: object, names, option: str) -> None:
+    """Before any figure is written: each of ``names`` that a command would replace or remove in ``folder`` is a
+    figure reachirl wrote (its metadata carries reachirl's mark: :func:`reachirl.experiments.figures
+    .is_marked_figure`), never a file of the user's own, which is refused (:class:`InputError` naming it). A figure
+    of a reachirl from before the mark is refused as well: nothing tells it from the user's."""
+    from ..experiments.figures import is_marked_figure
+
+    if folder is None or not Path(folder).is_dir():
+        return
+    for n in names:
+        p = Path(folder) / n
+        if (p.exists() or p.is_symlink()) and not (p.is_file() and is_marked_figure(p)):
+            raise InputError(
+                f"{option}: exists and is not a figure written by reachirl (no reachirl mark in its metadata); it "
+                "would be replaced (choose another folder, or remove it first)",
+                p,
+            )
+
+
 def refuse_foreign_export_files(folder: object, names, option: str) -> None:
     """Before any work: an export into ``folder`` (writing ``names``, :func:`export_names`) replaces only an earlier
     export's files. An ``index.csv`` that is not an export's, or a file of ``names`` that the earlier export's index

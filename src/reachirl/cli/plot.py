@@ -9,7 +9,8 @@ window's cost on the fit's own reach, the shares its intervals bracket; undeterm
 ``convergence.png`` (the fit's merit per iteration, when the model file holds a history). With a
 ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``, ``fig3_weights``, ``fig4_iscv``,
 ``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
-``.png`` and ``.pdf``.
+``.png`` and ``.pdf``, marked as reachirl's in its metadata; a file of DIR with a figure's name that does not carry
+that mark (the user's own) is refused, never replaced.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import contextlib
 from pathlib import Path
 
 from ..errors import InputError
-from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials
+from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials, refuse_foreign_figures
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -213,11 +214,17 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     def draw(fig_dir: Path) -> dict:
         with _malformed(res_path):  # what each figure draws, read from the units
             jobs, figs = figure_jobs(run, tables, ({}, {}, {}), fig_dir=fig_dir, pdf=pdf)
+        refuse_foreign_figures(out, _figure_files(figs, pdf), "--out")  # before drawing: replace reachirl's only
         with drawing(jobs):
             pass
         return figs
 
     return _drawn_whole(out, draw, pdf)
+
+
+def _figure_files(figs, pdf: bool) -> list[str]:
+    """The files of the figures ``figs`` (names as ``fig2_prediction.png``): a PNG each, and a PDF with ``pdf``."""
+    return [f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
 
 
 PARTIAL_PREFIX = ".plot-partial-"
@@ -227,7 +234,8 @@ PARTIAL_PREFIX = ".plot-partial-"
 def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     """The figures ``draw(folder)`` writes, drawn in a hidden folder of ``out`` and moved into ``out`` only once
     every one is drawn: a figure that fails (a damaged results file) leaves ``out`` as it was, with no mix of new
-    and earlier figures. A hidden folder a killed run left is removed first."""
+    and earlier figures. A hidden folder a killed run left is removed first. ``draw`` refuses, before drawing, to
+    replace a file that is not a figure of reachirl's (:func:`~._args.refuse_foreign_figures`)."""
     import os
     import shutil
     import tempfile
@@ -237,8 +245,7 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
         shutil.rmtree(stale, ignore_errors=True)
     tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
     try:
-        figs = draw(tmp)
-        names = [f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
+        names = _figure_files(draw(tmp), pdf)
         for n in names:
             os.replace(tmp / n, out / n)
     finally:
@@ -261,6 +268,7 @@ def run(args: argparse.Namespace) -> int:
         # the figures' files (an earlier set's go first) are never the model or the trials file read
         names = [f"{stem}.{ext}" for stem in MODEL_FIGURES for ext in ("png", "pdf")]
         output_folder_files(out, names, [args.model, args.source], "--out")
+        refuse_foreign_figures(out, names, "--out")  # nor a file of the user's own that has their name
         model = load_model(args.model)
         trials = picked_trials(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)

@@ -27,6 +27,8 @@ from ..features import FEATURES
 from .names import natural_key, sections_text
 
 __all__ = [
+    "FIGURE_MARK",
+    "is_marked_figure",
     "plot_convergence",
     "plot_iscv",
     "plot_methods",
@@ -116,9 +118,18 @@ def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
     return im
 
 
+FIGURE_MARK = "reachirl"
+"""What :func:`save` writes into every figure's metadata (a PNG's ``Software`` text chunk, a PDF's ``Creator``), by
+which :func:`is_marked_figure` tells reachirl's own figures, which a command may replace, from a user's."""
+
+#: how much of a file :func:`is_marked_figure` reads at most: a PNG's chunks before its image data, a PDF's tail
+_MARK_BYTES = 64 * 1024
+
+
 def save(fig, path, close: bool = True) -> None:
-    """Write ``fig`` atomically as PNG (200 dpi) or PDF, from ``path``'s suffix, and close it (unless
-    ``close=False``)."""
+    """Write ``fig`` atomically as PNG (200 dpi) or PDF, from ``path``'s suffix, marked as reachirl's
+    (:data:`FIGURE_MARK`; no matplotlib version or date, so that a figure is the same bytes each time), and close
+    it (unless ``close=False``)."""
     from pathlib import Path
 
     from ..io import atomic_path
@@ -126,11 +137,57 @@ def save(fig, path, close: bool = True) -> None:
     fmt = Path(path).suffix.lower().lstrip(".") or "png"
     if fmt not in ("png", "pdf"):
         raise ValueError(f"figures are written as .png or .pdf, got {path}")
-    meta = {"Software": None} if fmt == "png" else {"Creator": None, "Producer": None, "CreationDate": None}
+    meta = (
+        {"Software": FIGURE_MARK} if fmt == "png" else {"Creator": FIGURE_MARK, "Producer": None, "CreationDate": None}
+    )
     with atomic_path(path, suffix=f".{fmt}") as tmp:
         fig.savefig(tmp, dpi=200, bbox_inches="tight", format=fmt, metadata=meta)
     if close:
         plt.close(fig)
+
+
+def is_marked_figure(path) -> bool:
+    """Whether the file at ``path`` is a PNG or PDF figure that :func:`save` wrote (its metadata holds
+    :data:`FIGURE_MARK`); False for anything else, or a file that cannot be read. Reads at most a few kB."""
+    import re
+    import struct
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            if path.suffix.lower() == ".png":
+                if fh.read(8) != b"\x89PNG\r\n\x1a\n":
+                    return False
+                for _ in range(64):  # the text chunks come before the image data
+                    head = fh.read(8)
+                    if len(head) < 8:
+                        return False
+                    size, kind = struct.unpack(">I4s", head)
+                    if kind in (b"IDAT", b"IEND") or size > _MARK_BYTES:
+                        return False
+                    data = fh.read(size + 4)[:size]  # and its CRC
+                    if kind == b"tEXt" and data == b"Software\0" + FIGURE_MARK.encode():
+                        return True
+                return False
+            if path.suffix.lower() != ".pdf" or fh.read(5) != b"%PDF-":
+                return False
+            fh.seek(0, 2)
+            end = fh.tell()
+            fh.seek(max(0, end - 1024))
+            tail = fh.read()
+            m = re.search(rb"/Info (\d+) 0 R.*?startxref\s+(\d+)\s+%%EOF\s*$", tail, re.S)
+            if m is None or int(m.group(2)) > end:
+                return False
+            # the document's information dictionary, the object just before the cross-reference table
+            xref = int(m.group(2))
+            fh.seek(max(0, xref - 4096))
+            before = fh.read(xref - max(0, xref - 4096))
+    except OSError:
+        return False
+    info = re.search(rb"(\d+) 0 obj\s*<<((?:(?!endobj).)*)>>\s*endobj\s*$", before, re.S)
+    mark = re.escape(b"/Creator (" + FIGURE_MARK.encode() + b")")
+    return info is not None and info.group(1) == m.group(1) and re.search(mark, info.group(2)) is not None
 
 
 def _grid(axes, nrows, ncols, figsize):
