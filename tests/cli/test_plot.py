@@ -590,3 +590,53 @@ def test_plot_of_a_run_never_replaces_a_figure_of_the_users_own(run_folder, tmp_
     assert len(err) == 1 and f"{tmp_path / 'fig3_weights.png'}: --out: exists and is not a figure written by" in err[0]
     assert (tmp_path / "fig3_weights.png").read_bytes() == mine
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig3_weights.png"]
+
+
+def test_plot_titles_name_a_backend_other_than_casadi(fitted, tmp_path, monkeypatch):
+    """A Crocoddyl fit's figures did not say so: its titles name the backend beside the method (CasADi, the default,
+    goes unsaid), and the predictions' backend when it is not the fit's."""
+    _, path, model = fitted
+    m = json.loads(model.read_text())
+    croc = tmp_path / "croc.json"
+    croc.write_text(json.dumps({**m, "info": {**m["info"], "backend": "crocoddyl"}}))
+    drawn = _figures_drawn(monkeypatch)
+    base = ["plot", str(path), "--trial", "0", "--no-pdf"]
+    assert main([*base, "--model", str(croc), "--backend", "casadi", "--out", str(tmp_path / "c")]) == 0
+    assert drawn["prediction.png"][0].startswith("moirl (crocoddyl), 2 sections: 1 demonstration(s) (dashed) vs ")
+    assert "vs predictions on casadi (solid)" in drawn["prediction.png"][0]
+    assert drawn["weights.png"][0] == "moirl (crocoddyl): each feature's share of its window's cost"
+    assert drawn["convergence.png"][0] == "moirl (crocoddyl): convergence"
+    assert main([*base, "--model", str(model), "--out", str(tmp_path / "k")]) == 0
+    assert not any("casadi" in title or "crocoddyl" in title for title, _ in drawn.values())
+    assert "vs predictions (solid)" in drawn["prediction.png"][0]
+
+
+def test_a_runs_figure_titles_name_a_backend_other_than_casadi(run_folder, tmp_path, monkeypatch):
+    """plot RUN_DIR (and reproduce, with the same jobs): the prediction, ISCV and convergence titles say a run
+    solved on Crocoddyl."""
+    import shutil
+
+    from reachirl.experiments import report
+
+    titles, real = {}, report.figure_jobs
+
+    def figure_jobs(*args, **kwargs):
+        jobs, figs = real(*args, **kwargs)
+        titles.update({Path(job.paths[-1]).name: job.kwargs.get("title") for job in jobs})
+        return jobs, figs
+
+    monkeypatch.setattr(report, "figure_jobs", figure_jobs)
+    for backend in ("crocoddyl", "casadi"):
+        run = tmp_path / backend
+        shutil.copytree(run_folder, run)
+        res = json.loads((run / "results.json").read_text())
+        res["protocol"]["backend"] = backend
+        (run / "results.json").write_text(json.dumps(res))
+        assert main(["plot", str(run), "--out", str(tmp_path / f"figs-{backend}"), "--no-pdf"]) == 0
+        said = {name: title for name, title in titles.items() if title and "crocoddyl" in title}
+        if backend == "crocoddyl":
+            assert said["fig2_prediction.png"].endswith("vs moirl predictions on crocoddyl (solid)"), said
+            assert said["convergence.png"] == "MO-IRL convergence (accepted steps) on crocoddyl", said
+            assert "fig4_iscv.png" not in titles or said["fig4_iscv.png"].endswith("predicted on crocoddyl (solid)")
+        else:
+            assert not said, said

@@ -77,13 +77,16 @@ def _save(fig, out: Path, stem: str, pdf: bool, written: list[Path]) -> None:
     written.append(out / f"{stem}.png")
 
 
-def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Path]:
+def model_figures(model, trials, errors, out: Path, pdf: bool = True, backend: str | None = None) -> list[Path]:
     """The figures of a learned model on trials, whose predictions and errors are ``errors``
-    (:meth:`reachirl.irl.model.LearnedModel.evaluate`; see the module docstring); returns the files written."""
+    (:meth:`reachirl.irl.model.LearnedModel.evaluate` on ``backend``, by default the fit's; see the module
+    docstring); returns the files written. The titles name the method, and the backends when not CasADi: the
+    fit's beside the method, the predictions' when it is another."""
     import numpy as np
 
     from ..doc.evaluation import summarise
     from ..experiments import figures as fg
+    from ..experiments.names import method_text
     from ..features import cost_shares
 
     n, n_nodes = model.n_windows, model.n_nodes
@@ -91,7 +94,9 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
     for stem in MODEL_FIGURES:  # an earlier set's figures go first: an interrupt or a figure not drawn never mixes
         for ext in ("png", "pdf"):
             (out / f"{stem}.{ext}").unlink(missing_ok=True)
-    method = model.method + (" (seed form)" if model.info.get("seed_form") else "")
+    method = method_text(model.method, model.backend, bool(model.info.get("seed_form")))
+    backend = backend or model.backend
+    predicted = "predictions" if backend == model.backend else f"predictions on {backend}"  # not the fit's
     drawn = [(t, e) for t, e in zip(trials, errors, strict=True) if e.converged]  # a failed DOC is no prediction
     failed = len(errors) - len(drawn)
     rmse = summarise(errors)["rmse_deg"]["q"]["mean"]  # as `evaluate` reports it
@@ -107,7 +112,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True) -> list[Pa
         left_out = f" ({failed} of {len(errors)} DOC failure(s) not drawn)" if failed else ""
         title = (
             f"{method}, {n} section{'s' if n > 1 else ''}: {len(drawn)} demonstration(s) (dashed) vs "
-            f"predictions (solid){left_out}; mean RMSE of q {rmse:.2f}°"
+            f"{predicted} (solid){left_out}; mean RMSE of q {rmse:.2f}°"
         )
         _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     shares = model.cost_shares()  # on the fit's own reach: the shares its intervals bracket
@@ -273,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
         trials = picked_trials(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)
         print(summary_line(summarise(errors), args.backend or model.backend))
-        written = model_figures(model, trials, errors, out, pdf=not args.no_pdf)
+        written = model_figures(model, trials, errors, out, pdf=not args.no_pdf, backend=args.backend)
     else:
         given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]
         if given:

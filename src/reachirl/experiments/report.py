@@ -33,7 +33,7 @@ from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
-from .names import natural_key, sections_text
+from .names import backend_text, natural_key, sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .rendering import FigureJob, FigureWorkers, drawing
@@ -319,6 +319,7 @@ def figure_jobs(
     results, postures = run.results, run.postures
     sections, methods = list(run.config.sections), list(run.config.methods)
     main = methods[0]
+    on = backend_text(run.config.backend)  # the titles name the backend when it is not CasADi (the default)
     figs: dict[str, dict] = {}
     jobs: dict[str, FigureJob] = {}
     by = {(r["unit"]["method"], r["unit"]["posture"], r["unit"]["sections"]): r for r in results.values()}
@@ -338,7 +339,7 @@ def figure_jobs(
                 pdf,
                 arrays=arrays,
                 set_name="train",
-                title=f"{p2}, {sections_text(n8)}: training demonstrations (dashed) vs {main} predictions (solid)",
+                title=f"{p2}, {sections_text(n8)}: training demonstrations (dashed) vs {main} predictions{on} (solid)",
             )
             figs["fig2_prediction.png"] = {
                 "caption": f"Seed Fig. 2 equivalent: posture {p2}, {sections_text(n8)}, "
@@ -393,7 +394,7 @@ def figure_jobs(
             "fig4_iscv.png",
             pdf,
             arrays_by_posture=iscv_arrays,
-            title=f"ISCV, {sections_text(n8)}: measured (dashed) vs predicted (solid)",
+            title=f"ISCV, {sections_text(n8)}: measured (dashed) vs predicted{on} (solid)",
         )
         figs["fig4_iscv.png"] = {
             "caption": f"Seed Fig. 4 equivalent: ISCV for postures {', '.join(iscv_arrays)} "
@@ -415,6 +416,7 @@ def figure_jobs(
             pdf,
             histories=hist,
             sections=sections,
+            title=f"MO-IRL convergence (accepted steps){on}" if on else "",
             merit_label=words["merit_label"],
             start=words["start"],
         )
