@@ -314,6 +314,30 @@ def test_a_long_gap_beside_or_inside_the_reach_is_refused(reach, synth, frames, 
         _trial(synth, _gapped(reach, frames))
 
 
+def test_a_long_gap_inside_a_noisy_reach_is_refused_without_a_noise_warning(reach, synth, caplog):
+    """1 mm of marker noise (no warning on the whole reach) and the fingertip hidden over the reach's peak: the
+    record is cut at the gap, and what is kept holds the reach's tail only, whose peak speed (0.29 m/s, not the
+    reach's 0.51) made the noise look large (its speed's noise 1.1 times the most allowed, the whole reach's 0.6
+    times). 'the recording's noise ... is large' was logged, then the gap refused. The refusal now comes alone:
+    warnings about a record wait until its cut is accepted."""
+    noise = np.random.default_rng(3).normal(0.0, 0.001, (len(reach.t), 3))
+    noisy = {k: np.asarray(v) + noise for k, v in reach.markers.items()}
+    with caplog.at_level("WARNING", logger="reachirl"):
+        _trial(synth, noisy)
+    assert caplog.records == []  # the noise is not large beside the whole reach
+    noisy["FT"][60:102] = np.nan
+    with (
+        caplog.at_level("WARNING", logger="reachirl"),
+        pytest.raises(
+            InputError,
+            match=r"s\.trc: marker FT is missing for 42 frames \(61-102\), .*, and the reach does not begin in 0\.1 s "
+            r"of seen rest after it$",
+        ),
+    ):
+        _trial(synth, noisy)
+    assert caplog.records == []
+
+
 def test_a_gap_that_hides_the_reach_or_leaves_only_its_return_is_refused(reach, synth):
     with pytest.raises(
         InputError, match=r"marker FT is missing for 100 frames \(41-140\), .*, and no reach is seen outside the long"

@@ -340,8 +340,18 @@ def reconstruct_markers(
             src,
         )
     reach = np.linalg.norm(joints["fingertip"] - joints["fingertip"][0], axis=1)  # away from where it rested
-    seg_speed = segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"])
+    # the noise warning waits for the record to be accepted: cut at a gap inside the reach, the record holds a
+    # fragment of it, whose peak speed makes the noise look large, and the gap is then refused
+    held: list[tuple] = []
+    seg_speed = segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"], held=held)
     onset, offset = detect_onset_offset(seg_speed, options.onset_threshold, reach)
+    if offset - onset + 1 < 4:
+        raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
+    if window.gaps:
+        seen = np.all([seen_frames(p[cropped]) for p, _ in positions.values()], axis=0)
+        _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
+    for warning in held:
+        log.warning(*warning)
     other = other_reach(seg_speed, options.onset_threshold, joints["fingertip"], onset, offset)
     if other is not None:
         log.warning(
@@ -353,11 +363,6 @@ def reconstruct_markers(
             t[onset],
             t[offset],
         )
-    if offset - onset + 1 < 4:
-        raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
-    if window.gaps:
-        seen = np.all([seen_frames(p[cropped]) for p, _ in positions.values()], axis=0)
-        _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
     cut = {"before": onset == 0, "after": offset == len(t) - 1}  # beside a gap cut off, _check_window refused it
     if all(cut.values()):
         log.warning(

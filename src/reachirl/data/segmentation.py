@@ -86,6 +86,7 @@ def segmentation_cutoff(
     options: PreprocessOptions,
     source: object | None = None,
     filtered: np.ndarray | None = None,
+    held: list[tuple] | None = None,
 ) -> float | None:
     """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
     ``cutoff_hz`` speed (Berret's).
@@ -97,7 +98,10 @@ def segmentation_cutoff(
     0.5 Hz steps, not below ``MIN_SEGMENT_CUTOFF_HZ``) whose noise is at most ``SEGMENT_NOISE_FRACTION`` of
     the threshold speed (``onset_threshold`` × ``peak_speed``) is taken. Clean recordings keep the
     ``cutoff_hz`` speed; 1.5 mm of noise on a 0.8 m/s reach at 100 Hz gives about 4 Hz. ``filtered`` is
-    ``points`` already low-passed at ``cutoff_hz``, when the caller has it."""
+    ``points`` already low-passed at ``cutoff_hz``, when the caller has it. ``held``: a list, to hold the
+    warning that the noise is large (its :meth:`logging.Logger.warning` arguments) for the caller to log once
+    the record is accepted, instead of logging it (a record cut at a gap holds a fragment of the reach, whose
+    peak speed is not the reach's, until the cut is checked)."""
     fc, base = options.segment_cutoff_hz, options.cutoff_hz
     if fc is None or base is None:
         return None
@@ -121,7 +125,7 @@ def segmentation_cutoff(
     for f in np.arange(base - 0.5, MIN_SEGMENT_CUTOFF_HZ - 1e-9, -0.5):
         if speed_noise(f) <= target:
             return float(f)
-    log.warning(
+    warning = (
         "%s: the recording's noise (%.2g mm RMS, markers or angles seen at the fingertip) is large beside the "
         "onset threshold's speed (%.2g mm/s: --threshold %g of the peak %.2f m/s); onset and offset are found on "
         "a %g Hz speed and may still wander",
@@ -132,6 +136,10 @@ def segmentation_cutoff(
         peak_speed,
         MIN_SEGMENT_CUTOFF_HZ,
     )
+    if held is None:
+        log.warning(*warning)
+    else:
+        held.append(warning)
     return MIN_SEGMENT_CUTOFF_HZ
 
 
@@ -142,11 +150,12 @@ def segmentation_speed(
     options: PreprocessOptions,
     source: object | None = None,
     filtered: np.ndarray | None = None,
+    held: list[tuple] | None = None,
 ) -> np.ndarray:
     """The fingertip speed that onset and offset are found on: ``points`` ``(n, d)`` (the fingertip, before
     the angles' filter) low-passed at :func:`segmentation_cutoff`, differentiated and normed; ``speed`` (the
-    ``cutoff_hz`` speed) as is when that is ``None``. ``filtered``: see :func:`segmentation_cutoff`."""
-    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source, filtered)
+    ``cutoff_hz`` speed) as is when that is ``None``. ``filtered``, ``held``: see :func:`segmentation_cutoff`."""
+    fc = segmentation_cutoff(t, points, float(np.max(speed)), options, source, filtered, held)
     if fc is None:
         return speed
     rate = 1.0 / float(np.median(np.diff(t)))
