@@ -231,6 +231,24 @@ def test_no_movement(reach, synth):
         _rec(reach, synth, markers=still)
 
 
+@pytest.mark.parametrize(("shoulder_mm", "fingertip_mm"), [(1.0, 1.0), (1.5, 1.5), (0.5, 2.0), (1.0, 3.0)])
+def test_a_noisy_recording_of_rest_is_no_reach(synth, synth_arm, shoulder_mm, fingertip_mm):
+    """A recording of the arm at rest, with 1-3 mm of marker noise: the noise carried the fingertip's 10 Hz speed
+    above 0.05 m/s, and the record was refused as 'are the markers swapped?' (the shoulder's noisy path as long
+    as the fingertip's), or, with a noisier fingertip, written as a trial of noise (onset and offset in it)."""
+    _, q = synth.min_jerk_q([-1.4, 1.6], [-1.4, 1.6], rest=1.0)
+    rng = np.random.default_rng(0)
+    sd = {"SH": shoulder_mm / 1000}
+    rest = {
+        k: v + rng.normal(0.0, sd.get(k, fingertip_mm / 1000), v.shape)
+        for k, v in synth.lab_markers(synth_arm, q).items()
+    }
+    with pytest.raises(
+        InputError, match=r"s\.trc: no movement detected: the fingertip ranges over \d mm, less than 5% of its distance"
+    ):
+        _trial(synth, rest)
+
+
 def test_units_look_wrong(reach, synth):
     tiny = {k: v / 1000 for k, v in reach.markers.items()}  # metres read as mm
     with pytest.raises(InputError, match=r"units look wrong: the median upper arm distance is 0\.3 mm"):
@@ -336,6 +354,19 @@ def test_a_long_gap_inside_a_noisy_reach_is_refused_without_a_noise_warning(reac
     ):
         _trial(synth, noisy)
     assert caplog.records == []
+
+
+def test_a_gap_that_hides_a_noisy_reach_is_named_not_taken_for_swapped_markers(reach, synth):
+    """The fingertip hidden from the reach's start to its end, with 1 mm of marker noise: the rest kept beside the gap
+    passed the speed test on its noise, and was refused as 'the shoulder travels 0.02 m and the fingertip 0.02 m:
+    are the markers swapped?'. The gap is named."""
+    noise = np.random.default_rng(3).normal(0.0, 0.001, (len(reach.t), 3))
+    noisy = {k: np.asarray(v) + noise for k, v in reach.markers.items()}
+    noisy["FT"][50:125] = np.nan
+    with pytest.raises(
+        InputError, match=r"s\.trc: marker FT is missing for 75 frames \(51-125\), .*, and no reach is seen outside the"
+    ):
+        _trial(synth, noisy)
 
 
 def test_a_gap_that_hides_the_reach_or_leaves_only_its_return_is_refused(reach, synth):

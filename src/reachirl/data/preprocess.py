@@ -35,7 +35,9 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    recordings (UE-ADL: 0.06 mm) keep the 10 Hz speed. ``None`` always uses it, as Berret. A recording that
    also holds the return, faster than the reach, gives the reach: the movement that takes the fingertip away
    from where it rested, not the one that brings it back. Another forward reach in the recording is reported
-   (:func:`other_reach`), and the faster one is kept.
+   (:func:`other_reach`), and the faster one is kept. A record whose fingertip (low-passed at 3 Hz) ranges over
+   less than ``MIN_REACH_RANGE`` (5 %) of its distance from the shoulder holds no reach: rest, whose marker noise
+   can carry the 10 Hz speed above ``min_peak_speed``.
 7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
    joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
    gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
@@ -83,6 +85,7 @@ from .markersets import MarkerSet, lab_axis
 from .options import PreprocessOptions
 from .readers import AngleData, MarkerData, SubjectInfo
 from .segmentation import (
+    MIN_SEGMENT_CUTOFF_HZ,
     SeenWindow,
     detect_onset_offset,
     other_reach,
@@ -125,6 +128,12 @@ MAX_REST_DRIFT_M = 0.02
 #: the least fingertip movement, as a fraction of the shoulder-to-fingertip distance, of a reach seen beside a gap
 #: cut off (the virtual subjects' bars lie at least 0.1 arm lengths beyond the start)
 MIN_CUT_REACH = 0.1
+
+#: the least range of the fingertip (the diagonal of the box it moves in, low-passed at MIN_SEGMENT_CUTOFF_HZ) in a
+#: record, as a fraction of its median distance from the shoulder: a reach moves it by tens of centimetres (the
+#: virtual subjects' bars lie at least 0.1 arm lengths beyond the start), a hand at rest by millimetres of drift and
+#: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
+MIN_REACH_RANGE = 0.05
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
@@ -220,6 +229,15 @@ def _check_window(
         )
 
 
+def _fingertip_range(tip: np.ndarray, rate: float, order: int) -> float:
+    """The diagonal of the box the fingertip ``(n, 3)`` moves in (m), low-passed at
+    :data:`~reachirl.data.segmentation.MIN_SEGMENT_CUTOFF_HZ` (the slowest segmentation speed) when the record
+    allows: a reach keeps its extent, noise loses most of its own."""
+    if rate > 2.0 * MIN_SEGMENT_CUTOFF_HZ and tip.shape[0] > filter_padlen(order):
+        tip = lowpass(tip, rate, MIN_SEGMENT_CUTOFF_HZ, order)
+    return float(np.linalg.norm(np.ptp(tip, axis=0)))
+
+
 def check_glitches(
     joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0, n_frames: int | None = None
 ) -> None:
@@ -292,7 +310,7 @@ def reconstruct_markers(
         if j not in ms.joints:
             raise InputError(f"marker set {ms.name!r} gives no {j}, needed for ik={options.ik!r}", src)
     if md.n_frames < 10:
-        raise InputError(f"only {md.n_frames} frames, too few for a reach", src)
+        raise InputError(f"only {md.n_frames} frame{'s' if md.n_frames != 1 else ''}, too few for a reach", src)
     positions = joint_positions(md, ms, static)
     window = seen_window(positions, options.max_gap_frames, src, max(10, filter_padlen(options.filter_order) + 1))
     cropped = slice(window.start, window.stop)
@@ -318,16 +336,28 @@ def reconstruct_markers(
     t = md.t[cropped]
     vel = np.gradient(joints["fingertip"], t, axis=0)
     speed = np.linalg.norm(vel, axis=1)
-    if not np.isfinite(speed).all() or speed.max() < options.min_peak_speed:
+    # noise alone can carry the speed above min_peak_speed (1 mm of it gives 0.1 m/s at 10 Hz), and the shoulder's
+    # noisy path beyond the fingertip's: a reach also takes the fingertip further than noise does
+    extent = _fingertip_range(raw_fingertip, md.rate, options.filter_order)
+    distance = float(np.median(np.linalg.norm(joints["fingertip"] - joints["shoulder"], axis=1)))
+    still = not np.isfinite(speed).all() or speed.max() < options.min_peak_speed
+    if still or extent < MIN_REACH_RANGE * distance:
         if window.gaps:  # the movement is in a gap
             label, s0, e0 = max(window.gaps, key=lambda g: g[2] - g[1])
             raise InputError(
                 f"{gap_message(label, s0, e0, options.max_gap_frames)}, and no reach is seen outside the long gaps",
                 src,
             )
+        if still:
+            raise InputError(
+                f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
+                f"(< {options.min_peak_speed:g} m/s)",
+                src,
+            )
         raise InputError(
-            f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
-            f"(< {options.min_peak_speed:g} m/s)",
+            f"no movement detected: the fingertip ranges over {extent * 1000:.0f} mm, less than "
+            f"{MIN_REACH_RANGE:.0%} of its distance from the shoulder ({distance * 1000:.0f} mm): rest and marker "
+            "noise, not a reach",
             src,
         )
     path = {k: float(np.sum(np.linalg.norm(np.diff(joints[k], axis=0), axis=1))) for k in ("shoulder", "fingertip")}
