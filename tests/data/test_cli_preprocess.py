@@ -538,3 +538,52 @@ def test_a_static_trial_a_marker_map_never_reads_is_refused(tmp_path, reach, syn
         capsys,
     )
     assert code == 2 and re.search(r"r\.trc: a static trial is given \(.*s\.trc\), but marker set 'custom'", err), err
+
+
+@pytest.mark.parametrize(("name", "axis"), [("ADL001FL1", "+x"), ("ADL001FR1", "-x"), ("ADL001FR2", "-x")])
+def test_a_lateral_up_axis_is_refused_not_projected_into_nonsense(tmp_path, synth, capsys, name, axis):
+    """UE-ADL's lab has z up, y forward, x lateral. --up-axis with the lateral axis (and the default plane) was
+    taken: the vertical plane of the reach turned horizontal, the arm was projected across it, and the trial was
+    written (ADL001FL1 with +x: q1 -96..-6°, q2 11..109°, where the recording gives -95..-48° and 31..93°). It is
+    refused: the arm then stands far out of the plane of the reach and never hangs. The lab's own up axis reads
+    it."""
+    reach = synth.SAMPLE / "ADL001" / f"{name}.csv"
+    args = [reach, "--subject-info", synth.SAMPLE / "subjects.csv", "--markerset", "ue-adl"]
+    code, _, err = _run([*args, f"--up-axis={axis}", "--out", tmp_path / "o.npz"], capsys)
+    assert code == 2 and not (tmp_path / "o.npz").exists()
+    assert len(err.strip().splitlines()) == 1 and re.search(
+        rf"^reachirl preprocess: error: {re.escape(str(reach))}: with up = \{axis} \(--up-axis\), the (upper arm|"
+        r"forearm \(elbow to fingertip\)) stands [6-9]\d° out of the vertical plane of the reach \(\d\.\d\d s after "
+        r"onset\) and the upper arm never hangs within 45° of straight down \([7-9]\d° at best\): is the up axis the "
+        r"lab's vertical\? \(check --up-axis\)$",
+        err.strip(),
+    ), err
+    code, _, err = _run([*args, "--up-axis=+z", "--out", tmp_path / "z.npz"], capsys)
+    assert code == 0, err
+
+
+def test_a_recording_whose_axes_are_permuted_needs_its_up_axis(tmp_path, synth, capsys):
+    """UE-ADL's reach and static trial with the lab's axes permuted (x, y, z) -> (y, z, x): y is now up and z the
+    lateral axis. Read with the Vicon format's +z it was written as a trial of nonsense; it is refused, naming the
+    up axis as the file's convention, and with --up-axis +y it gives the recording's own trial."""
+    from reachirl.data.readers import read_vicon_csv
+
+    folder = tmp_path / "permuted"
+    folder.mkdir()
+    for name in ("ADL001FL1", "ADL001_static"):
+        md = read_vicon_csv(synth.SAMPLE / "ADL001" / f"{name}.csv")
+        markers = {m: md[m][:, [1, 2, 0]] for m in md.names}
+        (folder / f"{name}.csv").write_text(synth.vicon_text(markers, rate=md.rate, subject="ADL001"))
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv", "--markerset", "ue-adl"]
+    code, _, err = _run([folder / "ADL001FL1.csv", *info, "--out", tmp_path / "p.npz"], capsys)
+    assert code == 2 and re.search(
+        r"ADL001FL1\.csv: with up = \+z \(the file's convention; give --up-axis\), the .* never hangs within 45° of "
+        r"straight down .*\(check --up-axis\)$",
+        err.strip(),
+    ), err
+    code, _, err = _run([folder / "ADL001FL1.csv", *info, "--up-axis=+y", "--out", tmp_path / "y.npz"], capsys)
+    assert code == 0, err
+    code, _, err = _run([synth.SAMPLE / "ADL001" / "ADL001FL1.csv", *info, "--out", tmp_path / "z.npz"], capsys)
+    assert code == 0, err
+    (y,), (z,) = load_trials(tmp_path / "y.npz"), load_trials(tmp_path / "z.npz")
+    np.testing.assert_allclose(y.q, z.q, atol=1e-6)

@@ -402,6 +402,25 @@ def test_nested_gaps_name_the_one_beside_the_reach(reach, synth):
         _trial(synth, nested)
 
 
+@pytest.mark.parametrize("side", ["right", "left"])
+@pytest.mark.parametrize("up", ["+x", "-x"])
+def test_a_lateral_up_axis_is_refused(reach, synth, synth_arm, side, up):
+    """The synthetic lab has z up, y forward (turned by 10°) and x lateral; a left arm is the right one mirrored
+    across x = 0. With x given as up the reach was made a trial (its angles the projections of an arm standing 80°
+    out of the plane); it is refused, as the arm then never hangs and lies across the plane of the reach."""
+    md = MarkerData(100.0, synth.lab_markers(synth_arm, reach.q, side=side), source="s.trc")
+    kw = {"subject": "S1", "posture": "P2", "trial_id": "1", "side": side}
+    with pytest.raises(
+        InputError,
+        match=rf"^s\.trc: with up = \{up} \(--up-axis\), the upper arm stands [7-9]\d° out of the vertical plane of "
+        r"the reach \(\d\.\d\d s after onset\) and the upper arm never hangs within 45° of straight down \([89]\d° at "
+        r"best\): is the up axis the lab's vertical\? \(check --up-axis\)$",
+    ):
+        markers_to_trial(md, parse_marker_map(synth.MAP), options=PreprocessOptions(up_axis=up), **kw)
+    tr = markers_to_trial(md, parse_marker_map(synth.MAP), options=PreprocessOptions(up_axis="+z"), **kw)
+    np.testing.assert_allclose(tr.q[0], reach.q[0], atol=0.01)
+
+
 def test_lengths_leave_out_a_pair_never_seen_together():
     from reachirl.data.kinematics import estimate_lengths
 

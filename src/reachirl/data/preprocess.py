@@ -45,7 +45,9 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    2nd, or more than ``pca_max_tilt_deg`` from vertical: an arm that stays near-horizontal, as in some UE-ADL
    reaches) it falls back, with a log note, to ``"vertical"``: the vertical plane through the fingertip's main
    horizontal direction of travel. ``"axes"`` takes given lab axes. The shoulder, frame by frame, is the
-   origin.
+   origin. With ``"pca"`` or ``"vertical"`` the up axis is then checked (:func:`check_up_axis`): a reach's arm lies
+   near the vertical plane of the reach or hangs at some moment; a lab axis across the reach given as up fails
+   both (the plane turns horizontal and cuts across the arm), and is refused.
 8. **Planar IK**: ``"segments"`` (default): q1 from the shoulder→elbow direction and q2 from the
    elbow→``distal`` direction (fingertip by default: segment 2 of the model is forearm + hand; ``"wrist"`` for
    the anatomical elbow); ``"fingertip"``: Berret's 2-link IK of the fingertip alone (:meth:`ArmModel.ik`).
@@ -109,6 +111,7 @@ __all__ = [
     "PreprocessOptions",
     "angles_to_trial",
     "check_glitches",
+    "check_up_axis",
     "markers_to_trial",
     "reconstruct_markers",
 ]
@@ -134,6 +137,13 @@ MIN_CUT_REACH = 0.1
 #: virtual subjects' bars lie at least 0.1 arm lengths beyond the start), a hand at rest by millimetres of drift and
 #: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
 MIN_REACH_RANGE = 0.05
+
+#: degrees: a segment of a reach's arm stands at most this far out of the vertical plane of the reach ... (see
+#: check_up_axis; UE-ADL: at most 34°; a lab axis across the reach given as up: 63-90°)
+MAX_OUT_OF_PLANE_DEG = 50.0
+#: ... or its upper arm hangs this near straight down at some moment (UE-ADL: within 19°; a lab axis across the reach
+#: given as up: 70° or further)
+MAX_HANG_DEG = 45.0
 
 #: The subject used when no subject-info is given: Berret et al. 2011's mean subject (male, 1.76 m, 69.9 kg).
 DEFAULT_SUBJECT = SubjectInfo(subject="default", sex="M", height_m=1.76, mass_kg=69.9)
@@ -238,6 +248,67 @@ def _fingertip_range(tip: np.ndarray, rate: float, order: int) -> float:
     return float(np.linalg.norm(np.ptp(tip, axis=0)))
 
 
+def check_up_axis(
+    rel: Mapping[str, np.ndarray],
+    basis: np.ndarray,
+    up: np.ndarray,
+    onset: int,
+    offset: int,
+    t: np.ndarray,
+    up_name: str,
+    src: object,
+) -> None:
+    """Refuse an up axis that is not the lab's vertical (a horizontal lab axis given as up), from two cues of
+    gravity of which a recording of a reach shows at least one:
+
+    * the arm moves in a vertical plane: the sagittal plane (:func:`sagittal_basis`, which holds ``up`` or, for
+      ``"pca"``, its projection) holds each segment (shoulder→elbow, elbow→fingertip) within
+      :data:`MAX_OUT_OF_PLANE_DEG` from onset to offset;
+    * the arm hangs under gravity at some moment of the record (at rest, before or after the reach): the upper arm
+      comes within :data:`MAX_HANG_DEG` of ``-up``.
+
+    With the lab's lateral axis as up the plane of the reach turns horizontal: the vertical fallback plane of
+    :func:`sagittal_basis` then cuts across the arm and the hanging arm is horizontal, so both cues fail, and the
+    angles were the projections of a segment standing 60-90° out of the plane (elbow flexion swinging over 150°
+    while the upper arm stays still). Measured over UE-ADL (80 trials, both arms, each turned to every lab up axis
+    and mirrored) and the virtual subjects (200 trials, likewise, left arms by mirroring): with the right up axis a
+    segment stands at most 34° out of the plane and the upper arm hangs within 19° of straight down in UE-ADL (the
+    virtual subjects' reaches are planar, 0°; from Berret's P4 start the upper arm never comes nearer than 52-66°
+    to straight down); with a lateral axis as up, a segment stands 63-90° out of the plane and the upper arm never
+    comes within 70°. ``rel``: the joints relative to the shoulder over the record; ``up_name``: the up axis in
+    words, for the message. A horizontal axis along the reach (the lab's forward axis as up) turns the reach in its
+    own plane and is not caught here: the joint limits catch most of those
+    (:func:`~reachirl.data.checks.check_trial_posture`)."""
+    names = {"elbow": "upper arm", "fingertip": "forearm (elbow to fingertip)"}
+    if "elbow" not in rel:
+        names = {"fingertip": "arm"}
+    worst = None
+    start = np.zeros_like(rel["fingertip"])
+    for joint, name in names.items():
+        seg = (rel[joint] - start)[onset : offset + 1]
+        length = np.linalg.norm(seg, axis=1)
+        inplane = np.linalg.norm(seg @ basis[:2].T, axis=1)
+        inside = np.divide(inplane, length, out=np.ones_like(length), where=length > 0.0)
+        k = int(np.argmin(inside))
+        angle = float(np.degrees(np.arccos(np.clip(inside[k], 0.0, 1.0))))
+        if worst is None or angle > worst[0]:
+            worst = (angle, name, k)
+        start = rel[joint]
+    first = rel["elbow"] if "elbow" in rel else rel["fingertip"]
+    norm = np.linalg.norm(first, axis=1)
+    cos_down = np.divide(-(first @ up), norm, out=np.full_like(norm, -1.0), where=norm > 0.0)
+    hang = float(np.degrees(np.arccos(np.clip(np.nanmax(cos_down), -1.0, 1.0))))
+    angle, name, k = worst
+    if angle > MAX_OUT_OF_PLANE_DEG and hang > MAX_HANG_DEG:
+        raise InputError(
+            f"with up = {up_name}, the {name} stands {angle:.0f}° out of the vertical plane of the reach "
+            f"({t[onset + k] - t[onset]:.2f} s after onset) and the {names.get('elbow', 'arm')} never hangs within "
+            f"{MAX_HANG_DEG:g}° of straight down ({hang:.0f}° at best): is the up axis the lab's vertical? (check "
+            "--up-axis)",
+            src,
+        )
+
+
 def check_glitches(
     joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0, n_frames: int | None = None
 ) -> None:
@@ -319,7 +390,8 @@ def reconstruct_markers(
     lengths = estimate_lengths({j: p for j, (p, _) in positions.items()})
     check_units(lengths, options, src)
 
-    up = lab_axis(options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up)  # the file's own first
+    up_spec = options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up  # the file's own first
+    up = lab_axis(up_spec)
     if side == "left":
         if options.lateral_axis:
             lateral = lab_axis(options.lateral_axis)
@@ -407,6 +479,9 @@ def reconstruct_markers(
     fwd = lab_axis(options.forward_axis) if options.forward_axis else None
     basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
+    if options.plane != "axes":  # --plane axes checks its axes against the reach itself (sagittal_basis)
+        given = "--up-axis" if options.up_axis else "the file's convention; give --up-axis"
+        check_up_axis(rel, basis, up, onset, offset, t, f"{up_spec} ({given})", src)
 
     if subject_info is not None:  # lengths given in the subject info must agree with the markers'
         from .checks import check_segment_lengths
