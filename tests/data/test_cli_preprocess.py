@@ -154,6 +154,7 @@ def _bad_files(tmp_path, reach, synth):
     return {
         "empty": ("", [], r"file is empty"),
         "header_only": (_VHEAD, [], r"no data rows after the header"),
+        "one_frame": ("\n".join(rows[:6]) + "\n", [], r"bad\.csv: only 1 frame, too few for a reach$"),
         "truncated_row": ("\n".join([*rows[:10], rows[10][:25]]) + "\n", [], r"line 11: truncated row"),
         "non_numeric": (
             "\n".join([*rows[:10], rows[10].replace(".", "x", 1)]) + "\n",
@@ -196,6 +197,7 @@ def _bad_files(tmp_path, reach, synth):
     [
         "empty",
         "header_only",
+        "one_frame",
         "truncated_row",
         "non_numeric",
         "time_not_increasing",

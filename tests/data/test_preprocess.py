@@ -384,6 +384,21 @@ def test_a_gap_that_hides_the_reach_or_leaves_only_its_return_is_refused(reach, 
         _trial(synth, there_and_back)
 
 
+@pytest.mark.parametrize(("copies", "where"), [(1, "frame 71"), (3, "frames 71-73")])
+def test_a_frame_padded_with_copies_is_refused(synth, synth_arm, copies, where):
+    """A file whose frame rate was padded by copying frames (the time column runs on): mid-reach the arm stands
+    still for a frame and then goes on, a stall too small for the glitch test (100 m/s² at 1 m/s and 100 Hz), which
+    the filter smeared into the speed. No camera sees two frames alike (noise alone tells them apart): refused."""
+    _, q = synth.min_jerk_q([-1.4, 1.6], [-0.6, 0.5], duration=0.4)
+    markers = {k: np.insert(v, [70] * copies, v[69], axis=0) for k, v in synth.lab_markers(synth_arm, q).items()}
+    with pytest.raises(
+        InputError,
+        match=rf"^s\.trc: {where}: every joint repeats frame 70 exactly, while the fingertip moves 1\d mm in the frame "
+        r"before and 1\d mm in the frame after: duplicated frames \(a frame rate padded with copies\)\? Remove them",
+    ):
+        _trial(synth, markers)
+
+
 def test_a_glitch_after_a_gap_in_the_rest_names_the_recording_s_frame(reach, synth):
     spiked = {k: np.array(v) for k, v in reach.markers.items()}
     spiked["FT"][55, 0] += 0.5

@@ -23,7 +23,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
-   10 ms, is an :class:`InputError` naming the frame.
+   10 ms, or repeating the frame before it exactly (every joint, the fingertip moving on both sides: a copy), is an
+   :class:`InputError` naming the frame.
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
 6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
@@ -102,6 +103,7 @@ from .signal import (
     gap_where,
     lowpass,
     seen_frames,
+    true_runs,
 )
 from .trial import Trial
 
@@ -122,6 +124,11 @@ log = logging.getLogger(__name__)
 MAX_FINGERTIP_SPEED = 30.0
 #: m/s²: a reaching hand's markers peak near 10-30 m/s² (about 3 g); 20 g from one frame to the next is a glitch
 MAX_MARKER_ACCELERATION = 200.0
+
+#: m: a frame that repeats the one before it exactly, every joint, is a copy (check_glitches) when the fingertip moves
+#: further than this (plus what an arm's acceleration can take off a step) in the frames on both sides: no rounding of
+#: the coordinates (at worst to 1 mm) makes a moving marker stand still
+MIN_COPY_STEP_M = 0.002
 
 #: s: a record cut at a gap longer than gap filling allows must show this much rest between the gap and the reach
 #: (the reach's onset or offset is then seen, not inferred at the gap's edge)
@@ -323,6 +330,23 @@ def check_glitches(
         if n_frames is not None and first_frame + f + 2 == n_frames:
             return "the record's last frame: a file cut short in its last row?"
         return usual
+
+    # a frame that repeats the one before it exactly, every joint, while the fingertip moves on both sides of it:
+    # cameras never see that (noise alone tells two frames apart), an export that pads a frame rate with copies does,
+    # and the copy is a stall mid-reach that the filter smears into its speed and onset
+    tip = np.linalg.norm(np.diff(joints["fingertip"], axis=0), axis=1)
+    still = np.all([np.all(np.diff(x, axis=0) == 0.0, axis=1) for x in joints.values()], axis=0)
+    moving = MIN_COPY_STEP_M + 50.0 / rate**2  # what 50 m/s² (beyond a reaching hand's 10-30) takes off in a frame
+    for a, b in true_runs(still):  # steps a … b - 1 are 0: rows a + 1 … b repeat row a
+        if a > 0 and b < tip.shape[0] and min(tip[a - 1], tip[b]) > moving:
+            first, last = first_frame + a + 2, first_frame + b + 1
+            raise InputError(
+                f"every joint repeats frame {first - 1} exactly, while the fingertip moves {tip[a - 1] * 1000:.0f} mm "
+                f"in the frame before and {tip[b] * 1000:.0f} mm in the frame after: duplicated frames (a frame rate "
+                "padded with copies)? Remove them, or blank them to be filled as a gap",
+                src,
+                f"frame {first}" if first == last else f"frames {first}-{last}",
+            )
 
     for k, x in joints.items():
         step = np.linalg.norm(np.diff(x, axis=0), axis=1)
