@@ -279,6 +279,17 @@ def test_missing_marker_and_long_gap(reach, synth):
     del mk["EL"]
     with pytest.raises(InputError, match=r"marker 'EL' \(elbow\) not found \(markers: SH, WR, FT\)"):
         _rec(reach, synth, markers=mk)
+    # a misspelt marker is named with the file's closest ones, before the list (which shows only 12 of many)
+    mk = {
+        **{("ELB" if k == "EL" else k): v for k, v in reach.markers.items()},
+        **{f"X{i:02d}": reach.markers["SH"] for i in range(12)},
+    }
+    with pytest.raises(InputError, match=r"marker 'EL' \(elbow\) not found; did you mean 'ELB'\? \(markers: SH, ELB,"):
+        _rec(reach, synth, markers=mk)
+    # two names that differ only in case: neither is taken, and the message says why
+    mk = {**{k: v for k, v in reach.markers.items() if k != "EL"}, "el": reach.markers["EL"], "El": reach.markers["EL"]}
+    with pytest.raises(InputError, match=r"marker 'EL' \(elbow\) not found: el, El differ from it only in case"):
+        _rec(reach, synth, markers=mk)
     mk = {k: v.copy() for k, v in reach.markers.items()}
     mk["FT"][30:50] = np.nan
     with pytest.raises(InputError, match=r"marker FT is missing for 20 frames \(31-50\)"):

@@ -71,9 +71,24 @@ def cast_reconstruct(cluster: np.ndarray, ref_cluster: np.ndarray, ref_point: np
 def _marker(md: MarkerData, name: str, role: str) -> np.ndarray:
     found = resolve_name(name, md.names)
     if found is None:
-        shown = ", ".join(md.names[:12]) + (" …" if len(md.names) > 12 else "")
-        raise InputError(f"marker {name!r} ({role}) not found (markers: {shown})", md.source)
+        raise InputError(f"marker {name!r} ({role}) not found{_near_names(name, md.names)}", md.source)
     return md[found]
+
+
+def _near_names(name: str, names) -> str:
+    """What a "not found" message adds: the names that differ from ``name`` only in case (two or more, so none is
+    taken), or the closest names (``difflib``) and then the file's markers, the first 12 of them."""
+    import difflib
+
+    names = list(names)
+    same = [n for n in names if n.lower() == name.lower()]
+    if len(same) > 1:
+        return f": {', '.join(same)} differ from it only in case; rename all but one"
+    by_lower = {n.lower(): n for n in names}
+    close = [by_lower[n] for n in difflib.get_close_matches(name.lower(), list(by_lower), n=3, cutoff=0.6)]
+    near = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    shown = ", ".join(names[:12]) + (" …" if len(names) > 12 else "")
+    return f"{near} (markers: {shown})"
 
 
 def calibrate_static(static: MarkerData, mset: MarkerSet) -> dict[str, tuple[np.ndarray, np.ndarray]]:
