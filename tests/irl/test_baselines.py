@@ -86,8 +86,19 @@ def test_baseline_fits_and_improves_the_merit(demos, method, kwargs):
     assert sol.converged and sol.q.shape == (N_NODES + 1, 2)
 
 
-def test_bilevel_respects_its_budget_and_records_every_evaluation(demos):
-    est = BilevelIOC(1, n_nodes=N_NODES, max_evals=15).fit(demos)
+def test_bilevel_respects_its_budget_and_records_every_evaluation(demos, caplog):
+    import logging
+
+    from reachirl.irl.base import caller_shows_fit_warnings
+
+    with caplog.at_level(logging.WARNING):
+        est = BilevelIOC(1, n_nodes=N_NODES, max_evals=15).fit(demos)
+    # each warning logged once for a Python user, as MO-IRL's; none where the caller says them (reachirl fit)
+    assert est.warnings_ and [r.getMessage() for r in caplog.records] == est.warnings_
+    caplog.clear()
+    with caplog.at_level(logging.WARNING), caller_shows_fit_warnings():
+        assert BilevelIOC(1, n_nodes=N_NODES, max_evals=15).fit(demos).warnings_ == est.warnings_
+    assert not caplog.records
     assert len(est.history_) <= est.n_doc_solves_ <= 15
     assert est.history_[-1]["doc_solves"] == est.n_doc_solves_
     assert est.stop_reason_ == "max_evals"

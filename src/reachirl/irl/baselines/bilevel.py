@@ -14,6 +14,7 @@ converged one and retried cold if that fails (both count as solves); a DOC that 
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Sequence
 
@@ -24,11 +25,13 @@ from ...data.trial import Trial
 from ...doc import DocSolution, solve_doc
 from ...doc.observation import observed_knots
 from ...features import N_FEATURES, windowed_features
-from ..base import WeightEstimator
+from ..base import WeightEstimator, log_fit_warning
 from ..moirl import demonstration_states, mean_task, mixed_postures_warning
 from ..objective import merit
 
 __all__ = ["BilevelIOC"]
+
+log = logging.getLogger(__name__)
 
 METHODS = ("powell", "nelder-mead")
 
@@ -179,4 +182,6 @@ class BilevelIOC(WeightEstimator):
                 f"direct-search iteration(s): the weights are the best of {len(self.history_)} evaluated, not a "
                 "converged optimum"
             )
+        for msg in self.warnings_:  # as MO-IRL's: logged, unless the caller says them (reachirl fit, reproduce)
+            log_fit_warning(log, msg)
         return self
