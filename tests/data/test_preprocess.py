@@ -249,6 +249,20 @@ def test_a_noisy_recording_of_rest_is_no_reach(synth, synth_arm, shoulder_mm, fi
         _trial(synth, rest)
 
 
+@pytest.mark.parametrize("sd_deg", [0.1, 0.3])
+def test_a_noisy_joint_angle_recording_of_rest_is_no_reach(sd_deg):
+    """The angles' path as the markers': a joint-angle file of the arm at rest with 0.1-0.3° of noise (1-3 mm at the
+    fingertip) carried the speed above 0.05 m/s and was written as a trial of noise (0.1-0.3 s long)."""
+    t = np.arange(300) / 100.0
+    q = np.deg2rad([-80.0, 60.0]) + np.deg2rad(sd_deg) * np.random.default_rng(0).normal(size=(300, 2))
+    with pytest.raises(
+        InputError,
+        match=r"^r\.mot: no movement detected: the fingertip ranges over \d mm, less than 5% of its distance from the "
+        r"shoulder \(\d+ mm\): rest and angle noise, not a reach$",
+    ):
+        angles_to_trial(AngleData(t, q, "r.mot"), subject="S1", posture="P", trial_id="1")
+
+
 def test_units_look_wrong(reach, synth):
     tiny = {k: v / 1000 for k, v in reach.markers.items()}  # metres read as mm
     with pytest.raises(InputError, match=r"units look wrong: the median upper arm distance is 0\.3 mm"):

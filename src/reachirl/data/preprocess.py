@@ -38,7 +38,7 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    from where it rested, not the one that brings it back. Another forward reach in the recording is reported
    (:func:`other_reach`), and the faster one is kept. A record whose fingertip (low-passed at 3 Hz) ranges over
    less than ``MIN_REACH_RANGE`` (5 %) of its distance from the shoulder holds no reach: rest, whose marker noise
-   can carry the 10 Hz speed above ``min_peak_speed``.
+   (or a joint-angle file's angle noise) can carry the 10 Hz speed above ``min_peak_speed``.
 7. **Sagittal plane** (:func:`sagittal_basis`): ``"pca"`` (default), the principal plane (SVD) of the arm's
    joint centres relative to the shoulder over the movement, as Berret; its up axis is the lab's up (opposite
    gravity) projected on the plane, its forward axis normal to up in the plane, pointing where the fingertip
@@ -255,6 +255,19 @@ def _fingertip_range(tip: np.ndarray, rate: float, order: int) -> float:
     return float(np.linalg.norm(np.ptp(tip, axis=0)))
 
 
+def _rest_only(tip: np.ndarray, distance: float, rate: float, order: int, noise: str) -> str | None:
+    """The refusal of a record that holds no reach, or ``None``: its fingertip ``tip`` (``(n, d)``, before the
+    angles' filter) ranges over less than :data:`MIN_REACH_RANGE` of ``distance``, its median distance from the
+    shoulder (m): rest, whose ``noise`` can carry the 10 Hz speed above ``min_peak_speed``."""
+    extent = _fingertip_range(tip, rate, order)
+    if not extent < MIN_REACH_RANGE * distance:
+        return None
+    return (
+        f"no movement detected: the fingertip ranges over {extent * 1000:.0f} mm, less than {MIN_REACH_RANGE:.0%} "
+        f"of its distance from the shoulder ({distance * 1000:.0f} mm): rest and {noise}, not a reach"
+    )
+
+
 def check_up_axis(
     rel: Mapping[str, np.ndarray],
     basis: np.ndarray,
@@ -434,10 +447,10 @@ def reconstruct_markers(
     speed = np.linalg.norm(vel, axis=1)
     # noise alone can carry the speed above min_peak_speed (1 mm of it gives 0.1 m/s at 10 Hz), and the shoulder's
     # noisy path beyond the fingertip's: a reach also takes the fingertip further than noise does
-    extent = _fingertip_range(raw_fingertip, md.rate, options.filter_order)
     distance = float(np.median(np.linalg.norm(joints["fingertip"] - joints["shoulder"], axis=1)))
+    rest = _rest_only(raw_fingertip, distance, md.rate, options.filter_order, "marker noise")
     still = not np.isfinite(speed).all() or speed.max() < options.min_peak_speed
-    if still or extent < MIN_REACH_RANGE * distance:
+    if still or rest is not None:
         if window.gaps:  # the movement is in a gap
             label, s0, e0 = max(window.gaps, key=lambda g: g[2] - g[1])
             raise InputError(
@@ -450,12 +463,7 @@ def reconstruct_markers(
                 f"(< {options.min_peak_speed:g} m/s)",
                 src,
             )
-        raise InputError(
-            f"no movement detected: the fingertip ranges over {extent * 1000:.0f} mm, less than "
-            f"{MIN_REACH_RANGE:.0%} of its distance from the shoulder ({distance * 1000:.0f} mm): rest and marker "
-            "noise, not a reach",
-            src,
-        )
+        raise InputError(rest, src)
     path = {k: float(np.sum(np.linalg.norm(np.diff(joints[k], axis=0), axis=1))) for k in ("shoulder", "fingertip")}
     if path["shoulder"] > path["fingertip"]:
         # in a reach the fingertip travels furthest and the shoulder least; the other way round, the marker map
@@ -633,8 +641,9 @@ def angles_to_trial(
     The arm comes from the subject info (lengths or Dumas' means scaled by height). Non-uniform samples are
     first interpolated onto a uniform grid at the median rate; then the angles are low-passed (skipped, with a
     log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
-    onset and offset, and q̇, q̈, τ follow as for markers. Left arms' angles are taken as already in the model
-    convention.
+    onset and offset, and q̇, q̈, τ follow as for markers. A record whose fingertip ranges over less than
+    :data:`MIN_REACH_RANGE` of its distance from the shoulder is refused as for markers (rest and angle noise).
+    Left arms' angles are taken as already in the model convention.
     """
     options = options or PreprocessOptions()
     info = subject_info or DEFAULT_SUBJECT
@@ -662,6 +671,11 @@ def angles_to_trial(
             src,
         )
     tip = arm.fk(q_seen)
+    # as for markers: the angles' noise at rest (0.1° is about 1 mm at the fingertip) carries the speed above
+    # min_peak_speed, and onset and offset were found in it
+    rest = _rest_only(tip, float(np.median(np.linalg.norm(tip, axis=1))), rate, options.filter_order, "angle noise")
+    if rest is not None:
+        raise InputError(rest, src)
     onset, offset = detect_onset_offset(
         segmentation_speed(t, tip, speed, options, src),
         options.onset_threshold,
