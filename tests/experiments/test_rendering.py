@@ -117,3 +117,39 @@ def test_reachirls_figures_are_told_from_others(tmp_path):
     (tmp_path / "notes.pdf").write_text("reachirl\n")
     for name in ("renamed.png", "empty.png", "notes.pdf", "missing.png"):
         assert not is_marked_figure(tmp_path / name), name
+
+
+def test_a_figures_mark_is_looked_for_in_its_first_64_kib_only(tmp_path, monkeypatch):
+    """is_marked_figure reads at most _MARK_BYTES of a file: it read up to 64 chunks of 64 KiB each (4 MiB) of a
+    PNG before its image data. A PNG whose mark stands behind 80 kB of other chunks (not one figures.save writes) is
+    not taken as reachirl's, and no more than 64 KiB of it is read."""
+    import builtins
+    import io
+    import struct
+    import zlib
+
+    from reachirl.experiments import figures
+    from reachirl.experiments.figures import is_marked_figure
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    ihdr = chunk(b"IHDR", struct.pack(">IIBBBBB", 1, 1, 8, 0, 0, 0, 0))
+    mark = chunk(b"tEXt", b"Software\0" + figures.FIGURE_MARK.encode())
+    tail = chunk(b"IDAT", zlib.compress(b"\0\0")) + chunk(b"IEND", b"")
+    near, far = tmp_path / "near.png", tmp_path / "far.png"
+    near.write_bytes(b"\x89PNG\r\n\x1a\n" + ihdr + mark + tail)
+    far.write_bytes(b"\x89PNG\r\n\x1a\n" + ihdr + 2 * chunk(b"prIv", bytes(40_000)) + mark + tail)
+    read, real_open = [], builtins.open
+
+    class Counted(io.BufferedReader):
+        def read(self, n=-1):
+            data = super().read(n)
+            read.append(len(data))
+            return data
+
+    monkeypatch.setattr(builtins, "open", lambda p, mode="r", *a, **k: Counted(real_open(p, "rb", buffering=0)))
+    assert is_marked_figure(near)
+    read.clear()
+    assert not is_marked_figure(far)
+    assert sum(read) <= figures._MARK_BYTES, sum(read)

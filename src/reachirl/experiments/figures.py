@@ -122,7 +122,7 @@ FIGURE_MARK = "reachirl"
 """What :func:`save` writes into every figure's metadata (a PNG's ``Software`` text chunk, a PDF's ``Creator``), by
 which :func:`is_marked_figure` tells reachirl's own figures, which a command may replace, from a user's."""
 
-#: how much of a file :func:`is_marked_figure` reads at most: a PNG's chunks before its image data, a PDF's tail
+#: how much of a file :func:`is_marked_figure` reads at most (a PNG's chunks before its image data; of a PDF, 5 kB)
 _MARK_BYTES = 64 * 1024
 
 
@@ -148,7 +148,8 @@ def save(fig, path, close: bool = True) -> None:
 
 def is_marked_figure(path) -> bool:
     """Whether the file at ``path`` is a PNG or PDF figure that :func:`save` wrote (its metadata holds
-    :data:`FIGURE_MARK`); False for anything else, or a file that cannot be read. Reads at most a few kB."""
+    :data:`FIGURE_MARK`); False for anything else, or a file that cannot be read. Reads at most 64 KiB
+    (``_MARK_BYTES``): a PNG's chunks before its image data, a PDF's last kB and its information dictionary."""
     import re
     import struct
     from pathlib import Path
@@ -159,12 +160,14 @@ def is_marked_figure(path) -> bool:
             if path.suffix.lower() == ".png":
                 if fh.read(8) != b"\x89PNG\r\n\x1a\n":
                     return False
+                left = _MARK_BYTES - 8  # what may still be read after the signature
                 for _ in range(64):  # the text chunks come before the image data
                     head = fh.read(8)
                     if len(head) < 8:
                         return False
                     size, kind = struct.unpack(">I4s", head)
-                    if kind in (b"IDAT", b"IEND") or size > _MARK_BYTES:
+                    left -= size + 12  # its length and type, data and CRC
+                    if kind in (b"IDAT", b"IEND") or left < 0:
                         return False
                     data = fh.read(size + 4)[:size]  # and its CRC
                     if kind == b"tEXt" and data == b"Software\0" + FIGURE_MARK.encode():
