@@ -24,7 +24,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from ..features import FEATURES
-from .names import natural_key, sections_text
+from .names import CONVERGENCE_TITLE, natural_key, sections_text
 
 __all__ = [
     "FIGURE_MARK",
@@ -377,7 +377,7 @@ def plot_convergence(
             ax.set_ylabel(merit_label, fontsize=9)
     if axes[0, 0].get_legend_handles_labels()[0]:  # a one-shot baseline has no iterations to plot
         axes[0, 0].legend(fontsize=8)
-    fig.suptitle(title or "MO-IRL convergence (accepted steps)")
+    fig.suptitle(title or CONVERGENCE_TITLE)
     fig.tight_layout()
     return fig
 

@@ -13,6 +13,9 @@ __all__ = ["backend_text", "method_text", "natural_key", "sections_text"]
 #: the DOC backend a title leaves unsaid (the default), to keep titles short
 DEFAULT_BACKEND = "casadi"
 
+#: the convergence figure's title (plot_convergence's own, and a run's with its backend after it)
+CONVERGENCE_TITLE = "MO-IRL convergence (accepted steps)"
+
 
 def natural_key(name: str) -> tuple:
     """Sort key of a posture (or subject) name that orders its numbers by value: P1, P2, …, P10."""

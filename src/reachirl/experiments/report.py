@@ -33,7 +33,7 @@ from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
 from .cost import uncertainty_summary
 from .method import convergence_text, method_lines, unit_method
-from .names import backend_text, natural_key, sections_text
+from .names import CONVERGENCE_TITLE, backend_text, natural_key, sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .rendering import FigureJob, FigureWorkers, drawing
@@ -416,7 +416,7 @@ def figure_jobs(
             pdf,
             histories=hist,
             sections=sections,
-            title=f"MO-IRL convergence (accepted steps){on}" if on else "",
+            title=CONVERGENCE_TITLE + on,
             merit_label=words["merit_label"],
             start=words["start"],
         )
