@@ -23,15 +23,7 @@ def _params(f) -> dict:
 
 
 def test_the_python_names_and_signatures():
-    assert FEATURES == (
-        "cartesian_velocity",
-        "energy",
-        "geodesic",
-        "joint_acceleration",
-        "torque_change",
-        "joint_velocity",
-        "joint_torque",
-    )
+    # FEATURES' names and order: tests/test_features.py (test_feature_order_is_the_papers)
     for name in ("FEATURES", "ArmModel", "ReachingTask", "solve_doc", "DocSolution", "MOIRL"):
         # dir() (inspect.getmembers, help) left out MOIRL, which the package imports on first use
         assert name in reachirl.__all__ and name in dir(reachirl) and hasattr(reachirl, name)
