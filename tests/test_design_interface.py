@@ -1,6 +1,7 @@
-"""The public interface the design notes promise, spelled as they spell it: the Python names and their
-signatures, the commands and options, the Makefile targets and the JSON fields (through docs/outputs.md, whose
-tables test_outputs_doc.py checks against the files the commands write). Names may be added, never renamed or
+"""The public interface the project's design (design.md, kept outside this repository; not docs/design-notes.md)
+promises, spelled as it spells it: the Python names and their signatures, the commands and options, the Makefile
+targets and the JSON fields (through docs/outputs.md, whose tables test_outputs_doc.py checks against the files the
+commands write). Names may be added, never renamed or
 dropped: a rename fails here. Cheap: parsers and signatures, one 20-knot DOC."""
 
 import dataclasses

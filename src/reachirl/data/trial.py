@@ -126,8 +126,9 @@ class Trial:
 
     @property
     def target(self) -> float:
-        """The reach's target, the bar's x: ``target_x`` (m) under the name of the design notes' data path
-        (``Trial (q, q̇, q̈, τ, x0, target, duration, subject, posture)``)."""
+        """The reach's target, the bar's x: ``target_x`` (m) under the name the project's design gives it in its
+        data path (``Trial (q, q̇, q̈, τ, x0, target, duration, subject, posture)``; design.md, which is not
+        docs/design-notes.md)."""
         return self.target_x
 
     @property
