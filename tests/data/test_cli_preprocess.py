@@ -566,8 +566,8 @@ def test_a_lateral_up_axis_is_refused_not_projected_into_nonsense(tmp_path, synt
 
 def test_a_recording_whose_axes_are_permuted_needs_its_up_axis(tmp_path, synth, capsys):
     """UE-ADL's reach and static trial with the lab's axes permuted (x, y, z) -> (y, z, x): y is now up and z the
-    lateral axis. Read with the Vicon format's +z it was written as a trial of nonsense; it is refused, naming the
-    up axis as the file's convention, and with --up-axis +y it gives the recording's own trial."""
+    lateral axis. Read with the ue-adl marker set's +z it was written as a trial of nonsense; it is refused, naming
+    the up axis and the marker set that gave it, and with --up-axis +y it gives the recording's own trial."""
     from reachirl.data.readers import read_vicon_csv
 
     folder = tmp_path / "permuted"
@@ -579,7 +579,7 @@ def test_a_recording_whose_axes_are_permuted_needs_its_up_axis(tmp_path, synth, 
     info = ["--subject-info", synth.SAMPLE / "subjects.csv", "--markerset", "ue-adl"]
     code, _, err = _run([folder / "ADL001FL1.csv", *info, "--out", tmp_path / "p.npz"], capsys)
     assert code == 2 and re.search(
-        r"ADL001FL1\.csv: with up = \+z \(the file's convention; give --up-axis\), the .* never hangs within 45° of "
+        r"ADL001FL1\.csv: with up = \+z \(marker set 'ue-adl'; give --up-axis\), the .* never hangs within 45° of "
         r"straight down .*\(check --up-axis\)$",
         err.strip(),
     ), err

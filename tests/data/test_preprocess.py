@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -459,6 +460,26 @@ def test_a_lateral_up_axis_is_refused(reach, synth, synth_arm, side, up):
         markers_to_trial(md, parse_marker_map(synth.MAP), options=PreprocessOptions(up_axis=up), **kw)
     tr = markers_to_trial(md, parse_marker_map(synth.MAP), options=PreprocessOptions(up_axis="+z"), **kw)
     np.testing.assert_allclose(tr.q[0], reach.q[0], atol=0.01)
+
+
+@pytest.mark.parametrize(
+    ("where", "declared", "said"),
+    [
+        ("set", False, "marker set 'custom'; give --up-axis"),  # was: "the file's convention"
+        ("file", True, "the file's own; give --up-axis"),
+        ("format", False, "the format's convention; give --up-axis"),
+    ],
+)
+def test_a_lateral_up_axis_names_where_it_came_from(reach, synth, synth_arm, where, declared, said):
+    """Without --up-axis, the up axis is the file's own statement (a C3D's POINT:Y_SCREEN), else the marker set's,
+    else the format's convention (usage.md); the refusal of a lateral one named 'the file's convention' whatever
+    gave it, also a marker set's "up" (which no file or format states), where the fix is in the marker set."""
+    ms = replace(parse_marker_map(synth.MAP), name="custom", up="+x" if where == "set" else None)
+    up = "+z" if where == "set" else "+x"
+    md = MarkerData(100.0, synth.lab_markers(synth_arm, reach.q), source="s.trc", up=up, up_declared=declared)
+    kw = {"subject": "S1", "posture": "P2", "trial_id": "1"}
+    with pytest.raises(InputError, match=rf"^s\.trc: with up = \+x \({re.escape(said)}\), the upper arm stands "):
+        markers_to_trial(md, ms, **kw)
 
 
 def test_lengths_leave_out_a_pair_never_seen_together():

@@ -427,7 +427,13 @@ def reconstruct_markers(
     lengths = estimate_lengths({j: p for j, (p, _) in positions.items()})
     check_units(lengths, options, src)
 
-    up_spec = options.up_axis or (md.up if md.up_declared else None) or ms.up or md.up  # the file's own first
+    # the first given of: --up-axis, the file's own statement, the marker set's, the format's convention
+    sources = (
+        (options.up_axis, "--up-axis"),
+        (md.up if md.up_declared else None, "the file's own"),
+        (ms.up, f"marker set {ms.name!r}"),
+    )
+    up_spec, up_source = next(((a, w) for a, w in sources if a), (md.up, "the format's convention"))
     up = lab_axis(up_spec)
     if side == "left":
         if options.lateral_axis:
@@ -512,8 +518,8 @@ def reconstruct_markers(
     basis = sagittal_basis({k: v[onset : offset + 1] for k, v in rel.items()}, up, disp, options, fwd, src)
     planar = {k: v @ basis[:2].T for k, v in rel.items()}
     if options.plane != "axes":  # --plane axes checks its axes against the reach itself (sagittal_basis)
-        given = "--up-axis" if options.up_axis else "the file's convention; give --up-axis"
-        check_up_axis(rel, basis, up, onset, offset, t, f"{up_spec} ({given})", src)
+        source = up_source if options.up_axis else f"{up_source}; give --up-axis"
+        check_up_axis(rel, basis, up, onset, offset, t, f"{up_spec} ({source})", src)
 
     if subject_info is not None:  # lengths given in the subject info must agree with the markers'
         from .checks import check_segment_lengths
