@@ -592,6 +592,22 @@ def test_plot_of_a_run_never_replaces_a_figure_of_the_users_own(run_folder, tmp_
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig3_weights.png"]
 
 
+def test_plot_of_a_run_into_its_own_figures_folder_replaces_its_figures(run_folder, tmp_path, capsys):
+    """The run's own figures/ holds what reproduce drew there, marked or (a run of before the mark) not: plot RUN_DIR
+    --out RUN_DIR/figures draws them again."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    (run / "figures").mkdir(exist_ok=True)
+    old = _users_figure(run / "figures" / "fig3_weights.png")  # unmarked, as every figure of before the mark
+    assert main(["plot", str(run), "--out", str(run / "figures"), "--no-pdf"]) == 0
+    assert (run / "figures" / "fig3_weights.png").read_bytes() != old
+    from reachirl.experiments.figures import is_marked_figure
+
+    assert is_marked_figure(run / "figures" / "fig3_weights.png")
+
+
 def test_plot_titles_name_a_backend_other_than_casadi(fitted, tmp_path, monkeypatch):
     """A Crocoddyl fit's figures did not say so: its titles name the backend beside the method (CasADi, the default,
     goes unsaid), and the predictions' backend when it is not the fit's."""

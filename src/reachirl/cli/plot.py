@@ -10,7 +10,8 @@ window's cost on the fit's own reach, the shares its intervals bracket; undeterm
 ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``, ``fig3_weights``, ``fig4_iscv``,
 ``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
 ``.png`` and ``.pdf``, marked as reachirl's in its metadata; a file of DIR with a figure's name that does not carry
-that mark (the user's own) is refused, never replaced.
+that mark (the user's own) is refused, never replaced, but in the run's own ``RUN_DIR/figures``, which holds what
+``reproduce`` drew.
 """
 
 from __future__ import annotations
@@ -219,7 +220,8 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
     def draw(fig_dir: Path) -> dict:
         with _malformed(res_path):  # what each figure draws, read from the units
             jobs, figs = figure_jobs(run, tables, ({}, {}, {}), fig_dir=fig_dir, pdf=pdf)
-        refuse_foreign_figures(out, _figure_files(figs, pdf), "--out")  # before drawing: replace reachirl's only
+        if out.resolve() != (run_dir / "figures").resolve():  # the run's own figures (a run of before the mark too)
+            refuse_foreign_figures(out, _figure_files(figs, pdf), "--out")  # before drawing: replace reachirl's only
         with drawing(jobs):
             pass
         return figs
