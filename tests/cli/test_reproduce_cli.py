@@ -122,6 +122,30 @@ def test_the_fits_warnings_are_said_on_stderr_at_the_end(trials_file, tmp_path, 
         assert not [r.getMessage() for r in caplog.records if "stopped after one step" in r.getMessage()]
 
 
+def test_the_all_pairs_units_failures_flags_and_warnings_are_said_too(trials_file, tmp_path, capsys):
+    """The report's notes counted the main table's units only (UE-ADL's every pair: "0 rollouts of 433 solves",
+    "0 of 240 predictions", of 24 units' 4227 and 1920), and the other training subjects' fits' flags and warnings
+    were said nowhere, neither in report.md nor on stderr. Now a note says them for those units, and stderr names
+    each warning with its unit."""
+    out = tmp_path / "out"
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", "--quick"]
+    argv += ["--sections", "1", "--max-iter", "1", "--no-progress", "--iscv", "all-pairs"]
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err.splitlines()
+    units = [json.loads(p.read_text()) for p in sorted((out / "units").glob("*-t*.json"))]
+    assert units and all(u["unit"]["train_subject"] for u in units)
+    said = [f"warning: {u['key']}: {w}" for u in units for w in u["warnings"]]
+    assert said and all(s in err for s in said), (said, err)
+    (note,) = [n for n in json.loads((out / "results.json").read_text())["notes"] if "all-pairs units" in n]
+    solves = sum(u["fit"]["doc_solves"] for u in units)
+    predictions = sum(u["evaluation"]["doc_solves"] for u in units)
+    assert f"The {len(units)} all-pairs units" in note and f"of {solves} solves" in note
+    assert f"of {predictions} predictions" in note
+    assert all(u["key"] in note for u in units if u["flag"] or u["warnings"])
+    assert note in (out / "report.md").read_text()
+
+
 def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     trials_file, reference_run, tmp_path, monkeypatch
 ):

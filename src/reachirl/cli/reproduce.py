@@ -702,7 +702,9 @@ def run(args) -> int:
     )
     # the fits' warnings (report.md's notes), said last and only here: a unit's fit logs none of them (a reused
     # unit's, or a Dask worker's, would never reach this terminal as a log line), so each is said once
-    for r in sorted(result.results.values(), key=lambda r: r["key"]):
+    # the main table's units, then the all-pairs and posture-transfer ones (report.md's notes name them too)
+    every = [*result.results.values(), *result.pairs.values(), *result.transfer.values()]
+    for r in sorted(every, key=lambda r: r["key"]):
         for w in r.get("warnings") or []:
             print(f"warning: {r['key']}: {w}", file=sys.stderr)
     return 0

@@ -160,6 +160,41 @@ def _notes(results: dict[str, dict], config: ProtocolConfig) -> tuple[list[str],
     return notes, doc
 
 
+def _other_units_notes(run: RunResult) -> list[str]:
+    """The notes above count the main table's units only; the all-pairs and posture-transfer units (``run.pairs``,
+    ``run.transfer``) are fits too, whose DOC failures, flags and warnings would otherwise be said nowhere: one
+    note for each kind run."""
+    notes = []
+    for units, what in (
+        (run.pairs, "all-pairs units (the other training subjects' fits; `iscv_pairs.csv`, not the tables above)"),
+        (run.transfer, "posture-transfer units (`posture_transfer.csv`, not the tables above)"),
+    ):
+        if not units:
+            continue
+        rs = sorted(units.values(), key=lambda r: r["key"])
+        fit_solves = sum(r["fit"]["doc_solves"] for r in rs)
+        fit_fail = sum(r["fit"]["doc_failures"] for r in rs)
+        ev_solves = sum(r["evaluation"]["doc_solves"] for r in rs)
+        ev_fail = sum(r["evaluation"]["doc_failures"] for r in rs)
+        flagged = [f"{r['key']} ({r['flag']})" for r in rs if r.get("flag")]
+        warned: dict[str, list[str]] = {}
+        for r in rs:
+            for w in r.get("warnings") or []:
+                warned.setdefault(str(w), []).append(r["key"])
+        notes.append(
+            f"The {len(rs)} {what}: {fit_fail} rollouts of {fit_solves} solves during their fits failed; "
+            f"{ev_fail} of {ev_solves} predictions did not converge; fits flagged: "
+            + (", ".join(flagged) if flagged else "none")
+            + (
+                "; fit warnings: " + "; ".join(f"{', '.join(keys)}: {w}" for w, keys in warned.items())
+                if warned
+                else ""
+            )
+            + "."
+        )
+    return notes
+
+
 def markdown_tables(tables: dict, postures, sections, n_trials: dict) -> list[str]:
     """The Markdown tables of ``table.md`` (and ``report.md``), one per method."""
     methods = list(tables)
@@ -647,6 +682,7 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     tables = {m: tb.build_table(results, m, postures, sections) for m in methods}
     n_trials = {s: ("/".join(sorted({str(v) for v in run.split_sizes[s].values()})) or "0") for s in SETS}
     notes, doc = _notes(results, config)
+    notes += _other_units_notes(run)
     empty = [s for s in SETS if not any(run.split_sizes[s].values())]
     if empty:  # the table shows "—" there; say why
         reasons = split_reasons(config)
