@@ -143,3 +143,41 @@ def test_a_study_the_data_cannot_have_is_said_on_the_terminal_not_claimed_writte
     assert "all-pairs ISCV in" not in said and "posture transfer in" not in said
     assert "no all-pairs ISCV (iscv_pairs.csv not written): it needs at least two subjects" in said
     assert "no posture transfer (posture_transfer.csv not written): it needs at least two postures" in said
+
+
+def test_a_failed_prediction_is_counted_in_its_pair_not_averaged_in(tmp_path):
+    """A prediction whose DOC failed is a count (``doc_failures``), never a number in a pair's mean, as in the main
+    table; a pair whose every prediction failed has no mean (an empty cell), and report.md says how many failed."""
+    from types import SimpleNamespace
+
+    from reachirl.experiments.pairs import pair_rows, to_csv, write_pairs
+
+    def unit(train, iscv):
+        trials = [
+            {"id": f"{s}/P2/right/T{i}", "rmse_deg": {"q": q}, "converged": ok} for i, (s, q, ok) in enumerate(iscv)
+        ]
+        own = {"id": f"{train}/P2/right/T9", "rmse_deg": {"q": 1.0}, "converged": True}
+        unit = {"method": "moirl", "posture": "P2", "sections": 1, "train_subject": train}
+        return {"unit": unit, "sets": {"cv": {"trials": [own]}, "iscv": {"trials": trials}}}
+
+    subjects = ("S01", "S02", "S03")
+    trials = [SimpleNamespace(id=f"{s}/P2/right/T{i}", subject=s) for s in subjects for i in range(4)]
+    run = SimpleNamespace(
+        dataset=SimpleNamespace(trials=trials, subjects=list(subjects)),
+        config=SimpleNamespace(methods=("moirl",), sections=(1,)),
+        postures=["P2"],
+        train_subject="S01",
+        out_dir=tmp_path,
+        # S01 on S02: 2.0 converged, 50.0 failed (its number must not count); S01 on S03: every prediction failed
+        results={"a": unit("S01", [("S02", 2.0, True), ("S02", 50.0, False), ("S03", 3.0, False)])},
+        pairs={"b": unit("S02", [("S01", 4.0, True), ("S03", 5.0, True)])},
+    )
+    rows = {(r["train_subject"], r["test_subject"]): r for r in pair_rows(run) if r["posture"] == "P2"}
+    assert rows["S01", "S02"]["rmse_q_mean_deg"] == 2.0
+    assert (rows["S01", "S02"]["n"], rows["S01", "S02"]["doc_failures"]) == (1, 1)
+    assert (rows["S01", "S03"]["n"], rows["S01", "S03"]["doc_failures"]) == (0, 1)
+    line = next(ln for ln in to_csv(list(rows.values())).splitlines() if ln.startswith("moirl,P2,1,S01,S03,"))
+    assert line == "moirl,P2,1,S01,S03,,,0,1"
+    md = "\n".join(write_pairs(run, fig_dir=tmp_path / "figures")["markdown"])
+    assert "**2 prediction(s) failed**" in md and "nan" not in md
+    assert "nan" not in (tmp_path / "iscv_pairs.csv").read_text()

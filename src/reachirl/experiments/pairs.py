@@ -43,7 +43,17 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 ALL = "ALL"
-COLUMNS = ("method", "posture", "sections", "train_subject", "test_subject", "rmse_q_mean_deg", "rmse_q_sd_deg", "n")
+COLUMNS = (
+    "method",
+    "posture",
+    "sections",
+    "train_subject",
+    "test_subject",
+    "rmse_q_mean_deg",
+    "rmse_q_sd_deg",
+    "n",
+    "doc_failures",
+)
 
 
 def pair_training_subjects(trials: Sequence[Trial], config) -> list[str]:
@@ -73,8 +83,9 @@ def pair_splits(trials: Sequence[Trial], postures: Sequence[str], config) -> dic
 
 
 def _stats(v: list[float]) -> tuple[float, float, int]:
+    """Mean, population SD and number of ``v``; NaN for both with no value (every prediction failed)."""
     a = np.asarray(v, dtype=float)
-    return float(a.mean()), float(a.std()), int(a.size)
+    return (float(a.mean()), float(a.std()), int(a.size)) if a.size else (float("nan"), float("nan"), 0)
 
 
 def pair_rows(run) -> list[dict]:
@@ -83,6 +94,7 @@ def pair_rows(run) -> list[dict]:
     subject_of = {t.id: t.subject for t in run.dataset.trials}
     methods, postures = list(run.config.methods), list(run.postures)
     cells: dict[tuple, list[float]] = {}
+    failures: dict[tuple, int] = {}
     for r in [*run.results.values(), *run.pairs.values()]:
         u = r["unit"]
         train = u.get("train_subject") or run.train_subject
@@ -91,16 +103,18 @@ def pair_rows(run) -> list[dict]:
                 test = train if set_name == "cv" else subject_of.get(e["id"])
                 if test is None:
                     continue
-                for p in (u["posture"], ALL):
-                    cells.setdefault((u["method"], p, int(u["sections"]), train, test), []).append(
-                        float(e["rmse_deg"]["q"])
-                    )
+                for p in (u["posture"], ALL):  # a prediction whose DOC failed is counted, not averaged in
+                    key = (u["method"], p, int(u["sections"]), train, test)
+                    cells.setdefault(key, [])
+                    failures[key] = failures.get(key, 0) + (not e.get("converged", True))
+                    if e.get("converged", True):
+                        cells[key].append(float(e["rmse_deg"]["q"]))
     order = {p: i for i, p in enumerate([*postures, ALL])}
     morder = {m: i for i, m in enumerate(methods)}
     rows = []
     for k in sorted(cells, key=lambda k: (morder.get(k[0], 99), order.get(k[1], 99), k[2], k[3], k[4])):
         mean, sd, n = _stats(cells[k])
-        rows.append(dict(zip(COLUMNS, (*k, mean, sd, n), strict=True)))
+        rows.append(dict(zip(COLUMNS, (*k, mean, sd, n, failures[k]), strict=True)))
     return rows
 
 
@@ -115,13 +129,19 @@ def to_csv(rows: Sequence[dict]) -> str:
                     str(r["sections"]),
                     r["train_subject"],
                     r["test_subject"],
-                    f"{r['rmse_q_mean_deg']:.4f}",
-                    f"{r['rmse_q_sd_deg']:.4f}",
+                    _number(r["rmse_q_mean_deg"]),
+                    _number(r["rmse_q_sd_deg"]),
                     str(r["n"]),
+                    str(r["doc_failures"]),
                 ]
             )
         )
     return "\n".join(lines) + "\n"
+
+
+def _number(x: float) -> str:
+    """A CSV cell: 4 decimals, empty where no prediction converged (``doc_failures`` says how many failed)."""
+    return f"{x:.4f}" if np.isfinite(x) else ""
 
 
 def pair_matrix(rows: Sequence[dict], method: str, posture: str, sections: int) -> tuple[list[str], np.ndarray]:
@@ -244,6 +264,7 @@ def plot_iscv_vs_cv(
             and r["posture"] in postures
             and r["sections"] == n
             and r["train_subject"] == r["test_subject"]
+            and r["n"]
         ]
         off = [
             r["rmse_q_mean_deg"]
@@ -252,6 +273,7 @@ def plot_iscv_vs_cv(
             and r["posture"] in postures
             and r["sections"] == n
             and r["train_subject"] != r["test_subject"]
+            and r["n"]
         ]
         data += [diag, off]
         labels += [f"CV\n{n} sec.", f"ISCV\n{n} sec."]
@@ -295,6 +317,13 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
     methods, postures, sections = list(run.config.methods), list(run.postures), list(run.config.sections)
     figs: dict[str, dict] = {}
     md = list(head)
+    failed = sum(r["doc_failures"] for r in rows if r["posture"] != ALL)
+    if failed:
+        md += [
+            f"**{failed} prediction(s) failed** (the DOC did not converge): counted in `iscv_pairs.csv`'s "
+            "`doc_failures`, not averaged into its means; a cell where every prediction failed has no mean.",
+            "",
+        ]
     for m in methods:
         for n in sections:
             panels = [*postures, ALL] if len(postures) > 1 else postures
@@ -336,7 +365,7 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
             "|---|---|---|---|---|---|---|---|",
         ]
         for n in sections:
-            sel = [r for r in rows if r["method"] == m and r["sections"] == n and r["posture"] != ALL]
+            sel = [r for r in rows if r["method"] == m and r["sections"] == n and r["posture"] != ALL and r["n"]]
             diag = [r["rmse_q_mean_deg"] for r in sel if r["train_subject"] == r["test_subject"]]
             off = [r["rmse_q_mean_deg"] for r in sel if r["train_subject"] != r["test_subject"]]
             if not off:
