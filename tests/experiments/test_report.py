@@ -71,6 +71,11 @@ def test_postures_pair_on_the_trials_both_fits_predicted():
     )
     assert c["per_posture"] == pytest.approx({"P1": 0.0, "P2": 1.0})
     assert paired_comparison(_results({1: {"P1": [1.0]}, 8: {"P1": [2.0]}}), "moirl", "iscv", 1, 8, ["P1"]) is None
+    # a prediction whose DOC failed (its RMSE is recorded, converged false) is not compared: on the others only
+    results = _results({1: {"P1": [1.0, 2.0], "P2": [1.0]}, 8: {"P1": [1.0, 2.0], "P2": [2.0]}})
+    results["moirl-P1-s8"]["sets"]["iscv"]["trials"][1].update(rmse_deg={"q": 90.0}, converged=False)
+    c = paired_comparison(results, "moirl", "iscv", 1, 8, ["P1", "P2"])
+    assert c["per_posture"] == pytest.approx({"P1": 0.0, "P2": 1.0})
 
 
 def _unit(options, tol=None, method="moirl"):

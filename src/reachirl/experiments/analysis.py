@@ -132,7 +132,7 @@ def paired_comparison(
 ) -> dict | None:
     """``hi`` against ``lo`` sections, paired by posture. Each posture has one fit per section count, and the
     trials a fit predicts share its weights, so they are not independent samples: the unit compared is the
-    posture, through its mean RMSE of q over the trials both fits predicted.
+    posture, through its mean RMSE of q over the trials both fits predicted (a failed prediction is not compared).
 
     Returns ``{"n"`` (postures), ``"per_posture"`` (the differences, deg; negative: ``hi`` is lower),
     ``"mean_diff_deg"``, ``"n_lower"`` (postures where ``hi`` is lower), ``"wilcoxon_p"`` (exact two-sided
@@ -145,8 +145,10 @@ def paired_comparison(
         for r in results.values():
             u = r["unit"]
             if u["method"] == method and u["sections"] == n and u["posture"] in postures:
-                out[u["posture"]] = {
-                    t["id"]: t["rmse_deg"]["q"] for t in r["sets"][set_name]["trials"] if t["rmse_deg"]["q"] is not None
+                out[u["posture"]] = {  # a prediction whose DOC failed is counted in the tables, not compared here
+                    t["id"]: t["rmse_deg"]["q"]
+                    for t in r["sets"][set_name]["trials"]
+                    if t["rmse_deg"]["q"] is not None and t.get("converged", True)
                 }
         return out
 
