@@ -476,3 +476,69 @@ def test_a_method_without_determination_still_reports_its_weight_changes_effects
     out["identifiability"]["P2"]["effect_collinearity"] = [pair, {**pair, "window": 1}]
     (line,) = [x for x in _markdown(out) if x.startswith("- **P2**")]
     assert "geodesic–joint_velocity (windows 2, 1)" in line
+
+
+def test_a_failed_prediction_is_counted_not_averaged_in(small_run, tmp_path, monkeypatch):
+    """A trial whose prediction's DOC failed (a huge RMSE, converged false) is left out of every paired difference
+    it is in, and counted (``<set>_doc_failures``, the report); the others' differences are as before."""
+    from dataclasses import replace
+
+    from reachirl.doc import observation
+    from reachirl.experiments.sensitivity import job_path
+    from reachirl.experiments.sensitivity_outputs import _markdown
+
+    unit = json.loads((small_run / "units" / "moirl-P2-s2.json").read_text())
+    train = unit["sets"]["train"]["trials"]
+    bad = train[0]["id"]
+    real = observation.predict
+
+    def failing(trial, weights, n_nodes, threshold, backend="casadi", warm_start=None, path=None):
+        sol, seen = real(trial, weights, n_nodes, threshold, backend, warm_start, path)
+        if trial.id == bad and warm_start is None:  # a refit's prediction, and the full fit's again (±x % base)
+            return replace(sol, converged=False), replace(seen, q=seen.q + 1.0, converged=False)
+        return sol, seen
+
+    monkeypatch.setattr(observation, "predict", failing)
+    out = run_sensitivity(small_run, SensitivityConfig(percent=5.0), checkpoint_dir=tmp_path)
+    base = np.array([e["rmse_deg"]["q"] for e in train])
+    rows = [r for r in out["rows"] if r["posture"] == "P2"]
+    assert {r["analysis"] for r in rows} == {"occlude_feature", "freeze_window", "sensitivity"}
+    for r in rows:
+        if r["analysis"] == "sensitivity":
+            res = json.loads(job_path(tmp_path, "moirl-P2-s2", ("P2", "sensitivity", int(r["window"]) - 1)).read_text())
+            res = res["result"]
+            rec = res["features"][FEATURES.index(r["feature"])]
+            b = np.asarray(res["base"])
+            assert abs(r["plus_delta_deg"]) < 10  # the failed base's ~57° would dominate it
+            assert r["plus_delta_deg"] == pytest.approx(np.mean(np.asarray(rec["plus"])[1:] - b[1:]))
+            assert r["minus_delta_deg"] == pytest.approx(np.mean(np.asarray(rec["minus"])[1:] - b[1:]))
+            assert r["train_doc_failures"] == 1 and r["cv_doc_failures"] is None
+            assert res["base_converged"] == [False, True, True]
+            continue
+        i = FEATURES.index(r["feature"]) if r["analysis"] == "occlude_feature" else int(r["window"]) - 1
+        res = json.loads(job_path(tmp_path, "moirl-P2-s2", ("P2", r["analysis"], i)).read_text())["result"]
+        assert abs(r["train_delta_deg"]) < 10  # the failed trial's ~57° would dominate it
+        assert r["train_delta_deg"] == pytest.approx(np.mean(np.asarray(res["rmse"]["train"])[1:] - base[1:]))
+        assert (r["train_doc_failures"], r["cv_doc_failures"], r["iscv_doc_failures"]) == (1, 0, 0)
+        assert res["converged"]["train"] == [False, True, True] and all(res["converged"]["iscv"])
+        iscv = np.array([e["rmse_deg"]["q"] for e in unit["sets"]["iscv"]["trials"]])
+        assert r["iscv_delta_deg"] == pytest.approx(np.mean(np.asarray(res["rmse"]["iscv"]) - iscv))
+    md = "\n".join(_markdown(out))
+    assert "(1 DOC failure left out)" in md and "nan" not in md
+
+
+def test_a_set_whose_predictions_all_failed_has_no_delta_and_says_how_many():
+    from reachirl.experiments.sensitivity import _converged_pairs, _interval_cells, _row
+    from reachirl.experiments.sensitivity_outputs import _ci, to_csv
+
+    d, failed = _converged_pairs([50.0, 60.0, 70.0], [False, True, False], [1.0, 2.0, 3.0], [True, False, True])
+    assert d.size == 0 and failed == 3
+    row = _row("moirl", "P2", 1, "occlude_feature", 0, np.full((1, 7), 1 / 7))
+    row["train_delta_deg"], row["train_ci_lo"], row["train_ci_hi"] = _interval_cells(d, 100, 0)
+    row["train_doc_failures"] = failed
+    assert (row["train_delta_deg"], row["train_ci_lo"], row["train_ci_hi"]) == (None, None, None)
+    assert _ci(row, "train") == "— (3 DOC failures left out)"
+    line = dict(zip(COLUMNS, to_csv([row]).splitlines()[1].split(","), strict=True))
+    assert line["train_delta_deg"] == "" and line["train_doc_failures"] == "3"
+    d, failed = _converged_pairs([5.0, 6.0], None, [1.0, 2.0], [True, True])  # no flags recorded: all converged
+    assert d.tolist() == [4.0, 4.0] and failed == 0

@@ -6,11 +6,13 @@ For each chosen unit (by default: the run's first method, every posture, its lar
 * **occlusion of a feature**: MO-IRL is refitted on the same training trials with feature ``j`` removed (its
   weight is 0 in every window and never moves), and the training, CV and ISCV trials are predicted again; the
   change in each trial's RMSE of q against the full fit's is reported as a mean with a paired 95 % bootstrap
-  interval over trials (seeded);
+  interval over trials (seeded). A trial whose prediction's DOC failed in either fit is left out of its set's
+  difference and counted (``<set>_doc_failures``): a solver failure is counted, never averaged in;
 * **freezing a window**: the same with window ``s``'s weights held at ω₀ (never learned) instead;
 * **weight sensitivity**: every weight ``ω_sj`` of the full fit is changed by ``±percent`` % and the training
   trials are predicted again (DOCs warm-started from the full fit's predictions): the RMSE change for ``+`` and
-  ``−`` and how far the predicted path moves (RMSE between the perturbed and the unperturbed prediction, deg);
+  ``−`` and how far the predicted path moves (RMSE between the perturbed and the unperturbed prediction, deg),
+  over the trials predicted at the full fit's weights and at both changed ones (the others counted);
 * **what the training data determines** (:func:`reachirl.irl.uncertainty.determination`): the weight directions
   that move the training reaches beyond the demonstrations' noise, from the Jacobian of the observed rollouts.
 
@@ -75,6 +77,9 @@ COLUMNS = (
     "minus_delta_deg",
     "path_change_deg",
     "verdict",
+    "train_doc_failures",
+    "cv_doc_failures",
+    "iscv_doc_failures",
 )
 SETS = ("train", "cv", "iscv")
 
@@ -175,24 +180,26 @@ def run_unit(run_dir: str | Path, key: str) -> dict:
 # ---------------------------------------------------------------------- constrained MO-IRL
 # ---------------------------------------------------------------------- jobs (pure functions)
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
-    """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them) and the
-    DOC solutions themselves (warm starts for the same tasks)."""
+    """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them), the DOC
+    solutions themselves (warm starts for the same tasks) and whether each converged (a failed one's RMSE is
+    kept, to be left out by :func:`_converged_pairs`)."""
     from ..doc.evaluation import rmse_deg
     from ..doc.observation import predict
 
-    out, sols = [], []
+    out, sols, ok = [], [], []
     for i, t in enumerate(trials):
         sol, seen = predict(
             t, weights, n_nodes, t.onset_threshold if observe else None, backend, None if warm is None else warm[i]
         )
         out.append(rmse_deg(seen.q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
-    return np.array(out), sols
+        ok.append(bool(sol.converged))
+    return np.array(out), sols, np.array(ok, dtype=bool)
 
 
 def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tuple[int, ...]) -> dict:
     """Refit ``unit`` on ``split.train`` with features ``removed`` / windows ``frozen`` held and predict every
-    set: ``{"weights", "rmse": {set: [per trial]}, "flag"}``."""
+    set: ``{"weights", "rmse": {set: [per trial]}, "converged": {set: [per trial]}, "flag"}``."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     base = make_estimator(unit)
     params = base.get_params()
@@ -203,11 +210,11 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
         **{**params, "feature_mask": mask if removed else None, "experimental": experimental, "uncertainty": None}
     )
     est.fit(list(split.train))
-    rmse = {
-        s: _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)[0].tolist()
-        for s, tr in split.sets().items()
-    }
-    return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "flag": est.flag_}
+    rmse, converged = {}, {}
+    for s, tr in split.sets().items():
+        r, _, ok = _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)
+        rmse[s], converged[s] = r.tolist(), ok.tolist()
+    return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "converged": converged, "flag": est.flag_}
 
 
 def sensitivity_job(
@@ -220,23 +227,28 @@ def sensitivity_job(
     observe: bool = False,
 ) -> dict:
     """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − (predictions
-    seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one."""
+    seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one, with
+    whether each prediction converged (``base_converged``, ``plus_converged``, ``minus_converged``); a trial whose
+    changed or unchanged prediction failed moves no path in ``displacement`` (zeros)."""
     from ..doc.evaluation import rmse_deg
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     w = np.asarray(weights, dtype=float)
-    base, sols = _per_trial(w, trials, n_nodes, backend, observe=observe)
-    out = {"base": base.tolist(), "features": []}
+    base, sols, base_ok = _per_trial(w, trials, n_nodes, backend, observe=observe)
+    out = {"base": base.tolist(), "base_converged": base_ok.tolist(), "features": []}
     for j in range(N_FEATURES):
         rec = {}
         for sign, name in ((1, "plus"), (-1, "minus")):
             wp = w.copy()
             wp[window, j] *= 1 + sign * percent / 100.0
-            r, ps = _per_trial(wp, trials, n_nodes, backend, warm=sols, observe=observe)
+            r, ps, ok = _per_trial(wp, trials, n_nodes, backend, warm=sols, observe=observe)
             rec[name] = r.tolist()
+            rec[f"{name}_converged"] = ok.tolist()
             rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
-            if sign > 0:  # the direction the path moves in (every trial's knots, rad)
-                rec["displacement"] = np.concatenate([(a.q - b.q).ravel() for a, b in zip(ps, sols, strict=True)])
+            if sign > 0:  # the direction the path moves in (every trial's knots, rad; none where a DOC failed)
+                rec["displacement"] = np.concatenate(
+                    [(a.q - b.q).ravel() * float(good) for a, b, good in zip(ps, sols, ok & base_ok, strict=True)]
+                )
         out["features"].append(rec)
     return out
 
@@ -364,6 +376,28 @@ def paired_interval(d: Sequence[float], n_boot: int = 2000, seed: int = 0) -> tu
     boot = d[rng.integers(0, d.size, size=(int(n_boot), d.size))].mean(axis=1)
     lo, hi = np.quantile(boot, [0.025, 0.975])
     return float(d.mean()), float(lo), float(hi)
+
+
+def _converged_pairs(new: Sequence, new_ok: Sequence | None, old: Sequence, old_ok: Sequence | None):
+    """``(differences, left_out)``: ``new − old`` per trial over the trials whose predictions converged on both
+    sides (an RMSE that is missing counts as failed), and how many were left out. ``None`` for ``*_ok``: a result
+    that does not record it, every prediction converged."""
+    new, old = np.asarray(new, dtype=float), np.asarray(old, dtype=float)
+    ok = np.isfinite(new) & np.isfinite(old)
+    for flags in (new_ok, old_ok):
+        if flags is not None:
+            ok &= np.asarray(flags, dtype=bool)
+    return new[ok] - old[ok], int(ok.size - ok.sum())
+
+
+def _interval_cells(d: Sequence[float], n_boot: int, seed: int) -> tuple:
+    """:func:`paired_interval` of ``d`` as a row's cells: ``None`` (empty), never NaN, where there is none."""
+    return tuple(None if not np.isfinite(v) else v for v in paired_interval(d, n_boot, seed))
+
+
+def _mean_or_none(d: Sequence[float]) -> float | None:
+    d = np.asarray(d, dtype=float)
+    return float(d.mean()) if d.size else None
 
 
 def _verdict(row: dict) -> str:
@@ -519,12 +553,16 @@ def run_sensitivity(
             raise
         ex.shutdown()
 
-    rows, pooled, ident = [], {}, {}
+    rows, pooled, pooled_failed, ident = [], {}, {}, {}
     for p, (_, _, r) in chosen.items():
         shares = np.asarray(r["cost_shares"])
         unc = r.get("uncertainty")
         determined = None if not unc else np.asarray(unc["share_intervals"]["determined"], dtype=bool)
-        base = {s: np.array([e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]]) for s in SETS}
+        base = {
+            s: np.array([np.nan if e["rmse_deg"]["q"] is None else e["rmse_deg"]["q"] for e in r["sets"][s]["trials"]])
+            for s in SETS
+        }
+        base_ok = {s: [bool(e.get("converged", True)) for e in r["sets"][s]["trials"]] for s in SETS}
         ident[p] = dict(done[(p, "determination", 0)])
         ident[p]["effect_collinearity"] = _effect_collinearity(done, p, sections)
         ident[p]["key"] = r["key"]
@@ -537,11 +575,15 @@ def run_sensitivity(
                     continue
                 row = _row(method, p, sections, kind, i, shares, determined=determined)
                 for s in SETS:
-                    d = np.asarray(res["rmse"][s], dtype=float) - base[s]
+                    d, failed = _converged_pairs(
+                        res["rmse"][s], (res.get("converged") or {}).get(s), base[s], base_ok[s]
+                    )
                     pooled.setdefault((kind, i, s), []).extend(d.tolist())
-                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
+                    pooled_failed[(kind, i, s)] = pooled_failed.get((kind, i, s), 0) + failed
+                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = _interval_cells(
                         d, config.n_boot, config.seed
                     )
+                    row[f"{s}_doc_failures"] = failed
                 row["verdict"] = _verdict(row)
                 rows.append(row)
         for s in range(sections):
@@ -549,11 +591,21 @@ def run_sensitivity(
             if res is None:
                 continue
             b = np.asarray(res["base"], dtype=float)
+            b_ok = np.ones(b.size, dtype=bool) if res.get("base_converged") is None else res["base_converged"]
             for j, rec in enumerate(res["features"]):
                 row = _row(method, p, sections, "sensitivity", j, shares, window=s, determined=determined)
-                row["plus_delta_deg"] = float(np.mean(np.asarray(rec["plus"], dtype=float) - b))
-                row["minus_delta_deg"] = float(np.mean(np.asarray(rec["minus"], dtype=float) - b))
-                row["path_change_deg"] = float(np.mean(np.asarray(rec["path_plus"] + rec["path_minus"], dtype=float)))
+                # the row's figures over the same trials: those predicted at the full fit's weights and both changed
+                plus, minus = np.asarray(rec["plus"], dtype=float), np.asarray(rec["minus"], dtype=float)
+                ok = np.asarray(b_ok, dtype=bool) & np.isfinite(b) & np.isfinite(plus) & np.isfinite(minus)
+                for name in ("plus", "minus"):
+                    if rec.get(f"{name}_converged") is not None:
+                        ok &= np.asarray(rec[f"{name}_converged"], dtype=bool)
+                row["plus_delta_deg"] = _mean_or_none(plus[ok] - b[ok])
+                row["minus_delta_deg"] = _mean_or_none(minus[ok] - b[ok])
+                paths = np.asarray(rec["path_plus"], dtype=float)[ok].tolist()
+                paths += np.asarray(rec["path_minus"], dtype=float)[ok].tolist()
+                row["path_change_deg"] = _mean_or_none(paths)
+                row["train_doc_failures"] = int(ok.size - ok.sum())
                 pooled.setdefault(("sensitivity", s, j), []).append(row)
                 rows.append(row)
     if len(chosen) > 1:  # ALL: every posture's trials pooled
@@ -570,9 +622,10 @@ def run_sensitivity(
                     continue
                 row = _row(method, ALL, sections, kind, i, mean_shares, determined=all_determined)
                 for s in SETS:
-                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = paired_interval(
+                    row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = _interval_cells(
                         pooled[(kind, i, s)], config.n_boot, config.seed
                     )
+                    row[f"{s}_doc_failures"] = pooled_failed[(kind, i, s)]
                 row["verdict"] = _verdict(row)
                 rows.append(row)
         for s in range(sections):
@@ -581,8 +634,9 @@ def run_sensitivity(
                 if not per:
                     continue
                 row = _row(method, ALL, sections, "sensitivity", j, mean_shares, window=s, determined=all_determined)
-                for k in ("plus_delta_deg", "minus_delta_deg", "path_change_deg"):
-                    row[k] = float(np.mean([x[k] for x in per]))
+                for k in ("plus_delta_deg", "minus_delta_deg", "path_change_deg"):  # postures with none: left out
+                    row[k] = _mean_or_none([x[k] for x in per if x[k] is not None])
+                row["train_doc_failures"] = sum(x["train_doc_failures"] for x in per)
                 rows.append(row)
     return {
         "rows": rows,

@@ -91,7 +91,8 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         n_w = max(int(r["window"]) for r in rs)
         m = np.full((n_w, N_FEATURES), np.nan)
         for r in rs:
-            m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
+            if r["path_change_deg"] is not None:  # None: every prediction's DOC failed (blank)
+                m[int(r["window"]) - 1, FEATURES.index(r["feature"])] = r["path_change_deg"]
         im = ax.imshow(
             m.T, aspect="auto", cmap="viridis", interpolation="nearest", extent=(0.5, n_w + 0.5, N_FEATURES - 0.5, -0.5)
         )
@@ -130,7 +131,8 @@ def _markdown(out: dict) -> list[str]:
         lines += [
             "Δ: RMSE of q of the refit minus the full fit's, mean over trials. 95 % CI: the paired differences "
             "resampled over the trials, given the two fits (each held as it is): whether these fits predict these "
-            "trials differently, not how uncertain their weights are."
+            "trials differently, not how uncertain their weights are. A trial whose prediction's DOC failed in either "
+            "fit is left out of its set's Δ and counted beside it."
             + (
                 f" {ALL} pools every posture's trials, which share their posture's fits, as if independent: its "
                 "interval is narrower than the postures' fits warrant, and each verdict is followed by the "
@@ -162,7 +164,7 @@ def _markdown(out: dict) -> list[str]:
         lines.append("")
     sens = [r for r in rows if r["posture"] == post and r["analysis"] == "sensitivity"]
     if sens:
-        top = sorted(sens, key=lambda r: -r["path_change_deg"])[:5]
+        top = sorted(sens, key=lambda r: -(r["path_change_deg"] if r["path_change_deg"] is not None else -np.inf))[:5]
         lines += [
             f"## Most sensitive weights (±{cfg['percent']:g} %, posture {post})",
             "",
@@ -171,9 +173,17 @@ def _markdown(out: dict) -> list[str]:
         ]
         for r in top:
             lines.append(
-                f"| {r['window']} | {r['feature']} | {_share(r)} | {r['path_change_deg']:.3f} | "
-                f"{r['plus_delta_deg']:+.3f} | {r['minus_delta_deg']:+.3f} |"
+                f"| {r['window']} | {r['feature']} | {_share(r)} | {_num(r['path_change_deg'], '.3f')} | "
+                f"{_num(r['plus_delta_deg'], '+.3f')} | {_num(r['minus_delta_deg'], '+.3f')}{_failures(r, 'train')} |"
             )
+        failed = sum(r["train_doc_failures"] or 0 for r in sens)
+        if failed:
+            lines += [
+                "",
+                "A training trial whose prediction's DOC failed, at the full fit's weights or a changed one, is left "
+                f"out of that weight's figures and counted beside them: {failed} left out across the {len(sens)} "
+                "weights' rows (`train_doc_failures` in sensitivity.csv).",
+            ]
         lines.append("")
     lines += ["## What the training data determines", ""]
     for p, d in out["identifiability"].items():
@@ -243,11 +253,22 @@ def _effects(items: list[dict]) -> str:
 def _ci(r, s) -> str:
     m = r[f"{s}_delta_deg"]
     if m is None or not np.isfinite(m):
-        return "—"
+        return "—" + _failures(r, s)
     lo, hi = r[f"{s}_ci_lo"], r[f"{s}_ci_hi"]
     if lo is None or not np.isfinite(lo):
-        return f"{m:+.3f} [too few trials]"
-    return f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]"
+        return f"{m:+.3f} [too few trials]" + _failures(r, s)
+    return f"{m:+.3f} [{lo:+.3f}, {hi:+.3f}]" + _failures(r, s)
+
+
+def _failures(r, s) -> str:
+    """The trials of set ``s`` a row leaves out because a prediction's DOC failed, as the report says it (nothing
+    when none did): a solver failure is counted, never averaged in."""
+    n = r.get(f"{s}_doc_failures") or 0
+    return f" ({n} DOC failure{'s' if n != 1 else ''} left out)" if n else ""
+
+
+def _num(v, fmt: str) -> str:
+    return "—" if v is None or not np.isfinite(v) else format(v, fmt)
 
 
 #: the files an analysis writes at the top of its folder (identifiability.json first: :func:`write_sensitivity`)
