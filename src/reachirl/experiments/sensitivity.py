@@ -247,7 +247,7 @@ def sensitivity_job(
             rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
             if sign > 0:  # the direction the path moves in (every trial's knots, rad; none where a DOC failed)
                 rec["displacement"] = np.concatenate(
-                    [(a.q - b.q).ravel() * float(good) for a, b, good in zip(ps, sols, ok & base_ok, strict=True)]
+                    [np.where(good, a.q - b.q, 0.0).ravel() for a, b, good in zip(ps, sols, ok & base_ok, strict=True)]
                 )
         out["features"].append(rec)
     return out
