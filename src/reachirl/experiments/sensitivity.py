@@ -378,16 +378,24 @@ def paired_interval(d: Sequence[float], n_boot: int = 2000, seed: int = 0) -> tu
     return float(d.mean()), float(lo), float(hi)
 
 
+def _converged_mask(*results) -> np.ndarray:
+    """The trials predicted successfully in every one of ``results``, each ``(per-trial RMSEs, per-trial converged
+    flags)``: an RMSE that is missing (NaN) counts as failed; flags ``None`` (a result that does not record them):
+    every prediction converged."""
+    ok = None
+    for values, flags in results:
+        m = np.isfinite(np.asarray(values, dtype=float))
+        if flags is not None:
+            m &= np.asarray(flags, dtype=bool)
+        ok = m if ok is None else ok & m
+    return ok
+
+
 def _converged_pairs(new: Sequence, new_ok: Sequence | None, old: Sequence, old_ok: Sequence | None):
     """``(differences, left_out)``: ``new − old`` per trial over the trials whose predictions converged on both
-    sides (an RMSE that is missing counts as failed), and how many were left out. ``None`` for ``*_ok``: a result
-    that does not record it, every prediction converged."""
-    new, old = np.asarray(new, dtype=float), np.asarray(old, dtype=float)
-    ok = np.isfinite(new) & np.isfinite(old)
-    for flags in (new_ok, old_ok):
-        if flags is not None:
-            ok &= np.asarray(flags, dtype=bool)
-    return new[ok] - old[ok], int(ok.size - ok.sum())
+    sides (:func:`_converged_mask`), and how many were left out."""
+    ok = _converged_mask((new, new_ok), (old, old_ok))
+    return np.asarray(new, dtype=float)[ok] - np.asarray(old, dtype=float)[ok], int(ok.size - ok.sum())
 
 
 def _interval_cells(d: Sequence[float], n_boot: int, seed: int) -> tuple:
@@ -591,15 +599,15 @@ def run_sensitivity(
             if res is None:
                 continue
             b = np.asarray(res["base"], dtype=float)
-            b_ok = np.ones(b.size, dtype=bool) if res.get("base_converged") is None else res["base_converged"]
             for j, rec in enumerate(res["features"]):
                 row = _row(method, p, sections, "sensitivity", j, shares, window=s, determined=determined)
                 # the row's figures over the same trials: those predicted at the full fit's weights and both changed
                 plus, minus = np.asarray(rec["plus"], dtype=float), np.asarray(rec["minus"], dtype=float)
-                ok = np.asarray(b_ok, dtype=bool) & np.isfinite(b) & np.isfinite(plus) & np.isfinite(minus)
-                for name in ("plus", "minus"):
-                    if rec.get(f"{name}_converged") is not None:
-                        ok &= np.asarray(rec[f"{name}_converged"], dtype=bool)
+                ok = _converged_mask(
+                    (b, res.get("base_converged")),
+                    (plus, rec.get("plus_converged")),
+                    (minus, rec.get("minus_converged")),
+                )
                 row["plus_delta_deg"] = _mean_or_none(plus[ok] - b[ok])
                 row["minus_delta_deg"] = _mean_or_none(minus[ok] - b[ok])
                 paths = np.asarray(rec["path_plus"], dtype=float)[ok].tolist()
