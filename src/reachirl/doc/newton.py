@@ -32,13 +32,15 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy import linalg, sparse
+from scipy import sparse
 from scipy.linalg.lapack import dgbsv as _gbsv
+from scipy.linalg.lapack import dpbtrf as _pbtrf
 
 from ..features import N_FEATURES, window_index
 from . import compiled
@@ -141,7 +143,10 @@ def _band_index(rows: np.ndarray, cols: np.ndarray, size: int) -> np.ndarray:
 
 
 class _Layout(NamedTuple):
-    """Precomputed indices of the banded KKT system of ``n`` stages (:func:`_scatter`)."""
+    """Precomputed indices of the banded KKT system of ``n`` stages (:func:`_scatter`).
+
+    The positions ``*_pos`` and ``lam_diag`` are flat indices into LAPACK's storage for the banded LU, ``(3·BW + 1,
+    size)`` column-major (``BW`` rows of fill-in above the band), where the matrix is assembled in place."""
 
     size: int  # unknowns
     last: np.ndarray  # (2,): q_{N−1}'s unknowns (the bar's knot); μ is the last unknown
@@ -150,10 +155,15 @@ class _Layout(NamedTuple):
     lam_rows: np.ndarray  # λ_1 … λ_{N−1} among the unknowns
     q_rows: np.ndarray  # the knots' unknowns
     gather: np.ndarray  # (8 n,): stage k's knot values, column-major (8, n), from the flat path q_{−2} … q_N
-    kink_pos: np.ndarray  # (n, 16): where ∂e_k/∂(stage k's knots) goes in the band, as λ_k's column, then row
-    lam_diag: np.ndarray  # (N−1,): the band's diagonal entries of λ_1 … λ_{N−1}
+    kink_pos: np.ndarray  # (n, 16): where ∂e_k/∂(stage k's knots) goes, as λ_k's column, then row
+    lam_diag: np.ndarray  # (N−1,): the diagonal entries of λ_1 … λ_{N−1}
     bar_pos: np.ndarray  # (4,): q_{N−1}'s two entries in μ's column, then in μ's row
     curv_pos: np.ndarray  # (4,): q_{N−1}'s 2 × 2 block, row by row
+    # grad_op and band_op as sums over index arrays (their nonzeros are ones, summed in the operators' own order,
+    # so that a sum is bit for bit the sparse product): output position, then input position, of each term
+    grad_terms: tuple[np.ndarray, np.ndarray]
+    band_terms: tuple[np.ndarray, np.ndarray]  # output positions in the LU storage
+    lu_size: int  # (3·BW + 1) · size
 
 
 @functools.lru_cache(maxsize=8)
@@ -179,6 +189,14 @@ def _scatter(n: int) -> _Layout:
     )
     last = np.array([size - 4, size - 3])  # q_{N−1}'s unknowns (then λ_{N−1}); μ is the last one
     mu = np.full(2, size - 1)
+    lu_size = (3 * _BW + 1) * size
+
+    def to_lu(band_pos: np.ndarray) -> np.ndarray:  # band storage (2·BW + 1 rows) → LU storage (BW more on top)
+        band_pos = np.asarray(band_pos)
+        return np.where(
+            band_pos < outside, _BW + band_pos % (2 * _BW + 1) + (3 * _BW + 1) * (band_pos // (2 * _BW + 1)), lu_size
+        )
+
     return _Layout(
         size=size,
         last=last,
@@ -187,16 +205,59 @@ def _scatter(n: int) -> _Layout:
         lam_rows=lam_rows,
         q_rows=np.setdiff1d(np.arange(size - 1), lam_rows),
         gather=(2 * (stage + j) + c).reshape(-1),
-        kink_pos=kink_pos,
-        lam_diag=_band_index(lam_rows, lam_rows, size),
-        bar_pos=np.r_[_band_index(last, mu, size), _band_index(mu, last, size)],
-        curv_pos=_band_index(last[[0, 0, 1, 1]], last[[0, 1, 0, 1]], size),
+        kink_pos=to_lu(kink_pos),
+        lam_diag=to_lu(_band_index(lam_rows, lam_rows, size)),
+        bar_pos=to_lu(np.r_[_band_index(last, mu, size), _band_index(mu, last, size)]),
+        curv_pos=to_lu(_band_index(last[[0, 0, 1, 1]], last[[0, 1, 0, 1]], size)),
+        grad_terms=_terms(grad_op),
+        band_terms=(to_lu(_terms(band_op)[0]), _terms(band_op)[1]),
+        lu_size=lu_size,
     )
 
 
+def _terms(op: sparse.csr_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """A 0/1 operator's ``(rows, columns)`` of its nonzeros, in the order its product sums them (row by row, in
+    its stored column order): ``np.bincount(rows, weights=x[columns])`` is then ``op @ x`` to the last bit."""
+    if not np.all(op.data == 1.0):
+        raise ValueError("not a 0/1 operator")
+    return np.repeat(np.arange(op.shape[0]), np.diff(op.indptr)), op.indices.copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _arm_params(arm) -> np.ndarray:
+    params = np.array([getattr(arm, f) for f in ARM_FIELDS], dtype=float)
+    params.setflags(write=False)
+    return params
+
+
+@functools.lru_cache(maxsize=64)
+def _knot_windows(n: int, n_windows: int) -> np.ndarray:
+    return window_index(n, n_windows)
+
+
+_local = threading.local()
+
+
+def _workspace(n: int):
+    """This thread's buffers of the mapped stage function of ``n`` stages: ``(trigger, x_in, ws_in, lam_in, arm,
+    dt, fscale, out)``, the arrays the function reads and writes in place (made once per thread and size)."""
+    spaces = getattr(_local, "spaces", None)
+    if spaces is None:
+        spaces = _local.spaces = {}
+    space = spaces.get(n)
+    if space is None:
+        buf, trigger = _stage_map(n).buffer()
+        arrays = (np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(len(ARM_FIELDS)), np.zeros(1), np.zeros(1))
+        for i, a in enumerate(arrays):
+            buf.set_arg(i, a)
+        out = np.zeros(_ROWS * n)
+        buf.set_res(0, out)
+        space = spaces[n] = (buf, trigger, *arrays, out)  # the buffer object keeps the trigger valid
+    return space[1:]
+
+
 def _params(task: ReachingTask) -> tuple[np.ndarray, float]:
-    a = task.arm
-    return np.array([getattr(a, f) for f in ARM_FIELDS], dtype=float), float(task.dt)
+    return _arm_params(task.arm), float(task.dt)
 
 
 def _path(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -229,36 +290,35 @@ def newton_solve(
     n = task.n_nodes
     lay = _scatter(n)
     size = lay.size
-    arm, dt = _params(task)
-    w_knot = np.asarray(weights, dtype=float)[window_index(n, weights.shape[0])]  # (n, 7)
+    w_knot = np.asarray(weights, dtype=float)[_knot_windows(n, weights.shape[0])]  # (n, 7)
+    dt = float(task.dt)
     scale_known = fscale is not None
     fscale = 1.0 if fscale is None else float(fscale)
     w_e = fscale * dt * w_knot[:, 1]  # each stage's energy weight, as the Lagrangian sees it
+    w_release = w_e * (1 + 1e-9)  # a kink whose multiplier exceeds it is released
     q0 = np.asarray(task.q0, dtype=float)
-    q = np.array(q_start[1:n], dtype=float)  # the unknowns: the inner knots q_1 … q_{N−1}
+    path = _path(q0, np.asarray(q_start[1:n], dtype=float))  # q_{−2} … q_N; the unknowns q_1 … q_{N−1} inside
+    q = path[6:-2].reshape(n - 1, 2)  # a view: a step moves the path (q_N = q_{N−1} is set after each step)
     lam, mu = np.zeros(n), 0.0
     kink = np.zeros(n, dtype=bool)
     sigma = np.zeros(n)
     last = lay.last
+    g_rows, g_cols = lay.grad_terms
+    b_rows, b_cols = lay.band_terms
     dq = None
 
     # the mapped stages evaluated in place, through CasADi's buffers (no conversion per call)
-    buf, trigger = _stage_map(n).buffer()
-    x_in, ws_in, lam_in, out = np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(_ROWS * n)
-    fs_in = np.array([fscale])
-    inputs = (x_in, ws_in, lam_in, arm, np.array([dt]), fs_in)  # the buffers point into these
-    for i, a in enumerate(inputs):
-        buf.set_arg(i, a)
-    buf.set_res(0, out)
+    trigger, x_in, ws_in, lam_in, arm_in, dt_in, fs_in, out = _workspace(n)
+    arm_in[:] = _arm_params(task.arm)
+    dt_in[0], fs_in[0] = dt, fscale
     ws_view = ws_in.reshape(8, n, order="F")
     ws_view[:N_FEATURES] = w_knot.T
     res = out.reshape(_ROWS, n, order="F")
-    # the banded KKT matrix in LAPACK's storage, column-major as LAPACK reads it (``_BW`` more rows: fill-in)
-    lu = np.empty((3 * _BW + 1, size), order="F")
 
     for it in range(max_iter + 1):
-        np.take(_path(q0, q), lay.gather, out=x_in)
-        ws_view[N_FEATURES] = np.where(kink, 0.0, sigma)
+        np.take(path, lay.gather, out=x_in)
+        side = np.where(kink, 0.0, sigma)
+        ws_view[N_FEATURES] = side
         lam_in[:] = lam
         trigger()
         if not scale_known:  # 1 / the start's cost; λ = 0 here, so the derivatives scale with it
@@ -267,12 +327,13 @@ def newton_solve(
             fs_in[0] = fscale
             res[0:72] *= fscale
             w_e = fscale * dt * w_knot[:, 1]
+            w_release = w_e * (1 + 1e-9)
             scale_known = True
-        grad, e, de = res[0:8].copy(), res[72], res[73:81]
+        grad, e, de = res[0:8].ravel(order="F"), res[72], res[73:81]
         # the active set (see the module docstring): at the start, each knot's power on its own side; later, a
         # knot whose power changed side becomes a kink, and a kink whose multiplier left [−w, w] is released.
         # The gradient follows exactly (its terms in σ and λ are linear in ∇e); the Hessian's, one step late.
-        coef = np.where(kink, 0.0, sigma) * w_e + lam
+        coef = side * w_e + lam
         if it == 0:
             sigma = np.sign(e)
             sigma[0] = 0.0  # stage 0's power is identically zero (q̇_0 = 0)
@@ -280,16 +341,16 @@ def newton_solve(
         else:
             flip = ~kink & (sigma * e < 0)
             flip[0] = False
-            release = kink & (np.abs(lam) > w_e * (1 + 1e-9))
+            release = kink & (np.abs(lam) > w_release)
             changed = bool(flip.any() or release.any())
             if changed:
                 sigma = np.where(release, np.sign(lam), sigma)
                 kink = (kink | flip) & ~release
                 lam = np.where(kink, lam, 0.0)
         if changed:
-            grad += de * (np.where(kink, 0.0, sigma) * w_e + lam - coef)
+            grad = (res[0:8] + de * (np.where(kink, 0.0, sigma) * w_e + lam - coef)).ravel(order="F")
         tip, jtip = _fingertip(task, q[-1])
-        r = lay.grad_op @ grad.ravel(order="F")
+        r = np.bincount(g_rows, weights=grad[g_cols], minlength=size)
         r[last] += mu * jtip
         r[lay.lam_rows] = np.where(kink[1:], e[1:], lam[1:])
         r[size - 1] = tip - task.target_x
@@ -305,28 +366,31 @@ def newton_solve(
                 return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()), fscale=fscale, bar_multiplier=mu)
         if it == max_iter:
             return None
-        # the banded KKT matrix, in LAPACK's storage for a banded LU (``_BW`` more rows for the fill-in)
-        band = lay.band_op @ out
+        # the banded KKT matrix, assembled in LAPACK's storage for a banded LU (``_BW`` rows of fill-in on top)
+        lu = np.bincount(b_rows, weights=out[b_cols], minlength=lay.lu_size)
         ks = np.flatnonzero(kink)
         if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
             vals = de[:, ks].T
-            band += np.bincount(
-                lay.kink_pos[ks].reshape(-1), weights=np.hstack([vals, vals]).reshape(-1), minlength=band.size + 1
+            lu += np.bincount(
+                lay.kink_pos[ks].reshape(-1), weights=np.hstack([vals, vals]).reshape(-1), minlength=lay.lu_size + 1
             )[:-1]
-        band[lay.lam_diag[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
-        band[lay.bar_pos] = np.concatenate((jtip, jtip))
-        band[lay.curv_pos] += mu * _fingertip_hessian(task, q[-1]).reshape(-1)
-        lu[:_BW] = 0.0
-        lu[_BW:] = band.reshape(2 * _BW + 1, size, order="F")
-        _, _, step, info = _gbsv(_BW, _BW, lu, -r, overwrite_ab=True, overwrite_b=True)
-        if info != 0 or not np.all(np.isfinite(step)):
+        lu[lay.lam_diag[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
+        lu[lay.bar_pos[:2]] = jtip
+        lu[lay.bar_pos[2:]] = jtip
+        lu[lay.curv_pos] += mu * _fingertip_hessian(task, q[-1]).reshape(-1)
+        _, _, step, info = _gbsv(
+            _BW, _BW, lu.reshape(3 * _BW + 1, size, order="F"), -r, overwrite_ab=True, overwrite_b=True
+        )
+        size_of = np.abs(step)
+        if info != 0 or not math.isfinite(size_of.max()):  # the largest entry is NaN or infinite if any is
             return None
         inner = step[: size - 1].reshape(n - 1, 3)
-        longest = float(np.max(np.abs(inner[:, :2])))
+        longest = float(size_of[: size - 1].reshape(n - 1, 3)[:, :2].max())
         if longest > MAX_STEP:
             step *= MAX_STEP / longest
         dq = inner[:, :2]
-        q = q + dq
+        q += dq
+        path[-2:] = path[-4:-2]  # q_N = q_{N−1}
         lam[1:] += inner[:, 2]
         mu += step[-1]
     return None
@@ -367,7 +431,9 @@ def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
     Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit gradient) with ``ρ`` a thousand
     times the largest diagonal entry of ``H``."""
     op, pos, m = _q_scatter(n)
-    ab = (op @ out).reshape(_QBW + 1, m)  # the upper band, row _QBW the diagonal
+    rows, cols = _q_terms(n)
+    ab = np.bincount(rows, weights=out[cols], minlength=op.shape[0]).reshape(_QBW + 1, m)  # ``op @ out``: the
+    # upper band, row _QBW the diagonal
     ab[_QBW, m - 2 :] += np.diag(curv)
     ab[_QBW - 1, m - 1] += curv[0, 1]
     rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
@@ -380,11 +446,13 @@ def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
         v = v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
         outer = (v[:, :, None] * v[:, None, :]).reshape(-1)
         ab += rho * np.bincount(pos[ks].reshape(-1), weights=outer, minlength=ab.size + 1)[:-1].reshape(ab.shape)
-    try:
-        linalg.cholesky_banded(ab, lower=False, check_finite=False)
-    except linalg.LinAlgError:
-        return False
-    return True
+    _, info = _pbtrf(ab, lower=0)  # LAPACK's banded Cholesky (``scipy.linalg.cholesky_banded`` without its checks)
+    return info == 0
+
+
+@functools.lru_cache(maxsize=8)
+def _q_terms(n: int) -> tuple[np.ndarray, np.ndarray]:
+    return _terms(_q_scatter(n)[0])
 
 
 @functools.lru_cache(maxsize=8)
