@@ -142,8 +142,17 @@ class Trial:
 
     def q_at(self, n_points: int) -> np.ndarray:
         """The joint angles on ``n_points`` equally spaced samples (cubic spline), ``(n_points, 2)``: the ``q``
-        of :meth:`resample`, without its velocities and torques."""
-        return CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n_points))
+        of :meth:`resample`, without its velocities and torques. Read-only, and computed once per number of
+        points: a study compares each trial with many fits' predictions on the same knots."""
+        n_points = int(n_points)
+        kept = self.__dict__.setdefault("_q_at", {})  # beside the fields: not compared, not a field of replace()
+        q = kept.get(n_points)
+        if q is None:
+            q = CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n_points))
+            q.setflags(write=False)
+            if len(kept) < 8:
+                kept[n_points] = q
+        return q
 
     def resample(self, n_points: int) -> Trial:
         """The same reach on ``n_points`` equally spaced samples (cubic spline; torques re-derived)."""
