@@ -324,3 +324,32 @@ def test_uncertainty_true_is_the_bare_flag_s_default_and_false_is_none(recorded)
     assert MOIRL(1, n_nodes=20, max_iter=1, uncertainty=False).fit(trials).uncertainty_ is None
     with pytest.raises(ValueError, match=r"uncertainty must be a number of samples from 20 to 1000, True \(40\)"):
         MOIRL(1, uncertainty=1000.5).fit(trials)
+
+
+def test_numpy_scalars_stand_for_the_python_values_they_hold(recorded, tmp_path):
+    # MOIRL(uncertainty=np.True_) was refused ("must be a number of samples") where True draws 40 samples, and a
+    # numpy boolean in `experimental` was refused where True or False was taken
+    from reachirl.irl.model import LearnedModel, load_model, save_model
+
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
+    est = MOIRL(
+        np.int64(1),
+        n_nodes=np.int64(20),
+        max_iter=np.int64(1),
+        seed_form=np.False_,
+        uncertainty=np.True_,
+        random_state=np.int64(0),
+        experimental={"line_search_stop": np.False_, "max_tries": np.int64(3), "beta": np.float64(1e-9)},
+    ).fit(trials)
+    assert est.uncertainty_["n_samples"] == 40
+    assert est.options_.line_search_stop is False and est.options_.max_tries == 3
+    assert type(est.options_.max_tries) is int and type(est.options_.beta) is float
+    save_model(tmp_path / "m.json", LearnedModel.from_estimator(est, trials))  # the record is plain JSON
+    assert load_model(tmp_path / "m.json").info["options"]["line_search_stop"] is False
+    assert MOIRL(1, n_nodes=20, max_iter=1, uncertainty=np.False_).fit(trials).uncertainty_ is None
+    # a boolean is no count, numpy's or Python's
+    for bad in (True, np.True_):
+        with pytest.raises(ValueError, match=r"max_iter must be an integer >= 1, got (np\.)?True"):
+            MOIRL(1, n_nodes=20, max_iter=bad).fit(trials)
+    with pytest.raises(ValueError, match="max_tries must be an integer >= 1, got True"):
+        MOIRL(1, n_nodes=20, experimental={"max_tries": np.True_}).fit(trials)

@@ -240,8 +240,10 @@ class MOIRL(WeightEstimator):
         trials = self._check_trials(trials)
         if self.rollout not in ROLLOUTS:
             raise ValueError(f"rollout must be one of {', '.join(ROLLOUTS)}, got {self.rollout!r}")
-        if not (isinstance(self.max_iter, int | np.integer) and self.max_iter >= 1):
-            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter}")
+        if not (
+            isinstance(self.max_iter, int | np.integer) and not isinstance(self.max_iter, bool) and self.max_iter >= 1
+        ):
+            raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
         if self.tol is not None and (not isinstance(self.tol, int | float | np.number) or isinstance(self.tol, bool)):
             raise ValueError(f"tol must be a number >= 0 and < 1, or None, got {self.tol!r}")
         if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
@@ -265,6 +267,8 @@ class MOIRL(WeightEstimator):
         from .uncertainty import DEFAULT_SAMPLES
 
         u = self.uncertainty
+        if isinstance(u, np.bool_):  # a numpy boolean means what Python's does
+            u = bool(u)
         if u is None or u is False:
             return None
         if u is True:

@@ -80,6 +80,9 @@ class Options:
     warm_newton: bool = False
 
     def __post_init__(self) -> None:
+        for f in fields(self):  # a numpy scalar (np.True_, np.int64(5)) is the Python value it stands for
+            if isinstance(v := getattr(self, f.name), np.generic):
+                object.__setattr__(self, f.name, v.item())
         object.__setattr__(self, "frozen_windows", _window_indices(self.frozen_windows))
         _check(self)
 
