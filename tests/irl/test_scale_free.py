@@ -176,6 +176,32 @@ def test_smoothness_cv_chooses_from_the_grid_on_the_training_demonstrations(doc_
     assert est.cv_scores_[est.smoothness_] <= best * 1.01
 
 
+def test_smoothness_cv_says_its_fold_fits_warnings_once_in_its_own(doc_demos, monkeypatch, caplog):
+    # the fold fits logged their own warnings, which `reachirl fit` (caller_shows_fit_warnings) silenced for good:
+    # neither on stderr nor in the model's info.warnings. Every step here only rescales: every fit stays at w0
+    from reachirl.irl import moirl as moirl_module
+    from reachirl.irl.base import caller_shows_fit_warnings
+
+    _, _, _, demos = doc_demos
+    monkeypatch.setattr(moirl_module, "solve_step", lambda w, *a, **k: (-0.9 * w, {"nit": 1}))
+    params = {"smoothness": "cv", "cv_folds": 2, "fallback": None}
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=2, **moirl_params(params))
+    with caplog.at_level("WARNING", logger="reachirl"), caller_shows_fit_warnings():
+        est.fit(demos)
+    assert not caplog.records  # the caller says them, from warnings_
+    cv = [m for m in est.warnings_ if m.startswith("smoothness cross-validation")]
+    n_fits = 2 * len(moirl_module.SMOOTHNESS_GRID)
+    assert cv == [
+        f"smoothness cross-validation: {n_fits} of {n_fits} fold fits were not fully learned ({n_fits} never left "
+        f"the initial weights), so smoothness {est.smoothness_:g} was chosen partly on weights that were not learned"
+    ]
+    assert sum(m.startswith("never left the initial weights") for m in est.warnings_) == 1  # the fit's own
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="reachirl"):  # a library fit logs each of its warnings_ once
+        est.fit(demos)
+    assert sorted(r.getMessage() for r in caplog.records) == sorted(est.warnings_)
+
+
 def test_a_step_that_only_rescales_stops_the_fit_without_doc_solves(doc_demos, monkeypatch):
     from reachirl.irl import moirl as moirl_module
 

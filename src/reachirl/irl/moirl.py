@@ -31,6 +31,7 @@ from __future__ import annotations
 import copy
 import logging
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import fields, replace
 from typing import ClassVar, NamedTuple
@@ -50,7 +51,7 @@ from ..doc.observation import (
 )
 from ..doc.sensitivity import weight_jacobian
 from ..features import N_FEATURES, feature_rates, window_index, windowed_features
-from .base import WeightEstimator, log_fit_warning
+from .base import WeightEstimator, caller_shows_fit_warnings, log_fit_warning
 from .objective import channel_scale, feature_scale, gauss_newton_step, merit, merit_model_step, solve_delta, solve_step
 from .options import FIELDS as _OPTION_FIELDS
 from .options import ROLLOUTS, Options, check_windows, resolve_options
@@ -447,11 +448,13 @@ class MOIRL(WeightEstimator):
         t_start = time.perf_counter()
         smoothness = self._o.smoothness
         self.cv_scores_ = None
+        cv_msg = None
         if smoothness == "cv":
-            smoothness = self._choose_smoothness(trials) if self.n_windows > 1 else 0.0
+            smoothness, cv_msg = self._choose_smoothness(trials) if self.n_windows > 1 else (0.0, None)
         self.smoothness_ = float(smoothness)
         self._fit(trials, float(smoothness))
         msgs = [
+            cv_msg,
             mixed_postures_warning(trials) if self.rollout == "mean" else None,
             uncut_trials_warning(trials, self._of, self._thresholds) if self._o.observe else None,
         ]
@@ -470,17 +473,19 @@ class MOIRL(WeightEstimator):
         self.fit_time_ = time.perf_counter() - t_start
         return self
 
-    def _choose_smoothness(self, trials: list[Trial]) -> float:
+    def _choose_smoothness(self, trials: list[Trial]) -> tuple[float, str | None]:
         """``λ`` of :data:`SMOOTHNESS_GRID` with the lowest mean joint-angle RMSE over ``cv_folds`` folds of the
         training demonstrations (each fold predicted by the DOC from its own start, as a test trial would be).
-        Ties go to the smoother model. The folds interleave the trials in their given order."""
+        Ties go to the smoother model. The folds interleave the trials in their given order. With it, the one
+        warning that sums up the fold fits' own (:func:`cv_fold_warning`), or ``None``: the fold fits log none."""
         from ..doc.evaluation import rmse_deg
 
         k = min(int(self._o.cv_folds), len(trials))
         if k < 2:
-            return 0.0
+            return 0.0, None
         folds = [list(range(i, len(trials), k)) for i in range(k)]
         scores = {}
+        warned: list[str] = []  # the fold fits' warnings, said once by this fit
         for lam in SMOOTHNESS_GRID:
             errs = []
             for held in folds:
@@ -494,7 +499,9 @@ class MOIRL(WeightEstimator):
                     }
                 )
                 est._check_params(train)
-                est._fit(train, lam)
+                with caller_shows_fit_warnings():
+                    est._fit(train, lam)
+                warned += est.warnings_
                 for i in held:
                     sol = est.predict(trials[i])
                     q = trials[i].knot_state(self.n_nodes)[:, :2]
@@ -503,7 +510,8 @@ class MOIRL(WeightEstimator):
         self.cv_scores_ = scores
         best = min(scores.values())
         # the smoothest λ within 1 % of the best score (prefer the simpler model)
-        return max(lam for lam, v in scores.items() if v <= best * 1.01)
+        lam = max(lam for lam, v in scores.items() if v <= best * 1.01)
+        return lam, cv_fold_warning(warned, len(SMOOTHNESS_GRID) * k, lam)
 
     def _fit(self, trials: list[Trial], smoothness: float) -> None:
         t_start = time.perf_counter()
@@ -912,6 +920,20 @@ def fit_flag(best_iteration: int, n_accepted: int) -> str | None:
     if n_accepted == 1:
         return "one_step"
     return None
+
+
+def cv_fold_warning(warned: Sequence[str], n_fits: int, smoothness: float) -> str | None:
+    """The one warning of a ``smoothness="cv"`` fit about its fold fits' own warnings (``warned``, each fold fit's
+    :func:`fit_warnings`), counted by kind, or ``None`` when no fold fit warned: ``smoothness`` was chosen on
+    their predictions."""
+    if not warned:
+        return None
+    kinds = Counter(msg.split(":")[0].split(" (")[0] for msg in warned)
+    counts = ", ".join(f"{n} {kind}" for kind, n in kinds.items())
+    return (
+        f"smoothness cross-validation: {len(warned)} of {n_fits} fold fits were not fully learned ({counts}), so "
+        f"smoothness {smoothness:g} was chosen partly on weights that were not learned"
+    )
 
 
 def fit_warnings(best_iteration: int, n_accepted: int, initial_merit: float, final_merit: float) -> list[str]:
