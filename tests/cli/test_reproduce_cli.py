@@ -439,3 +439,19 @@ def test_a_units_checkpoint_has_its_models_info(trials_file, tmp_path, monkeypat
         assert kept["unit"] == info["unit"] == key
         assert kept["backend"] == info["backend"] == "casadi"
         assert kept["run"] == info["run"] == str(out)
+
+
+def test_a_run_folder_moved_and_rerun_gives_its_models_the_folder_it_is_in_now(trials_file, tmp_path):
+    """`mv RUN RUN2` then `reproduce --out RUN2`: the units are reused, and their models (and results.json) name
+    RUN2 nowhere RUN; only the checkpoints keep the folder they were computed in, as outputs.md says."""
+    argv = ["--data", str(trials_file), "--workers", "1", "--quick", "--sections", "1", "--max-iter", "1"]
+    first, moved = tmp_path / "first", tmp_path / "moved"
+    assert main(["reproduce", *argv, "--out", str(first), "--no-progress"]) == 0
+    first.rename(moved)
+    assert main(["reproduce", *argv, "--out", str(moved), "--no-progress"]) == 0
+    res = json.loads((moved / "results.json").read_text())
+    assert res["run"]["reused"] and not res["run"]["computed"]
+    assert str(first) not in (moved / "results.json").read_text()
+    for key in res["run"]["reused"]:
+        assert json.loads((moved / "models" / f"{key}.json").read_text())["info"]["run"] == str(moved.resolve())
+        assert json.loads((moved / "units" / f"{key}.json").read_text())["model_info"]["run"] == str(first.resolve())
