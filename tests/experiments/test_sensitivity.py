@@ -181,6 +181,40 @@ def test_effect_collinearity_finds_weights_that_move_the_path_alike():
     assert pair and pair[0]["cos"] == pytest.approx(-1.0) and pair[0]["window"] == 1
 
 
+def test_a_failed_non_finite_prediction_moves_no_path_and_keeps_nan_out_of_effect_collinearity(monkeypatch):
+    """A +x % prediction whose DOC failed with a non-finite path: its trial's displacement is zeros (times 0 it
+    would be NaN, which makes the feature's norm NaN and drops it from every collinear pair), the others' as
+    solved."""
+    from types import SimpleNamespace
+
+    from reachirl.experiments import sensitivity
+    from reachirl.experiments.sensitivity import _effect_collinearity
+
+    j, tc = FEATURES.index("joint_acceleration"), FEATURES.index("torque_change")
+    rng = np.random.default_rng(0)
+    patterns = rng.normal(size=(2, 7, 21, 2))  # per trial and feature: how a weight's change moves the path
+    patterns[:, tc] = -2.0 * patterns[:, j]  # torque change moves it against joint acceleration
+
+    def per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
+        sols = [SimpleNamespace(q=np.einsum("j,jkl->kl", weights[0], patterns[i]), converged=True) for i in range(2)]
+        if warm is not None and max(weights[0, j], weights[0, tc]) > 1:  # their +x %: trial 1's DOC fails
+            sols[1] = SimpleNamespace(q=np.full((21, 2), np.nan), converged=False)
+        ok = np.array([s.converged for s in sols])
+        return np.zeros(2), sols, ok
+
+    monkeypatch.setattr(sensitivity, "_per_trial", per_trial)
+    out = sensitivity_job(np.ones((1, 7)), [None, None], 20, "casadi", 0, 5.0)
+    assert out["features"][j]["plus_converged"] == [True, False]
+    disp = out["features"][j]["displacement"]
+    np.testing.assert_allclose(disp, np.r_[0.05 * patterns[0, j].ravel(), np.zeros(42)], atol=1e-12)
+    for k, rec in enumerate(out["features"]):  # the others' +x %: every trial's path moved
+        if k not in (j, tc):
+            np.testing.assert_allclose(rec["displacement"], 0.05 * patterns[:, k].ravel(), atol=1e-12)
+    found = _effect_collinearity({("P2", "sensitivity", 0): out}, "P2", 1)
+    pair = [e for e in found if e["features"] == ["joint_acceleration", "torque_change"]]
+    assert pair and pair[0]["cos"] == pytest.approx(-1.0)  # on trial 0, the one both moved
+
+
 def test_an_interrupted_analysis_resumes_where_it_stopped(small_run, tmp_path):
     from reachirl.experiments.sensitivity import job_path
     from reachirl.experiments.sensitivity_outputs import to_csv
