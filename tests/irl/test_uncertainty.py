@@ -160,6 +160,32 @@ def test_a_removed_feature_has_no_weight_in_any_sample(fitted):
         MOIRL(2, uncertainty=5).fit(trials)
 
 
+def test_a_share_the_fit_held_fixed_is_never_determined(fitted):
+    # a frozen window's shares (and a removed feature's) are the same in every draw: their intervals were zero wide
+    # and read as determined ("7 of 16 determined" with the data determining none of them), hatched as findings
+    _, trials = fitted
+    mask = np.ones(7, dtype=bool)
+    mask[FEATURES.index("torque_change")] = False
+    est = MOIRL(2, n_nodes=40, max_iter=2, feature_mask=mask, uncertainty=20, experimental={"frozen_windows": [0]}).fit(
+        trials
+    )
+    iv = est.uncertainty_["share_intervals"]
+    width = np.subtract(iv["high"], iv["low"])
+    det = np.array(iv["determined"])
+    assert np.all(width[0] < 1e-9) and np.all(width[1, ~mask] < 1e-9)  # held fixed: the same in every draw
+    assert not det[0].any() and not det[1, ~mask].any()
+    # the data's own narrow intervals are still determined (the rule above, on draws)
+    draws = np.zeros((400, 2, 7))
+    draws[:, :, 0] = np.linspace(0.10, 0.20, 400)[:, None]
+    draws[:, :, 1:] = (1 - draws[:, :, :1]) / 6
+    free = np.ones((2, 7), dtype=bool)
+    free[0] = False
+    assert share_intervals(draws, free=free)["determined"] == [[False] * 7, [True] * 7]
+    one = np.zeros((2, 7), dtype=bool)
+    one[:, 0] = True  # a window with one learned weight: its share is 1 whatever the weight
+    assert not np.any(share_intervals(draws, free=one)["determined"])
+
+
 def test_the_checked_samples_use_the_merits_own_errors(fitted):
     est, _ = fitted
     states = [est._state(i, t, s) for i, (t, s) in enumerate(zip(est.tasks_, est.train_solutions_, strict=True))]

@@ -189,15 +189,23 @@ def _ranges(ws: list[int]) -> str:
     return ", ".join(out)
 
 
-def share_intervals(shares: np.ndarray, point: np.ndarray | None = None) -> dict:
+def share_intervals(shares: np.ndarray, point: np.ndarray | None = None, free: np.ndarray | None = None) -> dict:
     """Per window and feature, the 95 % interval (2.5 and 97.5 percentiles) of the cost shares ``shares (K, S, 7)``
     and whether it is determined: narrower than :data:`UNDETERMINED_WIDTH` and, given the fit's own shares
     ``point (S, 7)``, containing that share (within 0.005, the printed precision; a fit outside its own narrow
-    interval is not a share the data pins down): ``{"low", "high", "determined"}``, each ``S × 7``."""
+    interval is not a share the data pins down): ``{"low", "high", "determined"}``, each ``S × 7``.
+
+    ``free (S, 7)``: the weights the fit learned (:meth:`MOIRL._movable`). A share whose weight was held fixed (a
+    frozen window, a feature removed from the cost), or the share of a window with fewer than two learned weights,
+    is the same in every draw: its interval is zero wide because the fit held it, not because the data pins it
+    down, and it is never determined."""
     lo, hi = np.percentile(shares, 2.5, axis=0), np.percentile(shares, 97.5, axis=0)
     determined = (hi - lo) <= UNDETERMINED_WIDTH
     if point is not None:
         determined &= (point >= lo - 0.005) & (point <= hi + 0.005)
+    if free is not None:
+        free = np.asarray(free, dtype=bool)
+        determined &= free & (free.sum(axis=1, keepdims=True) >= 2)
     return {"low": lo.tolist(), "high": hi.tolist(), "determined": determined.tolist()}
 
 
@@ -263,7 +271,7 @@ def weight_uncertainty(
     pooling = None
     task_of = np.array(_task_names(trials))
     if len(set(task_of)) > 1:  # how much pooling the tasks narrows the intervals: each task's data alone
-        pooling = {"pooled": _width_record(det, share_intervals(shares, point)), "per_task": {}}
+        pooling = {"pooled": _width_record(det, share_intervals(shares, point, free)), "per_task": {}}
         for task_trials in dict.fromkeys(task_of.tolist()):
             rows = task_of == task_trials
             det_g = determination(r[rows], J[rows], free)
@@ -272,7 +280,7 @@ def weight_uncertainty(
             eta = np.tile(eta_hat, (n_interval, 1))
             eta[:, cols] = mean_g + (Lg @ rng.standard_normal((cols.size, n_interval))).T
             w_g = est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape))
-            pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(cost_shares(w_g, phi), point))
+            pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(cost_shares(w_g, phi), point, free))
     errors_fit = np.sum(r**2, axis=1)
     passed = solves = failed = 0
     for w in samples[:n_check]:
@@ -293,7 +301,7 @@ def weight_uncertainty(
         "n_samples": int(n_samples),
         "weight_samples": samples.tolist(),
         "share_samples": cost_shares(samples, phi).tolist(),
-        "share_intervals": share_intervals(shares, point),
+        "share_intervals": share_intervals(shares, point, free),
         "claim": claim_verdict(shares),
         "determination": det.to_dict(),
         "prior": {
