@@ -195,6 +195,30 @@ def test_the_weights_figure_hatches_exactly_the_undetermined_shares():
     assert not [p for p in none.axes[0].patches if p.get_hatch()]
 
 
+def test_the_hatching_shows_on_every_share_dark_or_light():
+    # white hatching at alpha 0.6 on viridis' bright end (a share near 1, the one a reader would quote) changed the
+    # cell's luminance by about 0.07: the undetermined share looked unhatched, a finding
+    import io
+
+    from PIL import Image
+
+    values = np.linspace(0, 1, 8)
+    fig = fg.plot_weights(
+        {("P1", 8): np.tile(values[:, None], (1, 7))}, ["P1"], [8], undetermined={("P1", 8): np.ones((8, 7), bool)}
+    )
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=fig.dpi)
+    img = np.asarray(Image.open(buf).convert("RGB"), dtype=float) / 255
+    lum = img @ np.array([0.2126, 0.7152, 0.0722])
+    to_px = fig.axes[0].transData.transform
+    for w in range(8):  # each window's cell of the middle feature, inside its borders
+        (x0, y0), (x1, y1) = to_px((w + 0.6, 3.4)), to_px((w + 1.4, 2.6))
+        rows = sorted(int(img.shape[0] - y) for y in (y0, y1))
+        cell = lum[rows[0] : rows[1], int(x0) : int(x1)]
+        assert cell.size > 100
+        assert cell.max() - cell.min() > 0.2, (values[w], cell.max() - cell.min())
+
+
 def _hatched_cells(ax) -> set:
     patches = [p for p in ax.patches if p.get_hatch()]
     return {tuple(np.round(poly[:4].mean(axis=0), 6)) for p in patches for poly in p.get_path().to_polygons()}

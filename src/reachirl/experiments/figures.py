@@ -89,6 +89,10 @@ def _mark_no_samples(ax, undetermined: dict | None, key) -> None:
         )
 
 
+_LIGHT_CELL = 0.45
+"""The luminance (0-1) of a heatmap cell above which its hatching is black, not white."""
+
+
 def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
     """Cost shares ``(n_windows, 7)`` as a window × feature heatmap on ``ax``, the ``undetermined`` cells (booleans
     of the same shape) hatched; returns the image."""
@@ -107,10 +111,17 @@ def _share_heatmap(ax, shares, feature_labels: bool, undetermined=None):
         extent=(0.5, s.shape[0] + 0.5, len(FEATURES) - 0.5, -0.5),
     )
     cells = [] if undetermined is None else list(zip(*np.nonzero(np.asarray(undetermined, dtype=bool)), strict=True))
-    if cells:  # one hatched path of every undetermined cell: a patch per cell drew 2.5 times slower
-        square = Path.unit_rectangle()
-        path = Path.make_compound_path(*(square.transformed(Affine2D().translate(w + 0.5, j - 0.5)) for w, j in cells))
-        ax.add_patch(PathPatch(path, fill=False, hatch="///", edgecolor="white", linewidth=0, alpha=0.6))
+    # white hatching on dark cells, black on light ones: white on viridis' bright end (the large shares, the ones a
+    # reader would quote) was nearly invisible
+    rgb = im.cmap(im.norm(s))[..., :3]
+    light = rgb @ np.array([0.2126, 0.7152, 0.0722]) > _LIGHT_CELL
+    square = Path.unit_rectangle()
+    for colour, group in (("white", [c for c in cells if not light[c]]), ("black", [c for c in cells if light[c]])):
+        if group:  # one hatched path of every such cell: a patch per cell drew 2.5 times slower
+            path = Path.make_compound_path(
+                *(square.transformed(Affine2D().translate(w + 0.5, j - 0.5)) for w, j in group)
+            )
+            ax.add_patch(PathPatch(path, fill=False, hatch="///", edgecolor=colour, linewidth=0, alpha=0.6))
     ax.set_xticks(range(1, s.shape[0] + 1))
     ax.tick_params(labelsize=9)
     ax.set_yticks(range(len(FEATURES)))
