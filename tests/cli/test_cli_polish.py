@@ -121,3 +121,17 @@ def test_reproduce_help_shows_the_run_file_keys_as_flags():
     assert len(text.splitlines()) < 120  # a screenful or two, not a listing
     args = build_parser().parse_args(["reproduce", "--n-train", "0", "--no-progress", "--method", "moirl", "kkt"])
     assert (args.key_n_train, args.key_progress, args.key_methods) == (0, False, ["moirl", "kkt"])
+
+
+@pytest.mark.parametrize("value", ["5", "19", "1001", "-3", "abc"])
+def test_a_bad_number_of_weight_samples_is_refused_with_the_range_it_has(value, tmp_path, capsys):
+    # `reproduce --uncertainty 1001` (or abc) said "expected an integer in [0, 1000]", and 5, which that range
+    # holds, passed the flag to be refused later in other words: the range is 0 (none) or 20 to 1000, as `fit`'s
+    for command in (["reproduce", "--quick", "--out", str(tmp_path / "r")], ["fit", "t.npz", "--sections", "8"]):
+        with pytest.raises(SystemExit) as e:
+            main([*command, "--uncertainty", value, "--out", str(tmp_path / "m.json")])
+        assert e.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "an integer in [20, 1000], got" in err, err
+        assert ("0 (none) or " in err) == (command[0] == "reproduce")
+    assert build_parser().parse_args(["reproduce", "--uncertainty", "0"]).uncertainty == 0

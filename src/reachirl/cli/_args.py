@@ -47,6 +47,11 @@ def int_in(lo: int, hi: int) -> Callable[[str], int]:
     return _checked(int, lambda v: lo <= v <= hi, f"an integer in [{lo}, {hi}]", trim=40)
 
 
+def samples_or_none(lo: int, hi: int) -> Callable[[str], int]:
+    """``0`` (none) or an integer in ``[lo, hi]``: a number of weight samples (``reproduce --uncertainty``)."""
+    return _checked(int, lambda v: v == 0 or lo <= v <= hi, f"0 (none) or an integer in [{lo}, {hi}]", trim=40)
+
+
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
     """A finite number in ``[lo, hi]`` (NaN and infinities are refused)."""
     return _checked(float, lambda v: lo <= v <= hi, f"a number in [{lo:g}, {hi:g}]", trim=40)

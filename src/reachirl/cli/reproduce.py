@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, number_in, refuse_overwrite
+from ._args import int_in, non_negative_int, number_in, refuse_overwrite, samples_or_none
 
 MAX_SUBJECTS = 100
 
@@ -184,7 +184,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             )
     keys.add_argument(
         "--uncertainty",
-        type=int_in(0, 1000),
+        type=samples_or_none(20, 1000),
         default=None,
         metavar="K",
         help="weight samples per main-table MO-IRL fit, for its cost-share intervals, 20 to 1000, or 0 for none "
