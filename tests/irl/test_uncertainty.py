@@ -186,6 +186,28 @@ def test_a_share_the_fit_held_fixed_is_never_determined(fitted):
     assert not np.any(share_intervals(draws, free=one)["determined"])
 
 
+def test_the_claim_does_not_apply_where_the_fit_held_joint_accelerations_share(fitted):
+    # with the first window frozen at w0, its joint-acceleration share is the same in every draw: the verdict (22 %
+    # of the draws, "undetermined" on S01's P2) was read on a share the data had no say in; with the feature
+    # removed its share is 0 everywhere, and the claim read "contradicted"
+    _, trials = fitted
+    est = MOIRL(3, n_nodes=40, max_iter=1, uncertainty=20, experimental={"frozen_windows": [2]}).fit(trials)
+    claim = est.uncertainty_["claim"]
+    assert claim["verdict"] == "not applicable" and "window(s) 3" in claim["reason"]
+    assert est.uncertainty_["prior"]["claim_fraction"] is None
+    draws = np.full((400, 3, 7), 1 / 7)
+    free = np.ones((3, 7), dtype=bool)
+    assert claim_verdict(draws, free)["verdict"] == "contradicted"  # learned everywhere: the rule as before
+    frozen = free.copy()
+    frozen[0] = False
+    removed = free.copy()
+    removed[:, ACC] = False
+    for held in (frozen, removed):
+        claim = claim_verdict(draws, held)
+        assert claim["verdict"] == "not applicable" and claim["fraction"] is None
+        assert "held fixed" in claim["reason"]
+
+
 def test_the_checked_samples_use_the_merits_own_errors(fitted):
     est, _ = fitted
     states = [est._state(i, t, s) for i, (t, s) in enumerate(zip(est.tasks_, est.train_solutions_, strict=True))]

@@ -302,13 +302,13 @@ def weight_uncertainty(
         "weight_samples": samples.tolist(),
         "share_samples": cost_shares(samples, phi).tolist(),
         "share_intervals": share_intervals(shares, point, free),
-        "claim": claim_verdict(shares),
+        "claim": claim_verdict(shares, free),
         "determination": det.to_dict(),
         "prior": {
             "center": "w0: every feature with the same share of each window's demonstrated cost",
             "log_sd": PRIOR_LOG_SD,
             "mean_width": float(np.mean(np.subtract(prior_intervals["high"], prior_intervals["low"]))),
-            "claim_fraction": claim_verdict(prior_shares)["fraction"],
+            "claim_fraction": claim_verdict(prior_shares, free)["fraction"],
         },
         "likelihood_tau": float(tau),
         "checked": {
@@ -321,18 +321,31 @@ def weight_uncertainty(
     }
 
 
-def claim_verdict(share_samples: np.ndarray) -> dict:
+def claim_verdict(share_samples: np.ndarray, free: np.ndarray | None = None) -> dict:
     """The paper's claim, "joint acceleration's share at onset and end exceeds its share mid-reach", over the
     weight samples' cost shares ``(K, S, 7)`` (S ≥ 3): ``supported`` when it holds in at least 97.5 % of the
     samples, ``contradicted`` when it holds in at most 2.5 %, ``undetermined`` otherwise; with
     the fraction of samples where it holds and their number (``reason``: why the claim does not apply, else
     None). Onset and end are the first and last windows, mid-reach the others' mean.
     :func:`weight_uncertainty` applies it to the posterior's interval draws (thousands), not to the few weight
-    samples."""
+    samples. ``free (S, 7)``: the weights the fit learned; where joint acceleration's share was held fixed (its
+    weight frozen or removed, or its window's only learned weight), the draws say nothing of the claim there, and
+    it does not apply."""
     sh = np.asarray(share_samples, dtype=float)
+    n = int(sh.shape[0]) if sh.ndim == 3 else 0
     if sh.ndim != 3 or sh.shape[1] < 3:
-        n = int(sh.shape[0]) if sh.ndim == 3 else 0
         return {"verdict": "not applicable", "fraction": None, "n_samples": n, "reason": "needs at least 3 windows"}
+    if free is not None:
+        free = np.asarray(free, dtype=bool)
+        held = np.flatnonzero(~free[:, _ACC] | (free.sum(axis=1) < 2))
+        if held.size:
+            windows = ", ".join(str(int(k) + 1) for k in held)
+            return {
+                "verdict": "not applicable",
+                "fraction": None,
+                "n_samples": n,
+                "reason": f"joint acceleration's share is held fixed by the fit in window(s) {windows}, not learned",
+            }
     acc = sh[:, :, _ACC]
     holds = np.minimum(acc[:, 0], acc[:, -1]) > acc[:, 1:-1].mean(axis=1)
     frac = float(holds.mean())
