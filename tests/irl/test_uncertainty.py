@@ -131,7 +131,10 @@ def test_fit_uncertainty_writes_samples_in_the_units_of_the_weights(recorded, tm
     u = model["uncertainty"]
     # the summary line says how many shares the data leaves undetermined, counted from the written intervals
     n_undetermined = sum(not d for row in u["share_intervals"]["determined"] for d in row)
-    assert f"{n_undetermined} of 14 cost shares undetermined" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert f"{n_undetermined} of 14 cost shares undetermined" in said
+    # a claim that does not apply says so and why (it was left out of the line, which a reader searched for it)
+    assert "the paper's claim: not applicable (needs at least 3 windows)" in said
     samples = np.array(u["weight_samples"])
     assert samples.shape == (25, 2, 7) and np.all(samples > 0) and np.all(np.isfinite(samples))
     lo, hi = np.array(u["share_intervals"]["low"]), np.array(u["share_intervals"]["high"])

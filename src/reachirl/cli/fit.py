@@ -215,6 +215,8 @@ def run(args: argparse.Namespace) -> int:
                 f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
                 f"({100 * claim['fraction']:.0f} % of the posterior{percent})"
             )
+        elif claim.get("reason"):  # said, not left out: a reader looks for the claim here
+            extra += f"; the paper's claim: {claim['verdict']} ({claim['reason']})"
         if unc.get("pooling"):
             alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]
             pooled = unc["pooling"]["pooled"]["mean_width"]
