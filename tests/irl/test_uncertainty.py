@@ -18,6 +18,7 @@ from reachirl.irl.uncertainty import (
     determination,
     indistinguishable,
     laplace_posterior,
+    mean_width,
     merit_noise,
     residuals_and_jacobian,
     share_intervals,
@@ -177,6 +178,11 @@ def test_a_share_the_fit_held_fixed_is_never_determined(fitted):
     det = np.array(iv["determined"])
     assert np.all(width[0] < 1e-9) and np.all(width[1, ~mask] < 1e-9)  # held fixed: the same in every draw
     assert not det[0].any() and not det[1, ~mask].any()
+    # nor do their zero widths enter the mean width: window 2's six learned shares alone (under the prior alone
+    # about 0.95 wide; averaged with the eight held-fixed zeros it read 0.4)
+    assert iv["learned"] == [[False] * 7, mask.tolist()]
+    assert mean_width(iv) == pytest.approx(width[1, mask].mean())
+    assert est.uncertainty_["prior"]["mean_width"] > 0.8
     # the data's own narrow intervals are still determined (the rule above, on draws)
     draws = np.zeros((400, 2, 7))
     draws[:, :, 0] = np.linspace(0.10, 0.20, 400)[:, None]

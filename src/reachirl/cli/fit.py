@@ -7,14 +7,13 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
 from rich.console import Console
 
 from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
-from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH
+from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
 from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite
 
@@ -201,12 +200,12 @@ def run(args: argparse.Namespace) -> int:
         def alone(key: str, fmt) -> str:  # the same quantity under the prior alone, when recorded
             return "" if prior.get(key) is None else f"; {fmt(prior[key])} under the prior alone"
 
-        width = np.mean(np.subtract(unc["share_intervals"]["high"], unc["share_intervals"]["low"]))
+        width = mean_width(unc["share_intervals"])
         extra = (
             f"; {unc['n_samples']} weight samples, {det['n_determined']} of {det['n_directions']} weight "
             f"directions determined by the trials, {cells.count(False)} of {len(cells)} cost shares undetermined "
             f"(95 % interval wider than {UNDETERMINED_WIDTH} or not containing the fit's own share; mean width "
-            f"{width:.2f}{alone('mean_width', lambda v: f'{v:.2f}')})"
+            f"{'-' if width is None else f'{width:.2f}'}{alone('mean_width', lambda v: f'{v:.2f}')})"
         )
         claim = unc.get("claim") or {}
         if claim.get("fraction") is not None:

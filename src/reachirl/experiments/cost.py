@@ -11,7 +11,7 @@ import numpy as np
 
 from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
-from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict
+from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict, mean_width
 
 __all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
 
@@ -128,7 +128,7 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         det = u["determination"]
         iv = u["share_intervals"]
         und = 1.0 - float(np.mean(iv["determined"]))
-        width = float(np.mean(np.subtract(iv["high"], iv["low"])))
+        width = mean_width(iv)
         prior = u.get("prior") or {}
         claim = _claim(u)
         frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of draws"
@@ -139,7 +139,8 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         top = det["determined"][0] if det["determined"] else "none"
         row = (
             f"| {r['key']} | {det['n_determined']} of {det['n_directions']} | {100 * und:.0f} % | "
-            f"{width:.2f}{'' if w0 is None else f' ({w0:.2f})'} | {claim['verdict']}{frac} | {top} | "
+            f"{'-' if width is None else f'{width:.2f}'}{'' if w0 is None else f' ({w0:.2f})'} | "
+            f"{claim['verdict']}{frac} | {top} | "
             f"{_checked(u.get('checked'))} |"
         )
         p = r["unit"]["posture"]

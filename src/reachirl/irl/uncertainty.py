@@ -45,6 +45,7 @@ __all__ = [
     "determination",
     "indistinguishable",
     "laplace_posterior",
+    "mean_width",
     "merit_noise",
     "residuals_and_jacobian",
     "rollout_errors",
@@ -203,10 +204,25 @@ def share_intervals(shares: np.ndarray, point: np.ndarray | None = None, free: n
     determined = (hi - lo) <= UNDETERMINED_WIDTH
     if point is not None:
         determined &= (point >= lo - 0.005) & (point <= hi + 0.005)
+    out = {"low": lo.tolist(), "high": hi.tolist()}
     if free is not None:
         free = np.asarray(free, dtype=bool)
-        determined &= free & (free.sum(axis=1, keepdims=True) >= 2)
-    return {"low": lo.tolist(), "high": hi.tolist(), "determined": determined.tolist()}
+        learned = free & (free.sum(axis=1, keepdims=True) >= 2)
+        determined &= learned
+        out["learned"] = learned.tolist()
+    out["determined"] = determined.tolist()
+    return out
+
+
+def mean_width(intervals: dict) -> float | None:
+    """The mean width of :func:`share_intervals`' 95 % intervals over the shares the fit learned (``learned``;
+    every share in a record without it): a share the fit held fixed is zero wide by construction, and averaging it
+    in would make the cost look better determined than it is. None when the fit learned no share."""
+    width = np.subtract(intervals["high"], intervals["low"])
+    learned = intervals.get("learned")
+    if learned is not None:
+        width = width[np.asarray(learned, dtype=bool)]
+    return float(width.mean()) if width.size else None
 
 
 def laplace_posterior(
@@ -295,7 +311,7 @@ def weight_uncertainty(
     eta = np.tile(eta_hat, (n_interval, 1))
     eta[:, cols] = eta_prior[cols] + PRIOR_LOG_SD * prior_rng.standard_normal((n_interval, cols.size))
     prior_shares = cost_shares(est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape)), phi)
-    prior_intervals = share_intervals(prior_shares)
+    prior_intervals = share_intervals(prior_shares, free=free)
     return {
         "method": METHOD,
         "n_samples": int(n_samples),
@@ -307,7 +323,7 @@ def weight_uncertainty(
         "prior": {
             "center": "w0: every feature with the same share of each window's demonstrated cost",
             "log_sd": PRIOR_LOG_SD,
-            "mean_width": float(np.mean(np.subtract(prior_intervals["high"], prior_intervals["low"]))),
+            "mean_width": mean_width(prior_intervals),
             "claim_fraction": claim_verdict(prior_shares, free)["fraction"],
         },
         "likelihood_tau": float(tau),
@@ -354,10 +370,9 @@ def claim_verdict(share_samples: np.ndarray, free: np.ndarray | None = None) -> 
 
 
 def _width_record(det: Determination, intervals: dict) -> dict:
-    width = np.asarray(intervals["high"]) - np.asarray(intervals["low"])
     return {
         "n_determined": int(det.n_determined),
-        "mean_width": float(width.mean()),
+        "mean_width": mean_width(intervals),
         "undetermined_fraction": float(1.0 - np.mean(intervals["determined"])),
     }
 
