@@ -104,7 +104,9 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         "data says little about the cost"
         + (
             "; the intervals containing the truth's shares shows that they are honest, not that the data "
-            "determines them (the prior alone contains them too)."
+            "determines them (the prior alone contains them too). 'Truth's shares inside' compares the truth's "
+            "shares on the truth's own reach with the intervals on the fit's reach (the posture's reach under each "
+            "cost: the report quotes each cost's shares on its own reach)."
             if true_shares
             else "."
         )
