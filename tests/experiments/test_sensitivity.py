@@ -358,6 +358,28 @@ def test_a_pooled_verdict_is_shown_with_the_postures_own_and_says_what_its_inter
     assert "postures:" not in one and "pools every posture" not in one and "given the two fits" in one
 
 
+def test_a_verdict_taken_on_few_cv_trials_shows_where_the_iscv_trials_read_otherwise():
+    # UE-ADL's recipe has 5 CV trials against 70 ISCV ones: "needed (cv)" alone hid an ISCV interval across 0
+    from reachirl.experiments.sensitivity import _row, _verdict
+    from reachirl.experiments.sensitivity_outputs import _markdown
+
+    shares = np.full((2, 7), 1 / 7)
+    rows = []
+    for j, (cv, iscv) in enumerate((((0.1, 0.3), (-0.1, 0.2)), ((0.1, 0.3), (0.05, 0.2)), ((-0.3, -0.1), (0.1, 0.2)))):
+        row = _row("moirl", "P1", 2, "occlude_feature", j, shares)
+        row["train_delta_deg"], row["train_ci_lo"], row["train_ci_hi"] = 0.0, -0.1, 0.1
+        for s, (lo, hi) in (("cv", cv), ("iscv", iscv)):
+            row[f"{s}_delta_deg"], row[f"{s}_ci_lo"], row[f"{s}_ci_hi"] = (lo + hi) / 2, lo, hi
+        row["verdict"] = _verdict(row)
+        rows.append(row)
+    out = {"config": {"method": "moirl", "sections": 2, "postures": ["P1"], "percent": 10.0}, "rows": rows}
+    md = "\n".join(_markdown({**out, "identifiability": {}}))
+    line = {j: next(x for x in md.splitlines() if x.startswith(f"| {FEATURES[j]} |")) for j in range(3)}
+    assert line[0].endswith("| needed (cv); iscv: not needed |")
+    assert line[1].endswith("| needed (cv) |")  # both sets agree: nothing added
+    assert line[2].endswith("| better without (cv); iscv: needed |")
+
+
 @pytest.mark.parametrize("name", ["identifiability.json", "sensitivity.md", "sensitivity.csv"])
 def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_analysis(small_run, tmp_path, capsys, name):
     """--out of the user's own holding a file the analysis removes at its start: refused before any work, the file

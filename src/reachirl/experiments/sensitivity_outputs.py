@@ -209,9 +209,32 @@ def _markdown(out: dict) -> list[str]:
 
 
 def _verdict_cells(rows: Sequence[dict], row: dict) -> str:
-    """A refit's last cells in the report: its paired Δ with the 95 % interval per set, then its verdict (for
-    ``ALL``, followed by the postures' own)."""
-    return " | ".join(_ci(row, s) for s in SETS) + f" | {row['verdict']}{_postures_verdicts(rows, row)} |"
+    """A refit's last cells in the report: its paired Δ with the 95 % interval per set, then its verdict (taken on
+    CV where it has an interval; the other held-out set's own reading added where it differs: a few CV trials, as
+    on UE-ADL, can read otherwise than many ISCV ones), then, for ``ALL``, the postures' own."""
+    return (
+        " | ".join(_ci(row, s) for s in SETS)
+        + f" | {row['verdict']}{_other_held_out(row)}{_postures_verdicts(rows, row)} |"
+    )
+
+
+def _reading(row: dict, s: str) -> str | None:
+    """What set ``s``'s 95 % interval alone says (the words of the verdict), or None without an interval."""
+    lo, hi = row.get(f"{s}_ci_lo"), row.get(f"{s}_ci_hi")
+    if lo is None or hi is None or not (np.isfinite(lo) and np.isfinite(hi)):
+        return None
+    return "needed" if lo > 0 else "better without" if hi < 0 else "not needed"
+
+
+def _other_held_out(row: dict) -> str:
+    """``"; iscv: not needed"`` where the held-out set the verdict was not taken on reads otherwise."""
+    verdict = row.get("verdict") or ""
+    for used, other in (("cv", "iscv"), ("iscv", "cv")):
+        if verdict.endswith(f"({used})"):
+            said = _reading(row, other)
+            if said is not None and not verdict.startswith(said + " "):
+                return f"; {other}: {said}"
+    return ""
 
 
 def _postures_verdicts(rows: Sequence[dict], row: dict) -> str:
