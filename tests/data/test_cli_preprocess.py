@@ -261,6 +261,31 @@ def test_a_glob_of_a_ue_adl_folder_names_the_file_that_is_not_a_reach(tmp_path, 
     assert not out.exists()
 
 
+def test_a_real_recording_with_two_frames_swapped_is_refused(tmp_path, synth, capsys):
+    """UE-ADL's ADL001FR1 with the markers of frames 111 and 112 swapped (the frame numbers left in order), at the
+    reach's peak speed: the fingertip steps 5 mm back in one frame, which no hand does and the acceleration check
+    let pass."""
+    folder = tmp_path / "ADL001"
+    folder.mkdir()
+    shutil.copy(synth.SAMPLE / "ADL001" / "ADL001_static.csv", folder)
+    lines = (synth.SAMPLE / "ADL001" / "ADL001FR1.csv").read_text(encoding="utf-8-sig").splitlines()
+    rows = {ln.split(",", 1)[0]: i for i, ln in enumerate(lines)}
+    a, b = rows["111"], rows["112"]
+    lines[a], lines[b] = "111," + lines[b].split(",", 1)[1], "112," + lines[a].split(",", 1)[1]
+    (folder / "ADL001FR1.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "o.npz"
+    code, _, err = _run(
+        [folder / "ADL001FR1.csv", "--subject-info", synth.SAMPLE / "subjects.csv", "--out", out], capsys
+    )
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert re.search(
+        r"ADL001FR1\.csv: frame 112: the fingertip steps 5 mm back against its way of travel in one frame, .*: frames "
+        r"out of order",
+        err,
+    ), err
+    assert not out.exists()
+
+
 def test_one_bad_file_writes_nothing(tmp_path, synth, reach, capsys):
     (tmp_path / "good.trc").write_text(synth.trc_text(reach.markers, up="y"))
     (tmp_path / "bad.trc").write_text("PathFileType\t4\n")

@@ -12,7 +12,7 @@ import pytest
 from reachirl.data.kinematics import cast_reconstruct, kabsch
 from reachirl.data.markersets import load_markerset, parse_marker_map
 from reachirl.data.preprocess import PreprocessOptions, angles_to_trial, markers_to_trial, reconstruct_markers
-from reachirl.data.readers import AngleData, MarkerData, SubjectInfo, read_vicon_csv
+from reachirl.data.readers import AngleData, MarkerData, SubjectInfo, read_file, read_vicon_csv
 from reachirl.data.segmentation import detect_onset_offset
 from reachirl.data.signal import fill_gaps, lowpass
 from reachirl.data.trial import load_trials, save_trials
@@ -609,6 +609,56 @@ def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, nam
         spoiled[marker][mid - 15 : mid] = spoiled[marker][mid - 16]
     with pytest.raises(InputError, match=rf"s\.trc: frame \d+: the {name} jumps \d+ mm in one frame \(an acceleration"):
         _trial(synth, spoiled)
+
+
+def _moved_back(md: MarkerData, at: int, block: int, back: int) -> MarkerData:
+    """``md`` with its rows ``at`` … ``at + block - 1`` put back ``back`` rows earlier (frames re-inserted out of
+    order; the frame numbers and times stay in order, as an export that renumbers its rows writes them)."""
+    order = list(range(md.n_frames))
+    moved = order[at : at + block]
+    del order[at : at + block]
+    order[at - back : at - back] = moved
+    return replace(md, markers={k: np.asarray(v)[order] for k, v in md.markers.items()})
+
+
+@pytest.fixture(scope="module")
+def virtual_reach(tmp_path_factory):
+    """A virtual subject's reach as ``reachirl synth`` records it (100 Hz, TRC, 1-2 mm of marker noise)."""
+    from recordings import MARKERS, synth
+
+    folder = synth(tmp_path_factory.mktemp("virtual"), ("P2",), seed=3)
+    return read_file(folder / "S01_P2_T01.trc"), parse_marker_map(MARKERS)
+
+
+@pytest.mark.parametrize(
+    ("recording", "at", "block", "back", "frame", "mm"),
+    [
+        ("ue-adl", 110, 1, 1, 111, 5),  # the real reach's frames 110 and 111 swapped, at its peak speed (0.47 m/s)
+        ("virtual", 88, 5, 5, 89, 62),  # 5 frames put back 5 frames, at the peak (0.7 m/s)
+        ("virtual", 98, 2, 2, 99, 22),  # 2 put back 2, decelerating
+    ],
+)
+def test_frames_out_of_order_are_refused(synth, virtual_reach, recording, at, block, back, frame, mm):
+    """A block of frames re-inserted before its place makes the fingertip jump back against its way of travel, by
+    as many frames of its travel. The acceleration check let these pass (its limit, 20× the median acceleration,
+    grows with the noise: 859 m/s² at the virtual recording's 1 mm, whose 62 mm jump back gives 694; the real
+    swap gives 5 mm back at 0.47 m/s, 140 m/s² against 200): no hand steps back mid-reach, and noise steps back
+    less than 6 SDs of a step's noise (10 mm here) or 3 mm (UE-ADL's markers flicker by up to 1.3 mm back while
+    the fingertip travels)."""
+    if recording == "ue-adl":
+        d = synth.SAMPLE / "ADL001"
+        md, mset = read_vicon_csv(d / "ADL001FR1.csv"), load_markerset("ue-adl")
+        static = read_vicon_csv(d / "ADL001_static.csv")
+    else:
+        (md, mset), static = virtual_reach, None
+    reconstruct_markers(md, mset, static=static)  # the recording in order is a reach
+    with pytest.raises(
+        InputError,
+        match=rf"{re.escape(md.source)}: frame {frame}: the fingertip steps {mm} mm back against its way of travel in "
+        r"one frame, while it travels at 0\.\d\d m/s \(the recording's noise allows \d+\.\d mm\): frames out of order "
+        r"\(a block of frames put back before its place\)\? Put them in order, or blank them to be filled as a gap$",
+    ):
+        reconstruct_markers(_moved_back(md, at, block, back), mset, static=static)
 
 
 def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):

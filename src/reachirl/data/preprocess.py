@@ -23,7 +23,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
 4. **Units check**: the median shoulder→elbow, elbow→wrist and shoulder→fingertip distances must be body-sized
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
-   10 ms, or repeating the frame before it exactly (every joint, the fingertip moving on both sides: a copy), is an
+   10 ms, or repeating the frame before it exactly (every joint, the fingertip moving on both sides: a copy), or a
+   fingertip stepping back against its way of travel beyond its noise (frames out of order), is an
    :class:`InputError` naming the frame.
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
@@ -124,6 +125,17 @@ log = logging.getLogger(__name__)
 MAX_FINGERTIP_SPEED = 30.0
 #: m/s²: a reaching hand's markers peak near 10-30 m/s² (about 3 g); 20 g from one frame to the next is a glitch
 MAX_MARKER_ACCELERATION = 200.0
+
+#: a step of the fingertip back against its way of travel (check_glitches) is a frame out of order when it is longer
+#: than this many SDs of the recording's step noise (noise alone: at most 4.0 in 1,350 virtual records of three seeds)
+#: and than MIN_BACK_STEP_M, while the fingertip travels at least MIN_TRAVEL_SPEED (its path low-passed at
+#: MIN_SEGMENT_CUTOFF_HZ): a hand does not move back and forth within a frame, a block of frames put back in time does
+BACK_STEP_NOISE_SDS = 6.0
+#: m: ... and the least such step: UE-ADL's markers flicker from one frame to the next (at most 1.3 mm back while
+#: the fingertip travels, over its 80 reaches)
+MIN_BACK_STEP_M = 0.003
+#: m/s: ... where the fingertip travels at least this fast (at rest it has no way of travel to step back against)
+MIN_TRAVEL_SPEED = 0.05
 
 #: m: a frame that repeats the one before it exactly, every joint, is a copy (check_glitches) when the fingertip moves
 #: further than this (plus what an arm's acceleration can take off a step) in the frames on both sides: no rounding of
@@ -330,14 +342,20 @@ def check_up_axis(
 
 
 def check_glitches(
-    joints: dict[str, np.ndarray], rate: float, src: str, first_frame: int = 0, n_frames: int | None = None
+    joints: dict[str, np.ndarray],
+    rate: float,
+    src: str,
+    first_frame: int = 0,
+    n_frames: int | None = None,
+    order: int = 5,
 ) -> None:
     """Refuse a joint centre that jumps (the low-pass would smear the jump into the reach): faster than any arm
     moves (:data:`MAX_FINGERTIP_SPEED`), or with an acceleration from one frame to the next that no reaching arm
     has (:data:`MAX_MARKER_ACCELERATION`, or 20× the recording's own median where its noise is larger): a spike,
-    a marker frozen and then caught up, or two labels swapped for a few frames. ``first_frame``: the record's
-    frame at ``joints``' first row, for the messages; ``n_frames``: the record's frame count (a jump into its last
-    frame is named as a file cut short in its last row, a number cut off)."""
+    a marker frozen and then caught up, or two labels swapped for a few frames. Then frames out of order
+    (:func:`_check_back_steps`): a fingertip that steps back against its way of travel. ``first_frame``: the
+    record's frame at ``joints``' first row, for the messages; ``n_frames``: the record's frame count (a jump into
+    its last frame is named as a file cut short in its last row, a number cut off); ``order``: the low-pass's."""
 
     def cause(f: int, usual: str) -> str:  # f: the step into row f + 1
         if n_frames is not None and first_frame + f + 2 == n_frames:
@@ -393,6 +411,44 @@ def check_glitches(
                 src,
                 f"frame {first_frame + f + 2}",
             )
+    _check_back_steps(joints["fingertip"], rate, src, order, first_frame, cause)
+
+
+def _check_back_steps(tip: np.ndarray, rate: float, src: str, order: int, first_frame: int, cause) -> None:
+    """Refuse frames out of order (a block of frames re-inserted before its place: an export's or an edit's
+    error): where the fingertip ``tip`` ``(n, 3)`` travels (its path low-passed at
+    :data:`~reachirl.data.segmentation.MIN_SEGMENT_CUTOFF_HZ` moves at least :data:`MIN_TRAVEL_SPEED`), a step
+    back against its way of travel longer than :data:`BACK_STEP_NOISE_SDS` SDs of the recording's step noise and
+    than :data:`MIN_BACK_STEP_M`. Moved back by a few frames, a block makes the fingertip jump back by as many frames
+    of its travel, and no hand steps back mid-reach; in a noisy recording the acceleration check lets the jump pass
+    (its limit, 20× the median acceleration, is about 800 m/s² per mm of marker noise at 100 Hz: with 2 mm, a jump
+    back of 15 cm between steps forward). The noise is read from the median absolute second difference per axis
+    (a robust SD: √6 s for white noise of SD s per axis; a step's noise along a direction is √2 s)."""
+    if not rate > 2.0 * MIN_SEGMENT_CUTOFF_HZ or tip.shape[0] <= filter_padlen(order) or not np.isfinite(tip).all():
+        return
+    second = tip[2:] - 2.0 * tip[1:-1] + tip[:-2]
+    sd = np.median(np.abs(second), axis=0) / 0.6745  # per axis, √6 s
+    step_noise = float(np.sqrt(np.mean(sd**2) / 3.0))  # √2 s
+    way = np.diff(lowpass(tip, rate, MIN_SEGMENT_CUTOFF_HZ, order), axis=0)  # the way of travel, per step
+    travel = np.linalg.norm(way, axis=1)
+    moving = travel * rate >= MIN_TRAVEL_SPEED
+    if not moving.any():
+        return
+    back = np.where(moving, -np.sum(np.diff(tip, axis=0) * way, axis=1) / np.where(moving, travel, 1.0), -np.inf)
+    limit = max(BACK_STEP_NOISE_SDS * step_noise, MIN_BACK_STEP_M)
+    f = int(np.argmax(back))
+    if back[f] > limit:
+        raise InputError(
+            f"the fingertip steps {back[f] * 1000:.0f} mm back against its way of travel in one frame, while it "
+            f"travels at {travel[f] * rate:.2f} m/s (the recording's noise allows {limit * 1000:.1f} mm): "
+            + cause(
+                f,
+                "frames out of order (a block of frames put back before its place)? Put them in order, or blank "
+                "them to be filled as a gap",
+            ),
+            src,
+            f"frame {first_frame + f + 2}",
+        )
 
 
 def reconstruct_markers(
@@ -444,7 +500,7 @@ def reconstruct_markers(
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
 
-    check_glitches(joints, md.rate, src, first_frame=window.start, n_frames=md.n_frames)
+    check_glitches(joints, md.rate, src, first_frame=window.start, n_frames=md.n_frames, order=options.filter_order)
     raw_fingertip = joints["fingertip"]
     if options.cutoff_hz is not None:
         joints = {k: lowpass(v, md.rate, options.cutoff_hz, options.filter_order, src) for k, v in joints.items()}
