@@ -286,6 +286,24 @@ def test_a_real_recording_with_two_frames_swapped_is_refused(tmp_path, synth, ca
     assert not out.exists()
 
 
+def test_a_warned_recording_refused_by_its_joint_limits_says_the_refusal_alone(tmp_path, synth, cli):
+    """UE-ADL's ADL001FR1 under --threshold 0.001 is warned about (its noise is large beside the threshold's speed,
+    and no rest is left before the movement); under the lab's forward axis given as up it is refused by the joint
+    limits. The warnings came first: stderr now holds the refusal alone, one line."""
+    reach, info = synth.SAMPLE / "ADL001" / "ADL001FR1.csv", synth.SAMPLE / "subjects.csv"
+    args = ("preprocess", reach, "--subject-info", info, "--threshold", "0.001")
+    ok = cli(*args, "--out", tmp_path / "ok.npz")
+    assert ok.returncode == 0 and "WARNING" in ok.stderr and "is large beside the onset threshold" in ok.stderr
+    refused = cli(*args, "--up-axis", "+y", "--out", tmp_path / "o.npz")
+    assert refused.returncode == 2
+    assert re.fullmatch(
+        r"reachirl preprocess: error: \S*ADL001FR1\.csv: the start posture q0 = \(.*\) lies outside the joint "
+        r"limits .*\n",
+        refused.stderr,
+    ), refused.stderr
+    assert not (tmp_path / "o.npz").exists()
+
+
 def test_one_bad_file_writes_nothing(tmp_path, synth, reach, capsys):
     (tmp_path / "good.trc").write_text(synth.trc_text(reach.markers, up="y"))
     (tmp_path / "bad.trc").write_text("PathFileType\t4\n")

@@ -661,6 +661,54 @@ def test_frames_out_of_order_are_refused(synth, virtual_reach, recording, at, bl
         reconstruct_markers(_moved_back(md, at, block, back), mset, static=static)
 
 
+@pytest.mark.parametrize(
+    ("recording", "up", "refusal"),
+    [
+        ("virtual", "+x", r"the start posture q0 = \(17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),
+        ("virtual", "+z", r"with up = \+z \(--up-axis\), the upper arm stands 8\d° out of the vertical plane"),
+        ("ue-adl", "+y", r"the start posture q0 = \(-17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),
+        ("ue-adl", "+x", r"with up = \+x \(--up-axis\), the upper arm stands 8\d° out of the vertical plane"),
+    ],
+)
+def test_a_refused_recording_is_not_first_warned_about(synth, virtual_reach, caplog, recording, up, refusal):
+    """A recording's warnings (the virtual reach's noise is large beside a low --threshold; UE-ADL's fingertip is
+    hidden for 0.35 s in the rest before the reach, which is cut off) were logged as the record was cut, and a
+    refusal after the cut (the up axis; the joint limits, checked by the pipeline) came after them: 'the noise is
+    large', then the refusal. They now wait until the trial is accepted, and a refusal comes alone."""
+    from pathlib import Path
+
+    import reachirl.data.pipeline as pipeline
+    from reachirl.data.readers import ManifestEntry
+
+    if recording == "ue-adl":
+        md, mset = read_vicon_csv(synth.SAMPLE / "ADL001" / "ADL001FR1.csv"), None  # the reach: frames 62-172
+        hidden = {k: np.array(v) for k, v in md.markers.items()}
+        hidden["RFTP"][10:45] = np.nan
+        md, options = replace(md, markers=hidden), PreprocessOptions()
+        warning = "marker RFTP is missing for 35 frames (11-45), in the rest before the reach"
+    else:
+        (md, mset), options = virtual_reach, PreprocessOptions(onset_threshold=0.01)
+        warning = "the recording's noise (1.1 mm RMS, markers or angles seen at the fingertip) is large"
+    entry = ManifestEntry(file=Path(md.source), subject="", posture="")
+    real_read = pipeline.read_file
+
+    def read_file(path, fmt="auto", side="right"):  # the recording as above, its static trial from the file
+        return md if Path(path) == entry.file else real_read(path, fmt, side=side)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(pipeline, "read_file", read_file)
+        with caplog.at_level("WARNING", logger="reachirl"):
+            pipeline.preprocess_entries([entry], markers=mset, options=options)
+        assert warning in caplog.text  # the trial accepted is warned about
+        caplog.clear()
+        with (
+            caplog.at_level("WARNING", logger="reachirl"),
+            pytest.raises(InputError, match=rf"^{re.escape(md.source)}: {refusal}"),
+        ):
+            pipeline.preprocess_entries([entry], markers=mset, options=replace(options, up_axis=up))
+    assert caplog.messages == []
+
+
 def test_the_acceleration_check_keeps_noisy_and_fast_recordings(reach, synth):
     """2 mm of marker noise at 100 Hz, and the same reach sampled at 1000 Hz (second differences over 10 ms):
     neither is a glitch, and both give the clean recording's reach."""

@@ -46,7 +46,8 @@ def preprocess_entries(
     on_trial: Callable[[Trial], None] | None = None,
 ) -> list[Trial]:
     """One :class:`Trial` per entry. Without ``subject_info``, Berret 2011's mean subject is used (logged at INFO;
-    ``reachirl preprocess`` notes it once it has written the trials)."""
+    ``reachirl preprocess`` notes it once it has written the trials). A recording's warnings are logged once its
+    trial passes the posture and target checks: a refused recording gets its refusal alone."""
     if subject_info is None:
         log.info("no subject info: masses and inertias use Berret 2011's mean subject (M, 1.76 m, 69.9 kg)")
     statics: dict[Path, MarkerData] = {}
@@ -70,6 +71,7 @@ def preprocess_entries(
                     e.file,
                 )
             sd = data.side  # no side given: the arm the columns name (reachirl's own export of a left trial)
+        held: list[tuple] = []
         common = {
             "subject": subj,
             "posture": post,
@@ -110,11 +112,13 @@ def preprocess_entries(
                         f"static trial",
                         e.file,
                     )
-            tr = markers_to_trial(data, mset, static=static_md, **common)
+            tr = markers_to_trial(data, mset, static=static_md, held=held, **common)
         else:
-            tr = angles_to_trial(data, **common)
+            tr = angles_to_trial(data, held=held, **common)
         check_trial_posture(tr, e.file)  # a mirrored or backwards recording is caught here, where it can be fixed
         check_start_and_target(tr, e.file)  # as load_trials will check it
+        for warning in held:  # said of a trial accepted, not before its refusal
+            log.warning(*warning)
         trials.append(tr)
         if on_trial is not None:
             on_trial(tr)

@@ -62,7 +62,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
     ``n_samples`` points if asked). ``target_x`` is the measured fingertip x (shoulder frame, sagittal plane)
     at offset.
 
-Nothing here prints; problems are :class:`InputError` with the file and frame, notes go to ``logging``.
+Nothing here prints; problems are :class:`InputError` with the file and frame, notes go to ``logging``. A record's
+warnings wait until it gives a trial (or are held for the caller's own checks, ``held``): a refusal comes alone.
 """
 
 from __future__ import annotations
@@ -201,6 +202,7 @@ def _check_window(
     rate: float,
     max_gap: int,
     src: object,
+    held: list[tuple],
 ) -> None:
     """A record cut at gaps longer than gap filling allows (:func:`seen_window`) gives a trial only when those
     gaps lie in the rest: the reach (``onset``/``offset``, frames of the cut) begins and ends in rest seen
@@ -208,9 +210,9 @@ def _check_window(
     the same place (within :data:`MAX_REST_DRIFT_M`) on both sides of each gap it is seen beyond; after a gap
     before it, the reach extends the arm (it is not a return); and it moves the fingertip by at least
     :data:`MIN_CUT_REACH` of the shoulder-to-fingertip distance (not a fidget or noise while the reach is
-    hidden). Each gap cut off is then reported as a warning; otherwise the gap beside the reach is refused as
-    :func:`fill_gaps` refuses it. ``seen``: the cut's frames where every joint was seen; ``cut_tip``: the cut's
-    fingertip, gaps filled."""
+    hidden). Each gap cut off is then reported as a warning (appended to ``held``, :func:`_release`); otherwise the
+    gap beside the reach is refused as :func:`fill_gaps` refuses it. ``seen``: the cut's frames where every joint was
+    seen; ``cut_tip``: the cut's fingertip, gaps filled."""
     rest = max(1, round(MIN_SEEN_REST_S * rate))
     before = [g for g in window.gaps if g[2] <= window.start]
     after = [g for g in window.gaps if g[1] >= window.stop]
@@ -247,15 +249,27 @@ def _check_window(
     if why is not None:
         raise InputError(f"{gap_message(gap[0], gap[1], gap[2], max_gap)}, and {why}", src)
     for label, s, e in window.gaps:
-        log.warning(
-            "%s: marker %s is missing %s, in the rest %s the reach; the record is used from frame %d to %d",
-            src,
-            label,
-            gap_where(s, e),
-            "before" if e <= window.start else "after",
-            window.start + 1,
-            window.stop,
+        held.append(
+            (
+                "%s: marker %s is missing %s, in the rest %s the reach; the record is used from frame %d to %d",
+                src,
+                label,
+                gap_where(s, e),
+                "before" if e <= window.start else "after",
+                window.start + 1,
+                window.stop,
+            )
         )
+
+
+def _release(notes: list[tuple], held: list[tuple] | None) -> None:
+    """The warnings a trial's preprocessing held back (:meth:`logging.Logger.warning` arguments) once the trial is
+    accepted: into the caller's ``held`` list, for it to log once its own checks accept the trial, or logged."""
+    if held is not None:
+        held.extend(notes)
+        return
+    for warning in notes:
+        log.warning(*warning)
 
 
 def _fingertip_range(tip: np.ndarray, rate: float, order: int) -> float:
@@ -459,8 +473,12 @@ def reconstruct_markers(
     static: MarkerData | None = None,
     subject_info: SubjectInfo | None = None,
     options: PreprocessOptions | None = None,
+    held: list[tuple] | None = None,
 ) -> MarkerReconstruction:
-    """Run steps 1–10 on a marker file; see the module docstring."""
+    """Run steps 1–10 on a marker file; see the module docstring. Its warnings (the noise is large, another
+    reach, no rest, a gap cut off) are said only when the record gives a reconstruction, not before a refusal:
+    logged at the end, or, given ``held`` (a list), appended to it as :meth:`logging.Logger.warning` arguments for
+    the caller to log once its own checks accept the trial."""
     options = options or PreprocessOptions()
     info = subject_info or DEFAULT_SUBJECT
     src = md.source
@@ -536,38 +554,47 @@ def reconstruct_markers(
             src,
         )
     reach = np.linalg.norm(joints["fingertip"] - joints["fingertip"][0], axis=1)  # away from where it rested
-    # the noise warning waits for the record to be accepted: cut at a gap inside the reach, the record holds a
-    # fragment of it, whose peak speed makes the noise look large, and the gap is then refused
-    held: list[tuple] = []
-    seg_speed = segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"], held=held)
+    # the warnings wait for the record to be accepted (_release): cut at a gap inside the reach, the record holds a
+    # fragment of it, whose peak speed makes the noise look large, and the gap is then refused; an up axis or a
+    # joint limit refused after the cut is the only thing to say of the record
+    notes: list[tuple] = []
+    noise: list[tuple] = []
+    seg_speed = segmentation_speed(t, raw_fingertip, speed, options, src, filtered=joints["fingertip"], held=noise)
     onset, offset = detect_onset_offset(seg_speed, options.onset_threshold, reach)
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} frames", src)
     if window.gaps:
         seen = np.all([seen_frames(p[cropped]) for p, _ in positions.values()], axis=0)
-        _check_window(window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src)
-    for warning in held:
-        log.warning(*warning)
+        _check_window(
+            window, onset, offset, seen, positions, joints["fingertip"], md.rate, options.max_gap_frames, src, notes
+        )
+    notes += noise  # after the gaps cut off, as the record is read
     other = other_reach(seg_speed, options.onset_threshold, joints["fingertip"], onset, offset)
     if other is not None:
-        log.warning(
-            "%s: the recording holds another reach (%.2f-%.2f s); the trial is the faster one, at %.2f-%.2f s. Cut "
-            "the recording to one reach per file to keep the other",
-            src,
-            t[other[0]],
-            t[other[1]],
-            t[onset],
-            t[offset],
+        notes.append(
+            (
+                "%s: the recording holds another reach (%.2f-%.2f s); the trial is the faster one, at %.2f-%.2f s. "
+                "Cut the recording to one reach per file to keep the other",
+                src,
+                t[other[0]],
+                t[other[1]],
+                t[onset],
+                t[offset],
+            )
         )
     cut = {"before": onset == 0, "after": offset == len(t) - 1}  # beside a gap cut off, _check_window refused it
     if all(cut.values()):
-        log.warning(
-            "%s: no rest before or after the movement; the record's edges are used: the reach may be a fragment of "
-            "a longer movement",
-            src,
+        notes.append(
+            (
+                "%s: no rest before or after the movement; the record's edges are used: the reach may be a fragment "
+                "of a longer movement",
+                src,
+            )
         )
     elif any(cut.values()):
-        log.warning("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
+        notes.append(
+            ("%s: no rest %s the movement; the record's edge is used", src, "before" if onset == 0 else "after")
+        )
     rel = {k: v - joints["shoulder"] for k, v in joints.items() if k != "shoulder"}
     disp = joints["fingertip"][offset] - joints["fingertip"][onset]
     fwd = lab_axis(options.forward_axis) if options.forward_axis else None
@@ -591,7 +618,7 @@ def reconstruct_markers(
         except ValueError as e:
             raise InputError(f"fingertip IK failed: {e}; the arm is too short for the markers", src) from None
     qd, qdd = derivatives(t, q)
-    return MarkerReconstruction(
+    rec = MarkerReconstruction(
         t=t,
         q=q,
         qd=qd,
@@ -608,6 +635,8 @@ def reconstruct_markers(
         source=src,
         first_frame=window.start,
     )
+    _release(notes, held)
+    return rec
 
 
 def _to_trial(
@@ -665,11 +694,16 @@ def markers_to_trial(
     static: MarkerData | None = None,
     subject_info: SubjectInfo | None = None,
     options: PreprocessOptions | None = None,
+    held: list[tuple] | None = None,
 ) -> Trial:
-    """A marker file → one :class:`Trial` (onset→offset)."""
+    """A marker file → one :class:`Trial` (onset→offset). Its warnings are said once the trial is made, or held
+    (see :func:`reconstruct_markers`)."""
     options = options or PreprocessOptions()
-    rec = reconstruct_markers(md, mset, side=side, static=static, subject_info=subject_info, options=options)
-    return _to_trial(
+    notes: list[tuple] = []
+    rec = reconstruct_markers(
+        md, mset, side=side, static=static, subject_info=subject_info, options=options, held=notes
+    )
+    trial = _to_trial(
         rec.t,
         rec.q,
         rec.qd,
@@ -685,6 +719,8 @@ def markers_to_trial(
         source=md.source,
         options=options,
     )
+    _release(notes, held)
+    return trial
 
 
 # ---------------------------------------------------------------------- angles → trial
@@ -697,6 +733,7 @@ def angles_to_trial(
     side: str = "right",
     subject_info: SubjectInfo | None = None,
     options: PreprocessOptions | None = None,
+    held: list[tuple] | None = None,
 ) -> Trial:
     """Joint angles (model convention) → one :class:`Trial`.
 
@@ -705,7 +742,8 @@ def angles_to_trial(
     log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
     onset and offset, and q̇, q̈, τ follow as for markers. A record whose fingertip ranges over less than
     :data:`MIN_REACH_RANGE` of its distance from the shoulder is refused as for markers (rest and angle noise).
-    Left arms' angles are taken as already in the model convention.
+    Left arms' angles are taken as already in the model convention. Its warning (the noise is large) is said once
+    the trial is made, or held (see :func:`reconstruct_markers`).
     """
     options = options or PreprocessOptions()
     info = subject_info or DEFAULT_SUBJECT
@@ -738,15 +776,16 @@ def angles_to_trial(
     rest = _rest_only(tip, float(np.median(np.linalg.norm(tip, axis=1))), rate, options.filter_order, "angle noise")
     if rest is not None:
         raise InputError(rest, src)
+    notes: list[tuple] = []
     onset, offset = detect_onset_offset(
-        segmentation_speed(t, tip, speed, options, src),
+        segmentation_speed(t, tip, speed, options, src, held=notes),
         options.onset_threshold,
         np.linalg.norm(tip - tip[0], axis=1),  # away from where it rested: the reach, not a return
     )
     if offset - onset + 1 < 4:
         raise InputError(f"no movement detected: the reach lasts {offset - onset + 1} samples", src)
     target_x = float(arm.fk(q[offset])[0])
-    return _to_trial(
+    trial = _to_trial(
         t,
         q,
         qd,
@@ -762,3 +801,5 @@ def angles_to_trial(
         source=src,
         options=options,
     )
+    _release(notes, held)
+    return trial
