@@ -9,7 +9,9 @@ import pytest
 from reachirl import MOIRL
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, select_trials
+from reachirl.errors import InputError
 from reachirl.features import FEATURES, cost_shares
+from reachirl.irl.model import LearnedModel, check_model_dict, save_model
 from reachirl.irl.uncertainty import (
     PRIOR_LOG_SD,
     _errors,
@@ -164,7 +166,7 @@ def test_a_removed_feature_has_no_weight_in_any_sample(fitted):
         MOIRL(2, uncertainty=5).fit(trials)
 
 
-def test_a_share_the_fit_held_fixed_is_never_determined(fitted):
+def test_a_share_the_fit_held_fixed_is_never_determined(fitted, tmp_path):
     # a frozen window's shares (and a removed feature's) are the same in every draw: their intervals were zero wide
     # and read as determined ("7 of 16 determined" with the data determining none of them), hatched as findings
     _, trials = fitted
@@ -183,6 +185,12 @@ def test_a_share_the_fit_held_fixed_is_never_determined(fitted):
     assert iv["learned"] == [[False] * 7, mask.tolist()]
     assert mean_width(iv) == pytest.approx(width[1, mask].mean())
     assert est.uncertainty_["prior"]["mean_width"] > 0.8
+    # the mask is read back with the model, and a damaged one is refused naming the field
+    d = json.loads(save_model(tmp_path / "m.json", LearnedModel.from_estimator(est, trials)).read_text())
+    check_model_dict(d, "m.json")
+    d["uncertainty"]["share_intervals"]["learned"] = [[True] * 7]
+    with pytest.raises(InputError, match=r"m\.json.*'uncertainty\.share_intervals'.*'learned'"):
+        check_model_dict(d, "m.json")
     # the data's own narrow intervals are still determined (the rule above, on draws)
     draws = np.zeros((400, 2, 7))
     draws[:, :, 0] = np.linspace(0.10, 0.20, 400)[:, None]

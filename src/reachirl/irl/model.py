@@ -300,9 +300,11 @@ def _check_uncertainty(unc, n_windows: int, path) -> None:
         isinstance(iv, dict)
         and _is_matrix(iv.get("low"), n_windows, _share)
         and _is_matrix(iv.get("high"), n_windows, _share)
-        and _is_matrix(iv.get("determined"), n_windows, lambda v: isinstance(v, bool)),
+        and _is_matrix(iv.get("determined"), n_windows, lambda v: isinstance(v, bool))
+        and ("learned" not in iv or _is_matrix(iv["learned"], n_windows, lambda v: isinstance(v, bool))),
         f"field 'uncertainty.share_intervals': expected an object with 'low', 'high' ({n_windows} × "
-        f"{len(FEATURES)} shares) and 'determined' ({n_windows} × {len(FEATURES)} booleans), found {brief(iv)}",
+        f"{len(FEATURES)} shares), 'determined' and, if any, 'learned' ({n_windows} × {len(FEATURES)} booleans), "
+        f"found {brief(iv)}",
         path,
     )
 
