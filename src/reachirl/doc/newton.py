@@ -430,9 +430,9 @@ def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
     ``q_{N−1}``) is positive definite on the null space of the constraints (the bar, the kinks): a banded
     Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit gradient) with ``ρ`` a thousand
     times the largest diagonal entry of ``H``."""
-    op, pos, m = _q_scatter(n)
+    _, pos, m = _q_scatter(n)
     rows, cols = _q_terms(n)
-    ab = np.bincount(rows, weights=out[cols], minlength=op.shape[0]).reshape(_QBW + 1, m)  # ``op @ out``: the
+    ab = np.bincount(rows, weights=out[cols], minlength=(_QBW + 1) * m).reshape(_QBW + 1, m)  # ``op @ out``: the
     # upper band, row _QBW the diagonal
     ab[_QBW, m - 2 :] += np.diag(curv)
     ab[_QBW - 1, m - 1] += curv[0, 1]

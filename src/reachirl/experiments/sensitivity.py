@@ -408,16 +408,20 @@ def _mean_or_none(d: Sequence[float]) -> float | None:
     return float(d.mean()) if d.size else None
 
 
+def reading(row: dict, s: str) -> str | None:
+    """What set ``s``'s 95 % interval alone says of a refit: ``needed`` (above 0), ``better without`` (below 0) or
+    ``not needed``; None without an interval."""
+    lo, hi = row.get(f"{s}_ci_lo"), row.get(f"{s}_ci_hi")
+    if lo is None or hi is None or not (np.isfinite(lo) and np.isfinite(hi)):
+        return None
+    return "needed" if lo > 0 else "better without" if hi < 0 else "not needed"
+
+
 def _verdict(row: dict) -> str:
     for s in ("cv", "iscv", "train"):
-        lo, hi = row.get(f"{s}_ci_lo"), row.get(f"{s}_ci_hi")
-        if lo is None or not np.isfinite(lo):
-            continue
-        if lo > 0:
-            return f"needed ({s})"
-        if hi < 0:
-            return f"better without ({s})"
-        return f"not needed ({s})"
+        said = reading(row, s)
+        if said is not None:
+            return f"{said} ({s})"
     if any(row.get(f"{s}_delta_deg") is not None and np.isfinite(row[f"{s}_delta_deg"]) for s in SETS):
         return f"too few trials (fewer than {MIN_PAIRED} in every set)"
     return ""

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..features import FEATURES, N_FEATURES
 from ..io import atomic_write_json, atomic_write_text
-from .sensitivity import ALL, COLUMNS, SETS
+from .sensitivity import ALL, COLUMNS, SETS, reading
 
 __all__ = ["plot_sensitivity", "remove_outputs", "to_csv", "write_sensitivity"]
 
@@ -218,20 +218,12 @@ def _verdict_cells(rows: Sequence[dict], row: dict) -> str:
     )
 
 
-def _reading(row: dict, s: str) -> str | None:
-    """What set ``s``'s 95 % interval alone says (the words of the verdict), or None without an interval."""
-    lo, hi = row.get(f"{s}_ci_lo"), row.get(f"{s}_ci_hi")
-    if lo is None or hi is None or not (np.isfinite(lo) and np.isfinite(hi)):
-        return None
-    return "needed" if lo > 0 else "better without" if hi < 0 else "not needed"
-
-
 def _other_held_out(row: dict) -> str:
     """``"; iscv: not needed"`` where the held-out set the verdict was not taken on reads otherwise."""
     verdict = row.get("verdict") or ""
     for used, other in (("cv", "iscv"), ("iscv", "cv")):
         if verdict.endswith(f"({used})"):
-            said = _reading(row, other)
+            said = reading(row, other)
             if said is not None and not verdict.startswith(said + " "):
                 return f"; {other}: {said}"
     return ""
