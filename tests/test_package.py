@@ -42,15 +42,21 @@ def test_wheel_installs_and_reproduces(tmp_path):
     _run([sys.executable, "-m", "venv", venv])
     py = venv / "bin" / "python"
     # its dependencies are this environment's (`make install` installs requirements.lock), seen through a path
-    # entry: their installation is `make install`'s job, and repeating it here took most of this test's time. The
-    # entry's directory is not a site directory, so its .pth files (the checkout's editable install) are not read.
+    # entry read first (repeating their installation here took most of this test's time), with their own .pth
+    # hooks (cmeel's, for Pinocchio and Crocoddyl) but not the checkout's editable install
     site = Path(_run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip())
-    deps = _run([sys.executable, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip()
-    (site / "reachirl-test-deps.pth").write_text(deps + "\n")
+    deps = Path(
+        _run([sys.executable, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip()
+    )
+    (site / "00-reachirl-deps.pth").write_text(f"{deps}\n")
+    for pth in deps.glob("*.pth"):
+        if "reachirl" not in pth.name:
+            (site / pth.name).write_text(pth.read_text())
     _run([py, "-m", "pip", "install", "-q", "--no-deps", wheel], cwd=tmp_path)
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"} | {"OMP_NUM_THREADS": "1"}
     where = _run([py, "-c", "import reachirl; print(reachirl.__file__)"], cwd=tmp_path, env=env).stdout
     assert str(venv) in where and str(ROOT) not in where  # the installed copy, not the checkout
+    _run([py, "-c", "import casadi, crocoddyl, mim_solvers, mujoco, pinocchio"], cwd=tmp_path, env=env)  # both stacks
     proc = _run(
         [
             venv / "bin" / "reachirl",
