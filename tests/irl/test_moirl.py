@@ -342,6 +342,19 @@ def test_fit_refuses_the_trials_a_trials_file_may_not_hold(demos, change, match)
         MOIRL(2, n_nodes=N_NODES).fit([demos[0], bad])
 
 
+def test_set_params_after_fit_changes_the_next_fit_not_the_fitted_ones_predictions(demos):
+    # predict and the saved model read the current parameters: a fit on 40 knots asked for 80 failed deep in the
+    # warm start ("path must be a finite joint path of shape (81, 2)"), and its model could not be made
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=2).fit(demos)
+    before = est.predict(demos[0])
+    est.set_params(n_nodes=2 * N_NODES, max_iter=1)
+    np.testing.assert_array_equal(est.predict(demos[0]).q, before.q)
+    model = LearnedModel.from_estimator(est, demos)
+    assert model.n_nodes == N_NODES and model.info["parameters"]["n_nodes"] == N_NODES
+    assert est.n_nodes == 2 * N_NODES  # the parameter itself is as set
+    assert est.fit(demos).predict(demos[0]).q.shape == (2 * N_NODES + 1, 2)  # and the next fit runs with it
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

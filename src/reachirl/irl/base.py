@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import copy
 import inspect
 import logging
 from collections.abc import Iterable, Iterator, Sequence
@@ -69,6 +70,7 @@ class WeightEstimator:
         return self
 
     def _check_trials(self, trials: Sequence[Trial]) -> list[Trial]:
+        self.__dict__.pop("_fit_params", None)  # a new fit: until it ends, the parameters in force are its own
         if isinstance(trials, Trial | str | PathLike) or not isinstance(trials, Iterable):
             raise TypeError(
                 f"fit takes a sequence of Trial (a trials file is read by reachirl.data.trial.load_trials), "
@@ -96,6 +98,25 @@ class WeightEstimator:
         if not hasattr(self, "weights_"):
             raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
 
+    def _keep_fit_params(self) -> None:
+        """Remember the parameters this fit ran with (at the end of ``fit``): :meth:`_as_fitted` predicts and
+        describes the fit with them, whatever ``set_params`` changes afterwards for the next fit."""
+        # copies: a mapping or an array of the parameters changed in place after the fit is a change too
+        self.__dict__["_fit_params"] = {k: v if callable(v) else copy.deepcopy(v) for k, v in self.get_params().items()}
+
+    def _as_fitted(self) -> WeightEstimator:
+        """The fitted estimator with the parameters its fit ran with (scikit-learn style: ``set_params`` after
+        ``fit`` changes the next fit, not this one's predictions): itself when they are unchanged, else a shallow
+        copy holding them. Its predictions, its reach and the model saved from it are those of the fit."""
+        self._check_fitted()
+        params = self.__dict__.get("_fit_params")
+        if params is None or all(_same(getattr(self, k, None), v) for k, v in params.items()):
+            return self
+        view = copy.copy(self)
+        del view.__dict__["_fit_params"]
+        view.__dict__.update(params)
+        return view
+
     def reach_features(self) -> np.ndarray | None:
         """Φ ``(n_windows, 7)`` of the fit's own training reach under the learned weights (the mean over its
         rollouts), on which its cost shares ``ω·Φ`` are quoted, or ``None`` when the estimator keeps no such reach
@@ -121,9 +142,21 @@ class WeightEstimator:
         whose ``cost`` is the whole DOC's optimum. A :class:`ReachingTask` is solved on the fit's ``n_nodes`` (its
         own are replaced: the weights' windows and the start path are on the fit's knots). Without
         ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
-        self._check_fitted()
-        path = self.rollout_path() if warm_start is None else None
-        observe = bool(getattr(self, "observe", False))
+        est = self._as_fitted()
+        path = est.rollout_path() if warm_start is None else None
+        observe = bool(getattr(est, "observe", False))
         return observation.predict_reach(
-            trial_or_task, self.weights_, self.n_nodes, observe, self.backend, warm_start, path
+            trial_or_task, est.weights_, est.n_nodes, observe, est.backend, warm_start, path
         )
+
+
+def _same(a, b) -> bool:
+    """Whether two parameter values are the same (arrays by their content)."""
+    if a is b:
+        return True
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b))
+    try:
+        return bool(a == b) and type(a) is type(b)
+    except (TypeError, ValueError):
+        return False

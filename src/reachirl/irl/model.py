@@ -62,6 +62,7 @@ class LearnedModel:
         method = next((name for name, c in METHODS.items() if type(est) is c), None)
         if method is None:
             raise ValueError(f"not an estimator of reachirl.irl.methods.METHODS: {type(est).__name__}")
+        est = est._as_fitted()  # as it was fitted: set_params since changes the next fit only
         info = estimator_info(est, method, list(trials))
         unc = info.pop("uncertainty", None)
         return cls(weights=est.weights_, n_nodes=est.n_nodes, method=method, info=info, uncertainty=unc)

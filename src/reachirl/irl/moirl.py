@@ -229,6 +229,13 @@ class MOIRL(WeightEstimator):
         self.__dict__.pop("_options", None)
         return self
 
+    def _as_fitted(self) -> MOIRL:
+        """As :meth:`WeightEstimator._as_fitted`, with the options the fit ran with (``options_``)."""
+        view = super()._as_fitted()
+        if view is not self:
+            view.__dict__["_options"] = self.options_
+        return view
+
     # ------------------------------------------------------------------ helpers
     def _check_params(self, trials: Sequence[Trial]) -> list[Trial]:
         self.__dict__.pop("_options", None)
@@ -383,11 +390,11 @@ class MOIRL(WeightEstimator):
         """Φ ``(n_windows, 7)`` of the fit's training rollouts (their mean), seen as the demonstrations were
         recorded, as the merit and the uncertainty's cost shares see them; ``None`` if a rollout did not
         converge."""
-        self._check_fitted()
-        sols = getattr(self, "train_solutions_", None)
+        est = self._as_fitted()
+        sols = getattr(est, "train_solutions_", None)
         if not sols or not all(s.converged for s in sols):
             return None
-        phi = self._features(self.tasks_, sols, np.array([0]))
+        phi = est._features(est.tasks_, sols, np.array([0]))
         return np.mean(phi[:, 0] if phi.ndim == 4 else phi, axis=0)  # with suffixes: the whole reach's
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
@@ -471,6 +478,7 @@ class MOIRL(WeightEstimator):
             self.warnings_ = [*self.warnings_, msg]
             log_fit_warning(log, msg)
         self.fit_time_ = time.perf_counter() - t_start
+        self._keep_fit_params()
         return self
 
     def _choose_smoothness(self, trials: list[Trial]) -> tuple[float, str | None]:

@@ -184,4 +184,5 @@ class BilevelIOC(WeightEstimator):
             )
         for msg in self.warnings_:  # as MO-IRL's: logged, unless the caller says them (reachirl fit, reproduce)
             log_fit_warning(log, msg)
+        self._keep_fit_params()
         return self

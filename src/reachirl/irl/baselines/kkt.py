@@ -236,4 +236,5 @@ class KKTIOC(WeightEstimator):
                 "wall_time": self.fit_time_,
             }
         ]
+        self._keep_fit_params()
         return self
