@@ -355,6 +355,13 @@ def test_set_params_after_fit_changes_the_next_fit_not_the_fitted_ones_predictio
     assert est.fit(demos).predict(demos[0]).q.shape == (2 * N_NODES + 1, 2)  # and the next fit runs with it
 
 
+def test_fitted_attributes_are_absent_before_fit(demos):
+    # tol_ (the acceptance threshold in force) was a property, there before any fit
+    est = MOIRL(2, n_nodes=N_NODES, max_iter=1, tol=0.01)
+    assert not [k for k in dir(est) if k.endswith("_") and not k.startswith("__") and hasattr(est, k)]
+    assert est.fit(demos[:2]).tol_ == 0.01
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

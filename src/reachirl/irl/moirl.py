@@ -154,15 +154,16 @@ class MOIRL(WeightEstimator):
     The fit makes no random choice: the same demonstrations give the same weights.
 
     Fitted attributes: ``weights_ (n_windows, 7)`` (those of the best merit seen), ``options_`` (the
-    :class:`~reachirl.irl.options.Options` used), ``history_`` (one dict per iteration: merit, step kind, alpha,
-    tries, weights, DOC solves, failures (tries whose DOC failed after every retry), recovered (tries a retry
-    rescued), wall time), ``merit_``, ``initial_merit_``, ``best_iteration_``, ``n_doc_solves_``,
-    ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``, ``smoothness_``, ``cv_scores_``, ``plain_fit_`` (the
-    whole-rollout first stage of an observed fit, else ``None``), ``tasks_`` (the rollouts' tasks),
-    ``train_solutions_``, ``task_of_demo_`` (each demonstration's rollout), ``observed_`` (``(D,)`` booleans:
-    which demonstrations were compared with their rollout as recorded, cut at their threshold; with ``observe``,
-    those whose rollout's demonstrations were all cut at one), ``uncertainty_`` (with
-    ``uncertainty``) and ``warnings_`` (a fit that never left ``ω₀``, or made a single step, says so).
+    :class:`~reachirl.irl.options.Options` used), ``tol_`` (the acceptance threshold used: ``tol`` or the method's
+    default), ``history_`` (one dict per iteration: merit, step kind, alpha, tries, weights, DOC solves, failures
+    (tries whose DOC failed after every retry), recovered (tries a retry rescued), wall time), ``merit_``,
+    ``initial_merit_``, ``best_iteration_``, ``n_doc_solves_``, ``n_doc_failures_``, ``n_iter_``, ``stop_reason_``,
+    ``smoothness_``, ``cv_scores_``, ``plain_fit_`` (the whole-rollout first stage of an observed fit, else
+    ``None``), ``tasks_`` (the rollouts' tasks), ``train_solutions_``, ``task_of_demo_`` (each demonstration's
+    rollout), ``observed_`` (``(D,)`` booleans: which demonstrations were compared with their rollout as recorded,
+    cut at their threshold; with ``observe``, those whose rollout's demonstrations were all cut at one),
+    ``uncertainty_`` (with ``uncertainty``) and ``warnings_`` (a fit that never left ``ω₀``, or made a single step,
+    says so).
     """
 
     _option_defaults: ClassVar[dict] = {}  # subclasses' own Options defaults (MaxEnt keeps every trajectory)
@@ -217,8 +218,8 @@ class MOIRL(WeightEstimator):
         return bool(self._o.observe)
 
     @property
-    def tol_(self) -> float:
-        """The acceptance threshold in force: ``tol``, or the method's default."""
+    def _tol(self) -> float:
+        """The acceptance threshold ``tol`` asks for: itself, or the method's default (the fit's is ``tol_``)."""
         if self.tol is not None:
             return float(self.tol)
         return 0.0 if self.seed_form else DEFAULT_TOL
@@ -254,8 +255,9 @@ class MOIRL(WeightEstimator):
             raise ValueError(f"max_iter must be an integer >= 1, got {self.max_iter!r}")
         if self.tol is not None and (not isinstance(self.tol, int | float | np.number) or isinstance(self.tol, bool)):
             raise ValueError(f"tol must be a number >= 0 and < 1, or None, got {self.tol!r}")
-        if not (np.isfinite(self.tol_) and 0 <= self.tol_ < 1):
+        if not (np.isfinite(self._tol) and 0 <= self._tol < 1):
             raise ValueError(f"tol must be a number >= 0 and < 1, got {self.tol}")
+        self.tol_ = self._tol
         if not isinstance(self.random_state, int | np.integer) or isinstance(self.random_state, bool):
             raise ValueError(
                 f"random_state must be an integer >= 0 (the seed of every random choice), got {self.random_state!r}"
@@ -706,7 +708,7 @@ class MOIRL(WeightEstimator):
         (merit acceptance) when a try's merit is no lower than the longer try's before it: along a unimodal
         merit no shorter step can then pass (a failed try, whose merit is unknown, does not end it)."""
         alpha, solves, failures, recovered = self._o.alpha0, 0, 0, 0
-        tol = self.tol_ if tol is None else tol
+        tol = self._tol if tol is None else tol
         rel = float(np.max(np.abs(dw / w)))
         m_prev = np.inf  # the previous (longer) try's merit
         for tries in range(1, self._o.max_tries + 1):
@@ -783,7 +785,7 @@ class MOIRL(WeightEstimator):
             starts,
             guesses,
             channels,
-            tol=max(self.tol_, self._o.fallback_tol),
+            tol=max(self._tol, self._o.fallback_tol),
         )
         return step._replace(solves=step.solves + solves, failures=step.failures + failures)
 
@@ -862,7 +864,7 @@ class MOIRL(WeightEstimator):
             tau = sols[0].tau if len(sols) == 1 else np.stack([sols[r].tau for r in self._of])
             return merit(self._tau_demos, tau)
 
-        return multimodal_accept(m, m_try, tau_merit(old), tau_merit(new), self.tol_)
+        return multimodal_accept(m, m_try, tau_merit(old), tau_merit(new), self._tol)
 
 
 def multimodal_accept(m: float, m_try: float, t: float, t_try: float, tol: float = 0.0) -> bool:
