@@ -391,6 +391,16 @@ def test_uncertainty_true_is_the_bare_flag_s_default_and_false_is_none(recorded)
         MOIRL(1, uncertainty=1000.5).fit(trials)
 
 
+def test_uncertainty_zero_is_none_as_in_a_run_file(recorded):
+    # a run file's `uncertainty = 0` (reproduce) means no samples; MOIRL(uncertainty=0) refused it
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
+    for none in (0, np.int64(0)):
+        assert MOIRL(1, n_nodes=20, max_iter=1, uncertainty=none).fit(trials).uncertainty_ is None
+    for bad in (19, -1, 0.0):
+        with pytest.raises(ValueError, match=r"uncertainty must be .*, or 0, False or None for none, got "):
+            MOIRL(1, n_nodes=20, max_iter=1, uncertainty=bad).fit(trials)
+
+
 def test_numpy_scalars_stand_for_the_python_values_they_hold(recorded, tmp_path):
     # MOIRL(uncertainty=np.True_) was refused ("must be a number of samples") where True draws 40 samples, and a
     # numpy boolean in `experimental` was refused where True or False was taken

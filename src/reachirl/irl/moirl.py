@@ -144,7 +144,8 @@ class MOIRL(WeightEstimator):
     * ``seed_form``: the paper's method exactly as written (:data:`reachirl.irl.options.SEED_FORM`).
     * ``uncertainty``: a number ``K ≥ 20`` of weight samples from the weights' posterior given the training data
       and the share intervals (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``; ``True`` is
-      :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES` (40, as ``reachirl fit --uncertainty``), ``False`` none.
+      :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES` (40, as ``reachirl fit --uncertainty``), ``False`` and ``0``
+      none (as ``uncertainty = 0`` in a ``reproduce`` run file).
     * ``random_state``: the seed of every random choice (the uncertainty's samples).
     * ``feature_mask``: ``(7,)`` or ``(n_windows, 7)`` booleans; a ``False`` feature is left out of the cost
       (weight 0, never learned). ``None``: every feature.
@@ -273,19 +274,21 @@ class MOIRL(WeightEstimator):
 
     def _n_samples(self) -> int | None:
         """The weight samples ``uncertainty`` asks for: its number, :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES`
-        for ``True`` (the bare ``reachirl fit --uncertainty``), ``None`` for ``None`` or ``False``."""
+        for ``True`` (the bare ``reachirl fit --uncertainty``), ``None`` for ``None``, ``False`` or ``0`` (none, as
+        the run-file key ``uncertainty = 0`` of ``reachirl reproduce``)."""
         from .uncertainty import DEFAULT_SAMPLES
 
         u = self.uncertainty
         if isinstance(u, np.bool_):  # a numpy boolean means what Python's does
             u = bool(u)
-        if u is None or u is False:
+        if u is None or u is False or (isinstance(u, int | np.integer) and not isinstance(u, bool) and u == 0):
             return None
         if u is True:
             return DEFAULT_SAMPLES
         if not (isinstance(u, int | np.integer) and 20 <= u <= 1000):
             raise ValueError(
-                f"uncertainty must be a number of samples from 20 to 1000, True ({DEFAULT_SAMPLES}) or None, got {u!r}"
+                f"uncertainty must be a number of samples from 20 to 1000, True ({DEFAULT_SAMPLES}), or 0, False or "
+                f"None for none, got {u!r}"
             )
         return int(u)
 
