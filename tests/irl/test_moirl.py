@@ -362,6 +362,17 @@ def test_fitted_attributes_are_absent_before_fit(demos):
     assert est.fit(demos[:2]).tol_ == 0.01
 
 
+def test_fit_refuses_a_trial_at_rest(demos):
+    # a trial whose fingertip never moves was fitted without a word: weights of 5000 and a merit of 1e21 (its
+    # zero spread normalised the merit)
+    t = demos[1]
+    n = t.t.size
+    q = np.tile(t.q[0], (n, 1))
+    still = replace(t, q=q, qd=np.zeros((n, 2)), qdd=np.zeros((n, 2)), x0=None, target_x=float(t.arm.fk(q[0])[0]))
+    with pytest.raises(InputError, match=r"^trial 1 \(virtual//right/1\): no movement: the fingertip ranges over 0 mm"):
+        MOIRL(2, n_nodes=N_NODES).fit([demos[0], still])
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

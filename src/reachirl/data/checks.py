@@ -18,10 +18,12 @@ from ..validation import brief, check_arm, check_duration, require
 
 __all__ = [
     "LENGTH_TOLERANCE",
+    "MIN_REACH_RANGE",
     "check_model_rollout",
     "check_segment_lengths",
     "check_start_and_target",
     "check_trial_meta",
+    "check_trial_moves",
     "check_trial_physics",
     "check_trial_posture",
     "pd_gain_limits",
@@ -30,6 +32,12 @@ __all__ = [
 #: subject-info segment lengths may differ from the markers' measured ones by this fraction at most (joint
 #: centres from markers and tape measures of the segments agree within ~10 %; 20 % apart is another arm)
 LENGTH_TOLERANCE = 0.20
+
+#: the least range of the fingertip (the diagonal of the box it moves in, low-passed at MIN_SEGMENT_CUTOFF_HZ) in a
+#: record, as a fraction of its median distance from the shoulder: a reach moves it by tens of centimetres (the
+#: virtual subjects' bars lie at least 0.1 arm lengths beyond the start), a hand at rest by millimetres of drift and
+#: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
+MIN_REACH_RANGE = 0.05
 
 
 def _deg(v: float) -> str:
@@ -60,6 +68,22 @@ def check_start_and_target(trial, path: object, where: str | None = None) -> Non
                 path,
                 where,
             )
+
+
+def check_trial_moves(trial, where: str | None = None) -> None:
+    """The fingertip moves: it ranges over at least :data:`MIN_REACH_RANGE` of its median distance from the
+    shoulder, as preprocessing asks of a recording. A trial at rest has no reach to learn from (its features are
+    zero and its spread, which normalises the merit, too)."""
+    tip = trial.arm.fk(trial.q)
+    extent = float(np.linalg.norm(np.ptp(tip, axis=0)))
+    distance = float(np.median(np.linalg.norm(tip, axis=1)))
+    if extent < MIN_REACH_RANGE * distance:
+        raise InputError(
+            f"no movement: the fingertip ranges over {extent * 1000:.0f} mm, less than {MIN_REACH_RANGE:.0%} of its "
+            f"distance from the shoulder ({distance * 1000:.0f} mm): a trial at rest has no reach to learn from",
+            None,
+            where,
+        )
 
 
 def _first_outside(q: np.ndarray, tol: float) -> int | None:

@@ -77,6 +77,7 @@ from scipy.interpolate import CubicSpline
 
 from ..arm import ArmModel
 from ..errors import InputError
+from .checks import MIN_REACH_RANGE  # the least fingertip range of a reach
 from .kinematics import (
     build_arm,
     check_units,
@@ -151,12 +152,6 @@ MAX_REST_DRIFT_M = 0.02
 #: the least fingertip movement, as a fraction of the shoulder-to-fingertip distance, of a reach seen beside a gap
 #: cut off (the virtual subjects' bars lie at least 0.1 arm lengths beyond the start)
 MIN_CUT_REACH = 0.1
-
-#: the least range of the fingertip (the diagonal of the box it moves in, low-passed at MIN_SEGMENT_CUTOFF_HZ) in a
-#: record, as a fraction of its median distance from the shoulder: a reach moves it by tens of centimetres (the
-#: virtual subjects' bars lie at least 0.1 arm lengths beyond the start), a hand at rest by millimetres of drift and
-#: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
-MIN_REACH_RANGE = 0.05
 
 #: degrees: a segment of a reach's arm stands at most this far out of the vertical plane of the reach ... (see
 #: check_up_axis; UE-ADL: at most 34°; a lab axis across the reach given as up: 63-90°)

@@ -13,7 +13,7 @@ from os import PathLike
 
 import numpy as np
 
-from ..data.checks import check_start_and_target, check_trial_physics
+from ..data.checks import check_start_and_target, check_trial_moves, check_trial_physics
 from ..data.trial import Trial
 from ..doc import BACKENDS, DocSolution, ReachingTask, observation
 
@@ -84,6 +84,7 @@ class WeightEstimator:
         for i, t in enumerate(trials):  # as load_trials checks a file's: angles in degrees, a start at 1e6 rad/s
             check_trial_physics(t, i, None)
             check_start_and_target(t, None, f"trial {i} ({t.id})")
+            check_trial_moves(t, f"trial {i} ({t.id})")
         for name in ("n_windows", "n_nodes"):
             v = getattr(self, name)
             if not isinstance(v, int | np.integer) or isinstance(v, bool):
