@@ -373,6 +373,15 @@ def test_fit_refuses_a_trial_at_rest(demos):
         MOIRL(2, n_nodes=N_NODES).fit([demos[0], still])
 
 
+def test_a_model_evaluates_a_sequence_of_trials_only(demos):
+    # a single Trial failed with "'Trial' object is not iterable", a list of ids deep in ReachingTask.from_trial
+    model = LearnedModel(weights=true_weights(2), n_nodes=N_NODES)
+    with pytest.raises(TypeError, match=r"evaluate takes a sequence of Trial, got a Trial$"):
+        model.evaluate(demos[0])
+    with pytest.raises(TypeError, match=r"evaluate takes a sequence of Trial, got a str at index 1$"):
+        model.evaluate([demos[0], demos[1].id])
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

@@ -6,7 +6,7 @@ resampled onto the DOC's knots (normalised time) and compared there.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +58,12 @@ def evaluate_trials(
     Each DOC starts cold: from the minimum-jerk path, or from ``path`` (``(n_nodes + 1, 2)``, a reach under
     these weights on the same knots, such as the fit's own rollout) moved to the trial's start and bar
     (:func:`reachirl.doc.task.moved_path`), which takes fewer iterations to the same optimum."""
+    if isinstance(trials, Trial | str) or not isinstance(trials, Iterable):
+        raise TypeError(f"evaluate takes a sequence of Trial, got a {type(trials).__name__}")
+    trials = list(trials)
+    for i, trial in enumerate(trials):
+        if not isinstance(trial, Trial):
+            raise TypeError(f"evaluate takes a sequence of Trial, got a {type(trial).__name__} at index {i}")
     out = []
     for trial in trials:  # each from a cold start: another reach's solution is a poor warm start
         _, sol = predict(trial, weights, n_nodes, trial.onset_threshold if observe else None, backend, path=path)
