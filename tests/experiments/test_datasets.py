@@ -1,6 +1,9 @@
 """Where reproduce gets its trials: the built-in data set is preprocessed once, then read from the trials cache."""
 
+import pytest
+
 import reachirl.virtual
+from reachirl.errors import InputError
 from reachirl.experiments import datasets
 
 
@@ -38,3 +41,20 @@ def test_a_relative_data_path_is_recorded_absolute(tmp_path, monkeypatch):
     assert ds.source == str(tmp_path.resolve() / "trials.npz")
     monkeypatch.chdir(tmp_path.parent)
     assert datasets.load(ds.source).describe()["fingerprint"] == ds.describe()["fingerprint"]
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"seed": "a"}, r"^seed must be an integer in \[0, 2\*\*32 - 1\], got 'a'$"),
+        ({"seed": 1.5}, r"^seed must be an integer in \[0, 2\*\*32 - 1\], got 1\.5$"),
+        ({"seed": True}, r"^seed must be an integer in \[0, 2\*\*32 - 1\], got True$"),
+        ({"seed": -1}, r"^seed must be an integer in \[0, 2\*\*32 - 1\], got -1$"),
+        ({"n_subjects": "3"}, r"^n_subjects must be an integer, got '3'$"),
+    ],
+)
+def test_the_built_in_data_set_names_a_seed_or_subject_count_that_is_no_integer(kwargs, match):
+    # a seed of "a" failed deep in the cache's key ("invalid literal for int() with base 10"), 1.5 and True were
+    # read as seed 1: another population than the one asked for
+    with pytest.raises(InputError, match=match):
+        datasets.load(None, **kwargs)

@@ -202,6 +202,11 @@ def load(
 ) -> Dataset:
     """The trials ``reproduce`` runs on; see the module docstring. Problems raise :class:`InputError`.
     ``n_subjects`` (built-in data only) makes that many virtual subjects (default 2)."""
+    for name, v, lo in (("seed", seed, 0), ("n_subjects", n_subjects, None)):
+        if name == "n_subjects" and v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or (lo is not None and not lo <= v < 2**32):
+            raise InputError(f"{name} must be an integer{' in [0, 2**32 - 1]' if lo is not None else ''}, got {v!r}")
     if n_subjects is not None and path is not None:
         raise InputError("--subjects makes built-in virtual subjects; it cannot be combined with --data")
     if n_subjects is not None and int(n_subjects) < 2:
