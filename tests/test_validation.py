@@ -540,3 +540,13 @@ def test_the_console_script_answers_bad_options_and_paths_in_one_line(files, cas
 def test_help_states_the_limits():
     p = subprocess.run([REACHIRL, "fit", "--help"], capture_output=True, text=True, timeout=60)
     assert "DOC knots N, 4 to 1000" in p.stdout and "1 to 10000" in p.stdout
+
+
+def test_select_trials_takes_a_single_name_as_that_name(tiny_trials):
+    # subjects="S1" was read letter by letter ("no trial of subject S, 1"), postures=[2] failed in str.join
+    from reachirl.data.trial import select_trials
+
+    trials = load_trials(tiny_trials)
+    assert [t.subject for t in select_trials(trials, subjects="S1")] == ["S1"] * 3
+    with pytest.raises(InputError, match=r"^no trial of posture 2; they have posture P2$"):
+        select_trials(trials, postures=[2])

@@ -10,7 +10,7 @@ import json
 import re
 import zipfile
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -378,12 +378,15 @@ def select_trials(
 
     A value that none of the trials left by the choices before it has (subject, then posture, then side) raises
     :class:`InputError` naming ``path`` (the trials file) and what those trials hold, so the result is never
-    empty."""
+    empty. A single name (``subjects="S01"``) is that one name, and a value is compared as text, as a trial holds
+    it (``postures=[2]`` is posture ``"2"``)."""
     out, applied = list(trials), []
     for field_name, values in (("subject", subjects), ("posture", postures), ("side", sides)):
         if values is None:
             continue
-        wanted = list(dict.fromkeys(values))
+        if isinstance(values, str) or not isinstance(values, Iterable):
+            values = [values]
+        wanted = list(dict.fromkeys(str(v) for v in values))
         have = sorted({getattr(t, field_name) for t in out})
         unknown = [v for v in wanted if v not in have]
         if unknown:
