@@ -167,6 +167,12 @@ def test_kkt_degrades_with_angle_noise(demos):
         (BilevelIOC(2, max_evals="a"), "max_evals must be an integer >= 2, got 'a'"),
         (BilevelIOC(2, failure_merit=-1.0), "failure_merit must be a number >= 1, got -1.0"),
         (BilevelIOC(2, xtol=-1.0), "xtol must be a number > 0"),
+        # text and infinities failed in a comparison ("'>' not supported between instances of 'str' and 'int'") or
+        # went into the NNLS
+        (BilevelIOC(2, log_bound="a"), "log_bound must be > 0 and finite, got 'a'"),
+        (BilevelIOC(2, w0=float("inf")), r"w0 must be > 0 \(the search is on log-weights\) and finite, got inf"),
+        (KKTIOC(2, zero_power_tol="a"), "zero_power_tol must be a finite number >= 0, got 'a'"),
+        (KKTIOC(2, norm_weight=float("inf")), "norm_weight must be a finite number > 0, got inf"),
         (KKTIOC(2.5), "n_windows must be an integer, got 2.5"),
         (KKTIOC(2, backend="foo"), "backend must be 'casadi' or 'crocoddyl', got 'foo'"),
         (MOIRL(2, random_state=-1), "random_state must be an integer >= 0, got -1"),

@@ -86,10 +86,11 @@ class BilevelIOC(WeightEstimator):
             ok = isinstance(v, int | float | np.number) and not isinstance(v, bool) and np.isfinite(v)
             if not (ok and (v >= least if least else v > 0)):
                 raise ValueError(f"{name} must be a number {'>= 1' if least else '> 0'}, got {v!r}")
-        if not self.log_bound > 0:
-            raise ValueError(f"log_bound must be > 0, got {self.log_bound}")
-        if not self.w0 > 0:
-            raise ValueError(f"w0 must be > 0 (the search is on log-weights), got {self.w0}")
+        for name, why in (("log_bound", ""), ("w0", " (the search is on log-weights)")):
+            v = getattr(self, name)
+            ok = isinstance(v, int | float | np.number) and not isinstance(v, bool) and bool(np.isfinite(v))
+            if not (ok and v > 0):
+                raise ValueError(f"{name} must be > 0{why} and finite, got {v!r}")
         return trials
 
     def reach_features(self) -> np.ndarray | None:

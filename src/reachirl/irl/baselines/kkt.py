@@ -198,8 +198,11 @@ class KKTIOC(WeightEstimator):
             raise ValueError(f"normalisation must be 'cost' or 'gradient', got {self.normalisation!r}")
         if self.pooling not in ("joint", "per_demo"):
             raise ValueError(f"pooling must be 'joint' or 'per_demo', got {self.pooling!r}")
-        if not self.norm_weight > 0 or not self.zero_power_tol >= 0:
-            raise ValueError("need norm_weight > 0 and zero_power_tol >= 0")
+        for name, positive in (("norm_weight", True), ("zero_power_tol", False)):
+            v = getattr(self, name)
+            ok = isinstance(v, int | float | np.number) and not isinstance(v, bool) and bool(np.isfinite(v))
+            if not (ok and (v > 0 if positive else v >= 0)):
+                raise ValueError(f"{name} must be a finite number {'> 0' if positive else '>= 0'}, got {v!r}")
         t0 = time.perf_counter()
         mats = [kkt_matrices(t, self.n_nodes, self.n_windows, self.zero_power_tol) for t in trials]
         if self.normalisation == "cost":
