@@ -137,3 +137,24 @@ def test_the_cli_takes_the_segmentation_cutoff(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "--segment-cutoff: expected auto or a number of Hz in [0, 1000]" in err[0], err
     assert not (tmp_path / "bad.npz").exists()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"cutoff_hz": float("nan")}, r"^cutoff_hz must be a number > 0 \(Hz\) or None, got nan$"),
+        ({"filter_order": 0}, r"^filter_order must be an integer >= 1 and <= 8, got 0$"),
+        ({"filter_order": 2.5}, r"^filter_order must be an integer >= 1 and <= 8, got 2\.5$"),
+        ({"min_peak_speed": float("nan")}, r"^min_peak_speed must be a number > 0 \(m/s\), got nan$"),
+        ({"max_gap_frames": 2.5}, r"^max_gap_frames must be an integer >= 0, got 2\.5$"),
+        ({"n_samples": 100.5}, r"^n_samples must be an integer >= 4, got 100\.5$"),
+        ({"segment_range_m": (float("nan"), 1.0)}, r"^segment_range_m must be two numbers 0 < low < high \(m\)"),
+        ({"pca_max_tilt_deg": float("nan")}, r"^pca_max_tilt_deg must be a number in \(0, 90\] \(degrees\), got nan$"),
+        ({"onset_threshold": "0.05"}, r"^onset_threshold must be a number in \(0, 1\), got '0\.05'$"),
+    ],
+)
+def test_preprocess_options_name_a_bad_number(kwargs, match):
+    # these failed deep in numpy and scipy ("attempt to get argmin of an empty sequence" for a NaN cutoff, "float
+    # division by zero" for order 0) or were taken as given (a NaN minimum speed, a NaN plane tilt)
+    with pytest.raises(ValueError, match=match):
+        PreprocessOptions(**kwargs)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 __all__ = ["PreprocessOptions"]
 
 
@@ -40,14 +42,43 @@ class PreprocessOptions:
             raise ValueError(f"ik must be 'segments' or 'fingertip', got {self.ik!r}")
         if self.distal not in ("fingertip", "wrist"):
             raise ValueError(f"distal must be 'fingertip' or 'wrist', got {self.distal!r}")
-        if not 0 < self.onset_threshold < 1:
-            raise ValueError(f"onset_threshold must be in (0, 1), got {self.onset_threshold}")
-        if self.max_gap_frames < 0:
-            raise ValueError("max_gap_frames must be >= 0")
-        if self.cutoff_hz is not None and self.cutoff_hz <= 0:
-            raise ValueError("cutoff_hz must be > 0 or None")
+        # numbers are checked here, by name: NaN, text or a fractional order failed deep in numpy and scipy
+        # ("attempt to get argmin of an empty sequence", "float division by zero") or passed unseen
+        _number("onset_threshold", self.onset_threshold, 0.0, 1.0, "in (0, 1)", open_high=True)
+        _integer("max_gap_frames", self.max_gap_frames, 0)
+        if self.cutoff_hz is not None:
+            _number("cutoff_hz", self.cutoff_hz, 0.0, None, "> 0 (Hz) or None")
+        _integer("filter_order", self.filter_order, 1, 8)
         fc = self.segment_cutoff_hz
-        if fc is not None and fc != "auto" and (isinstance(fc, str) or not fc > 0):
+        if not (fc is None or (isinstance(fc, str) and fc == "auto") or (_real(fc) and 0 < fc < np.inf)):
             raise ValueError(f"segment_cutoff_hz must be 'auto', a number > 0 or None, got {fc!r}")
-        if self.n_samples is not None and self.n_samples < 4:
-            raise ValueError("n_samples must be >= 4")
+        _number("min_peak_speed", self.min_peak_speed, 0.0, None, "> 0 (m/s)")
+        if self.n_samples is not None:
+            _integer("n_samples", self.n_samples, 4)
+        r = self.segment_range_m
+        if not (isinstance(r, tuple | list) and len(r) == 2 and all(_real(v) for v in r) and 0 < r[0] < r[1] < np.inf):
+            raise ValueError(f"segment_range_m must be two numbers 0 < low < high (m), got {r!r}")
+        _number("pca_max_tilt_deg", self.pca_max_tilt_deg, 0.0, 90.0, "in (0, 90] (degrees)")
+        _number("pca_max_flatness", self.pca_max_flatness, 0.0, 1.0, "in (0, 1]")
+
+
+def _real(v) -> bool:
+    """A real number, not a boolean, not NaN."""
+    return isinstance(v, int | float | np.integer | np.floating) and not isinstance(v, bool) and not np.isnan(v)
+
+
+def _number(name: str, v, low: float, high: float | None, expected: str, open_high: bool = False) -> None:
+    """``v`` is a number above ``low`` and up to ``high`` (below it with ``open_high``)."""
+    ok = _real(v) and v > low and np.isfinite(v)
+    if ok and high is not None:
+        ok = v < high if open_high else v <= high
+    if not ok:
+        raise ValueError(f"{name} must be a number {expected}, got {v!r}")
+
+
+def _integer(name: str, v, low: int, high: int | None = None) -> None:
+    """``v`` is an integer in ``[low, high]``."""
+    ok = isinstance(v, int | np.integer) and not isinstance(v, bool) and v >= low and (high is None or v <= high)
+    if not ok:
+        upto = "" if high is None else f" and <= {high}"
+        raise ValueError(f"{name} must be an integer >= {low}{upto}, got {v!r}")
