@@ -280,3 +280,20 @@ def test_scheduler_that_fails_to_connect_is_one_line_at_once(tmp_path):
     assert done.returncode == 0
     assert done.stdout.startswith("cannot connect to the Dask scheduler (TypeError: TLS expects")
     assert done.stderr == ""
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"sections": (1.5,)}, r"^--sections must be positive integers, got \[1\.5\]$"),
+        ({"seed": -1}, r"^seed must be an integer in \[0, 4294967295\], got -1$"),
+        ({"max_iter": 0}, r"^max_iter must be an integer in \[1, 10000\], got 0$"),
+        ({"n_train": "a"}, r"^n_train must be an integer >= 1, got 'a'$"),
+        ({"n_nodes": 3, "sections": (1,)}, r"^n_nodes must be an integer in \[4, 1000\], got 3$"),
+        ({"backend": "ipopt"}, r"^backend must be one of casadi, crocoddyl, got 'ipopt'$"),
+    ],
+)
+def test_a_protocol_config_names_a_bad_count_seed_or_backend(kwargs, match):
+    # 1.5 sections were read as 1; the others were taken and failed in every unit (or, for n_train="a", in int())
+    with pytest.raises(InputError, match=match):
+        ProtocolConfig(**kwargs)

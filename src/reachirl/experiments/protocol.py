@@ -31,9 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from ..data.trial import Trial
+from ..doc import BACKENDS
 from ..errors import InputError
 from ..features import cost_shares
-from ..validation import not_real
+from ..validation import MAX_ITER, check_n_nodes, not_real
 from .datasets import fingerprint
 
 __all__ = [
@@ -86,6 +87,25 @@ class ProtocolConfig:
         for name in ("seed", "n_train", "n_cv", "n_iscv", "n_nodes", "max_iter", "tol", "uncertainty"):
             if isinstance(getattr(self, name), bool | np.bool_):  # a results.json's "n_train": true is not 1
                 raise InputError(f"{name} must be a number, got {getattr(self, name)!r}")
+        # whole numbers by name: 1.5 sections were read as 1, a text count or a seed of -1 failed in the units
+        if any(isinstance(s, float | np.floating) and not float(s).is_integer() for s in self.sections):
+            raise InputError(f"--sections must be positive integers, got {list(self.sections)}")
+        for name, lo, hi in (
+            ("seed", 0, 2**32 - 1),
+            ("max_iter", 1, MAX_ITER),
+            ("n_train", 1, None),
+            ("n_cv", 1, None),
+            ("n_iscv", 1, None),
+        ):
+            v = getattr(self, name)
+            if v is None and name.startswith("n_"):
+                continue
+            if not isinstance(v, int | np.integer) or v < lo or (hi is not None and v > hi):
+                expected = f"in [{lo}, {hi}]" if hi is not None else f">= {lo}"
+                raise InputError(f"{name} must be an integer {expected}, got {v!r}")
+        object.__setattr__(self, "n_nodes", check_n_nodes(self.n_nodes))
+        if self.backend not in BACKENDS:
+            raise InputError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
         secs = tuple(int(s) for s in self.sections)
         if not secs or any(s < 1 for s in secs):
             raise InputError(f"--sections must be positive integers, got {list(self.sections)}")
@@ -116,10 +136,6 @@ class ProtocolConfig:
                 raise InputError(f"unknown method {m!r}; expected one of {', '.join(METHODS)}")
         if self.train_side not in (None, "right", "left"):
             raise InputError(f"train side must be right or left, got {self.train_side!r}")
-        for name in ("n_train", "n_cv", "n_iscv"):
-            v = getattr(self, name)
-            if v is not None and int(v) < 1:
-                raise InputError(f"{name} must be >= 1, got {v}")
         if self.postures is not None:
             object.__setattr__(self, "postures", tuple(self.postures))
         object.__setattr__(self, "methods", tuple(dict.fromkeys(self.methods)))
