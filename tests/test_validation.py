@@ -550,3 +550,14 @@ def test_select_trials_takes_a_single_name_as_that_name(tiny_trials):
     assert [t.subject for t in select_trials(trials, subjects="S1")] == ["S1"] * 3
     with pytest.raises(InputError, match=r"^no trial of posture 2; they have posture P2$"):
         select_trials(trials, postures=[2])
+
+
+def test_equal_trials_compare_equal_and_can_be_set_members(tiny_trials):
+    # dataclass equality compared the arrays with ==: a file loaded twice raised "The truth value of an array with
+    # more than one element is ambiguous" in `t in trials`, and set(trials) "unhashable type: 'numpy.ndarray'"
+    from dataclasses import replace
+
+    a, b = load_trials(tiny_trials), load_trials(tiny_trials)
+    assert a[0] == b[0] and a[0] in b and a[1] != b[0]
+    assert replace(a[0], q=a[0].q + 1e-3) != a[0]
+    assert len(set(a) | set(b)) == len(a)

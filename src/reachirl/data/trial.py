@@ -11,7 +11,7 @@ import re
 import zipfile
 import zlib
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -118,6 +118,25 @@ class Trial:
             if isinstance(th, bool) or not isinstance(th, int | float | np.number) or not 0.0 < float(th) < 1.0:
                 raise InputError(f"onset_threshold must be a fraction in (0, 1) or None, got {th!r}", where)
             object.__setattr__(self, "onset_threshold", float(th))
+
+    def __eq__(self, other: object) -> bool:
+        """Field by field, arrays by their values: dataclass equality compared the arrays with ``==``, and two
+        equal trials (a file loaded twice) raised numpy's "truth value of an array ... is ambiguous" in ``==``
+        and ``in``."""
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        for f in fields(self):
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                if not np.array_equal(a, b):
+                    return False
+            elif a != b:
+                return False
+        return True
+
+    def __hash__(self) -> int:
+        """From the trial's id and duration (equal trials have equal ones): a trial can be a set member or a key."""
+        return hash((self.id, self.duration))
 
     # ------------------------------------------------------------------ derived
     @property
