@@ -382,6 +382,15 @@ def test_a_model_evaluates_a_sequence_of_trials_only(demos):
         model.evaluate([demos[0], demos[1].id])
 
 
+def test_a_model_loaded_twice_compares_equal(tmp_path):
+    # dataclass equality compared the weights with ==: "The truth value of an array ... is ambiguous"
+    from reachirl.irl.model import load_model, save_model
+
+    save_model(tmp_path / "m.json", LearnedModel(weights=true_weights(2), n_nodes=N_NODES, info={"note": "x"}))
+    assert load_model(tmp_path / "m.json") == load_model(tmp_path / "m.json")
+    assert load_model(tmp_path / "m.json") != LearnedModel(weights=2 * true_weights(2), n_nodes=N_NODES)
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

@@ -50,6 +50,16 @@ class LearnedModel:
         # what load_model would refuse is refused here, so that a model saved is a model that loads
         check_model_dict(to_jsonable(self.to_dict()), "LearnedModel")
 
+    def __eq__(self, other: object) -> bool:
+        """Field by field, the weights by value (dataclass equality raised numpy's "truth value of an array ... is
+        ambiguous" for two models of the same file)."""
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        rest = ("n_nodes", "method", "info", "uncertainty")
+        return np.array_equal(self.weights, other.weights) and all(getattr(self, k) == getattr(other, k) for k in rest)
+
+    __hash__ = None  # its info and uncertainty are mutable mappings
+
     @classmethod
     def from_estimator(cls, est, trials: Sequence = ()) -> LearnedModel:
         """The model of a fitted estimator (MOIRL or a baseline), as ``reachirl fit`` writes it: with its
