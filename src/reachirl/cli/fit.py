@@ -15,7 +15,7 @@ from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
 from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
-from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite
+from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite, samples_or_none
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -81,12 +81,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--uncertainty",
-        type=int_in(20, 1000),
+        type=samples_or_none(20, 1000),
         nargs="?",
         const=DEFAULT_SAMPLES,
         default=None,
         metavar="K",
-        help=f"MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default {DEFAULT_SAMPLES} when given) from "
+        help=f"MO-IRL/MaxEnt: also write K weight samples (20 to 1000, default {DEFAULT_SAMPLES} when given; 0: none, "
+        "as reproduce's) from "
         "the weights' posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad "
         "prior: docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
         "takes 1.3-2.7x a plain fit's CPU time)",
@@ -160,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
             random_state=args.seed,
             experimental=experimental,
         )
-    elif args.seed_form or args.uncertainty is not None or experimental or args.rollout is not None:
+    elif args.seed_form or args.uncertainty or experimental or args.rollout is not None:
         raise InputError(
             f"--seed-form, --uncertainty, --rollout and --config apply to moirl and maxent, not {args.method}"
         )
