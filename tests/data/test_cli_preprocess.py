@@ -405,6 +405,18 @@ def test_a_trials_file_whose_count_disagrees_with_its_list_is_refused(tiny_trial
         load_trials(bad)
 
 
+def test_a_file_that_is_not_a_trials_file_names_the_command_that_writes_one(tmp_path):
+    """`synth` writes recordings, not a trials file: only `preprocess` is named."""
+    from reachirl.data.trial import load_trials
+    from reachirl.errors import InputError
+
+    model = tmp_path / "model.json"
+    model.write_text('{"format": "reachirl-model/1"}')
+    expected = r"model\.json: not a trials file \(expected the NPZ written by `reachirl preprocess`\)$"
+    with pytest.raises(InputError, match=expected):
+        load_trials(model)
+
+
 def test_a_file_this_user_cannot_read_says_so(tiny_trials, monkeypatch):
     """Not "not a trials file": the reason is the permission (root reads mode-000 files, so open is made to fail)."""
     import builtins

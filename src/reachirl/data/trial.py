@@ -290,7 +290,7 @@ def load_trials(path: str | Path) -> list[Trial]:
 
     path = check_regular_file(path)  # a FIFO or a device would block or never end
     if not zipfile.is_zipfile(path):
-        raise InputError("not a trials file (expected the NPZ written by `reachirl preprocess` or `synth`)", path)
+        raise InputError("not a trials file (expected the NPZ written by `reachirl preprocess`)", path)
     check_npz_file(path)  # sizes, dtypes and CRCs, before any array is read
     _check_entries(path)
     try:
