@@ -644,3 +644,25 @@ def test_a_recording_whose_axes_are_permuted_needs_its_up_axis(tmp_path, synth, 
     assert code == 0, err
     (y,), (z,) = load_trials(tmp_path / "y.npz"), load_trials(tmp_path / "z.npz")
     np.testing.assert_allclose(y.q, z.q, atol=1e-6)
+
+
+@pytest.mark.parametrize("option", ["--up-axis", "--forward-axis"])
+def test_a_lab_axis_that_is_none_is_refused_naming_its_option(tmp_path, reach, synth, capsys, option):
+    """`--up-axis w` was refused only once a recording was read, as "axis must be one of ...", naming neither the
+    option nor anything the user gave."""
+    import argparse
+
+    from reachirl.cli._args import lab_axis_arg
+
+    with pytest.raises(argparse.ArgumentTypeError, match=r"^expected one of ±x, ±y, ±z, got 'w'$"):
+        lab_axis_arg("w")
+    assert [lab_axis_arg(a) for a in ("+z", "-y", "X", " z")] == ["+z", "-y", "X", " z"]
+    (tmp_path / "r.trc").write_text(synth.trc_text(reach.markers, up="y"))
+    args = [tmp_path / "r.trc", "--markers", synth.MAP, "--plane", "axes", option, "w", "--out", tmp_path / "o.npz"]
+    with pytest.raises(SystemExit) as stop:
+        _run(args, capsys)
+    err = capsys.readouterr().err
+    assert (
+        stop.value.code == 2
+        and err == f"reachirl preprocess: error: argument {option}: expected one of ±x, ±y, ±z, got 'w'\n"
+    )

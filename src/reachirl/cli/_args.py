@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -55,6 +56,14 @@ def samples_or_none(lo: int, hi: int) -> Callable[[str], int]:
 def number_in(lo: float, hi: float) -> Callable[[str], float]:
     """A finite number in ``[lo, hi]`` (NaN and infinities are refused)."""
     return _checked(float, lambda v: lo <= v <= hi, f"a number in [{lo:g}, {hi:g}]", trim=40)
+
+
+def lab_axis_arg(text: str) -> str:
+    """A lab axis ``±x``, ``±y`` or ``±z`` (``--up-axis``, ``--forward-axis``), checked as the option is read so
+    that a wrong one is refused naming the option, before any recording is read."""
+    if not re.fullmatch(r"[+-]?[xyz]", text.strip().lower()):
+        raise argparse.ArgumentTypeError(f"expected one of ±x, ±y, ±z, got {text[:40]!r}")
+    return text
 
 
 #: ``--backend`` of the commands that predict with a MODEL.json

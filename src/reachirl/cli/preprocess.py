@@ -32,6 +32,7 @@ from ._args import (
     TRIALS_KIND,
     export_names,
     int_in,
+    lab_axis_arg,
     number_in,
     output_folder_files,
     refuse_foreign_export_files,
@@ -158,12 +159,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     g.add_argument(
         "--up-axis",
+        type=lab_axis_arg,
         metavar="AXIS",
         help="lab axis opposite gravity, e.g. +z (default: a C3D file's POINT:Y_SCREEN, else the marker set's, "
         "else the format's: +z Vicon/C3D, +y TRC)",
     )
     g.add_argument(
         "--forward-axis",
+        type=lab_axis_arg,
         metavar="AXIS",
         help="lab forward axis, with --plane axes: the axis (x, y or z; its sign follows the reach's own "
         "direction, so +x and -x are one axis; default: the horizontal axis the fingertip moves along)",
