@@ -112,6 +112,10 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
             r"run\.toml: fit reads only the \[experimental\] table of a run file, not max_iter, nodes \(give those as",
         ),
         (
+            lambda d, t: ["fit", str(t), "--sections", "1", "--config", str(d / "typo.toml"), "--out", str(d / "m")],
+            r"typo\.toml: unknown run-file key\(s\) merrit; fit reads only the \[experimental\] table of a run file$",
+        ),
+        (
             lambda d, t: ["fit", str(t), "--sections", "1", "--out", str(d / "old.npz")],
             r"old\.npz: --out: exists and is not a \.json file; it would be replaced \(choose another path\)",
         ),
@@ -127,6 +131,7 @@ def test_bad_input_exits_2_with_one_line(trials_file, tmp_path, capsys, make_arg
     (tmp_path / "other.json").write_text('{"weights": [[1, 2, 3, 4, 5, 6, 7]]}')
     (tmp_path / "old.npz").write_bytes(b"a trials file given as --out by mistake")
     (tmp_path / "run.toml").write_text('nodes = 40\nmax_iter = 2\n\n[experimental]\nmerit = "state"\n')
+    (tmp_path / "typo.toml").write_text('merrit = "state"\n')
     model = {"format": "reachirl-model/1", "features": list(FEATURES), "weights": [[1.0] * 7]}
     (tmp_path / "acados.json").write_text(json.dumps({**model, "info": {"backend": "acados"}}))
     assert main(make_args(tmp_path, trials_file)) == 2

@@ -120,6 +120,14 @@ def _experimental(path: Path | None, n_windows: int, seed_form: bool = False) ->
 
     content = read_run_file(path)
     other = sorted(k for k in content if k != "experimental")
+    from .reproduce import COMMAND_LINE_ONLY, OTHER_KEYS, RUN_KEYS
+
+    unknown = [k for k in other if k not in {*RUN_KEYS, *OTHER_KEYS, *COMMAND_LINE_ONLY}]
+    if unknown:  # not a protocol key of `reproduce` either: no flag of fit's takes it
+        raise InputError(
+            f"unknown run-file key(s) {', '.join(unknown)}; fit reads only the [experimental] table of a run file",
+            path,
+        )
     if other:
         raise InputError(
             f"fit reads only the [experimental] table of a run file, not {', '.join(other)} (give those as "
