@@ -104,6 +104,10 @@ def test_fit_then_evaluate(trials_file, tmp_path, capsys):
             r"bad\.json: line 1: invalid JSON",
         ),
         (
+            lambda d, t: ["evaluate", "--model", str(t), str(t), "--out", str(d / "x.json")],
+            r"\.npz: not a reachirl model file: an NPZ archive such as a trials file, expected a MODEL\.json$",
+        ),
+        (
             lambda d, t: ["evaluate", "--model", str(d / "other.json"), str(t), "--out", str(d / "x.json")],
             r"other\.json: not a reachirl model file",
         ),

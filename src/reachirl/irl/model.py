@@ -5,6 +5,7 @@ predictions of trials."""
 from __future__ import annotations
 
 import math
+import zipfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -325,6 +326,8 @@ def load_model(path: str | Path) -> LearnedModel:
     (:func:`check_model_dict`); any problem is an :class:`~reachirl.errors.InputError` naming the file."""
     p = Path(path)
     check_file_size(p, MAX_MODEL_BYTES)
+    if p.is_file() and zipfile.is_zipfile(p):  # a trials file given as the model (the two swapped)
+        raise InputError("not a reachirl model file: an NPZ archive such as a trials file, expected a MODEL.json", p)
     d = read_json(p)
     check_model_dict(d, p)
     try:
