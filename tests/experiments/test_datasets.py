@@ -58,3 +58,10 @@ def test_the_built_in_data_set_names_a_seed_or_subject_count_that_is_no_integer(
     # read as seed 1: another population than the one asked for
     with pytest.raises(InputError, match=match):
         datasets.load(None, **kwargs)
+
+
+def test_a_folders_manifest_given_as_data_asks_for_its_folder(tmp_path):
+    """`--data FOLDER/manifest.csv` (the docs say "a folder with manifest.csv") read as "not a trials file"."""
+    (tmp_path / "manifest.csv").write_text("file,subject,posture\nr.trc,S01,P2\n")
+    with pytest.raises(InputError, match=r"manifest\.csv: a manifest, not a trials file: give the folder that holds"):
+        datasets.load(tmp_path / "manifest.csv")

@@ -236,6 +236,10 @@ def load(
     if p.is_dir():
         trials = preprocess_folder(p, marker_map)
         kind, truth = "folder", _read_truth(p)
+    elif p.name.lower() == "manifest.csv":  # the folder's manifest given for the folder
+        raise InputError(
+            f"a manifest, not a trials file: give the folder that holds it (--data {p.parent}), or a trials .npz", p
+        )
     else:
         trials = load_trials(p)
         kind, truth = "trials-file", _read_truth(p.parent)
