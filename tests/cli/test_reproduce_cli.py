@@ -373,11 +373,16 @@ def test_quick_on_builtin_data(tmp_path):
     assert (out / "figures" / "weights_vs_truth.png").exists()
 
 
-def test_a_bad_tol_is_refused_before_any_work(tmp_path, capsys):
+@pytest.mark.parametrize("tol", ["0.7", "0.5"])
+def test_a_bad_tol_is_refused_before_any_work(tmp_path, capsys, tol):
+    """0.5 is out too (the threshold must lie below 0.5), and the flag's message says so: it read [0, 0.5]."""
     with pytest.raises(SystemExit) as e:
-        main(["reproduce", "--tol", "0.7", "--out", str(tmp_path / "o")])
+        main(["reproduce", "--tol", tol, "--out", str(tmp_path / "o")])
     assert e.value.code == 2
-    assert "--tol: expected a number in [0, 0.5], got 0.7" in capsys.readouterr().err
+    assert (
+        capsys.readouterr().err
+        == f"reachirl reproduce: error: argument --tol: expected a number in [0, 0.5), got {tol}\n"
+    )
     assert not (tmp_path / "o").exists()
 
 

@@ -66,6 +66,11 @@ def lab_axis_arg(text: str) -> str:
     return text
 
 
+def number_below(lo: float, hi: float) -> Callable[[str], float]:
+    """A finite number in ``[lo, hi)`` (NaN and infinities are refused)."""
+    return _checked(float, lambda v: lo <= v < hi, f"a number in [{lo:g}, {hi:g})", trim=40)
+
+
 #: ``--backend`` of the commands that predict with a MODEL.json
 PREDICTION_BACKEND_HELP = (
     "DOC backend of the predictions (default: the fit's, MODEL.json's info.backend; casadi when it records none)"

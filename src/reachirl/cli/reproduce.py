@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..validation import MAX_ITER, NODES_RANGE
-from ._args import int_in, non_negative_int, number_in, refuse_overwrite, samples_or_none
+from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
 
 MAX_SUBJECTS = 100
 
@@ -215,7 +215,7 @@ KEY_TYPES = {
     "count": int_in(0, 10**6),
     "nodes": int_in(*NODES_RANGE),
     "iters": int_in(1, MAX_ITER),
-    "tol": number_in(0.0, 0.5),
+    "tol": number_below(0.0, 0.5),
 }
 
 
@@ -305,7 +305,7 @@ def _valid(kind: str, v) -> bool:
         "count": num and 0 <= v <= 10**6,
         "nodes": num and NODES_RANGE[0] <= v <= NODES_RANGE[1],
         "iters": num and 1 <= v <= MAX_ITER,
-        "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v <= 0.5,
+        "tol": isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v < 0.5,
         "bool": isinstance(v, bool),
         "sections": isinstance(v, list)
         and len(v) > 0
