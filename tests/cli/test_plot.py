@@ -154,6 +154,19 @@ def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
     assert "--subject chooses trials, so it needs --model" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", ["plot", "sensitivity"])
+def test_a_run_stopped_before_its_outputs_is_called_unfinished(tmp_path, capsys, command):
+    """A run stopped by --max-units holds run.toml, units/ and models/ but no results.json: `plot` called it "not a
+    `reachirl reproduce` folder"."""
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.toml").write_text("quick = true\n")
+    assert main([command, str(run), "--out", str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err
+    unfinished = r"run: not a finished `?(reachirl )?reproduce`? run: no results\.json \(rerun reproduce into it"
+    assert re.search(unfinished, err), err
+
+
 def test_a_negative_trial_index_is_refused(tmp_path, capsys):
     from reachirl.cli import main
     from reachirl.data.trial import save_trials

@@ -193,6 +193,10 @@ def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
 
     res_path = run_dir / "results.json"
     if not res_path.is_file():
+        if (run_dir / "run.toml").is_file():  # a run stopped before its outputs (--max-units, an interrupt)
+            raise InputError(
+                "not a finished `reachirl reproduce` run: no results.json (rerun reproduce into it to finish)", run_dir
+            )
         raise InputError("not a `reachirl reproduce` folder (no results.json)", run_dir)
     if not (run_dir / "table.csv").is_file():  # written last: the run stopped while writing its outputs
         raise InputError("not a finished `reachirl reproduce` run: no table.csv (rerun reproduce into it)", run_dir)

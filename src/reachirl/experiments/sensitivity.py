@@ -119,7 +119,8 @@ def load_run(run_dir: str | Path):
         raise InputError("no such run folder (expected the --out folder of `reachirl reproduce`)", run_dir)
     path = run_dir / "results.json"
     if not path.is_file():
-        raise InputError("not a finished reproduce run: no results.json", run_dir)
+        rerun = " (rerun reproduce into it to finish)" if (run_dir / "run.toml").is_file() else ""
+        raise InputError(f"not a finished reproduce run: no results.json{rerun}", run_dir)
     if not (run_dir / "table.csv").is_file():  # written last: the run stopped while writing its outputs
         raise InputError("not a finished reproduce run: no table.csv (rerun reproduce into it to finish)", run_dir)
     try:
