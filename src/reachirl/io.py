@@ -168,6 +168,8 @@ def read_text(path: str | os.PathLike) -> str:
         raise InputError(f"cannot read ({e.strerror})", p) from None
     if len(raw) > MAX_FILE_BYTES:
         raise InputError(f"file is larger than {MAX_FILE_BYTES // 1024**2} MB, more than any input of reachirl", p)
+    if raw.startswith(b"PK\x03\x04"):  # a ZIP archive: NumPy's .npz, a trials file given for a text file
+        raise InputError("is a ZIP or NPZ archive (a trials file is one), expected text", p)
     if b"\0" in raw[:65536]:
         raise InputError("is a binary file (it holds NUL bytes), expected text", p)
     if not raw.strip():

@@ -1,7 +1,9 @@
 """The command line's manners: -v anywhere, a help line with its default for every option, a folder's manifest."""
 
 import argparse
+import re
 
+import numpy as np
 import pytest
 
 from reachirl.cli import build_parser, main
@@ -138,3 +140,55 @@ def test_a_bad_number_of_weight_samples_is_refused_with_the_range_it_has(value, 
     assert build_parser().parse_args(["reproduce", "--uncertainty", "0"]).uncertainty == 0
     fit = ["fit", "t.npz", "--sections", "8", "--uncertainty", "0", "--out", "m.json"]
     assert build_parser().parse_args(fit).uncertainty == 0
+
+
+@pytest.mark.parametrize(
+    ("flag", "value", "choices"),
+    [
+        ("--cv", "foo", "'rest', 'other-side'"),
+        ("--train-side", "up", "'right', 'left'"),
+        ("--rollout", "x", "'per_task', 'per_demo', 'mean'"),
+    ],
+)
+def test_a_protocol_name_outside_its_list_is_refused_naming_the_flag(flag, value, choices, tmp_path, capsys):
+    # "cv must be 'rest' or 'other-side', got 'foo'" named the run-file key, not the flag the user typed
+    with pytest.raises(SystemExit) as e:
+        main(["reproduce", "--quick", flag, value, "--out", str(tmp_path / "r")])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == f"reachirl reproduce: error: argument {flag}: invalid choice: '{value}' (choose from {choices})"
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_manifest_or_an_unnamed_marker_says_which_option_takes_it(tmp_path, capsys):
+    from recordings import synth
+
+    folder = synth(tmp_path / "v", ("P2",))
+    np.savez(tmp_path / "s.npz", a=np.zeros(3))
+    out = ["--out", str(tmp_path / "t.npz")]
+    cases = [
+        # the manifest among the recordings read as an angle file: "no 'time' column"
+        (
+            [str(folder / "manifest.csv")],
+            r"manifest\.csv: a manifest \(columns: .*\), not a recording: give it as "
+            r"--manifest, or give the folder that holds it$",
+        ),
+        # the recordings without their folder's truth.json: the built-in names are not the file's
+        (
+            sorted(str(p) for p in folder.glob("*.trc"))[:1],
+            r"marker 'shoulder' \(shoulder\) not found .*; name the "
+            r"recording's own with --markers shoulder=A,elbow=B,wrist=C,fingertip=D, or choose another --markerset$",
+        ),
+        ([str(folder), "--markers", "shoulder=SHO,elbow=ELB"], r"--markers lacks the fingertip: give joint=MARKER"),
+        (
+            [str(folder), "--subject-info", str(tmp_path / "s.npz")],
+            r"s\.npz: is a ZIP or NPZ archive \(a trials "
+            r"file is one\), expected text$",
+        ),
+    ]
+    for args, match in cases:
+        assert main(["preprocess", *args, *out]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert all(line.startswith("note: ") for line in err[:-1]), err  # the folder's manifest and truth, noted
+        assert re.search(match, err[-1]), err[-1]
+    assert not (tmp_path / "t.npz").exists()

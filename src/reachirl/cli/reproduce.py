@@ -22,6 +22,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
+from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE
 from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
 
@@ -180,7 +181,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
             keys.add_argument(f"--{name}", dest=f"key_{key}", nargs="+", default=None, metavar="NAME", help=what)
         else:
             keys.add_argument(
-                f"--{name}", dest=f"key_{key}", type=KEY_TYPES[kind], default=None, metavar=KEY_METAVARS[key], help=what
+                f"--{name}",
+                dest=f"key_{key}",
+                type=KEY_TYPES[kind],
+                choices=KEY_CHOICES.get(key),
+                default=None,
+                metavar=KEY_METAVARS[key],
+                help=what,
             )
     keys.add_argument(
         "--uncertainty",
@@ -209,6 +216,14 @@ KEY_METAVARS = {
     "max_units": "N",
 }
 """The value's name in the flag of each run-file key that takes one."""
+
+KEY_CHOICES = {
+    "train_side": ("right", "left"),
+    "cv": ("rest", "other-side"),
+    "rollout": ROLLOUTS,
+}
+"""The values of the keys that take a name from a list: a flag outside it is refused as it is read, naming the
+flag (the protocol's own check, which a run file's value meets, names the key)."""
 
 KEY_TYPES = {
     "str": str,

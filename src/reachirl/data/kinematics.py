@@ -71,7 +71,11 @@ def cast_reconstruct(cluster: np.ndarray, ref_cluster: np.ndarray, ref_point: np
 def _marker(md: MarkerData, name: str, role: str) -> np.ndarray:
     found = resolve_name(name, md.names)
     if found is None:
-        raise InputError(f"marker {name!r} ({role}) not found{_near_names(name, md.names)}", md.source)
+        raise InputError(
+            f"marker {name!r} ({role}) not found{_near_names(name, md.names)}; name the recording's own with "
+            "--markers shoulder=A,elbow=B,wrist=C,fingertip=D, or choose another --markerset",
+            md.source,
+        )
     return md[found]
 
 

@@ -644,6 +644,12 @@ def _find_q_columns(header: list[str], path: Path, line: int, side: str | None =
     low = [h.strip().lower() for h in header]
     time = next((k for k, h in enumerate(low) if h in _TIME_ALIASES), None)
     if time is None:
+        if {"file", "subject"} <= set(low):  # preprocess's manifest given among the recordings
+            raise InputError(
+                f"a manifest (columns: {', '.join(header)}), not a recording: give it as --manifest, or give the "
+                "folder that holds it",
+                path,
+            )
         raise InputError(f"no 'time' column (columns: {', '.join(header)})", path, f"line {line}")
     idx = []
     for q in ("q1", "q2"):

@@ -219,4 +219,10 @@ def parse_marker_map(text: str) -> MarkerSet:
         if not ms:
             raise InputError(f"--markers: no marker named for {j}")
         joints[j] = JointSpec(markers=ms)
+    missing = [j for j in _REQUIRED if j not in joints]
+    if missing:
+        raise InputError(
+            f"--markers lacks the {' and the '.join(missing)}: give joint=MARKER for at least the shoulder and the "
+            f"fingertip (shoulder=A,elbow=B,wrist=C,fingertip=D)"
+        )
     return MarkerSet(name="custom", joints=joints)
