@@ -282,7 +282,10 @@ BOOLEAN_CASES = [
         id="frozen_windows fraction",
     ),
     pytest.param(
-        lambda tr: resolve_options(experimental={"beta": True}), ValueError, r"^beta must be >= 0, got True$", id="beta"
+        lambda tr: resolve_options(experimental={"beta": True}),
+        ValueError,
+        r"^beta must be a number, not a boolean \(got True\)$",
+        id="beta",
     ),
     pytest.param(
         lambda tr: resolve_options(experimental={"max_tries": True}),

@@ -26,7 +26,8 @@ def _run_file(tmp_path, text: str):
             "frozen_windows must be a list of window indices (integers), got a boolean (true) among the numbers, at "
             "[0]",
         ),
-        ("max_tries = true", "max_tries must be an integer >= 1, got True"),
+        ("max_tries = true", "max_tries must be an integer, not a boolean (got True)"),
+        ("beta = true", "beta must be a number, not a boolean (got True)"),  # it read "beta must be >= 0, got True"
     ],
 )
 def test_fit_refuses_a_bad_experimental_value_naming_the_run_file(tiny_trials, tmp_path, capsys, table, match):
