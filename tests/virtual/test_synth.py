@@ -367,6 +367,37 @@ def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_trut
     assert json.loads((out / "truth.json").read_text())["config"]["seed"] == 1
 
 
+def test_synth_workers_die_with_a_sigkilled_parent(tmp_path):
+    """The generation workers end with their parent, even one ended by SIGKILL: a forked worker left behind waited
+    for its next group forever."""
+    import contextlib
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    import psutil
+
+    argv = [sys.executable, "-m", "reachirl", "synth", "--out", str(tmp_path / "o"), "--trials", "50", "--workers", "2"]
+    p = psutil.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env={**os.environ})
+    workers = []
+    try:
+        t0 = time.monotonic()
+        while len(workers) < 2 and p.poll() is None and time.monotonic() - t0 < 60:
+            workers = p.children()
+            time.sleep(0.1)
+        assert len(workers) == 2, "the workers never started"
+        time.sleep(1.0)  # past their set-up
+        p.send_signal(signal.SIGKILL)
+        p.wait(timeout=10)
+        _, alive = psutil.wait_procs(workers, timeout=10)
+        assert not alive, "workers left running after their parent was killed"
+    finally:  # nothing of the test left running, whatever it found
+        for proc in [p, *workers]:
+            with contextlib.suppress(psutil.NoSuchProcess):
+                proc.kill()
+
+
 # ---------------------------------------------------------------------- slow: the full built-in data set
 @pytest.mark.slow
 def test_builtin_dataset_full(tmp_path, monkeypatch):

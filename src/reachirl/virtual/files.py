@@ -84,7 +84,9 @@ def _run_groups(subjects, config: SynthConfig) -> list[SynthTrial]:
     # fork is cheap and works from unguarded scripts; never fork a process that runs other threads
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("fork" if "fork" in methods and threading.active_count() == 1 else "spawn")
-    ex = cf.ProcessPoolExecutor(max_workers=min(workers, len(groups)), mp_context=ctx, initializer=_worker_signals)
+    ex = cf.ProcessPoolExecutor(
+        max_workers=min(workers, len(groups)), mp_context=ctx, initializer=_worker_signals, initargs=(os.getpid(),)
+    )
     try:
         futures = [ex.submit(_simulate_group, s, p, config) for s, p in groups]
         trials = [tr for f in futures for tr in f.result()]
@@ -147,12 +149,30 @@ def synth_folder_clash(out_dir: str | Path) -> str | None:
     return next((n for n in names if n in SYNTH_FILES or _RECORDING.fullmatch(n)), None)
 
 
-def _worker_signals() -> None:
-    """A generation worker: Ctrl-C is the parent's business (it ends the workers), SIGTERM ends it at once."""
+def _worker_signals(parent_pid: int | None = None) -> None:
+    """A generation worker: Ctrl-C is the parent's business (it ends the workers), SIGTERM ends it at once, and it
+    dies with its parent ``parent_pid``, even a SIGKILLed one (a forked worker otherwise waited for its next group
+    forever, holding the parent's standard output and error open)."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if parent_pid is None:
+        return
+    try:  # Linux: SIGKILL this process when the parent dies
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            time.sleep(1.0)
+
+    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
 
 
 def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthResult:
