@@ -24,10 +24,12 @@ __all__ = [
     "cache_root",
     "check_regular_file",
     "csv_column",
+    "hold_folder",
     "json_depth",
     "npz_bytes",
     "read_json",
     "read_text",
+    "release_folder",
     "remove_temporaries",
     "to_jsonable",
 ]
@@ -86,6 +88,52 @@ def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
     for f in removed:
         f.unlink(missing_ok=True)
     return removed
+
+
+#: the folders this process holds (:func:`hold_folder`): their real path and the open descriptor that holds the lock
+_HELD: dict[str, int] = {}
+
+
+def hold_folder(folder: str | os.PathLike, command: str = "reachirl", option: str = "--out") -> None:
+    """Hold an exclusive lock on the existing folder ``folder`` (on the folder itself: no file is made) until
+    :func:`release_folder` or the end of the process; the system drops it with a killed process, so none is left
+    stale. A second process writing into the same folder at once is refused, an
+    :class:`~reachirl.errors.InputError` naming it: it would remove the first one's temporaries and earlier
+    outputs, and mix its checkpoints and ``run.toml`` with the first one's results. Held once per process (a
+    second call is a no-op); on a file system without locks, nothing is held."""
+    from .errors import InputError
+
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return
+    key = os.path.realpath(folder)
+    if key in _HELD:
+        return
+    try:
+        fd = os.open(key, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return  # not a folder (yet): the command's own checks say so
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise InputError(
+            f"{option}: another {command} is writing into this folder now; wait for it to end, or choose another "
+            f"{option}",
+            folder,
+        ) from None
+    except OSError:  # no locks here (some network file systems)
+        os.close(fd)
+        return
+    _HELD[key] = fd
+
+
+def release_folder(folder: str | os.PathLike) -> None:
+    """Release the lock :func:`hold_folder` took on ``folder`` (nothing when none is held)."""
+    fd = _HELD.pop(os.path.realpath(folder), None)
+    if fd is not None:
+        os.close(fd)
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:

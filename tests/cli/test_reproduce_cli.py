@@ -460,3 +460,43 @@ def test_a_run_folder_moved_and_rerun_gives_its_models_the_folder_it_is_in_now(t
     for key in res["run"]["reused"]:
         assert json.loads((moved / "models" / f"{key}.json").read_text())["info"]["run"] == str(moved.resolve())
         assert json.loads((moved / "units" / f"{key}.json").read_text())["model_info"]["run"] == str(first.resolve())
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything(
+    trials_file, reference_run, tmp_path, capsys
+):
+    """Two runs into one folder at once: the second is refused (exit 2) before it touches the folder (it removed
+    the first one's temporaries and results and wrote its own run.toml beside the tables the first one then
+    wrote); once the first has ended, even killed, the folder is free again."""
+    import shutil
+    import subprocess
+    import sys
+
+    from reachirl.errors import InputError
+
+    out = tmp_path / "out"
+    shutil.copytree(reference_run, out)
+    (out / ".table.csv.abcd1234.tmp").write_text("being written by the run that holds the folder")
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    hold = (  # another run holding the folder, as reproduce holds it
+        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
+        "print(1, flush=True); time.sleep(120)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "1"
+        argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+        assert main([*argv, "--seed", "1"]) == 2
+        err = capsys.readouterr().err
+        assert "--out: another reachirl reproduce is writing into this folder now" in err and str(out) in err
+        assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+        from reachirl.io import hold_folder
+
+        with pytest.raises(InputError, match=r"--out: another reachirl reproduce is writing into this folder now"):
+            hold_folder(out, "reachirl reproduce")
+    finally:
+        holder.kill()
+        holder.wait()
+    (out / ".table.csv.abcd1234.tmp").unlink()
+    assert main(argv) == 0  # the killed holder's lock went with it
+    _same_table(out, reference_run)

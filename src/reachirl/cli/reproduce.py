@@ -22,6 +22,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import hold_folder, release_folder
 from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE
 from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
@@ -566,21 +567,6 @@ def _stopped(result) -> int:
 
 
 def run(args) -> int:
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    from ..experiments import datasets
-    from ..experiments.rendering import FigureWorkers
-    from ..experiments.report import remove_previous_outputs, write_outputs
-    from ..experiments.runner import reproduce
-
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from ..validation import check_output_dir
 
@@ -602,6 +588,29 @@ def run(args) -> int:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
     _refuse_foreign_run_files(out, args.config)
+    hold_folder(out, "reachirl reproduce")  # before any work; a folder made by the run is held once made
+    try:
+        return _run(args, out, opts, from_file)
+    finally:
+        release_folder(out)
+
+
+def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from ..experiments import datasets
+    from ..experiments.rendering import FigureWorkers
+    from ..experiments.report import remove_previous_outputs, write_outputs
+    from ..experiments.runner import reproduce
+
     try:
         config = _config(args, opts)
     except InputError as e:

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import remove_temporaries
+from ..io import hold_folder, remove_temporaries
 from .processes import local_executor, stop_workers
 from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
@@ -371,11 +371,15 @@ def reproduce(
     units = [u for u in make_units(postures, config, pair_training_subjects(trials, config)) if u.split_key in splits]
     check_thresholds(units, splits, dataset.source)
     out_dir = Path(out_dir)
+    # one run at a time in a folder, from before its first change to it until the process ends (or the command
+    # releases it): a second would remove this one's temporaries and outputs and mix its checkpoints with them
+    hold_folder(out_dir, "reachirl reproduce")
     clean_stale_temporaries(out_dir)
 
     def start(total: int, reused: int) -> None:
         # the folder is made once the run starts (its scheduler reached): a run that fails before leaves none
         out_dir.mkdir(parents=True, exist_ok=True)
+        hold_folder(out_dir, "reachirl reproduce")
         if on_start:
             on_start(total, reused)
 
