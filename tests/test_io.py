@@ -55,3 +55,26 @@ def test_read_json_errors_name_the_file(tmp_path, text, match):
         read_json(p)
     with pytest.raises(InputError, match=r"nope\.json: file not found"):
         read_json(tmp_path / "nope.json")
+
+
+def test_a_write_that_fails_names_the_file_being_written(tmp_path, monkeypatch):
+    """A full disk (or a folder made read-only while a command runs) is said of the file being written: the
+    write's own error names no file ("a file: No space left on device"), the temporary's is a random name."""
+    import errno
+    import re
+    import tempfile
+
+    from reachirl.io import atomic_write_bytes
+
+    target = tmp_path / "table.csv"
+    with pytest.raises(OSError, match=re.escape(f"No space left on device: '{target}'")) as e:
+        with atomic_path(target):
+            raise OSError(errno.ENOSPC, "No space left on device")
+    assert e.value.errno == errno.ENOSPC and os.listdir(tmp_path) == []
+
+    def read_only(*args, dir=None, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", os.path.join(dir, ".table.csv.x1y2z3w4.tmp"))
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    with pytest.raises(OSError, match=re.escape(f"Read-only file system: '{target}'")):
+        atomic_write_bytes(target, b"x")

@@ -60,7 +60,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    except OSError as e:  # named as the file to be written, not as the temporary's random name
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
     os.close(fd)
     tmp = Path(tmp)
     umask = os.umask(0)
@@ -70,6 +73,12 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         yield tmp
         raise_if_signalled()
         os.replace(tmp, path)
+    except OSError as e:
+        if e.filename is not None and e.filename not in (str(tmp), tmp):
+            raise
+        # a write that failed (a full disk, a folder made read-only meanwhile) names the file being written, not
+        # nothing ("a file: No space left on device") nor its hidden temporary
+        raise OSError(e.errno, e.strerror or str(e), str(path)) from e
     finally:
         tmp.unlink(missing_ok=True)
 
