@@ -297,3 +297,23 @@ def test_a_protocol_config_names_a_bad_count_seed_or_backend(kwargs, match):
     # 1.5 sections were read as 1; the others were taken and failed in every unit (or, for n_train="a", in int())
     with pytest.raises(InputError, match=match):
         ProtocolConfig(**kwargs)
+
+
+def test_a_dask_scheduler_lost_mid_run_is_said_in_one_line_and_the_finished_units_kept(toy, tmp_path, capsys):
+    """The scheduler gone after the first unit: an InputError naming it (no internal error, no traceback of the
+    client's attempts to reconnect on stderr), the unit finished before it checkpointed, and a rerun resumes."""
+    distributed = pytest.importorskip("dask.distributed")
+    cfg = _config(sections=(1, 2), postures=("P4",), max_iter=2)
+    splits = {p: split_trials(toy.trials, p, cfg) for p in ("P4",)}
+    units = make_units(["P4"], cfg)
+    cluster = distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    )
+    try:
+        with pytest.raises(InputError, match=r"lost the connection to the Dask scheduler .*1 unit\(s\) of this run"):
+            run_units(units, splits, tmp_path, scheduler=cluster.scheduler_address, on_done=lambda *a: cluster.close())
+    finally:
+        cluster.close()
+    assert "Traceback" not in capsys.readouterr().err
+    again = run_units(units, splits, tmp_path, workers=1)
+    assert len(again.reused) == 1 and len(again.computed) == 1

@@ -292,15 +292,56 @@ def run_units(
                 for u, fp in todo
             ]
             try:
-                for f in as_completed(futures, loop=client.loop):
-                    finish(f.result())
-                    if len(computed) >= limit:
-                        break
+                with _dask_reconnects_unlogged():
+                    for f in as_completed(futures, loop=client.loop):
+                        finish(f.result())
+                        if len(computed) >= limit:
+                            break
             finally:
-                client.cancel(futures)
+                with contextlib.suppress(Exception):  # a scheduler gone: nothing left to cancel
+                    client.cancel(futures)
+        except Exception as e:
+            if client.status == "running" and "scheduler-connection-lost" not in str(e):
+                raise
+            # the scheduler went away mid-run (ended, restarted, its machine or the network down): a failure of
+            # the cluster, not of a unit; the units finished so far are checkpointed
+            raise InputError(
+                f"lost the connection to the Dask scheduler ({type(e).__name__}); {len(computed)} unit(s) of this "
+                "run were finished and are kept: rerun to resume",
+                scheduler,
+            ) from None
         finally:
-            client.close()
+            with _dask_reconnects_unlogged():
+                client.close()
     return RunSummary(results, computed, reused, stopped)
+
+
+@contextlib.contextmanager
+def _dask_reconnects_unlogged():
+    """Within it, the Dask client's own log of its attempts to reconnect to a lost scheduler (a traceback per
+    attempt, on stderr) is left out, unless reachirl logs its details (``-v``): the run says in one line that the
+    scheduler was lost."""
+    if logging.getLogger().isEnabledFor(logging.INFO):
+        yield
+        return
+    dask_log = logging.getLogger("distributed")
+    level = dask_log.level
+    # Dask logs some of these under a logger named after its module alone ("utils"), which reaches the root's
+    # handlers: those are left out by where they were logged
+    handlers = {*logging.getLogger().handlers, logging.lastResort} - {None}
+    for h in handlers:
+        h.addFilter(_not_from_dask)
+    dask_log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        dask_log.setLevel(level)
+        for h in handlers:
+            h.removeFilter(_not_from_dask)
+
+
+def _not_from_dask(record: logging.LogRecord) -> bool:
+    return "distributed" not in Path(record.pathname).parts
 
 
 def check_thresholds(units: Sequence[Unit], splits: Mapping, source) -> None:
