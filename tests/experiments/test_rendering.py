@@ -153,3 +153,20 @@ def test_a_figures_mark_is_looked_for_in_its_first_64_kib_only(tmp_path, monkeyp
     read.clear()
     assert not is_marked_figure(far)
     assert sum(read) <= figures._MARK_BYTES, sum(read)
+
+
+def test_a_figure_worker_killed_is_said_as_such_and_the_others_end(tmp_path):
+    import os
+    import signal
+
+    from reachirl.experiments.rendering import FigureWorkers
+
+    with FigureWorkers(2) as ahead:
+        ahead.start()
+        victim = next(iter(ahead.pool._processes.values()))
+        with pytest.raises(
+            RuntimeError, match=r"a figure worker process died while drawing \S+\.png \(out of memory\?\)"
+        ):
+            with drawing(jobs(tmp_path), workers=2, ahead=ahead):
+                os.kill(victim.pid, signal.SIGKILL)
+    assert children_gone()

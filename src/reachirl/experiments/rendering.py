@@ -11,6 +11,7 @@ ends the workers at once (a figure they were writing is never left half written)
 
 from __future__ import annotations
 
+import concurrent.futures as cf
 import contextlib
 import importlib
 from collections.abc import Iterator, Sequence
@@ -105,8 +106,16 @@ class Drawing:
         jobs, futures, self._jobs, self._futures = self._jobs, self._futures, [], []
         if self._pool is None:
             return [p for job in jobs for p in draw(job)]
+        written = []
         try:
-            written = [p for f in futures for p in f.result()]
+            for job, f in zip(jobs, futures, strict=True):
+                try:
+                    written += f.result()
+                except cf.process.BrokenProcessPool:  # killed, or out of its memory: said as a unit's worker is
+                    raise RuntimeError(
+                        f"a figure worker process died while drawing {job.paths[0].name if job.paths else job.plot} "
+                        "(out of memory?)"
+                    ) from None
         except BaseException:
             self.stop()
             raise
