@@ -169,25 +169,23 @@ def check_windows(options: Options, n_windows: int) -> None:
         raise ValueError(f"frozen_windows {frozen} freezes all {n_windows} window(s): no weight is left to learn")
 
 
+_INTEGERS = ("memory", "max_tries", "cv_folds", "n_suffixes")
 _NUMBERS = (
     "fallback_tol",
-    "memory",
     "shrink",
     "armijo_c1",
     "curvature_c2",
-    "max_tries",
     "w0",
     "alpha0",
     "beta",
     "max_ratio",
     "min_step",
     "smoothness",
-    "cv_folds",
     "feature_cutoff",
-    "n_suffixes",
     "l1",
+    *_INTEGERS,
 )
-"""The options that take a number."""
+"""The options that take a number (``_INTEGERS``: a whole one)."""
 
 
 def _check(o: Options) -> None:
@@ -199,7 +197,7 @@ def _check(o: Options) -> None:
 
     for name in _NUMBERS:  # a boolean passes as 0 or 1 in a comparison, and "got True" does not say what is wrong
         v = getattr(o, name)
-        kind = "an integer" if name in ("memory", "max_tries", "cv_folds", "n_suffixes") else "a number"
+        kind = "an integer" if name in _INTEGERS else "a number"
         need(not isinstance(v, bool | np.bool_), f"{name} must be {kind}, not a boolean (got {v!r})")
     need(isinstance(o.observe, bool), f"observe must be True or False, got {o.observe!r}")
     need(isinstance(o.warm_newton, bool), f"warm_newton must be True or False, got {o.warm_newton!r}")
