@@ -426,5 +426,5 @@ def test_numpy_scalars_stand_for_the_python_values_they_hold(recorded, tmp_path)
     for bad in (True, np.True_):
         with pytest.raises(ValueError, match=r"max_iter must be an integer >= 1, got (np\.)?True"):
             MOIRL(1, n_nodes=20, max_iter=bad).fit(trials)
-    with pytest.raises(ValueError, match="max_tries must be an integer >= 1, got True"):
+    with pytest.raises(ValueError, match=r"max_tries must be an integer, not a boolean \(got True\)"):
         MOIRL(1, n_nodes=20, experimental={"max_tries": np.True_}).fit(trials)
