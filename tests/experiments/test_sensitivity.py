@@ -598,3 +598,34 @@ def test_a_set_whose_predictions_all_failed_has_no_delta_and_says_how_many():
     assert line["train_delta_deg"] == "" and line["train_doc_failures"] == "3"
     d, failed = _converged_pairs([5.0, 6.0], None, [1.0, 2.0], [True, True])  # no flags recorded: all converged
     assert d.tolist() == [4.0, 4.0] and failed == 0
+
+
+def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_anything(small_run, tmp_path, capsys):
+    """Two analyses into one --out at once: the second is refused (exit 2) before it touches the folder (it would
+    remove the first one's outputs at its start and mix their checkpoints); once the first has ended, even killed,
+    the folder is free again."""
+    import subprocess
+    import sys
+
+    from reachirl.cli import main
+
+    out = tmp_path / "analysis"
+    (out / "checkpoints").mkdir(parents=True)
+    (out / "checkpoints" / ".job.abcd1234.tmp").write_text("being written by the analysis that holds the folder")
+    hold = (  # another analysis holding the folder, as sensitivity holds it
+        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
+        "print(1, flush=True); time.sleep(120)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
+    argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion", "--no-progress"]
+    try:
+        assert holder.stdout.readline().strip() == "1"
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--out: another reachirl sensitivity is writing into this folder now" in err[0]
+        assert sorted(p.name for p in out.rglob("*")) == [".job.abcd1234.tmp", "checkpoints"]  # untouched
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(argv) == 0  # the killed holder's lock went with it
+    assert (out / "identifiability.json").is_file()

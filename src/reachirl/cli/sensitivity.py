@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import remove_temporaries
+from ..io import hold_folder, remove_temporaries
 from ..validation import NODES_RANGE, check_output_dir
 from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
@@ -97,6 +97,8 @@ def run(args) -> int:
 
     def on_start(total, reused):
         state["total"] = total
+        out.mkdir(parents=True, exist_ok=True)
+        hold_folder(out, "reachirl sensitivity")  # a folder made by this analysis is held once made
         remove_outputs(out)  # an earlier analysis's results never outlive this one's start
         if reused and not args.no_progress:
             print(f"{reused} of {total} jobs reused from {checkpoints}", file=sys.stderr, flush=True)
@@ -115,6 +117,9 @@ def run(args) -> int:
         if folder.exists() and not folder.is_dir():
             raise InputError("exists and is not a folder; sensitivity writes into it (remove it)", folder)
     _refuse_foreign_outputs(out)
+    # one analysis at a time in a folder (a second would remove this one's outputs at its start and mix their
+    # checkpoints); the lock goes with the process, however it ends
+    hold_folder(out, "reachirl sensitivity")
     for folder in (out, checkpoints, out / "figures"):
         remove_temporaries(folder)  # what a killed run was writing
     res = run_sensitivity(
