@@ -11,7 +11,14 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "reachirl"
 
 #: the layers, lowest first: a module may import its own layer and those listed below it in ``MAY_IMPORT``
 LAYERS = {
-    "base": ("reachirl.errors", "reachirl.io", "reachirl.validation", "reachirl.arm", "reachirl.features"),
+    "base": (
+        "reachirl.errors",
+        "reachirl.io",
+        "reachirl.validation",
+        "reachirl.arm",
+        "reachirl.features",
+        "reachirl.workers",
+    ),
     "data": ("reachirl.data",),
     "doc": ("reachirl.doc",),
     "irl": ("reachirl.irl",),

@@ -20,24 +20,11 @@ def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | No
     """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped; then
     ``then()`` (e.g. imports the worker's modules before its first task)."""
     import signal
-    import threading
-    import time as _time
+
+    from ..workers import die_with_parent
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's business: it ends the workers
-    try:  # Linux: SIGKILL this process when the parent dies
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
-        while True:
-            if os.getppid() != parent_pid:
-                os._exit(1)
-            _time.sleep(1.0)
-
-    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
+    die_with_parent(parent_pid)
     try:
         import resource
 

@@ -25,6 +25,7 @@ from ..data.writers import write_c3d, write_mot, write_trc
 from ..errors import InputError
 from ..features import FEATURES
 from ..io import atomic_write_json, atomic_write_text, cache_root, csv_column, to_jsonable
+from ..workers import die_with_parent
 from .likeness import human_likeness
 from .population import (
     _LOG_WEIGHT_SD,
@@ -157,22 +158,8 @@ def _worker_signals(parent_pid: int | None = None) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    if parent_pid is None:
-        return
-    try:  # Linux: SIGKILL this process when the parent dies
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-
-    def watch() -> None:  # everywhere else (and if the parent died before prctl): poll
-        while True:
-            if os.getppid() != parent_pid:
-                os._exit(1)
-            time.sleep(1.0)
-
-    threading.Thread(target=watch, daemon=True, name="reachirl-parent-watch").start()
+    if parent_pid is not None:
+        die_with_parent(parent_pid)
 
 
 def generate(out_dir: str | Path, config: SynthConfig | None = None) -> SynthResult:
