@@ -169,15 +169,14 @@ def test_a_saddle_is_refused():
     e = _powers(task, found.q)
     ws = np.vstack([w[newton.window_index(N, 8)].T, np.sign(e)])
     out = np.asarray(newton._stage_map(N)(x, ws, np.zeros((1, N)), arm, dt, found.fscale)).ravel(order="F")
-    de = out.reshape(newton._ROWS, N, order="F")[73:81]
     jtip = np.asarray(ARM.jacobian(found.q[-1])[0])
     curv = found.bar_multiplier * newton._fingertip_hessian(task, found.q[-1])
     kink = np.zeros(N, dtype=bool)
     assert found.n_kinks == 0
-    assert newton._is_minimum(out, de, N, kink, jtip, curv)
+    assert newton._is_minimum(out, N, kink, jtip, curv)
     flipped = out.copy().reshape(newton._ROWS, N, order="F")
     flipped[8:72] *= -1
-    assert not newton._is_minimum(flipped.ravel(order="F"), de, N, kink, jtip, curv)
+    assert not newton._is_minimum(flipped.ravel(order="F"), N, kink, jtip, curv)
 
 
 def _stage_outputs(task, w, found, kink, e):
@@ -234,9 +233,80 @@ def test_the_kinks_restrict_the_second_order_test_to_their_null_space():
     z = null_space(np.vstack([grads, bar]))
     assert np.min(np.linalg.eigvalsh(hess)) < 0  # indefinite ...
     assert np.min(np.linalg.eigvalsh(z.T @ hess @ z)) > 0  # ... but not where the constraints allow a move
-    de = out[73:81]
     flat = out.ravel(order="F")
-    assert newton._is_minimum(flat, de, N, kink, jtip, curv)
+    assert newton._is_minimum(flat, N, kink, jtip, curv)
     z_bar = null_space(bar)
     assert np.min(np.linalg.eigvalsh(z_bar.T @ hess @ z_bar)) < 0
-    assert not newton._is_minimum(flat, de, N, np.zeros(N, dtype=bool), jtip, curv)
+    assert not newton._is_minimum(flat, N, np.zeros(N, dtype=bool), jtip, curv)
+
+
+def _step_state(task, w, q, kinks, seed=0):
+    """The step function's inputs at the knots ``q``: each knot's power on its own side, kinks at ``kinks``
+    with multipliers a tenth of their energy weight (so that no kink is released), the bar's multiplier 0.3."""
+    n = task.n_nodes
+    fscale = 1.0 / trajectory_cost(task.arm, *euler_knots(task.arm, q, task.dt), task.dt, w)
+    w_knot = w[newton.window_index(n, w.shape[0])]
+    kink = np.zeros(n)
+    kink[kinks] = 1.0
+    rng = np.random.default_rng(seed)
+    lam = kink * 0.1 * fscale * task.dt * w_knot[:, 1] * rng.choice([-1.0, 1.0], size=n)
+    sigma = np.sign(_powers(task, q))
+    arm, dt = newton._params(task)
+    return [newton._path(task.q0, q[1:n]), w_knot.reshape(-1), sigma, kink, lam, 0.3, 0.0, 0.0, arm, dt, fscale,
+            task.target_x]  # fmt: skip
+
+
+def test_the_step_is_newtons_on_the_residual_it_returns():
+    """The banded KKT matrix the step function assembles (in LAPACK's storage) against central differences of
+    the residual it returns, in every knot, every kink's multiplier and the bar's: the step solves the
+    linearised KKT conditions. Off the kinks, a multiplier's row is its own unit row (``λ_k = 0``). Compiled and
+    virtual machine agree."""
+    task = _task((3.0, -2.0))
+    w = nominal_weights()
+    q = solve_doc(task, w).q + 0.01 * np.sin(np.linspace(0, 3 * np.pi, N + 1))[:, None]
+    q[-1] = q[-2]
+    e = _powers(task, q)
+    kinks = [k for k in np.argsort(-np.abs(e))[:12] if k > 0][:3]  # kinks where the power is far from zero
+    args = _step_state(task, w, q, kinks)
+    f = newton._step_function(N)
+    with compiled.setting("on"):
+        fc = compiled.compiled_function(f)
+    assert fc is not None
+    lay = newton._scatter(N)
+    size = lay.size
+
+    def residual(a):
+        out = fc(*a)
+        assert float(out[5]) == 0.0  # the active set does not change: no side flips, no kink released
+        return np.asarray(out[1]).ravel()
+
+    lu = np.asarray(fc(*args)[0]).reshape(3 * newton._BW + 1, size, order="F")
+    kkt = np.zeros((size, size))
+    for j in range(size):
+        for i in range(max(0, j - newton._BW), min(size, j + newton._BW + 1)):
+            kkt[i, j] = lu[2 * newton._BW + i - j, j]
+    vm = [np.asarray(x) for x in f(*args)]
+    for x, y in zip(vm, [np.asarray(x) for x in fc(*args)], strict=True):
+        assert np.allclose(x, y, rtol=1e-12, atol=1e-14)
+
+    def moved(j, h):  # the inputs with unknown j moved by h
+        a = [np.array(x, dtype=float, copy=True) if np.ndim(x) else float(x) for x in args]
+        if j == size - 1:
+            a[5] += h
+        elif j % 3 == 2:
+            a[4][j // 3 + 1] += h  # λ_k, k = j // 3 + 1
+        else:
+            knot = j // 3 + 1
+            a[0][2 * (knot + 2) + j % 3] += h
+            if knot == N - 1:
+                a[0][2 * (N + 2) + j % 3] += h  # q_N = q_{N−1}
+        return a
+
+    kink_cols = [3 * (k - 1) + 2 for k in kinks]
+    cols = list(lay.q_rows) + kink_cols + [size - 1]
+    h = 1e-6
+    fd = np.column_stack([(residual(moved(j, h)) - residual(moved(j, -h))) / (2 * h) for j in cols])
+    noise = 100 * np.finfo(float).eps * np.max(np.abs(residual(args))) / h  # round-off of the differences
+    np.testing.assert_allclose(fd, kkt[:, cols], rtol=1e-6, atol=noise)
+    free = [r for r in lay.lam_rows if r not in kink_cols]
+    assert np.array_equal(kkt[free], np.eye(size)[free])

@@ -411,20 +411,24 @@ def solve(
 
     kind = "fatrop_warm"
     same_task = (
-        warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key and len(warm["x"]) == nlp.n_z
+        warm is not None
+        and warm.get("backend") == "casadi"
+        and warm.get("task") == key
+        and warm["knots"][0].shape == (task.n_nodes + 1, 2)
     )
     if same_task and newton:
         # the same reach under new weights, by exact Newton from the previous solution (MO-IRL's
         # ``warm_newton``); fatrop from the same point where Newton cannot vouch for its answer
         t0 = time.perf_counter()
-        found = newton_solve(task, weights, _unpack_q(task, np.asarray(warm["x"])))
+        found = newton_solve(task, weights, warm["knots"][0])
         elapsed, attempts = time.perf_counter() - t0, 1
         if found is not None:
             q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
     if q is None and same_task:
         # the same reach under new weights (MO-IRL's line search): reuse the primal point and the scale
         fscale = warm["fscale"]
-        args = {**bounds, "x0": np.clip(warm["x"], lbx, ubx), "p": nlp.params(task, weights, fscale)}
+        x0 = np.clip(_pack_knots(task, *warm["knots"]), lbx, ubx)
+        args = {**bounds, "x0": x0, "p": nlp.params(task, weights, fscale)}
         x, stats, t = _run(nlp, kind, args)
         elapsed, iterations, attempts = elapsed + t, int(stats.get("iter_count", 0)), attempts + 1
         ok = _converged(stats, x)
@@ -469,5 +473,6 @@ def solve(
         attempts=attempts,
         status=_status(kind, stats),
         backend="casadi",
-        warm={"backend": "casadi", "task": key, "fscale": fscale, "x": _pack_knots(task, q, qd, tau)},
+        warm={"backend": "casadi", "task": key, "fscale": fscale, "knots": (q, qd, tau)},  # packed if a warm
+        # start uses them (predictions never do)
     )

@@ -18,8 +18,10 @@ released on the side its multiplier points to.
 
 The KKT system is banded: with one multiplier per knot (zero and decoupled where the knot is not a kink) and
 the unknowns ordered knot by knot, ``(q_k, λ_k)``, its half-bandwidth is 10, and one step is one banded LU
-(LAPACK's ``dgbsv``) of about ``3N`` unknowns. The stages' derivatives are one call of a CasADi function mapped
-over the stages (compiled to C when :mod:`.compiled` can), through CasADi's buffers.
+(LAPACK's ``dgbsv``) of about ``3N`` unknowns. The rest of a step (the stages' derivatives, the active set's
+update, the residual and the banded matrix in LAPACK's storage) is one call of a CasADi function
+(:func:`_step_function`, compiled to C when :mod:`.compiled` can), through CasADi's buffers, so that Python
+does little more per step than call it and the LU.
 
 :func:`newton_solve` returns None whenever it cannot vouch for its answer: no convergence within
 :data:`MAX_ITER` steps, a power on the wrong side or a kink's multiplier outside ``[−w, w]``, a bound active or
@@ -76,12 +78,9 @@ class NewtonResult:
 
 @functools.lru_cache(maxsize=8)
 def _stage_map(n: int) -> ca.Function:
-    """The stages' derivatives (:func:`_stage`, compiled when it can be: :func:`.compiled.compiled_function`),
-    mapped over ``n`` stages: inputs ``(8, n)``, ``(8, n)``, ``(1, n)`` and the shared arm, ``dt`` and scale;
-    output ``(82, n)``."""
-    stage = _stage()
-    stage = compiled.compiled_function(stage) or stage
-    return stage.map(f"newton_map_{n}", "serial", n, [3, 4, 5], [])
+    """The stages' derivatives (:func:`_stage`) mapped over ``n`` stages: inputs ``(8, n)``, ``(8, n)``, ``(1, n)``
+    and the shared arm, ``dt`` and scale; output ``(82, n)``."""
+    return _stage().map(f"newton_map_{n}", "serial", n, [3, 4, 5], [])
 
 
 @functools.lru_cache(maxsize=1)
@@ -118,6 +117,112 @@ def _stage() -> ca.Function:
     cost = fscale * dt * sum(ws[j] * (ca.fabs(e) if j == 1 else rates[j]) for j in range(N_FEATURES))
     out = ca.vertcat(grad, ca.vec(hess), e, ca.gradient(e, x), cost)
     return ca.Function("reachirl_newton_stage", [x, ws, lam, arm, dt, fscale], [out])
+
+
+@functools.lru_cache(maxsize=8)
+def _step_function(n: int) -> ca.Function:
+    """One Newton step's work but the linear solve, for ``n`` stages, in one function (compiled to C when
+    :func:`.compiled.compiled_function` can): the stages' derivatives, the active set's update (see the module
+    docstring), the residual and the banded KKT matrix in LAPACK's storage for a banded LU.
+
+    Inputs: the flat path ``q_{−2} … q_N``, the stages' weights ``(7, n)`` column-major, the power's sides
+    ``σ``, the kinks (0/1), their multipliers ``λ`` (each ``(n,)``), the bar's ``μ``, ``first`` (1 at the first
+    step: the sides are set from the powers, and with ``auto`` the derivatives scaled by ``1 / cost``), ``auto``,
+    the arm, ``dt``, the objective's scale and the bar's ``target``. Outputs: the LU storage, the residual, the
+    updated ``σ``, kinks and ``λ``, whether the active set changed, the scale used and the stage function's
+    output ``(82, n)`` (at the objective's scale from the second step on)."""
+    lay = _scatter(n)
+    path = ca.MX.sym("path", 2 * (n + 3))
+    wk = ca.MX.sym("w", N_FEATURES * n)
+    sigma, kink, lam = ca.MX.sym("sigma", n), ca.MX.sym("kink", n), ca.MX.sym("lam", n)
+    mu, first, auto = ca.MX.sym("mu"), ca.MX.sym("first"), ca.MX.sym("auto")
+    arm, dt, fscale = ca.MX.sym("arm", len(ARM_FIELDS)), ca.MX.sym("dt"), ca.MX.sym("fscale")
+    target = ca.MX.sym("target")
+    side = ca.if_else(kink, 0, sigma)
+    ws = ca.vertcat(ca.reshape(wk, N_FEATURES, n), side.T)
+    x = ca.reshape(path[lay.gather.tolist()], 8, n)
+    raw = _stage_map(n)(x, ws, lam.T, arm, dt, fscale)  # (82, n)
+    # with ``auto``, the first step runs at scale 1 and its derivatives are scaled by 1 / the start's cost
+    # (λ = 0 there, so they scale with it)
+    cost = ca.sum2(raw[81, :])
+    start_scale = ca.if_else(ca.logic_and(cost > 1e-300, cost < ca.inf), 1 / cost, 1)
+    scale = ca.if_else(auto, start_scale, 1)
+    used = ca.if_else(auto, start_scale, fscale)
+    e, de = raw[72, :].T, raw[73:81, :]
+    w_e = used * dt * wk[1::N_FEATURES]
+    coef = side * w_e + lam
+    not0 = ca.DM([0.0] + [1.0] * (n - 1))  # stage 0's power is identically zero (q̇_0 = 0)
+    flip = ca.logic_and(ca.logic_and(ca.logic_not(kink), sigma * e < 0), not0)
+    release = ca.logic_and(kink, ca.fabs(lam) > w_e * (1 + 1e-9))
+    sigma_new = ca.if_else(first, ca.sign(e) * not0, ca.if_else(release, ca.sign(lam), sigma))
+    kink_new = ca.if_else(first, kink, ca.logic_and(ca.logic_or(kink, flip), ca.logic_not(release)))
+    lam_new = ca.if_else(kink_new, lam, 0)
+    changed = ca.logic_or(first, ca.sum1(flip) + ca.sum1(release) > 0)
+    # the gradient follows the new active set exactly (its terms in σ and λ are linear in ∇e); the Hessian's,
+    # one step late
+    delta = (ca.if_else(kink_new, 0, sigma_new) * w_e + lam_new) - coef
+    qb = path[2 * (n + 1) : 2 * (n + 2)]  # q_{N−1}
+    c1, c12, s1, s12 = ca.cos(qb[0]), ca.cos(qb[0] + qb[1]), ca.sin(qb[0]), ca.sin(qb[0] + qb[1])
+    l1, l2 = arm[ARM_FIELDS.index("l1")], arm[ARM_FIELDS.index("l2")]
+    tip = l1 * c1 + l2 * c12
+    jtip = ca.vertcat(-l1 * s1 - l2 * s12, -l2 * s12)
+    hess_tip = -ca.vertcat(l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12)
+    # the residual and the LU storage: sums of 0/1 operators applied to what they gather (:func:`_gather_sum`);
+    # the stages' gradients and Hessians are read where the stage function wrote them
+    g_rows, g_cols = lay.grad_terms
+    g_raw = (g_cols % 8) + _ROWS * (g_cols // 8)
+    scaled = ca.vec(raw) * scale
+    r = _gather_sum(
+        lay.size,
+        [
+            (g_rows, g_raw, _ROWS * n, scaled),
+            (g_rows, g_cols, 8 * n, ca.vec(de * ca.repmat(delta.T, 8, 1))),
+            (lay.last, [0, 1], 2, mu * jtip),
+            (lay.lam_rows, range(n - 1), n - 1, ca.if_else(kink_new[1:], e[1:], lam_new[1:])),
+            ([lay.size - 1], [0], 1, tip - target),
+        ],
+    )
+    b_rows, b_cols = lay.band_terms
+    kk, jj = np.nonzero(lay.kink_pos < lay.lu_size)
+    lu = _gather_sum(
+        lay.lu_size,
+        [
+            (b_rows, b_cols, _ROWS * n, scaled),
+            # ∂e_k/∂q in the row and the column of λ_k (stage 0 has no λ)
+            (lay.kink_pos[kk, jj], (jj % 8) + 8 * kk, 8 * n, ca.vec(de * ca.repmat(kink_new.T, 8, 1))),
+            (lay.lam_diag, range(n - 1), n - 1, 1 - kink_new[1:]),  # λ_k = 0 off the kinks
+            (lay.bar_pos, [0, 1, 0, 1], 2, jtip),
+            (lay.curv_pos, range(4), 4, mu * hess_tip),
+        ],
+    )
+    return ca.Function(
+        f"reachirl_newton_step_{n}",
+        [path, wk, sigma, kink, lam, mu, first, auto, arm, dt, fscale, target],
+        [lu, r, sigma_new, kink_new, lam_new, changed, used, ca.vec(raw)],
+    )
+
+
+def _gather_sum(n_rows: int, ops) -> ca.MX:
+    """``Σ_i op_i @ v_i`` as one dense vector of ``n_rows``: each ``(rows, cols, n_cols, v_i)`` a 0/1 operator
+    (its nonzeros at ``(rows, cols)``) and the vector it applies to. Summed as gathers (each row's first term,
+    then its second … where it has one), which compiled code runs several times faster than a sparse product."""
+    rows, cols, offset = [], [], 0
+    for r, c, width, _ in ops:
+        rows.append(np.asarray(r, dtype=int))
+        cols.append(offset + np.asarray(list(c), dtype=int))
+        offset += width
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    order = np.argsort(rows, kind="stable")  # each row's terms in the order given
+    rows, cols = rows[order], cols[order]
+    rank = np.arange(rows.size) - np.searchsorted(rows, rows)  # the term's place among its row's
+    source = ca.vertcat(*[v for *_, v in ops], 0)  # the last entry: a zero, for rows without terms
+    first = np.full(n_rows, offset)
+    first[rows[rank == 0]] = cols[rank == 0]
+    total = source[first.tolist()]
+    for j in range(1, int(rank.max(initial=0)) + 1):
+        at = rows[rank == j].tolist()
+        total[at] = total[at] + source[cols[rank == j].tolist()]
+    return total
 
 
 @functools.lru_cache(maxsize=8)
@@ -238,24 +343,6 @@ def _knot_windows(n: int, n_windows: int) -> np.ndarray:
 _local = threading.local()
 
 
-def _workspace(n: int):
-    """This thread's buffers of the mapped stage function of ``n`` stages: ``(trigger, x_in, ws_in, lam_in, arm,
-    dt, fscale, out)``, the arrays the function reads and writes in place (made once per thread and size)."""
-    spaces = getattr(_local, "spaces", None)
-    if spaces is None:
-        spaces = _local.spaces = {}
-    space = spaces.get(n)
-    if space is None:
-        buf, trigger = _stage_map(n).buffer()
-        arrays = (np.zeros(8 * n), np.zeros(8 * n), np.zeros(n), np.zeros(len(ARM_FIELDS)), np.zeros(1), np.zeros(1))
-        for i, a in enumerate(arrays):
-            buf.set_arg(i, a)
-        out = np.zeros(_ROWS * n)
-        buf.set_res(0, out)
-        space = spaces[n] = (buf, trigger, *arrays, out)  # the buffer object keeps the trigger valid
-    return space[1:]
-
-
 def _params(task: ReachingTask) -> tuple[np.ndarray, float]:
     return _arm_params(task.arm), float(task.dt)
 
@@ -276,6 +363,28 @@ def _stage_knots(q0: np.ndarray, q: np.ndarray) -> np.ndarray:
     return _path(q0, q)[_scatter(n).gather].reshape(8, n, order="F")
 
 
+def _workspace(build, n: int):
+    """This thread's buffers of the CasADi function ``build(n)`` (compiled when :func:`.compiled.compiled_function`
+    can): ``(trigger, inputs, outputs)``, the arrays it reads and writes in place (made once per thread, function
+    and size)."""
+    spaces = getattr(_local, "spaces", None)
+    if spaces is None:
+        spaces = _local.spaces = {}
+    space = spaces.get((build, n))
+    if space is None:
+        f = build(n)
+        f = compiled.compiled_function(f) or f
+        buf, trigger = f.buffer()
+        inputs = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+        outputs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+        for i, a in enumerate(inputs):
+            buf.set_arg(i, a)
+        for i, a in enumerate(outputs):
+            buf.set_res(i, a)
+        space = spaces[build, n] = (buf, trigger, inputs, outputs)  # the buffer object keeps the trigger valid
+    return space[1:]
+
+
 def newton_solve(
     task: ReachingTask,
     weights: np.ndarray,
@@ -291,95 +400,33 @@ def newton_solve(
     lay = _scatter(n)
     size = lay.size
     w_knot = np.asarray(weights, dtype=float)[_knot_windows(n, weights.shape[0])]  # (n, 7)
-    dt = float(task.dt)
-    scale_known = fscale is not None
-    fscale = 1.0 if fscale is None else float(fscale)
-    w_e = fscale * dt * w_knot[:, 1]  # each stage's energy weight, as the Lagrangian sees it
-    w_release = w_e * (1 + 1e-9)  # a kink whose multiplier exceeds it is released
     q0 = np.asarray(task.q0, dtype=float)
-    path = _path(q0, np.asarray(q_start[1:n], dtype=float))  # q_{−2} … q_N; the unknowns q_1 … q_{N−1} inside
+    trigger, inputs, outputs = _workspace(_step_function, n)
+    path, w_in, sigma, kink, lam, mu, first, auto, arm_in, dt_in, fs_in, target = inputs
+    lu_out, r, sigma_new, kink_new, lam_new, changed_out, used, out = outputs
+    path[:] = _path(q0, np.asarray(q_start[1:n], dtype=float))  # q_{−2} … q_N; the unknowns q_1 … q_{N−1} inside
     q = path[6:-2].reshape(n - 1, 2)  # a view: a step moves the path (q_N = q_{N−1} is set after each step)
-    lam, mu = np.zeros(n), 0.0
-    kink = np.zeros(n, dtype=bool)
-    sigma = np.zeros(n)
-    last = lay.last
-    g_rows, g_cols = lay.grad_terms
-    b_rows, b_cols = lay.band_terms
-    dq = None
-
-    # the mapped stages evaluated in place, through CasADi's buffers (no conversion per call)
-    trigger, x_in, ws_in, lam_in, arm_in, dt_in, fs_in, out = _workspace(n)
+    w_in[:] = w_knot.reshape(-1)
+    sigma[:], kink[:], lam[:], mu[0], first[0] = 0.0, 0.0, 0.0, 0.0, 1.0
+    auto[0] = 1.0 if fscale is None else 0.0
     arm_in[:] = _arm_params(task.arm)
-    dt_in[0], fs_in[0] = dt, fscale
-    ws_view = ws_in.reshape(8, n, order="F")
-    ws_view[:N_FEATURES] = w_knot.T
-    res = out.reshape(_ROWS, n, order="F")
-
+    dt_in[0], fs_in[0], target[0] = float(task.dt), 1.0 if fscale is None else float(fscale), task.target_x
+    dq = None
     for it in range(max_iter + 1):
-        np.take(path, lay.gather, out=x_in)
-        side = np.where(kink, 0.0, sigma)
-        ws_view[N_FEATURES] = side
-        lam_in[:] = lam
         trigger()
-        if not scale_known:  # 1 / the start's cost; λ = 0 here, so the derivatives scale with it
-            cost = float(res[81].sum())
-            fscale = 1.0 / cost if np.isfinite(cost) and cost > 1e-300 else 1.0
-            fs_in[0] = fscale
-            res[0:72] *= fscale
-            w_e = fscale * dt * w_knot[:, 1]
-            w_release = w_e * (1 + 1e-9)
-            scale_known = True
-        grad, e, de = res[0:8].ravel(order="F"), res[72], res[73:81]
-        # the active set (see the module docstring): at the start, each knot's power on its own side; later, a
-        # knot whose power changed side becomes a kink, and a kink whose multiplier left [−w, w] is released.
-        # The gradient follows exactly (its terms in σ and λ are linear in ∇e); the Hessian's, one step late.
-        coef = side * w_e + lam
-        if it == 0:
-            sigma = np.sign(e)
-            sigma[0] = 0.0  # stage 0's power is identically zero (q̇_0 = 0)
-            changed = True
-        else:
-            flip = ~kink & (sigma * e < 0)
-            flip[0] = False
-            release = kink & (np.abs(lam) > w_release)
-            changed = bool(flip.any() or release.any())
-            if changed:
-                sigma = np.where(release, np.sign(lam), sigma)
-                kink = (kink | flip) & ~release
-                lam = np.where(kink, lam, 0.0)
-        if changed:
-            grad = (res[0:8] + de * (np.where(kink, 0.0, sigma) * w_e + lam - coef)).ravel(order="F")
-        tip, jtip = _fingertip(task, q[-1])
-        r = np.bincount(g_rows, weights=grad[g_cols], minlength=size)
-        r[last] += mu * jtip
-        r[lay.lam_rows] = np.where(kink[1:], e[1:], lam[1:])
-        r[size - 1] = tip - task.target_x
-        if it > 0 and not changed:
+        if it == 0:  # from here on at the scale the first step set
+            fs_in[0], first[0], auto[0] = used[0], 0.0, 0.0
+        if it > 0 and not changed_out[0]:
             g = float(np.max(np.abs(r[lay.q_rows])))
             stationary = g < GRAD_TOL or (g < LOOSE_GRAD_TOL and float(np.max(np.abs(dq))) < STEP_TOL)
             feasible = abs(r[-1]) < BAR_TOL and float(np.max(np.abs(r[lay.lam_rows]), initial=0.0)) < POWER_TOL
             if stationary and feasible:
-                curv = mu * _fingertip_hessian(task, q[-1])  # the bar's curvature in the Lagrangian
-                if not _verified(task, q0, q, kink, lam, w_e, sigma, e, out, de, jtip, curv):
-                    return None
-                qs = np.vstack([q0, q, q[-1:]])
-                return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()), fscale=fscale, bar_multiplier=mu)
+                return _answer(task, q0, q, kink_new > 0, lam_new, mu[0], sigma_new, w_knot, used[0], out, it)
         if it == max_iter:
             return None
-        # the banded KKT matrix, assembled in LAPACK's storage for a banded LU (``_BW`` rows of fill-in on top)
-        lu = np.bincount(b_rows, weights=out[b_cols], minlength=lay.lu_size)
-        ks = np.flatnonzero(kink)
-        if ks.size:  # ∂e_k/∂q in the row and the column of λ_k
-            vals = de[:, ks].T
-            lu += np.bincount(
-                lay.kink_pos[ks].reshape(-1), weights=np.hstack([vals, vals]).reshape(-1), minlength=lay.lu_size + 1
-            )[:-1]
-        lu[lay.lam_diag[~kink[1:]]] = 1.0  # λ_k = 0 off the kinks
-        lu[lay.bar_pos[:2]] = jtip
-        lu[lay.bar_pos[2:]] = jtip
-        lu[lay.curv_pos] += mu * _fingertip_hessian(task, q[-1]).reshape(-1)
+        # the banded LU (``_BW`` rows of fill-in on top of the band, in place)
         _, _, step, info = _gbsv(
-            _BW, _BW, lu.reshape(3 * _BW + 1, size, order="F"), -r, overwrite_ab=True, overwrite_b=True
+            _BW, _BW, lu_out.reshape(3 * _BW + 1, size, order="F"), -r, overwrite_ab=True, overwrite_b=False
         )
         size_of = np.abs(step)
         if info != 0 or not math.isfinite(size_of.max()):  # the largest entry is NaN or infinite if any is
@@ -391,9 +438,26 @@ def newton_solve(
         dq = inner[:, :2]
         q += dq
         path[-2:] = path[-4:-2]  # q_N = q_{N−1}
+        sigma[:], kink[:] = sigma_new, kink_new
+        lam[:] = lam_new
         lam[1:] += inner[:, 2]
-        mu += step[-1]
+        mu[0] += step[-1]
     return None
+
+
+def _answer(task, q0, q, kink, lam, mu, sigma, w_knot, fscale, out, it) -> NewtonResult | None:
+    """The converged point as a :class:`NewtonResult`, or None if it is not the DOC's optimum
+    (:func:`_verified`)."""
+    n = task.n_nodes
+    res = out.reshape(_ROWS, n, order="F")
+    e = res[72]
+    w_e = fscale * float(task.dt) * w_knot[:, 1]
+    _, jtip = _fingertip(task, q[-1])
+    curv = mu * _fingertip_hessian(task, q[-1])  # the bar's curvature in the Lagrangian
+    if not _verified(task, q0, q, kink, lam, w_e, sigma, e, out, jtip, curv):
+        return None
+    qs = np.vstack([q0, q, q[-1:]])
+    return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()), fscale=float(fscale), bar_multiplier=float(mu))
 
 
 def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
@@ -411,7 +475,7 @@ def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     return -np.array([[a.l1 * c1 + a.l2 * c12, a.l2 * c12], [a.l2 * c12, a.l2 * c12]])
 
 
-def _verified(task, q0, q, kink, lam, w_e, sigma, e, out, de, jtip, curv) -> bool:
+def _verified(task, q0, q, kink, lam, w_e, sigma, e, out, jtip, curv) -> bool:
     """Whether the converged point is the DOC's optimum: every knot's power on its side, every kink's multiplier
     inside ``[−w, w]``, the bounds inactive, and the Hessian positive definite on the constraints' null space."""
     off = ~kink
@@ -422,32 +486,54 @@ def _verified(task, q0, q, kink, lam, w_e, sigma, e, out, de, jtip, curv) -> boo
     qd = np.diff(qs, axis=0) / task.dt
     if np.any(qs[1:] <= task.q_lower) or np.any(qs[1:] >= task.q_upper) or np.any(np.abs(qd) >= task.qd_max):
         return False
-    return _is_minimum(out, de, task.n_nodes, kink, jtip, curv)
+    return _is_minimum(out, task.n_nodes, kink, jtip, curv)
 
 
-def _is_minimum(out, de, n, kink, jtip, curv) -> bool:
+def _is_minimum(out, n, kink, jtip, curv) -> bool:
     """Whether the Lagrangian's Hessian in the knots (the stages', and ``curv``: the bar's ``μ ∇²P_x`` on
     ``q_{N−1}``) is positive definite on the null space of the constraints (the bar, the kinks): a banded
     Cholesky factorisation of ``H + ρ Σ ĉĉᵀ`` (``ĉ``: each constraint's unit gradient) with ``ρ`` a thousand
-    times the largest diagonal entry of ``H``."""
+    times the largest diagonal entry of ``H``, assembled by :func:`_minimum_band`."""
+    trigger, (out_in, kink_in, jtip_in, curv_in), (ab,) = _workspace(_minimum_band, n)
+    out_in[:] = out
+    kink_in[:] = kink
+    jtip_in[:] = jtip
+    curv_in[:] = np.ravel(curv)
+    trigger()
+    _, info = _pbtrf(ab.reshape(_QBW + 1, -1), lower=0)  # LAPACK's banded Cholesky (``scipy.linalg.cholesky_banded``
+    # without its checks); it factorises a copy: ``ab`` is C-ordered
+    return info == 0
+
+
+@functools.lru_cache(maxsize=8)
+def _minimum_band(n: int) -> ca.Function:
+    """The upper band ``(_QBW + 1, m)`` (row ``_QBW`` the diagonal, row-major) of :func:`_is_minimum`'s matrix
+    ``H + ρ Σ ĉĉᵀ`` for ``n`` stages. Inputs: the stage function's output ``(82, n)``, the kinks (0/1), the bar's
+    gradient ``(2,)`` and its curvature ``(2, 2)`` row-major."""
     _, pos, m = _q_scatter(n)
     rows, cols = _q_terms(n)
-    ab = np.bincount(rows, weights=out[cols], minlength=(_QBW + 1) * m).reshape(_QBW + 1, m)  # ``op @ out``: the
-    # upper band, row _QBW the diagonal
-    ab[_QBW, m - 2 :] += np.diag(curv)
-    ab[_QBW - 1, m - 1] += curv[0, 1]
-    rho = 1e3 * max(1.0, float(np.max(np.abs(ab[_QBW]))))
-    u = jtip / max(float(np.linalg.norm(jtip)), 1e-300)  # the bar's unit gradient, on q_{N−1}
-    ab[_QBW, m - 2 :] += rho * u**2
-    ab[_QBW - 1, m - 1] += rho * u[0] * u[1]
-    ks = np.flatnonzero(kink)
-    if ks.size:  # each kink's unit gradient over its stage's knots, its outer product added to the band
-        v = de[:, ks].T
-        v = v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
-        outer = (v[:, :, None] * v[:, None, :]).reshape(-1)
-        ab += rho * np.bincount(pos[ks].reshape(-1), weights=outer, minlength=ab.size + 1)[:-1].reshape(ab.shape)
-    _, info = _pbtrf(ab, lower=0)  # LAPACK's banded Cholesky (``scipy.linalg.cholesky_banded`` without its checks)
-    return info == 0
+    size = (_QBW + 1) * m
+    out, kink = ca.MX.sym("out", _ROWS * n), ca.MX.sym("kink", n)
+    jtip, curv = ca.MX.sym("jtip", 2), ca.MX.sym("curv", 4)
+    diag = _QBW * m + np.arange(m)
+    corner = [diag[m - 2], diag[m - 1], (_QBW - 1) * m + m - 1]  # q_{N−1}'s 2 × 2 block: diagonal, then off it
+    hess = _gather_sum(size, [(rows, cols, _ROWS * n, out), (corner, range(3), 3, curv[[0, 3, 1]])])
+    rho = 1e3 * ca.fmax(1, ca.mmax(ca.fabs(hess[diag.tolist()])))
+    u = jtip / ca.fmax(ca.norm_2(jtip), 1e-300)  # the bar's unit gradient, on q_{N−1}
+    de = ca.reshape(out, _ROWS, n)[73:81, :]
+    v = de / ca.repmat(ca.fmax(ca.sqrt(ca.sum1(de**2)), 1e-300), 8, 1) * ca.repmat(kink.T, 8, 1)  # each kink's
+    # unit gradient over its stage's knots (zero off the kinks)
+    k, ij = np.nonzero(pos < size)
+    i, j = ij % 8, ij // 8
+    outer = v[(i + 8 * k).tolist()] * v[(j + 8 * k).tolist()]
+    rank_one = _gather_sum(
+        size,
+        [
+            (corner, range(3), 3, ca.vertcat(u[0] ** 2, u[1] ** 2, u[0] * u[1])),
+            (pos[k, ij], range(k.size), k.size, outer),
+        ],
+    )
+    return ca.Function(f"reachirl_newton_minimum_{n}", [out, kink, jtip, curv], [hess + rho * rank_one])
 
 
 @functools.lru_cache(maxsize=8)
