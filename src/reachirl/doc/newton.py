@@ -252,7 +252,8 @@ class _Layout(NamedTuple):
     """Precomputed indices of the banded KKT system of ``n`` stages (:func:`_scatter`).
 
     The positions ``*_pos`` and ``lam_diag`` are flat indices into LAPACK's storage for the banded LU, ``(3·BW + 1,
-    size)`` column-major (``BW`` rows of fill-in above the band), where the matrix is assembled in place."""
+    size)`` column-major (``BW`` rows of fill-in above the band), where :func:`_step_function` assembles the
+    matrix."""
 
     size: int  # unknowns
     last: np.ndarray  # (2,): q_{N−1}'s unknowns (the bar's knot); μ is the last unknown
