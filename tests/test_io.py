@@ -1,6 +1,7 @@
 """Atomic writes: the file appears whole or not at all, with the usual permissions, and no pickle."""
 
 import io
+import json
 import os
 import stat
 import zipfile
@@ -78,3 +79,73 @@ def test_a_write_that_fails_names_the_file_being_written(tmp_path, monkeypatch):
     monkeypatch.setattr(tempfile, "mkstemp", read_only)
     with pytest.raises(OSError, match=re.escape(f"Read-only file system: '{target}'")):
         atomic_write_bytes(target, b"x")
+
+
+def _record_syncs(monkeypatch, fail_folders: bool = False, fail_files: bool = False) -> list:
+    """Record, in order, each fsync (of a file: its inode; of a folder: 'folder', inode) and each rename; a folder's
+    sync may be refused as some file systems refuse it (EINVAL), or a file's fail as a failing disk does (EIO)."""
+    import errno
+
+    events: list = []
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync(fd):
+        st = os.fstat(fd)
+        kind = "folder" if stat.S_ISDIR(st.st_mode) else "file"
+        events.append((f"fsync {kind}", st.st_ino))
+        if kind == "folder" and fail_folders:
+            raise OSError(errno.EINVAL, "Invalid argument")
+        if kind == "file" and fail_files:
+            raise OSError(errno.EIO, "Input/output error")
+        return real_fsync(fd)
+
+    def replace(src, dst):
+        events.append(("replace", os.stat(src).st_ino))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "replace", replace)
+    return events
+
+
+def test_an_atomic_write_reaches_the_disk_before_and_after_its_rename(tmp_path, monkeypatch):
+    """The new content is synced before the rename makes it the file, and the folder after (the rename itself): a
+    crash of the system leaves the earlier file or the new one, never an empty one under the name."""
+    path = tmp_path / "results.json"
+    path.write_text("earlier")
+    events = _record_syncs(monkeypatch)
+    atomic_write_json(path, {"a": 1})
+    ino, folder = path.stat().st_ino, tmp_path.stat().st_ino
+    assert events == [("fsync file", ino), ("replace", ino), ("fsync folder", folder)]
+    assert json.loads(path.read_text()) == {"a": 1}
+
+
+def test_a_folder_that_cannot_be_synced_still_gets_its_file(tmp_path, monkeypatch):
+    events = _record_syncs(monkeypatch, fail_folders=True)
+    atomic_write_json(tmp_path / "table.json", [1, 2])
+    assert [e[0] for e in events] == ["fsync file", "replace", "fsync folder"]
+    assert json.loads((tmp_path / "table.json").read_text()) == [1, 2]
+
+
+def test_a_sync_that_fails_names_the_file_and_keeps_the_earlier_one(tmp_path, monkeypatch):
+    path = tmp_path / "table.csv"
+    path.write_text("earlier")
+    _record_syncs(monkeypatch, fail_files=True)
+    with pytest.raises(OSError, match=r"Input/output error.*table\.csv"):
+        atomic_write_json(path, [1])
+    assert path.read_text() == "earlier" and sorted(p.name for p in tmp_path.iterdir()) == ["table.csv"]
+
+
+def test_a_bulk_exports_files_are_not_synced_one_by_one_but_its_index_and_folder_are(tmp_path, monkeypatch):
+    """~1,200 prediction files a run: a sync each cost over a second; the index (written last) and the folder are
+    synced once."""
+    from reachirl.data.exports import TrajectoryExport, export_trajectories
+
+    t = np.linspace(0.0, 1.0, 5)
+    demo = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2)), "tau": np.zeros((4, 2))}
+    events = _record_syncs(monkeypatch)
+    export_trajectories(tmp_path, [TrajectoryExport(f"S1/T{i}", t, demo) for i in range(3)])
+    index = (tmp_path / "index.csv").stat().st_ino
+    syncs = [e for e in events if e[0] != "replace"]
+    assert syncs == [("fsync file", index), ("fsync folder", tmp_path.stat().st_ino)]
+    assert len(events) == 2 + 7  # six trajectory files and the index renamed into place

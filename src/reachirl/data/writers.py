@@ -120,8 +120,11 @@ def write_mot(
     angles_deg: np.ndarray,
     columns: Sequence[str] = ("q1", "q2"),
     decimals: int = 6,
+    *,
+    durable: bool = True,
 ) -> Path:
-    """Write joint angles in degrees, ``(n, n_columns)``, as an OpenSim ``.mot`` file (``inDegrees=yes``)."""
+    """Write joint angles in degrees, ``(n, n_columns)``, as an OpenSim ``.mot`` file (``inDegrees=yes``);
+    ``durable``: synced to the disk (:func:`reachirl.io.atomic_path`)."""
     path = Path(path)
     t = np.asarray(time, dtype=float).reshape(-1)
     a = np.asarray(angles_deg, dtype=float)
@@ -141,7 +144,7 @@ def write_mot(
         "\t".join(["time", *columns]),
     ]
     lines.append(_fixed_lines(np.column_stack([t, a]), [8, *[decimals] * a.shape[1]]))
-    atomic_write_text(path, "\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n", durable=durable)
     return path
 
 
