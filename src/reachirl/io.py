@@ -9,7 +9,7 @@ import os
 import re
 import tempfile
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ __all__ = [
     "check_regular_file",
     "csv_column",
     "hold_folder",
+    "holding_folder",
     "json_depth",
     "npz_bytes",
     "read_json",
@@ -171,6 +172,30 @@ def hold_folder(folder: str | os.PathLike, command: str = "reachirl", option: st
         os.close(fd)
         return
     _HELD[key] = fd
+
+
+@contextlib.contextmanager
+def holding_folder(
+    folder: str | os.PathLike, command: str = "reachirl command", option: str = "--out"
+) -> Iterator[Callable[[], Path]]:
+    """:func:`hold_folder` on ``folder`` for the block, from its start when the folder exists (a second command
+    is refused before any work), else from the call of the function it yields, which makes the folder and holds
+    it (call it before the first write into the folder). Released at the block's end, unless it was held
+    before."""
+    folder = Path(folder)
+    held_before = os.path.realpath(folder) in _HELD
+
+    def make() -> Path:
+        folder.mkdir(parents=True, exist_ok=True)
+        hold_folder(folder, command, option)
+        return folder
+
+    hold_folder(folder, command, option)
+    try:
+        yield make
+    finally:
+        if not held_before:
+            release_folder(folder)
 
 
 def release_folder(folder: str | os.PathLike) -> None:

@@ -13,7 +13,7 @@ from ..data.trial import load_trials
 from ..doc.evaluation import summarise
 from ..errors import InputError
 from ..experiments.no_data import annotate_no_data
-from ..io import atomic_write_json
+from ..io import atomic_write_json, holding_folder
 from ..irl.model import load_model
 from ..irl.provenance import fingerprint
 from ..validation import check_output_dir, check_output_file, check_output_kind
@@ -103,10 +103,19 @@ def prediction_exports(trials, errors, set_name: str = ""):
 
 def run(args: argparse.Namespace) -> int:
     check_output_file(args.out)
-    if args.predictions is not None:
-        if args.predictions.exists() and not args.predictions.is_dir():
-            raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
-        check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
+    if args.predictions is None:
+        return _evaluate(args, None)
+    if args.predictions.exists() and not args.predictions.is_dir():
+        raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
+    check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
+    # one command at a time in the folder: a second export would remove the first one's index and files
+    with holding_folder(args.predictions, "reachirl command", "--predictions") as make:
+        return _evaluate(args, make)
+
+
+def _evaluate(args: argparse.Namespace, make_predictions) -> int:
+    """The evaluation, once the --predictions folder (if any) is held; ``make_predictions()`` makes it and holds
+    it, before its first file is written."""
     refuse_overwrite({"--out": args.out, "--predictions": args.predictions}, [args.model, args.trials])
     check_output_kind(args.out, ".json", kind=JSON_KINDS["evaluate"])
     model = load_model(args.model)
@@ -122,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
         task = progress.add_task("predicting", total=len(trials))
         errors = model.evaluate(trials, backend=backend, on_trial=lambda e: progress.advance(task))
     summary = summarise(errors, include_failed=args.include_failed)
+    if args.predictions is not None:
+        make_predictions()  # held before the first change (a folder made meanwhile by another command: refused)
     # METRICS.json last, an earlier one removed first: an interrupt never leaves it beside other predictions
     Path(args.out).unlink(missing_ok=True)
     if args.predictions is not None:

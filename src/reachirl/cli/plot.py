@@ -21,6 +21,7 @@ import contextlib
 from pathlib import Path
 
 from ..errors import InputError
+from ..io import holding_folder
 from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials, refuse_foreign_figures
 
 
@@ -251,16 +252,18 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     import shutil
     import tempfile
 
-    out.mkdir(parents=True, exist_ok=True)
-    for stale in out.glob(f"{PARTIAL_PREFIX}*"):
-        shutil.rmtree(stale, ignore_errors=True)
-    tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
-    try:
-        names = _figure_files(draw(tmp), pdf)
-        for n in names:
-            os.replace(tmp / n, out / n)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    # one command at a time in the folder: a second plot would remove this one's hidden folder while it draws
+    with holding_folder(out, "reachirl command", "--out") as make:
+        make()
+        for stale in out.glob(f"{PARTIAL_PREFIX}*"):
+            shutil.rmtree(stale, ignore_errors=True)
+        tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
+        try:
+            names = _figure_files(draw(tmp), pdf)
+            for n in names:
+                os.replace(tmp / n, out / n)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
     return [out / n for n in names]
 
 
@@ -268,6 +271,13 @@ def run(args: argparse.Namespace) -> int:
     from ..validation import check_output_dir
 
     out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
+    # one command at a time in the folder (from the start when it exists: refused before any work)
+    with holding_folder(out, "reachirl command", "--out") as make:
+        return _plot(args, out, make)
+
+
+def _plot(args: argparse.Namespace, out: Path, make_out) -> int:
+    """The figures, once --out is held (if it exists); ``make_out()`` makes it and holds it."""
     if args.model is not None:
         from ..data.trial import load_trials
         from ..doc.evaluation import summarise
@@ -284,6 +294,7 @@ def run(args: argparse.Namespace) -> int:
         trials = picked_trials(args, load_trials(args.source), args.source)
         errors = model.evaluate(trials, backend=args.backend)
         print(summary_line(summarise(errors), args.backend or model.backend))
+        make_out()
         written = model_figures(model, trials, errors, out, pdf=not args.no_pdf, backend=args.backend)
     else:
         given = [o for o in ("subject", "posture", "side", "trial") if getattr(args, o) is not None]

@@ -28,6 +28,7 @@ from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_i
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
+from ..io import holding_folder
 from ._args import (
     TRIALS_KIND,
     export_names,
@@ -337,16 +338,28 @@ def _refuse_duplicate_ids(trials: list[Trial]) -> None:
 
 
 def run(args) -> int:
-    from ..validation import check_output_dir, check_output_file, check_output_kind
+    from ..validation import check_output_dir, check_output_file
 
     options = _options(args)
     if args.markers and args.markerset:
         raise InputError("give --markers or --markerset, not both (--markers would win and --markerset be ignored)")
     out = check_output_file(args.out)
-    if args.export is not None:  # before any work: a folder in which files can be written, and not the trials file's
-        check_output_dir(args.export, "--export")
-        output_folder_files(args.export, ["index.csv"], [], "--export", {"--out": out})
+    if args.export is None:
+        return _preprocess(args, options, out, None)
+    # before any work: a folder in which files can be written, and not the trials file's
+    check_output_dir(args.export, "--export")
+    output_folder_files(args.export, ["index.csv"], [], "--export", {"--out": out})
+    # one command at a time in the folder: a second export would remove the first one's index and files
+    with holding_folder(args.export, "reachirl command", "--export") as make:
         refuse_foreign_export_files(args.export, ["index.csv"], "--export")
+        return _preprocess(args, options, out, make)
+
+
+def _preprocess(args, options, out: Path, make_export) -> int:
+    """The preprocessing, once the --export folder (if any) is held; ``make_export()`` makes it and holds it,
+    before the first change."""
+    from ..validation import check_output_kind
+
     _folder_defaults(args)
     if args.manifest:
         entries = read_manifest(args.manifest)
@@ -391,6 +404,8 @@ def run(args) -> int:
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.export, names, inputs, "--export", {"--out": out})
         refuse_foreign_export_files(args.export, names, "--export")
+    if args.export is not None:
+        make_export()  # held before the first change (a folder made meanwhile by another command: refused)
     # the trials file last, an earlier one removed first: an interrupt never leaves it beside another export
     out.unlink(missing_ok=True)
     if args.export is not None:

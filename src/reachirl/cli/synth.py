@@ -69,22 +69,27 @@ def run(args) -> int:
         )
     except ValueError as e:
         raise InputError(str(e)) from None
+    from ..io import holding_folder
     from ..validation import check_output_dir
 
     check_output_dir(args.out)
     from ..virtual.files import synth_folder_clash
 
-    clash = synth_folder_clash(args.out)
-    if clash is not None:
-        raise InputError(
-            f"--out holds {clash} and is not a synth data set (no truth.json or synth-incomplete.json from reachirl "
-            "synth); synth would replace it: choose a new folder, or empty this one",
-            args.out,
-        )
-    try:
-        result = generate(args.out, config)
-    except OSError as e:
-        raise InputError(f"cannot write ({e.strerror or e})", args.out) from None
+    # one command at a time in the folder: a second synth would remove the first one's description and
+    # recordings while it writes them
+    with holding_folder(args.out, "reachirl command") as make:
+        clash = synth_folder_clash(args.out)
+        if clash is not None:
+            raise InputError(
+                f"--out holds {clash} and is not a synth data set (no truth.json or synth-incomplete.json from "
+                "reachirl synth); synth would replace it: choose a new folder, or empty this one",
+                args.out,
+            )
+        try:
+            make()  # generate() makes it first thing too
+            result = generate(args.out, config)
+        except OSError as e:
+            raise InputError(f"cannot write ({e.strerror or e})", args.out) from None
     n = len(result.trials)
     print(
         f"wrote {n} {config.fmt.upper()} trials of {len(result.subjects)} subjects to {result.out_dir} "
