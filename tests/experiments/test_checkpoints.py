@@ -257,3 +257,31 @@ def test_units_run_in_threads_each_name_their_own_messages(caplog):
         for t in threads:
             t.join()
     assert sorted(caplog.messages) == ["unit-A: from unit-A", "unit-B: from unit-B"]
+
+
+def _killed(*args, **kwargs):
+    """A unit's worker killed as it runs (SIGKILL, or the OOM killer)."""
+    import os
+    import signal
+
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_killed_unit_worker_is_named_with_its_unit_and_a_rerun_resumes(trials_file, tmp_path, monkeypatch, capsys):
+    """It was an internal error (exit 1, 'BrokenProcessPool' or 'a worker process died'): a killed worker is the
+    run's circumstance, not a bug."""
+    from reachirl.experiments import runner
+
+    monkeypatch.setattr(runner, "_run_unit_bounded", _killed)  # what the (spawned) worker is given to run
+    out = tmp_path / "run"
+    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "2", "--nodes", "20"]
+    argv += ["--max-iter", "1", "--sections", "1", "--n-train", "2", "--no-progress", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        f"reachirl reproduce: error: {out}: a worker process died (killed, or out of memory) while running unit "
+        f"{KEY}; finished units are kept (rerun to resume)"
+    ]
+    monkeypatch.undo()
+    assert main(argv) == 0
+    assert json.loads((out / "results.json").read_text())["run"]["computed"] == [KEY]

@@ -629,3 +629,35 @@ def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_any
         holder.wait()
     assert main(argv) == 0  # the killed holder's lock went with it
     assert (out / "identifiability.json").is_file()
+
+
+def _killed(*args, **kwargs):
+    """A job's worker killed as it runs (SIGKILL, or the OOM killer)."""
+    import os
+    import signal
+
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_killed_job_worker_is_named_with_its_job_and_a_rerun_resumes(small_run, tmp_path, monkeypatch, capsys):
+    """It was an internal error (exit 1, 'BrokenProcessPool: A process in the process pool was terminated
+    abruptly'): a killed worker is the analysis's circumstance, not a bug."""
+    import re
+
+    from reachirl.cli import main
+    from reachirl.experiments import sensitivity
+
+    monkeypatch.setattr(sensitivity, "sensitivity_job", _killed)  # what the (spawned) workers are given to run
+    out = tmp_path / "analysis"
+    argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "2", "--no-occlusion", "--no-progress"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.fullmatch(
+        rf"reachirl sensitivity: error: {re.escape(str(out / 'checkpoints'))}: a worker process died \(killed, or "
+        r"out of memory\) while running job P2 (determination|sensitivity [12]); finished jobs are kept \(rerun to "
+        r"resume\)",
+        err[0],
+    ), err
+    monkeypatch.undo()
+    assert main(argv) == 0
+    assert (out / "sensitivity.csv").is_file()

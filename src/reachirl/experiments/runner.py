@@ -264,9 +264,11 @@ def run_units(
                         f"with REACHIRL_UNIT_MEMORY_GB",
                         out_dir,
                     ) from None
-                except cf.process.BrokenProcessPool:
-                    raise RuntimeError(
-                        f"a worker process died while running unit {futures[f]} (out of memory?)"
+                except cf.process.BrokenProcessPool:  # killed (SIGKILL, the OOM killer): the run's, not a bug
+                    raise InputError(
+                        f"a worker process died (killed, or out of memory) while running unit {futures[f]}; "
+                        "finished units are kept (rerun to resume)",
+                        out_dir,
                     ) from None
                 finish(payload)
                 if len(computed) >= limit:

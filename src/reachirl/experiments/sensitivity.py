@@ -560,7 +560,16 @@ def run_sensitivity(
         try:
             futs = {ex.submit(fn, *args): name for name, fn, args in todo}
             for f in cf.as_completed(futs):
-                finish(futs[f], f.result())
+                try:
+                    res = f.result()
+                except cf.process.BrokenProcessPool:  # killed (SIGKILL, the OOM killer): said as a unit's worker
+                    kept = "finished jobs are kept (rerun to resume)" if checkpoint_dir else "nothing is kept"
+                    job = _label(futs[f])
+                    raise InputError(
+                        f"a worker process died (killed, or out of memory) while running job {job}; {kept}",
+                        checkpoint_dir if checkpoint_dir is not None else run_dir,
+                    ) from None
+                finish(futs[f], res)
         except BaseException:  # Ctrl-C, SIGTERM or an error: the workers (which ignore Ctrl-C) end now
             stop_workers(ex)
             raise
