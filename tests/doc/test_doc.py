@@ -5,7 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from reachirl import FEATURES, ReachingTask, solve_doc
+from reachirl import FEATURES, DocSolution, ReachingTask, solve_doc
 from reachirl.features import trajectory_cost
 
 # Start postures (q1, q2) in degrees: a spread of the workspace, fingertip short of a bar at 90 % of arm
@@ -372,3 +372,41 @@ def test_a_wrong_warm_start_or_nan_weights_are_refused_plainly(arm):
     sol = solve_doc(task, w)
     with pytest.raises(ValueError, match="weights must be finite"):
         trajectory_cost(arm, sol.q, sol.qd, sol.tau, task.dt, np.full((2, 7), np.nan))
+
+
+def _solution(**changes):
+    n = 4
+    t = np.linspace(0.0, 0.5, n + 1)
+    kw = dict(
+        t=t,
+        q=np.column_stack([np.linspace(-0.3, 0.2, n + 1), np.full(n + 1, 1.2)]),
+        qd=np.zeros((n + 1, 2)),
+        tau=np.ones((n, 2)),
+        cost=1.5,
+        converged=True,
+        iterations=7,
+        solve_time=0.01,
+        status="Solve_Succeeded",
+        backend="casadi",
+    )
+    kw.update(changes)
+    return DocSolution(**kw)
+
+
+def test_doc_solutions_compare_by_value():
+    """``==`` of two solutions raised numpy's "truth value of an array ... is ambiguous" (dataclass equality
+    compared the arrays with ==), and so did ``in``."""
+    a = _solution()
+    b = _solution(warm={"x": np.arange(3.0)})  # the solver's opaque state is not compared
+    assert a == b and not a != b and b in [a]
+    q = a.q.copy()
+    q[2, 1] += 1e-9
+    assert a != _solution(q=q)
+    assert a != _solution(tau=np.ones((4, 2)) * 2.0)
+    assert a != _solution(iterations=8) and a != _solution(status="Maximum_Iterations_Exceeded")
+    assert a != "a solution" and (a == None) is False  # noqa: E711 - the comparison itself is tested
+    failed = _solution(q=np.full((5, 2), np.nan), cost=float("nan"), converged=False)
+    assert failed == _solution(q=np.full((5, 2), np.nan), cost=float("nan"), converged=False)  # NaN where NaN was
+    assert failed != _solution(cost=float("nan"), converged=False)
+    with pytest.raises(TypeError, match=r"unhashable type: 'DocSolution'"):
+        hash(a)

@@ -18,7 +18,7 @@ with a vector ``q̇⁺``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -117,7 +117,7 @@ class ReachingTask:
         return np.linspace(0.0, self.duration, self.n_nodes + 1)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # its own __eq__; unhashable (its arrays are mutable)
 class DocSolution:
     """An optimal (or best-effort) reach: knots ``t (N+1,)``, ``q``/``qd (N+1, 2)``, torques ``tau (N, 2)``."""
 
@@ -145,6 +145,26 @@ class DocSolution:
         if not self.finite and self.converged:  # a solver's report is not taken over its own numbers
             object.__setattr__(self, "converged", False)
             object.__setattr__(self, "status", f"{self.status} (non-finite values)".strip())
+
+    def __eq__(self, other: object) -> bool:
+        """Field by field, the arrays by their values (dataclass equality compared them with ``==``, and two
+        equal solutions, a solve repeated, raised numpy's "truth value of an array ... is ambiguous"); a NaN
+        equals a NaN in the same place (a failed solve equals itself). ``warm``, the solver's opaque state, is not
+        compared."""
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        for f in fields(self):
+            if not f.compare:
+                continue
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, np.ndarray | float) or isinstance(b, np.ndarray | float):
+                a, b = np.asarray(a), np.asarray(b)
+                nan = a.dtype.kind in "fc" and b.dtype.kind in "fc"
+                if a.shape != b.shape or not np.array_equal(a, b, equal_nan=nan):
+                    return False
+            elif a != b:
+                return False
+        return True
 
     @property
     def finite(self) -> bool:
