@@ -168,6 +168,22 @@ def test_arm_model_validates_fields():
         ArmModel(l1=0.3, l2=float("nan"), m1=2, m2=1.5, c1=0.1, c2=0.2, i1=0.01, i2=0.02)
 
 
+@pytest.mark.parametrize(
+    ("value", "match"),
+    [
+        ("0.3", r"ArmModel\.l1 must be a number, got '0\.3' \(str\)"),  # was read as 0.3, silently
+        (b"0.3", r"ArmModel\.l1 must be a number, got b'0\.3' \(bytes\)"),
+        (True, r"ArmModel\.l1 must be a number, got True \(bool\)"),
+        (np.complex128(0.3), r"ArmModel\.l1 must be a number, got .*\(complex128\)"),  # was 0.3 and a warning
+        (None, r"ArmModel\.l1 must be a number, got None \(NoneType\)"),
+    ],
+)
+def test_arm_model_refuses_what_is_not_a_number_by_its_type(value, match):
+    with pytest.raises(ValueError, match=match):
+        ArmModel(l1=value, l2=0.4, m1=2, m2=1.5, c1=0.1, c2=0.2, i1=0.01, i2=0.02)
+    assert ArmModel(l1=np.float32(0.5), l2=0.4, m1=2, m2=1.5, c1=0.1, c2=0.2, i1=0.01, i2=0.02).l1 == 0.5  # numbers
+
+
 def test_arm_dict_round_trip(arm):
     assert ArmModel.from_dict(arm.to_dict()) == arm
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .validation import number
+from .validation import brief, number
 
 __all__ = ["DEFAULT_QD_MAX", "DEFAULT_Q_LOWER", "DEFAULT_Q_UPPER", "DUMAS_2007", "ArmModel", "sex_key"]
 
@@ -83,10 +83,13 @@ class ArmModel:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
+            # text ("0.3", of a CSV or a form) is no number here, as in Trial and PreprocessOptions: float() took it
+            if isinstance(v, str | bytes) or np.iscomplexobj(v):
+                raise ValueError(f"ArmModel.{f.name} must be a number, got {brief(v)} ({type(v).__name__})")
             try:
                 v = number(v)
             except (TypeError, ValueError):
-                raise ValueError(f"ArmModel.{f.name} must be a number, got {v!r}") from None
+                raise ValueError(f"ArmModel.{f.name} must be a number, got {brief(v)} ({type(v).__name__})") from None
             if not np.isfinite(v):
                 raise ValueError(f"ArmModel.{f.name} must be finite, got {v}")
             object.__setattr__(self, f.name, v)
@@ -115,7 +118,6 @@ class ArmModel:
         The hand (wrist centre to fingertip) is lumped onto the forearm with the parallel-axis theorem, so
         ``l2 = forearm_m + hand_m`` and the fingertip is the end-effector.
         """
-        from .validation import brief
 
         def number(name: str, v, unit: str) -> float:  # text, None or an array names the field, not float()
             if isinstance(v, bool):
