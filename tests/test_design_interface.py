@@ -49,7 +49,8 @@ def test_the_python_names_and_signatures():
     moirl = _params(MOIRL)
     assert next(iter(moirl)) == "n_windows" and moirl["n_windows"] == 8
     assert {"seed_form", "uncertainty", "max_iter", "tol"} <= set(moirl)
-    assert list(_params(MOIRL.fit))[1:] == ["trials"]
+    fit = _params(MOIRL.fit)  # fit(trials), and scikit-learn's y, ignored (its default None keeps fit(trials))
+    assert list(fit)[1:] == ["trials", "y"] and fit["trials"] is inspect.Parameter.empty and fit["y"] is None
     assert list(_params(MOIRL.predict))[1] == "trial_or_task"
 
 

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 
 __all__ = [
     "InputError",
+    "NotFittedError",
     "Terminated",
     "clear_signals",
     "interrupt_pending",
@@ -37,6 +38,12 @@ class InputError(ValueError):
         text = ": ".join([*parts, message]) if parts else message
         # one line, whatever the input held (a field quoted from a garbled file may hold line breaks)
         super().__init__(text.replace("\r", "\\r").replace("\n", "\\n"))
+
+
+class NotFittedError(ValueError, AttributeError, RuntimeError):
+    """An estimator asked to predict or score (or for its fitted attributes' products) before ``fit``: the message
+    says to call ``fit`` first. A ``ValueError`` and an ``AttributeError``, as scikit-learn's ``NotFittedError``
+    (which its tools catch), and a ``RuntimeError``, as reachirl's error of it was before."""
 
 
 class Terminated(KeyboardInterrupt):

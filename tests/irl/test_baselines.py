@@ -239,3 +239,26 @@ def test_bilevel_on_several_postures_points_to_a_fix_it_can_use(recorded):
     (msg,) = [w for w in est.warnings_ if "span 2 postures (P2, P4)" in w]
     assert "per_demo" not in msg and "rollout per demonstration" not in msg
     assert "moirl or maxent" in msg
+
+
+@pytest.mark.parametrize("cls", [MOIRL, BilevelIOC, KKTIOC, MaxEntIRL])
+def test_every_estimator_says_to_fit_first_and_takes_scikit_learns_y(cls, demos):
+    """One base (WeightEstimator): score and predict before fit raise NotFittedError (a ValueError and an
+    AttributeError, as scikit-learn's), fit and score take and ignore y."""
+    import inspect
+
+    from reachirl.errors import NotFittedError
+
+    with pytest.raises(NotFittedError, match=rf"this {cls.__name__} is not fitted yet; call fit\(trials\) first"):
+        cls(1).score(demos)
+    assert not hasattr(cls(1), "weights_")
+    for method in (cls.fit, cls.score):
+        y = inspect.signature(method).parameters["y"]
+        assert list(inspect.signature(method).parameters)[2] == "y" and y.default is None
+
+
+def test_a_fit_ignores_y(demos):
+    plain = KKTIOC(1, n_nodes=N_NODES).fit(demos)
+    with_y = KKTIOC(1, n_nodes=N_NODES).fit(demos, np.arange(len(demos)))
+    assert np.array_equal(with_y.weights_, plain.weights_)
+    assert with_y.score(demos, np.arange(len(demos))) == plain.score(demos) < 0.0

@@ -515,3 +515,44 @@ def test_a_fit_logs_its_warnings_unless_its_caller_shows_them(arm, caplog):
     with caplog.at_level(logging.WARNING), caller_shows_fit_warnings():
         quiet = _MOIRL(1, n_nodes=20, max_iter=1).fit(demos)
     assert quiet.warnings_ == est.warnings_ and not caplog.records
+
+
+def test_score_is_minus_the_mean_rmse_in_degrees_of_the_predictions(fitted, demos, arm):
+    """scikit-learn's convention, higher is better: minus the mean joint-angle RMSE (degrees, both joints) of each
+    trial predicted as predict() predicts it, on the fit's knots; y is ignored."""
+    rmse = []
+    for tr in demos:
+        pred = fitted.predict(tr)
+        err = np.rad2deg(pred.q - tr.resample(N_NODES + 1).q)
+        rmse.append(np.sqrt(np.mean(err**2)))
+    score = fitted.score(demos)
+    assert score == pytest.approx(-np.mean(rmse), rel=1e-9) and -2.0 < score < 0.0
+    assert fitted.score(demos, y=np.zeros(len(demos))) == score
+    w_other = np.full((2, 7), 0.05) / FEATURE_SCALE
+    w_other[:, 2] = 3.0 / FEATURE_SCALE[2]  # geodesic: a straight joint path, unlike the demonstrations
+    others = MOIRL(2, n_nodes=N_NODES, max_iter=3).fit(known_weight_demos(arm, w_other, n_demos=2))
+    assert others.score(demos) < score  # a cost learned from other reaches predicts these worse
+
+
+def test_score_of_predictions_that_all_failed_is_the_worst(fitted, demos, monkeypatch):
+    from reachirl.doc import evaluation
+
+    real = evaluation.predict
+
+    def failing(*args, **kwargs):
+        task, sol = real(*args, **kwargs)
+        return task, replace(sol, converged=False)
+
+    monkeypatch.setattr(evaluation, "predict", failing)
+    assert fitted.score(demos[:1]) == -np.inf
+
+
+def test_predict_and_score_before_fit_say_to_call_fit_first(demos):
+    """As scikit-learn's NotFittedError: a ValueError and an AttributeError (and a RuntimeError, as before)."""
+    from reachirl.errors import NotFittedError
+
+    for call in (lambda est: est.predict(demos[0]), lambda est: est.score(demos)):
+        with pytest.raises(NotFittedError, match=r"this MOIRL is not fitted yet; call fit\(trials\) first") as e:
+            call(MOIRL(2))
+        assert isinstance(e.value, ValueError) and isinstance(e.value, AttributeError)
+        assert isinstance(e.value, RuntimeError)

@@ -16,6 +16,7 @@ import numpy as np
 from ..data.checks import check_start_and_target, check_trial_moves, check_trial_physics
 from ..data.trial import Trial
 from ..doc import BACKENDS, DocSolution, ReachingTask, observation
+from ..errors import NotFittedError
 
 __all__ = ["WeightEstimator", "caller_shows_fit_warnings", "log_fit_warning"]
 
@@ -43,7 +44,8 @@ def log_fit_warning(logger: logging.Logger, msg: str) -> None:
 
 class WeightEstimator:
     """Base of MOIRL and the baselines. Subclasses store ``n_windows``, ``n_nodes`` and ``backend`` in
-    ``__init__`` and set ``weights_`` in ``fit``."""
+    ``__init__`` and set ``weights_`` in ``fit(trials, y=None)`` (``y`` ignored, scikit-learn's signature).
+    :meth:`predict` and :meth:`score` before ``fit`` raise :class:`~reachirl.errors.NotFittedError`."""
 
     n_windows: int
     n_nodes: int
@@ -97,7 +99,7 @@ class WeightEstimator:
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "weights_"):
-            raise RuntimeError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet; call fit(trials) first")
 
     def _keep_fit_params(self) -> None:
         """Remember the parameters this fit ran with (at the end of ``fit``): :meth:`_as_fitted` predicts and
@@ -149,6 +151,28 @@ class WeightEstimator:
         return observation.predict_reach(
             trial_or_task, est.weights_, est.n_nodes, observe, est.backend, warm_start, path
         )
+
+    def score(self, trials: Sequence[Trial], y=None) -> float:
+        """How well the learned weights predict ``trials`` (higher is better, scikit-learn's convention): minus
+        the mean joint-angle RMSE in degrees (the RMSE of q, both joints, each trial on the DOC's knots) of the
+        trials whose prediction converged, as ``reachirl evaluate`` summarises it
+        (:func:`reachirl.doc.evaluation.summarise`): ``-2.5`` for a mean RMSE of 2.5°. A prediction whose DOC
+        failed is no answer of the model and is left out; with none converged the score is ``-inf``, the worst.
+        Each trial is predicted as :meth:`predict` predicts it. ``y`` is ignored (scikit-learn's signature: the
+        demonstrations are their own targets). For held-out trials, pass trials not fitted on."""
+        from ..doc.evaluation import evaluate_trials, summarise
+
+        est = self._as_fitted()
+        errors = evaluate_trials(
+            est.weights_,
+            trials,
+            n_nodes=est.n_nodes,
+            backend=est.backend,
+            observe=bool(getattr(est, "observe", False)),
+            path=est.rollout_path(),
+        )
+        mean = summarise(errors)["rmse_deg"]["q"]["mean"]
+        return -float("inf") if mean is None else -float(mean)
 
 
 def _same(a, b) -> bool:

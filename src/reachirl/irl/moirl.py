@@ -455,7 +455,9 @@ class MOIRL(WeightEstimator):
         return solve_step(w, sigma, groups, self._o.beta, ratio, smoothness * n_demo, free=free, present=self._mask)
 
     # ------------------------------------------------------------------ fit / predict
-    def fit(self, trials: Sequence[Trial]) -> MOIRL:
+    def fit(self, trials: Sequence[Trial], y=None) -> MOIRL:
+        """Learn ``weights_`` from the demonstrations ``trials``; returns the estimator. ``y`` is ignored
+        (scikit-learn's signature: the demonstrations are their own targets)."""
         trials = self._check_params(trials)
         t_start = time.perf_counter()
         smoothness = self._o.smoothness

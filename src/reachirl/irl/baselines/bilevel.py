@@ -98,7 +98,9 @@ class BilevelIOC(WeightEstimator):
         self._check_fitted()
         return getattr(self, "_reach_phi", None)
 
-    def fit(self, trials: Sequence[Trial]) -> BilevelIOC:
+    def fit(self, trials: Sequence[Trial], y=None) -> BilevelIOC:
+        """Learn ``weights_`` from the demonstrations ``trials``; returns the estimator. ``y`` is ignored
+        (scikit-learn's signature: the demonstrations are their own targets)."""
         trials = self._check_params(trials)
         t_start = time.perf_counter()
         task = mean_task(trials, self.n_nodes)

@@ -192,7 +192,9 @@ class KKTIOC(WeightEstimator):
             w_rel = w_rel / max(w_rel.sum(), 1e-300)
         return w_rel, float(np.linalg.norm(R @ w_rel) / max(np.linalg.norm(R) / np.sqrt(n), 1e-300))
 
-    def fit(self, trials: Sequence[Trial]) -> KKTIOC:
+    def fit(self, trials: Sequence[Trial], y=None) -> KKTIOC:
+        """Learn ``weights_`` from the demonstrations ``trials``; returns the estimator. ``y`` is ignored
+        (scikit-learn's signature: the demonstrations are their own targets)."""
         trials = self._check_trials(trials)
         if self.normalisation not in ("cost", "gradient"):
             raise ValueError(f"normalisation must be 'cost' or 'gradient', got {self.normalisation!r}")
