@@ -32,6 +32,7 @@ __all__ = [
     "read_text",
     "release_folder",
     "remove_temporaries",
+    "sync_folder",
     "to_jsonable",
 ]
 
@@ -84,7 +85,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None, *, durable: 
             _fsync(tmp)  # the content on disk before the name points at it: a crash leaves the old file or the new
         os.replace(tmp, path)
         if durable:
-            _fsync_folder(path.parent)  # and the rename itself (with every earlier one in the folder)
+            sync_folder(path.parent)  # and the rename itself (with every earlier one in the folder)
     except OSError as e:
         if e.filename is not None and e.filename not in (str(tmp), tmp):
             raise
@@ -104,9 +105,9 @@ def _fsync(path: Path) -> None:
         os.close(fd)
 
 
-def _fsync_folder(folder: Path) -> None:
-    """Flush ``folder``'s entries (a rename into it) to the disk; nothing where the file system or platform does
-    not sync folders (it refuses with an error: some network and FUSE file systems, Windows)."""
+def sync_folder(folder: Path) -> None:
+    """Flush ``folder``'s entries (the renames into it) to the disk; nothing where the file system or platform
+    does not sync folders (it refuses with an error: some network and FUSE file systems, Windows)."""
     try:
         fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
     except OSError:

@@ -388,6 +388,32 @@ def test_plot_of_a_run_replaces_the_figures_once_all_are_drawn(run_folder, tmp_p
     assert names and all(n.endswith(".png") for n in names) and "fig3_weights.png" in names, names
 
 
+def test_plot_of_a_run_syncs_its_folder_after_moving_the_figures_in(run_folder, tmp_path, monkeypatch):
+    """The figures are drawn in a hidden folder and renamed into --out: the renames are synced to the disk too
+    (each figure is, as it is drawn), so a crash of the system leaves the earlier figures or the new ones."""
+    import os
+    import stat
+
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    events, real_fsync, real_replace = [], os.fsync, os.replace
+
+    def fsync(fd):
+        st = os.fstat(fd)
+        events.append(("fsync folder" if stat.S_ISDIR(st.st_mode) else "fsync file", st.st_ino))
+        return real_fsync(fd)
+
+    def replace(src, dst):
+        events.append(("replace", os.path.dirname(dst)))
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    monkeypatch.setattr(os, "replace", replace)
+    assert main(["plot", str(run_folder), "--out", str(figs), "--no-pdf"]) == 0
+    into = [i for i, e in enumerate(events) if e == ("replace", str(figs))]
+    assert into and events[-1] == ("fsync folder", figs.stat().st_ino) and into[-1] < len(events) - 1
+
+
 def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):
     """LearnedModel.from_estimator keeps what prediction needs (observe, the fit's own reach): saved, loaded and
     evaluated, it predicts the estimator's reaches."""

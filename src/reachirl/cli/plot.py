@@ -21,7 +21,7 @@ import contextlib
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import holding_folder
+from ..io import holding_folder, sync_folder
 from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials, refuse_foreign_figures
 
 
@@ -261,7 +261,8 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
         try:
             names = _figure_files(draw(tmp), pdf)
             for n in names:
-                os.replace(tmp / n, out / n)
+                os.replace(tmp / n, out / n)  # each synced to the disk when drawn (atomic_path)
+            sync_folder(out)  # and the renames
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     return [out / n for n in names]
