@@ -60,8 +60,9 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None, *, durable: 
     it, so that a power loss or a crash of the system leaves the earlier file or the new one whole, never an empty
     or partly written file under the name (a folder whose file system refuses to sync it is not). ``False`` for
     the many small files of a bulk export (a sync each costs about a millisecond, more on a slow disk): they are
-    renamed into place atomically but reach the disk when the system writes them back, or with the next durable
-    write into their folder, which syncs the folder (see :func:`reachirl.data.exports.export_trajectories`).
+    renamed into place atomically, their content reaches the disk when the system writes it back (a crash of the
+    system soon after may leave one short) and their renames with the next durable write into the folder
+    (:func:`reachirl.data.exports.export_trajectories` writes its index last, durably).
 
     Nothing is replaced once the command has been interrupted (:func:`reachirl.errors.raise_if_signalled`): work
     finished after a Ctrl-C or SIGTERM that compiled code swallowed never becomes an output or a checkpoint."""
