@@ -840,11 +840,11 @@ def test_an_interrupted_export_leaves_no_earlier_index_or_main_output(base, tmp_
     assert main(argv) == 0 and (folder / "index.csv").is_file() and out.is_file()
     real, calls = ex.atomic_write_text, []
 
-    def interrupted(path, text):
+    def interrupted(path, text, **kwargs):  # kwargs: durable=False of the trajectory files
         calls.append(path)
         if len(calls) == 2:
             raise KeyboardInterrupt
-        return real(path, text)
+        return real(path, text, **kwargs)
 
     monkeypatch.setattr(ex, "atomic_write_text", interrupted)
     capsys.readouterr()
