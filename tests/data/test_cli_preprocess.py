@@ -286,10 +286,11 @@ def test_a_real_recording_with_two_frames_swapped_is_refused(tmp_path, synth, ca
     assert not out.exists()
 
 
-def test_a_warned_recording_refused_by_its_joint_limits_says_the_refusal_alone(tmp_path, synth, cli):
+def test_a_warned_recording_refused_by_its_up_axis_says_the_refusal_alone(tmp_path, synth, cli):
     """UE-ADL's ADL001FR1 under --threshold 0.001 is warned about (its noise is large beside the threshold's speed,
-    and no rest is left before the movement); under the lab's forward axis given as up it is refused by the joint
-    limits. The warnings came first: stderr now holds the refusal alone, one line."""
+    and no rest is left before the movement); under the lab's forward axis given as up it is refused (by the joint
+    limits, and now before them by the up axis check). The warnings came first: stderr now holds the refusal alone,
+    one line. (The joint limits' refusal alone: test_a_refused_recording_is_not_first_warned_about.)"""
     reach, info = synth.SAMPLE / "ADL001" / "ADL001FR1.csv", synth.SAMPLE / "subjects.csv"
     args = ("preprocess", reach, "--subject-info", info, "--threshold", "0.001")
     ok = cli(*args, "--out", tmp_path / "ok.npz")
@@ -297,8 +298,8 @@ def test_a_warned_recording_refused_by_its_joint_limits_says_the_refusal_alone(t
     refused = cli(*args, "--up-axis", "+y", "--out", tmp_path / "o.npz")
     assert refused.returncode == 2
     assert re.fullmatch(
-        r"reachirl preprocess: error: \S*ADL001FR1\.csv: the start posture q0 = \(.*\) lies outside the joint "
-        r"limits .*\n",
+        r"reachirl preprocess: error: \S*ADL001FR1\.csv: with up = \+y \(--up-axis\), the upper arm never hangs "
+        r"within 45° of straight down before the reach .* Give --up-axis \+z, or leave --up-axis out\n",
         refused.stderr,
     ), refused.stderr
     assert not (tmp_path / "o.npz").exists()
@@ -644,6 +645,41 @@ def test_a_recording_whose_axes_are_permuted_needs_its_up_axis(tmp_path, synth, 
     assert code == 0, err
     (y,), (z,) = load_trials(tmp_path / "y.npz"), load_trials(tmp_path / "z.npz")
     np.testing.assert_allclose(y.q, z.q, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["ADL001FR1", "ADL001FL1"])
+def test_the_forward_axis_given_as_up_is_refused_naming_the_right_one(tmp_path, synth, capsys, name):
+    """UE-ADL's lab has z up and y forward. --up-axis +y (its forward axis) keeps the reach's vertical plane, so the
+    up-axis check let it pass, and the joint limits refused it only when the reach's forward direction came out as
+    the lab's up (the resting arm then hangs backwards): 26 of the 80 trials, whose fingertip sinks a little as it
+    reaches, were written as a raise of an arm held horizontally forward (q1 -15..45°). The sample's reaches end as
+    high as they start; here the lab's vertical is tilted 5° (forward sinks), as those 26 reaches sink: the old
+    code wrote the trial with +y. It is refused, one line naming the file, the hanging arm and the right axis; the
+    lab's +z reads it."""
+    from reachirl.data.readers import read_vicon_csv
+
+    a = np.radians(-5.0)
+    tilt = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    folder = tmp_path / "tilted"
+    folder.mkdir()
+    for f in (name, "ADL001_static"):
+        md = read_vicon_csv(synth.SAMPLE / "ADL001" / f"{f}.csv")
+        markers = {m: md[m] @ tilt.T for m in md.names}
+        (folder / f"{f}.csv").write_text(synth.vicon_text(markers, rate=md.rate, subject="ADL001"))
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv", "--markerset", "ue-adl"]
+    for reach in (folder / f"{name}.csv", synth.SAMPLE / "ADL001" / f"{name}.csv"):  # tilted, and as recorded
+        for axis in ("+y", "-y"):
+            code, _, err = _run([reach, *info, f"--up-axis={axis}", "--out", tmp_path / "o.npz"], capsys)
+            assert code == 2 and not (tmp_path / "o.npz").exists()
+            assert re.fullmatch(
+                rf"reachirl preprocess: error: {re.escape(str(reach))}: with up = \{axis} \(--up-axis\), the upper "
+                r"arm never hangs within 45° of straight down before the reach \([89]\d° at best\), and with \+z "
+                rf"\(the up of marker set 'ue-adl'\) it hangs within 1?\d°: is \{axis} a horizontal lab axis\? Give "
+                r"--up-axis \+z, or leave --up-axis out\n",
+                err,
+            ), err
+    code, _, err = _run([folder / f"{name}.csv", *info, "--up-axis=+z", "--out", tmp_path / "z.npz"], capsys)
+    assert code == 0, err
 
 
 @pytest.mark.parametrize("option", ["--up-axis", "--forward-axis"])

@@ -664,9 +664,10 @@ def test_frames_out_of_order_are_refused(synth, virtual_reach, recording, at, bl
 @pytest.mark.parametrize(
     ("recording", "up", "refusal"),
     [
-        ("virtual", "+x", r"the start posture q0 = \(17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),
+        ("virtual", "file +x", r"the start posture q0 = \(17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),
+        ("virtual", "+x", r"with up = \+x \(--up-axis\), the upper arm never hangs within 45° of straight down"),
         ("virtual", "+z", r"with up = \+z \(--up-axis\), the upper arm stands 8\d° out of the vertical plane"),
-        ("ue-adl", "+y", r"the start posture q0 = \(-17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),
+        ("ue-adl", "+y", r"with up = \+y \(--up-axis\), the upper arm never hangs within 45° of straight down"),
         ("ue-adl", "+x", r"with up = \+x \(--up-axis\), the upper arm stands 8\d° out of the vertical plane"),
     ],
 )
@@ -674,7 +675,8 @@ def test_a_refused_recording_is_not_first_warned_about(synth, virtual_reach, cap
     """A recording's warnings (the virtual reach's noise is large beside a low --threshold; UE-ADL's fingertip is
     hidden for 0.35 s in the rest before the reach, which is cut off) were logged as the record was cut, and a
     refusal after the cut (the up axis; the joint limits, checked by the pipeline) came after them: 'the noise is
-    large', then the refusal. They now wait until the trial is accepted, and a refusal comes alone."""
+    large', then the refusal. They now wait until the trial is accepted, and a refusal comes alone. ``file +x``: the
+    file itself states +x as up (no --up-axis), refused by the pipeline's joint limits."""
     from pathlib import Path
 
     import reachirl.data.pipeline as pipeline
@@ -705,7 +707,11 @@ def test_a_refused_recording_is_not_first_warned_about(synth, virtual_reach, cap
             caplog.at_level("WARNING", logger="reachirl"),
             pytest.raises(InputError, match=rf"^{re.escape(md.source)}: {refusal}"),
         ):
-            pipeline.preprocess_entries([entry], markers=mset, options=replace(options, up_axis=up))
+            if up.startswith("file "):
+                md = replace(md, up=up.split()[1], up_declared=True)
+                pipeline.preprocess_entries([entry], markers=mset, options=options)
+            else:
+                pipeline.preprocess_entries([entry], markers=mset, options=replace(options, up_axis=up))
     assert caplog.messages == []
 
 

@@ -49,7 +49,10 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    horizontal direction of travel. ``"axes"`` takes given lab axes. The shoulder, frame by frame, is the
    origin. With ``"pca"`` or ``"vertical"`` the up axis is then checked (:func:`check_up_axis`): a reach's arm lies
    near the vertical plane of the reach or hangs at some moment; a lab axis across the reach given as up fails
-   both (the plane turns horizontal and cuts across the arm), and is refused.
+   both (the plane turns horizontal and cuts across the arm), and is refused. An up axis given (``--up-axis``) against
+   the recording's, the marker set's or the format's own is refused when the upper arm hangs within
+   ``MAX_HANG_DEG`` of straight down before the reach with that one and not with the axis given
+   (:func:`check_given_up`: the lab's forward axis given as up, which keeps the plane of the reach).
 8. **Planar IK**: ``"segments"`` (default): q1 from the shoulder→elbow direction and q2 from the
    elbow→``distal`` direction (fingertip by default: segment 2 of the model is forearm + hand; ``"wrist"`` for
    the anatomical elbow); ``"fingertip"``: Berret's 2-link IK of the fingertip alone (:meth:`ArmModel.ik`).
@@ -115,6 +118,7 @@ __all__ = [
     "MarkerReconstruction",
     "PreprocessOptions",
     "angles_to_trial",
+    "check_given_up",
     "check_glitches",
     "check_up_axis",
     "markers_to_trial",
@@ -318,8 +322,8 @@ def check_up_axis(
     to straight down); with a lateral axis as up, a segment stands 63-90° out of the plane and the upper arm never
     comes within 70°. ``rel``: the joints relative to the shoulder over the record; ``up_name``: the up axis in
     words, for the message. A horizontal axis along the reach (the lab's forward axis as up) turns the reach in its
-    own plane and is not caught here: the joint limits catch most of those
-    (:func:`~reachirl.data.checks.check_trial_posture`)."""
+    own plane and is not caught here: :func:`check_given_up` catches it when the axis was given against the
+    recording's, marker set's or format's own up."""
     names = {"elbow": "upper arm", "fingertip": "forearm (elbow to fingertip)"}
     if "elbow" not in rel:
         names = {"fingertip": "arm"}
@@ -335,10 +339,7 @@ def check_up_axis(
         if worst is None or angle > worst[0]:
             worst = (angle, name, k)
         start = rel[joint]
-    first = rel["elbow"] if "elbow" in rel else rel["fingertip"]
-    norm = np.linalg.norm(first, axis=1)
-    cos_down = np.divide(-(first @ up), norm, out=np.full_like(norm, -1.0), where=norm > 0.0)
-    hang = float(np.degrees(np.arccos(np.clip(np.nanmax(cos_down), -1.0, 1.0))))
+    hang = _hang_deg(rel, up)
     angle, name, k = worst
     if angle > MAX_OUT_OF_PLANE_DEG and hang > MAX_HANG_DEG:
         raise InputError(
@@ -346,6 +347,59 @@ def check_up_axis(
             f"({t[onset + k] - t[onset]:.2f} s after onset) and the {names.get('elbow', 'arm')} never hangs within "
             f"{MAX_HANG_DEG:g}° of straight down ({hang:.0f}° at best): is the up axis the lab's vertical? (check "
             "--up-axis)",
+            src,
+        )
+
+
+def _hang_deg(rel: Mapping[str, np.ndarray], up: np.ndarray) -> float:
+    """How near (degrees) the upper arm (shoulder→elbow, else shoulder→fingertip) comes to ``-up`` over the record."""
+    first = rel["elbow"] if "elbow" in rel else rel["fingertip"]
+    norm = np.linalg.norm(first, axis=1)
+    cos_down = np.divide(-(first @ up), norm, out=np.full_like(norm, -1.0), where=norm > 0.0)
+    return float(np.degrees(np.arccos(np.clip(np.nanmax(cos_down), -1.0, 1.0))))
+
+
+def check_given_up(
+    rel: Mapping[str, np.ndarray],
+    up: np.ndarray,
+    up_name: str,
+    reference: str,
+    reference_source: str,
+    onset: int,
+    src: object,
+    mirrored: np.ndarray | None = None,
+) -> None:
+    """Refuse an up axis ``up`` (``up_name``, given by ``--up-axis``) that gravity contradicts where the recording,
+    its marker set or its format says which lab axis is up (``reference``, from ``reference_source``): before the
+    reach, at rest, the upper arm never hangs within :data:`MAX_HANG_DEG` of straight down with the axis given, and
+    does with the reference.
+
+    :func:`check_up_axis` cannot see a horizontal lab axis *along* the reach given as up (the lab's forward axis):
+    the reach's vertical plane holds the forward axis as well as the up one, so the arm stays in it (UE-ADL: at
+    most 34° out of it, as with the right axis), and its other cue, the arm hanging at some moment, is only asked
+    for when the arm leaves the plane. Only the joint limits were left: they refused the trials whose forward
+    direction came out as the lab's up (the arm at rest then hangs backwards, q1 near ±180°), not those whose
+    fingertip sinks a little as it reaches, so that the lab's down came out as forward: the resting arm then reads
+    as an upper arm held horizontally forward and the reach as a raise of the arm, within the limits (26 of UE-ADL's
+    80 trials with +y, q1 from -15..10° at onset to 29..45°). Measured over UE-ADL before the reach: with the lab's
+    up the upper arm hangs within 3-19° of straight down; with its forward axis (+y or -y) as up it comes no nearer
+    than 75°. After the reach the arm may be held out at the target (ADL009's upper arm stays 43° from the forward
+    axis), so only the rest before it counts. A recording whose arm never hangs (Berret's P4 start) is not refused,
+    nor one without a reference up or with the reference given. ``rel``: the joints relative to the shoulder over
+    the record, mirrored across the lab axis ``mirrored`` for a left arm; ``onset``: the reach's first frame."""
+    ref = lab_axis(reference)
+    if float(up @ ref) > 0.999:  # the same axis
+        return
+    if mirrored is not None:  # a left arm's joints are mirrored across the lab axis ``mirrored``: so is the reference
+        ref = ref - 2.0 * float(ref @ mirrored) * mirrored
+    before = {k: v[: onset + 1] for k, v in rel.items()}  # at rest before the reach (after it, the arm may be held out)
+    given, declared = _hang_deg(before, up), _hang_deg(before, ref)
+    if given > MAX_HANG_DEG and declared <= MAX_HANG_DEG:
+        name = "upper arm" if "elbow" in rel else "arm"
+        raise InputError(
+            f"with up = {up_name} (--up-axis), the {name} never hangs within {MAX_HANG_DEG:g}° of straight down before "
+            f"the reach ({given:.0f}° at best), and with {reference} ({reference_source}) it hangs within "
+            f"{declared:.0f}°: is {up_name} a horizontal lab axis? Give --up-axis {reference}, or leave --up-axis out",
             src,
         )
 
@@ -512,6 +566,8 @@ def reconstruct_markers(
             cand = [k for k in range(3) if abs(up[k]) < 0.5]
             lateral = np.eye(3)[min(cand, key=lambda k: rng[k])]
         joints = mirror(joints, lateral)
+    else:
+        lateral = None
 
     check_glitches(joints, md.rate, src, first_frame=window.start, n_frames=md.n_frames, order=options.filter_order)
     raw_fingertip = joints["fingertip"]
@@ -598,6 +654,12 @@ def reconstruct_markers(
     if options.plane != "axes":  # --plane axes checks its axes against the reach itself (sagittal_basis)
         source = up_source if options.up_axis else f"{up_source}; give --up-axis"
         check_up_axis(rel, basis, up, onset, offset, t, f"{up_spec} ({source})", src)
+    if options.up_axis:  # against the recording's own up, else its marker set's, else its format's convention
+        ref_spec, ref_source = next(((a, w) for a, w in sources[1:] if a), (md.up, "the format's convention"))
+        ref_source = (
+            ref_source + " up" if ref_source == "the file's own" else ref_source.replace("marker", "the up of marker")
+        )
+        check_given_up(rel, up, up_spec, ref_spec, ref_source, onset, src, lateral)
 
     if subject_info is not None:  # lengths given in the subject info must agree with the markers'
         from .checks import check_segment_lengths
