@@ -662,6 +662,47 @@ def test_frames_out_of_order_are_refused(synth, virtual_reach, recording, at, bl
 
 
 @pytest.mark.parametrize(
+    ("corrupt", "refusal"),
+    [
+        # the fingertip 10 mm off for 3 frames in the rest before the reach: 100 m/s², within the 200 of any arm
+        (
+            "spike",
+            r"frames 21-23: the fingertip leaves its path by 10 mm and comes back \(the recording's noise allows 4\.0 "
+            r"mm\): a spike, two labels swapped, or frames out of order\? Fix them, or blank those frames",
+        ),
+        # 3 frames put back 3 where the reach starts (0.03 m/s): 1.1 mm back at the fingertip, below the 3 mm and
+        # the 0.05 m/s of the fingertip's own back-step check
+        (
+            "order",
+            r"frame 64: every joint of the arm steps back against its way of travel in the same frame \(the elbow "
+            r"\d\.\d mm, the wrist \d\.\d mm, the fingertip 1\.1 mm; the recording's noise allows 0\.5, 0\.5, "
+            r"0\.5 mm\): frames out of order \(a block of frames put back before its place\)\?",
+        ),
+    ],
+)
+def test_spikes_and_frames_out_of_order_at_slow_speed_are_refused(synth, corrupt, refusal):
+    """UE-ADL's ADL001FR1 (its reach from frame 62 on, 0.005-0.04 m/s in its first 5 frames), corrupted where the
+    hand is still or slow. Both passed, and the fingertip's speed, which sets onset and offset, moved them: the
+    spike's trial was 2 frames shorter (the angles 2.5° apart at the same sample), the block's began 4 frames later
+    (5°). A spike leaves the fingertip's running
+    median (a real one stays within 2.4 mm of it, over UE-ADL's 80 reaches); a block of frames put back makes every
+    joint step back at once (a real marker's flicker is its own: at most 0.09 mm at once over the 80 reaches)."""
+    d = synth.SAMPLE / "ADL001"
+    md, mset = read_vicon_csv(d / "ADL001FR1.csv"), load_markerset("ue-adl")
+    static = read_vicon_csv(d / "ADL001_static.csv")
+    clean = reconstruct_markers(md, mset, static=static)
+    assert clean.onset == 61 and clean.speed[61:66].max() < 0.05  # the frames corrupted are the slow start's
+    if corrupt == "spike":
+        tip = np.array(md["RFTP"])
+        tip[20:23, 2] += 0.010
+        bad = replace(md, markers={**md.markers, "RFTP": tip})
+    else:
+        bad = _moved_back(md, 63, 3, 3)
+    with pytest.raises(InputError, match=rf"^{re.escape(md.source)}: {refusal}"):
+        reconstruct_markers(bad, mset, static=static)
+
+
+@pytest.mark.parametrize(
     ("recording", "up", "refusal"),
     [
         ("virtual", "file +x", r"the start posture q0 = \(17\d\.\d°, -9\d\.\d°\) lies outside the joint limits"),

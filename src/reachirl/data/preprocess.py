@@ -24,8 +24,10 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    (``segment_range_m``); metres declared as mm give absurdly small ones. Then the **glitch check**
    (:func:`check_glitches`): a joint centre faster than any arm, or accelerating beyond any reaching arm over
    10 ms, or repeating the frame before it exactly (every joint, the fingertip moving on both sides: a copy), or a
-   fingertip stepping back against its way of travel beyond its noise (frames out of order), is an
-   :class:`InputError` naming the frame.
+   fingertip stepping back against its way of travel beyond its noise (frames out of order), or every joint of
+   the arm stepping back at once where the hand moves slowly (frames out of order at the start or the end of the
+   reach), or a fingertip that leaves its running median by more than 4 mm and its noise (a spike of a few frames,
+   in the rest too), is an :class:`InputError` naming the frame(s).
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
 6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
@@ -77,6 +79,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.ndimage import median_filter
 
 from ..arm import ArmModel
 from ..errors import InputError
@@ -142,6 +145,26 @@ BACK_STEP_NOISE_SDS = 6.0
 MIN_BACK_STEP_M = 0.003
 #: m/s: ... where the fingertip travels at least this fast (at rest it has no way of travel to step back against)
 MIN_TRAVEL_SPEED = 0.05
+
+#: m: the arm's joints (all but the shoulder) that step back against their ways of travel in the same frame, each
+#: by more than this (and than COHERENT_BACK_NOISE_SDS of its step noise), are frames out of order (check_glitches):
+#: a block of frames put back moves every marker back at once, while a marker's flicker is its own (UE-ADL: at most
+#: 0.09 mm at once over its 80 reaches, where each joint alone steps back by up to 1.3 mm, the wrist's cluster 6 mm)
+MIN_COHERENT_BACK_M = 0.0005
+#: ... SDs of each joint's step noise (as BACK_STEP_NOISE_SDS, for three joints at once)
+COHERENT_BACK_NOISE_SDS = 4.0
+#: m/s: ... where each joint travels at least this fast (its path low-passed at MIN_SEGMENT_CUTOFF_HZ): at the start
+#: and the end of the reach, slower than MIN_TRAVEL_SPEED
+MIN_COHERENT_TRAVEL_SPEED = 0.005
+
+#: frames: the fingertip's path against which a spike is measured (check_glitches) is its running median over this
+#: many frames: a spike, a swap or a block of frames out of order up to (SPIKE_WINDOW - 1) / 2 frames long leaves it
+SPIKE_WINDOW = 11
+#: m: the fingertip further than this from its running median is a spike ... (UE-ADL: at most 2.4 mm, over its 80
+#: reaches; a hand at rest or slow does not leave its path and come back within a few frames) ...
+MIN_SPIKE_M = 0.004
+#: ... and than this many times the median distance (the recording's noise: 1-2 mm of it stays below 5 times)
+SPIKE_NOISE_MEDIANS = 8.0
 
 #: m: a frame that repeats the one before it exactly, every joint, is a copy (check_glitches) when the fingertip moves
 #: further than this (plus what an arm's acceleration can take off a step) in the frames on both sides: no rounding of
@@ -416,7 +439,9 @@ def check_glitches(
     moves (:data:`MAX_FINGERTIP_SPEED`), or with an acceleration from one frame to the next that no reaching arm
     has (:data:`MAX_MARKER_ACCELERATION`, or 20× the recording's own median where its noise is larger): a spike,
     a marker frozen and then caught up, or two labels swapped for a few frames. Then frames out of order
-    (:func:`_check_back_steps`): a fingertip that steps back against its way of travel. ``first_frame``: the
+    (:func:`_check_back_steps`): a fingertip that steps back against its way of travel; where the hand moves slowly
+    (:func:`_check_coherent_back_steps`), every joint of the arm stepping back at once. Then a spike of a few frames
+    of the fingertip, at any speed (:func:`_check_spikes`). ``first_frame``: the
     record's frame at ``joints``' first row, for the messages; ``n_frames``: the record's frame count (a jump into
     its last frame is named as a file cut short in its last row, a number cut off); ``order``: the low-pass's."""
 
@@ -475,6 +500,92 @@ def check_glitches(
                 f"frame {first_frame + f + 2}",
             )
     _check_back_steps(joints["fingertip"], rate, src, order, first_frame, cause)
+    _check_coherent_back_steps(joints, rate, src, order, first_frame, cause)
+    _check_spikes(joints["fingertip"], rate, src, first_frame, cause)
+
+
+def _step_noise(x: np.ndarray) -> float:
+    """The SD of a step's noise along a direction (m) of a path ``x`` ``(n, 3)``, from the median absolute second
+    difference per axis (see :func:`_check_back_steps`)."""
+    second = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    sd = np.median(np.abs(second), axis=0) / 0.6745
+    return float(np.sqrt(np.mean(sd**2) / 3.0))
+
+
+def _check_coherent_back_steps(
+    joints: Mapping[str, np.ndarray], rate: float, src: str, order: int, first_frame: int, cause
+) -> None:
+    """Refuse frames out of order where the hand moves slowly (the start and the end of a reach), which the
+    fingertip's own back step (:func:`_check_back_steps`) cannot tell from a marker's flicker: every joint of the arm
+    but the shoulder (two at least) steps back against its way of travel in the same frame, each by more than
+    :data:`MIN_COHERENT_BACK_M` and :data:`COHERENT_BACK_NOISE_SDS` of its step noise, while each travels at least
+    :data:`MIN_COHERENT_TRAVEL_SPEED`. UE-ADL's ADL001FR1 with 2 or 3 frames put back as many frames at the reach's
+    start (0.03 m/s) steps back 0.7-1.1 mm at once and its onset came 1-4 frames later (the angles 5° apart at the
+    same sample); the 80 clean reaches step back at most 0.09 mm at once."""
+    names = [k for k in joints if k != "shoulder"]
+    if len(names) < 2 or not rate > 2.0 * MIN_SEGMENT_CUTOFF_HZ:
+        return
+    if any(joints[k].shape[0] <= filter_padlen(order) or not np.isfinite(joints[k]).all() for k in names):
+        return
+    backs, limits = [], []
+    for k in names:
+        x = joints[k]
+        way = np.diff(lowpass(x, rate, MIN_SEGMENT_CUTOFF_HZ, order), axis=0)
+        travel = np.linalg.norm(way, axis=1)
+        moving = travel * rate >= MIN_COHERENT_TRAVEL_SPEED
+        backs.append(
+            np.where(moving, -np.sum(np.diff(x, axis=0) * way, axis=1) / np.where(moving, travel, 1.0), -np.inf)
+        )
+        limits.append(max(MIN_COHERENT_BACK_M, COHERENT_BACK_NOISE_SDS * _step_noise(x)))
+    # each joint's back step as a multiple of its own limit; the least of them is the frame's
+    ratio = np.min([b / lim for b, lim in zip(backs, limits, strict=True)], axis=0)
+    f = int(np.argmax(ratio))
+    if ratio[f] > 1.0:
+        steps = ", ".join(f"the {k} {b[f] * 1000:.1f} mm" for k, b in zip(names, backs, strict=True))
+        raise InputError(
+            f"every joint of the arm steps back against its way of travel in the same frame ({steps}; the recording's "
+            f"noise allows {', '.join(f'{lim * 1000:.1f}' for lim in limits)} mm): "
+            + cause(
+                f,
+                "frames out of order (a block of frames put back before its place)? Put them in order, or blank "
+                "them to be filled as a gap",
+            ),
+            src,
+            f"frame {first_frame + f + 2}",
+        )
+
+
+def _check_spikes(tip: np.ndarray, rate: float, src: str, first_frame: int, cause) -> None:
+    """Refuse a fingertip ``tip`` ``(n, 3)`` that leaves its path for a few frames and comes back: further than
+    :data:`MIN_SPIKE_M` and :data:`SPIKE_NOISE_MEDIANS` times the recording's median from its running median over
+    :data:`SPIKE_WINDOW` frames. The speed and acceleration checks see a jump by how fast it is: at 100 Hz a spike
+    of up to 10-20 mm, or a block of frames put back while the hand moves slowly (at rest, or starting or ending its
+    reach), is within any arm's 200 m/s², and the back-step check asks for 0.05 m/s of travel. Yet such a spike in the
+    rest moved the reach's onset by up to 5 frames (0.05 s, the angles up to 4° apart; a block of 5 frames put back at
+    the reach's slow start, 6°), since the fingertip's speed sets onset and offset. A real fingertip stays on its
+    running median within 2.4 mm (UE-ADL, any speed)."""
+    w = SPIKE_WINDOW
+    if tip.shape[0] < w or not np.isfinite(tip).all():
+        return
+    off = np.linalg.norm(tip - median_filter(tip, size=(w, 1), mode="nearest"), axis=1)
+    limit = max(MIN_SPIKE_M, SPIKE_NOISE_MEDIANS * float(np.median(off)))
+    runs = true_runs(off > limit)
+    if not runs:
+        return
+    a, b = max(runs, key=lambda r: float(off[r[0] : r[1]].max()))  # rows a … b - 1
+    worst = a + int(np.argmax(off[a:b]))
+    first, last = first_frame + a + 1, first_frame + b
+    raise InputError(
+        f"the fingertip leaves its path by {off[worst] * 1000:.0f} mm and comes back (the recording's noise allows "
+        f"{limit * 1000:.1f} mm): "
+        + cause(
+            b - 2,
+            "a spike, two labels swapped, or frames out of order? Fix them, or blank those frames to be filled as a "
+            "gap",
+        ),
+        src,
+        f"frame {first}" if first == last else f"frames {first}-{last}",
+    )
 
 
 def _check_back_steps(tip: np.ndarray, rate: float, src: str, order: int, first_frame: int, cause) -> None:
