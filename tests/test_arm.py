@@ -184,6 +184,26 @@ def test_arm_model_refuses_what_is_not_a_number_by_its_type(value, match):
     assert ArmModel(l1=np.float32(0.5), l2=0.4, m1=2, m2=1.5, c1=0.1, c2=0.2, i1=0.01, i2=0.02).l1 == 0.5  # numbers
 
 
+def test_an_arm_in_millimetres_is_refused_where_it_is_made():
+    """UE-ADL's subject table gives ADL001's right upper arm and forearm as 325 and 255 mm. An ArmModel given them
+    as read (its CoMs likewise) was accepted, and refused only later, where a solve or a fit checked the arm (arm l1 =
+    325 is outside the physical range); a trial carried it meanwhile. It is refused where it is made, naming the
+    field and the unit; the same arm in metres, and any human arm, is kept."""
+    metres = ArmModel.from_anthropometrics(1.702, 96.0, "F", upper_arm_m=0.325, forearm_m=0.255)
+    mm = {**metres.to_dict(), **{k: getattr(metres, k) * 1000 for k in ("l1", "l2", "c1", "c2")}}
+    with pytest.raises(
+        ValueError,
+        match=r"^ArmModel\.l1 must be in metres, got 325: longer than any arm segment "
+        r"\(3 m; millimetres\?\)$",
+    ):
+        ArmModel(**mm)
+    with pytest.raises(ValueError, match=r"^ArmModel\.l2 must be in metres, got 4\d\d\.\d+: longer"):
+        ArmModel.from_dict({**metres.to_dict(), "l2": mm["l2"], "c2": mm["c2"]})
+    assert ArmModel.from_dict(metres.to_dict()) == metres
+    tall = ArmModel.from_anthropometrics(2.3, 150.0, "M", upper_arm_m=0.9, forearm_m=0.9, hand_m=0.5)
+    assert tall.l2 == pytest.approx(1.4)
+
+
 def test_arm_dict_round_trip(arm):
     assert ArmModel.from_dict(arm.to_dict()) == arm
 

@@ -112,7 +112,8 @@ def test_trials_file_damage_is_an_input_error(files):
         ),
         (
             lambda m: {**m, "trials": [{**t, "arm": {**t["arm"], "l1": 250e3}} for t in m["trials"]]},
-            r"trial 0 \(S1/P2/right/0\): arm l1 = 250000 is outside the physical range \[0.02, 2\]",
+            r"trial 0 \(S1/P2/right/0\): ArmModel\.l1 must be in metres, got 250000: longer than any arm segment "
+            r"\(3 m; millimetres\?\)$",
         ),
     ],
 )
@@ -167,17 +168,20 @@ def test_two_trials_with_one_id_are_refused(files):
     [
         ({"trial_id": "0"}, r"trial 1 has the id 'S1/P2/right/0' of trial 0; ids must be unique"),
         ({"target_x": -0.1}, r"trial 0 \(S1/P2/right/0\): field 'target_x' = -0\.1 m is outside the arm's reach"),
-        ({"degrees": True}, r"trial 0 \(S1/P2/right/0\): the start q0 = \(-1145\.9°, 5156\.6°\) lies outside"),
+        ({"degrees": True}, r"trial S1/P2/0: q must be in radians, got 90 at most: beyond any joint's 2 turns"),
     ],
 )
 def test_save_trials_refuses_what_load_trials_would(files, tmp_path, change, match):
     # a file saved is a file that loads: trial_from_solution's default ids, a target behind the shoulder or angles
-    # in degrees were written, and refused only when the file was read back
+    # in degrees were written, and refused only when the file was read back (degrees are now refused as the trial
+    # is made: the start q0 = (-1145.9°, 5156.6°) was the refusal here)
     from dataclasses import replace
 
     trials = load_trials(files / "trials.npz")
     if change.pop("degrees", False):
-        trials = [replace(t, q=np.rad2deg(t.q), x0=None) for t in trials]
+        with pytest.raises(InputError, match=match):
+            replace(trials[0], q=np.rad2deg(trials[0].q), x0=None)
+        return
     trials = [replace(t, **change) for t in trials]
     with pytest.raises(InputError, match=r"out\.npz: " + match):
         save_trials(tmp_path / "out.npz", trials)

@@ -62,9 +62,13 @@ def sex_key(text) -> str | None:
     return {"M": "M", "MALE": "M", "F": "F", "FEMALE": "F"}.get(str(text).strip().upper())
 
 
+#: m: no segment of a human arm is this long (a forearm is about 0.25 m): a longer one is in millimetres
+MAX_SEGMENT_LENGTH_M = 3.0
+
+
 @dataclass(frozen=True)
 class ArmModel:
-    """A planar two-link arm in SI units.
+    """A planar two-link arm in SI units (a segment longer than :data:`MAX_SEGMENT_LENGTH_M` is refused: millimetres).
 
     ``c1``/``c2`` are the CoM distances from each segment's proximal joint and ``i1``/``i2`` the inertias about
     the CoM (about the axis normal to the plane).
@@ -96,6 +100,12 @@ class ArmModel:
         for name in ("l1", "l2", "m1", "m2", "i1", "i2"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"ArmModel.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("l1", "l2"):  # in millimetres a forearm is hundreds of "metres": refused here, not in a solve
+            if getattr(self, name) > MAX_SEGMENT_LENGTH_M:
+                raise ValueError(
+                    f"ArmModel.{name} must be in metres, got {getattr(self, name):g}: longer than any arm segment "
+                    f"({MAX_SEGMENT_LENGTH_M:g} m; millimetres?)"
+                )
         if not 0 <= self.c1 <= self.l1 or not 0 <= self.c2 <= self.l2:
             raise ValueError(f"ArmModel CoM must lie on its segment: c1={self.c1}, c2={self.c2}")
         if self.gravity < 0:

@@ -205,6 +205,46 @@ def test_round_trip_save_load(tmp_path, reach, synth):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
 
+def test_a_trial_in_degrees_is_refused_where_it_is_made(tmp_path, synth):
+    """UE-ADL's ADL001FR1 preprocessed (q1 -97..-49°, q2 28..94°), then given in degrees, as another tool's export
+    would: the Trial was made and saved, and refused only where a fit checked it against the joint limits (the start
+    q0 = (-5131.5°, ...)). It is refused where it is made, and a trials file holding it where it is loaded, naming
+    the field and radians; the angles in radians, within two turns, are kept."""
+    from dataclasses import replace as renew
+
+    from reachirl.data.readers import read_subject_info
+
+    d = synth.SAMPLE / "ADL001"
+    info = read_subject_info(synth.SAMPLE / "subjects.csv")["ADL001"]
+    trial = markers_to_trial(
+        read_vicon_csv(d / "ADL001FR1.csv"),
+        load_markerset("ue-adl"),
+        subject="ADL001",
+        posture="forward",
+        trial_id="FR1",
+        static=read_vicon_csv(d / "ADL001_static.csv"),
+        subject_info=info,
+    )
+    degrees = {"q": np.degrees(trial.q), "qd": np.degrees(trial.qd), "qdd": np.degrees(trial.qdd)}
+    said = r"q must be in radians, got 9\d(\.\d+)? at most: beyond any joint's 2 turns \(12\.57 rad; degrees\?\)$"
+    with pytest.raises(InputError, match=rf"^{re.escape(trial.source)}: {said}"):
+        renew(trial, x0=None, **degrees)
+    with pytest.raises(InputError, match=r": x0's angles must be in radians, got 9\d(\.\d+)? at most"):
+        renew(trial, x0=np.r_[np.degrees(trial.q[0]), trial.qd[0]])
+    # a trials file written in degrees by another tool: refused as it is loaded, naming the file and the trial
+    path = save_trials(tmp_path / "t.npz", [trial])
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays.update({f"0/{k}": v for k, v in degrees.items()})
+    arrays["0/x0"] = np.r_[degrees["q"][0], degrees["qd"][0]]
+    np.savez(tmp_path / "deg.npz", **arrays)
+    with pytest.raises(InputError, match=rf"deg\.npz: trial 0 \(ADL001/forward/right/FR1\): {said}"):
+        load_trials(tmp_path / "deg.npz")
+    assert load_trials(path) == [trial]  # radians load
+    turned = renew(trial, q=trial.q + 2 * np.pi, x0=None)  # an angle convention a turn away is still radians
+    assert np.abs(turned.q).max() > 2 * np.pi
+
+
 def test_angles_to_trial(reach):
     info = SubjectInfo("S1", "M", 1.76, 70.0, upper_arm_m=0.30, forearm_m=0.26, hand_m=0.18)
     tr = angles_to_trial(

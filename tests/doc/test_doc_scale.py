@@ -64,6 +64,10 @@ def test_reaches_outside_physical_ranges_are_input_errors(arm, kwargs, match):
 
 
 def test_an_arm_of_250_km_is_an_input_error():
-    big = ArmModel(l1=250e3, l2=0.3, m1=2.0, m2=1.5, c1=0.1, c2=0.15, i1=0.01, i2=0.01)
-    with pytest.raises(InputError, match=r"arm l1 = 250000 is outside the physical range \[0.02, 2\]"):
+    # an ArmModel this long is refused where it is made (lengths in metres: ArmModel's own bound, 3 m) ...
+    with pytest.raises(ValueError, match=r"ArmModel\.l1 must be in metres, got 250000: longer than any arm segment"):
+        ArmModel(l1=250e3, l2=0.3, m1=2.0, m2=1.5, c1=0.1, c2=0.15, i1=0.01, i2=0.01)
+    # ... and the task's own bound (2 m) stands for an arm of 2.5 m, which ArmModel lets through
+    big = ArmModel(l1=2.5, l2=0.3, m1=2.0, m2=1.5, c1=0.1, c2=0.15, i1=0.01, i2=0.01)
+    with pytest.raises(InputError, match=r"arm l1 = 2.5 is outside the physical range \[0.02, 2\]"):
         ReachingTask(big, np.deg2rad([-80.0, 90.0]), 0.3, 0.7)

@@ -324,17 +324,21 @@ def test_fit_names_what_it_was_given_instead_of_trials(demos, given):
 @pytest.mark.parametrize(
     ("change", "match"),
     [
-        ("degrees", r"the start q0 = \(-\d+\.\d°, 5\d{3}\.\d°\) lies outside the joint limits q1 in"),
+        ("degrees", r"^trial virtual//1: q must be in radians, got \d+(\.\d+)? at most"),
         ("start_velocity", r"field 'x0': the start velocity q̇1 = 100 rad/s is outside \[-10, 10\] rad/s"),
         ("target_behind", r"field 'target_x' = -0\.1 m is outside the arm's reach"),
     ],
 )
 def test_fit_refuses_the_trials_a_trials_file_may_not_hold(demos, change, match):
     # load_trials refuses these, but a Trial made in Python went into the fit: angles in degrees failed on the
-    # mean task's start without naming a trial, a start velocity in deg/s was learned from
+    # mean task's start without naming a trial (now the Trial itself refuses them), a start velocity in deg/s was
+    # learned from
     t = demos[1]
+    if change == "degrees":  # now refused as the Trial is made, before any fit
+        with pytest.raises(InputError, match=match):
+            replace(t, q=np.rad2deg(t.q), x0=None)
+        return
     bad = {
-        "degrees": lambda: replace(t, q=np.rad2deg(t.q), x0=None),
         "start_velocity": lambda: replace(t, x0=np.r_[t.x0[:2], 100.0, 0.0]),
         "target_behind": lambda: replace(t, target_x=-0.1),
     }[change]()

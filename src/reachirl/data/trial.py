@@ -39,6 +39,8 @@ TRIALS_FORMAT = "reachirl-trials/1"
 #: the ``format`` of a trials file's header in every version of it, :data:`TRIALS_FORMAT` and those before and after
 _ANY_TRIALS_FORMAT = re.compile(r"reachirl-trials/[0-9]+")
 _ARRAYS = ("t", "q", "qd", "qdd", "tau")
+#: rad: no joint of an arm turns two whole turns (a reach's angles lie within ±3 rad): beyond, they are in degrees
+MAX_JOINT_ANGLE_RAD = 4.0 * np.pi
 
 
 @dataclass(frozen=True)
@@ -49,7 +51,8 @@ class Trial:
     fraction of its peak (:func:`reachirl.data.segmentation.detect_onset_offset`), so the trial starts and ends
     moving; ``None`` for a trial that was not cut (a DOC solution, a file from before the field existed).
 
-    ``q``, ``qd``, ``qdd``, ``tau`` have shape ``(n, 2)`` (rad, rad/s, rad/s², N·m; ``tau`` from inverse
+    ``q``, ``qd``, ``qdd``, ``tau`` have shape ``(n, 2)`` (rad, rad/s, rad/s², N·m; an angle beyond
+    :data:`MAX_JOINT_ANGLE_RAD`, two turns, is refused as degrees; ``tau`` from inverse
     dynamics on ``arm``). ``x0 = (q1, q2, q̇1, q̇2)`` is the state at onset and ``target_x`` the fingertip's x at
     offset (m). ``side`` is the arm that moved (``"right"``/``"left"``); left arms are already mirrored into the
     right-arm convention.
@@ -91,6 +94,14 @@ class Trial:
         x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else _floats("x0", self.x0, where).reshape(-1)
         if x0.shape != (4,) or not np.all(np.isfinite(x0)):
             raise InputError(f"x0 must be 4 finite numbers (q1, q2, qd1, qd2), got shape {x0.shape}", where)
+        for name, angles in (("q", self.q), ("x0's angles", x0[:2])):  # degrees are refused here, not in a solve
+            worst = float(np.max(np.abs(angles)))
+            if worst > MAX_JOINT_ANGLE_RAD:
+                raise InputError(
+                    f"{name} must be in radians, got {worst:.4g} at most: beyond any joint's "
+                    f"{MAX_JOINT_ANGLE_RAD / (2 * np.pi):g} turns ({MAX_JOINT_ANGLE_RAD:.4g} rad; degrees?)",
+                    where,
+                )
         object.__setattr__(self, "x0", x0)
         if not isinstance(self.arm, ArmModel):
             raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)
@@ -330,7 +341,7 @@ def load_trials(path: str | Path) -> list[Trial]:
                             side=m.get("side", "right"),
                             source=m.get("source", ""),
                             target_x=m["target_x"],
-                            arm=ArmModel.from_dict(m["arm"]),
+                            arm=_arm_in_file(m["arm"]),
                             x0=z[f"{i}/x0"],
                             onset_threshold=m.get("onset_threshold"),
                             **{n: z[f"{i}/{n}"] for n in _ARRAYS},
@@ -362,6 +373,15 @@ def _check_file_trials(trials: Sequence[Trial], path: object) -> None:
         if tr.id in seen:  # its predictions, exports and METRICS rows would be told apart by nothing
             raise InputError(f"trial {i} has the id {tr.id!r} of trial {seen[tr.id]}; ids must be unique", path)
         seen[tr.id] = i
+
+
+def _arm_in_file(d: dict) -> ArmModel:
+    """A trial's arm from its entry in a trials file: the arm's own refusal (a length in millimetres) is an
+    :class:`InputError`, for :func:`_trial_in_file` to name the file and the trial."""
+    try:
+        return ArmModel.from_dict(d)
+    except ValueError as e:
+        raise InputError(str(e)) from None
 
 
 def _trial_in_file(path: Path, i: int, meta: dict, make) -> Trial:
