@@ -395,6 +395,16 @@ def test_a_model_loaded_twice_compares_equal(tmp_path):
     assert load_model(tmp_path / "m.json") != LearnedModel(weights=2 * true_weights(2), n_nodes=N_NODES)
 
 
+def test_a_model_is_unhashable_as_a_solution_is():
+    # dataclass(frozen=True) replaced its __hash__ = None: hash() failed inside numpy, "unhashable type:
+    # 'numpy.ndarray'", which does not say what was hashed
+    model = LearnedModel(weights=true_weights(2), n_nodes=N_NODES)
+    with pytest.raises(TypeError, match=r"^unhashable type: 'LearnedModel'$"):
+        hash(model)
+    with pytest.raises(TypeError, match=r"unhashable type: 'LearnedModel'"):
+        set([model])
+
+
 def test_predict_before_fit_raises(demos):
     with pytest.raises(RuntimeError, match="not fitted"):
         MOIRL(2).predict(demos[0])

@@ -28,7 +28,7 @@ MODEL_FORMAT = "reachirl-model/1"
 MAX_MODEL_BYTES = 64 * 1024**2
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # its own __eq__; unhashable (dataclass(eq=True) replaced __hash__ = None)
 class LearnedModel:
     """Weights ``(n_windows, 7)`` (columns in FEATURES order), the DOC discretisation they were learned on, and
     free-form provenance (method, hyperparameters, history, training trials)."""
