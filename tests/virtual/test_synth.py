@@ -262,6 +262,28 @@ def test_builtin_dataset_is_cached_atomically(tmp_path, monkeypatch):
     assert not [p for p in (tmp_path / "cache").iterdir() if p.name.startswith(".")]  # no temp folder left
 
 
+def test_builtin_dataset_cache_is_renamed_into_place_durably(tmp_path, monkeypatch):
+    # the cache folder was renamed into place without syncing its parent: a crash of the system could leave the
+    # rename unwritten while a later write was (a half-visible cache)
+    import os
+
+    from reachirl.io import atomic_write_json
+
+    root = tmp_path / "cache"
+    monkeypatch.setenv("REACHIRL_CACHE", str(root))
+    monkeypatch.setattr(files, "generate", lambda out, config: atomic_write_json(out / "truth.json", {}))
+    synced, fsync = [], os.fsync
+
+    def recorded(fd):
+        synced.append((os.fstat(fd).st_ino, any(p.name.startswith("synth-") for p in root.iterdir())))
+        return fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", recorded)
+    d = synth.builtin_dataset_dir(seed=0)
+    assert (d / "truth.json").is_file()
+    assert synced[-1] == (root.stat().st_ino, True)  # the cache's folder, synced once the cache is in it
+
+
 def test_builtin_ignores_half_written_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path))
     small_cfg = SynthConfig(**{**SMALL, "postures": ("P4",), "n_trials": 1})

@@ -24,7 +24,7 @@ import numpy as np
 from ..data.writers import write_c3d, write_mot, write_trc
 from ..errors import InputError
 from ..features import FEATURES
-from ..io import atomic_write_json, atomic_write_text, cache_root, csv_column, to_jsonable
+from ..io import atomic_write_json, atomic_write_text, cache_root, csv_column, sync_folder, to_jsonable
 from ..workers import die_with_parent
 from .likeness import human_likeness
 from .population import (
@@ -322,7 +322,8 @@ def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
     are the same for every ``n_subjects``.
 
     Returns the folder with the TRC files, ``manifest.csv``, ``subjects.csv`` and ``truth.json``. It is built
-    in a temporary folder and renamed into place, so a half-written cache is never used.
+    in a temporary folder (each file synced to the disk) and renamed into place, the rename synced too, so a
+    half-written cache is never used, even after a crash of the system.
     """
     config = _builtin_config(int(seed))
     if int(n_subjects) != config.n_subjects:
@@ -338,6 +339,7 @@ def builtin_dataset_dir(seed: int = 0, n_subjects: int = 2) -> Path:
         generate(tmp, config)
         try:
             os.rename(tmp, final)
+            sync_folder(root)  # the rename on the disk: a crash leaves no cache or the whole one
         except OSError:
             if not (final / "truth.json").is_file():  # not a concurrent winner: a real error
                 raise
