@@ -2,6 +2,7 @@
 reused, and temporary files left by a killed run are removed. Results never hold NaN or a bare null."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -285,3 +286,30 @@ def test_a_killed_unit_worker_is_named_with_its_unit_and_a_rerun_resumes(trials_
     monkeypatch.undo()
     assert main(argv) == 0
     assert json.loads((out / "results.json").read_text())["run"]["computed"] == [KEY]
+
+
+def test_a_killed_figure_worker_is_named_with_its_figure_and_a_rerun_draws_it(
+    trials_file, tmp_path, monkeypatch, capsys
+):
+    """It was an internal error (exit 1, "RuntimeError: a figure worker process died ..."): a killed worker is the
+    run's circumstance, said as a unit's worker is."""
+    from reachirl.experiments import rendering
+
+    out = tmp_path / "run"
+    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "2", "--nodes", "20"]
+    argv += ["--max-iter", "1", "--sections", "1", "--n-train", "2", "--no-progress", "--out", str(out)]
+    monkeypatch.setattr(rendering, "draw", _killed)  # what the (spawned) figure worker is given to draw
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert re.fullmatch(
+        rf"reachirl reproduce: error: {re.escape(str(out / 'figures'))}: a worker process died \(killed, or out of "
+        r"memory\) while drawing figure fig\w+\.png; the run's results are kept \(rerun to draw it again\)",
+        err[0],
+    ), err
+    assert not (out / "table.csv").exists()  # written last: the run is unfinished
+    monkeypatch.undo()
+    assert main(argv) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["run"]["computed"] == [] and results["run"]["reused"] == [KEY]  # the units were kept
+    assert list((out / "figures").glob("*.png"))

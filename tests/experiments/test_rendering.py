@@ -1,10 +1,13 @@
 """Figures drawn in worker processes: the same files as drawn here, the first error raised, nothing left running
 or half written."""
 
+import re
+
 import numpy as np
 import pytest
 
 from children import children_gone
+from reachirl.errors import InputError
 from reachirl.experiments.rendering import FigureJob, drawing
 
 FIGURES = "reachirl.experiments.figures"
@@ -165,7 +168,9 @@ def test_a_figure_worker_killed_is_said_as_such_and_the_others_end(tmp_path):
         ahead.start()
         victim = next(iter(ahead.pool._processes.values()))
         with pytest.raises(
-            RuntimeError, match=r"a figure worker process died while drawing \S+\.png \(out of memory\?\)"
+            InputError,
+            match=rf"^{re.escape(str(tmp_path))}: a worker process died \(killed, or out of memory\) while drawing "
+            r"figure \w+\.png; the run's results are kept \(rerun to draw it again\)$",
         ):
             with drawing(jobs(tmp_path), workers=2, ahead=ahead):
                 os.kill(victim.pid, signal.SIGKILL)

@@ -13,7 +13,7 @@ import multiprocessing
 import os
 from collections.abc import Callable
 
-__all__ = ["local_executor", "stop_workers", "worker_init"]
+__all__ = ["local_executor", "stop_workers", "worker_died", "worker_init"]
 
 
 def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
@@ -60,6 +60,15 @@ def local_executor(workers: int, memory_gb: float, then: Callable[[], None] | No
     # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
     ctx = multiprocessing.get_context("spawn")
     return _Pool(max_workers=workers, mp_context=ctx, initializer=worker_init, initargs=(os.getpid(), memory_gb, then))
+
+
+def worker_died(doing: str, kept: str, path: object | None = None):
+    """The error of a local worker that died while ``doing`` (e.g. ``"running unit <key>"``): killed (SIGKILL, the
+    OOM killer), the run's circumstance, not a bug; an :class:`~reachirl.errors.InputError` (exit 2, one line)
+    naming ``path`` and saying what is ``kept``."""
+    from ..errors import InputError
+
+    return InputError(f"a worker process died (killed, or out of memory) while {doing}; {kept}", path)
 
 
 def stop_workers(ex: cf.ProcessPoolExecutor) -> None:

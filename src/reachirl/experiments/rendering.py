@@ -112,9 +112,13 @@ class Drawing:
                 try:
                     written += f.result()
                 except cf.process.BrokenProcessPool:  # killed, or out of its memory: said as a unit's worker is
-                    raise RuntimeError(
-                        f"a figure worker process died while drawing {job.paths[0].name if job.paths else job.plot} "
-                        "(out of memory?)"
+                    from .processes import worker_died
+
+                    where = job.paths[0] if job.paths else None
+                    raise worker_died(
+                        f"drawing figure {where.name if where else job.plot}",
+                        "the run's results are kept (rerun to draw it again)",
+                        where.parent if where else None,
                     ) from None
         except BaseException:
             self.stop()

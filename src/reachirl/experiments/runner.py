@@ -22,7 +22,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import hold_folder, remove_temporaries
-from .processes import local_executor, stop_workers
+from .processes import local_executor, stop_workers, worker_died
 from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
 from .truth_solves import run_unit_and_truth
@@ -265,10 +265,8 @@ def run_units(
                         out_dir,
                     ) from None
                 except cf.process.BrokenProcessPool:  # killed (SIGKILL, the OOM killer): the run's, not a bug
-                    raise InputError(
-                        f"a worker process died (killed, or out of memory) while running unit {futures[f]}; "
-                        "finished units are kept (rerun to resume)",
-                        out_dir,
+                    raise worker_died(
+                        f"running unit {futures[f]}", "finished units are kept (rerun to resume)", out_dir
                     ) from None
                 finish(payload)
                 if len(computed) >= limit:

@@ -554,7 +554,7 @@ def run_sensitivity(
         for name, fn, args in todo:
             finish(name, fn(*args))
     else:
-        from .processes import stop_workers
+        from .processes import stop_workers, worker_died
 
         ex = _executor(min(workers, len(todo)))
         try:
@@ -565,9 +565,8 @@ def run_sensitivity(
                 except cf.process.BrokenProcessPool:  # killed (SIGKILL, the OOM killer): said as a unit's worker
                     kept = "finished jobs are kept (rerun to resume)" if checkpoint_dir else "nothing is kept"
                     job = _label(futs[f])
-                    raise InputError(
-                        f"a worker process died (killed, or out of memory) while running job {job}; {kept}",
-                        checkpoint_dir if checkpoint_dir is not None else run_dir,
+                    raise worker_died(
+                        f"running job {job}", kept, checkpoint_dir if checkpoint_dir is not None else run_dir
                     ) from None
                 finish(futs[f], res)
         except BaseException:  # Ctrl-C, SIGTERM or an error: the workers (which ignore Ctrl-C) end now
