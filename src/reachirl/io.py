@@ -141,15 +141,25 @@ def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
 _HELD: dict[str, int] = {}
 
 
-def hold_folder(folder: str | os.PathLike, command: str = "reachirl", option: str = "--out") -> None:
-    """Hold an exclusive lock on the existing folder ``folder`` (on the folder itself: no file is made) until
-    :func:`release_folder` or the end of the process; the system drops it with a killed process, so none is left
-    stale. A second process writing into the same folder at once is refused, an
-    :class:`~reachirl.errors.InputError` naming it: it would remove the first one's temporaries and earlier
-    outputs, and mix its checkpoints and ``run.toml`` with the first one's results. Held once per process (a
-    second call is a no-op); on a file system without locks, nothing is held."""
+def _in_use(folder: str | os.PathLike, fd: int, option: str | None):
+    """The :class:`~reachirl.errors.InputError` of ``folder``, locked by another process (``fd``: open on it, and
+    refused the lock asked for): whether that process is writing into it or reading it (a shared lock is still
+    granted: no writer), whichever reachirl command it is. ``option``: the option that named the folder, if any."""
+    import fcntl
+
     from .errors import InputError
 
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        doing = "reading this folder"
+    except OSError:
+        doing = "writing into this folder"
+    then = f", or choose another {option}" if option else ""
+    return InputError(f"another reachirl command is {doing} now; wait for it to end{then}", folder, option)
+
+
+def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
     try:
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
@@ -162,24 +172,31 @@ def hold_folder(folder: str | os.PathLike, command: str = "reachirl", option: st
     except OSError:
         return  # not a folder (yet): the command's own checks say so
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, (fcntl.LOCK_SH if shared else fcntl.LOCK_EX) | fcntl.LOCK_NB)
     except BlockingIOError:
-        os.close(fd)
-        raise InputError(
-            f"{option}: another {command} is writing into this folder now; wait for it to end, or choose another "
-            f"{option}",
-            folder,
-        ) from None
+        try:
+            raise _in_use(folder, fd, option) from None
+        finally:
+            os.close(fd)
     except OSError:  # no locks here (some network file systems)
         os.close(fd)
         return
     _HELD[key] = fd
 
 
+def hold_folder(folder: str | os.PathLike, option: str = "--out") -> None:
+    """Hold an exclusive lock on the existing folder ``folder`` (on the folder itself: no file is made) until
+    :func:`release_folder` or the end of the process; the system drops it with a killed process, so none is left
+    stale. A second process writing into the same folder at once is refused, an
+    :class:`~reachirl.errors.InputError` naming the folder and ``option`` (the option that named it), whichever
+    reachirl command holds it: it would remove the first one's temporaries and earlier outputs, and mix its
+    checkpoints and ``run.toml`` with the first one's results. Held once per process (a second call is a no-op);
+    on a file system without locks, nothing is held."""
+    _lock(folder, False, option)
+
+
 @contextlib.contextmanager
-def holding_folder(
-    folder: str | os.PathLike, command: str = "reachirl command", option: str = "--out"
-) -> Iterator[Callable[[], Path]]:
+def holding_folder(folder: str | os.PathLike, option: str = "--out") -> Iterator[Callable[[], Path]]:
     """:func:`hold_folder` on ``folder`` for the block, from its start when the folder exists (a second command
     is refused before any work), else from the call of the function it yields, which makes the folder and holds
     it (call it before the first write into the folder). Released at the block's end, unless it was held
@@ -189,10 +206,10 @@ def holding_folder(
 
     def make() -> Path:
         folder.mkdir(parents=True, exist_ok=True)
-        hold_folder(folder, command, option)
+        hold_folder(folder, option)
         return folder
 
-    hold_folder(folder, command, option)
+    hold_folder(folder, option)
     try:
         yield make
     finally:

@@ -75,7 +75,7 @@ def test_a_folder_is_held_from_the_start_or_once_made_and_released_at_the_end(tm
         assert not _free(there)  # held before any work
     assert _free(there)
     new = tmp_path / "new"
-    with holding_folder(new, "reachirl synth") as make:
+    with holding_folder(new) as make:
         assert not new.exists()  # a command that fails before its first write leaves no folder
         assert make() == new
         assert not _free(new)
@@ -88,8 +88,8 @@ def test_a_folder_is_held_from_the_start_or_once_made_and_released_at_the_end(tm
 def test_a_folder_held_by_another_process_is_refused_naming_the_folder_and_option(held):
     from reachirl.io import holding_folder
 
-    with pytest.raises(InputError, match=r"out: --export: another reachirl preprocess is writing into this folder"):
-        with holding_folder(held, "reachirl preprocess", "--export"):
+    with pytest.raises(InputError, match=r"out: --export: another reachirl command is writing into this folder"):
+        with holding_folder(held, "--export"):
             pass
 
 

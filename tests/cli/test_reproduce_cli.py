@@ -487,13 +487,16 @@ def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything
         assert holder.stdout.readline().strip() == "1"
         argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
         assert main([*argv, "--seed", "1"]) == 2
-        err = capsys.readouterr().err
-        assert "--out: another reachirl reproduce is writing into this folder now" in err and str(out) in err
+        err = capsys.readouterr().err.strip().splitlines()
+        assert err == [  # whichever command holds it (it said "another reachirl reproduce", whatever held it)
+            f"reachirl reproduce: error: {out}: --out: another reachirl command is writing into this folder now; "
+            "wait for it to end, or choose another --out"
+        ]
         assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
         from reachirl.io import hold_folder
 
-        with pytest.raises(InputError, match=r"--out: another reachirl reproduce is writing into this folder now"):
-            hold_folder(out, "reachirl reproduce")
+        with pytest.raises(InputError, match=r"--out: another reachirl command is writing into this folder now"):
+            hold_folder(out)
     finally:
         holder.kill()
         holder.wait()

@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("exists and is not a folder; --predictions needs a folder", args.predictions)
     check_output_dir(args.predictions, "--predictions")  # every output checked before anything is written
     # one command at a time in the folder: a second export would remove the first one's index and files
-    with holding_folder(args.predictions, "reachirl command", "--predictions") as make:
+    with holding_folder(args.predictions, "--predictions") as make:
         return _evaluate(args, make)
 
 

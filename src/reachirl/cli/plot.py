@@ -253,7 +253,7 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     import tempfile
 
     # one command at a time in the folder: a second plot would remove this one's hidden folder while it draws
-    with holding_folder(out, "reachirl command", "--out") as make:
+    with holding_folder(out, "--out") as make:
         make()
         for stale in out.glob(f"{PARTIAL_PREFIX}*"):
             shutil.rmtree(stale, ignore_errors=True)
@@ -273,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
     # one command at a time in the folder (from the start when it exists: refused before any work)
-    with holding_folder(out, "reachirl command", "--out") as make:
+    with holding_folder(out, "--out") as make:
         return _plot(args, out, make)
 
 

@@ -350,7 +350,7 @@ def run(args) -> int:
     check_output_dir(args.export, "--export")
     output_folder_files(args.export, ["index.csv"], [], "--export", {"--out": out})
     # one command at a time in the folder: a second export would remove the first one's index and files
-    with holding_folder(args.export, "reachirl command", "--export") as make:
+    with holding_folder(args.export, "--export") as make:
         refuse_foreign_export_files(args.export, ["index.csv"], "--export")
         return _preprocess(args, options, out, make)
 

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import hold_folder, release_folder
+from ..io import holding_folder
 from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE
 from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
@@ -588,11 +588,8 @@ def run(args) -> int:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
     _refuse_foreign_run_files(out, args.config)
-    hold_folder(out, "reachirl reproduce")  # before any work; a folder made by the run is held once made
-    try:
+    with holding_folder(out, "--out"):  # before any work; a folder made by the run is held once made (the runner)
         return _run(args, out, opts, from_file)
-    finally:
-        release_folder(out)
 
 
 def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:

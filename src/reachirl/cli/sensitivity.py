@@ -98,7 +98,7 @@ def run(args) -> int:
     def on_start(total, reused):
         state["total"] = total
         out.mkdir(parents=True, exist_ok=True)
-        hold_folder(out, "reachirl sensitivity")  # a folder made by this analysis is held once made
+        hold_folder(out, "--out")  # a folder made by this analysis is held once made
         remove_outputs(out)  # an earlier analysis's results never outlive this one's start
         if reused and not args.no_progress:
             print(f"{reused} of {total} jobs reused from {checkpoints}", file=sys.stderr, flush=True)
@@ -119,7 +119,7 @@ def run(args) -> int:
     _refuse_foreign_outputs(out)
     # one analysis at a time in a folder (a second would remove this one's outputs at its start and mix their
     # checkpoints); the lock goes with the process, however it ends
-    hold_folder(out, "reachirl sensitivity")
+    hold_folder(out, "--out")
     for folder in (out, checkpoints, out / "figures"):
         remove_temporaries(folder)  # what a killed run was writing
     res = run_sensitivity(

@@ -77,7 +77,7 @@ def run(args) -> int:
 
     # one command at a time in the folder: a second synth would remove the first one's description and
     # recordings while it writes them
-    with holding_folder(args.out, "reachirl command") as make:
+    with holding_folder(args.out, "--out") as make:
         clash = synth_folder_clash(args.out)
         if clash is not None:
             raise InputError(

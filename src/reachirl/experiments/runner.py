@@ -414,13 +414,13 @@ def reproduce(
     out_dir = Path(out_dir)
     # one run at a time in a folder, from before its first change to it until the process ends (or the command
     # releases it): a second would remove this one's temporaries and outputs and mix its checkpoints with them
-    hold_folder(out_dir, "reachirl reproduce")
+    hold_folder(out_dir, "--out")
     clean_stale_temporaries(out_dir)
 
     def start(total: int, reused: int) -> None:
         # the folder is made once the run starts (its scheduler reached): a run that fails before leaves none
         out_dir.mkdir(parents=True, exist_ok=True)
-        hold_folder(out_dir, "reachirl reproduce")
+        hold_folder(out_dir, "--out")
         if on_start:
             on_start(total, reused)
 
