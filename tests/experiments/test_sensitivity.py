@@ -632,6 +632,10 @@ def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_any
         holder.wait()
     assert main(argv) == 0  # the killed holder's lock went with it
     assert (out / "identifiability.json").is_file()
+    # and this analysis's went at its end (it stayed held until the process ended: a second call in one process,
+    # or another process, was refused)
+    free = "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX | fcntl.LOCK_NB)"
+    assert subprocess.run([sys.executable, "-c", free, str(out)]).returncode == 0
 
 
 def _killed(*args, **kwargs):

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import hold_folder, remove_temporaries
+from ..io import holding_folder, remove_temporaries
 from ..validation import NODES_RANGE, check_output_dir
 from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
@@ -97,8 +97,7 @@ def run(args) -> int:
 
     def on_start(total, reused):
         state["total"] = total
-        out.mkdir(parents=True, exist_ok=True)
-        hold_folder(out, "--out")  # a folder made by this analysis is held once made
+        make_out()  # a folder made by this analysis is held once made
         remove_outputs(out)  # an earlier analysis's results never outlive this one's start
         if reused and not args.no_progress:
             print(f"{reused} of {total} jobs reused from {checkpoints}", file=sys.stderr, flush=True)
@@ -118,22 +117,22 @@ def run(args) -> int:
             raise InputError("exists and is not a folder; sensitivity writes into it (remove it)", folder)
     _refuse_foreign_outputs(out)
     # one analysis at a time in a folder (a second would remove this one's outputs at its start and mix their
-    # checkpoints); the lock goes with the process, however it ends
-    hold_folder(out, "--out")
-    for folder in (out, checkpoints, out / "figures"):
-        remove_temporaries(folder)  # what a killed run was writing
-    res = run_sensitivity(
-        args.run_dir,
-        cfg,
-        workers=args.workers or (os.cpu_count() or 1),
-        checkpoint_dir=checkpoints,
-        on_start=on_start,
-        on_done=on_done,
-    )
-    paths = write_sensitivity(res, out)
-    print((out / "sensitivity.md").read_text(encoding="utf-8"))
-    print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
-    return 0
+    # checkpoints), released at the end (the system drops it with a killed process)
+    with holding_folder(out, "--out") as make_out:
+        for folder in (out, checkpoints, out / "figures"):
+            remove_temporaries(folder)  # what a killed run was writing
+        res = run_sensitivity(
+            args.run_dir,
+            cfg,
+            workers=args.workers or (os.cpu_count() or 1),
+            checkpoint_dir=checkpoints,
+            on_start=on_start,
+            on_done=on_done,
+        )
+        paths = write_sensitivity(res, out)
+        print((out / "sensitivity.md").read_text(encoding="utf-8"))
+        print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
+        return 0
 
 
 #: the folders of a `reproduce` run that it writes and reads back (its checkpoints, figures, models, predictions)
