@@ -30,6 +30,7 @@ __all__ = [
     "npz_bytes",
     "read_json",
     "read_text",
+    "reading_folder",
     "release_folder",
     "remove_temporaries",
     "sync_folder",
@@ -137,7 +138,8 @@ def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
     return removed
 
 
-#: the folders this process holds (:func:`hold_folder`): their real path and the open descriptor that holds the lock
+#: the folders this process holds (:func:`hold_folder`, :func:`reading_folder`): their real path and the open
+#: descriptor that holds the lock (exclusive: written; shared: read)
 _HELD: dict[str, int] = {}
 
 
@@ -187,11 +189,11 @@ def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
 def hold_folder(folder: str | os.PathLike, option: str = "--out") -> None:
     """Hold an exclusive lock on the existing folder ``folder`` (on the folder itself: no file is made) until
     :func:`release_folder` or the end of the process; the system drops it with a killed process, so none is left
-    stale. A second process writing into the same folder at once is refused, an
-    :class:`~reachirl.errors.InputError` naming the folder and ``option`` (the option that named it), whichever
-    reachirl command holds it: it would remove the first one's temporaries and earlier outputs, and mix its
-    checkpoints and ``run.toml`` with the first one's results. Held once per process (a second call is a no-op);
-    on a file system without locks, nothing is held."""
+    stale. A second process writing into the same folder at once, or reading it (:func:`reading_folder`), is
+    refused, an :class:`~reachirl.errors.InputError` naming the folder and ``option`` (the option that named
+    it), whichever reachirl command holds it: it would remove the first one's temporaries and earlier outputs,
+    and mix its checkpoints and ``run.toml`` with the first one's results. Held once per process (a second call
+    is a no-op); on a file system without locks, nothing is held."""
     _lock(folder, False, option)
 
 
@@ -217,8 +219,24 @@ def holding_folder(folder: str | os.PathLike, option: str = "--out") -> Iterator
             release_folder(folder)
 
 
+@contextlib.contextmanager
+def reading_folder(folder: str | os.PathLike, option: str | None = None) -> Iterator[None]:
+    """A shared lock on the existing folder ``folder`` for the block, while a command reads it (``plot`` a run's
+    folder): refused, an :class:`~reachirl.errors.InputError`, while another process writes into it
+    (:func:`hold_folder`: a ``reproduce`` running into it), and a writer is refused meanwhile; readers do not
+    refuse each other. Nothing when this process holds it already, or on a file system without locks."""
+    held_before = os.path.realpath(folder) in _HELD
+    _lock(folder, True, option)
+    try:
+        yield
+    finally:
+        if not held_before:
+            release_folder(folder)
+
+
 def release_folder(folder: str | os.PathLike) -> None:
-    """Release the lock :func:`hold_folder` took on ``folder`` (nothing when none is held)."""
+    """Release the lock :func:`hold_folder` (or :func:`reading_folder`) took on ``folder`` (nothing when none is
+    held)."""
     fd = _HELD.pop(os.path.realpath(folder), None)
     if fd is not None:
         os.close(fd)

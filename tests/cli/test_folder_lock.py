@@ -93,6 +93,35 @@ def test_a_folder_held_by_another_process_is_refused_naming_the_folder_and_optio
             pass
 
 
+def test_a_folder_being_read_refuses_a_writer_and_not_a_reader(tmp_path):
+    # plot reads a run's folder under a shared lock: a reproduce into it is refused meanwhile, saying why
+    from reachirl.io import hold_folder, reading_folder
+
+    run = tmp_path / "run"
+    run.mkdir()
+    reader = subprocess.Popen(
+        [sys.executable, "-c", HOLD.replace("LOCK_EX", "LOCK_SH"), str(run)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        assert reader.stdout.readline().strip() == "1"
+        with pytest.raises(
+            InputError,
+            match=r"^\S+/run: --out: another reachirl command is reading this folder now; wait for it to end, or "
+            r"choose another --out$",
+        ):
+            hold_folder(run)
+        with reading_folder(run):
+            assert not _free(run)
+        assert not _free(run)  # the other reader's
+    finally:
+        reader.kill()
+        reader.wait()
+    assert _free(run)
+    with reading_folder(run):
+        assert not _free(run)
+    assert _free(run)
+
+
 def test_a_file_system_without_locks_holds_nothing_and_the_command_goes_on(tmp_path, monkeypatch):
     import fcntl
 

@@ -647,6 +647,38 @@ def test_plot_of_a_run_into_its_own_figures_folder_replaces_its_figures(run_fold
     assert is_marked_figure(run / "figures" / "fig3_weights.png")
 
 
+def test_plot_of_a_run_being_written_is_refused_until_the_writer_ends(run_folder, tmp_path, capsys):
+    """plot RUN --out RUN/figures while a reproduce runs into RUN (which holds RUN, not RUN/figures) drew a run
+    being rewritten into the folder the run writes; it is refused (exit 2) before it changes anything, and draws
+    once the writer has ended."""
+    import shutil
+    import subprocess
+    import sys
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    (run / "figures").mkdir(exist_ok=True)
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    hold = (  # a reproduce running into the folder, as it holds it
+        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
+        "print(1, flush=True); time.sleep(120)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(run)], stdout=subprocess.PIPE, text=True)
+    argv = ["plot", str(run), "--out", str(run / "figures"), "--no-pdf"]
+    try:
+        assert holder.stdout.readline().strip() == "1"
+        assert main(argv) == 2
+        assert capsys.readouterr().err.strip().splitlines() == [
+            f"reachirl plot: error: {run}: another reachirl command is writing into this folder now; wait for it to end"
+        ]
+        assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(argv) == 0  # a finished run, nothing running: plotted
+    assert main(["plot", str(run), "--out", str(run), "--no-pdf"]) == 0  # into the folder read: held by this plot
+
+
 def test_plot_titles_name_a_backend_other_than_casadi(fitted, tmp_path, monkeypatch):
     """A Crocoddyl fit's figures did not say so: its titles name the backend beside the method (CasADi, the default,
     goes unsaid), and the predictions' backend when it is not the fit's."""

@@ -11,7 +11,7 @@ window's cost on the fit's own reach, the shares its intervals bracket; undeterm
 ``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
 ``.png`` and ``.pdf``, marked as reachirl's in its metadata; a file of DIR with a figure's name that does not carry
 that mark (the user's own) is refused, never replaced, but in the run's own ``RUN_DIR/figures``, which holds what
-``reproduce`` drew.
+``reproduce`` drew. A ``RUN_DIR`` that a command writes into now (a ``reproduce`` still running) is refused.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import contextlib
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import holding_folder, sync_folder
+from ..io import holding_folder, reading_folder, sync_folder
 from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials, refuse_foreign_figures
 
 
@@ -182,7 +182,14 @@ def _malformed(res_path: Path):
 
 
 def run_figures(run_dir: Path, out: Path, pdf: bool = True) -> list[Path]:
-    """A ``reproduce`` folder's figures drawn again from ``results.json`` and ``units/``."""
+    """A ``reproduce`` folder's figures drawn again from ``results.json`` and ``units/``; refused while a command
+    writes into the folder (a ``reproduce`` running into it: what it holds is no finished run's), and such a
+    command is refused while they are read and drawn (:func:`reachirl.io.reading_folder`)."""
+    with reading_folder(run_dir):
+        return _run_figures(run_dir, out, pdf)
+
+
+def _run_figures(run_dir: Path, out: Path, pdf: bool) -> list[Path]:
     from dataclasses import fields
 
     from ..experiments import tables as tb
