@@ -638,6 +638,36 @@ def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_any
     assert subprocess.run([sys.executable, "-c", free, str(out)]).returncode == 0
 
 
+def test_an_analysis_of_a_run_being_written_is_refused_before_it_changes_anything(small_run, tmp_path, capsys):
+    """sensitivity RUN_DIR while a reproduce rewrites RUN_DIR read a run in the middle of its rewriting; it is
+    refused (exit 2) before it writes anything, and runs once the writer has ended."""
+    import subprocess
+    import sys
+
+    from reachirl.cli import main
+
+    out = tmp_path / "analysis"
+    hold = (  # a reproduce running into the run's folder, as it holds it
+        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
+        "print(1, flush=True); time.sleep(120)"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", hold, str(small_run)], stdout=subprocess.PIPE, text=True)
+    argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion", "--no-progress"]
+    try:
+        assert holder.stdout.readline().strip() == "1"
+        assert main(argv) == 2
+        assert capsys.readouterr().err.strip().splitlines() == [
+            f"reachirl sensitivity: error: {small_run}: another reachirl command is writing into this folder now; "
+            "wait for it to end"
+        ]
+        assert not any(p.is_file() for p in out.rglob("*"))
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(argv) == 0
+    assert (out / "identifiability.json").is_file()
+
+
 def _killed(*args, **kwargs):
     """A job's worker killed as it runs (SIGKILL, or the OOM killer)."""
     import os

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import holding_folder, remove_temporaries
+from ..io import holding_folder, reading_folder, remove_temporaries
 from ..validation import NODES_RANGE, check_output_dir
 from ._args import int_in, non_negative_int, number_in, refuse_overwrite
 
@@ -118,7 +118,8 @@ def run(args) -> int:
     _refuse_foreign_outputs(out)
     # one analysis at a time in a folder (a second would remove this one's outputs at its start and mix their
     # checkpoints), released at the end (the system drops it with a killed process)
-    with holding_folder(out, "--out") as make_out:
+    # and the run it reads is not being rewritten meanwhile (a reproduce into RUN_DIR is refused while it is read)
+    with holding_folder(out, "--out") as make_out, reading_folder(args.run_dir):
         for folder in (out, checkpoints, out / "figures"):
             remove_temporaries(folder)  # what a killed run was writing
         res = run_sensitivity(
