@@ -3,34 +3,20 @@ their runs): a second command into a held folder is refused, exit 2, in one line
 changes anything."""
 
 import errno
-import subprocess
-import sys
 
 import pytest
 
+from folder_locks import held_elsewhere, is_free
 from reachirl.cli import main
 from reachirl.errors import InputError
-
-HOLD = (  # another command holding the folder, as reachirl holds it
-    "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
-    "print(1, flush=True); time.sleep(120)"
-)
-TRY = (  # whether the folder is free: exit 0 when a lock could be taken now
-    "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX | fcntl.LOCK_NB)"
-)
 
 
 @pytest.fixture
 def held(tmp_path):
     out = tmp_path / "out"
     out.mkdir()
-    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "1"
+    with held_elsewhere(out):
         yield out
-    finally:
-        holder.kill()
-        holder.wait()
 
 
 # what each command would remove or replace first in the folder: an earlier output and a temporary being written
@@ -62,27 +48,23 @@ def test_a_command_into_a_folder_in_use_is_refused_before_it_changes_anything(co
     assert {p.name: p.read_bytes() for p in held.iterdir()} == before
 
 
-def _free(folder) -> bool:
-    return subprocess.run([sys.executable, "-c", TRY, str(folder)], capture_output=True).returncode == 0
-
-
 def test_a_folder_is_held_from_the_start_or_once_made_and_released_at_the_end(tmp_path):
     from reachirl.io import holding_folder
 
     there = tmp_path / "there"
     there.mkdir()
     with holding_folder(there):
-        assert not _free(there)  # held before any work
-    assert _free(there)
+        assert not is_free(there)  # held before any work
+    assert is_free(there)
     new = tmp_path / "new"
     with holding_folder(new) as make:
         assert not new.exists()  # a command that fails before its first write leaves no folder
         assert make() == new
-        assert not _free(new)
+        assert not is_free(new)
         with holding_folder(new):  # a part of the command that holds it too (plot's drawing): no release at its end
             pass
-        assert not _free(new)
-    assert _free(new)
+        assert not is_free(new)
+    assert is_free(new)
 
 
 def test_a_folder_held_by_another_process_is_refused_naming_the_folder_and_option(held):
@@ -99,11 +81,7 @@ def test_a_folder_being_read_refuses_a_writer_and_not_a_reader(tmp_path):
 
     run = tmp_path / "run"
     run.mkdir()
-    reader = subprocess.Popen(
-        [sys.executable, "-c", HOLD.replace("LOCK_EX", "LOCK_SH"), str(run)], stdout=subprocess.PIPE, text=True
-    )
-    try:
-        assert reader.stdout.readline().strip() == "1"
+    with held_elsewhere(run, shared=True):  # another command reading it
         with pytest.raises(
             InputError,
             match=r"^\S+/run: --out: another reachirl command is reading this folder now; wait for it to end, or "
@@ -111,15 +89,12 @@ def test_a_folder_being_read_refuses_a_writer_and_not_a_reader(tmp_path):
         ):
             hold_folder(run)
         with reading_folder(run):
-            assert not _free(run)
-        assert not _free(run)  # the other reader's
-    finally:
-        reader.kill()
-        reader.wait()
-    assert _free(run)
+            assert not is_free(run)
+        assert not is_free(run)  # the other reader's
+    assert is_free(run)
     with reading_folder(run):
-        assert not _free(run)
-    assert _free(run)
+        assert not is_free(run)
+    assert is_free(run)
 
 
 def test_a_file_system_without_locks_holds_nothing_and_the_command_goes_on(tmp_path, monkeypatch):

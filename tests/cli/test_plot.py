@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from folder_locks import held_elsewhere
 from reachirl import ArmModel, ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import load_trials, save_trials
@@ -652,29 +653,18 @@ def test_plot_of_a_run_being_written_is_refused_until_the_writer_ends(run_folder
     being rewritten into the folder the run writes; it is refused (exit 2) before it changes anything, and draws
     once the writer has ended."""
     import shutil
-    import subprocess
-    import sys
 
     run = tmp_path / "run"
     shutil.copytree(run_folder, run)
     (run / "figures").mkdir(exist_ok=True)
     before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
-    hold = (  # a reproduce running into the folder, as it holds it
-        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
-        "print(1, flush=True); time.sleep(120)"
-    )
-    holder = subprocess.Popen([sys.executable, "-c", hold, str(run)], stdout=subprocess.PIPE, text=True)
     argv = ["plot", str(run), "--out", str(run / "figures"), "--no-pdf"]
-    try:
-        assert holder.stdout.readline().strip() == "1"
+    with held_elsewhere(run):  # a reproduce running into the folder, as it holds it
         assert main(argv) == 2
         assert capsys.readouterr().err.strip().splitlines() == [
             f"reachirl plot: error: {run}: another reachirl command is writing into this folder now; wait for it to end"
         ]
         assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
-    finally:
-        holder.kill()
-        holder.wait()
     assert main(argv) == 0  # a finished run, nothing running: plotted
     assert main(["plot", str(run), "--out", str(run), "--no-pdf"]) == 0  # into the folder read: held by this plot
 

@@ -7,6 +7,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from folder_locks import held_elsewhere
 from reachirl.cli import main
 from reachirl.data.trial import save_trials
 from reachirl.experiments import datasets
@@ -469,8 +470,6 @@ def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything
     the first one's temporaries and results and wrote its own run.toml beside the tables the first one then
     wrote); once the first has ended, even killed, the folder is free again."""
     import shutil
-    import subprocess
-    import sys
 
     from reachirl.errors import InputError
 
@@ -478,13 +477,7 @@ def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything
     shutil.copytree(reference_run, out)
     (out / ".table.csv.abcd1234.tmp").write_text("being written by the run that holds the folder")
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    hold = (  # another run holding the folder, as reproduce holds it
-        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
-        "print(1, flush=True); time.sleep(120)"
-    )
-    holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
-    try:
-        assert holder.stdout.readline().strip() == "1"
+    with held_elsewhere(out):  # another run holding the folder, as reproduce holds it
         argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
         assert main([*argv, "--seed", "1"]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -497,9 +490,6 @@ def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything
 
         with pytest.raises(InputError, match=r"--out: another reachirl command is writing into this folder now"):
             hold_folder(out)
-    finally:
-        holder.kill()
-        holder.wait()
     (out / ".table.csv.abcd1234.tmp").unlink()
     assert main(argv) == 0  # the killed holder's lock went with it
     _same_table(out, reference_run)

@@ -6,6 +6,7 @@ import json
 import numpy as np
 import pytest
 
+from folder_locks import held_elsewhere, is_free
 from reachirl.errors import InputError
 from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, make_units, split_trials
@@ -604,22 +605,14 @@ def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_any
     """Two analyses into one --out at once: the second is refused (exit 2) before it touches the folder (it would
     remove the first one's outputs at its start and mix their checkpoints); once the first has ended, even killed,
     the folder is free again."""
-    import subprocess
-    import sys
 
     from reachirl.cli import main
 
     out = tmp_path / "analysis"
     (out / "checkpoints").mkdir(parents=True)
     (out / "checkpoints" / ".job.abcd1234.tmp").write_text("being written by the analysis that holds the folder")
-    hold = (  # another analysis holding the folder, as sensitivity holds it
-        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
-        "print(1, flush=True); time.sleep(120)"
-    )
-    holder = subprocess.Popen([sys.executable, "-c", hold, str(out)], stdout=subprocess.PIPE, text=True)
     argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion", "--no-progress"]
-    try:
-        assert holder.stdout.readline().strip() == "1"
+    with held_elsewhere(out):  # another analysis holding the folder, as sensitivity holds it
         assert main(argv) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert err == [  # whichever command holds it (it said "another reachirl sensitivity", whatever held it)
@@ -627,43 +620,28 @@ def test_a_second_analysis_into_a_folder_in_use_is_refused_before_it_changes_any
             "wait for it to end, or choose another --out"
         ]
         assert sorted(p.name for p in out.rglob("*")) == [".job.abcd1234.tmp", "checkpoints"]  # untouched
-    finally:
-        holder.kill()
-        holder.wait()
     assert main(argv) == 0  # the killed holder's lock went with it
     assert (out / "identifiability.json").is_file()
     # and this analysis's went at its end (it stayed held until the process ended: a second call in one process,
     # or another process, was refused)
-    free = "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX | fcntl.LOCK_NB)"
-    assert subprocess.run([sys.executable, "-c", free, str(out)]).returncode == 0
+    assert is_free(out)
 
 
 def test_an_analysis_of_a_run_being_written_is_refused_before_it_changes_anything(small_run, tmp_path, capsys):
     """sensitivity RUN_DIR while a reproduce rewrites RUN_DIR read a run in the middle of its rewriting; it is
     refused (exit 2) before it writes anything, and runs once the writer has ended."""
-    import subprocess
-    import sys
 
     from reachirl.cli import main
 
     out = tmp_path / "analysis"
-    hold = (  # a reproduce running into the run's folder, as it holds it
-        "import fcntl, os, sys, time; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_EX); "
-        "print(1, flush=True); time.sleep(120)"
-    )
-    holder = subprocess.Popen([sys.executable, "-c", hold, str(small_run)], stdout=subprocess.PIPE, text=True)
     argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "1", "--no-occlusion", "--no-progress"]
-    try:
-        assert holder.stdout.readline().strip() == "1"
+    with held_elsewhere(small_run):  # a reproduce running into the run's folder, as it holds it
         assert main(argv) == 2
         assert capsys.readouterr().err.strip().splitlines() == [
             f"reachirl sensitivity: error: {small_run}: another reachirl command is writing into this folder now; "
             "wait for it to end"
         ]
         assert not any(p.is_file() for p in out.rglob("*"))
-    finally:
-        holder.kill()
-        holder.wait()
     assert main(argv) == 0
     assert (out / "identifiability.json").is_file()
 
