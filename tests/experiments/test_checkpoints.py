@@ -11,6 +11,7 @@ from reachirl import ReachingTask, solve_doc
 from reachirl.cli import main
 from reachirl.data.trial import save_trials, trial_from_solution
 from reachirl.experiments.runner import load_unit
+from worker_deaths import killed
 
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])
 KEY = "moirl-P2-s1"
@@ -260,20 +261,12 @@ def test_units_run_in_threads_each_name_their_own_messages(caplog):
     assert sorted(caplog.messages) == ["unit-A: from unit-A", "unit-B: from unit-B"]
 
 
-def _killed(*args, **kwargs):
-    """A unit's worker killed as it runs (SIGKILL, or the OOM killer)."""
-    import os
-    import signal
-
-    os.kill(os.getpid(), signal.SIGKILL)
-
-
 def test_a_killed_unit_worker_is_named_with_its_unit_and_a_rerun_resumes(trials_file, tmp_path, monkeypatch, capsys):
     """It was an internal error (exit 1, 'BrokenProcessPool' or 'a worker process died'): a killed worker is the
     run's circumstance, not a bug."""
     from reachirl.experiments import runner
 
-    monkeypatch.setattr(runner, "_run_unit_bounded", _killed)  # what the (spawned) worker is given to run
+    monkeypatch.setattr(runner, "_run_unit_bounded", killed)  # what the (spawned) worker is given to run
     out = tmp_path / "run"
     argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "2", "--nodes", "20"]
     argv += ["--max-iter", "1", "--sections", "1", "--n-train", "2", "--no-progress", "--out", str(out)]
@@ -298,7 +291,7 @@ def test_a_killed_figure_worker_is_named_with_its_figure_and_a_rerun_draws_it(
     out = tmp_path / "run"
     argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "2", "--nodes", "20"]
     argv += ["--max-iter", "1", "--sections", "1", "--n-train", "2", "--no-progress", "--out", str(out)]
-    monkeypatch.setattr(rendering, "draw", _killed)  # what the (spawned) figure worker is given to draw
+    monkeypatch.setattr(rendering, "draw", killed)  # what the (spawned) figure worker is given to draw
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err

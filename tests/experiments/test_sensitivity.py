@@ -19,6 +19,7 @@ from reachirl.experiments.sensitivity import (
     sensitivity_job,
 )
 from reachirl.features import FEATURES
+from worker_deaths import killed
 
 
 @pytest.fixture(scope="module")
@@ -646,14 +647,6 @@ def test_an_analysis_of_a_run_being_written_is_refused_before_it_changes_anythin
     assert (out / "identifiability.json").is_file()
 
 
-def _killed(*args, **kwargs):
-    """A job's worker killed as it runs (SIGKILL, or the OOM killer)."""
-    import os
-    import signal
-
-    os.kill(os.getpid(), signal.SIGKILL)
-
-
 def test_a_killed_job_worker_is_named_with_its_job_and_a_rerun_resumes(small_run, tmp_path, monkeypatch, capsys):
     """It was an internal error (exit 1, 'BrokenProcessPool: A process in the process pool was terminated
     abruptly'): a killed worker is the analysis's circumstance, not a bug."""
@@ -662,7 +655,7 @@ def test_a_killed_job_worker_is_named_with_its_job_and_a_rerun_resumes(small_run
     from reachirl.cli import main
     from reachirl.experiments import sensitivity
 
-    monkeypatch.setattr(sensitivity, "sensitivity_job", _killed)  # what the (spawned) workers are given to run
+    monkeypatch.setattr(sensitivity, "sensitivity_job", killed)  # what the (spawned) workers are given to run
     out = tmp_path / "analysis"
     argv = ["sensitivity", str(small_run), "--out", str(out), "--workers", "2", "--no-occlusion", "--no-progress"]
     assert main(argv) == 2

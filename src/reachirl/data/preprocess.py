@@ -506,10 +506,22 @@ def check_glitches(
 
 def _step_noise(x: np.ndarray) -> float:
     """The SD of a step's noise along a direction (m) of a path ``x`` ``(n, 3)``, from the median absolute second
-    difference per axis (see :func:`_check_back_steps`)."""
+    difference per axis (a robust SD: √6 s for white noise of SD s per axis; a step's noise along a direction is
+    √2 s)."""
     second = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    sd = np.median(np.abs(second), axis=0) / 0.6745
-    return float(np.sqrt(np.mean(sd**2) / 3.0))
+    sd = np.median(np.abs(second), axis=0) / 0.6745  # per axis, √6 s
+    return float(np.sqrt(np.mean(sd**2) / 3.0))  # √2 s
+
+
+def _back_steps(x: np.ndarray, rate: float, order: int, min_speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(back, travel)`` of a path ``x`` ``(n, 3)`` per step: how far it steps back against its way of travel (its
+    path low-passed at :data:`~reachirl.data.segmentation.MIN_SEGMENT_CUTOFF_HZ`), ``-inf`` where that way moves
+    slower than ``min_speed``, and the way's length."""
+    way = np.diff(lowpass(x, rate, MIN_SEGMENT_CUTOFF_HZ, order), axis=0)  # the way of travel, per step
+    travel = np.linalg.norm(way, axis=1)
+    moving = travel * rate >= min_speed
+    back = np.where(moving, -np.sum(np.diff(x, axis=0) * way, axis=1) / np.where(moving, travel, 1.0), -np.inf)
+    return back, travel
 
 
 def _check_coherent_back_steps(
@@ -529,14 +541,8 @@ def _check_coherent_back_steps(
         return
     backs, limits = [], []
     for k in names:
-        x = joints[k]
-        way = np.diff(lowpass(x, rate, MIN_SEGMENT_CUTOFF_HZ, order), axis=0)
-        travel = np.linalg.norm(way, axis=1)
-        moving = travel * rate >= MIN_COHERENT_TRAVEL_SPEED
-        backs.append(
-            np.where(moving, -np.sum(np.diff(x, axis=0) * way, axis=1) / np.where(moving, travel, 1.0), -np.inf)
-        )
-        limits.append(max(MIN_COHERENT_BACK_M, COHERENT_BACK_NOISE_SDS * _step_noise(x)))
+        backs.append(_back_steps(joints[k], rate, order, MIN_COHERENT_TRAVEL_SPEED)[0])
+        limits.append(max(MIN_COHERENT_BACK_M, COHERENT_BACK_NOISE_SDS * _step_noise(joints[k])))
     # each joint's back step as a multiple of its own limit; the least of them is the frame's
     ratio = np.min([b / lim for b, lim in zip(backs, limits, strict=True)], axis=0)
     f = int(np.argmax(ratio))
@@ -596,20 +602,13 @@ def _check_back_steps(tip: np.ndarray, rate: float, src: str, order: int, first_
     than :data:`MIN_BACK_STEP_M`. Moved back by a few frames, a block makes the fingertip jump back by as many frames
     of its travel, and no hand steps back mid-reach; in a noisy recording the acceleration check lets the jump pass
     (its limit, 20× the median acceleration, is about 800 m/s² per mm of marker noise at 100 Hz: with 2 mm, a jump
-    back of 15 cm between steps forward). The noise is read from the median absolute second difference per axis
-    (a robust SD: √6 s for white noise of SD s per axis; a step's noise along a direction is √2 s)."""
+    back of 15 cm between steps forward). The noise is the robust one of :func:`_step_noise`."""
     if not rate > 2.0 * MIN_SEGMENT_CUTOFF_HZ or tip.shape[0] <= filter_padlen(order) or not np.isfinite(tip).all():
         return
-    second = tip[2:] - 2.0 * tip[1:-1] + tip[:-2]
-    sd = np.median(np.abs(second), axis=0) / 0.6745  # per axis, √6 s
-    step_noise = float(np.sqrt(np.mean(sd**2) / 3.0))  # √2 s
-    way = np.diff(lowpass(tip, rate, MIN_SEGMENT_CUTOFF_HZ, order), axis=0)  # the way of travel, per step
-    travel = np.linalg.norm(way, axis=1)
-    moving = travel * rate >= MIN_TRAVEL_SPEED
-    if not moving.any():
+    back, travel = _back_steps(tip, rate, order, MIN_TRAVEL_SPEED)
+    if not np.isfinite(back).any():  # nowhere moving
         return
-    back = np.where(moving, -np.sum(np.diff(tip, axis=0) * way, axis=1) / np.where(moving, travel, 1.0), -np.inf)
-    limit = max(BACK_STEP_NOISE_SDS * step_noise, MIN_BACK_STEP_M)
+    limit = max(BACK_STEP_NOISE_SDS * _step_noise(tip), MIN_BACK_STEP_M)
     f = int(np.argmax(back))
     if back[f] > limit:
         raise InputError(
