@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from moirl_settings import whole_rollout_moirl
-from reachirl import ReachingTask, solve_doc
+from reachirl import FEATURES, ArmModel, ReachingTask, solve_doc
 from reachirl.doc.observation import observe, observed_state_jacobian, rest_to_rest
 from reachirl.doc.sensitivity import weight_jacobian
+from reachirl.doc.task import rest_to_rest_knots
 from reachirl.irl.moirl import MOIRL as _MOIRL
 from reachirl.irl.objective import gauss_newton_step
 from reachirl.virtual import knot_trials
@@ -46,6 +47,52 @@ def test_the_weight_jacobian_matches_resolved_finite_differences(problem):
     for s, j in [(0, 3), (1, 2), (2, 6), (1, 1), (0, 0), (2, 4)]:
         fd = _resolved(task, w, s, j)
         assert np.linalg.norm(jac[:, :, s, j] - fd) <= 1e-2 * np.linalg.norm(fd) + 1e-7, (s, j)
+
+
+def test_a_reach_whose_power_sits_at_zero_moves_as_its_re_solved_finite_differences():
+    """A cost dominated by the energy: the optimum holds the joint power at zero (q̇ ⟂ τ) on every knot, each within
+    the interior point's tolerance of the energy's corner. Those knots keep their power at zero when the weights
+    change; taking the sign of a 1e-9 W power for their side made the derivatives wrong by factors (by 10⁶ along
+    the energy's weight, which moves nothing here)."""
+    arm = ArmModel.from_anthropometrics(1.76, 69.9, "M")
+    task = ReachingTask(arm, np.deg2rad([-60.0, 90.0]), 0.6, 0.8, n_nodes=40)
+    w = np.array([[6.7, 1100.0, 19.0, 0.034, 0.00093, 1.1, 0.00091]])
+    sol = solve_doc(task, w)
+    assert sol.converged
+    _, qd, tau = rest_to_rest_knots(task, sol.q)
+    assert np.all(np.abs(np.sum(qd[1:-1] * tau[1:], axis=1)) < 1e-6)  # the power sits at zero on every knot
+    jac = weight_jacobian(task, w, sol)
+    fds = [_resolved(task, w, 0, j) for j in range(7)]
+    largest = max(np.linalg.norm(fd) for fd in fds)
+    for j, fd in enumerate(fds):
+        assert np.linalg.norm(jac[:, :, 0, j] - fd) <= 1e-2 * np.linalg.norm(fd) + 1e-3 * largest, FEATURES[j]
+
+
+def test_a_learned_cost_s_knots_near_the_energy_s_corner_move_as_re_solved():
+    """The 8-window cost learned on the built-in data's P4 (seed 0, rounded): fatrop leaves some knots' power
+    within 1e-5 to 1e-4 of |q̇||τ| of zero, on the corner, where a smooth knot's derivative was 20-90 % off."""
+    arm = ArmModel(0.2668, 0.4387, 1.993, 1.910, 0.1206, 0.1585, 0.01453, 0.02397)
+    w = np.array(
+        [
+            [0.1104, 0.001875, 1.0, 0.0001079, 1.184e-06, 0.08235, 0.001063],
+            [0.01768, 0.001353, 0.2034, 5.147e-05, 1.233e-06, 0.03472, 0.0001261],
+            [0.02849, 0.001646, 0.1687, 3.151e-05, 9.121e-07, 0.007823, 9.828e-05],
+            [0.01208, 0.001416, 0.08231, 5.261e-05, 8.915e-07, 0.004907, 0.0001162],
+            [0.004089, 0.0009836, 0.0879, 7.407e-05, 6.917e-07, 0.005685, 0.0003765],
+            [0.01152, 0.001209, 0.2386, 2.982e-05, 7.806e-07, 0.01052, 0.0004488],
+            [0.02649, 0.0009825, 0.297, 4.259e-05, 4.263e-07, 0.03385, 0.0003399],
+            [0.1368, 0.001261, 0.8505, 4.254e-05, 3.758e-07, 0.04386, 0.0002882],
+        ]
+    )
+    task = ReachingTask(arm, np.deg2rad([-31.0, 89.6]), 0.67, 0.87, n_nodes=50)
+    sol = solve_doc(task, w)
+    assert sol.converged
+    jac = weight_jacobian(task, w, sol)
+    h = 0.01
+    for v in np.random.default_rng(0).normal(size=(4, *w.shape)):
+        v /= np.linalg.norm(v)
+        fd = (solve_doc(task, w * np.exp(h * v)).q - solve_doc(task, w * np.exp(-h * v)).q) / (2 * h)
+        assert np.linalg.norm(np.einsum("kisj,sj->ki", jac, v) - fd) <= 0.1 * np.linalg.norm(fd)
 
 
 def test_scaling_every_weight_moves_no_reach(problem):

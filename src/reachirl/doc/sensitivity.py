@@ -11,10 +11,13 @@ so, differentiating along a change ``dω`` with the active set held fixed::
     [ A   0  ] [ dλ ]  =  [          0         ]         H = ∇²_zz (f + λᵀg)
 
 The variables at a bound (the energy's zero slack ``s±`` at each knot, a joint limit or the speed bound where one
-binds) are held (``dz = 0``). The multipliers are those of the returned point, from the same KKT matrix with the
-objective's Hessian (at an optimum ``dz = 0`` solves it whatever the Hessian, so one sparse solve gives ``λ``).
-The point is the solution rebuilt as the backends return it (:func:`reachirl.doc.casadi._pack` of its knots:
-exact slacks), so a solution of either backend is differentiated the same way.
+binds) are held (``dz = 0``). A knot whose joint power ``q̇ᵀτ`` is zero (below :data:`CORNER_TOL` of ``|q̇||τ|``:
+the optimum sits on the energy's corner, where an interior point leaves it within its tolerance of zero) holds
+both of its slacks, set to zero, so that its power stays zero. The multipliers are those of the returned point,
+from the same KKT matrix with the objective's Hessian (at an optimum ``dz = 0`` solves it whatever the Hessian, so
+one sparse solve gives ``λ``). The point is the solution rebuilt as the backends return it
+(:func:`reachirl.doc.casadi._pack` of its knots: exact slacks), so a solution of either backend is differentiated
+the same way.
 
 One column per window and feature, each the derivative along ``d log ω_{s,j}`` (the weight of feature ``j`` in
 window ``s`` multiplied by ``e^ε``): the directions MO-IRL's steps take. Tested against central differences of
@@ -30,7 +33,7 @@ import scipy.sparse.linalg as spla
 
 from ..features import N_FEATURES, window_index
 from . import casadi as cb
-from .task import DocSolution, ReachingTask
+from .task import DocSolution, ReachingTask, rest_to_rest_knots
 
 __all__ = ["weight_jacobian"]
 
@@ -39,6 +42,22 @@ def _sparse(m) -> sps.csc_matrix:
     """A CasADi ``DM`` as a scipy CSC matrix."""
     r, c = m.sparsity().get_triplet()
     return sps.csc_matrix((np.asarray(m.nonzeros(), dtype=float), (r, c)), shape=m.shape)
+
+
+#: a knot's joint power below this fraction of ``|q̇||τ|`` (the cosine of the angle between them) is on the corner
+CORNER_TOL = 1e-3
+
+
+def _corner_slacks(task: ReachingTask, q: np.ndarray) -> np.ndarray:
+    """The indices in the decision vector (:func:`reachirl.doc.casadi._pack`) of the slacks ``(s⁺, s⁻)`` of the
+    knots whose joint power is zero to :data:`CORNER_TOL`, shape ``(K, 2)`` (knot 0's power is zero by the rest at
+    the start and has no slack variables)."""
+    _, qd, tau = rest_to_rest_knots(task, q)
+    power = np.sum(qd[:-1] * tau, axis=1)
+    size = np.linalg.norm(qd[:-1], axis=1) * np.linalg.norm(tau, axis=1)
+    k = np.flatnonzero(np.abs(power[1:]) <= CORNER_TOL * size[1:]) + 1
+    first = 2 + (k - 1) * (cb.NX + cb.NU) + cb.NX + 2  # knot k's controls (q̈ (2), s⁺, s⁻) follow its state
+    return np.stack([first, first + 1], axis=1)
 
 
 def weight_jacobian(task: ReachingTask, weights: np.ndarray, sol: DocSolution) -> np.ndarray:
@@ -59,6 +78,9 @@ def weight_jacobian(task: ReachingTask, weights: np.ndarray, sol: DocSolution) -
     lb, ub = bounds["lbx"], bounds["ubx"]
     span = np.where(np.isfinite(ub - lb), ub - lb, 1.0)
     free = (z - lb > 1e-9 * span) & (ub - z > 1e-9 * span)  # exact slacks: the zero one is exactly at its bound
+    corner = _corner_slacks(task, np.asarray(sol.q, dtype=float))  # (K, 2): s⁺, s⁻ of the knots on the corner
+    z[corner] = 0.0
+    free[corner] = False
 
     a = _sparse(fun["A"](z, p))[:, free]
     n_g = a.shape[0]
