@@ -141,6 +141,20 @@ def test_from_anthropometrics_rejects_bad_input(kwargs, match):
 
 
 @pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"mass_kg": 72000}, r"mass_kg must be a plausible body mass in kg, got 72000.0; in grams\?"),
+        ({"height_m": 172}, r"height_m must be a plausible stature in metres, got 172.0; in centimetres\?"),
+        ({"height_m": 1720}, r"height_m must be a plausible stature in metres, got 1720.0; in millimetres\?"),
+        ({"forearm_m": 27}, r"forearm length must be in metres \(0.02-1.0\), got 27.0; in centimetres\?"),
+    ],
+)
+def test_from_anthropometrics_names_the_unit_a_value_was_likely_written_in(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        ArmModel.from_anthropometrics(**{"height_m": 1.7, "mass_kg": 70, "sex": "M", **kwargs})
+
+
+@pytest.mark.parametrize(
     ("kwargs", "error", "match"),
     [
         ({"height_m": None}, TypeError, r"height_m must be a number \(m\), got None"),

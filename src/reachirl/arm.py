@@ -62,6 +62,26 @@ def sex_key(text) -> str | None:
     return {"M": "M", "MALE": "M", "F": "F", "FEMALE": "F"}.get(str(text).strip().upper())
 
 
+#: what a subject's stature (m), body mass (kg) and arm segment length (m) may be (open ranges)
+STATURE_RANGE_M = (0.5, 2.6)
+BODY_MASS_RANGE_KG = (10.0, 300.0)
+SEGMENT_RANGE_M = (0.02, 1.0)
+
+#: where a stature, body mass or segment length out of its range (above) lands when written in another unit
+_SLIPS = {
+    "height": ((50.0, 260.0, "centimetres"), (500.0, 2600.0, "millimetres")),
+    "mass": ((10_000.0, 300_000.0, "grams"),),
+    "length": ((2.0, 100.0, "centimetres"), (100.0, 1000.0, "millimetres")),
+}
+
+
+def unit_slip(value: float, quantity: str) -> str:
+    """The words for the unit a subject's ``quantity`` (``"height"``, ``"mass"`` or ``"length"``) was likely written
+    in when ``value`` is out of its range in SI units, such as ``"; in centimetres?"`` for a stature of 172; ``""``
+    when no unit fits (a typo, not a unit)."""
+    return next((f"; in {unit}?" for lo, hi, unit in _SLIPS[quantity] if lo <= value < hi), "")
+
+
 #: m: no segment of a human arm is this long (a forearm is about 0.25 m): a longer one is in millimetres
 MAX_SEGMENT_LENGTH_M = 3.0
 
@@ -142,18 +162,22 @@ class ArmModel:
         if key is None:
             raise ValueError(f"sex must be 'M' or 'F' (or 'male', 'female'), got {sex!r}")
         height_m, mass_kg = number("height_m", height_m, "m"), number("mass_kg", mass_kg, "kg")
-        if not (0.5 < height_m < 2.6):
-            raise ValueError(f"height_m must be a plausible stature in metres, got {height_m}")
-        if not (10.0 < mass_kg < 300.0):
-            raise ValueError(f"mass_kg must be a plausible body mass in kg, got {mass_kg}")
+        if not (STATURE_RANGE_M[0] < height_m < STATURE_RANGE_M[1]):
+            raise ValueError(
+                f"height_m must be a plausible stature in metres, got {height_m}{unit_slip(height_m, 'height')}"
+            )
+        if not (BODY_MASS_RANGE_KG[0] < mass_kg < BODY_MASS_RANGE_KG[1]):
+            raise ValueError(f"mass_kg must be a plausible body mass in kg, got {mass_kg}{unit_slip(mass_kg, 'mass')}")
         table = DUMAS_2007[key]
         scale = height_m / _REFERENCE_HEIGHT_M[key]
 
         def segment(name: str, length: float | None) -> tuple[float, float, float, float]:
             mass_pct, com_pct, r_pct, mean_len = table[name]
             length = mean_len * scale if length is None else number(f"{name}_m", length, "m")
-            if not (0.02 < length < 1.0):
-                raise ValueError(f"{name} length must be in metres (0.02-1.0), got {length}")
+            if not (SEGMENT_RANGE_M[0] < length < SEGMENT_RANGE_M[1]):
+                raise ValueError(
+                    f"{name} length must be in metres (0.02-1.0), got {length}{unit_slip(length, 'length')}"
+                )
             m = mass_pct / 100.0 * mass_kg
             return length, m, com_pct / 100.0 * length, m * (r_pct / 100.0 * length) ** 2
 

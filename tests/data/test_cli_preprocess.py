@@ -231,6 +231,19 @@ def test_bad_input_exit_2(tmp_path, reach, synth, capsys, case):
     assert not out.exists() and not list(tmp_path.glob(".out.npz*"))
 
 
+def test_a_subject_info_with_masses_in_grams_is_refused_in_one_line_naming_the_unit(tmp_path, synth, capsys):
+    info = tmp_path / "subjects.csv"
+    info.write_text("subject,sex,height_m,mass_kg\nADL001,F,1.702,96000\n")
+    out = tmp_path / "o.npz"
+    code, _, err = _run([synth.SAMPLE / "ADL001", "--subject-info", info, "--out", out], capsys)
+    assert code == 2
+    assert err.strip().splitlines() == [
+        f"reachirl preprocess: error: {info}: line 2: subject ADL001: mass_kg 96000.0 is not a body mass in kg "
+        "(10-300); in grams?"
+    ]
+    assert not out.exists()
+
+
 def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     shutil.copy(synth.SAMPLE / "ADL001" / "ADL001FR1.csv", tmp_path)
     code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)

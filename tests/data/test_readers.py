@@ -135,6 +135,30 @@ def test_degrees_declared_as_radians_refused(tmp_path):
 
 
 @pytest.mark.parametrize(
+    ("name", "header", "declared"),
+    [
+        ("r.mot", "reach\ninDegrees=yes\nendheader\ntime\tq1\tq2", r"inDegrees=yes"),
+        ("r.mot", "reach\nversion=1\nendheader\ntime\tq1\tq2", r"no inDegrees line: OpenSim's default"),
+        ("r.csv", "time,q1_deg,q2_deg", r"the columns' suffix _deg"),
+        ("r.csv", "# units: deg\ntime,q1,q2", r"line 1: # units: deg"),
+    ],
+)
+def test_radians_declared_as_degrees_refused(tmp_path, name, header, declared):
+    # a reach in radians (q1 -1.57..-0.8, q2 1.6..0.5) read as degrees is a still arm: "no movement" said nothing of
+    # the units; every angle within ±π is no reach in degrees
+    q = np.column_stack([np.linspace(-1.57, -0.8, 50), np.linspace(1.6, 0.5, 50)])
+    sep = "\t" if name.endswith(".mot") else ","
+    p = tmp_path / name
+    p.write_text(header + "\n" + "".join(f"{0.01 * i}{sep}{a}{sep}{b}\n" for i, (a, b) in enumerate(q)))
+    with pytest.raises(
+        InputError,
+        match=rf"^\S+{name}: every q1 and q2 lies within ±3\.14, read as degrees \({declared}\): that is a reach in "
+        r"radians, not in degrees; are radians declared as degrees\?$",
+    ):
+        read_file(p)
+
+
+@pytest.mark.parametrize(
     ("text", "pattern"),
     [
         ("", r"file is empty"),
@@ -352,3 +376,27 @@ def test_trc_rows_read_alike_whether_each_cell_is_a_number_or_not(tmp_path):
     for marker, row in (("A", [0.1, 1.0, -0.0]), ("B", [np.nan, np.nan, 2.5])):
         np.testing.assert_array_equal(m.markers[marker], [row, row])
     assert np.signbit(m.markers["A"][:, 2]).all()
+
+
+@pytest.mark.parametrize(
+    ("cells", "match"),
+    [
+        ("1.702,72000", r"subject S7: mass_kg 72000.0 is not a body mass in kg \(10-300\); in grams\?$"),
+        ("172,72", r"subject S7: height_m 172.0 is not a stature in metres \(0.5-2.6\); in centimetres\?$"),
+        ("1720,72", r"subject S7: height_m 1720.0 is not a stature in metres \(0.5-2.6\); in millimetres\?$"),
+        (
+            "1.72,72,28.4",
+            r"subject S7: upper_arm_m 28.4 is not a segment length in metres \(0.02-1.0\); in centimetres",
+        ),
+        (
+            "1.72,72,284",
+            r"subject S7: upper_arm_m 284.0 is not a segment length in metres \(0.02-1.0\); in millimetres",
+        ),
+        ("1.72,7", r"subject S7: mass_kg 7.0 is not a body mass in kg \(10-300\)$"),  # no unit fits: none guessed
+    ],
+)
+def test_a_subject_info_in_other_units_is_refused_naming_the_subject_column_and_likely_unit(tmp_path, cells, match):
+    p = tmp_path / "info.csv"
+    p.write_text(f"subject,sex,height_m,mass_kg,upper_arm_m\nS7,F,{cells}\n")
+    with pytest.raises(InputError, match=r"^\S+info\.csv: line 2: " + match):
+        read_subject_info(p)

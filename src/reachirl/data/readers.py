@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..arm import sex_key
+from ..arm import BODY_MASS_RANGE_KG, SEGMENT_RANGE_M, STATURE_RANGE_M, sex_key, unit_slip
 from ..errors import InputError
 from ..io import read_text
 
@@ -697,6 +697,19 @@ def _angle_rows(lines: list[str], start: int, sep: str | None, n_min: int, path:
     return np.asarray(rows)
 
 
+def _radians(q_deg: np.ndarray, path: Path, declared: str) -> np.ndarray:
+    """``q_deg`` ``(n, 2)`` (the file's q1, q2, in degrees as ``declared``) in radians; refused when every value
+    lies within ±π, as a reach's angles do in radians and never in degrees (the arm straight and horizontal all
+    along: no reach): radians declared, or taken by default, as degrees."""
+    if np.all(np.abs(q_deg) <= np.pi):
+        raise InputError(
+            f"every q1 and q2 lies within ±{np.pi:.2f}, read as degrees ({declared}): that is a reach in radians, "
+            "not in degrees; are radians declared as degrees?",
+            path,
+        )
+    return np.radians(q_deg)
+
+
 def read_mot(path: str | Path, side: str | None = None) -> AngleData:
     """Read an OpenSim MOT/STO motion file: ``inDegrees=yes|no`` in the header, then ``endheader``, then a
     ``time q1 q2 ...`` header row (tab- or space-separated). Column names: ``q1``/``q2`` (or
@@ -707,7 +720,7 @@ def read_mot(path: str | Path, side: str | None = None) -> AngleData:
     end = next((k for k, ln in enumerate(lines) if ln.strip().lower() == "endheader"), None)
     if end is None:
         raise InputError("not a MOT file (no 'endheader' line)", path)
-    in_degrees = True
+    in_degrees, said_degrees = True, False
     declared = n_columns = None
     for k, ln in enumerate(lines[:end]):
         key = ln.split("=", 1)[0].strip().lower()
@@ -715,7 +728,7 @@ def read_mot(path: str | Path, side: str | None = None) -> AngleData:
             val = ln.split("=", 1)[-1].strip().lower()
             if val not in ("yes", "no"):
                 raise InputError(f"inDegrees must be yes or no, got {val!r}", path, f"line {k + 1}")
-            in_degrees = val == "yes"
+            in_degrees = said_degrees = val == "yes"
         elif key in ("nrows", "datarows") and "=" in ln:
             declared = _declared_rows(ln.split("=", 1)[1], ln.split("=", 1)[0].strip(), path, f"line {k + 1}")
         elif key in ("ncolumns", "datacolumns") and "=" in ln:
@@ -735,7 +748,10 @@ def read_mot(path: str | Path, side: str | None = None) -> AngleData:
     a = _angle_rows(lines, hdr_k + 1, sep, max(it, i1, i2) + 1, path, header)
     last_line = max(k for k in range(hdr_k, len(lines)) if lines[k].strip()) + 1
     _check_row_count(a.shape[0], declared, "nRows", "rows", path, last_line)
-    q = np.radians(a[:, [i1, i2]]) if in_degrees else a[:, [i1, i2]]
+    if in_degrees:
+        q = _radians(a[:, [i1, i2]], path, "inDegrees=yes" if said_degrees else "no inDegrees line: OpenSim's default")
+    else:
+        q = a[:, [i1, i2]]
     q[:, 0] += _q1_offset(header[i1])
     return AngleData(t=a[:, it], q=q, source=str(path), side=_columns_side(header, i1, i2))
 
@@ -744,7 +760,7 @@ def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
     """Read a ``time,q1,q2`` CSV (radians unless ``_deg`` suffixes or a ``# units: deg`` line say degrees)."""
     path = Path(path)
     lines = read_text(path).splitlines()
-    units = None
+    units, declared_by = None, ""
     k = 0
     while k < len(lines) and (lines[k].lstrip().startswith("#") or not lines[k].strip()):
         m = re.match(r"#\s*units?\s*[:=]\s*(\w+)", lines[k].strip(), re.IGNORECASE)
@@ -753,6 +769,7 @@ def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
             if u not in ("deg", "degree", "degrees", "rad", "radian", "radians"):
                 raise InputError(f"unknown angle unit {m.group(1)!r}, expected deg or rad", path, f"line {k + 1}")
             units = "deg" if u.startswith("deg") else "rad"
+            declared_by = f"line {k + 1}: {lines[k].strip()}"
         k += 1
     if k >= len(lines):
         raise InputError("no header row", path)
@@ -766,9 +783,9 @@ def read_angles_csv(path: str | Path, side: str | None = None) -> AngleData:
         col_unit = sfx.pop()
         if units is not None and units != col_unit:
             raise InputError(f"'# units: {units}' contradicts the column suffix _{col_unit}", path, f"line {k + 1}")
-        units = col_unit
+        units, declared_by = col_unit, f"the columns' suffix _{col_unit}"
     a = _angle_rows(lines, k + 1, ",", max(it, i1, i2) + 1, path, header)
-    q = np.radians(a[:, [i1, i2]]) if units == "deg" else a[:, [i1, i2]]
+    q = _radians(a[:, [i1, i2]], path, declared_by) if units == "deg" else a[:, [i1, i2]]
     q[:, 0] += _q1_offset(header[i1])
     return AngleData(t=a[:, it], q=q, source=str(path), side=_columns_side(header, i1, i2))
 
@@ -918,17 +935,28 @@ def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
             raise InputError(f"sex must be M or F (or male, female), got {r['sex']!r}", path, where)
         h = _float(r["height_m"], path, line, "height_m")
         m = _float(r["mass_kg"], path, line, "mass_kg")
-        if not 0.5 < h < 2.6:
-            raise InputError(f"height_m {h} is not a stature in metres", path, where)
-        if not 10 < m < 300:
-            raise InputError(f"mass_kg {m} is not a body mass in kg", path, where)
+        # the subject named, and the unit the value was likely written in (a mass in grams, a height in cm)
+        if not STATURE_RANGE_M[0] < h < STATURE_RANGE_M[1]:
+            raise InputError(
+                f"subject {sid}: height_m {h} is not a stature in metres (0.5-2.6){unit_slip(h, 'height')}",
+                path,
+                where,
+            )
+        if not BODY_MASS_RANGE_KG[0] < m < BODY_MASS_RANGE_KG[1]:
+            raise InputError(
+                f"subject {sid}: mass_kg {m} is not a body mass in kg (10-300){unit_slip(m, 'mass')}", path, where
+            )
         lengths = {}
         for c in ("upper_arm_m", "forearm_m", "hand_m"):
             v = r.get(c, "")
             if v:
                 x = _float(v, path, line, c)
-                if not 0.02 < x < 1.0:
-                    raise InputError(f"{c} {x} is not a segment length in metres (0.02-1.0)", path, where)
+                if not SEGMENT_RANGE_M[0] < x < SEGMENT_RANGE_M[1]:
+                    raise InputError(
+                        f"subject {sid}: {c} {x} is not a segment length in metres (0.02-1.0){unit_slip(x, 'length')}",
+                        path,
+                        where,
+                    )
                 lengths[c] = x
         if sid in out:
             raise InputError(f"subject {sid!r} appears twice", path, where)
