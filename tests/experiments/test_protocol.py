@@ -317,3 +317,19 @@ def test_a_dask_scheduler_lost_mid_run_is_said_in_one_line_and_the_finished_unit
     assert "Traceback" not in capsys.readouterr().err
     again = run_units(units, splits, tmp_path, workers=1)
     assert len(again.reused) == 1 and len(again.computed) == 1
+
+
+def test_a_run_into_a_folder_another_command_writes_into_names_the_argument_not_the_cli_option(toy, tmp_path):
+    # from Python there is no --out: the message names the argument that named the folder
+    from folder_locks import held_elsewhere
+
+    out = tmp_path / "run"
+    out.mkdir()
+    with held_elsewhere(out):
+        with pytest.raises(
+            InputError,
+            match=r"^\S+/run: out_dir: another reachirl command is writing into this folder now; wait for it to end, "
+            r"or choose another out_dir$",
+        ):
+            reproduce(toy, _config(sections=(1,)), out)
+    assert list(out.iterdir()) == []

@@ -691,6 +691,7 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
                 data_s=data_s,
                 on_start=on_start,
                 on_done=on_done,
+                out_option="--out",
             )
         if result.stopped:
             return _stopped(result)

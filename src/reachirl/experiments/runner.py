@@ -377,11 +377,14 @@ def reproduce(
     data_s: float = 0.0,
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
+    out_option: str = "out_dir",
 ) -> RunResult:
     """Run (or resume) the whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`),
     checkpointing each unit under ``out_dir/units/``, and return the :class:`RunResult`. Nothing else is
     written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
-    (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish).
+    (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish). ``out_option``: what named
+    ``out_dir`` to the caller (the argument; the command line's ``--out``), in the error of a folder that another
+    command is writing into.
     """
     from .pairs import pair_splits, pair_training_subjects
     from .protocol import (
@@ -414,13 +417,13 @@ def reproduce(
     out_dir = Path(out_dir)
     # one run at a time in a folder, from before its first change to it until the process ends (or the command
     # releases it): a second would remove this one's temporaries and outputs and mix its checkpoints with them
-    hold_folder(out_dir, "--out")
+    hold_folder(out_dir, out_option)
     clean_stale_temporaries(out_dir)
 
     def start(total: int, reused: int) -> None:
         # the folder is made once the run starts (its scheduler reached): a run that fails before leaves none
         out_dir.mkdir(parents=True, exist_ok=True)
-        hold_folder(out_dir, "--out")
+        hold_folder(out_dir, out_option)
         if on_start:
             on_start(total, reused)
 
