@@ -141,6 +141,8 @@ def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
 #: the folders this process holds (:func:`hold_folder`, :func:`reading_folder`): their real path and the open
 #: descriptor that holds the lock (exclusive: written; shared: read)
 _HELD: dict[str, int] = {}
+#: those of them held only for reading (a shared lock)
+_READ_ONLY: set[str] = set()
 
 
 def _in_use(folder: str | os.PathLike, fd: int, option: str | None):
@@ -168,6 +170,8 @@ def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
         return
     key = os.path.realpath(folder)
     if key in _HELD:
+        if not shared and key in _READ_ONLY:  # read, now written into: no other command may read it meanwhile
+            _write_too(folder, key, option)
         return
     try:
         fd = os.open(key, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
@@ -184,6 +188,31 @@ def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
         os.close(fd)
         return
     _HELD[key] = fd
+    if shared:
+        _READ_ONLY.add(key)
+
+
+def _write_too(folder: str | os.PathLike, key: str, option: str | None) -> None:
+    """Turn this process's shared lock on ``folder`` (real path ``key``) into an exclusive one; refused, the
+    :class:`~reachirl.errors.InputError` of :func:`_in_use`, while another process reads it too, the shared lock
+    kept (the system drops it when it refuses the exchange: taken again)."""
+    import fcntl
+
+    fd = _HELD[key]
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        other = os.open(key, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))  # asks as another process would
+        try:
+            error = _in_use(folder, other, option)
+        finally:
+            os.close(other)
+        with contextlib.suppress(OSError):
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        raise error from None
+    except OSError:  # no locks here
+        return
+    _READ_ONLY.discard(key)
 
 
 def hold_folder(folder: str | os.PathLike, option: str = "--out") -> None:
@@ -193,7 +222,8 @@ def hold_folder(folder: str | os.PathLike, option: str = "--out") -> None:
     refused, an :class:`~reachirl.errors.InputError` naming the folder and ``option`` (the option that named
     it), whichever reachirl command holds it: it would remove the first one's temporaries and earlier outputs,
     and mix its checkpoints and ``run.toml`` with the first one's results. Held once per process (a second call
-    is a no-op); on a file system without locks, nothing is held."""
+    is a no-op); a folder this process reads (:func:`reading_folder`) is held exclusively from then on, until it
+    is released, or refused while another process reads it too. On a file system without locks, nothing is held."""
     _lock(folder, False, option)
 
 
@@ -237,7 +267,9 @@ def reading_folder(folder: str | os.PathLike, option: str | None = None) -> Iter
 def release_folder(folder: str | os.PathLike) -> None:
     """Release the lock :func:`hold_folder` (or :func:`reading_folder`) took on ``folder`` (nothing when none is
     held)."""
-    fd = _HELD.pop(os.path.realpath(folder), None)
+    key = os.path.realpath(folder)
+    _READ_ONLY.discard(key)
+    fd = _HELD.pop(key, None)
     if fd is not None:
         os.close(fd)
 

@@ -108,3 +108,36 @@ def test_a_file_system_without_locks_holds_nothing_and_the_command_goes_on(tmp_p
     monkeypatch.setattr(fcntl, "flock", no_locks)
     with holding_folder(tmp_path / "out") as make:
         assert make().is_dir()
+
+
+def test_a_folder_read_and_then_written_into_is_held_for_writing(tmp_path):
+    # a shared lock kept while the process wrote into the folder let another command read it (or two such
+    # processes write into it at once)
+    import subprocess
+    import sys
+
+    from reachirl.io import hold_folder, reading_folder
+
+    run = tmp_path / "run"
+    run.mkdir()
+    read = "import fcntl, os, sys; fcntl.flock(os.open(sys.argv[1], os.O_RDONLY), fcntl.LOCK_SH | fcntl.LOCK_NB)"
+    with reading_folder(run):
+        assert subprocess.run([sys.executable, "-c", read, str(run)]).returncode == 0  # readers share it
+        hold_folder(run)
+        assert subprocess.run([sys.executable, "-c", read, str(run)]).returncode != 0  # written: no other reader
+    assert is_free(run)
+
+
+def test_a_folder_read_here_and_elsewhere_is_refused_for_writing_and_stays_read(tmp_path):
+    from reachirl.io import hold_folder, reading_folder
+
+    run = tmp_path / "run"
+    run.mkdir()
+    with reading_folder(run):
+        with held_elsewhere(run, shared=True):
+            with pytest.raises(
+                InputError, match=r"^\S+/run: --out: another reachirl command is reading this folder now; wait"
+            ):
+                hold_folder(run)
+        assert not is_free(run)  # still read here (the system drops a shared lock it refuses to make exclusive)
+    assert is_free(run)
