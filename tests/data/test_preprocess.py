@@ -710,6 +710,15 @@ def test_frames_out_of_order_are_refused(synth, virtual_reach, recording, at, bl
             r"frames 21-23: the fingertip leaves its path by 10 mm and comes back \(the recording's noise allows 4\.0 "
             r"mm\): a spike, two labels swapped, or frames out of order\? Fix them, or blank those frames",
         ),
+        # the elbow's cluster 15 mm off for 3 frames where the reach starts (150 m/s²): unflagged, it moved q2 by 1.1°
+        # and q̈2 by 29 rad/s², more than its peak over the whole reach (20)
+        (
+            "elbow",
+            r"frames 61-63: the elbow leaves its path by 15 mm and comes back \(the recording's noise allows 10\.0 "
+            r"mm\): a spike, two labels swapped, or frames out of order\? Fix them, or blank those frames",
+        ),
+        # the shoulder's cluster 12 mm off for 2 frames in the rest: 120 m/s² (mid-reach, 5 frames 19 mm off: 1.3°)
+        ("shoulder", r"frames 31-32: the shoulder leaves its path by 12 mm and comes back \(the recording's noise"),
         # 3 frames put back 3 where the reach starts (0.03 m/s): 1.1 mm back at the fingertip, below the 3 mm and
         # the 0.05 m/s of the fingertip's own back-step check
         (
@@ -736,6 +745,12 @@ def test_spikes_and_frames_out_of_order_at_slow_speed_are_refused(synth, corrupt
         tip = np.array(md["RFTP"])
         tip[20:23, 2] += 0.010
         bad = replace(md, markers={**md.markers, "RFTP": tip})
+    elif corrupt in ("elbow", "shoulder"):  # the cluster that carries the joint centre, off for a few frames
+        cluster, rows, mm = {"elbow": ("RUAR", slice(60, 63), 15), "shoulder": ("RSHO", slice(30, 32), 12)}[corrupt]
+        markers = {k: np.array(v) for k, v in md.markers.items()}
+        for k in (f"{cluster}{i}" for i in range(1, 5)):
+            markers[k][rows, 2] += mm / 1000
+        bad = replace(md, markers=markers)
     else:
         bad = _moved_back(md, 63, 3, 3)
     with pytest.raises(InputError, match=rf"^{re.escape(md.source)}: {refusal}"):

@@ -26,8 +26,8 @@ The steps, in order, each set by :class:`PreprocessOptions` (defaults follow Ber
    10 ms, or repeating the frame before it exactly (every joint, the fingertip moving on both sides: a copy), or a
    fingertip stepping back against its way of travel beyond its noise (frames out of order), or every joint of
    the arm stepping back at once where the hand moves slowly (frames out of order at the start or the end of the
-   reach), or a fingertip that leaves its running median by more than 4 mm and its noise (a spike of a few frames,
-   in the rest too), is an :class:`InputError` naming the frame(s).
+   reach), or a fingertip that leaves its running median by more than 4 mm and its noise (another joint: 10 mm; a
+   spike of a few frames, in the rest too), is an :class:`InputError` naming the frame(s).
 5. **Zero-lag low-pass** (:func:`lowpass`): Butterworth (``filter_order``, ``cutoff_hz``) by ``sosfiltfilt``,
    so the effective order is doubled and there is no phase lag. 10 Hz, 5th order as Berret.
 6. **Onset and offset** (:func:`detect_onset_offset`): where the fingertip speed crosses ``onset_threshold``
@@ -165,6 +165,12 @@ SPIKE_WINDOW = 11
 MIN_SPIKE_M = 0.004
 #: ... and than this many times the median distance (the recording's noise: 1-2 mm of it stays below 5 times)
 SPIKE_NOISE_MEDIANS = 8.0
+#: m: MIN_SPIKE_M for the other joints (shoulder, elbow, wrist), whose centres a cluster of markers carries (a
+#: landmark some centimetres off its cluster turns the cluster's noise into more of its own): UE-ADL's leave their
+#: running medians by at most 6.3 mm (the wrist; the elbow 6.0, the shoulder 3.7 mm). A block of 2-5 frames of the
+#: elbow's cluster off by 10-19 mm, within the acceleration check, moved q2 by 1-3.7° (ADL001FR1; 3 frames 15 mm off
+#: where the reach starts: q̈2 by 29 rad/s², beyond its peak over the reach)
+MIN_JOINT_SPIKE_M = 0.010
 
 #: m: a frame that repeats the one before it exactly, every joint, is a copy (check_glitches) when the fingertip moves
 #: further than this (plus what an arm's acceleration can take off a step) in the frames on both sides: no rounding of
@@ -441,7 +447,7 @@ def check_glitches(
     a marker frozen and then caught up, or two labels swapped for a few frames. Then frames out of order
     (:func:`_check_back_steps`): a fingertip that steps back against its way of travel; where the hand moves slowly
     (:func:`_check_coherent_back_steps`), every joint of the arm stepping back at once. Then a spike of a few frames
-    of the fingertip, at any speed (:func:`_check_spikes`). ``first_frame``: the
+    of the fingertip, and then of the other joints, at any speed (:func:`_check_spikes`). ``first_frame``: the
     record's frame at ``joints``' first row, for the messages; ``n_frames``: the record's frame count (a jump into
     its last frame is named as a file cut short in its last row, a number cut off); ``order``: the low-pass's."""
 
@@ -501,7 +507,8 @@ def check_glitches(
             )
     _check_back_steps(joints["fingertip"], rate, src, order, first_frame, cause)
     _check_coherent_back_steps(joints, rate, src, order, first_frame, cause)
-    _check_spikes(joints["fingertip"], rate, src, first_frame, cause)
+    for k in ("fingertip", *(k for k in joints if k != "fingertip")):
+        _check_spikes(joints[k], k, MIN_SPIKE_M if k == "fingertip" else MIN_JOINT_SPIKE_M, src, first_frame, cause)
 
 
 def _step_noise(x: np.ndarray) -> float:
@@ -561,20 +568,22 @@ def _check_coherent_back_steps(
         )
 
 
-def _check_spikes(tip: np.ndarray, rate: float, src: str, first_frame: int, cause) -> None:
-    """Refuse a fingertip ``tip`` ``(n, 3)`` that leaves its path for a few frames and comes back: further than
-    :data:`MIN_SPIKE_M` and :data:`SPIKE_NOISE_MEDIANS` times the recording's median from its running median over
-    :data:`SPIKE_WINDOW` frames. The speed and acceleration checks see a jump by how fast it is: at 100 Hz a spike
+def _check_spikes(x: np.ndarray, name: str, least: float, src: str, first_frame: int, cause) -> None:
+    """Refuse a joint ``name``'s path ``x`` ``(n, 3)`` that leaves its path for a few frames and comes back: further
+    than ``least`` (:data:`MIN_SPIKE_M` for the fingertip, :data:`MIN_JOINT_SPIKE_M` for the others) and
+    :data:`SPIKE_NOISE_MEDIANS` times the recording's median from its running median over :data:`SPIKE_WINDOW`
+    frames. The speed and acceleration checks see a jump by how fast it is: at 100 Hz a spike
     of up to 10-20 mm, or a block of frames put back while the hand moves slowly (at rest, or starting or ending its
     reach), is within any arm's 200 m/s², and the back-step check asks for 0.05 m/s of travel. Yet such a spike in the
     rest moved the reach's onset by up to 5 frames (0.05 s, the angles up to 4° apart; a block of 5 frames put back at
     the reach's slow start, 6°), since the fingertip's speed sets onset and offset. A real fingertip stays on its
-    running median within 2.4 mm (UE-ADL, any speed)."""
+    running median within 2.4 mm (UE-ADL, any speed). The other joints' spikes leave onset and offset as they are,
+    but not the angles (:data:`MIN_JOINT_SPIKE_M`)."""
     w = SPIKE_WINDOW
-    if tip.shape[0] < w or not np.isfinite(tip).all():
+    if x.shape[0] < w or not np.isfinite(x).all():
         return
-    off = np.linalg.norm(tip - median_filter(tip, size=(w, 1), mode="nearest"), axis=1)
-    limit = max(MIN_SPIKE_M, SPIKE_NOISE_MEDIANS * float(np.median(off)))
+    off = np.linalg.norm(x - median_filter(x, size=(w, 1), mode="nearest"), axis=1)
+    limit = max(least, SPIKE_NOISE_MEDIANS * float(np.median(off)))
     runs = true_runs(off > limit)
     if not runs:
         return
@@ -582,7 +591,7 @@ def _check_spikes(tip: np.ndarray, rate: float, src: str, first_frame: int, caus
     worst = a + int(np.argmax(off[a:b]))
     first, last = first_frame + a + 1, first_frame + b
     raise InputError(
-        f"the fingertip leaves its path by {off[worst] * 1000:.0f} mm and comes back (the recording's noise allows "
+        f"the {name} leaves its path by {off[worst] * 1000:.0f} mm and comes back (the recording's noise allows "
         f"{limit * 1000:.1f} mm): "
         + cause(
             b - 2,
