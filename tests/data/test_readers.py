@@ -179,6 +179,11 @@ def test_radians_declared_as_degrees_refused(tmp_path, name, header, declared):
             "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,ft,ft,ft\n1,0,1,2,3\n",
             r"unknown length unit 'ft'",
         ),
+        (  # decimal commas: each coordinate split in two, read in its neighbour's column (a trailing empty is fine)
+            "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3,\n2,0,1,5,2,5,3,5\n",
+            r"line 7: 8 fields, more than the 5 the header names: decimal commas \(129,56 for 129\.56\), or a column "
+            r"without its marker name\?$",
+        ),
         (
             "Trajectories\n0\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2,3\n",
             r"line 2: sampling rate must be a positive number, got 0$",

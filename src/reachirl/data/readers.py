@@ -573,6 +573,13 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
         cells = line.split(",")
         if len(cells) < n_cols:
             raise InputError(f"truncated row: {len(cells)} fields, expected {n_cols}", path, f"line {i}")
+        if any(c.strip() for c in cells[n_cols:]):  # each cell would be read in its neighbour's column
+            raise InputError(
+                f"{len(cells)} fields, more than the {n_cols} the header names: decimal commas (129,56 for 129.56), "
+                "or a column without its marker name?",
+                path,
+                f"line {i}",
+            )
         frames.append(_float(cells[0], path, i, "Frame"))
         rows.append([_float(c, path, i, _col_name(cols, j), allow_empty=True) for j, c in enumerate(cells[:n_cols])])
     if not rows:
