@@ -244,6 +244,20 @@ def test_a_subject_info_with_masses_in_grams_is_refused_in_one_line_naming_the_u
     assert not out.exists()
 
 
+def test_a_left_arm_recording_read_as_the_right_is_refused_naming_the_arm_that_moves(tmp_path, synth, capsys):
+    # "no movement detected" alone sent the user looking for a broken file
+    out = tmp_path / "o.npz"
+    code, _, err = _run([synth.SAMPLE / "ADL001" / "ADL001FL1.csv", "--side", "right", "--out", out], capsys)
+    assert code == 2
+    assert re.fullmatch(
+        r"reachirl preprocess: error: \S+ADL001FL1\.csv: no movement detected: the fingertip's peak speed is 0\.0\d+ "
+        r"m/s \(< 0\.05 m/s\); the left arm's fingertip \(LFTP\) moves \d{3} mm: a recording of the left arm "
+        r"\(--side, or the manifest's side column\)\?",
+        err.strip(),
+    ), err
+    assert not out.exists()
+
+
 def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     shutil.copy(synth.SAMPLE / "ADL001" / "ADL001FR1.csv", tmp_path)
     code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)

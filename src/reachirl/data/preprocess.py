@@ -93,7 +93,7 @@ from .kinematics import (
     planar_ik_segments,
     sagittal_basis,
 )
-from .markersets import MarkerSet, lab_axis
+from .markersets import MarkerSet, lab_axis, resolve_name
 from .options import PreprocessOptions
 from .readers import AngleData, MarkerData, SubjectInfo
 from .segmentation import (
@@ -633,6 +633,34 @@ def _check_back_steps(tip: np.ndarray, rate: float, src: str, order: int, first_
         )
 
 
+#: m: the other arm's fingertip moving this far from where it mostly is, in a record where the arm asked for holds no
+#: reach, is named in the refusal (a left arm's recording read as a right arm's)
+OTHER_ARM_REACH_M = 0.1
+
+
+def _other_arm_moves(md: MarkerData, mset: MarkerSet, side: str) -> str:
+    """Words for a refusal of ``side``'s arm as still: the other arm's fingertip moves (a recording of the other
+    arm: ``--side`` or the manifest's side), when the marker set names each arm's markers and the file has the
+    other's, and its fingertip ranges :data:`OTHER_ARM_REACH_M` or more from its median place; else ``""``."""
+    other = "left" if side == "right" else "right"
+    if mset.side_prefix.get(side, "") == mset.side_prefix.get(other, ""):
+        return ""
+    names = [resolve_name(m, md.names) for m in mset.for_side(other).joints["fingertip"].markers]
+    if not names or None in names:
+        return ""
+    tip = np.mean([md[n] for n in names], axis=0)
+    seen = tip[np.isfinite(tip).all(axis=1)]
+    if seen.shape[0] < 2:
+        return ""
+    extent = float(np.linalg.norm(seen - np.median(seen, axis=0), axis=1).max())
+    if extent < OTHER_ARM_REACH_M:
+        return ""
+    return (
+        f"; the {other} arm's fingertip ({'+'.join(names)}) moves {extent * 1000:.0f} mm: a recording of the "
+        f"{other} arm (--side, or the manifest's side column)?"
+    )
+
+
 def reconstruct_markers(
     md: MarkerData,
     mset: MarkerSet,
@@ -707,13 +735,14 @@ def reconstruct_markers(
                 f"{gap_message(label, s0, e0, options.max_gap_frames)}, and no reach is seen outside the long gaps",
                 src,
             )
+        other_arm = _other_arm_moves(md, mset, side)
         if still:
             raise InputError(
                 f"no movement detected: the fingertip's peak speed is {np.nanmax(speed):.3g} m/s "
-                f"(< {options.min_peak_speed:g} m/s)",
+                f"(< {options.min_peak_speed:g} m/s){other_arm}",
                 src,
             )
-        raise InputError(rest, src)
+        raise InputError(rest + other_arm, src)
     path = {k: float(np.sum(np.linalg.norm(np.diff(joints[k], axis=0), axis=1))) for k in ("shoulder", "fingertip")}
     if path["shoulder"] > path["fingertip"]:
         # in a reach the fingertip travels furthest and the shoulder least; the other way round, the marker map
