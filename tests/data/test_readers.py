@@ -188,6 +188,11 @@ def test_radians_declared_as_degrees_refused(tmp_path, name, header, declared):
             "Trajectories\n0\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2,3\n",
             r"line 2: sampling rate must be a positive number, got 0$",
         ),
+        (  # the rate line left out: the marker names' line read as the rate ("non-numeric cell '' in column rate")
+            "Trajectories\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2,0,1,2,3\n",
+            r"line 2: expected the frame rate in Hz \(a number alone on the line after 'Trajectories'\), found "
+            r"',,S:A,,'$",
+        ),
         (
             "Trajectories\n100\n,,S:A,,\nFrame,Sub Frame,X,Y,Z\n,,mm,mm,mm\n1,0,1,2,3\n2.5,0,1,2,3\n",
             r"line 7: frame number 2\.5 is not a whole number",

@@ -532,7 +532,14 @@ def read_vicon_csv(path: str | Path) -> MarkerData:
     lines = lines[top:]
     if len(lines) < 5:
         raise InputError("truncated header: expected 5 header lines (Trajectories, rate, names, X/Y/Z, units)", path)
-    rate = _float(lines[1].split(",")[0], path, top + 2, "rate")
+    try:  # Vicon writes the frame rate alone on the line after "Trajectories"
+        rate = float(lines[1].split(",")[0])
+    except ValueError:
+        raise InputError(
+            f"expected the frame rate in Hz (a number alone on the line after 'Trajectories'), found {lines[1][:40]!r}",
+            path,
+            f"line {top + 2}",
+        ) from None
     if not (np.isfinite(rate) and rate > 0):
         raise InputError(f"sampling rate must be a positive number, got {rate:g}", path, f"line {top + 2}")
     names_row = next(csv.reader([lines[2]]))
