@@ -258,6 +258,25 @@ def test_a_left_arm_recording_read_as_the_right_is_refused_naming_the_arm_that_m
     assert not out.exists()
 
 
+def test_a_manifest_naming_a_missing_file_is_refused_before_any_work_naming_both(tmp_path, synth, capsys, monkeypatch):
+    import reachirl.cli.preprocess as cli_preprocess
+
+    shutil.copytree(synth.SAMPLE / "ADL001", tmp_path / "ADL001")
+    manifest = tmp_path / "ADL001" / "manifest.csv"
+    manifest.write_text("file,subject,posture\nADL001FR1.csv,ADL001,forward\nADL001FR9.csv,ADL001,forward\n")
+    done = []
+    real = cli_preprocess.preprocess_entries
+    monkeypatch.setattr(cli_preprocess, "preprocess_entries", lambda *a, **k: done.append(1) or real(*a, **k))
+    out = tmp_path / "o.npz"
+    code, _, err = _run(["--manifest", manifest, "--out", out], capsys)
+    assert code == 2 and done == []
+    assert err.strip().splitlines() == [
+        f"reachirl preprocess: error: {manifest.parent / 'ADL001FR9.csv'}: listed in the manifest {manifest}: "
+        "file not found"
+    ]
+    assert not out.exists()
+
+
 def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     shutil.copy(synth.SAMPLE / "ADL001" / "ADL001FR1.csv", tmp_path)
     code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)

@@ -371,6 +371,8 @@ def _preprocess(args, options, out: Path, make_export) -> int:
                     raise InputError(f"not listed in the manifest {args.manifest}", p)
                 picked.append(by_path[p.resolve()])
             entries = picked
+        for e in entries:  # before any work: not once the files listed before it are preprocessed
+            regular_input(e.file, f"listed in the manifest {args.manifest}")
     else:
         if not args.inputs:
             raise InputError("no INPUT files (or give --manifest)")
