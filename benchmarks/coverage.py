@@ -1,11 +1,12 @@
 """How well the weight samples cover the true cost shares on virtual subjects (reachirl.irl.uncertainty).
 
-For each built-in virtual population (``--seeds``) and posture, the protocol's fit (10 training reaches of the
-first subject, 8 windows, the default method) with 40 weight samples; the fraction of the 56 true cost shares
-(the true weights on their own noise-free reach, seen as recorded) inside the 95 % intervals (within 0.005, the
-shares' printed precision), the intervals' mean width, the determined directions, the claim's fraction of samples,
-and the samples' CPU time against the fit's; beside them the same coverage and width of intervals drawn from the
-prior alone (no data), which says how much of the coverage the data earns. One JSON line per fit, then the means.
+For each built-in virtual population (``--seeds``) and posture, the protocol's fit (10 training reaches of the first
+subject, 8 windows, the default method) with 40 weight samples; the fraction of the 56 true cost shares (the true
+weights on their own noise-free reach, seen as recorded) inside the 95 % intervals (within 0.005, the shares'
+printed precision), the intervals' mean width, the determined directions and shares, the claim's fraction of
+samples, and the samples' CPU time against the fit's; beside them the same coverage and width of intervals drawn
+from the prior alone (no data), which says how much of the coverage the data earns. One JSON line per fit, then the
+means.
 Run: ``.venv/bin/python benchmarks/coverage.py --seeds 0 1 2 3 4 5 6``.
 """
 
@@ -55,6 +56,7 @@ def one_fit(ds, posture: str, n_windows: int = 8, rollout: str = "per_task") -> 
         "coverage": float(np.mean((true >= lo - 0.005) & (true <= hi + 0.005))),
         "mean_width": float(np.mean(hi - lo)),
         "n_determined": unc["determination"]["n_determined"],
+        "n_shares_determined": int(np.sum(unc["share_intervals"]["determined"])),
         "claim_fraction": unc["claim"]["fraction"],
         "prior_coverage": float(np.mean((true >= lo0 - 0.005) & (true <= hi0 + 0.005))),
         "prior_mean_width": float(np.mean(hi0 - lo0)),
