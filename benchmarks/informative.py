@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -29,8 +30,6 @@ FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])  # typical f
 
 def population(seed: int, n_postures: int, n_reaches: int):
     """``(trials, true weights (1, 7))``, or None when a reach's DOC failed."""
-    from dataclasses import replace
-
     rng = np.random.default_rng(seed)
     arm = ArmModel.from_anthropometrics(1.76, 69.9, "M")
     tasks = []
