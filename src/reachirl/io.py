@@ -138,11 +138,9 @@ def remove_temporaries(folder: str | os.PathLike) -> list[Path]:
     return removed
 
 
-#: the folders this process holds (:func:`hold_folder`, :func:`reading_folder`): their real path and the open
-#: descriptor that holds the lock (exclusive: written; shared: read)
-_HELD: dict[str, int] = {}
-#: those of them held only for reading (a shared lock)
-_READ_ONLY: set[str] = set()
+#: the folders this process holds (:func:`hold_folder`, :func:`reading_folder`): their real path, the open
+#: descriptor that holds the lock, and whether it is shared (read only) rather than exclusive (written)
+_HELD: dict[str, tuple[int, bool]] = {}
 
 
 def _in_use(folder: str | os.PathLike, fd: int, option: str | None):
@@ -170,7 +168,7 @@ def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
         return
     key = os.path.realpath(folder)
     if key in _HELD:
-        if not shared and key in _READ_ONLY:  # read, now written into: no other command may read it meanwhile
+        if not shared and _HELD[key][1]:  # read, now written into: no other command may read it meanwhile
             _write_too(folder, key, option)
         return
     try:
@@ -187,9 +185,7 @@ def _lock(folder: str | os.PathLike, shared: bool, option: str | None) -> None:
     except OSError:  # no locks here (some network file systems)
         os.close(fd)
         return
-    _HELD[key] = fd
-    if shared:
-        _READ_ONLY.add(key)
+    _HELD[key] = (fd, shared)
 
 
 def _write_too(folder: str | os.PathLike, key: str, option: str | None) -> None:
@@ -198,7 +194,7 @@ def _write_too(folder: str | os.PathLike, key: str, option: str | None) -> None:
     kept (the system drops it when it refuses the exchange: taken again)."""
     import fcntl
 
-    fd = _HELD[key]
+    fd = _HELD[key][0]
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
@@ -212,7 +208,7 @@ def _write_too(folder: str | os.PathLike, key: str, option: str | None) -> None:
         raise error from None
     except OSError:  # no locks here
         return
-    _READ_ONLY.discard(key)
+    _HELD[key] = (fd, False)
 
 
 def hold_folder(folder: str | os.PathLike, option: str = "--out") -> None:
@@ -267,11 +263,9 @@ def reading_folder(folder: str | os.PathLike, option: str | None = None) -> Iter
 def release_folder(folder: str | os.PathLike) -> None:
     """Release the lock :func:`hold_folder` (or :func:`reading_folder`) took on ``folder`` (nothing when none is
     held)."""
-    key = os.path.realpath(folder)
-    _READ_ONLY.discard(key)
-    fd = _HELD.pop(key, None)
-    if fd is not None:
-        os.close(fd)
+    held = _HELD.pop(os.path.realpath(folder), None)
+    if held is not None:
+        os.close(held[0])
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, durable: bool = True) -> None:
