@@ -449,3 +449,82 @@ def test_a_data_set_written_over_an_earlier_one_leaves_no_orphan_recording(tmp_p
     listed = sorted(line.split(",")[0] for line in (tmp_path / "manifest.csv").read_text().splitlines()[1:])
     assert recordings == listed == [f"S{k:02d}_P2_T01.mot" for k in range(1, SMALL["n_subjects"] + 1)]
     assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+# ---------------------------------------------------------------------- a true cost of the user's choosing
+def _truth_csv(path, rows, header=None):
+    header = header or ["window", *FEATURES]
+    lines = [",".join(header)] + [",".join(str(v) for v in r) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_truth_of_the_user_s_generates_the_reaches_and_is_what_truth_json_says(tmp_path, capsys):
+    """One window where torque dominates: truth.json holds it, the trial's weights are jittered around it,
+    and the recorded reach is the DOC's solution under those weights (not under the paper's pattern)."""
+    from reachirl.doc import ReachingTask, solve_doc
+    from reachirl.virtual.population import FEATURE_SCALE
+
+    ri = [[0.05, 0.0, 0.1, 0.05, 0.0, 0.0, 0.8]]
+    csv_path = _truth_csv(tmp_path / "truth.csv", [[1, *ri[0]]])
+    out = tmp_path / "o"
+    argv = ["synth", "--out", str(out), "--subjects", "1", "--trials", "1", "--postures", "P2", "--workers", "1"]
+    assert main([*argv, "--truth", str(csv_path)]) == 0
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["n_windows"] == 1
+    np.testing.assert_allclose(truth["truth"]["relative_importance"], ri)
+    np.testing.assert_allclose(truth["truth"]["nominal_weights"], np.array(ri) / FEATURE_SCALE)
+    rec = truth["subjects"]["S01"]["trials"]["P2"][0]
+    w = np.array(rec["weights"])
+    assert w.shape == (1, 7) and np.all(w[np.array(ri) == 0] == 0)
+    arm = ArmModel.from_dict(truth["subjects"]["S01"]["arm"])
+    task = ReachingTask(arm, np.deg2rad(rec["q0_deg"]), truth["subjects"]["S01"]["target_x_m"], rec["horizon_s"])
+    sol = solve_doc(task, w)
+    default = solve_doc(task, nominal_weights())
+    res = synth.generate(tmp_path / "again", synth.SynthConfig(1, 1, postures=("P2",), relative_importance=ri))
+    np.testing.assert_array_equal(res.trials[0].weights, w)  # the command's reach, made again in Python
+    q = res.trials[0].q_knots
+    assert np.max(np.abs(q - sol.q)) < 1e-6
+    assert np.max(np.abs(q - default.q)) > np.deg2rad(1.0)  # the paper's pattern makes another reach
+
+
+@pytest.mark.parametrize(
+    ("rows", "header", "message"),
+    [
+        ([[1, 1, 0, 0, 0, 0, 0, 0]], ["window", *FEATURES[:-1], "torque"], "header: unknown column 'torque'"),
+        ([[1, 0, 0, 0, 0, 0, 0]], list(FEATURES[:-1]), "header: no column 'joint_torque'"),
+        ([[1, 0, 0, 0, 0, 0, "x"]], list(FEATURES), "row 2: expected numbers"),
+        ([[1, 0, 0, 0, 0, 0]], list(FEATURES), "row 2: 6 cells where the header has 7"),
+        ([[1, 0, 0, 0, 0, 0, -1]], list(FEATURES), "must be finite and >= 0"),
+        ([[1, 0, 0, 0, 0, 0, 0], [0] * 7], list(FEATURES), "window 2 weighs no feature"),
+        ([], list(FEATURES), r"1 to 20 windows × 7 features, got shape \(0, 7\)"),
+        ([[1] * 7] * 21, list(FEATURES), r"got shape \(21, 7\)"),
+    ],
+)
+def test_a_truth_file_that_is_not_a_cost_is_refused_naming_it(tmp_path, capsys, rows, header, message):
+    from reachirl.virtual.files import read_relative_importance
+
+    path = _truth_csv(tmp_path / "t.csv", rows, header)
+    with pytest.raises(InputError, match=message):
+        read_relative_importance(path)
+    assert main(["synth", "--out", str(tmp_path / "o"), "--truth", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "t.csv" in err[0], err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_missing_truth_file_is_refused_naming_it(tmp_path, capsys):
+    assert main(["synth", "--out", str(tmp_path / "o"), "--truth", str(tmp_path / "none.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "none.csv" in err[0] and "no such file" in err[0], err
+
+
+def test_the_paper_s_pattern_keeps_its_cached_data_set():
+    """A config without a truth of its own is the paper's pattern: the same cache key (and so the same cached
+    built-in data) as one that names RELATIVE_IMPORTANCE, and a key of its own for any other cost."""
+    from reachirl.virtual.files import _cache_key
+
+    base = synth.SynthConfig(seed=3)
+    same = synth.SynthConfig(seed=3, relative_importance=synth.RELATIVE_IMPORTANCE)
+    other = synth.SynthConfig(seed=3, relative_importance=synth.RELATIVE_IMPORTANCE[::-1])
+    assert _cache_key(base) == _cache_key(same) != _cache_key(other)

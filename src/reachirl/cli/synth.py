@@ -50,13 +50,22 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         help="bar distance as a fraction of arm length (default 0.95, the seed's; Berret used 0.85); at least 0.1 "
         "beyond every chosen posture's start fingertip, so 0.72 or more with P2 and 0.74 or more with P4",
     )
+    p.add_argument(
+        "--truth",
+        metavar="CSV",
+        help="the true cost, instead of the paper's pattern (8 windows, joint acceleration dominating onset and "
+        "end): a CSV whose header names the 7 features and whose rows (one per equal time window, 1 to 20) give "
+        "each feature's relative importance in that window (weights = importance / the feature's typical size)",
+    )
     p.add_argument("--workers", type=int_in(1, 256), default=2, help="worker processes, 1 to 256 (default 2)")
     return p
 
 
 def run(args) -> int:
     from ..virtual import SynthConfig, format_human_likeness, generate
+    from ..virtual.files import read_relative_importance
 
+    truth = None if args.truth is None else read_relative_importance(args.truth)
     try:
         config = SynthConfig(
             n_subjects=args.subjects,
@@ -66,6 +75,7 @@ def run(args) -> int:
             fmt=args.fmt,
             target_fraction=args.target_fraction,
             workers=args.workers,
+            relative_importance=truth,
         )
     except ValueError as e:
         raise InputError(str(e)) from None

@@ -34,14 +34,13 @@ from .population import (
     BERRET_POSTURES_DEG,
     FEATURE_SCALE,
     MOVEMENT_FRACTION,
-    N_WINDOWS,
     RELATIVE_IMPORTANCE,
     SynthSubject,
     draw_subject,
     nominal_weights,
     posture_q,
 )
-from .recording import SynthConfig, SynthTrial, _simulate_group, to_opensim_axes
+from .recording import SynthConfig, SynthTrial, _simulate_group, check_relative_importance, to_opensim_axes
 
 log = logging.getLogger(__name__)
 
@@ -254,9 +253,9 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
     return {
         "generator": "reachirl.synth",
         "version": GENERATOR_VERSION,
-        "config": {k: v for k, v in asdict(config).items() if k != "workers"},
+        "config": _config_fields(config),
         "features": list(FEATURES),
-        "n_windows": N_WINDOWS,
+        "n_windows": len(_relative_importance(config)),
         "markers": {"shoulder": "SHO", "elbow": "ELB", "wrist": "WRI", "fingertip": "FTP"},
         "units": {
             "markers": "mm",
@@ -278,9 +277,9 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
         "clockwise in reachirl's x-forward/y-up frame)",
         "truth": {
             "definition": "weights = relative_importance / feature_scale, per window (rows) and feature (columns)",
-            "relative_importance": RELATIVE_IMPORTANCE,
+            "relative_importance": _relative_importance(config),
             "feature_scale": FEATURE_SCALE,
-            "nominal_weights": nominal_weights(),
+            "nominal_weights": nominal_weights(_relative_importance(config)),
             "jitter": {
                 "log_weight_sd": _LOG_WEIGHT_SD,
                 "posture_sd_deg": _POSTURE_SD_DEG,
@@ -294,9 +293,62 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
     }
 
 
+def read_relative_importance(path: str | Path) -> tuple[tuple[float, ...], ...]:
+    """A true cost for :class:`SynthConfig` from a CSV: a header naming the 7 features (any order, each once;
+    an optional first column ``window``), then one row per time window, each feature's relative importance in
+    that window (≥ 0, each row with a positive sum). Problems raise :class:`InputError` naming the file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise InputError("no such file (expected a CSV of relative importance per window and feature)", p) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read ({getattr(e, 'strerror', None) or e})", p) from None
+    rows = [r for r in csv.reader(io.StringIO(text)) if any(c.strip() for c in r)]
+    if not rows:
+        raise InputError("is empty: expected a header naming the 7 features, then one row per window", p)
+    header = [c.strip() for c in rows[0]]
+    cols = header[1:] if header and header[0] == "window" else header
+    unknown = [c for c in cols if c not in FEATURES]
+    missing = [f for f in FEATURES if f not in cols]
+    if unknown or missing or len(cols) != len(FEATURES):
+        what = (
+            f"unknown column {unknown[0]!r}"
+            if unknown
+            else f"no column {missing[0]!r}"
+            if missing
+            else "a repeated column"
+        )
+        raise InputError(f"header: {what}; expected the features {', '.join(FEATURES)}", p)
+    skip = len(header) - len(cols)
+    values = []
+    for line, r in enumerate(rows[1:], start=2):
+        if len(r) != len(header):
+            raise InputError(f"row {line}: {len(r)} cells where the header has {len(header)}", p)
+        try:
+            by_name = dict(zip(cols, (float(c) for c in r[skip:]), strict=True))
+        except ValueError:
+            raise InputError(f"row {line}: expected numbers, found {','.join(r)[:60]!r}", p) from None
+        values.append([by_name[f] for f in FEATURES])
+    try:
+        return check_relative_importance(values if values else np.zeros((0, len(FEATURES))))
+    except ValueError as e:
+        raise InputError(str(e), p) from None
+
+
 # ---------------------------------------------------------------------- the built-in data set (cached)
 def _builtin_config(seed: int) -> SynthConfig:
     return SynthConfig(n_subjects=2, n_trials=20, seed=seed, fmt="trc", workers=2)
+
+
+def _relative_importance(config: SynthConfig) -> np.ndarray:
+    return RELATIVE_IMPORTANCE if config.relative_importance is None else np.array(config.relative_importance)
+
+
+def _config_fields(config: SynthConfig) -> dict:
+    """The config as ``truth.json`` and the cache key hold it: the true cost is written (and keyed) once, as
+    ``truth.relative_importance``."""
+    return {k: v for k, v in asdict(config).items() if k not in ("workers", "relative_importance")}
 
 
 def _cache_key(config: SynthConfig) -> str:
@@ -304,8 +356,8 @@ def _cache_key(config: SynthConfig) -> str:
         to_jsonable(
             {
                 "v": GENERATOR_VERSION,
-                "config": asdict(config) | {"workers": 0},
-                "ri": RELATIVE_IMPORTANCE,
+                "config": _config_fields(config) | {"workers": 0},
+                "ri": _relative_importance(config),
                 "fs": FEATURE_SCALE,
             }
         ),

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arm import _REFERENCE_HEIGHT_M, DUMAS_2007, ArmModel
-from ..features import FEATURES
 
 POSTURES = ("P1", "P2", "P3", "P4", "P5")
 # Berret 2011: initial postures as (elbow, shoulder) in degrees, and movement durations (mean, SD) in seconds.
@@ -53,9 +52,11 @@ _POSTURE_SD_DEG = 3.0
 _MAX_RETRIES = 10
 
 
-def nominal_weights() -> np.ndarray:
-    """The nominal true weights, shape ``(8, 7)``: ``RELATIVE_IMPORTANCE / FEATURE_SCALE``."""
-    return RELATIVE_IMPORTANCE / FEATURE_SCALE[None, :]
+def nominal_weights(relative_importance: np.ndarray | None = None) -> np.ndarray:
+    """The nominal true weights, shape ``(windows, 7)``: ``relative_importance / FEATURE_SCALE``, by default
+    :data:`RELATIVE_IMPORTANCE` (8 windows, the paper's pattern)."""
+    ri = RELATIVE_IMPORTANCE if relative_importance is None else np.asarray(relative_importance, dtype=float)
+    return ri / FEATURE_SCALE[None, :]
 
 
 def berret_to_model(elbow_deg: float, shoulder_deg: float) -> np.ndarray:
@@ -136,8 +137,8 @@ def draw_subject(seed: int, index: int) -> SynthSubject:
     )
 
 
-def _draw_trial_inputs(rng: np.random.Generator, posture: str):
-    w = nominal_weights() * np.exp(_LOG_WEIGHT_SD * rng.standard_normal((N_WINDOWS, len(FEATURES))))
+def _draw_trial_inputs(rng: np.random.Generator, posture: str, nominal: np.ndarray):
+    w = nominal * np.exp(_LOG_WEIGHT_SD * rng.standard_normal(nominal.shape))
     q0 = posture_q(posture) + np.deg2rad(_POSTURE_SD_DEG) * np.clip(rng.standard_normal(2), -2.5, 2.5)
     mean, sd = BERRET_DURATIONS_S[posture]
     duration = _clipped_normal(rng, mean, sd)

@@ -13,6 +13,7 @@ from scipy.interpolate import CubicSpline
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_knots
 from ..doc import ReachingTask, solve_doc
+from ..features import FEATURES
 from .population import (
     _MAX_RETRIES,
     MOVEMENT_FRACTION,
@@ -21,6 +22,7 @@ from .population import (
     _draw_trial_inputs,
     _rng,
     draw_subject,
+    nominal_weights,
     posture_q,
 )
 
@@ -28,6 +30,27 @@ log = logging.getLogger(__name__)
 
 FORMATS = ("trc", "c3d", "mot")
 MARKERS = ("SHO", "ELB", "WRI", "FTP")
+
+
+MAX_TRUTH_WINDOWS = 20
+"""The most time windows a virtual subject's true cost may have."""
+
+
+def check_relative_importance(ri) -> tuple[tuple[float, ...], ...]:
+    """``ri`` as a tuple of rows, after checking it is a true cost: 1 to :data:`MAX_TRUTH_WINDOWS` rows (time
+    windows) of 7 finite values ≥ 0 (FEATURES order), each row with a positive sum. Raises ``ValueError``."""
+    a = np.asarray(ri, dtype=float)
+    if a.ndim != 2 or a.shape[1] != len(FEATURES) or not 1 <= a.shape[0] <= MAX_TRUTH_WINDOWS:
+        raise ValueError(
+            f"relative importance must be 1 to {MAX_TRUTH_WINDOWS} windows × {len(FEATURES)} features, "
+            f"got shape {a.shape}"
+        )
+    if not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise ValueError("relative importance must be finite and >= 0")
+    empty = [i + 1 for i, row in enumerate(a) if row.sum() <= 0]
+    if empty:
+        raise ValueError(f"relative importance: window {empty[0]} weighs no feature (its row sums to 0)")
+    return tuple(tuple(float(v) for v in row) for row in a)
 
 
 MIN_REACH_FRACTION = 0.1
@@ -46,6 +69,9 @@ class SynthConfig:
     """What to generate.
 
     ``target_fraction`` places the bar at that fraction of arm length (seed 95 %, Berret 85 %).
+    ``relative_importance`` (windows × 7, FEATURES order; default :data:`RELATIVE_IMPORTANCE`, the paper's
+    pattern over 8 windows) is the true cost: how much each feature weighs in each equal time window, the
+    weights being ``relative_importance / FEATURE_SCALE`` (:func:`nominal_weights`).
     """
 
     n_subjects: int = 2
@@ -57,8 +83,11 @@ class SynthConfig:
     rate_hz: float = 100.0
     n_nodes: int = 100
     workers: int = 2
+    relative_importance: tuple[tuple[float, ...], ...] | None = None
 
     def __post_init__(self) -> None:
+        if self.relative_importance is not None:
+            object.__setattr__(self, "relative_importance", check_relative_importance(self.relative_importance))
         # a posture named twice is recorded once: twice would write each file once but list it twice
         object.__setattr__(self, "postures", tuple(dict.fromkeys(self.postures)))
         if int(self.n_subjects) < 1 or int(self.n_trials) < 1:
@@ -92,7 +121,7 @@ class SynthTrial:
     subject: str
     posture: str
     trial_id: str
-    weights: np.ndarray  # (8, 7) true (jittered) weights
+    weights: np.ndarray  # (windows, 7) true (jittered) weights
     q0: np.ndarray  # (2,) rad
     target_x: float  # m
     horizon_s: float  # DOC horizon
@@ -129,9 +158,10 @@ def simulate_trial(
     rng = _rng(config.seed, 1, s_idx, p_idx, trial_index)
     arm = subject.arm
     target = config.target_fraction * arm.length
+    nominal = nominal_weights(config.relative_importance)
     retries = 0
     while True:
-        w, q0, duration = _draw_trial_inputs(rng, posture)
+        w, q0, duration = _draw_trial_inputs(rng, posture, nominal)
         probe = ReachingTask(arm, np.zeros(2), target, 1.0, n_nodes=config.n_nodes)
         q0 = np.clip(q0, probe.q_lower + np.deg2rad(1.0), probe.q_upper - np.deg2rad(1.0))
         q0[1] = max(q0[1], 0.0)  # a straight elbow at most
@@ -210,8 +240,8 @@ def knot_trials(
 ) -> list[Trial]:
     """``n_trials`` reaches of one virtual subject from ``posture``, in memory, on the DOC's own knots.
 
-    The ground truth is :func:`nominal_weights` (each trial jittered around it). For benchmarks and tests that
-    need no files; :func:`generate` records the same reaches as marker files.
+    The ground truth is :func:`nominal_weights` (each trial jittered around it), the paper's pattern. For
+    benchmarks and tests that need no files; :func:`generate` records the same reaches as marker files.
     """
     config = SynthConfig(
         n_subjects=subject_index + 1, n_trials=n_trials, seed=seed, postures=(posture,), n_nodes=n_nodes
