@@ -153,6 +153,21 @@ def test_a_trial_edited_since_preprocessing_is_refused(files, entry, change, mat
         load_trials(_with_array(files, "edited.npz", entry, change))
 
 
+def test_a_hyperextended_elbow_in_a_trials_file_is_named_as_such(files):
+    # an elbow 3° past the model's -5° limit read "angles in degrees, or an edited file?"
+    def hyperextend(a):
+        a = a.copy()
+        a[-3:, 1] = np.radians(-8.0)
+        return a
+
+    with pytest.raises(
+        InputError,
+        match=r"h\.npz: trial 0 \(S1/P2/right/0\): the elbow is hyperextended to -8\.0°, 3\.0° beyond the model's "
+        r"limit of -5\.0°, at samples \d+-\d+ of the reach .* cannot reproduce it",
+    ):
+        load_trials(_with_array(files, "h.npz", "0/q.npy", hyperextend))
+
+
 def test_two_trials_with_one_id_are_refused(files):
     def same_id(m):
         t = m["trials"]

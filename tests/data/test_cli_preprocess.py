@@ -9,6 +9,7 @@ import shutil
 import numpy as np
 import pytest
 
+from reachirl.arm import ArmModel
 from reachirl.cli import main
 from reachirl.data.trial import load_trials
 
@@ -256,6 +257,29 @@ def test_a_left_arm_recording_read_as_the_right_is_refused_naming_the_arm_that_m
         err.strip(),
     ), err
     assert not out.exists()
+
+
+def test_a_hyperextended_elbow_is_named_as_such_and_a_mirrored_recording_still_as_mirrored(tmp_path, synth, capsys):
+    """An elbow a few degrees past straight (a reach at arm's length) was refused as "a mirrored or backwards
+    recording?": it is a real posture, which the DOC's elbow limit of -5° cannot reproduce, and is said so."""
+    arm = ArmModel.from_anthropometrics(1.76, 70.0, "M", upper_arm_m=0.30, forearm_m=0.26, hand_m=0.18)
+    argv = ["--markers", synth.MAP, "--out", tmp_path / "o.npz"]
+    for name, q0, qf in (("hyper", (-1.4, 1.6), (-0.6, np.radians(-15.0))), ("mirror", (-1.4, -1.6), (-0.6, -0.5))):
+        _, q = synth.min_jerk_q(q0, qf)
+        (tmp_path / f"{name}.trc").write_text(synth.trc_text(synth.lab_markers(arm, q)))
+    code, _, err = _run([tmp_path / "hyper.trc", *argv], capsys)
+    assert code == 2 and not (tmp_path / "o.npz").exists()
+    assert re.fullmatch(
+        r"reachirl preprocess: error: \S+hyper\.trc: the elbow is hyperextended to -\d+\.\d°, \d+\.\d° beyond the "
+        r"model's limit of -5\.0°, at samples \d+-\d+ of the reach \(0\.\d{3}-0\.\d{3} s after onset\): a real "
+        r"posture, but the DOC's joint limits \(q1 in \[-150\.0°, 120\.0°\], q2 in \[-5\.0°, 160\.0°\]\) cannot "
+        r"reproduce it; leave this trial out",
+        err.strip(),
+    ), err
+    assert "mirrored" not in err
+    code, _, err = _run([tmp_path / "mirror.trc", *argv], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert re.search(r"mirror\.trc: the start posture .* a mirrored or backwards recording\?", err), err
 
 
 def test_a_manifest_naming_a_missing_file_is_refused_before_any_work_naming_both(tmp_path, synth, capsys, monkeypatch):

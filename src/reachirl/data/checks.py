@@ -17,6 +17,7 @@ from ..errors import InputError
 from ..validation import brief, check_arm, check_duration, require
 
 __all__ = [
+    "ELBOW_HYPEREXTENSION_DEG",
     "LENGTH_TOLERANCE",
     "MIN_REACH_RANGE",
     "check_model_rollout",
@@ -38,6 +39,11 @@ LENGTH_TOLERANCE = 0.20
 #: virtual subjects' bars lie at least 0.1 arm lengths beyond the start), a hand at rest by millimetres of drift and
 #: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
 MIN_REACH_RANGE = 0.05
+
+#: degrees: how far past straight (0°) a human elbow hyperextends: typically up to 10-15°, and joint centres from
+#: markers add a few degrees. An elbow alone beyond the model's lower limit (-5°) by no more than this is a real
+#: hyperextended posture, said as such; further, or with the shoulder out too, it is a mirrored or backwards recording
+ELBOW_HYPEREXTENSION_DEG = 20.0
 
 
 def _deg(v: float) -> str:
@@ -93,6 +99,32 @@ def _first_outside(q: np.ndarray, tol: float) -> int | None:
     return int(bad[0]) if bad.size else None
 
 
+def _hyperextension(q: np.ndarray, tol: float) -> tuple[int, int, int] | None:
+    """``(first, last, deepest)``: the samples of ``q`` ``(n, 2)`` where the elbow is beyond its lower limit (by
+    more than ``tol`` rad), when it alone leaves the joint limits and by no more than a human elbow hyperextends
+    (:data:`ELBOW_HYPEREXTENSION_DEG`); None otherwise."""
+    lo, hi = np.asarray(DEFAULT_Q_LOWER), np.asarray(DEFAULT_Q_UPPER)
+    below = q[:, 1] < lo[1] - tol
+    others = (q[:, 0] < lo[0] - tol) | (q[:, 0] > hi[0] + tol) | (q[:, 1] > hi[1] + tol)
+    if not below.any() or others.any() or q[:, 1].min() < -math.radians(ELBOW_HYPEREXTENSION_DEG):
+        return None
+    k = np.flatnonzero(below)
+    return int(k[0]), int(k[-1]), int(np.argmin(q[:, 1]))
+
+
+def _hyperextension_text(trial, span: tuple[int, int, int]) -> str:
+    """What a hyperextended elbow (:func:`_hyperextension`) is, where, and that the DOC cannot plan it."""
+    first, last, deepest = span
+    lo = DEFAULT_Q_LOWER[1]
+    q2 = float(trial.q[deepest, 1])
+    return (
+        f"the elbow is hyperextended to {_deg(q2)}, {np.degrees(lo - q2):.1f}° beyond the model's limit of "
+        f"{_deg(lo)}, at samples {first}-{last} of the reach ({trial.t[first]:.3f}-{trial.t[last]:.3f} s after "
+        f"onset): a real posture, but the DOC's joint limits ({_limits_text()}) cannot reproduce it; leave this "
+        "trial out"
+    )
+
+
 def _limits_text() -> str:
     """The model's joint limits, in degrees."""
     lo, hi = DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
@@ -104,6 +136,9 @@ def check_trial_posture(trial, path: object, where: str | None = None) -> None:
     in front of the shoulder. A mirrored recording (a left arm read as a right one) bends the elbow backwards
     and a backwards one starts at the bar: the message says so, here where ``--side`` or ``--markers`` can fix
     it, and not later in ``fit``."""
+    span = _hyperextension(trial.q, 1e-9)
+    if span is not None:  # an arm at its length, not a mirrored one: said as such
+        raise InputError(_hyperextension_text(trial, span), path, where)
     limits = _limits_text()
     hint = (
         "a mirrored or backwards recording? (a left arm needs --side left or the manifest's side column; "
@@ -245,6 +280,9 @@ def check_trial_physics(trial, i: int, path) -> None:
     except InputError as e:
         raise InputError(e.reason, path, where) from None
     q0 = trial.x0[:2]
+    span = _hyperextension(trial.q, 1e-6)
+    if span is not None and np.allclose(q0, trial.q[0], rtol=0.0, atol=1e-6):  # an arm at its length
+        raise InputError(_hyperextension_text(trial, span), path, where)
     if _first_outside(q0[None], 1e-9) is not None:
         raise InputError(
             f"the start q0 = ({_deg(q0[0])}, {_deg(q0[1])}) lies outside the joint limits {_limits_text()}", path, where
