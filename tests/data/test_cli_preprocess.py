@@ -301,6 +301,20 @@ def test_a_manifest_naming_a_missing_file_is_refused_before_any_work_naming_both
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("name", "hint"), [("x.csv", "; CSV or MOT files of each trial: --export FOLDER"), ("x.json", ""), ("x", "")]
+)
+def test_an_out_not_named_npz_is_refused_naming_the_suffix(tmp_path, synth, capsys, name, hint):
+    # `--out x.csv` wrote an NPZ under a CSV's name, which a spreadsheet then failed to open
+    out = tmp_path / name
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    code, _, err = _run([synth.SAMPLE / "ADL001", *info, "--out", out], capsys)
+    assert code == 2 and not out.exists()
+    assert err.strip().splitlines() == [
+        f"reachirl preprocess: error: {out}: --out: a trials file is NPZ, its name must end in .npz{hint}"
+    ]
+
+
 def test_missing_static_and_bad_out(tmp_path, synth, capsys):
     shutil.copy(synth.SAMPLE / "ADL001" / "ADL001FR1.csv", tmp_path)
     code, _, err = _run([tmp_path / "ADL001FR1.csv", "--out", tmp_path / "o.npz"], capsys)

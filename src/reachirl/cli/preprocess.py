@@ -62,7 +62,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("inputs", nargs="*", metavar="INPUT", help="marker or joint-angle files, or folders")
-    p.add_argument("--out", required=True, metavar="TRIALS", help="trials file to write (NPZ), exactly this path")
+    p.add_argument(
+        "--out", required=True, metavar="TRIALS", help="trials file to write (NPZ, ending in .npz), exactly this path"
+    )
     p.add_argument("--format", default="auto", choices=("auto", *FORMATS), help="input format (default: auto)")
     p.add_argument(
         "--markers",
@@ -344,6 +346,9 @@ def run(args) -> int:
     if args.markers and args.markerset:
         raise InputError("give --markers or --markerset, not both (--markers would win and --markerset be ignored)")
     out = check_output_file(args.out)
+    if out.suffix.lower() != ".npz":  # as simulate --render by its suffix: a trials.csv would hold an NPZ
+        csv = "; CSV or MOT files of each trial: --export FOLDER" if out.suffix.lower() in (".csv", ".mot") else ""
+        raise InputError(f"--out: a trials file is NPZ, its name must end in .npz{csv}", out)
     if args.export is None:
         return _preprocess(args, options, out, None)
     # before any work: a folder in which files can be written, and not the trials file's
