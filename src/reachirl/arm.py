@@ -66,6 +66,9 @@ def sex_key(text) -> str | None:
 STATURE_RANGE_M = (0.5, 2.6)
 BODY_MASS_RANGE_KG = (10.0, 300.0)
 SEGMENT_RANGE_M = (0.02, 1.0)
+#: a subject's arm segment lengths (m), as the columns of a subject-info file and the arguments of
+#: :meth:`ArmModel.from_anthropometrics` name them
+SEGMENT_COLUMNS = ("upper_arm_m", "forearm_m", "hand_m")
 
 #: where a stature, body mass or segment length out of its range (above) lands when written in another unit
 _SLIPS = {
@@ -80,6 +83,25 @@ def unit_slip(value: float, quantity: str) -> str:
     in when ``value`` is out of its range in SI units, such as ``"; in centimetres?"`` for a stature of 172; ``""``
     when no unit fits (a typo, not a unit)."""
     return next((f"; in {unit}?" for lo, hi, unit in _SLIPS[quantity] if lo <= value < hi), "")
+
+
+#: a subject's columns: (their range, what they hold, the range as said, the quantity of :func:`unit_slip`)
+_COLUMNS = {
+    "height_m": (STATURE_RANGE_M, "a stature in metres", "0.5-2.6", "height"),
+    "mass_kg": (BODY_MASS_RANGE_KG, "a body mass in kg", "10-300", "mass"),
+    **{c: (SEGMENT_RANGE_M, "a segment length in metres", "0.02-1.0", "length") for c in SEGMENT_COLUMNS},
+}
+
+
+def anthropometry_problem(column: str, value: float) -> str | None:
+    """What is wrong with a subject's ``column`` (``height_m``, ``mass_kg`` or a segment's ``upper_arm_m``,
+    ``forearm_m``, ``hand_m``) of ``value``, in the words a subject-info file and
+    :meth:`ArmModel.from_anthropometrics` both say, such as ``"height_m 172.0 is not a stature in metres (0.5-2.6);
+    in centimetres?"``; ``None`` when it lies in its range."""
+    (lo, hi), what, said, quantity = _COLUMNS[column]
+    if lo < value < hi:
+        return None
+    return f"{column} {value} is not {what} ({said}){unit_slip(value, quantity)}"
 
 
 #: m: no segment of a human arm is this long (a forearm is about 0.25 m): a longer one is in millimetres
@@ -162,22 +184,19 @@ class ArmModel:
         if key is None:
             raise ValueError(f"sex must be 'M' or 'F' (or 'male', 'female'), got {sex!r}")
         height_m, mass_kg = number("height_m", height_m, "m"), number("mass_kg", mass_kg, "kg")
-        if not (STATURE_RANGE_M[0] < height_m < STATURE_RANGE_M[1]):
-            raise ValueError(
-                f"height_m must be a plausible stature in metres, got {height_m}{unit_slip(height_m, 'height')}"
-            )
-        if not (BODY_MASS_RANGE_KG[0] < mass_kg < BODY_MASS_RANGE_KG[1]):
-            raise ValueError(f"mass_kg must be a plausible body mass in kg, got {mass_kg}{unit_slip(mass_kg, 'mass')}")
+        for column, value in (("height_m", height_m), ("mass_kg", mass_kg)):
+            problem = anthropometry_problem(column, value)  # in a subject-info file's words
+            if problem is not None:
+                raise ValueError(problem)
         table = DUMAS_2007[key]
         scale = height_m / _REFERENCE_HEIGHT_M[key]
 
         def segment(name: str, length: float | None) -> tuple[float, float, float, float]:
             mass_pct, com_pct, r_pct, mean_len = table[name]
             length = mean_len * scale if length is None else number(f"{name}_m", length, "m")
-            if not (SEGMENT_RANGE_M[0] < length < SEGMENT_RANGE_M[1]):
-                raise ValueError(
-                    f"{name} length must be in metres (0.02-1.0), got {length}{unit_slip(length, 'length')}"
-                )
+            problem = anthropometry_problem(f"{name}_m", length)
+            if problem is not None:
+                raise ValueError(problem)
             m = mass_pct / 100.0 * mass_kg
             return length, m, com_pct / 100.0 * length, m * (r_pct / 100.0 * length) ** 2
 

@@ -276,6 +276,25 @@ def test_subject_info_both_layouts(tmp_path, synth):
         read_subject_info(p)
 
 
+@pytest.mark.parametrize(
+    ("column", "value"), [("height_m", 172.0), ("mass_kg", 72000.0), ("mass_kg", 7.0), ("forearm_m", 27.0)]
+)
+def test_a_subject_info_file_and_the_arm_model_refuse_a_value_in_the_same_words(tmp_path, column, value):
+    # the reader said "height_m 172.0 is not a stature in metres (0.5-2.6)", the arm model "height_m must be a
+    # plausible stature in metres, got 172.0", for one range
+    from reachirl.arm import ArmModel
+
+    row = {"height_m": 1.7, "mass_kg": 70.0, "forearm_m": 0.26, column: value}
+    p = tmp_path / "info.csv"
+    p.write_text(f"subject,sex,{','.join(row)}\nS7,M,{','.join(map(str, row.values()))}\n")
+    with pytest.raises(ValueError) as arm:
+        ArmModel.from_anthropometrics(sex="M", **row)
+    with pytest.raises(InputError) as info:
+        read_subject_info(p)
+    assert info.value.reason == f"subject S7: {arm.value}"
+    assert str(arm.value).startswith(f"{column} {value} is not a ")
+
+
 def test_manifest_paths_relative_to_it(tmp_path):
     (tmp_path / "sub").mkdir()
     m = tmp_path / "sub" / "manifest.csv"

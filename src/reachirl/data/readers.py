@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..arm import BODY_MASS_RANGE_KG, SEGMENT_RANGE_M, STATURE_RANGE_M, sex_key, unit_slip
+from ..arm import SEGMENT_COLUMNS, anthropometry_problem, sex_key
 from ..errors import InputError
 from ..io import read_text
 
@@ -922,6 +922,14 @@ def _csv_rows(
     return rows
 
 
+def _check_anthropometry(subject: str, column: str, value: float, path: Path, where: str) -> None:
+    """A subject's ``column`` in its range, else an :class:`InputError` naming the subject and the unit the value
+    was likely written in (a mass in grams, a height in cm), in the words ArmModel.from_anthropometrics says them."""
+    problem = anthropometry_problem(column, value)
+    if problem is not None:
+        raise InputError(f"subject {subject}: {problem}", path, where)
+
+
 def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
     """Read subject anthropometrics, keyed by subject id.
 
@@ -949,29 +957,13 @@ def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
             raise InputError(f"sex must be M or F (or male, female), got {r['sex']!r}", path, where)
         h = _float(r["height_m"], path, line, "height_m")
         m = _float(r["mass_kg"], path, line, "mass_kg")
-        # the subject named, and the unit the value was likely written in (a mass in grams, a height in cm)
-        if not STATURE_RANGE_M[0] < h < STATURE_RANGE_M[1]:
-            raise InputError(
-                f"subject {sid}: height_m {h} is not a stature in metres (0.5-2.6){unit_slip(h, 'height')}",
-                path,
-                where,
-            )
-        if not BODY_MASS_RANGE_KG[0] < m < BODY_MASS_RANGE_KG[1]:
-            raise InputError(
-                f"subject {sid}: mass_kg {m} is not a body mass in kg (10-300){unit_slip(m, 'mass')}", path, where
-            )
+        _check_anthropometry(sid, "height_m", h, path, where)
+        _check_anthropometry(sid, "mass_kg", m, path, where)
         lengths = {}
-        for c in ("upper_arm_m", "forearm_m", "hand_m"):
-            v = r.get(c, "")
-            if v:
-                x = _float(v, path, line, c)
-                if not SEGMENT_RANGE_M[0] < x < SEGMENT_RANGE_M[1]:
-                    raise InputError(
-                        f"subject {sid}: {c} {x} is not a segment length in metres (0.02-1.0){unit_slip(x, 'length')}",
-                        path,
-                        where,
-                    )
-                lengths[c] = x
+        for c in SEGMENT_COLUMNS:
+            if r.get(c, ""):
+                lengths[c] = _float(r[c], path, line, c)
+                _check_anthropometry(sid, c, lengths[c], path, where)
         if sid in out:
             raise InputError(f"subject {sid!r} appears twice", path, where)
         out[sid] = SubjectInfo(subject=sid, sex=sex, height_m=h, mass_kg=m, **lengths)
