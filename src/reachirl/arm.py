@@ -85,6 +85,46 @@ def unit_slip(value: float, quantity: str) -> str:
     return next((f"; in {unit}?" for lo, hi, unit in _SLIPS[quantity] if lo <= value < hi), "")
 
 
+#: kg/m²: what a subject's body-mass index, ``mass_kg / height_m²``, may be (open range): adults range from about 13
+#: (severe thinness) to the 50s (class III obesity), and health records' cleaning takes a BMI below 12 or above 60
+#: as a slip. A mass in pounds is 2.2 times its kilograms: for a BMI of 27 or more it reads above 60 and is refused
+#: (below, :data:`BMI_NOTE` notes it); a mass in stones (6.35 kg) reads below 12
+BMI_RANGE = (12.0, 60.0)
+#: kg/m²: a BMI within :data:`BMI_RANGE` but this high or higher is rare (about 1 adult in 100): the subject-info
+#: reader notes the mass it would be in pounds, and takes it as written
+BMI_NOTE = 45.0
+#: kg: a pound and a stone, the units a body mass slips into
+POUND_KG, STONE_KG = 0.45359237, 6.35029318
+
+
+def bmi_problem(height_m: float, mass_kg: float) -> str | None:
+    """What is wrong with a subject's ``height_m`` and ``mass_kg`` together (each in its range): a body-mass index
+    out of :data:`BMI_RANGE`, such as ``"mass_kg 160.0 and height_m 1.6 give a body-mass index of 62.5 kg/m², not
+    a person's (12-60); mass_kg in pounds (72.6 kg)?"``; ``None`` within."""
+    bmi = mass_kg / height_m**2
+    lo, hi = BMI_RANGE
+    if lo < bmi < hi:
+        return None
+    unit, factor = ("pounds", POUND_KG) if bmi >= hi else ("stones", STONE_KG)
+    kg = mass_kg * factor
+    slip = f"; mass_kg in {unit} ({kg:.1f} kg)?" if lo < kg / height_m**2 < hi else "; check both columns"
+    return (
+        f"mass_kg {mass_kg} and height_m {height_m} give a body-mass index of {bmi:.1f} kg/m², not a person's "
+        f"({lo:g}-{hi:g}){slip}"
+    )
+
+
+def bmi_note(height_m: float, mass_kg: float) -> str | None:
+    """A note on a BMI in range but :data:`BMI_NOTE` or higher (the mass it would be in pounds), or ``None``."""
+    bmi = mass_kg / height_m**2
+    if not BMI_NOTE <= bmi < BMI_RANGE[1]:
+        return None
+    return (
+        f"mass_kg {mass_kg} and height_m {height_m} give a body-mass index of {bmi:.1f} kg/m², rare: if the mass is "
+        f"in pounds it is {mass_kg * POUND_KG:.1f} kg (taken as {mass_kg} kg)"
+    )
+
+
 #: a subject's columns: (their range, what they hold, the range as said, the quantity of :func:`unit_slip`)
 _COLUMNS = {
     "height_m": (STATURE_RANGE_M, "a stature in metres", "0.5-2.6", "height"),
@@ -188,6 +228,9 @@ class ArmModel:
             problem = anthropometry_problem(column, value)  # in a subject-info file's words
             if problem is not None:
                 raise ValueError(problem)
+        problem = bmi_problem(height_m, mass_kg)
+        if problem is not None:
+            raise ValueError(problem)
         table = DUMAS_2007[key]
         scale = height_m / _REFERENCE_HEIGHT_M[key]
 

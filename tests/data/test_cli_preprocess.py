@@ -245,6 +245,19 @@ def test_a_subject_info_with_masses_in_grams_is_refused_in_one_line_naming_the_u
     assert not out.exists()
 
 
+def test_a_subject_info_with_a_mass_in_pounds_is_refused_in_one_line_naming_the_bmi(tmp_path, synth, capsys):
+    info = tmp_path / "subjects.csv"
+    info.write_text("subject,sex,height_m,mass_kg\nADL001,F,1.702,211.6\n")  # 96 kg in pounds
+    out = tmp_path / "o.npz"
+    code, _, err = _run([synth.SAMPLE / "ADL001", "--subject-info", info, "--out", out], capsys)
+    assert code == 2
+    assert err.strip().splitlines() == [
+        f"reachirl preprocess: error: {info}: line 2: subject ADL001: mass_kg 211.6 and height_m 1.702 give a "
+        "body-mass index of 73.0 kg/m², not a person's (12-60); mass_kg in pounds (96.0 kg)?"
+    ]
+    assert not out.exists()
+
+
 def test_a_left_arm_recording_read_as_the_right_is_refused_naming_the_arm_that_moves(tmp_path, synth, capsys):
     # "no movement detected" alone sent the user looking for a broken file
     out = tmp_path / "o.npz"

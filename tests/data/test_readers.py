@@ -3,9 +3,13 @@ problem."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+import reachirl
+from reachirl.arm import ArmModel
 from reachirl.data.readers import (
     AngleData,
     MarkerData,
@@ -293,6 +297,56 @@ def test_a_subject_info_file_and_the_arm_model_refuse_a_value_in_the_same_words(
         read_subject_info(p)
     assert info.value.reason == f"subject S7: {arm.value}"
     assert str(arm.value).startswith(f"{column} {value} is not a ")
+
+
+@pytest.mark.parametrize(
+    ("cells", "match"),
+    [
+        (
+            "1.6,160",
+            r"subject S7: mass_kg 160.0 and height_m 1.6 give a body-mass index of 62.5 kg/m², not a person's "
+            r"\(12-60\); mass_kg in pounds \(72.6 kg\)\?$",
+        ),
+        (
+            "1.75,11",
+            r"subject S7: mass_kg 11.0 and height_m 1.75 give a body-mass index of 3.6 kg/m², not a person's "
+            r"\(12-60\); mass_kg in stones \(69.9 kg\)\?$",
+        ),
+        ("2.5,70", r"subject S7: mass_kg 70.0 and height_m 2.5 give a body-mass index of 11.2 kg/m², .*; check both"),
+    ],
+)
+def test_a_mass_in_pounds_is_refused_by_its_body_mass_index(tmp_path, cells, match):
+    # 160 (lb) for a 73 kg person of 1.60 m lay within 10-300 kg and built an arm 2.2 times too heavy
+    p = tmp_path / "info.csv"
+    p.write_text(f"subject,sex,height_m,mass_kg\nS7,F,{cells}\n")
+    with pytest.raises(InputError, match=r"^\S+info\.csv: line 2: " + match):
+        read_subject_info(p)
+    with pytest.raises(ValueError, match=match.removeprefix("subject S7: ")):
+        ArmModel.from_anthropometrics(*map(float, cells.split(",")), "F")
+
+
+def test_a_rare_body_mass_index_is_taken_with_a_note_of_its_mass_in_pounds(tmp_path, caplog):
+    # a mass in pounds of a person of ordinary build (BMI 23: 154 lb at 1.75 m) reads as a BMI of 50, which real
+    # people have: taken as written, the note says what it would be in pounds
+    p = tmp_path / "info.csv"
+    p.write_text("subject,sex,height_m,mass_kg\nS7,M,1.75,154\nS8,M,1.75,70\n")
+    with caplog.at_level("WARNING", logger="reachirl"):
+        info = read_subject_info(p)
+    assert info["S7"].mass_kg == 154.0
+    assert caplog.messages == [
+        f"{p}: line 2: subject S7: mass_kg 154.0 and height_m 1.75 give a body-mass index of 50.3 kg/m², rare: if "
+        "the mass is in pounds it is 69.9 kg (taken as 154.0 kg)"
+    ]
+
+
+def test_every_virtual_and_ue_adl_subject_has_a_body_mass_index_in_range():
+    from reachirl.arm import bmi_note, bmi_problem
+    from reachirl.virtual.population import draw_subject
+
+    drawn = [draw_subject(seed, i) for seed in range(20) for i in range(50)]  # synth's population
+    sample = Path(reachirl.__file__).parent / "data" / "ue_adl_sample" / "subjects.csv"
+    subjects = [(s.height_m, s.mass_kg) for s in [*drawn, *read_subject_info(sample).values()]]
+    assert [s for s in subjects if bmi_problem(*s) or bmi_note(*s)] == []
 
 
 def test_manifest_paths_relative_to_it(tmp_path):

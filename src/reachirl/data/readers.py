@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..arm import SEGMENT_COLUMNS, anthropometry_problem, sex_key
+from ..arm import SEGMENT_COLUMNS, anthropometry_problem, bmi_note, bmi_problem, sex_key
 from ..errors import InputError
 from ..io import read_text
 
@@ -959,6 +959,12 @@ def read_subject_info(path: str | Path) -> dict[str, SubjectInfo]:
         m = _float(r["mass_kg"], path, line, "mass_kg")
         _check_anthropometry(sid, "height_m", h, path, where)
         _check_anthropometry(sid, "mass_kg", m, path, where)
+        problem = bmi_problem(h, m)  # a mass in pounds, each column in its range
+        if problem is not None:
+            raise InputError(f"subject {sid}: {problem}", path, where)
+        note = bmi_note(h, m)
+        if note is not None:
+            logging.getLogger(__name__).warning("%s: %s: subject %s: %s", path, where, sid, note)
         lengths = {}
         for c in SEGMENT_COLUMNS:
             if r.get(c, ""):
