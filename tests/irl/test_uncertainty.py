@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from reachirl import MOIRL
 from reachirl.cli import main
@@ -327,8 +328,9 @@ def test_without_data_the_intervals_rule_out_no_printable_share():
 
 
 def test_the_posterior_follows_the_data_where_it_is_determined_and_the_prior_elsewhere():
-    """Two log-weights: the residuals see only the first. Its posterior sits at the fit with the variance the
-    Gauss-Newton model gives (τ / s²); the second keeps the prior's mean and spread."""
+    """Two log-weights: the residuals see only the first. Its posterior sits at the Gauss-Newton model's minimum
+    (the fit moved by the model's step ``−g / a``) with the variance the model gives (τ / a); the second keeps the
+    prior's mean and spread."""
     rng = np.random.default_rng(0)
     d, m = 12, 30
     J = np.zeros((d, m, 2))
@@ -339,8 +341,27 @@ def test_the_posterior_follows_the_data_where_it_is_determined_and_the_prior_els
     a = np.sum(J[:, :, 0] ** 2) / d
     assert tau == pytest.approx(merit_noise(np.sum(r**2, axis=1)) / 4)
     assert cov[0, 0] == pytest.approx(1 / (a / tau + 1 / 9))
-    assert mean[0] == pytest.approx(cov[0, 0] * (a * 1.0 / tau + 0.0 / 9))
+    g = np.sum(J[:, :, 0] * r) / d
+    assert mean[0] == pytest.approx(cov[0, 0] * ((a * 1.0 - g) / tau + 0.0 / 9))
     assert mean[1] == pytest.approx(-1.0) and cov[1, 1] == pytest.approx(9.0) and cov[0, 1] == pytest.approx(0.0)
+
+
+def test_a_fit_that_stopped_short_of_the_minimum_is_not_the_posterior_s_centre():
+    """Residuals linear in the log-weights, ``r_d = J_d (η − η*) + ε_d``, seen from a fit ``η̂`` that stopped
+    short of ``η*``: the posterior (prior too wide to matter) centres on the least-squares minimum, where the
+    data puts the weights, and holds ``η*`` within its 95 % ellipsoid; centred on the fit, it would exclude it."""
+    rng = np.random.default_rng(3)
+    d, m, p = 20, 40, 3
+    J = rng.normal(size=(d, m, p))
+    eta_star, eta_hat = np.array([0.5, -1.0, 2.0]), np.array([0.8, -0.6, 1.5])
+    r = np.einsum("dmp,p->dm", J, eta_hat - eta_star) + 0.05 * rng.normal(size=(d, m))
+    mean, cov, _ = laplace_posterior(r, J, eta_hat, np.zeros(p), prior_sd=1e6)
+    A, b = J.reshape(-1, p), (r - np.einsum("dmp,p->dm", J, eta_hat)).reshape(-1)
+    np.testing.assert_allclose(mean, np.linalg.lstsq(A, -b, rcond=None)[0], atol=1e-8)
+    assert np.linalg.norm(mean - eta_star) < 0.01 < np.linalg.norm(eta_hat - eta_star) / 10
+    z = (mean - eta_star) @ np.linalg.solve(cov, mean - eta_star)
+    assert z < stats.chi2.ppf(0.95, p)
+    assert (eta_hat - eta_star) @ np.linalg.solve(cov, eta_hat - eta_star) > 10 * stats.chi2.ppf(0.95, p)
 
 
 def test_the_shares_a_fit_shows_lie_in_their_own_intervals(recorded):

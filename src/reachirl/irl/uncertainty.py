@@ -11,10 +11,11 @@ doubling a weight's combination) raises the merit by more than the data can tell
 features trade against which, in which windows.
 
 **Weight samples** (:func:`weight_uncertainty`): the Laplace posterior of the free log-weights
-(:func:`laplace_posterior`), with the merit's Gauss-Newton model ``(η − η̂)ᵀ A (η − η̂)`` as the likelihood's
-exponent at the scale ``τ = δm / 4`` (a move to a direction's 95 % edge raises the merit by ``δm``) and a prior
-``N(log ω₀, (log 250)²)`` per log-weight, centred on equal cost shares and wide enough to exclude no share
-the report can print (:data:`PRIOR_LOG_SD`). In the determined directions the data
+(:func:`laplace_posterior`), with the merit's Gauss-Newton model ``2 gᵀ(η − η̂) + (η − η̂)ᵀ A (η − η̂)`` as the
+likelihood's exponent (centred on the model's own minimum, not on a fit that stopped short of it) at the scale
+``τ = δm / 4`` (a move to a direction's 95 % edge raises the merit by ``δm``) and a prior ``N(log ω₀, (log 250)²)``
+per log-weight, centred on equal cost shares and wide enough to exclude no share the report can print
+(:data:`PRIOR_LOG_SD`). In the determined directions the data
 narrows the samples; in the others the prior speaks, and the intervals say so. Each window's cost shares
 ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
 percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH`, or does not
@@ -230,17 +231,20 @@ def laplace_posterior(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """The Gauss-Newton (Laplace) posterior of the free log-weights: ``(mean (P,), covariance (P, P), τ)``.
 
-    The likelihood is ``exp(−(m(η) − m̂) / (2τ))`` with the merit's Gauss-Newton model ``m(η) − m̂ ≈
-    (η − η̂)ᵀ A (η − η̂)``, ``A = Σ_d J_dᵀJ_d / D``, and ``τ = δm / 4`` (:func:`merit_noise`), so that a move to the
-    edge of a direction's 95 % interval raises the merit by ``δm``, what the demonstrations can tell from noise;
-    the prior is ``N(η_prior, prior_sd² I)``."""
+    The likelihood is ``exp(−(m(η) − m̂) / (2τ))`` with the merit's Gauss-Newton model at the fit ``η̂``,
+    ``m(η) − m̂ ≈ 2 gᵀ(η − η̂) + (η − η̂)ᵀ A (η − η̂)``, ``g = Σ_d J_dᵀ r_d / D``, ``A = Σ_d J_dᵀJ_d / D``, and
+    ``τ = δm / 4`` (:func:`merit_noise`), so that a move to the edge of a direction's 95 % interval raises the merit
+    by ``δm``, what the demonstrations can tell from noise; the prior is ``N(η_prior, prior_sd² I)``. The gradient
+    term centres the likelihood on the model's own minimum, not on the fit: a fit that stopped short of the
+    merit's minimum (its line search found no step the DOC confirms) would otherwise leave the truth outside."""
     D = r.shape[0]
     A = np.einsum("dmp,dmq->pq", J, J) / D
+    g = np.einsum("dmp,dm->p", J, r) / D
     tau = merit_noise(np.sum(r**2, axis=1)) / 4.0
     precision = A / tau + np.eye(A.shape[0]) / prior_sd**2
     cov = np.linalg.inv(precision)
     cov = 0.5 * (cov + cov.T)
-    mean = cov @ (A @ eta_hat / tau + eta_prior / prior_sd**2)
+    mean = cov @ ((A @ eta_hat - g) / tau + eta_prior / prior_sd**2)
     return mean, cov, tau
 
 
