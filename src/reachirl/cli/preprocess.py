@@ -325,6 +325,14 @@ def _refuse_overwrite(args, out: Path, entries: list[ManifestEntry]) -> list:
     return inputs
 
 
+def _check_npz_name(out: Path) -> None:
+    """A trials file is NPZ, named so (as simulate --render by its suffix): a trials.csv would hold an NPZ. Checked
+    after the inputs are known, so that an --out naming an input is refused as that, before any preprocessing."""
+    if out.suffix.lower() != ".npz":
+        csv = "; CSV or MOT files of each trial: --export FOLDER" if out.suffix.lower() in (".csv", ".mot") else ""
+        raise InputError(f"--out: a trials file is NPZ, its name must end in .npz{csv}", out)
+
+
 def _refuse_duplicate_ids(trials: list[Trial]) -> None:
     """Two recordings that make the same trial id (the same file name in two folders, or a file given twice)
     would make a trials file that every other command refuses: refused here, naming both."""
@@ -346,9 +354,6 @@ def run(args) -> int:
     if args.markers and args.markerset:
         raise InputError("give --markers or --markerset, not both (--markers would win and --markerset be ignored)")
     out = check_output_file(args.out)
-    if out.suffix.lower() != ".npz":  # as simulate --render by its suffix: a trials.csv would hold an NPZ
-        csv = "; CSV or MOT files of each trial: --export FOLDER" if out.suffix.lower() in (".csv", ".mot") else ""
-        raise InputError(f"--out: a trials file is NPZ, its name must end in .npz{csv}", out)
     if args.export is None:
         return _preprocess(args, options, out, None)
     # before any work: a folder in which files can be written, and not the trials file's
@@ -388,6 +393,7 @@ def _preprocess(args, options, out: Path, make_export) -> int:
         if e.static is not None:
             regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
     inputs = _refuse_overwrite(args, out, entries)
+    _check_npz_name(out)
     check_output_kind(out, ".npz", kind=TRIALS_KIND)
     infos = read_subject_info(args.subject_info) if args.subject_info else None
     markers = (

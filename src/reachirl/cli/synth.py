@@ -53,7 +53,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--truth",
         metavar="CSV",
-        help="the true cost, instead of the paper's pattern (8 windows, joint acceleration dominating onset and "
+        help="the true cost (default: the paper's pattern, 8 windows, joint acceleration dominating onset and "
         "end): a CSV whose header names the 7 features and whose rows (one per equal time window, 1 to 20) give "
         "each feature's relative importance in that window (weights = importance / the feature's typical size)",
     )
