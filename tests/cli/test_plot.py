@@ -11,10 +11,11 @@ import pytest
 
 from folder_locks import held_elsewhere
 from reachirl import ArmModel, ReachingTask, solve_doc
-from reachirl.cli import main
+from reachirl.cli import build_parser, main, plot
 from reachirl.data.trial import load_trials, save_trials
 from reachirl.doc.evaluation import evaluate_trials
 from reachirl.doc.observation import observe
+from reachirl.errors import InputError
 from reachirl.virtual import nominal_weights, posture_q
 
 N = 20
@@ -153,6 +154,15 @@ def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     assert main(["plot", str(tmp_path / "run"), "--subject", "S01", "--out", str(tmp_path / "f")]) == 2
     assert "--subject chooses trials, so it needs --model" in capsys.readouterr().err
+
+
+def test_plot_of_a_run_folder_refuses_a_backend(tmp_path):
+    """`--backend` chooses the backend of --model's predictions; a run folder's figures solve no DOC, so the flag
+    was ignored there without a word (figures said to be on crocoddyl were CasADi's)."""
+    (tmp_path / "run").mkdir()
+    args = build_parser().parse_args(["plot", str(tmp_path / "run"), "--backend", "crocoddyl", "--out", str(tmp_path)])
+    with pytest.raises(InputError, match=r"--backend chooses the backend of the predictions of --model"):
+        plot._plot(args, tmp_path / "f", lambda: None)
 
 
 @pytest.mark.parametrize("command", ["plot", "sensitivity"])

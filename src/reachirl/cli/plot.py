@@ -310,6 +310,12 @@ def _plot(args: argparse.Namespace, out: Path, make_out) -> int:
             raise InputError(
                 f"--{given[0]} chooses trials, so it needs --model MODEL.json and a trials file", args.source
             )
+        if args.backend is not None:  # a run's figures are drawn from its own predictions: none is solved again
+            raise InputError(
+                "--backend chooses the backend of the predictions of --model MODEL.json; a run's figures are "
+                "drawn from its recorded predictions (rerun `reachirl reproduce --backend` for another backend)",
+                args.source,
+            )
         if not args.source.is_dir():
             raise InputError(
                 "expected a `reachirl reproduce` folder (or give --model MODEL.json for a trials file)", args.source
