@@ -195,8 +195,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=samples_or_none(20, 1000),
         default=None,
         metavar="K",
-        help="weight samples per main-table MO-IRL fit, for its cost-share intervals, 20 to 1000, or 0 for none "
-        "(default 40)",
+        help="weight samples per main-table MO-IRL or MaxEnt fit (bilevel and kkt draw none), for its cost-share "
+        "intervals, 20 to 1000, or 0 for none (default 40)",
     )
     return p
 
