@@ -239,3 +239,36 @@ def test_pd_gain_limits_hold_for_the_longest_step_and_the_reach_played(arm, tmp_
     assert h == pytest.approx(long.duration / 400) and kp == pytest.approx(inertia / h**2)
     assert pd_gain_limits([long, short], 40, 10)[2] == h  # whatever the order
     assert pd_gain_limits([short, long], 40, 10, stretch=1 / 0.9)[2] == pytest.approx(h / 0.9)
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--kp", "80"], r"--kp applies only with --mode pd; without it the option would be ignored"),
+        (["--mode", "open-loop", "--kd", "2"], r"--kd applies only with --mode pd"),
+        (["--fps", "10"], r"--fps applies only with --render OUT\.gif"),
+        (["--out", "sim.json", "--size", "160"], r"--size applies only with --render OUT\.gif"),
+    ],
+)
+def test_options_of_another_mode_are_refused_not_ignored(extra, match):
+    """--kp/--kd without --mode pd and --fps/--size without --render changed nothing (an open-loop playback was
+    run for the PD one asked for); they are refused, and their defaults hold where they apply."""
+    from reachirl.cli import build_parser
+    from reachirl.cli.simulate import _check_mode_options
+    from reachirl.errors import InputError
+
+    parse = build_parser().parse_args
+    with pytest.raises(InputError, match=match):
+        _check_mode_options(parse(["simulate", "--model", "m.json", "t.npz", *extra]))
+    args = parse(["simulate", "--model", "m.json", "t.npz", "--mode", "pd", "--render", "a.gif", "--kd", "2"])
+    _check_mode_options(args)
+    assert (args.kp, args.kd, args.fps, args.size) == (50.0, 2.0, 30.0, 480)
+
+
+def test_simulate_refuses_pd_gains_for_an_open_loop_playback(arm, tmp_path, capsys):
+    trials, model = _trials_file(arm, tmp_path)
+    out = tmp_path / "sim.json"
+    assert main(["simulate", "--model", str(model), str(trials), "--trial", "0", "--kp", "80", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--kp applies only with --mode pd" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -82,32 +82,53 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--kp",
         type=number_in(0.0, 1e5),
-        default=50.0,
-        help="PD stiffness, N·m/rad, 0 to 1e5 and at most I/h² for MuJoCo's step h and the arm's "
+        default=None,
+        help="with --mode pd: PD stiffness, N·m/rad, 0 to 1e5 and at most I/h² for MuJoCo's step h and the arm's "
         "smallest inertia I (stated when exceeded) (default 50)",
     )
     p.add_argument(
         "--kd",
         type=number_in(0.0, 1e4),
-        default=5.0,
-        help="PD damping, N·m·s/rad, 0 to 1e4 and at most I/h (stated when exceeded) (default 5)",
+        default=None,
+        help="with --mode pd: PD damping, N·m·s/rad, 0 to 1e4 and at most I/h (stated when exceeded) (default 5)",
     )
     p.add_argument(
         "--fps",
         type=number_in(1.0, 120.0),
-        default=30.0,
-        help="animation frames per second of reach time, 1 to 120 (default 30)",
+        default=None,
+        help="with --render: animation frames per second of reach time, 1 to 120 (default 30)",
     )
     p.add_argument(
         "--size",
         type=int_in(16, 1280),
-        default=480,
-        help="animation width and height in pixels, 16 to 1280 (default 480)",
+        default=None,
+        help="with --render: animation width and height in pixels, 16 to 1280 (default 480)",
     )
     p.add_argument(
         "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
     )
     return p
+
+
+#: the defaults of the options that apply only with --mode pd (the gains) or with --render (the animation's): a
+#: value given without them would be ignored, so it is refused (:func:`_check_mode_options`)
+PD_DEFAULTS = {"kp": 50.0, "kd": 5.0}
+RENDER_DEFAULTS = {"fps": 30.0, "size": 480}
+
+
+def _check_mode_options(args: argparse.Namespace) -> None:
+    """Refuse ``--kp``/``--kd`` without ``--mode pd`` and ``--fps``/``--size`` without ``--render`` (they were
+    ignored without a word: an open-loop playback run for a PD one), then fill in their defaults."""
+    for names, applies, needs in (
+        (PD_DEFAULTS, args.mode == "pd", "--mode pd"),
+        (RENDER_DEFAULTS, args.render is not None, "--render OUT.gif"),
+    ):
+        given = [n for n in names if getattr(args, n) is not None]
+        if given and not applies:
+            raise InputError(f"--{given[0]} applies only with {needs}; without it the option would be ignored")
+        for n, default in names.items():
+            if getattr(args, n) is None:
+                setattr(args, n, default)
 
 
 def _stretch(model) -> float:
@@ -159,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
     from ..sim.render import osmesa_available
     from ..validation import check_output_file, check_output_kind
 
+    _check_mode_options(args)
     if args.render is not None and args.render.suffix.lower() not in ANIMATION_KINDS:
         raise InputError("the animation must end in .gif or .mp4", args.render)
     for opt, path in (("--out", args.out), ("--render", args.render)):
