@@ -683,6 +683,22 @@ def test_a_forward_axis_without_plane_axes_is_refused_not_ignored(tmp_path, reac
     assert not (tmp_path / "o.npz").exists()
 
 
+def test_a_distal_wrist_with_fingertip_ik_is_refused_not_ignored():
+    """--distal chooses the segment the --ik segments angles read; --ik fingertip places the fingertip alone, so
+    --distal wrist with it was taken and left unused (the trials identical to those without it)."""
+    from reachirl.cli import build_parser
+    from reachirl.cli.preprocess import _options
+    from reachirl.errors import InputError
+
+    args = build_parser().parse_args(
+        ["preprocess", "r.trc", "--ik", "fingertip", "--distal", "wrist", "--out", "o.npz"]
+    )
+    with pytest.raises(InputError, match=r"--distal wrist is used with --ik segments only, not --ik fingertip"):
+        _options(args)
+    for ok in (["--distal", "wrist"], ["--ik", "fingertip"], ["--ik", "fingertip", "--distal", "fingertip"]):
+        _options(build_parser().parse_args(["preprocess", "r.trc", *ok, "--out", "o.npz"]))
+
+
 def test_a_static_trial_a_marker_map_never_reads_is_refused(tmp_path, reach, synth, capsys):
     """--static with a marker map (every joint from the file's own markers) was taken and left unread: the user
     believed the joint centres calibrated on it."""

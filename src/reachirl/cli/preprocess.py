@@ -185,7 +185,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "--distal",
         choices=("fingertip", "wrist"),
         default=d.distal,
-        help="q2 from elbow->fingertip (the model's segment 2) or elbow->wrist (default fingertip)",
+        help="with --ik segments: q2 from elbow->fingertip (the model's segment 2) or elbow->wrist (default fingertip)",
     )
     g.add_argument(
         "--n-samples",
@@ -199,6 +199,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def _options(args) -> PreprocessOptions:
     if args.forward_axis and args.plane != "axes":  # it would be left unused: the plane comes from the markers
         raise InputError(f"--forward-axis is used with --plane axes only, not --plane {args.plane}")
+    if args.distal != PreprocessOptions.distal and args.ik != "segments":  # unused: the IK reads the fingertip alone
+        raise InputError(f"--distal {args.distal} is used with --ik segments only, not --ik {args.ik}")
     up, fwd = (a.strip().lower().lstrip("+-") if a else None for a in (args.up_axis, args.forward_axis))
     if up is not None and up == fwd:
         raise InputError(
