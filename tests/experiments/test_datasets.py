@@ -65,3 +65,16 @@ def test_a_folders_manifest_given_as_data_asks_for_its_folder(tmp_path):
     (tmp_path / "manifest.csv").write_text("file,subject,posture\nr.trc,S01,P2\n")
     with pytest.raises(InputError, match=r"manifest\.csv: a manifest, not a trials file: give the folder that holds"):
         datasets.load(tmp_path / "manifest.csv")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"seed": 3}, r"--data-seed 3 seeds the built-in virtual subjects; it cannot be combined with --data"),
+        ({"marker_map": "shoulder=A,elbow=B,fingertip=D"}, r"t\.npz: --markers names the markers of a folder of"),
+    ],
+)
+def test_options_of_the_built_in_data_or_of_recordings_are_refused_with_a_trials_file(tmp_path, kwargs, match):
+    """`reproduce --data t.npz --data-seed 3` (or `--markers ...`) ran on the trials file, the option unused."""
+    with pytest.raises(InputError, match=match):
+        datasets.load(tmp_path / "t.npz", **kwargs)

@@ -669,3 +669,23 @@ def test_a_killed_job_worker_is_named_with_its_job_and_a_rerun_resumes(small_run
     monkeypatch.undo()
     assert main(argv) == 0
     assert (out / "sensitivity.csv").is_file()
+
+
+def test_a_run_on_a_folder_read_with_markers_is_loaded_again_with_them(tmp_path):
+    """A run on a folder of recordings whose marker names needed `reproduce --markers` could not be analysed: the
+    data were loaded again without the marker map ('marker shoulder not found'). The map is the run's run.toml's."""
+    from reachirl.cli import main
+    from reachirl.experiments.sensitivity import load_run
+    from recordings import MARKERS, synth
+
+    folder = synth(tmp_path / "rec", ("P2",), subjects=2, trials=2)
+    (folder / "truth.json").unlink()  # its marker names are then the --markers given
+    run = tmp_path / "run"
+    argv = ["reproduce", "--data", str(folder), "--markers", MARKERS, "--sections", "1", "--nodes", "20"]
+    argv += ["--max-iter", "1", "--n-train", "1", "--uncertainty", "0", "--workers", "1", "--no-progress"]
+    assert main([*argv, "--out", str(run)]) == 0
+    dataset, _, units, subject = load_run(run)
+    assert len(dataset.trials) == 4 and subject == "S01" and list(units) == ["moirl-P2-s1"]
+    (run / "run.toml").write_text((run / "run.toml").read_text().replace(f'markers = "{MARKERS}"\n', ""))
+    with pytest.raises(InputError, match=r"the run's data cannot be loaded again .*marker 'shoulder'"):
+        load_run(run)

@@ -50,10 +50,10 @@ RUN_KEYS = {
     "max_iter": (f"MO-IRL iterations at most, per stage, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
     "tol": ("MO-IRL acceptance threshold, from 0 to below 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
     "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
-    "data_seed": ("seed of the built-in data set, 0 to 1000000 (default 0)", "count"),
+    "data_seed": ("seed of the built-in data set, 0 to 1000000 (default 0); not with --data", "count"),
     "markers": (
-        "shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder (default: its truth.json's, else the built-in "
-        "marker sets)",
+        "shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder, not a trials file (default: its truth.json's, "
+        "else the built-in marker sets)",
         "str",
     ),
     "max_units": (

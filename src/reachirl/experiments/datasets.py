@@ -209,6 +209,13 @@ def load(
             raise InputError(f"{name} must be an integer{' in [0, 2**32 - 1]' if lo is not None else ''}, got {v!r}")
     if n_subjects is not None and path is not None:
         raise InputError("--subjects makes built-in virtual subjects; it cannot be combined with --data")
+    if seed != 0 and path is not None:  # it would be left unused: the data are the user's
+        raise InputError(f"--data-seed {seed} seeds the built-in virtual subjects; it cannot be combined with --data")
+    if marker_map is not None and path is not None and not Path(path).is_dir():
+        raise InputError(
+            "--markers names the markers of a folder of recordings; a trials file holds joint angles, no markers",
+            path,
+        )
     if n_subjects is not None and int(n_subjects) < 2:
         raise InputError(f"--subjects needs at least 2 subjects (one to learn from, one to predict), got {n_subjects}")
     if n_subjects is not None and int(n_subjects) > MAX_SUBJECTS:

@@ -107,6 +107,20 @@ class SensitivityConfig:
 
 
 # ---------------------------------------------------------------------- the run
+def _run_markers(run_dir: Path) -> str | None:
+    """The marker map (``--markers``) a run read its folder of recordings with, from the run's ``run.toml``
+    (``results.json`` does not record it), or ``None``: the folder's own marker names. A wrong one is caught by
+    the data's fingerprint."""
+    import tomllib
+
+    try:
+        with open(run_dir / "run.toml", "rb") as fh:
+            markers = tomllib.load(fh).get("markers")
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    return markers if isinstance(markers, str) else None
+
+
 def load_run(run_dir: str | Path):
     """``(dataset, config, units, train_subject)`` of a finished ``reproduce`` run folder, ``units`` its
     ``results.json`` entries by key (:func:`run_unit` reads a unit's checkpoint). The data are loaded again from
@@ -139,7 +153,7 @@ def load_run(run_dir: str | Path):
         dataset = Dataset(tuple(preprocess_folder(folder)), source, "builtin")
     elif kind in ("folder", "trials-file"):
         try:
-            dataset = load(source)
+            dataset = load(source, marker_map=_run_markers(run_dir) if kind == "folder" else None)
         except InputError as e:  # moved, removed or edited: the run's record of it is what names it
             raise InputError(f"the run's data cannot be loaded again ({e})", path) from None
     else:
