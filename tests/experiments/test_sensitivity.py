@@ -689,3 +689,22 @@ def test_a_run_on_a_folder_read_with_markers_is_loaded_again_with_them(tmp_path)
     (run / "run.toml").write_text((run / "run.toml").read_text().replace(f'markers = "{MARKERS}"\n', ""))
     with pytest.raises(InputError, match=r"the run's data cannot be loaded again .*marker 'shoulder'"):
         load_run(run)
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--no-sensitivity", "--percent", "5"], r"--percent sets the sensitivity analysis, which --no-sensitivity"),
+        (["--no-occlusion", "--seed", "3"], r"--seed sets the occlusion analysis, which --no-occlusion skips"),
+    ],
+)
+def test_an_option_of_a_skipped_analysis_is_refused_not_ignored(extra, match):
+    from reachirl.cli import build_parser
+    from reachirl.cli.sensitivity import _check_analysis_options
+
+    parse = build_parser().parse_args
+    with pytest.raises(InputError, match=match):
+        _check_analysis_options(parse(["sensitivity", "run", "--out", "o", *extra]))
+    args = parse(["sensitivity", "run", "--out", "o", extra[0]])
+    _check_analysis_options(args)
+    assert (args.percent, args.seed) == (10.0, 0)

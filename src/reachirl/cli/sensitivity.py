@@ -40,7 +40,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--percent",
         type=number_in(0.001, 99.0),
-        default=10.0,
+        default=None,
         metavar="X",
         help="change each weight by ±X %% for the sensitivity, 0.001 to 99 (default 10)",
     )
@@ -57,7 +57,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument(
         "--seed",
         type=non_negative_int,
-        default=0,
+        default=None,
         metavar="N",
         help="seed of the occlusion's paired bootstrap intervals over trials (default 0)",
     )
@@ -83,6 +83,7 @@ def run(args) -> int:
     check_output_dir(out)  # before any work: a folder in which files can be written (not below a file)
     refuse_overwrite({"--out": out}, [args.run_dir])
     _refuse_the_runs_own_folders(out, Path(args.run_dir))
+    _check_analysis_options(args)
     cfg = SensitivityConfig(
         percent=args.percent,
         sections=args.sections,
@@ -134,6 +135,16 @@ def run(args) -> int:
         print((out / "sensitivity.md").read_text(encoding="utf-8"))
         print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
         return 0
+
+
+def _check_analysis_options(args) -> None:
+    """Refuse --percent with --no-sensitivity and --seed with --no-occlusion (each would be left unused: the analysis
+    it sets is skipped), then fill in their defaults."""
+    for name, skipped, default in (("percent", "sensitivity", 10.0), ("seed", "occlusion", 0)):
+        if getattr(args, name) is None:
+            setattr(args, name, default)
+        elif getattr(args, f"no_{skipped}"):
+            raise InputError(f"--{name} sets the {skipped} analysis, which --no-{skipped} skips")
 
 
 #: the folders of a `reproduce` run that it writes and reads back (its checkpoints, figures, models, predictions)
