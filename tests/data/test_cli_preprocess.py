@@ -815,3 +815,30 @@ def test_a_lab_axis_that_is_none_is_refused_naming_its_option(tmp_path, reach, s
         stop.value.code == 2
         and err == f"reachirl preprocess: error: argument {option}: expected one of ±x, ±y, ±z, got 'w'\n"
     )
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        ["--markers", "shoulder=A,elbow=B,fingertip=D"],
+        ["--up-axis", "+y"],
+        ["--plane", "vertical"],
+        ["--ik", "fingertip"],
+    ],
+)
+def test_marker_options_for_joint_angle_files_alone_are_refused_not_ignored(tmp_path, extra):
+    """A MOT or angle CSV holds the angles themselves: --markers, --up-axis, --plane, --ik (...) given with such
+    files alone were taken and left unused. Beside a marker recording they apply to it, and are taken."""
+    from reachirl.cli import build_parser
+    from reachirl.cli.preprocess import _marker_options, _refuse_marker_options_for_angles
+    from reachirl.data.readers import ManifestEntry
+    from reachirl.errors import InputError
+
+    args = build_parser().parse_args(["preprocess", "a.mot", *extra, "--out", "o.npz"])
+    angles = [ManifestEntry(file=tmp_path / "a.mot", subject="", posture="")]
+    with pytest.raises(InputError, match=rf"a\.mot: {extra[0]}.* applies to marker recordings .* every input is a"):
+        _refuse_marker_options_for_angles(args, angles, _marker_options(args))
+    mixed = [*angles, ManifestEntry(file=tmp_path / "r.trc", subject="", posture="")]
+    _refuse_marker_options_for_angles(args, mixed, _marker_options(args))
+    plain = build_parser().parse_args(["preprocess", "a.mot", "--cutoff", "8", "--out", "o.npz"])
+    _refuse_marker_options_for_angles(plain, angles, _marker_options(plain))

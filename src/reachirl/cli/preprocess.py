@@ -24,7 +24,7 @@ from ..data.exports import is_export
 from ..data.markersets import load_markerset, parse_marker_map
 from ..data.pipeline import preprocess_entries
 from ..data.preprocess import PreprocessOptions
-from ..data.readers import FORMATS, ManifestEntry, read_manifest, read_subject_info
+from ..data.readers import FORMATS, ManifestEntry, detect_format, read_manifest, read_subject_info
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
@@ -335,6 +335,31 @@ def _check_npz_name(out: Path) -> None:
         raise InputError(f"--out: a trials file is NPZ, its name must end in .npz{csv}", out)
 
 
+def _marker_options(args) -> list[str]:
+    """The options given that only a marker recording reads (the joint centres, the plane, the IK)."""
+    d = PreprocessOptions()
+    given = [
+        f"--{n.replace('_', '-')}"
+        for n in ("markers", "markerset", "static", "up_axis", "forward_axis")
+        if getattr(args, n)
+    ]
+    return given + [f"--{n} {getattr(args, n)}" for n in ("plane", "ik", "distal") if getattr(args, n) != getattr(d, n)]
+
+
+def _refuse_marker_options_for_angles(args, entries: list[ManifestEntry], given: list[str]) -> None:
+    """Before any work: options that only a marker recording reads, given when every input is a joint-angle file
+    (MOT, CSV), would be left unused; refused, naming the first."""
+    if not given or not entries:
+        return
+    formats = {args.format if args.format != "auto" else detect_format(e.file) for e in entries}
+    if formats <= {"mot", "csv"}:
+        raise InputError(
+            f"{given[0]} applies to marker recordings (TRC, C3D, Vicon CSV), and every input is a joint-angle file "
+            "(MOT, CSV): it would be left unused",
+            entries[0].file,
+        )
+
+
 def _refuse_duplicate_ids(trials: list[Trial]) -> None:
     """Two recordings that make the same trial id (the same file name in two folders, or a file given twice)
     would make a trials file that every other command refuses: refused here, naming both."""
@@ -372,6 +397,7 @@ def _preprocess(args, options, out: Path, make_export) -> int:
     before the first change."""
     from ..validation import check_output_kind
 
+    marker_options = _marker_options(args)  # the user's own: a folder's truth.json may name markers below
     _folder_defaults(args)
     if args.manifest:
         entries = read_manifest(args.manifest)
@@ -394,6 +420,7 @@ def _preprocess(args, options, out: Path, make_export) -> int:
     for e in entries:  # so must a manifest row's static trial (it was ignored when the marker set needed none)
         if e.static is not None:
             regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
+    _refuse_marker_options_for_angles(args, entries, marker_options)
     inputs = _refuse_overwrite(args, out, entries)
     _check_npz_name(out)
     check_output_kind(out, ".npz", kind=TRIALS_KIND)
