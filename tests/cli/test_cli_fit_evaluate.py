@@ -363,3 +363,15 @@ def test_model_and_metrics_name_the_trials_file_alike(tiny_trials, tmp_path, mon
     assert main(["evaluate", "--model", "m.json", "link.npz", "--out", "metrics.json"]) == 0
     named = json.loads((tmp_path / "m.json").read_text())["info"]["trials"]
     assert named == json.loads((tmp_path / "metrics.json").read_text())["trials_file"] == str(real.resolve())
+
+
+@pytest.mark.parametrize("extra", [[], ["--uncertainty", "0"], ["--method", "kkt"]])
+def test_fit_refuses_a_seed_without_weight_samples(tmp_path, extra):
+    """--seed seeds --uncertainty's samples alone (the fit makes no random choice): given without them it changed
+    nothing, without a word."""
+    from reachirl.cli import build_parser, fit
+    from reachirl.errors import InputError
+
+    argv = ["fit", str(tmp_path / "t.npz"), "--sections", "2", "--seed", "3", *extra, "--out", str(tmp_path / "m.json")]
+    with pytest.raises(InputError, match=r"--seed seeds the weight samples of --uncertainty, which is not given"):
+        fit.run(build_parser().parse_args(argv))

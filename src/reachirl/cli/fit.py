@@ -95,9 +95,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "--seed",
         type=int_in(0, 2**32 - 1),
-        default=0,
+        default=None,
         metavar="N",
-        help="seed of the uncertainty's random samples (default 0)",
+        help="with --uncertainty: seed of the uncertainty's random samples (default 0)",
     )
     p.add_argument(
         "--config",
@@ -155,6 +155,11 @@ def run(args: argparse.Namespace) -> int:
     refuse_overwrite({"--out": args.out}, [args.trials, *([args.config] if args.config else [])])
     check_output_kind(args.out, ".json", kind=JSON_KINDS["fit"])
     experimental = _experimental(args.config, args.sections, args.seed_form)
+    if args.seed is not None and not args.uncertainty:  # the fit itself makes no random choice
+        raise InputError(
+            "--seed seeds the weight samples of --uncertainty, which is not given; the fit makes no random choice"
+        )
+    args.seed = 0 if args.seed is None else args.seed
     trials, chosen = chosen_trials(args, load_trials(args.trials))
     if args.sections > args.nodes:
         raise InputError(f"--sections must be between 1 and --nodes={args.nodes}, got {args.sections}")
