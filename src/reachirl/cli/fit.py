@@ -90,7 +90,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "as reproduce's) from "
         "the weights' posterior given the training trials (the merit's Gauss-Newton model at the fit and a broad "
         "prior: docs/method.md), and each window's cost-share intervals (MODEL.json 'uncertainty'; the fit then "
-        "takes 1.2-2.2x a plain fit's CPU time)",
+        "takes 1.2-2.3x a plain fit's CPU time)",
     )
     p.add_argument(
         "--seed",
