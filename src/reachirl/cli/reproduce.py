@@ -52,8 +52,7 @@ RUN_KEYS = {
     "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
     "data_seed": ("seed of the built-in data set, 0 to 1000000 (default 0); not with --data", "count"),
     "markers": (
-        "shoulder=A,elbow=B,wrist=C,fingertip=D for a marker folder, not a trials file (default: its truth.json's, "
-        "else the built-in marker sets)",
+        "shoulder=A,elbow=B,wrist=C,fingertip=D of a --data folder (default: its truth.json's, else the built-in sets)",
         "str",
     ),
     "max_units": (
@@ -195,8 +194,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=samples_or_none(20, 1000),
         default=None,
         metavar="K",
-        help="weight samples per main-table MO-IRL or MaxEnt fit (bilevel and kkt draw none), for its cost-share "
-        "intervals, 20 to 1000, or 0 for none (default 40)",
+        help="weight samples per main-table MO-IRL/MaxEnt fit, for its share intervals, 20-1000, 0: none (default 40)",
     )
     return p
 
