@@ -232,29 +232,26 @@ def test_bad_input_exit_2(tmp_path, reach, synth, capsys, case):
     assert not out.exists() and not list(tmp_path.glob(".out.npz*"))
 
 
-def test_a_subject_info_with_masses_in_grams_is_refused_in_one_line_naming_the_unit(tmp_path, synth, capsys):
+@pytest.mark.parametrize(
+    ("mass", "message"),
+    [
+        ("96000", "mass_kg 96000.0 is not a body mass in kg (10-300); in grams?"),
+        (  # 96 kg in pounds
+            "211.6",
+            "mass_kg 211.6 and height_m 1.702 give a body-mass index of 73.0 kg/m², not a person's (12-60); mass_kg "
+            "in pounds (96.0 kg)?",
+        ),
+    ],
+)
+def test_a_subject_info_with_a_mass_in_other_units_is_refused_in_one_line_naming_the_unit(
+    tmp_path, synth, capsys, mass, message
+):
     info = tmp_path / "subjects.csv"
-    info.write_text("subject,sex,height_m,mass_kg\nADL001,F,1.702,96000\n")
+    info.write_text(f"subject,sex,height_m,mass_kg\nADL001,F,1.702,{mass}\n")
     out = tmp_path / "o.npz"
     code, _, err = _run([synth.SAMPLE / "ADL001", "--subject-info", info, "--out", out], capsys)
     assert code == 2
-    assert err.strip().splitlines() == [
-        f"reachirl preprocess: error: {info}: line 2: subject ADL001: mass_kg 96000.0 is not a body mass in kg "
-        "(10-300); in grams?"
-    ]
-    assert not out.exists()
-
-
-def test_a_subject_info_with_a_mass_in_pounds_is_refused_in_one_line_naming_the_bmi(tmp_path, synth, capsys):
-    info = tmp_path / "subjects.csv"
-    info.write_text("subject,sex,height_m,mass_kg\nADL001,F,1.702,211.6\n")  # 96 kg in pounds
-    out = tmp_path / "o.npz"
-    code, _, err = _run([synth.SAMPLE / "ADL001", "--subject-info", info, "--out", out], capsys)
-    assert code == 2
-    assert err.strip().splitlines() == [
-        f"reachirl preprocess: error: {info}: line 2: subject ADL001: mass_kg 211.6 and height_m 1.702 give a "
-        "body-mass index of 73.0 kg/m², not a person's (12-60); mass_kg in pounds (96.0 kg)?"
-    ]
+    assert err.strip().splitlines() == [f"reachirl preprocess: error: {info}: line 2: subject ADL001: {message}"]
     assert not out.exists()
 
 
