@@ -31,8 +31,7 @@ import numpy as np
 from reachirl import FEATURES, MOIRL, ArmModel, ReachingTask, solve_doc
 from reachirl.doc.observation import observe
 from reachirl.features import cost_shares, windowed_features
-from reachirl.virtual import POSTURES, draw_subject, nominal_weights, posture_q
-from reachirl.virtual.population import BERRET_DURATIONS_S, MOVEMENT_FRACTION
+from reachirl.virtual import one_cost_trials
 
 POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-30.0, 110.0), (50.0, 80.0)]
 FEATURE_SCALE = np.array([0.6, 1.5, 0.3, 300.0, 3000.0, 3.0, 10.0])  # typical feature sizes of a reach
@@ -65,27 +64,6 @@ def population(seed: int, n_postures: int, n_reaches: int):
     return trials, w
 
 
-def paper_population(seed: int, n_reaches: int, jitter: bool, cut: bool):
-    """``(trials, true weights (8, 7))`` under the paper's 8-window cost, or None when a reach's DOC failed."""
-    rng = np.random.default_rng(seed)
-    arm = draw_subject(seed, 0).arm
-    threshold = 0.05 if cut else None
-    trials, ws = [], []
-    for p in POSTURES:
-        for k in range(n_reaches):
-            q0 = posture_q(p) + np.deg2rad(3.0) * rng.standard_normal(2)
-            q0[1] = max(q0[1], 0.0)  # a straight elbow at most
-            task = ReachingTask(arm, q0, 0.95 * arm.length, BERRET_DURATIONS_S[p][0] / MOVEMENT_FRACTION)
-            w = nominal_weights() * (np.exp(0.2 * rng.standard_normal((8, len(FEATURES)))) if jitter else 1.0)
-            sol = solve_doc(task, w)
-            if not sol.converged:
-                return None
-            trial = observe(sol, task, threshold, name=f"{p}T{k}")
-            trials.append(replace(trial, subject="V", posture=p, trial_id=f"{p}T{k}", onset_threshold=threshold))
-            ws.append(w)
-    return trials, np.mean(ws, axis=0)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
@@ -101,7 +79,12 @@ def main(argv: list[str] | None = None) -> int:
     n_windows = 8 if args.truth == "paper" else 1
     for seed in args.seeds:
         if args.truth == "paper":
-            made = paper_population(seed, args.reaches, args.jitter, args.cut)
+            try:
+                made = one_cost_trials(
+                    args.reaches, seed, jitter=0.2 if args.jitter else 0.0, threshold=0.05 if args.cut else None
+                )
+            except RuntimeError:
+                made = None
         else:
             made = population(seed, args.postures, args.reaches)
         if made is None:

@@ -82,7 +82,16 @@ from .population import (
     nominal_weights,
     posture_q,
 )
-from .recording import FORMATS, MARKERS, SynthConfig, SynthTrial, knot_trials, simulate_trial, to_opensim_axes
+from .recording import (
+    FORMATS,
+    MARKERS,
+    SynthConfig,
+    SynthTrial,
+    knot_trials,
+    one_cost_trials,
+    simulate_trial,
+    to_opensim_axes,
+)
 
 __all__ = [
     "BERRET_DURATIONS_S",
@@ -109,6 +118,7 @@ __all__ = [
     "human_likeness",
     "knot_trials",
     "nominal_weights",
+    "one_cost_trials",
     "plot_postures",
     "posture_q",
     "reach_metrics",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -16,6 +16,7 @@ from ..doc import ReachingTask, solve_doc
 from ..features import FEATURES
 from .population import (
     _MAX_RETRIES,
+    BERRET_DURATIONS_S,
     MOVEMENT_FRACTION,
     POSTURES,
     SynthSubject,
@@ -248,3 +249,39 @@ def knot_trials(
     )
     subject = draw_subject(seed, subject_index)
     return [simulate_trial(subject, posture, i, config).to_trial(subject.arm) for i in range(n_trials)]
+
+
+def one_cost_trials(
+    n_reaches: int,
+    seed: int = 0,
+    weights: np.ndarray | None = None,
+    jitter: float = 0.0,
+    threshold: float | None = None,
+    postures: tuple[str, ...] = POSTURES,
+) -> tuple[list[Trial], np.ndarray]:
+    """``(trials, true weights)``: ``n_reaches`` reaches from each of ``postures`` by the seed's first virtual
+    subject, each the DOC's own solution under one cost (default :func:`nominal_weights`, the paper's pattern), in
+    memory and without recording noise: the start jittered by 3°, the bar at 0.95 of the arm's length, Berret's
+    mean duration. ``jitter``: each reach's weights drawn around the cost (a log-normal factor of that SD), the
+    truth being their mean. ``threshold``: each reach cut where its fingertip speed crosses that fraction of its
+    peak, as a recording is (``Trial.onset_threshold``); ``None``: whole. A reach whose DOC fails raises
+    ``RuntimeError``. For benchmarks and tests of what the data can determine."""
+    from ..doc.observation import observe
+
+    rng = np.random.default_rng(seed)
+    arm = draw_subject(seed, 0).arm
+    cost = nominal_weights() if weights is None else np.asarray(weights, dtype=float)
+    trials, ws = [], []
+    for p in postures:
+        for k in range(n_reaches):
+            q0 = posture_q(p) + np.deg2rad(3.0) * rng.standard_normal(2)
+            q0[1] = max(q0[1], 0.0)  # a straight elbow at most
+            task = ReachingTask(arm, q0, 0.95 * arm.length, BERRET_DURATIONS_S[p][0] / MOVEMENT_FRACTION)
+            w = cost * np.exp(jitter * rng.standard_normal(cost.shape)) if jitter else cost
+            sol = solve_doc(task, w)
+            if not sol.converged:
+                raise RuntimeError(f"the DOC of reach {k + 1} from {p} did not converge")
+            trial = observe(sol, task, threshold, name=f"{p}T{k + 1}")
+            trials.append(replace(trial, subject="V", posture=p, trial_id=f"{p}T{k + 1}", onset_threshold=threshold))
+            ws.append(w)
+    return trials, np.mean(ws, axis=0)
