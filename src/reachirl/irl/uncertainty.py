@@ -72,9 +72,9 @@ feature that alone makes a window's cost, or plays no part in it, is a share the
 paper's own windows are dominated by one feature."""
 
 METHOD = (
-    "laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit "
-    "(likelihood scale: the merit rise the demonstrations can tell from noise) and a prior centred on equal "
-    "cost shares with a factor-250 standard deviation (no share the report prints ruled out)"
+    "laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit, "
+    "gradient included (likelihood scale: the merit rise the demonstrations can tell from noise) and a prior "
+    "centred on equal cost shares with a factor-250 standard deviation (no share the report prints ruled out)"
 )
 
 
