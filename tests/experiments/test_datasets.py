@@ -78,3 +78,21 @@ def test_options_of_the_built_in_data_or_of_recordings_are_refused_with_a_trials
     """`reproduce --data t.npz --data-seed 3` (or `--markers ...`) ran on the trials file, the option unused."""
     with pytest.raises(InputError, match=match):
         datasets.load(tmp_path / "t.npz", **kwargs)
+
+
+def test_markers_for_a_folder_of_joint_angle_files_are_refused_as_unused(tmp_path, capsys):
+    """A synth folder written as MOT (joint angles): --markers would be left unused, so it is refused naming the
+    manifest; the folder without it loads (truth.json's own marker names do not count as the user's)."""
+    from reachirl.cli import main
+    from reachirl.virtual import SynthConfig, generate
+
+    generate(tmp_path / "mot", SynthConfig(1, 1, postures=("P2",), fmt="mot", workers=1))
+    markers = "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"
+    with pytest.raises(InputError, match=r"manifest\.csv: --markers applies to marker recordings .* left unused"):
+        datasets.load(tmp_path / "mot", marker_map=markers)
+    assert len(datasets.load(tmp_path / "mot").trials) == 1
+    argv = ["reproduce", "--data", str(tmp_path / "mot"), "--markers", markers, "--out", str(tmp_path / "run")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "manifest.csv: --markers applies to marker recordings" in err[0], err
+    assert not (tmp_path / "run").exists()

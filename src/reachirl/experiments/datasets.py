@@ -105,11 +105,27 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
         markers = parse_marker_map(marker_map) if marker_map else None
         entries = [ManifestEntry(file=f, subject="", posture="") for f in files]
         return preprocess_entries(entries, subject_info=infos, markers=markers)
+    if marker_map is not None:
+        _refuse_markers_for_angles(manifest)
     if marker_map is None and (folder / "truth.json").is_file():
         m = (_read_truth(folder) or {}).get("markers")
         if isinstance(m, dict):
             marker_map = ",".join(f"{k}={v}" for k, v in m.items())
     return preprocess_manifest(manifest, info_path, parse_marker_map(marker_map) if marker_map else None)
+
+
+def _refuse_markers_for_angles(manifest: Path) -> None:
+    """``--markers`` names marker recordings' columns: given for a folder whose every recording is a joint-angle
+    file (MOT, CSV), it would be left unused; refused, naming the manifest (as ``preprocess`` refuses it)."""
+    from ..data.readers import detect_format, read_manifest
+
+    entries = read_manifest(manifest)
+    if entries and all(detect_format(e.file) in ("mot", "csv") for e in entries):
+        raise InputError(
+            "--markers applies to marker recordings (TRC, C3D, Vicon CSV), and every recording it lists is a "
+            "joint-angle file (MOT, CSV): it would be left unused",
+            manifest,
+        )
 
 
 def _read_truth(folder: Path) -> dict | None:
