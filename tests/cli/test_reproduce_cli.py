@@ -493,3 +493,17 @@ def test_a_second_run_into_a_folder_in_use_is_refused_before_it_changes_anything
     (out / ".table.csv.abcd1234.tmp").unlink()
     assert main(argv) == 0  # the killed holder's lock went with it
     _same_table(out, reference_run)
+
+
+def test_virtual_subjects_without_the_truths_section_count_say_why_nothing_is_compared(trials_file, tmp_path):
+    """`synth --truth cost.csv` of 4 rows, then `reproduce` at its default 1 6 8 sections: the report had no
+    learned-vs-true section and no weights_vs_truth.png, and said nowhere why. Now it says which section count the
+    comparison needs."""
+    out = tmp_path / "out"
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", "--quick"]
+    assert main([*argv, "--sections", "1", "--max-iter", "1", "--no-progress"]) == 0
+    report = (out / "report.md").read_text()
+    assert not (out / "figures" / "weights_vs_truth.png").exists()
+    section = report.split("## Virtual subjects: learned vs true weights", 1)[1].split("\n## ", 1)[0]
+    assert "the true cost (truth.json) has 8 windows and this run's section counts are 1" in section, section
+    assert "`--sections 8`" in section

@@ -755,6 +755,24 @@ def protocol_line(config: ProtocolConfig, train_subject: str, postures: Sequence
     )
 
 
+def _no_truth_comparison(truth: dict, sections: Sequence[int]) -> str:
+    """Why a run on virtual subjects has no learned-vs-true comparison (nor ``weights_vs_truth.png``): the true cost
+    is compared only with fits of as many sections as it has windows."""
+    n_true = int(truth.get("n_windows", 0) or 0)
+    run_sections = ", ".join(str(n) for n in sorted(sections))
+    if n_true and n_true not in sections:
+        return (
+            f"Not compared: the true cost (truth.json) has {n_true} window{'s' if n_true != 1 else ''} and this "
+            f"run's section counts are {run_sections}; the learned and true shares are compared window by window, "
+            f"so rerun with `--sections {n_true}` among them for this comparison, `weights_vs_truth.png` and the "
+            "truth's shares inside the intervals."
+        )
+    return (
+        "Not compared: no fit of this run's first method could be set beside the true weights (truth.json has none "
+        "for its training trials, or their shape is not the fit's)."
+    )
+
+
 def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, comparisons, extra_md=()) -> str:
     dataset, config, postures = run.dataset, run.config, run.postures
     train_subject, split_sizes, timing, run_info = run.train_subject, run.split_sizes, run.timing, run.run_info
@@ -893,6 +911,8 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
             f"({ends_determined_words(run.results, main, truth_metrics)}).",
             "",
         ]
+    elif virtual:  # said, not left out: a reader of virtual subjects looks for the truth here
+        lines += ["## Virtual subjects: learned vs true weights", "", _no_truth_comparison(dataset.truth, sections), ""]
     lines += list(extra_md)
     lines += [
         "## Run",
