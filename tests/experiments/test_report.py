@@ -409,3 +409,30 @@ def test_the_fits_warnings_reach_the_report_notes_with_the_units_they_came_from(
 )
 def test_the_protocol_line_names_the_arm_the_training_takes(options, said):
     assert said in protocol_line(ProtocolConfig(**options), "S1", ["P2"])
+
+
+def test_the_cost_section_counts_as_undetermined_what_it_says_it_counts():
+    """'shares undetermined' counted the narrow shares whose interval misses the fit's own share (as `fit`, the
+    figures and docs/usage.md say), but the report's text defined it as the intervals wider than 0.25 alone: a
+    reader seeing every interval narrow and "50 %" could not tell why."""
+    from types import SimpleNamespace
+
+    from reachirl.experiments.cost import cost_section
+
+    low, high = np.zeros((1, 7)), np.full((1, 7), 0.2)  # every interval narrow
+    determined = np.ones((1, 7), bool)
+    determined[0, :3] = False  # three of them miss the fit's share (a 7-feature window: 43 %)
+    unc = {
+        "determination": {"n_determined": 0, "n_directions": 7, "determined": []},
+        "share_intervals": {"low": low.tolist(), "high": high.tolist(), "determined": determined.tolist()},
+        "prior": {"mean_width": 0.99, "claim_fraction": None},
+        "claim": {"verdict": "not applicable", "fraction": None},
+        "checked": {"solved": 10, "indistinguishable": 0},
+    }
+    run = SimpleNamespace(
+        results={"moirl-P1-s1": {"key": "moirl-P1-s1", "unit": {"posture": "P1"}, "uncertainty": unc}}
+    )
+    lines = cost_section(run)
+    (row,) = [line for line in lines if line.startswith("| moirl-P1-s1 |")]
+    assert "| 43 % |" in row
+    assert "wider than 0.25 or does not contain the fit's own share (undetermined" in " ".join(lines)
