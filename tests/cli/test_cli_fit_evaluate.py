@@ -375,3 +375,17 @@ def test_fit_refuses_a_seed_without_weight_samples(tmp_path, extra):
     argv = ["fit", str(tmp_path / "t.npz"), "--sections", "2", "--seed", "3", *extra, "--out", str(tmp_path / "m.json")]
     with pytest.raises(InputError, match=r"--seed seeds the weight samples of --uncertainty, which is not given"):
         fit.run(build_parser().parse_args(argv))
+
+
+def test_fits_pooling_line_gives_one_width_when_the_tasks_alone_agree():
+    """`fit --posture P1 P2 --uncertainty` said "mean share-interval width 0.81 against 0.82-0.82 from each task
+    alone": a range of one number. Now one number; a range where the tasks differ."""
+    from reachirl.cli.fit import _pooling_words
+
+    def pooling(*alone):
+        per_task = {f"S01/P{i + 1}": {"mean_width": w} for i, w in enumerate(alone)}
+        return {"pooled": {"mean_width": 0.8076}, "per_task": per_task}
+
+    said = _pooling_words(pooling(0.8238, 0.8230))
+    assert said == "pooling 2 tasks: mean share-interval width 0.81 against 0.82 from each task alone", said
+    assert _pooling_words(pooling(0.91, 0.94)).endswith("against 0.91-0.94 from each task alone")

@@ -231,12 +231,7 @@ def run(args: argparse.Namespace) -> int:
         elif claim.get("reason"):  # said, not left out: a reader looks for the claim here
             extra += f"; the paper's claim: {claim['verdict']} ({claim['reason']})"
         if unc.get("pooling"):
-            alone = [v["mean_width"] for v in unc["pooling"]["per_task"].values()]
-            pooled = unc["pooling"]["pooled"]["mean_width"]
-            extra += (
-                f"; pooling {len(alone)} tasks: mean share-interval width {pooled:.2f} against "
-                f"{min(alone):.2f}-{max(alone):.2f} from each task alone"
-            )
+            extra += f"; {_pooling_words(unc['pooling'])}"
     form = ""
     if args.seed_form:  # an [experimental] table may still change the paper's method: then it is not as written
         n_dep = len(info.get("departures") or ())
@@ -249,6 +244,19 @@ def run(args: argparse.Namespace) -> int:
         + extra
     )
     return 0
+
+
+def _pooling_words(pooling: dict) -> str:
+    """``uncertainty.pooling`` in words: the pooled mean share-interval width against each task's alone, their
+    range given as one number when it rounds to one ("0.82", not "0.82-0.82")."""
+    alone = [v["mean_width"] for v in pooling["per_task"].values() if v.get("mean_width") is not None]
+    pooled = pooling["pooled"]["mean_width"]
+    words = f"pooling {len(pooling['per_task'])} tasks: mean share-interval width "
+    words += "-" if pooled is None else f"{pooled:.2f}"
+    if not alone:
+        return words
+    lo, hi = f"{min(alone):.2f}", f"{max(alone):.2f}"
+    return words + f" against {lo if lo == hi else f'{lo}-{hi}'} from each task alone"
 
 
 def _iterations(info: dict) -> str:
