@@ -708,3 +708,19 @@ def test_an_option_of_a_skipped_analysis_is_refused_not_ignored(extra, match):
     args = parse(["sensitivity", "run", "--out", "o", extra[0]])
     _check_analysis_options(args)
     assert (args.percent, args.seed) == (10.0, 0)
+
+
+def test_the_collinear_pairs_say_when_they_are_the_first_few_of_more():
+    """sensitivity.md listed the 4 pairs of nearly collinear effects found in most windows as if they were all of
+    them (16 pair-windows, 12 pairs in identifiability.json on the quick run's P2). Now it says how many there are
+    and where; a list that is whole says nothing more."""
+    from reachirl.experiments.sensitivity_outputs import _effects
+
+    pairs = [("a", "b"), ("a", "c"), ("b", "c"), ("c", "d"), ("d", "e"), ("e", "f")]
+    items = [{"window": w, "features": list(f), "cos": 0.95} for f in pairs for w in (1, 2)]
+    said = _effects(items)
+    assert said.count("–") == 4
+    assert "these are the 4 in most windows of 6 such pairs (12 with their windows" in said, said
+    assert "identifiability.json" in said
+    whole = _effects(items[:4])
+    assert whole == "a–b (windows 1, 2), a–c (windows 1, 2)", whole

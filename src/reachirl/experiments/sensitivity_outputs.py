@@ -262,7 +262,13 @@ def _effects(items: list[dict]) -> str:
     for e in items:
         count.setdefault(tuple(e["features"]), []).append(e["window"])
     top = sorted(count.items(), key=lambda kv: -len(kv[1]))[:4]
-    return ", ".join(f"{a}–{b} (window{'s' if len(w) > 1 else ''} {', '.join(map(str, w))})" for (a, b), w in top)
+    said = ", ".join(f"{a}–{b} (window{'s' if len(w) > 1 else ''} {', '.join(map(str, w))})" for (a, b), w in top)
+    if len(count) > len(top):  # said, not left out silently: the reader would take these for all of them
+        said += (
+            f"; these are the {len(top)} in most windows of {len(count)} such pairs ({len(items)} with their "
+            "windows: every one in identifiability.json's `effect_collinearity`)"
+        )
+    return said
 
 
 def _ci(r, s) -> str:
