@@ -436,3 +436,17 @@ def test_the_cost_section_counts_as_undetermined_what_it_says_it_counts():
     (row,) = [line for line in lines if line.startswith("| moirl-P1-s1 |")]
     assert "| 43 % |" in row
     assert "wider than 0.25 or does not contain the fit's own share (undetermined" in " ".join(lines)
+
+
+def test_a_run_without_weight_samples_says_nothing_is_hatched():
+    """`reproduce --uncertainty 0`: fig3's caption in report.md said "Hatched: undetermined ..." over a figure
+    with no hatching, and the figure sent the reader to `fit --uncertainty`, not the command that drew it."""
+    from reachirl.experiments import figures as fg
+
+    shares = {("P1", 1): np.full((1, 7), 1 / 7), ("P1", 8): np.full((8, 7), 1 / 7)}
+    caption = weights_caption(shares, {})
+    assert "Hatched" not in caption and "Nothing is hatched: no fit has weight samples" in caption, caption
+    assert "Hatched: undetermined" in weights_caption(
+        shares, {k: _intervals(v, np.ones_like(v)) for k, v in shares.items()}
+    )
+    assert "fit or reproduce" in fg.NO_SAMPLES and "nothing is hatched" in fg.NO_SAMPLES

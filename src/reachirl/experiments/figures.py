@@ -55,7 +55,9 @@ CAVEAT = (
     "Learned weights are one cost among several that explain the reaches; shares on the fit's own reach; hatched: "
     "undetermined (95 % interval of the share wider than 0.25, or missing the fit's share), not a finding."
 )
-NO_SAMPLES = "No weight samples (fit --uncertainty): no share here is a finding."
+NO_SAMPLES = (
+    "No weight samples (--uncertainty of fit or reproduce): nothing is hatched, and no share here is a finding."
+)
 PANEL_NO_SAMPLES = "no weight samples:\nnot a finding"
 TRUTH_CAVEAT = (
     "Learned weights are one cost among several that explain the reaches; both rows' shares on {on}; hatched: "

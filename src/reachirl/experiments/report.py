@@ -320,10 +320,14 @@ def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str
         if on_reach
         else "on the training demonstrations (ω·Φ*, normalised per window)"
     )
+    hatched = (
+        "Hatched: undetermined (interval wider than 0.25, or not containing the fit's share), not a finding. "
+        if intervals
+        else "Nothing is hatched: no fit has weight samples (`--uncertainty`), so no share is a finding. "
+    )
     return (
         "Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown as the "
-        f"feature's share of its window's cost {base}. Hatched: undetermined (interval wider than 0.25, or not "
-        "containing the fit's share), not a finding. " + ". ".join(rows) + "."
+        f"feature's share of its window's cost {base}. " + hatched + ". ".join(rows) + "."
     )
 
 
