@@ -450,3 +450,44 @@ def test_numpy_scalars_stand_for_the_python_values_they_hold(recorded, tmp_path)
             MOIRL(1, n_nodes=20, max_iter=bad).fit(trials)
     with pytest.raises(ValueError, match=r"max_tries must be an integer, not a boolean \(got True\)"):
         MOIRL(1, n_nodes=20, experimental={"max_tries": np.True_}).fit(trials)
+
+
+def test_a_claim_verdict_the_prior_alone_gives_is_said_to_be_no_finding():
+    """`fit --sections 40 --uncertainty` on UE-ADL's ADL001: 0 of 280 directions determined, yet "the paper's claim
+    ...: contradicted (2 % of the posterior; 2 % under the prior alone)", and the report's "contradicted (2 % of
+    draws; 2 %)": with many windows the prior alone contradicts the claim, and the verdict read as the data's. Now
+    the summary and the report say it is the prior's verdict, not a finding; an undetermined one, or one the prior
+    alone does not give, reads as before."""
+    from types import SimpleNamespace
+
+    from reachirl.cli.fit import _claim_words
+    from reachirl.experiments.cost import cost_section
+    from reachirl.irl.uncertainty import prior_gives_verdict
+
+    contradicted = {"verdict": "contradicted", "fraction": 0.02225, "n_samples": 4000, "reason": None}
+    prior = {"mean_width": 0.985, "claim_fraction": 0.02475}
+    assert prior_gives_verdict(contradicted, prior)
+    assert not prior_gives_verdict(contradicted, {"claim_fraction": 0.07})  # the data's own verdict
+    assert not prior_gives_verdict({"verdict": "undetermined", "fraction": 0.02}, {"claim_fraction": 0.01})
+    assert prior_gives_verdict({"verdict": "supported", "fraction": 0.99}, {"claim_fraction": 0.98})
+    words = _claim_words(contradicted, prior)
+    assert words.endswith(
+        "contradicted (2 % of the posterior; 2 % under the prior alone, which gives the same verdict without the "
+        "data: not a finding)"
+    ), words
+    assert _claim_words({**contradicted, "verdict": "undetermined", "fraction": 0.07}, prior).endswith(
+        "undetermined (7 % of the posterior; 2 % under the prior alone)"
+    )
+    unc = {
+        "determination": {"n_determined": 0, "n_directions": 280, "determined": []},
+        "share_intervals": {"low": np.zeros((40, 7)).tolist(), "high": np.ones((40, 7)).tolist()},
+        "prior": prior,
+        "claim": contradicted,
+        "checked": {"solved": 10, "indistinguishable": 0},
+    }
+    unc["share_intervals"]["determined"] = np.zeros((40, 7), bool).tolist()
+    run = SimpleNamespace(
+        results={"moirl-forward-s40": {"key": "moirl-forward-s40", "unit": {"posture": "forward"}, "uncertainty": unc}}
+    )
+    (row,) = [line for line in cost_section(run) if line.startswith("| moirl-forward-s40 |")]
+    assert "| contradicted (2 % of draws; 2 %; the prior's verdict too, not a finding) |" in row, row

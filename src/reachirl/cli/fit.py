@@ -13,7 +13,7 @@ from ..data.trial import load_trials
 from ..errors import InputError
 from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
-from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width
+from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width, prior_gives_verdict
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
 from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite, samples_or_none
 
@@ -221,15 +221,7 @@ def run(args: argparse.Namespace) -> int:
             f"(95 % interval wider than {UNDETERMINED_WIDTH} or not containing the fit's own share; mean width "
             f"{'-' if width is None else f'{width:.2f}'}{alone('mean_width', lambda v: f'{v:.2f}')})"
         )
-        claim = unc.get("claim") or {}
-        if claim.get("fraction") is not None:
-            percent = alone("claim_fraction", lambda v: f"{100 * v:.0f} %")
-            extra += (
-                f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
-                f"({100 * claim['fraction']:.0f} % of the posterior{percent})"
-            )
-        elif claim.get("reason"):  # said, not left out: a reader looks for the claim here
-            extra += f"; the paper's claim: {claim['verdict']} ({claim['reason']})"
+        extra += _claim_words(unc.get("claim") or {}, prior)
         if unc.get("pooling"):
             extra += f"; {_pooling_words(unc['pooling'])}"
     form = ""
@@ -244,6 +236,27 @@ def run(args: argparse.Namespace) -> int:
         + extra
     )
     return 0
+
+
+def _claim_words(claim: dict, prior: dict) -> str:
+    """The summary's words on the paper's claim: its verdict and fraction of the posterior, beside the prior's
+    fraction alone; where the prior alone gives the same verdict, that it is not a finding. Nothing without a claim
+    record (a model written before it); its reason where the claim does not apply."""
+    if claim.get("fraction") is not None:
+        percent = (
+            ""
+            if prior.get("claim_fraction") is None
+            else f"; {100 * prior['claim_fraction']:.0f} % under the prior alone"
+        )
+        if prior_gives_verdict(claim, prior):  # the verdict is the prior's: said, so it is not quoted as the data's
+            percent += ", which gives the same verdict without the data: not a finding"
+        return (
+            f"; the paper's claim (joint acceleration's share higher at onset and end): {claim['verdict']} "
+            f"({100 * claim['fraction']:.0f} % of the posterior{percent})"
+        )
+    if claim.get("reason"):  # said, not left out: a reader looks for the claim here
+        return f"; the paper's claim: {claim['verdict']} ({claim['reason']})"
+    return ""
 
 
 def _pooling_words(pooling: dict) -> str:

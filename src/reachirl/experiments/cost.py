@@ -11,7 +11,7 @@ import numpy as np
 
 from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
-from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict, mean_width
+from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict, mean_width, prior_gives_verdict
 
 __all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
 
@@ -98,7 +98,8 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         f"{UNDETERMINED_WIDTH} or does not contain the fit's own share (undetermined, not a finding; the figures "
         "hatch them); and the paper's claim, joint acceleration's share "
         "higher at onset and end than mid-reach, over the posterior's draws (supported in at least 97.5 % of them, "
-        "contradicted in at most 2.5 %, undetermined otherwise). The samples are the Gauss-Newton posterior "
+        "contradicted in at most 2.5 %, undetermined otherwise; a verdict the prior alone gives too is said to be "
+        "the prior's, not a finding). The samples are the Gauss-Newton posterior "
         f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around equal shares, wide enough to "
         "rule out no share (`docs/method.md`). Beside each fit's mean interval width and claim fraction, the same "
         "under the prior alone, without the data: where they are close, the intervals are the prior's and the "
@@ -137,7 +138,9 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
         frac = "" if claim["fraction"] is None else f" ({100 * claim['fraction']:.0f} % of draws"
         if frac:
             p0 = prior.get("claim_fraction")
-            frac += ")" if p0 is None else f"; {100 * p0:.0f} %)"
+            frac += "" if p0 is None else f"; {100 * p0:.0f} %"
+            # the prior alone gives the verdict too (many windows: 'contradicted' with nothing determined)
+            frac += "; the prior's verdict too, not a finding)" if prior_gives_verdict(claim, prior) else ")"
         w0 = prior.get("mean_width")
         top = det["determined"][0] if det["determined"] else "none"
         row = (

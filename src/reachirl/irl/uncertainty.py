@@ -48,6 +48,7 @@ __all__ = [
     "laplace_posterior",
     "mean_width",
     "merit_noise",
+    "prior_gives_verdict",
     "residuals_and_jacobian",
     "rollout_errors",
     "share_intervals",
@@ -371,6 +372,17 @@ def claim_verdict(share_samples: np.ndarray, free: np.ndarray | None = None) -> 
     frac = float(holds.mean())
     verdict = "supported" if frac >= 0.975 else "contradicted" if frac <= 0.025 else "undetermined"
     return {"verdict": verdict, "fraction": frac, "n_samples": int(sh.shape[0]), "reason": None}
+
+
+def prior_gives_verdict(claim: dict, prior: dict | None) -> bool:
+    """Whether the prior alone, without the data, gives the claim's verdict too (``supported`` or
+    ``contradicted``; its ``claim_fraction`` past the same 97.5 % or 2.5 %): then the verdict is the prior's, not
+    a finding of the data. With many windows the prior alone makes joint acceleration's share at both onset and end
+    rarely exceed its mean over the others, and the claim then reads *contradicted* with nothing determined."""
+    p0 = (prior or {}).get("claim_fraction")
+    if p0 is None or claim.get("fraction") is None:
+        return False
+    return claim.get("verdict") == ("supported" if p0 >= 0.975 else "contradicted" if p0 <= 0.025 else None)
 
 
 def _width_record(det: Determination, intervals: dict) -> dict:
