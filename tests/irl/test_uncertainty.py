@@ -491,3 +491,17 @@ def test_a_claim_verdict_the_prior_alone_gives_is_said_to_be_no_finding():
     )
     (row,) = [line for line in cost_section(run) if line.startswith("| moirl-forward-s40 |")]
     assert "| contradicted (2 % of draws; 2 %; the prior's verdict too, not a finding) |" in row, row
+
+
+def test_weight_samples_from_one_demonstration_warn_that_their_noise_is_a_stand_in(recorded):
+    """`fit` on a single reach with --uncertainty said "4 of 56 weight directions determined by the trials" (more
+    than five reaches of the same arm determine) and nothing else: with one demonstration there is no spread to
+    measure δm from, and it is the merit itself. Now the fit warns; two demonstrations do not."""
+    from reachirl.irl.moirl import ONE_DEMO_SAMPLES
+
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
+    one = MOIRL(3, n_nodes=40, max_iter=2, uncertainty=20).fit(trials[:1])
+    assert one.uncertainty_ is not None and ONE_DEMO_SAMPLES in one.warnings_
+    two = MOIRL(3, n_nodes=40, max_iter=2, uncertainty=20).fit(trials[:2])
+    assert ONE_DEMO_SAMPLES not in two.warnings_
+    assert ONE_DEMO_SAMPLES not in MOIRL(3, n_nodes=40, max_iter=2).fit(trials[:1]).warnings_

@@ -75,6 +75,14 @@ merits ~2e-5 apart), so that solver noise is not taken for progress."""
 SMOOTHNESS_GRID = (0.0, 0.03, 0.3, 3.0)
 """Candidate ``λ`` of ``smoothness="cv"`` (per demonstration; ``λ → ∞`` would tie the windows into one)."""
 
+ONE_DEMO_SAMPLES = (
+    "weight samples from one demonstration: with no second one to measure the trial-to-trial spread, the merit "
+    "rise the data can tell from noise is taken as the fit's merit itself, so the determined directions and the "
+    "intervals rest on that stand-in, not on measured noise"
+)
+"""The warning of a fit with weight samples from a single demonstration (:func:`reachirl.irl.uncertainty.merit_noise`
+has no spread to measure then)."""
+
 log = logging.getLogger(__name__)
 
 
@@ -481,6 +489,8 @@ class MOIRL(WeightEstimator):
                 self.uncertainty_ = weight_uncertainty(self, trials, n_samples, self.random_state)
             except ValueError as e:  # an unconverged or degenerate rollout has no sensitivity
                 msgs.append(f"no weight samples: {e}")
+            if self.uncertainty_ is not None and len(trials) < 2:
+                msgs.append(ONE_DEMO_SAMPLES)
         for msg in filter(None, msgs):
             self.warnings_ = [*self.warnings_, msg]
             log_fit_warning(log, msg)
