@@ -499,6 +499,11 @@ def test_a_truth_of_the_user_s_generates_the_reaches_and_is_what_truth_json_says
         ([[1, 0, 0, 0, 0, 0, 0], [0] * 7], list(FEATURES), "window 2 weighs no feature"),
         ([], list(FEATURES), r"1 to 20 windows × 7 features, got shape \(0, 7\)"),
         ([[1] * 7] * 21, list(FEATURES), r"got shape \(21, 7\)"),
+        # the window column was ignored: window 2's row first made it window 1's cost, silently
+        ([[2, 0, 0, 0, 1, 0, 0, 0], [1, 1, 0, 0, 0, 0, 0, 0]], None, "row 2: window '2' where 1 was expected"),
+        ([[0, 0, 0, 0, 1, 0, 0, 0]], None, "row 2: window '0' where 1 was expected"),
+        ([["one", 0, 0, 0, 1, 0, 0, 0]], None, "row 2: window 'one' where 1 was expected"),
+        ([[1, 0, 0, 0, 1, 0, 0, 0], [3, 1, 0, 0, 0, 0, 0, 0]], None, "row 3: window '3' where 2 was expected"),
     ],
 )
 def test_a_truth_file_that_is_not_a_cost_is_refused_naming_it(tmp_path, capsys, rows, header, message):
@@ -528,3 +533,11 @@ def test_the_paper_s_pattern_keeps_its_cached_data_set():
     same = synth.SynthConfig(seed=3, relative_importance=synth.RELATIVE_IMPORTANCE)
     other = synth.SynthConfig(seed=3, relative_importance=synth.RELATIVE_IMPORTANCE[::-1])
     assert _cache_key(base) == _cache_key(same) != _cache_key(other)
+
+
+def test_a_truth_file_with_its_windows_numbered_in_order_is_read_in_that_order(tmp_path):
+    from reachirl.virtual.files import read_relative_importance
+
+    rows = [[1.0, 1, 0, 0, 0, 0, 0, 0], ["2", 0, 0, 0, 1, 0, 0, 0]]
+    ri = read_relative_importance(_truth_csv(tmp_path / "t.csv", rows))
+    assert np.argmax(ri[0]) == 0 and np.argmax(ri[1]) == FEATURES.index("joint_acceleration")

@@ -293,6 +293,13 @@ def _truth(config, subjects, trials, failures, hl) -> dict:
     }
 
 
+def _number(cell: str) -> float | None:
+    try:
+        return float(cell)
+    except ValueError:
+        return None
+
+
 def read_relative_importance(path: str | Path) -> tuple[tuple[float, ...], ...]:
     """A true cost for :class:`SynthConfig` from a CSV: a header naming the 7 features (any order, each once;
     an optional first column ``window``), then one row per time window, each feature's relative importance in
@@ -329,6 +336,12 @@ def read_relative_importance(path: str | Path) -> tuple[tuple[float, ...], ...]:
             by_name = dict(zip(cols, (float(c) for c in r[skip:]), strict=True))
         except ValueError:
             raise InputError(f"row {line}: expected numbers, found {','.join(r)[:60]!r}", p) from None
+        if skip and _number(r[0]) != len(values) + 1:  # the rows are taken in order: a window out of it
+            raise InputError(  # would land in another window's place, silently
+                f"row {line}: window {r[0].strip()!r} where {len(values) + 1} was expected (the windows numbered "
+                "1, 2, ... in order, one row each)",
+                p,
+            )
         values.append([by_name[f] for f in FEATURES])
     try:
         return check_relative_importance(values if values else np.zeros((0, len(FEATURES))))
