@@ -450,3 +450,20 @@ def test_a_run_without_weight_samples_says_nothing_is_hatched():
         shares, {k: _intervals(v, np.ones_like(v)) for k, v in shares.items()}
     )
     assert "fit or reproduce" in fg.NO_SAMPLES and "nothing is hatched" in fg.NO_SAMPLES
+
+
+def test_the_methods_figure_says_what_its_bars_and_error_bars_are():
+    """methods.png had ticks "Training 8" (8 what?) and error bars no caption or axis explained."""
+    from reachirl.experiments import figures as fg
+
+    cell = {"mean": 4.0, "std": 1.0}
+    heads = {m: {s: {8: cell} for s in ("train", "cv", "iscv")} for m in ("moirl", "maxent")}
+    fig = fg.plot_methods(heads, [8])
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["Training · 8 sec.", "CV · 8 sec.", "ISCV · 8 sec."]
+    assert "mean ± SD" in ax.get_ylabel()
+    import inspect
+
+    from reachirl.experiments import report
+
+    assert "bars the mean, error bars ± the SD " in inspect.getsource(report.figure_jobs)

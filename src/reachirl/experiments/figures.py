@@ -440,7 +440,7 @@ def plot_methods(headlines: dict, sections: Sequence[int], ax=None, title: str =
     else:
         fig = ax.figure
     methods = list(headlines)
-    labels = [f"{SET_LABELS[s]} {n}" for s in SETS for n in sections]
+    labels = [f"{SET_LABELS[s]} · {n} sec." for s in SETS for n in sections]  # as the tables' columns
     x = np.arange(len(labels))
     width = 0.8 / max(1, len(methods))
     for k, m in enumerate(methods):
@@ -449,7 +449,7 @@ def plot_methods(headlines: dict, sections: Sequence[int], ax=None, title: str =
         ax.bar(x + (k - (len(methods) - 1) / 2) * width, means, width, yerr=sds, capsize=2, label=m)
     ax.set_xticks(x)
     ax.set_xticklabels(labels, rotation=45, ha="right", fontsize=8)
-    ax.set_ylabel("RMSE of q (deg), ALL postures")
+    ax.set_ylabel("RMSE of q (deg), ALL postures\n(mean ± SD of the tables' ALL row)", fontsize=9)
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3, axis="y")
     ax.set_title(title or "Methods compared")

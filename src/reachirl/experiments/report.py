@@ -496,7 +496,10 @@ def figure_jobs(
     if len(methods) > 1:
         heads = {m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS} for m in methods}
         jobs["methods.png"] = _job("plot_methods", fig_dir, "methods.png", pdf, headlines=heads, sections=sections)
-        figs["methods.png"] = {"caption": "ALL-postures RMSE of q per method, set and section count."}
+        figs["methods.png"] = {
+            "caption": "ALL-postures RMSE of q per method, set and section count: bars the mean, error bars ± the SD "
+            "of the table's ALL row (its convention: over the postures' means, or a single posture's trials)."
+        }
     return [jobs[n] for n in _DRAW_ORDER if n in jobs], figs
 
 
