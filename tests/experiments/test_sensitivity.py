@@ -724,3 +724,28 @@ def test_the_collinear_pairs_say_when_they_are_the_first_few_of_more():
     assert "identifiability.json" in said
     whole = _effects(items[:4])
     assert whole == "a–b (windows 1, 2), a–c (windows 1, 2)", whole
+
+
+def test_the_sensitivity_figure_names_its_percentage_and_says_when_it_has_no_intervals():
+    """sensitivity_<posture>.png titled its panel "path change under ±x % of each weight" (the x never given),
+    and its occlusion bars had no whiskers with fewer than 5 trials per set, as if the intervals were too narrow
+    to draw (the quick run's 3/3/3 trials)."""
+    from reachirl.experiments.sensitivity_outputs import plot_sensitivity
+
+    none = {f"{s}_{k}": None for s in ("train", "cv", "iscv") for k in ("ci_lo", "ci_hi")}
+    rows = [
+        {"posture": "P2", "analysis": "sensitivity", "window": str(w), "feature": f, "path_change_deg": 0.1 * w}
+        for w in (1, 2)
+        for f in FEATURES
+    ] + [
+        {"posture": "P2", "analysis": "occlude_feature", "feature": f, "window": "all", **none}
+        | {"train_delta_deg": 0.1, "cv_delta_deg": 0.2, "iscv_delta_deg": -0.1}
+        for f in FEATURES
+    ]
+    fig = plot_sensitivity(rows, "P2", percent=10.0)
+    titles = [ax.get_title() for ax in fig.axes]
+    assert "sensitivity: path change under ±10 % of each weight (deg)" in titles, titles
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert "no 95 % intervals: fewer than 5 trials in every set" in texts, texts
+    with_ci = [r | {"cv_ci_lo": 0.1, "cv_ci_hi": 0.3} if r["analysis"] == "occlude_feature" else r for r in rows]
+    assert not [t for ax in plot_sensitivity(with_ci, "P2").axes for t in ax.texts]

@@ -28,10 +28,10 @@ def to_csv(rows: Sequence[dict]) -> str:
     return "\n".join([",".join(COLUMNS), *(",".join(_fmt(r[c]) for c in COLUMNS) for r in rows)]) + "\n"
 
 
-def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str = ""):
+def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str = "", percent: float | None = None):
     """Three panels for ``posture``: occlusion of each feature and freezing of each window (RMSE change on the
-    held-out set with its 95 % interval, and on the training set), and the path change under ±x % of each
-    weight (window × feature)."""
+    held-out set with its 95 % interval, and on the training set), and the path change under ±``percent`` % of
+    each weight (window × feature; the title names the percentage when given)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -57,12 +57,14 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
             ax.set_axis_off()
             continue
         x = np.arange(len(rs))
+        has_ci = False
         for k, (s, c) in enumerate((("train", "tab:gray"), ("cv", "tab:blue"), ("iscv", "tab:orange"))):
             m = np.array([np.nan if r[f"{s}_delta_deg"] is None else r[f"{s}_delta_deg"] for r in rs], float)
             if not np.isfinite(m).any():
                 continue
             lo = np.array([r[f"{s}_ci_lo"] for r in rs], float)
             hi = np.array([r[f"{s}_ci_hi"] for r in rs], float)
+            has_ci |= bool(np.isfinite(lo).any())
             ax.bar(
                 x + (k - 1) * 0.27,
                 m,
@@ -85,6 +87,15 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         ax.set_ylabel("RMSE change of q (deg), refit − full fit")
         ax.set_title(f"occlusion: {label}", fontsize=9)
         ax.legend(fontsize=7)
+        if not has_ci:  # bars without whiskers would read as intervals too narrow to draw
+            ax.text(
+                0.02,
+                0.02,
+                "no 95 % intervals: fewer than 5 trials in every set",
+                transform=ax.transAxes,
+                fontsize=7,
+                va="bottom",
+            )
     rs = [r for r in sel if r["analysis"] == "sensitivity"]
     ax = panel.get("sensitivity")
     if rs and ax is not None:
@@ -100,7 +111,8 @@ def plot_sensitivity(rows: Sequence[dict], posture: str, axes=None, title: str =
         ax.set_yticklabels([SHORT[f] for f in FEATURES], fontsize=8)
         ax.set_xticks(range(1, n_w + 1))
         ax.set_xlabel("window")
-        ax.set_title("sensitivity: path change under ±x % of each weight (deg)", fontsize=9)
+        x_pc = "x" if percent is None else f"{percent:g}"
+        ax.set_title(f"sensitivity: path change under ±{x_pc} % of each weight (deg)", fontsize=9)
         fig.colorbar(im, ax=ax, shrink=0.8)
     elif ax is not None:
         ax.set_axis_off()
@@ -326,7 +338,10 @@ def write_sensitivity(out: dict, out_dir: str | Path) -> list[Path]:
     paths = []
     for p in sorted({r["posture"] for r in out["rows"]}):
         fig = plot_sensitivity(
-            out["rows"], p, title=f"{out['config']['method']}, {out['config']['sections']} section(s), posture {p}"
+            out["rows"],
+            p,
+            title=f"{out['config']['method']}, {out['config']['sections']} section(s), posture {p}",
+            percent=out["config"].get("percent"),
         )
         path = out_dir / "figures" / f"sensitivity_{p}.png"
         path.parent.mkdir(parents=True, exist_ok=True)
