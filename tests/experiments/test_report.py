@@ -467,3 +467,18 @@ def test_the_methods_figure_says_what_its_bars_and_error_bars_are():
     from reachirl.experiments import report
 
     assert "bars the mean, error bars ± the SD " in inspect.getsource(report.figure_jobs)
+
+
+def test_a_convergence_panel_of_one_iteration_ticks_whole_iterations():
+    """UE-ADL's 1-section fit accepted no step in its observed stage: its panel's x axis spanned -0.05..0.05 with
+    ticks -0.045, -0.030, ... printed over each other. Now whole iterations around the point."""
+    hist = {
+        ("forward", 1): [{"iteration": 0, "merit": 1.2}],
+        ("forward", 8): [{"iteration": 0, "merit": 0.8}, {"iteration": 2, "merit": 0.7}],
+    }
+    fig = fg.plot_convergence(hist, [1, 8])
+    fig.canvas.draw()
+    one, eight = fig.axes[:2]
+    ticks = [t for t in one.get_xticks() if one.get_xlim()[0] <= t <= one.get_xlim()[1]]
+    assert ticks and all(float(t).is_integer() for t in ticks), ticks
+    assert eight.get_xlim()[1] - eight.get_xlim()[0] < 3  # a panel of several iterations keeps its own span

@@ -368,6 +368,7 @@ def plot_convergence(
     colours = plt.get_cmap("tab10")
     for c, n in enumerate(sections):
         ax = axes[0, c]
+        xs: list = []
         for k, p in enumerate(postures):
             h = histories.get((p, n)) or []
             ok = [
@@ -381,6 +382,9 @@ def plot_convergence(
             it, m = [r[x_key] for r in ok], [r["merit"] for r in ok]
             if it:
                 ax.semilogy(it, m, "o-", ms=3, color=colours(k % 10), label=p)
+                xs += it
+        if xs and max(xs) == min(xs):  # a single iteration: matplotlib spans ±0.05 and ticks fractions over it
+            ax.set_xlim(min(xs) - 0.5, min(xs) + 1.5)
         ax.set_title(sections_text(n), fontsize=10)
         ax.tick_params(labelsize=9)
         ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
