@@ -3,7 +3,8 @@
 Preprocesses the UE-ADL subject shipped with reachirl (ADL001: Vicon markers, static calibration trial), learns
 8 windows of weights with MO-IRL from its right-arm reaches, predicts its left-arm reaches (mirrored), and prints
 the RMSE and, for each window, the cost shares ω·Φ on the fit's own reach that the training data determines
-(their 95 % interval from the weights' uncertainty narrower than 0.25); the others the data cannot tell apart.
+(their 95 % interval from the weights' uncertainty at most 0.25 wide and containing the fit's share); the others
+the data cannot tell apart.
 Run: ``.venv/bin/python examples/learn_from_ue_adl.py``.
 """
 
