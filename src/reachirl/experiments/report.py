@@ -323,7 +323,8 @@ def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str
     hatched = (
         "Hatched: undetermined (interval wider than 0.25, or not containing the fit's share), not a finding. "
         if intervals
-        else "Nothing is hatched: no fit has weight samples (`--uncertainty`), so no share is a finding. "
+        else "Nothing is hatched: the fits shown have no weight samples (`--uncertainty`; MO-IRL and MaxEnt draw "
+        "them), so no share is a finding. "
     )
     return (
         "Seed Fig. 3 equivalent: learned weights per posture (columns) and section count (rows), each shown as the "
