@@ -150,11 +150,12 @@ def test_bad_options(small_run, tmp_path, cli):
         SensitivityConfig(occlusion=False, sensitivity=False)
     proc = cli("sensitivity", tmp_path, "--out", tmp_path / "o")
     assert proc.returncode == 2 and "no results.json" in proc.stderr
-    with pytest.raises(InputError, match="--sections 5 was not run"):
+    # each refusal names the run's results.json it read (`reachirl sensitivity RUN --postures P9` named no file)
+    with pytest.raises(InputError, match=r"results\.json: --sections 5 was not run"):
         run_sensitivity(small_run, SensitivityConfig(sections=5))
-    with pytest.raises(InputError, match="P9"):
+    with pytest.raises(InputError, match=r"results\.json: posture\(s\) P9 were not run"):
         run_sensitivity(small_run, SensitivityConfig(postures=("P9",)))
-    with pytest.raises(InputError, match=r"--method 'maxent' was not run"):
+    with pytest.raises(InputError, match=r"results\.json: --method 'maxent' was not run"):
         run_sensitivity(small_run, SensitivityConfig(method="maxent"))
 
 

@@ -468,18 +468,23 @@ def run_sensitivity(
 
     config = config or SensitivityConfig()
     dataset, pconfig, units, train_subject = load_run(run_dir)
+    results = Path(run_dir) / "results.json"  # what the refusals below name: the run they read
     method = config.method or pconfig.methods[0]
     if method not in pconfig.methods:
-        raise InputError(f"--method {method!r} was not run; the run has {', '.join(pconfig.methods)}")
+        raise InputError(f"--method {method!r} was not run; the run has {', '.join(pconfig.methods)}", results)
     if config.occlusion and method != "moirl":
-        raise InputError(f"occlusion refits need MO-IRL; the run's method is {method!r} (use --no-occlusion)")
+        raise InputError(f"occlusion refits need MO-IRL; the run's method is {method!r} (use --no-occlusion)", results)
     sections = int(config.sections or max(pconfig.sections))
     if sections not in pconfig.sections:
-        raise InputError(f"--sections {sections} was not run; the run has {', '.join(map(str, pconfig.sections))}")
+        raise InputError(
+            f"--sections {sections} was not run; the run has {', '.join(map(str, pconfig.sections))}", results
+        )
     postures = list(config.postures or pconfig.postures)
     unknown = [p for p in postures if p not in pconfig.postures]
     if unknown:
-        raise InputError(f"posture(s) {', '.join(unknown)} were not run; the run has {', '.join(pconfig.postures)}")
+        raise InputError(
+            f"posture(s) {', '.join(unknown)} were not run; the run has {', '.join(pconfig.postures)}", results
+        )
     trials = list(dataset.trials)
     chosen = {}
     for p in postures:
