@@ -25,6 +25,7 @@ from reachirl.irl.uncertainty import (
     merit_noise,
     residuals_and_jacobian,
     share_intervals,
+    weight_uncertainty,
 )
 
 ACC = FEATURES.index("joint_acceleration")
@@ -505,3 +506,26 @@ def test_weight_samples_from_one_demonstration_warn_that_their_noise_is_a_stand_
     two = MOIRL(3, n_nodes=40, max_iter=2, uncertainty=20).fit(trials[:2])
     assert ONE_DEMO_SAMPLES not in two.warnings_
     assert ONE_DEMO_SAMPLES not in MOIRL(3, n_nodes=40, max_iter=2).fit(trials[:1]).warnings_
+
+
+@pytest.mark.parametrize(("fraction", "expected"), [(0.01, True), (0.5, False)])
+def test_the_claim_record_says_when_its_verdict_is_the_prior_s(fitted, monkeypatch, fraction, expected):
+    """MODEL.json's `claim` carries `prior_verdict`: true when the draws under the prior alone give the posterior's
+    verdict too (a researcher reading the JSON sees it is no finding), false when the prior alone leaves it open."""
+    from reachirl.irl import uncertainty
+
+    est, trials = fitted
+    real = uncertainty.claim_verdict
+    calls = []
+
+    def verdict(shares, free=None):
+        calls.append(1)
+        out = real(shares, free)
+        if len(calls) == 1:  # the prior's draws
+            return {**out, "fraction": fraction}
+        return {**out, "verdict": "contradicted", "fraction": 0.01}  # the posterior's: contradicted
+
+    monkeypatch.setattr(uncertainty, "claim_verdict", verdict)
+    unc = weight_uncertainty(est, trials, 20, 0, n_check=0)
+    assert unc["claim"]["verdict"] == "contradicted" and unc["prior"]["claim_fraction"] == fraction
+    assert unc["claim"]["prior_verdict"] is expected

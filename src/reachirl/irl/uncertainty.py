@@ -317,20 +317,23 @@ def weight_uncertainty(
     eta[:, cols] = eta_prior[cols] + PRIOR_LOG_SD * prior_rng.standard_normal((n_interval, cols.size))
     prior_shares = cost_shares(est._effective(np.exp(eta).reshape(n_interval, *est._w_fit.shape)), phi)
     prior_intervals = share_intervals(prior_shares, free=free)
+    prior = {
+        "center": "w0: every feature with the same share of each window's demonstrated cost",
+        "log_sd": PRIOR_LOG_SD,
+        "mean_width": mean_width(prior_intervals),
+        "claim_fraction": claim_verdict(prior_shares, free)["fraction"],
+    }
+    claim = claim_verdict(shares, free)
+    claim["prior_verdict"] = prior_gives_verdict(claim, prior)  # the prior alone gives it too: not a finding
     return {
         "method": METHOD,
         "n_samples": int(n_samples),
         "weight_samples": samples.tolist(),
         "share_samples": cost_shares(samples, phi).tolist(),
         "share_intervals": share_intervals(shares, point, free),
-        "claim": claim_verdict(shares, free),
+        "claim": claim,
         "determination": det.to_dict(),
-        "prior": {
-            "center": "w0: every feature with the same share of each window's demonstrated cost",
-            "log_sd": PRIOR_LOG_SD,
-            "mean_width": mean_width(prior_intervals),
-            "claim_fraction": claim_verdict(prior_shares, free)["fraction"],
-        },
+        "prior": prior,
         "likelihood_tau": float(tau),
         "checked": {
             "solved": min(n_check, n_samples) - failed,
