@@ -24,7 +24,7 @@ from ..data.exports import is_export
 from ..data.markersets import load_markerset, parse_marker_map
 from ..data.pipeline import preprocess_entries
 from ..data.preprocess import PreprocessOptions
-from ..data.readers import FORMATS, ManifestEntry, detect_format, read_manifest, read_subject_info
+from ..data.readers import ANGLE_FORMATS, FORMATS, ManifestEntry, detect_format, read_manifest, read_subject_info
 from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
@@ -352,7 +352,7 @@ def _refuse_marker_options_for_angles(args, entries: list[ManifestEntry], given:
     if not given or not entries:
         return
     formats = {args.format if args.format != "auto" else detect_format(e.file) for e in entries}
-    if formats <= {"mot", "csv"}:
+    if formats <= set(ANGLE_FORMATS):
         raise InputError(
             f"{given[0]} applies to marker recordings (TRC, C3D, Vicon CSV), and every input is a joint-angle file "
             "(MOT, CSV): it would be left unused",

@@ -41,6 +41,7 @@ from ..errors import InputError
 from ..io import read_text
 
 __all__ = [
+    "ANGLE_FORMATS",
     "FORMATS",
     "AngleData",
     "MarkerData",
@@ -58,6 +59,8 @@ __all__ = [
 ]
 
 FORMATS = ("trc", "c3d", "vicon-csv", "mot", "csv")
+#: the formats of :data:`FORMATS` that hold joint angles, not markers
+ANGLE_FORMATS = ("mot", "csv")
 VICON_BLOCKS = ("Trajectories", "Devices", "Joints", "Model Outputs", "Segments")  # a Nexus CSV export's blocks
 _UNIT_SCALE = {
     "mm": 1e-3,
@@ -834,7 +837,7 @@ def read_file(path: str | Path, fmt: str = "auto", side: str | None = None) -> M
     }
     if fmt not in readers:
         raise InputError(f"unknown format {fmt!r}, expected one of auto, {', '.join(FORMATS)}", path)
-    return readers[fmt](path, side) if fmt in ("mot", "csv") else readers[fmt](path)
+    return readers[fmt](path, side) if fmt in ANGLE_FORMATS else readers[fmt](path)
 
 
 def read_markers(path: str | Path, fmt: str = "auto") -> MarkerData:

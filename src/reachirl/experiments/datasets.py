@@ -117,10 +117,10 @@ def preprocess_folder(folder: str | Path, marker_map: str | None = None) -> list
 def _refuse_markers_for_angles(manifest: Path) -> None:
     """``--markers`` names marker recordings' columns: given for a folder whose every recording is a joint-angle
     file (MOT, CSV), it would be left unused; refused, naming the manifest (as ``preprocess`` refuses it)."""
-    from ..data.readers import detect_format, read_manifest
+    from ..data.readers import ANGLE_FORMATS, detect_format, read_manifest
 
     entries = read_manifest(manifest)
-    if entries and all(detect_format(e.file) in ("mot", "csv") for e in entries):
+    if entries and all(detect_format(e.file) in ANGLE_FORMATS for e in entries):
         raise InputError(
             "--markers applies to marker recordings (TRC, C3D, Vicon CSV), and every recording it lists is a "
             "joint-angle file (MOT, CSV): it would be left unused",

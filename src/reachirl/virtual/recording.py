@@ -13,6 +13,7 @@ from scipy.interpolate import CubicSpline
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_knots
 from ..doc import ReachingTask, solve_doc
+from ..doc.observation import observe
 from ..features import FEATURES
 from .population import (
     _MAX_RETRIES,
@@ -266,8 +267,6 @@ def one_cost_trials(
     truth being their mean. ``threshold``: each reach cut where its fingertip speed crosses that fraction of its
     peak, as a recording is (``Trial.onset_threshold``); ``None``: whole. A reach whose DOC fails raises
     ``RuntimeError``. For benchmarks and tests of what the data can determine."""
-    from ..doc.observation import observe
-
     rng = np.random.default_rng(seed)
     arm = draw_subject(seed, 0).arm
     cost = nominal_weights() if weights is None else np.asarray(weights, dtype=float)
