@@ -328,6 +328,67 @@ def test_the_cost_section_says_how_many_re_solved_samples_are_as_good_as_the_fit
     (row,) = [line for line in cost_section(run) if line.startswith("| moirl-P1-s2 |")]
     cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
     assert cells["samples as good as the fit"] == "0 of 7 (3 DOC failed)"
+    # how far from "as good" the samples are, in units of the merit noise
+    unc["checked"] = {"solved": 3, "failed": 0, "indistinguishable": 1, "rise_over_noise": [52.4, -0.31, 6180.2]}
+    (row,) = [line for line in cost_section(run) if line.startswith("| moirl-P1-s2 |")]
+    cells = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    assert cells["samples as good as the fit"] == "1 of 3 (rise −0.31×-6180× noise)"
+
+
+def test_on_virtual_subjects_the_cost_section_says_whether_the_data_tells_the_truth_from_the_fit():
+    from types import SimpleNamespace
+
+    from reachirl.experiments.cost import cost_section
+
+    unc = {
+        "determination": {"n_determined": 0, "n_directions": 14, "determined": []},
+        "share_intervals": {
+            "low": np.zeros((2, 7)).tolist(),
+            "high": np.ones((2, 7)).tolist(),
+            "determined": np.zeros((2, 7), bool).tolist(),
+        },
+        "prior": {"mean_width": 0.99, "claim_fraction": None},
+        "claim": {"verdict": "not applicable", "fraction": None},
+        "checked": {"solved": 10, "indistinguishable": 0},
+    }
+    same = {"converged": True, "indistinguishable": True, "rise_over_noise": 0.19}
+    apart = {"converged": True, "indistinguishable": False, "rise_over_noise": 35.2}
+    results = {
+        f"moirl-{p}-s2": {
+            "key": f"moirl-{p}-s2",
+            "unit": {"posture": p},
+            "uncertainty": unc,
+            "truth_solves": {"versus_fit": v},
+        }
+        for p, v in (("P1", same), ("P2", apart), ("P3", {"converged": False}), ("P4", None))
+    }
+    true = {p: np.full((2, 7), 1 / 7) for p in ("P1", "P2", "P3", "P4")}
+    metrics = {
+        p: {
+            "sections": 2,
+            "mean_total_variation": tv,
+            "truth_versus_fit": results[f"moirl-{p}-s2"]["truth_solves"]["versus_fit"],
+        }
+        for p, tv in (("P1", 0.81), ("P2", 0.3), ("P3", 0.5), ("P4", 0.5))
+    }
+    lines = cost_section(SimpleNamespace(results=results), true, metrics)
+    (header,) = [line for line in lines if line.startswith("| unit |")]
+    said = {}
+    for p in ("P1", "P2", "P3", "P4"):
+        (row,) = [line for line in lines if line.startswith(f"| moirl-{p}-s2 |")]
+        said[p] = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    assert [said[p]["truth as good as the fit"] for p in ("P1", "P2", "P3", "P4")] == [
+        "yes (0.19× noise)",
+        "no (35× noise)",
+        "— (DOC failed)",
+        "—",
+    ]
+    # the sentence counts the fits where the truth was re-solved, and the share distance where it is as good
+    (sentence,) = [line for line in lines if line.startswith("The truth's cost explains")]
+    assert "on 1 of 2 2-section fits" in sentence and "lie 0.81-0.81 apart" in sentence
+    # without the truth: neither the column nor the sentence
+    lines = cost_section(SimpleNamespace(results=results))
+    assert "truth as good as the fit" not in " ".join(lines) and "The truth's cost" not in " ".join(lines)
 
 
 @pytest.mark.parametrize(

@@ -24,7 +24,9 @@ from reachirl.irl.uncertainty import (
     mean_width,
     merit_noise,
     residuals_and_jacobian,
+    rise_over_noise,
     share_intervals,
+    versus_fit,
     weight_uncertainty,
 )
 
@@ -89,6 +91,10 @@ def test_indistinguishable_is_a_one_sided_paired_test():
     assert indistinguishable(fit + np.array([0.01, -0.02, 0.0, 0.01, -0.01]), fit)
     assert not indistinguishable(fit * 1.5, fit)
     assert indistinguishable(fit * 0.5, fit)  # better is never worse
+    # a rise every demonstration shares but far below the noise (a warm re-solve of the same weights) is no rise
+    assert indistinguishable(fit + 1e-6, fit)
+    # beyond the noise (δm = 0.44 here) but not consistent: not told apart either
+    assert indistinguishable(fit + np.array([2.5, -1.0, 0.2, -0.6, 1.4]), fit)
     assert not indistinguishable(np.array([np.nan, 1, 1, 1, 1.0]), fit)
     assert merit_noise(np.array([1.0, 1.0])) == 1e-12  # no spread: the floor
 
@@ -225,6 +231,31 @@ def test_the_claim_does_not_apply_where_the_fit_held_joint_accelerations_share(f
         claim = claim_verdict(draws, held)
         assert claim["verdict"] == "not applicable" and claim["fraction"] is None
         assert "held fixed" in claim["reason"]
+
+
+def test_a_merit_rise_is_said_in_units_of_the_merit_noise():
+    """δm of errors 1…5: t₀.₉₅(4) · sd / √5 = 2.1318 · 1.5811 / 2.2361 = 1.5074."""
+    fit = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert rise_over_noise(fit + 3.0148, fit) == pytest.approx(2.0, rel=1e-4)
+    assert rise_over_noise(fit - 0.75370, fit) == pytest.approx(-0.5, rel=1e-4)
+
+
+def test_the_data_tells_weights_far_from_the_fit_from_it_but_not_the_fit_itself(fitted):
+    est, _ = fitted
+    own = versus_fit(est, est._effective(est._w_fit))  # re-solved warm: the same reaches
+    assert own["converged"] and own["indistinguishable"] and abs(own["rise_over_noise"]) < 0.01
+    far = est._effective(est._w_fit).copy()
+    far[:, FEATURES.index("energy")] *= 1e3  # a cost made of energy alone: another reach
+    told = versus_fit(est, far)
+    assert told["converged"] and not told["indistinguishable"] and told["rise_over_noise"] > 1.0
+
+
+def test_weights_whose_doc_fails_are_said_to_have_failed_not_to_be_told_apart(fitted, monkeypatch):
+    from reachirl.irl import uncertainty
+
+    est, _ = fitted
+    monkeypatch.setattr(uncertainty, "rollout_errors", lambda est, w: (None, [], 1))
+    assert versus_fit(est, est._w_fit) == {"converged": False, "indistinguishable": None, "rise_over_noise": None}
 
 
 def test_the_checked_samples_use_the_merits_own_errors(fitted):

@@ -83,10 +83,12 @@ def _truth_coverage(unc: dict, true_shares: np.ndarray) -> float:
     return float(np.mean((true_shares >= lo - 0.005) & (true_shares <= hi + 0.005)))
 
 
-def cost_section(run, true_shares: dict | None = None) -> list[str]:
+def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | None = None) -> list[str]:
     """``report.md``'s section on the learned cost: per MO-IRL fit with weight samples, the determined weight
     directions in words, the share intervals (how many are undetermined), the claim's verdict and, on virtual
-    subjects (``true_shares`` by posture), how often the intervals contain the truth's shares."""
+    subjects (``true_shares`` by posture), how often the intervals contain the truth's shares and whether the
+    training reaches tell the truth's cost from the fit's (``truth_metrics`` by posture, of
+    :func:`~reachirl.experiments.analysis.truth_comparison`, for the sentence that sums it up)."""
     lines = [
         "## What the data determines about the cost",
         "",
@@ -108,14 +110,19 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
             "; the intervals containing the truth's shares shows that they are honest, not that the data "
             "determines them (the prior alone contains them too). 'Truth's shares inside' compares the truth's "
             "shares on the truth's own reach with the intervals on the fit's reach (the posture's reach under each "
-            "cost: the report quotes each cost's shares on its own reach)."
+            "cost: the report quotes each cost's shares on its own reach). 'Truth as good as the fit' re-solves "
+            "the training rollouts under the truth's weights and applies the samples' test to them: 'yes' means "
+            "the training reaches cannot tell the truth's cost from the learned one, however far apart their "
+            "shares are, so no fit of these reaches could say which of the two is the subject's."
             if true_shares
             else "."
         )
         + " The posterior is a local (Gauss-Newton) model at the fit: a few weight samples are solved by the DOC "
         "again, and 'samples as good as the fit' counts those whose reaches the demonstrations cannot tell from "
-        "the fit's (one-sided paired t-test, 5 %); few or none means the samples are costs the local model does not "
-        "rule out, not costs shown to explain the reaches equally well.",
+        "the fit's (one-sided paired t-test, 5 %), with the range of their merit's rise over the fit's in units of "
+        "the merit noise (the rise the demonstrations can tell from noise; under 1, none they can tell); few or "
+        "none means the samples are costs the local model does not rule out, not costs shown to explain the "
+        "reaches equally well.",
         "",
     ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
@@ -124,8 +131,8 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
     lines += [
         "| unit | determined directions | shares undetermined | mean width (prior alone) | claim (prior alone) | "
         "most determined direction | samples as good as the fit |"
-        + (" truth's shares inside |" if true_shares else ""),
-        "|---|---|---|---|---|---|---|" + ("---|" if true_shares else ""),
+        + (" truth's shares inside | truth as good as the fit |" if true_shares else ""),
+        "|---|---|---|---|---|---|---|" + ("---|---|" if true_shares else ""),
     ]
     for r in sorted(rows, key=lambda r: r["key"]):
         u = r["uncertainty"]
@@ -156,9 +163,47 @@ def cost_section(run, true_shares: dict | None = None) -> list[str]:
                 row += f" {100 * _truth_coverage(u, np.asarray(ts)):.0f} % |"
             else:
                 row += " — |"
+            row += f" {_versus((r.get('truth_solves') or {}).get('versus_fit'))} |"
         lines.append(row)
     lines.append("")
-    return lines
+    return lines + _truth_sentence(truth_metrics)
+
+
+def _truth_sentence(metrics: dict | None) -> list[str]:
+    """On virtual subjects: on how many fits the training reaches cannot tell the truth's cost from the learned
+    one, and how far apart the two costs' shares are there."""
+    rows = [(m["truth_versus_fit"], m["mean_total_variation"]) for m in (metrics or {}).values()]
+    rows = [(v, tv) for v, tv in rows if v and v.get("converged")]
+    if not rows:
+        return []
+    same = [tv for v, tv in rows if v["indistinguishable"]]
+    sections = next(iter(metrics.values()))["sections"]
+    text = (
+        f"The truth's cost explains the training reaches as well as the learned one on {len(same)} of {len(rows)} "
+        f"{sections}-section fits (the demonstrations cannot tell the two apart)"
+    )
+    if same:
+        text += (
+            f", though the two costs' shares lie {min(same):.2f}-{max(same):.2f} apart there (mean total "
+            "variation per window, 1 = disjoint): the merit of these reaches cannot prefer the truth's shares to the "
+            "fit's"
+        )
+    return [text + ".", ""]
+
+
+def _versus(record: dict | None) -> str:
+    """Whether the training reaches tell the truth's cost from the fit's, and the merit's rise under it."""
+    if not record:
+        return "—"
+    if not record.get("converged"):
+        return "— (DOC failed)"
+    rise = record["rise_over_noise"]
+    return f"{'yes' if record['indistinguishable'] else 'no'} ({_times(rise)} noise)"
+
+
+def _times(x: float) -> str:
+    """A merit rise in units of the merit noise, e.g. "0.3×", "−0.8×", "52×"."""
+    return f"{x:.2g}×".replace("-", "−") if abs(x) < 10 else f"{x:.0f}×".replace("-", "−")
 
 
 def _checked(checked: dict | None) -> str:
@@ -166,7 +211,14 @@ def _checked(checked: dict | None) -> str:
     failed = f" ({checked['failed']} DOC failed)" if checked and checked.get("failed") else ""
     if not checked or not checked.get("solved"):
         return f"—{failed}"
-    return f"{checked['indistinguishable']} of {checked['solved']}{failed}"
+    rises = checked.get("rise_over_noise") or []  # absent from the records of earlier versions
+    spread = ""
+    if rises:
+        lo, hi = min(rises), max(rises)
+        spread = (
+            f" (rise {_times(lo)} noise)" if _times(lo) == _times(hi) else f" (rise {_times(lo)}-{_times(hi)} noise)"
+        )
+    return f"{checked['indistinguishable']} of {checked['solved']}{spread}{failed}"
 
 
 def write_posture_transfer(run) -> list[str]:

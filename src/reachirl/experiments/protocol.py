@@ -42,10 +42,12 @@ __all__ = [
     "ProtocolConfig",
     "Split",
     "Unit",
+    "fit_unit",
     "make_estimator",
     "make_units",
     "run_unit",
     "split_trials",
+    "unit_payload",
 ]
 
 SETS = ("train", "cv", "iscv")
@@ -474,15 +476,24 @@ def run_unit(unit: Unit, split: Split) -> dict:
     Returns a JSON-able ``"result"`` dict (weights, history, per-trial RMSEs, counts, times) and ``"arrays"``
     (predictions and the demonstrations on the DOC's knots, float32, for the figures).
     """
+    return unit_payload(unit, split, *fit_unit(unit, split))
+
+
+def fit_unit(unit: Unit, split: Split) -> tuple[object, float]:
+    """``unit``'s estimator fitted on ``split.train``, and the fit's wall time (s)."""
     import os
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from ..doc.evaluation import evaluate_trials, summarise
-
     est = make_estimator(unit)
     t0 = time.perf_counter()
     est.fit(list(split.train))
-    fit_time = time.perf_counter() - t0
+    return est, time.perf_counter() - t0
+
+
+def unit_payload(unit: Unit, split: Split, est, fit_time: float) -> dict:
+    """:func:`run_unit`'s result from the fitted ``est`` (:func:`fit_unit`): every set's trials predicted."""
+    from ..doc.evaluation import evaluate_trials, summarise
+
     w = np.asarray(est.weights_, dtype=float)
     path = est.rollout_path()  # each prediction starts from the fit's own reach, moved to the trial
     phi = np.mean([t.features(unit.n_nodes, unit.sections) for t in split.train], axis=0)

@@ -708,7 +708,7 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
 
     with drawing(jobs, workers, ahead) as figures:  # drawn in other processes meanwhile (workers > 1)
         write_models(run)
-        extra_md: list[str] = cost_section(run, truth[1] or None)
+        extra_md: list[str] = cost_section(run, truth[1] or None, truth[2] or None)
         extra_md += write_posture_transfer(run)
         if run.config.iscv == "all-pairs":
             from .pairs import write_pairs

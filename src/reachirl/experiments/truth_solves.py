@@ -24,7 +24,7 @@ import numpy as np
 
 from ..data.trial import Trial
 from ..features import FEATURES
-from .protocol import SETS, Split, Unit, run_unit
+from .protocol import SETS, Split, Unit, fit_unit, run_unit, unit_payload
 
 __all__ = [
     "AGREEMENT_MAX_TRIALS",
@@ -256,10 +256,13 @@ def run_unit_and_truth(unit: Unit, split: Split, job: Mapping | None = None) -> 
     """:func:`~reachirl.experiments.protocol.run_unit`, then, with a :func:`truth_jobs` ``job``, the solves under
     the true weights as the result's ``truth_solves``: ``{"predictions"`` (:func:`true_predictions` under
     ``job["nominal"]``), ``"reference"`` (``{"weights", "features"}``: :func:`reference_features` of the training
-    trials under ``job["reference"]``, when given), ``"time_s"}``."""
-    payload = run_unit(unit, split)
+    trials under ``job["reference"]``, when given), ``"versus_fit"`` (with ``"reference"``, for a fit that keeps
+    its training rollouts: :func:`reachirl.irl.uncertainty.versus_fit` of those weights, whether the training
+    demonstrations can tell them from the fit's), ``"time_s"}``."""
     if not job:
-        return payload
+        return run_unit(unit, split)
+    est, fit_time = fit_unit(unit, split)
+    payload = unit_payload(unit, split, est, fit_time)
     t0 = time.perf_counter()
     solves: dict = {}
     if job.get("nominal") is not None:
@@ -277,6 +280,11 @@ def run_unit_and_truth(unit: Unit, split: Split, job: Mapping | None = None) -> 
         w_ref = np.asarray(job["reference"], dtype=float)
         phi = reference_features(list(split.train), w_ref, unit.n_nodes, unit.backend, unit.observe)
         solves["reference"] = {"weights": w_ref.tolist(), "features": None if phi is None else phi.tolist()}
+        if hasattr(est, "train_solutions_"):  # MO-IRL's and MaxEnt's fits keep their training rollouts
+            from ..irl.uncertainty import versus_fit
+
+            # whether the training reaches can tell the truth's cost from the fit's (the report's evidence)
+            solves["versus_fit"] = versus_fit(est, w_ref)
     solves["time_s"] = time.perf_counter() - t0
     payload["result"]["truth_solves"] = solves
     return payload

@@ -21,9 +21,11 @@ narrows the samples; in the others the prior speaks, and the intervals say so. E
 percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH`, or does not
 contain the fit's own share, is reported as undetermined. A few samples are solved by the DOC and tested against
 the fit (:func:`indistinguishable`, a
-one-sided paired t-test over the demonstrations; ``checked``): the model is linear, the DOC is not, and the samples
-far from the fit usually fail the test (docs/method.md: a local model cannot see the other basins where costs as
-good as the fit's lie; only the prior's width covers them).
+one-sided paired t-test over the demonstrations; ``checked``, with each sample's merit rise in units of ``δm``): the
+model is linear, the DOC is not, and the samples far from the fit usually fail the test (docs/method.md: a local
+model cannot see the other basins where costs as good as the fit's lie; only the prior's width covers them). On
+virtual subjects :func:`versus_fit` applies the same test to the true weights: whether the data can tell the truth's
+cost from the fit's.
 """
 
 from __future__ import annotations
@@ -44,14 +46,17 @@ __all__ = [
     "claim_verdict",
     "describe_direction",
     "determination",
+    "fit_errors",
     "indistinguishable",
     "laplace_posterior",
     "mean_width",
     "merit_noise",
     "prior_gives_verdict",
     "residuals_and_jacobian",
+    "rise_over_noise",
     "rollout_errors",
     "share_intervals",
+    "versus_fit",
     "weight_uncertainty",
 ]
 
@@ -132,15 +137,52 @@ def merit_noise(errors: np.ndarray) -> float:
 
 
 def indistinguishable(errors: np.ndarray, errors_fit: np.ndarray, level: float = 0.05) -> bool:
-    """Whether a one-sided paired t-test over the demonstrations does not find the per-demonstration errors
-    ``errors (D,)`` larger than the fit's ``errors_fit (D,)`` at ``level``."""
+    """Whether the demonstrations cannot tell the per-demonstration errors ``errors (D,)`` from the fit's
+    ``errors_fit (D,)``: their mean rise is at most the merit noise ``δm`` (:func:`merit_noise`, the rise that
+    defines a determined direction), or a one-sided paired t-test over the demonstrations does not find it
+    significant at ``level``. Told apart, then, only by a rise both beyond the noise and consistent: the paired
+    test alone flags a rise of 1e-5 ``δm`` that every demonstration shares (a warm re-solve of the fit's own
+    weights)."""
     d = np.asarray(errors, dtype=float) - np.asarray(errors_fit, dtype=float)
     if not np.all(np.isfinite(d)):
         return False
+    if d.mean() <= merit_noise(errors_fit):
+        return True
     if d.size < 2 or d.std(ddof=1) == 0:
         return bool(d.mean() <= 0)
     t = d.mean() / (d.std(ddof=1) / np.sqrt(d.size))
     return bool(t <= stats.t.ppf(1 - level, d.size - 1))
+
+
+def rise_over_noise(errors: np.ndarray, errors_fit: np.ndarray) -> float:
+    """How much worse than the fit ``errors (D,)`` explain the demonstrations: their mean rise over ``errors_fit
+    (D,)``, in units of the merit noise ``δm`` (:func:`merit_noise` of the fit's errors; the determined directions'
+    and the posterior's unit). Below 1, a rise the demonstrations cannot tell from noise."""
+    e, e_fit = np.asarray(errors, dtype=float), np.asarray(errors_fit, dtype=float)
+    return float((e.mean() - e_fit.mean()) / merit_noise(e_fit))
+
+
+def fit_errors(est) -> np.ndarray:
+    """Each demonstration's error ``(D,)`` under the fit's own rollouts, as the merit weighs it."""
+    states = [est._state(i, t, s) for i, (t, s) in enumerate(zip(est.tasks_, est.train_solutions_, strict=True))]
+    return _errors(est, states)
+
+
+def versus_fit(est, w: np.ndarray) -> dict:
+    """Whether the training demonstrations can tell the weights ``w (S, 7)`` (the DOC's units) from ``est``'s fit:
+    its rollouts re-solved under ``w`` (warm from the fit's), then ``indistinguishable`` (:func:`indistinguishable`,
+    the test the weight samples' ``checked`` applies), ``rise_over_noise`` (:func:`rise_over_noise`) and
+    ``converged`` (a DOC failure leaves the other two None). On virtual subjects the true weights' record says
+    whether the data can tell the truth's cost from the learned one."""
+    errors, _, _ = rollout_errors(est, np.asarray(w, dtype=float))
+    if errors is None:
+        return {"converged": False, "indistinguishable": None, "rise_over_noise": None}
+    e_fit = fit_errors(est)
+    return {
+        "converged": True,
+        "indistinguishable": indistinguishable(errors, e_fit),
+        "rise_over_noise": rise_over_noise(errors, e_fit),
+    }
 
 
 def determination(r: np.ndarray, J: np.ndarray, free: np.ndarray) -> Determination:
@@ -258,7 +300,8 @@ def weight_uncertainty(
     demonstrated cost), with a standard deviation of a factor 250 (:data:`PRIOR_LOG_SD`); the data's likelihood is
     the merit's Gauss-Newton model at the fit. ``n_check`` samples are solved by the DOC and tested with
     :func:`indistinguishable` (``checked``: how many were solved, how many of those pass (the model is linear, the
-    DOC is not), and how many ``failed``: a sample whose DOC did not converge is counted there, not as solved).
+    DOC is not), each solved sample's merit rise over the fit in units of the merit noise (:func:`rise_over_noise`),
+    and how many ``failed``: a sample whose DOC did not converge is counted there, not as solved).
 
     Returns the ``uncertainty`` record of MODEL.json: ``method``, ``weight_samples`` (``n_samples × S × 7``, in the
     units of ``weights``), ``share_intervals`` (2.5 and 97.5 percentiles of each window's cost shares over
@@ -304,6 +347,7 @@ def weight_uncertainty(
             pooling["per_task"][task_trials] = _width_record(det_g, share_intervals(cost_shares(w_g, phi), point, free))
     errors_fit = np.sum(r**2, axis=1)
     passed = solves = failed = 0
+    rises = []
     for w in samples[:n_check]:
         errors, _, runs = rollout_errors(est, w)
         solves += runs
@@ -311,6 +355,7 @@ def weight_uncertainty(
             failed += 1
         else:
             passed += indistinguishable(errors, errors_fit)
+            rises.append(rise_over_noise(errors, errors_fit))
     # the same quantities under the prior alone: what the data adds (where it determines little, next to nothing)
     prior_rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED, 1]))
     eta = np.tile(eta_hat, (n_interval, 1))
@@ -339,6 +384,7 @@ def weight_uncertainty(
             "solved": min(n_check, n_samples) - failed,
             "failed": int(failed),
             "indistinguishable": int(passed),
+            "rise_over_noise": rises,
         },
         "doc_solves": int(solves),
         "pooling": pooling,
