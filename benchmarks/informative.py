@@ -31,6 +31,7 @@ import numpy as np
 from reachirl import FEATURES, MOIRL, ArmModel, ReachingTask, solve_doc
 from reachirl.doc.observation import observe
 from reachirl.features import cost_shares, windowed_features
+from reachirl.irl.uncertainty import versus_fit
 from reachirl.virtual import one_cost_trials
 
 POSTURES_DEG = [(-60.0, 90.0), (0.0, 90.0), (30.0, 120.0), (-30.0, 110.0), (50.0, 80.0)]
@@ -107,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
             "n_determined": u["determination"]["n_determined"],
             "merit": float(est.merit_),
             "true_merit": float(est._merit(est._x_demos, truth_rollouts, est._channels, est.tasks_)),
+            # whether the training reaches tell the truth's cost from the fit's (the samples' test)
+            "truth_versus_fit": versus_fit(est, w),
             "stop_reason": str(est.stop_reason_),
             "missed": [
                 f"{FEATURES[j]} (window {i + 1}) {true[i, j]:.3f} not in [{lo[i, j]:.3f}, {hi[i, j]:.3f}]"

@@ -6,7 +6,8 @@ one rollout per posture unless ``--rollout`` says otherwise. One JSON line per p
 pooled data determines, the intervals' mean width pooled and from each posture's demonstrations alone
 (``uncertainty.pooling``), and per posture the coverage of its true shares (on its truth's own reach, seen as
 recorded) by the pooled intervals and the total variation between the learned and the true shares (mean over
-windows), with the fit's CPU time.
+windows), with the fit's CPU time; and whether the pooled training reaches can tell the truth's cost (the mean true
+weights of all the pooled trials) from the fit's (``truth_versus_fit``: :func:`reachirl.irl.uncertainty.versus_fit`).
 Run: ``.venv/bin/python benchmarks/pooling.py --seeds 0 1``.
 """
 
@@ -23,6 +24,7 @@ from reachirl.experiments import datasets
 from reachirl.experiments.protocol import ProtocolConfig, split_trials
 from reachirl.experiments.truth_solves import reference_features, true_weights
 from reachirl.features import cost_shares
+from reachirl.irl.uncertainty import versus_fit
 
 POSTURES = ("P1", "P2", "P3", "P4", "P5")
 
@@ -56,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
             coverage[p] = round(float(np.mean((true >= lo - 0.005) & (true <= hi + 0.005))), 3)
             tv[p] = round(float(np.mean(0.5 * np.abs(learned - true).sum(axis=1))), 3)
         pooling = u["pooling"]
+        pooled_truth = true_weights(ds.truth, [t.trial_id for p in POSTURES for t in per[p]])
+        versus = versus_fit(est, pooled_truth)
         row = {
             "seed": seed,
             "n_determined": u["determination"]["n_determined"],
@@ -65,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             "coverage": coverage,
             "total_variation": tv,
             "mean_total_variation": round(float(np.mean(list(tv.values()))), 3),
+            "truth_versus_fit": {k: v if not isinstance(v, float) else round(v, 3) for k, v in versus.items()},
             "stop_reason": str(est.stop_reason_),
             "fit_cpu_s": round(cpu, 1),
         }

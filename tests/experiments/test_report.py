@@ -351,8 +351,9 @@ def test_on_virtual_subjects_the_cost_section_says_whether_the_data_tells_the_tr
         "claim": {"verdict": "not applicable", "fraction": None},
         "checked": {"solved": 10, "indistinguishable": 0},
     }
-    same = {"converged": True, "indistinguishable": True, "rise_over_noise": 0.19}
-    apart = {"converged": True, "indistinguishable": False, "rise_over_noise": 35.2}
+    same = {"converged": True, "verdict": "as good", "rise_over_noise": 0.19}
+    apart = {"converged": True, "verdict": "worse", "rise_over_noise": 35.2}
+    preferred = {"converged": True, "verdict": "better", "rise_over_noise": -3.04}
     results = {
         f"moirl-{p}-s2": {
             "key": f"moirl-{p}-s2",
@@ -360,35 +361,37 @@ def test_on_virtual_subjects_the_cost_section_says_whether_the_data_tells_the_tr
             "uncertainty": unc,
             "truth_solves": {"versus_fit": v},
         }
-        for p, v in (("P1", same), ("P2", apart), ("P3", {"converged": False}), ("P4", None))
+        for p, v in (("P1", same), ("P2", apart), ("P3", {"converged": False}), ("P4", None), ("P5", preferred))
     }
-    true = {p: np.full((2, 7), 1 / 7) for p in ("P1", "P2", "P3", "P4")}
+    true = {p: np.full((2, 7), 1 / 7) for p in ("P1", "P2", "P3", "P4", "P5")}
     metrics = {
         p: {
             "sections": 2,
             "mean_total_variation": tv,
             "truth_versus_fit": results[f"moirl-{p}-s2"]["truth_solves"]["versus_fit"],
         }
-        for p, tv in (("P1", 0.81), ("P2", 0.3), ("P3", 0.5), ("P4", 0.5))
+        for p, tv in (("P1", 0.81), ("P2", 0.3), ("P3", 0.5), ("P4", 0.5), ("P5", 0.6))
     }
     lines = cost_section(SimpleNamespace(results=results), true, metrics)
     (header,) = [line for line in lines if line.startswith("| unit |")]
     said = {}
-    for p in ("P1", "P2", "P3", "P4"):
+    for p in ("P1", "P2", "P3", "P4", "P5"):
         (row,) = [line for line in lines if line.startswith(f"| moirl-{p}-s2 |")]
         said[p] = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
-    assert [said[p]["truth as good as the fit"] for p in ("P1", "P2", "P3", "P4")] == [
-        "yes (0.19× noise)",
-        "no (35× noise)",
+    assert [said[p]["truth against the fit"] for p in ("P1", "P2", "P3", "P4", "P5")] == [
+        "as good (0.19× noise)",
+        "worse (35× noise)",
         "— (DOC failed)",
         "—",
+        "better (−3× noise)",
     ]
     # the sentence counts the fits where the truth was re-solved, and the share distance where it is as good
     (sentence,) = [line for line in lines if line.startswith("The truth's cost explains")]
-    assert "on 1 of 2 2-section fits" in sentence and "lie 0.81-0.81 apart" in sentence
+    assert "on 1 of 3 2-section fits" in sentence and "lie 0.81-0.81 apart" in sentence
+    assert "on 1 the data prefers the truth's cost, and the fit stopped short of it" in sentence
     # without the truth: neither the column nor the sentence
     lines = cost_section(SimpleNamespace(results=results))
-    assert "truth as good as the fit" not in " ".join(lines) and "The truth's cost" not in " ".join(lines)
+    assert "truth against the fit" not in " ".join(lines) and "The truth's cost" not in " ".join(lines)
 
 
 @pytest.mark.parametrize(

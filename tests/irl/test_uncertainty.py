@@ -240,14 +240,21 @@ def test_a_merit_rise_is_said_in_units_of_the_merit_noise():
     assert rise_over_noise(fit - 0.75370, fit) == pytest.approx(-0.5, rel=1e-4)
 
 
-def test_the_data_tells_weights_far_from_the_fit_from_it_but_not_the_fit_itself(fitted):
+def test_the_data_tells_weights_far_from_the_fit_from_it_but_not_the_fit_itself(fitted, monkeypatch):
+    from reachirl.irl import uncertainty
+
     est, _ = fitted
     own = versus_fit(est, est._effective(est._w_fit))  # re-solved warm: the same reaches
-    assert own["converged"] and own["indistinguishable"] and abs(own["rise_over_noise"]) < 0.01
+    assert own["converged"] and own["verdict"] == "as good" and abs(own["rise_over_noise"]) < 0.01
     far = est._effective(est._w_fit).copy()
     far[:, FEATURES.index("energy")] *= 1e3  # a cost made of energy alone: another reach
     told = versus_fit(est, far)
-    assert told["converged"] and not told["indistinguishable"] and told["rise_over_noise"] > 1.0
+    assert told["converged"] and told["verdict"] == "worse" and told["rise_over_noise"] > 1.0
+    # weights whose reaches the demonstrations prefer to the fit's: the fit stopped short of them
+    e_fit = uncertainty.fit_errors(est)
+    monkeypatch.setattr(uncertainty, "rollout_errors", lambda est, w: (0.2 * e_fit, [], 1))
+    preferred = versus_fit(est, far)
+    assert preferred["verdict"] == "better" and preferred["rise_over_noise"] < -1.0
 
 
 def test_weights_whose_doc_fails_are_said_to_have_failed_not_to_be_told_apart(fitted, monkeypatch):
@@ -255,7 +262,7 @@ def test_weights_whose_doc_fails_are_said_to_have_failed_not_to_be_told_apart(fi
 
     est, _ = fitted
     monkeypatch.setattr(uncertainty, "rollout_errors", lambda est, w: (None, [], 1))
-    assert versus_fit(est, est._w_fit) == {"converged": False, "indistinguishable": None, "rise_over_noise": None}
+    assert versus_fit(est, est._w_fit) == {"converged": False, "verdict": None, "rise_over_noise": None}
 
 
 def test_the_checked_samples_use_the_merits_own_errors(fitted):

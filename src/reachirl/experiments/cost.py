@@ -110,10 +110,11 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
             "; the intervals containing the truth's shares shows that they are honest, not that the data "
             "determines them (the prior alone contains them too). 'Truth's shares inside' compares the truth's "
             "shares on the truth's own reach with the intervals on the fit's reach (the posture's reach under each "
-            "cost: the report quotes each cost's shares on its own reach). 'Truth as good as the fit' re-solves "
-            "the training rollouts under the truth's weights and applies the samples' test to them: 'yes' means "
-            "the training reaches cannot tell the truth's cost from the learned one, however far apart their "
-            "shares are, so no fit of these reaches could say which of the two is the subject's."
+            "cost: the report quotes each cost's shares on its own reach). 'Truth against the fit' re-solves "
+            "the training rollouts under the truth's weights and applies the samples' test both ways, with the "
+            "merit's rise under the truth: 'as good' means the training reaches cannot tell the truth's cost from "
+            "the learned one, however far apart their shares are, so no fit of these reaches could say which of the "
+            "two is the subject's; 'better', that the fit stopped short of a cost the data prefers."
             if true_shares
             else "."
         )
@@ -131,7 +132,7 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
     lines += [
         "| unit | determined directions | shares undetermined | mean width (prior alone) | claim (prior alone) | "
         "most determined direction | samples as good as the fit |"
-        + (" truth's shares inside | truth as good as the fit |" if true_shares else ""),
+        + (" truth's shares inside | truth against the fit |" if true_shares else ""),
         "|---|---|---|---|---|---|---|" + ("---|---|" if true_shares else ""),
     ]
     for r in sorted(rows, key=lambda r: r["key"]):
@@ -171,12 +172,13 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
 
 def _truth_sentence(metrics: dict | None) -> list[str]:
     """On virtual subjects: on how many fits the training reaches cannot tell the truth's cost from the learned
-    one, and how far apart the two costs' shares are there."""
+    one (and how far apart the two costs' shares are there), and on how many they prefer the truth."""
     rows = [(m["truth_versus_fit"], m["mean_total_variation"]) for m in (metrics or {}).values()]
     rows = [(v, tv) for v, tv in rows if v and v.get("converged")]
     if not rows:
         return []
-    same = [tv for v, tv in rows if v["indistinguishable"]]
+    same = [tv for v, tv in rows if v["verdict"] == "as good"]
+    better = sum(v["verdict"] == "better" for v, _ in rows)
     sections = next(iter(metrics.values()))["sections"]
     text = (
         f"The truth's cost explains the training reaches as well as the learned one on {len(same)} of {len(rows)} "
@@ -188,6 +190,8 @@ def _truth_sentence(metrics: dict | None) -> list[str]:
             "variation per window, 1 = disjoint): the merit of these reaches cannot prefer the truth's shares to the "
             "fit's"
         )
+    if better:
+        text += f"; on {better} the data prefers the truth's cost, and the fit stopped short of it"
     return [text + ".", ""]
 
 
@@ -197,8 +201,7 @@ def _versus(record: dict | None) -> str:
         return "—"
     if not record.get("converged"):
         return "— (DOC failed)"
-    rise = record["rise_over_noise"]
-    return f"{'yes' if record['indistinguishable'] else 'no'} ({_times(rise)} noise)"
+    return f"{record['verdict']} ({_times(record['rise_over_noise'])} noise)"
 
 
 def _times(x: float) -> str:

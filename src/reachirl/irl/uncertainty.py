@@ -169,18 +169,22 @@ def fit_errors(est) -> np.ndarray:
 
 
 def versus_fit(est, w: np.ndarray) -> dict:
-    """Whether the training demonstrations can tell the weights ``w (S, 7)`` (the DOC's units) from ``est``'s fit:
-    its rollouts re-solved under ``w`` (warm from the fit's), then ``indistinguishable`` (:func:`indistinguishable`,
-    the test the weight samples' ``checked`` applies), ``rise_over_noise`` (:func:`rise_over_noise`) and
-    ``converged`` (a DOC failure leaves the other two None). On virtual subjects the true weights' record says
-    whether the data can tell the truth's cost from the learned one."""
+    """How the training demonstrations judge the weights ``w (S, 7)`` (the DOC's units) against ``est``'s fit:
+    its rollouts re-solved under ``w`` (warm from the fit's), then ``verdict``: ``"worse"`` when the samples'
+    test (:func:`indistinguishable`) tells ``w``'s errors from the fit's, ``"better"`` when the same test tells the
+    fit's from ``w``'s, ``"as good"`` otherwise (the data cannot tell the two costs apart), with
+    ``rise_over_noise`` (:func:`rise_over_noise`; negative: ``w`` explains them better) and ``converged`` (a DOC
+    failure leaves the other two None). On virtual subjects the true weights' record says whether the data can
+    tell the truth's cost from the learned one, and if the truth is better, that the fit stopped short of a cost
+    the data prefers."""
     errors, _, _ = rollout_errors(est, np.asarray(w, dtype=float))
     if errors is None:
-        return {"converged": False, "indistinguishable": None, "rise_over_noise": None}
+        return {"converged": False, "verdict": None, "rise_over_noise": None}
     e_fit = fit_errors(est)
+    worse, better = not indistinguishable(errors, e_fit), not indistinguishable(e_fit, errors)
     return {
         "converged": True,
-        "indistinguishable": indistinguishable(errors, e_fit),
+        "verdict": "worse" if worse else "better" if better else "as good",
         "rise_over_noise": rise_over_noise(errors, e_fit),
     }
 
