@@ -533,7 +533,24 @@ def attacks():
         str(W / o),
         *a,
     ]
-    A["reproduce:bilevel"] = lambda: RQ("rb", "--method", "bilevel", "--sections", "1")
+    # without --max-iter: a run of bilevel alone refuses it (its max_iter is MO-IRL's and MaxEnt's)
+    A["reproduce:bilevel"] = lambda: [
+        R,
+        "reproduce",
+        "--quick",
+        "--data",
+        T,
+        "--workers",
+        "1",
+        "--nodes",
+        "20",
+        "--out",
+        str(W / "rb"),
+        "--method",
+        "bilevel",
+        "--sections",
+        "1",
+    ]
     A["reproduce:scheduler-bad"] = lambda: RQ("rs", "--scheduler", "foo://bar:1")
     A["reproduce:scheduler-closed"] = lambda: RQ("rs2", "--scheduler", "tcp://127.0.0.1:1")
     A["reproduce:one-trial"] = lambda: [

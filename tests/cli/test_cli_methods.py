@@ -15,10 +15,9 @@ def models(tiny_trials, tmp_path_factory, cli):
     runs = {}
     for m in METHODS:
         out = d / f"{m}.json"
-        runs[m] = (
-            cli("fit", tiny_trials, "--sections", "2", "--nodes", "20", "--max-iter", "3", "--method", m, "--out", out),
-            out,
-        )
+        limit = [] if m == "kkt" else ["--max-iter", "3"]  # kkt solves once: it refuses --max-iter
+        args = ["--sections", "2", "--nodes", "20", *limit, "--method", m, "--out", out]
+        runs[m] = (cli("fit", tiny_trials, *args), out)
     return runs
 
 
@@ -143,6 +142,32 @@ def test_moirl_options_are_refused_for_the_other_methods(method, option, tiny_tr
     assert proc.returncode == 2 and not out.exists()
     assert f"--seed-form, --uncertainty, --rollout and --config apply to moirl and maxent, not {method}" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_max_iter_limits_bilevel_and_is_refused_for_kkt(models, tiny_trials, tmp_path, cli):
+    """--max-iter is the iterations of bilevel's direct search too (not silently ignored); kkt, which solves once,
+    refuses it; reproduce refuses it when no method of the run iterates up to it (its max_iter is MO-IRL's)."""
+    info = json.loads(models["bilevel"][1].read_text())["info"]
+    assert info["parameters"]["max_iter"] == 3 and info["n_iter"] <= 3
+    out = tmp_path / "m.json"
+    proc = cli("fit", tiny_trials, "--sections", "2", "--method", "kkt", "--max-iter", "3", "--out", out)
+    assert proc.returncode == 2 and not out.exists()
+    assert (
+        proc.stderr.strip()
+        == "reachirl fit: error: --max-iter applies to moirl, maxent and bilevel, not kkt, which solves once"
+    )
+    args = ["reproduce", "--data", tiny_trials, "--sections", "1", "--nodes", "20", "--no-progress"]
+    run_file = tmp_path / "run.toml"
+    run_file.write_text('methods = ["bilevel", "kkt"]\nmax_iter = 5\n')
+    for given, named in (
+        (["--method", "kkt", "--max-iter", "5"], "--max-iter 5: --method kkt takes none"),
+        (["--method", "bilevel", "--set", "max_iter=5"], "--set: max_iter=5: --method bilevel takes none"),
+        (["--config", run_file], f"{run_file}: max_iter = 5: --method bilevel kkt takes none"),
+    ):
+        proc = cli(*args, *given, "--out", tmp_path / "r")
+        assert proc.returncode == 2 and named in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+        assert "(moirl's and maxent's iterations at most;" in proc.stderr
+    assert not (tmp_path / "r" / "units").exists()
 
 
 def test_a_seed_form_changed_by_the_run_file_says_it_departs(tiny_trials, tmp_path, cli):

@@ -91,6 +91,16 @@ def test_every_unit_predicts_as_its_estimator_fits(observe):
             assert est.merit == "state"
 
 
+def test_the_runs_max_iter_is_moirls_and_maxents_not_bilevels():
+    """reproduce's max_iter (30 unless given) limits MO-IRL's and MaxEnt's iterations; bilevel (which takes a
+    max_iter of its own, `reachirl fit --max-iter`'s) stops at its DOC-solve budget as the report says."""
+    from reachirl.experiments.protocol import make_estimator
+
+    cfg = _config(sections=(2,), methods=("moirl", "maxent", "bilevel"), max_iter=7)
+    got = {u.method: make_estimator(u).max_iter for u in make_units(["P2"], cfg)}
+    assert got == {"moirl": 7, "maxent": 7, "bilevel": None}
+
+
 def test_run_unit_is_pure(toy):
     cfg = _config(sections=(2,), max_iter=2)
     split = split_trials(toy.trials, "P4", cfg)

@@ -115,6 +115,18 @@ def test_bilevel_respects_its_budget_and_records_every_evaluation(demos, caplog)
     assert KKTIOC(1, n_nodes=N_NODES).fit(demos).reach_features() is None  # KKT solves no DOC
 
 
+def test_bilevel_stops_at_its_max_iter_and_says_so(demos):
+    """``max_iter`` limits the outer direct search (``reachirl fit --method bilevel --max-iter``); without it the
+    DOC-solve budget alone stops the search."""
+    est = BilevelIOC(1, n_nodes=N_NODES, max_iter=1).fit(demos)
+    assert est.n_iter_ == 1 and est.stop_reason_ == "max_iter" and est.n_doc_solves_ < 400
+    assert est.warnings_ == [
+        f"stopped at its limit of 1 direct-search iteration(s) (max_iter) after {est.n_doc_solves_} DOC solves: "
+        f"the weights are the best of {len(est.history_)} evaluated, not a converged optimum"
+    ]
+    assert BilevelIOC(1).max_iter is None
+
+
 def test_kkt_recovers_the_true_weights_without_noise(demos):
     est = KKTIOC(2, n_nodes=N_NODES).fit(demos)
     assert est.n_doc_solves_ == 0
@@ -157,6 +169,7 @@ def test_kkt_degrades_with_angle_noise(demos):
     [
         (BilevelIOC(2, method="condor"), "method must be one of"),
         (BilevelIOC(2, max_evals=1), "max_evals must be"),
+        (BilevelIOC(2, max_iter=0), "max_iter must be None or an integer >= 1, got 0"),
         (BilevelIOC(2, w0=0.0), "w0 must be > 0"),
         (BilevelIOC(0), "n_windows must be in"),
         (KKTIOC(0), "n_windows must be in"),

@@ -47,7 +47,10 @@ RUN_KEYS = {
     "n_cv": ("CV trials per posture, 0 to 1000000 (default: all; --quick 3; 0: all)", "count"),
     "n_iscv": ("ISCV trials per posture, 0 to 1000000 (default: all; --quick 3; 0: all)", "count"),
     "nodes": (f"DOC knots, {NODES_RANGE[0]} to {NODES_RANGE[1]} (default 100; --quick 40)", "nodes"),
-    "max_iter": (f"MO-IRL iterations at most, per stage, 1 to {MAX_ITER} (default 30; --quick 5)", "iters"),
+    "max_iter": (
+        f"MO-IRL/MaxEnt iterations at most, per stage, 1 to {MAX_ITER} (default 30; --quick 5); not bilevel's or kkt's",
+        "iters",
+    ),
     "tol": ("MO-IRL acceptance threshold, from 0 to below 0.5 (default 1e-4; 0 with --seed-form)", "tol"),
     "rollout": ("MO-IRL rollouts: per_task (default), per_demo or mean", "str"),
     "data_seed": ("seed of the built-in data set, 0 to 1000000 (default 0); not with --data", "count"),
@@ -551,6 +554,23 @@ def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
         )
 
 
+def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, methods) -> None:
+    """Refuse the option ``key`` (``what`` it is, and why the other methods have none) when it was asked for and no
+    method of the run (``methods``) takes it: :class:`InputError` naming the flag, ``--set`` or the run file it came
+    from. Not given, 0 (none), or only recorded in a run's own ``run.toml`` (which records every option, defaults
+    too: resuming the run is no ask) is no ask."""
+    value = opts.get(key)
+    if not value or (key in from_file and _is_run_toml(Path(args.config))):
+        return
+    why = f"--method {' '.join(methods)} takes none ({what})"
+    if key in from_file:
+        raise InputError(f"{key} = {value}: {why}", args.config)
+    flag = getattr(args, key) if key in FLAG_KEYS else getattr(args, f"key_{key}", None)
+    if flag is None:  # given by --set
+        raise InputError(f"{key}={value}: {why}", "--set")
+    raise InputError(f"--{key.replace('_', '-')} {value}: {why}")
+
+
 def _stopped(result) -> int:
     """A run stopped by --max-units: the finished units' models (`evaluate`, `plot`, `simulate` can use them
     now) and how to finish."""
@@ -618,6 +638,11 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
     unknown = [m for m in config.methods if m not in METHODS]
     if unknown:
         raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
+    if not any(builds_on_moirl(m) for m in config.methods):
+        why = "bilevel stops at its budget of DOC solves, kkt solves once"
+        _refuse_unused(
+            args, opts, from_file, "max_iter", f"moirl's and maxent's iterations at most; {why}", config.methods
+        )
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
     if opts.get("uncertainty") and not any(builds_on_moirl(m) for m in config.methods):

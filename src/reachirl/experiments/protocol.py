@@ -431,10 +431,12 @@ def unit_observes(method: str, estimator_options) -> bool:
 def make_estimator(unit: Unit):
     """The estimator of ``unit.method`` from :func:`reachirl.irl.methods.make_estimator`: MO-IRL or a baseline
     with the same API (``fit(trials)`` → ``weights_``; optionally ``history_``, ``n_doc_solves_``,
-    ``n_doc_failures_``). Only the hyperparameters its constructor takes are passed."""
+    ``n_doc_failures_``). Only the hyperparameters its constructor takes are passed, and the unit's ``max_iter``
+    to MO-IRL and MaxEnt only (bilevel's own ``max_iter``, ``reachirl fit --max-iter``'s, is not the run's)."""
     import inspect
 
     from ..irl.methods import METHODS as AVAILABLE
+    from ..irl.methods import builds_on_moirl
     from ..irl.methods import make_estimator as factory
 
     if unit.method not in AVAILABLE:
@@ -449,6 +451,8 @@ def make_estimator(unit: Unit):
     params = inspect.signature(AVAILABLE[unit.method].__init__).parameters
     if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
         wanted = {k: v for k, v in wanted.items() if k in params}
+    if not builds_on_moirl(unit.method):  # the run's max_iter is MO-IRL's: bilevel stops at its DOC-solve budget
+        wanted.pop("max_iter", None)
     return factory(unit.method, unit.sections, **wanted)
 
 

@@ -7,7 +7,8 @@ mean task (:func:`reachirl.irl.moirl.mean_task`), the same rollout MO-IRL uses b
 log-weights around MO-IRL's start, ``ω = w0 · exp(θ)`` with ``θ₀ = 0``, so the weights stay positive and each
 coordinate moves in relative terms; ``θ`` is bounded to ``±log_bound`` (default ``log 1e4``: four decades
 either way), which keeps the DOC away from weights it cannot solve. Berret used CONDOR; here scipy's Powell
-(default) or Nelder-Mead, capped at ``max_evals`` DOC solves. Each DOC is warm-started from the previous
+(default) or Nelder-Mead, capped at ``max_evals`` DOC solves and, when given, at ``max_iter`` outer iterations of
+the direct search (default None: the DOC-solve budget alone stops it). Each DOC is warm-started from the previous
 converged one and retried cold if that fails (both count as solves); a DOC that still fails scores
 ``failure_merit`` times the initial merit (finite, so the direct-search line searches stay well defined).
 """
@@ -47,7 +48,7 @@ class BilevelIOC(WeightEstimator):
     merit, converged, weights, cumulative DOC solves, wall time), ``n_doc_solves_``, ``n_doc_failures_``,
     ``n_iter_`` (outer iterations of the direct search), ``fit_time_``, ``stop_reason_``, ``warnings_`` (demonstrations
     of several postures behind the one mean-task rollout: :func:`reachirl.irl.moirl.mixed_postures_warning`; a
-    search stopped by ``max_evals`` rather than converged).
+    search stopped by ``max_evals`` or ``max_iter`` rather than converged).
     """
 
     def __init__(
@@ -56,6 +57,7 @@ class BilevelIOC(WeightEstimator):
         *,
         n_nodes: int = 100,
         max_evals: int = 400,
+        max_iter: int | None = None,
         method: str = "powell",
         w0: float = 0.05,
         log_bound: float = float(np.log(1e4)),
@@ -67,6 +69,7 @@ class BilevelIOC(WeightEstimator):
         self.n_windows = n_windows
         self.n_nodes = n_nodes
         self.max_evals = max_evals
+        self.max_iter = max_iter
         self.method = method
         self.w0 = w0
         self.log_bound = log_bound
@@ -81,6 +84,9 @@ class BilevelIOC(WeightEstimator):
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if not isinstance(self.max_evals, int | np.integer) or isinstance(self.max_evals, bool) or self.max_evals < 2:
             raise ValueError(f"max_evals must be an integer >= 2, got {self.max_evals!r}")
+        it = self.max_iter
+        if it is not None and (not isinstance(it, int | np.integer) or isinstance(it, bool) or it < 1):
+            raise ValueError(f"max_iter must be None or an integer >= 1, got {it!r}")
         for name, least in (("xtol", 0.0), ("ftol", 0.0), ("failure_merit", 1.0)):
             v = getattr(self, name)  # a failure merit under 1 would score a failed DOC better than the start
             ok = isinstance(v, int | float | np.number) and not isinstance(v, bool) and np.isfinite(v)
@@ -142,6 +148,8 @@ class BilevelIOC(WeightEstimator):
             opts = {"maxfev": int(self.max_evals), "xtol": self.xtol, "ftol": self.ftol}
         else:
             opts = {"maxfev": int(self.max_evals), "xatol": self.xtol, "fatol": self.ftol, "adaptive": True}
+        if self.max_iter is not None:  # else scipy's own bound (1000 per coordinate), which the budget reaches first
+            opts["maxiter"] = int(self.max_iter)
         n_iter = 0
 
         def count(_xk) -> None:
@@ -159,6 +167,8 @@ class BilevelIOC(WeightEstimator):
                 callback=count,
             )
             self.stop_reason_ = "max_evals" if state["solves"] >= self.max_evals else str(res.message)
+            if self.max_iter is not None and res.status == 2 and self.stop_reason_ != "max_evals":
+                self.stop_reason_ = "max_iter"  # scipy's status 2 (Powell and Nelder-Mead): maxiter reached
             n_iter = int(getattr(res, "nit", n_iter))
         except _BudgetError:
             self.stop_reason_ = "max_evals"
@@ -183,6 +193,12 @@ class BilevelIOC(WeightEstimator):
             self.warnings_.append(
                 f"stopped at its budget of {self.max_evals} DOC solves (max_evals) after {n_iter} complete "
                 f"direct-search iteration(s): the weights are the best of {len(self.history_)} evaluated, not a "
+                "converged optimum"
+            )
+        elif self.stop_reason_ == "max_iter":
+            self.warnings_.append(
+                f"stopped at its limit of {self.max_iter} direct-search iteration(s) (max_iter) after "
+                f"{state['solves']} DOC solves: the weights are the best of {len(self.history_)} evaluated, not a "
                 "converged optimum"
             )
         for msg in self.warnings_:  # as MO-IRL's: logged, unless the caller says them (reachirl fit, reproduce)
