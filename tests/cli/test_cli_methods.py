@@ -186,12 +186,25 @@ def test_a_seed_form_changed_by_the_run_file_says_it_departs(tiny_trials, tmp_pa
     assert json.loads(out.read_text())["info"]["departures"] == []
 
 
-def test_uncertainty_asked_of_methods_without_samples_is_noted(tiny_trials, tmp_path, cli):
+def test_uncertainty_asked_of_methods_without_samples_is_refused(tiny_trials, tmp_path, cli):
+    """As fit --method kkt --uncertainty is: refused, not run with a note; the default (40 samples for the methods
+    that draw them) asks nothing, and neither does a run's own run.toml, which records it."""
     args = ["--data", tiny_trials, "--sections", "1", "--nodes", "20", "--n-train", "2", "--workers", "1"]
-    proc = cli("reproduce", *args, "--method", "kkt", "--uncertainty", "40", "--no-progress", "--out", tmp_path / "k")
-    assert proc.returncode == 0, proc.stderr
-    assert "note: --uncertainty 40 draws weight samples for moirl and maxent fits only; --method kkt has none" in (
-        proc.stderr
+    out = tmp_path / "k"
+    proc = cli("reproduce", *args, "--method", "kkt", "--uncertainty", "40", "--no-progress", "--out", out)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert (
+        "--uncertainty 40: --method kkt takes none (weight samples are drawn for moirl and maxent fits only)"
+        in proc.stderr
     )
-    report = (tmp_path / "k" / "report.md").read_text()
+    assert not (out / "units").exists()
+    proc = cli("reproduce", *args, "--method", "kkt", "--no-progress", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert "note:" not in proc.stderr and "takes none" not in proc.stderr
+    run_toml = (out / "run.toml").read_text()
+    assert "uncertainty = 40" in run_toml and "max_iter = 30" in run_toml
+    report = (out / "report.md").read_text()
     assert "they are drawn for moirl and maxent fits only" in report
+    proc = cli("reproduce", "--config", out / "run.toml", "--no-progress", "--out", out)  # resumed: every unit reused
+    assert proc.returncode == 0, proc.stderr
+    assert "1 unit(s) already done" in proc.stderr and "takes none" not in proc.stderr

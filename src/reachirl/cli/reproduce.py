@@ -197,7 +197,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         type=samples_or_none(20, 1000),
         default=None,
         metavar="K",
-        help="weight samples per main-table MO-IRL/MaxEnt fit, for its share intervals, 20-1000, 0: none (default 40)",
+        help="weight samples per main-table MO-IRL/MaxEnt fit, 20-1000, 0: none (default 40); "
+        "refused for bilevel/kkt only",
     )
     return p
 
@@ -638,19 +639,16 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
     unknown = [m for m in config.methods if m not in METHODS]
     if unknown:
         raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
-    if not any(builds_on_moirl(m) for m in config.methods):
+    if not any(builds_on_moirl(m) for m in config.methods):  # as fit refuses them with --method bilevel or kkt
         why = "bilevel stops at its budget of DOC solves, kkt solves once"
         _refuse_unused(
             args, opts, from_file, "max_iter", f"moirl's and maxent's iterations at most; {why}", config.methods
         )
+        # the default (40, not in opts) asks nothing: such a run draws no samples, silently
+        what = "weight samples are drawn for moirl and maxent fits only"
+        _refuse_unused(args, opts, from_file, "uncertainty", what, config.methods)
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
-    if opts.get("uncertainty") and not any(builds_on_moirl(m) for m in config.methods):
-        print(
-            f"note: --uncertainty {opts['uncertainty']} draws weight samples for moirl and maxent fits only; "
-            f"--method {' '.join(config.methods)} has none",
-            file=sys.stderr,
-        )
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
 
     t0 = time.perf_counter()
