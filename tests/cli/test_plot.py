@@ -597,6 +597,42 @@ def test_plot_draws_a_bilevel_search_per_evaluation_and_names_the_seed_form(fitt
     assert all(drawn[f][0].startswith("moirl (seed form)") for f in ("prediction.png", "weights.png"))
 
 
+def test_plot_of_a_model_without_samples_suggests_only_what_its_method_takes(fitted, tmp_path, monkeypatch):
+    """weights.png's footnote suggests --uncertainty for a MO-IRL model only: kkt and bilevel refuse it; a KKT
+    model's shares are on the plotted trials (it solves no DOC), and its footnote says so."""
+    import json as js
+
+    from reachirl.experiments import figures as fg
+
+    _, path, model = fitted
+    kkt = tmp_path / "kkt.json"
+    assert main(["fit", str(path), "--subject", "S01", "--sections", "2", "--nodes", str(N), "--method", "kkt",
+                 "--out", str(kkt)]) == 0  # fmt: skip
+    bilevel = tmp_path / "bilevel.json"  # the moirl model, named bilevel (its reach and no samples)
+    d = js.loads(model.read_text())
+    bilevel.write_text(js.dumps({**d, "method": "bilevel", "info": {**d["info"], "method": "bilevel"}}))
+    notes, real = {}, fg.save
+
+    def save(fig, where, close=True):
+        notes[Path(where).parent.name, Path(where).name] = fig.texts[-1].get_text()  # the footnote, last
+        real(fig, where, close=close)
+
+    monkeypatch.setattr(fg, "save", save)
+    for m in (model, kkt, bilevel):
+        argv = ["plot", "--model", str(m), str(path), "--subject", "S02", "--no-pdf", "--out", str(tmp_path / m.stem)]
+        assert main(argv) == 0
+    assert notes["model", "weights.png"] == fg.NO_SAMPLES and "--uncertainty of fit" in fg.NO_SAMPLES
+    assert notes["kkt", "weights.png"] == (
+        "Shares on the plotted trials' own features (kkt solves no DOC: it has no reach of its own). No weight "
+        "samples: kkt draws none (moirl and maxent fits do, with --uncertainty); nothing is hatched, and no share "
+        "here is a finding."
+    )
+    assert notes["bilevel", "weights.png"] == (
+        "No weight samples: bilevel draws none (moirl and maxent fits do, with --uncertainty); nothing is hatched, "
+        "and no share here is a finding."
+    )
+
+
 def _users_figure(path: Path) -> bytes:
     """A figure of the user's own, saved by matplotlib without reachirl's mark (as any other program's)."""
     import matplotlib.pyplot as plt
@@ -696,6 +732,22 @@ def test_plot_titles_name_a_backend_other_than_casadi(fitted, tmp_path, monkeypa
     assert main([*base, "--model", str(model), "--out", str(tmp_path / "k")]) == 0
     assert not any("casadi" in title or "crocoddyl" in title for title, _ in drawn.values())
     assert "vs predictions (solid)" in drawn["prediction.png"][0]
+
+
+def test_a_runs_weights_figure_knows_its_method_for_the_footnote(run_folder, tmp_path, monkeypatch):
+    """fig3 without weight samples says what draws them for the main table's method (kkt and bilevel: nothing)."""
+    from reachirl.experiments import report
+
+    kwargs, real = {}, report.figure_jobs
+
+    def figure_jobs(*args, **kw):
+        jobs, figs = real(*args, **kw)
+        kwargs.update({Path(job.paths[-1]).name: job.kwargs for job in jobs})
+        return jobs, figs
+
+    monkeypatch.setattr(report, "figure_jobs", figure_jobs)
+    assert main(["plot", str(run_folder), "--out", str(tmp_path / "figs"), "--no-pdf"]) == 0
+    assert kwargs["fig3_weights.png"]["method"] == "moirl"
 
 
 def test_a_runs_figure_titles_name_a_backend_other_than_casadi(run_folder, tmp_path, monkeypatch):

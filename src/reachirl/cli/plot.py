@@ -5,7 +5,8 @@ With a model: ``--subject/--posture/--side`` choose the trials, and ``--trial`` 
 or index among the selected trials, 0-based); each is predicted from its own start exactly as ``evaluate`` predicts
 it (the same function: the same RMSE, printed as ``evaluate`` prints it), and DIR gets ``prediction.png``
 (demonstrations dashed against predictions solid, q and q̇ per joint), ``weights.png`` (each feature's share of its
-window's cost on the fit's own reach, the shares its intervals bracket; undetermined shares hatched) and
+window's cost on the fit's own reach, the shares its intervals bracket; undetermined shares hatched; a KKT model's
+on the plotted trials: it solves no DOC) and
 ``convergence.png`` (the fit's merit per iteration, when the model file holds a history). With a
 ``reachirl reproduce`` folder: the run's figures (``fig2_prediction``, ``fig3_weights``, ``fig4_iscv``,
 ``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
@@ -119,12 +120,20 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True, backend: s
         _save(fg.plot_prediction(arrays, "trials", title=title), out, "prediction", pdf, written)
     shares = model.cost_shares()  # on the fit's own reach: the shares its intervals bracket
     unc = model.uncertainty
+    note = None  # the figure's own caveat (with intervals, or what draws weight samples for the model's method)
     if shares is not None:
         label = "on the fit's own reach"
         undetermined = None if unc is None else {(label, n): ~np.asarray(unc["share_intervals"]["determined"], bool)}
-    else:  # a model file from before reach features were recorded: the chosen trials, without intervals
+    else:  # KKT (it solves no DOC) or a model file from before reach features were recorded: the chosen trials
         shares = cost_shares(model.weights, np.mean([t.features(n_nodes, n) for t in trials], axis=0))
         label, undetermined = f"on {len(trials)} recorded trial(s)", None
+        why = "kkt solves no DOC: it has no reach of its own" if model.method == "kkt" else "no reach in the model file"
+        note = f"Shares on the plotted trials' own features ({why}). " + (
+            "The model's weight samples bracket the shares on its own reach, not these: nothing is hatched, and no "
+            "share here is a finding."
+            if unc is not None
+            else fg.no_samples_note(model.method)
+        )
     _save(
         fg.plot_weights(
             {(label, n): shares},
@@ -132,6 +141,8 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True, backend: s
             [n],
             undetermined=undetermined,
             title=f"{method}: each feature's share of its window's cost",
+            note=note,
+            method=model.method,
         ),
         out,
         "weights",

@@ -29,6 +29,7 @@ from .names import CONVERGENCE_TITLE, natural_key, sections_text
 __all__ = [
     "FIGURE_MARK",
     "is_marked_figure",
+    "no_samples_note",
     "plot_convergence",
     "plot_iscv",
     "plot_methods",
@@ -59,6 +60,22 @@ NO_SAMPLES = (
     "No weight samples (--uncertainty of fit or reproduce): nothing is hatched, and no share here is a finding."
 )
 PANEL_NO_SAMPLES = "no weight samples:\nnot a finding"
+
+
+def no_samples_note(method: str | None = None) -> str:
+    """The footnote of a weights figure without weight samples, suggesting only what draws them for ``method``'s
+    fits: ``--uncertainty`` for MO-IRL and MaxEnt (and when the method is not known), none for bilevel and KKT,
+    which refuse it."""
+    from ..irl.methods import builds_on_moirl
+
+    if method is None or builds_on_moirl(method):
+        return NO_SAMPLES
+    return (
+        f"No weight samples: {method} draws none (moirl and maxent fits do, with --uncertainty); nothing is hatched, "
+        "and no share here is a finding."
+    )
+
+
 TRUTH_CAVEAT = (
     "Learned weights are one cost among several that explain the reaches; both rows' shares on {on}; hatched: "
     "the learned share is undetermined (its 95 % interval, on the fit's own reach, wider than 0.25 or missing the "
@@ -281,11 +298,15 @@ def plot_weights(
     title: str = "",
     flags: dict | None = None,
     undetermined: dict | None = None,
+    note: str | None = None,
+    method: str | None = None,
 ):
     """``shares[(posture, sections)] = (n_windows, 7)`` cost shares; one heatmap per posture (columns) and
     section count (rows): features on the y axis, windows on the x axis. ``flags[(posture, sections)]`` marks
     fits that never left ω₀ (``"w0"``) or made one step (``"one_step"``); ``undetermined[(posture, sections)]``
-    (booleans ``(n_windows, 7)``) hatches the shares whose interval is wide. The caveat is written under it."""
+    (booleans ``(n_windows, 7)``) hatches the shares whose interval is wide. The caveat is written under it:
+    ``note``, by default :data:`CAVEAT` with ``undetermined``, else :func:`no_samples_note` of the fits' ``method``
+    (what draws weight samples for it, if anything)."""
     fig, axes = _grid(axes, len(sections), len(postures), (2.4 * len(postures) + 2.2, 2.6 * len(sections) + 0.8))
     im = None
     for r, n in enumerate(sections):
@@ -310,7 +331,8 @@ def plot_weights(
         cb.set_label("share of the window's cost", fontsize=10)
         cb.ax.tick_params(labelsize=9)
     fig.suptitle(title or "Learned weights (each feature's share of its window's cost)", fontsize=11)
-    fig.text(0.01, -0.03, CAVEAT if undetermined else NO_SAMPLES, fontsize=8, va="top", wrap=True)
+    note = note or (CAVEAT if undetermined else no_samples_note(method))
+    fig.text(0.01, -0.03, note, fontsize=8, va="top", wrap=True)
     return fig
 
 

@@ -411,6 +411,7 @@ def figure_jobs(
             sections=sections,
             flags=flags,
             undetermined=undetermined or None,
+            method=main,  # without samples, the footnote says what draws them for its fits (bilevel's, KKT's: none)
         )
         intervals = {
             (r["unit"]["posture"], r["unit"]["sections"]): r["uncertainty"]["share_intervals"]
