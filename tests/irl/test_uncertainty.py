@@ -546,6 +546,33 @@ def test_weight_samples_from_one_demonstration_warn_that_their_noise_is_a_stand_
     assert ONE_DEMO_SAMPLES not in MOIRL(3, n_nodes=40, max_iter=2).fit(trials[:1]).warnings_
 
 
+def test_pooling_per_task_from_one_demonstration_warns_that_its_noise_is_a_stand_in(recorded, tmp_path, capsys):
+    """pooling.per_task of a task with one trial used merit_noise's stand-in (the merit itself) without the warning
+    a single-demonstration fit gives; now it warns, naming the tasks, and `reachirl fit` says it as it says the
+    single-demonstration one."""
+    from reachirl.cli import main
+    from reachirl.data.trial import save_trials
+    from reachirl.irl.moirl import ONE_DEMO_SAMPLES
+
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"])
+    p2, p4 = (select_trials(trials, postures=[p]) for p in ("P2", "P4"))
+    est = MOIRL(1, n_nodes=20, max_iter=1, uncertainty=20).fit([*p2[:2], p4[0]])
+    assert sorted(est.uncertainty_["pooling"]["per_task"]) == ["S01/P2", "S01/P4"]
+    said = (
+        "uncertainty.pooling.per_task from one demonstration for 1 task(s) (S01/P4): with no second one to measure "
+        "the task's trial-to-trial spread, the merit rise it can tell from noise is taken as its merit itself, so "
+        "those tasks' widths rest on that stand-in, not on measured noise"
+    )
+    assert said in est.warnings_ and ONE_DEMO_SAMPLES not in est.warnings_
+    both = MOIRL(1, n_nodes=20, max_iter=1, uncertainty=20).fit([*p2[:2], *p4[:2]])
+    assert not any("pooling.per_task" in w for w in both.warnings_)
+    path = save_trials(tmp_path / "pooled_one_p4.npz", [*p2[:2], p4[0]])
+    out = tmp_path / "pooled_one_p4.json"
+    argv = ["fit", str(path), "--sections", "1", "--nodes", "20", "--max-iter", "1", "--uncertainty", "20"]
+    assert main([*argv, "--out", str(out)]) == 0
+    assert f"warning: {said}" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize(("fraction", "expected"), [(0.01, True), (0.5, False)])
 def test_the_claim_record_says_when_its_verdict_is_the_prior_s(fitted, monkeypatch, fraction, expected):
     """MODEL.json's `claim` carries `prior_verdict`: true when the draws under the prior alone give the posterior's

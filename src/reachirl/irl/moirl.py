@@ -83,6 +83,19 @@ ONE_DEMO_SAMPLES = (
 """The warning of a fit with weight samples from a single demonstration (:func:`reachirl.irl.uncertainty.merit_noise`
 has no spread to measure then)."""
 
+
+def one_demo_tasks_warning(tasks: Sequence[str]) -> str:
+    """The warning of a pooled fit with weight samples whose ``uncertainty.pooling.per_task`` intervals of ``tasks``
+    (``subject/posture``) come from one demonstration each: :data:`ONE_DEMO_SAMPLES`' stand-in noise, task by task
+    (the pooled intervals, from several demonstrations, measure theirs)."""
+    named = ", ".join(tasks[:5]) + (f" and {len(tasks) - 5} more" if len(tasks) > 5 else "")
+    return (
+        f"uncertainty.pooling.per_task from one demonstration for {len(tasks)} task(s) ({named}): with no second "
+        "one to measure the task's trial-to-trial spread, the merit rise it can tell from noise is taken as its "
+        "merit itself, so those tasks' widths rest on that stand-in, not on measured noise"
+    )
+
+
 log = logging.getLogger(__name__)
 
 
@@ -491,6 +504,11 @@ class MOIRL(WeightEstimator):
                 msgs.append(f"no weight samples: {e}")
             if self.uncertainty_ is not None and len(trials) < 2:
                 msgs.append(ONE_DEMO_SAMPLES)
+            elif self.uncertainty_ is not None and self.uncertainty_.get("pooling"):  # each task's data alone
+                from .uncertainty import one_demo_tasks
+
+                if lone := one_demo_tasks(trials):
+                    msgs.append(one_demo_tasks_warning(lone))
         for msg in filter(None, msgs):
             self.warnings_ = [*self.warnings_, msg]
             log_fit_warning(log, msg)

@@ -31,6 +31,7 @@ cost from the fit's.
 from __future__ import annotations
 
 import logging
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,6 +52,7 @@ __all__ = [
     "laplace_posterior",
     "mean_width",
     "merit_noise",
+    "one_demo_tasks",
     "prior_gives_verdict",
     "residuals_and_jacobian",
     "rise_over_noise",
@@ -450,6 +452,15 @@ def _task_names(trials) -> list[str]:
     """Each demonstration's task as ``subject/posture``, whatever the rollouts (one per task, per demonstration
     or one for all): the tasks ``pooling`` compares are the data's, not the fit's rollouts."""
     return [f"{t.subject}/{t.posture}" for t in trials]
+
+
+def one_demo_tasks(trials) -> list[str]:
+    """The tasks of ``pooling.per_task`` (:func:`_task_names`, in the trials' order) with a single demonstration:
+    their intervals alone rest on :func:`merit_noise`'s stand-in (the merit itself), not on a measured spread.
+    Empty with a single task (no ``pooling`` then)."""
+    names = _task_names(trials)
+    counts = Counter(names)
+    return [] if len(counts) < 2 else [n for n in counts if counts[n] == 1]
 
 
 def rollout_errors(est, w: np.ndarray) -> tuple[np.ndarray | None, list, int]:
