@@ -81,7 +81,9 @@ class Trial:
             raise InputError(f"a trial needs at least 4 samples, got {n}", where)
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
             raise InputError("time must be finite and strictly increasing", where)
-        object.__setattr__(self, "t", t - t[0])
+        t = t - t[0]  # a new array: the caller's is neither kept nor changed
+        t.setflags(write=False)
+        object.__setattr__(self, "t", t)
         for name in ("q", "qd", "qdd", "tau"):
             a = _floats(name, getattr(self, name), where)
             if a.shape != (n, 2):
@@ -91,7 +93,8 @@ class Trial:
             a = a.copy()
             a.setflags(write=False)
             object.__setattr__(self, name, a)
-        x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else _floats("x0", self.x0, where).reshape(-1)
+        # a copy, read-only like the other arrays: the caller's array changed later must not change the trial
+        x0 = np.r_[self.q[0], self.qd[0]] if self.x0 is None else _floats("x0", self.x0, where).reshape(-1).copy()
         if x0.shape != (4,) or not np.all(np.isfinite(x0)):
             raise InputError(f"x0 must be 4 finite numbers (q1, q2, qd1, qd2), got shape {x0.shape}", where)
         for name, angles in (("q", self.q), ("x0's angles", x0[:2])):  # degrees are refused here, not in a solve
@@ -102,6 +105,7 @@ class Trial:
                     f"{MAX_JOINT_ANGLE_RAD / (2 * np.pi):g} turns ({MAX_JOINT_ANGLE_RAD:.4g} rad; degrees?)",
                     where,
                 )
+        x0.setflags(write=False)
         object.__setattr__(self, "x0", x0)
         if not isinstance(self.arm, ArmModel):
             raise InputError(f"arm must be an ArmModel, got {type(self.arm).__name__}", where)

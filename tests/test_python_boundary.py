@@ -1,0 +1,26 @@
+"""What a researcher meets using reachirl from Python (a notebook) rather than the command line: the frozen data's
+arrays, the estimators' checks and reprs, the protocol's configuration."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reachirl.data.trial import Trial
+
+
+def _trial(arm, **kw) -> Trial:
+    t = np.linspace(0.0, 0.6, 13)
+    q = np.c_[np.linspace(-1.4, -0.6, 13), np.linspace(1.5, 0.5, 13)]
+    zero = np.zeros_like(q)
+    return Trial("S1", "P2", "T1", kw.pop("t", t), q, zero, zero, zero, 0.5, arm, **kw)
+
+
+def test_a_trial_keeps_its_own_read_only_time_and_start(arm):
+    t, x0 = np.linspace(0.0, 0.6, 13), np.array([-1.4, 1.5, 0.0, 0.0])
+    tr = _trial(arm, t=t, x0=x0)
+    x0[0], t[-1] = 100.0, 50.0  # the caller's arrays, changed after: not the trial's
+    assert tr.x0[0] == -1.4 and tr.duration == pytest.approx(0.6)
+    for name in ("t", "x0", "q", "qd", "qdd", "tau"):  # a frozen trial: none of its arrays changes in place
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(tr, name)[0] = 1.0
