@@ -24,3 +24,18 @@ def test_a_trial_keeps_its_own_read_only_time_and_start(arm):
     for name in ("t", "x0", "q", "qd", "qdd", "tau"):  # a frozen trial: none of its arrays changes in place
         with pytest.raises(ValueError, match="read-only"):
             getattr(tr, name)[0] = 1.0
+
+
+@pytest.fixture(scope="module")
+def fitted(tiny_trials):
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.baselines import KKTIOC
+
+    return KKTIOC(2, n_nodes=20).fit(load_trials(tiny_trials)[:3])
+
+
+@pytest.mark.parametrize("empty", [[], (), iter([])], ids=["list", "tuple", "iterator"])
+def test_scoring_no_trials_is_a_value_error_not_minus_infinity(fitted, empty):
+    # -inf is the score of a model whose every prediction failed; an empty set is the caller's mistake
+    with pytest.raises(ValueError, match="at least one trial"):
+        fitted.score(empty)

@@ -157,7 +157,8 @@ class WeightEstimator:
         the mean joint-angle RMSE in degrees (the RMSE of q, both joints, each trial on the DOC's knots) of the
         trials whose prediction converged, as ``reachirl evaluate`` summarises it
         (:func:`reachirl.doc.evaluation.summarise`): ``-2.5`` for a mean RMSE of 2.5°. A prediction whose DOC
-        failed is no answer of the model and is left out; with none converged the score is ``-inf``, the worst.
+        failed is no answer of the model and is left out; with none converged the score is ``-inf``, the worst
+        (no trials at all is a ``ValueError``).
         Each trial is predicted as :meth:`predict` predicts it. ``y`` is ignored (scikit-learn's signature: the
         demonstrations are their own targets). For held-out trials, pass trials not fitted on."""
         from ..doc.evaluation import evaluate_trials, summarise
@@ -171,6 +172,8 @@ class WeightEstimator:
             observe=bool(getattr(est, "observe", False)),
             path=est.rollout_path(),
         )
+        if not errors:  # nothing to score is a mistake, not a model whose every prediction failed (-inf)
+            raise ValueError("score needs at least one trial to predict, got none")
         mean = summarise(errors)["rmse_deg"]["q"]["mean"]
         return -float("inf") if mean is None else -float(mean)
 
