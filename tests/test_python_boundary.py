@@ -39,3 +39,16 @@ def test_scoring_no_trials_is_a_value_error_not_minus_infinity(fitted, empty):
     # -inf is the score of a model whose every prediction failed; an empty set is the caller's mistake
     with pytest.raises(ValueError, match="at least one trial"):
         fitted.score(empty)
+
+
+@pytest.mark.parametrize(
+    "kw", [{"sections": 8}, {"postures": "P2"}, {"methods": "kkt"}], ids=["sections", "postures", "methods"]
+)
+def test_protocol_config_refuses_a_bare_name_or_number_for_a_sequence(kw):
+    from reachirl.experiments.protocol import ProtocolConfig
+
+    # postures="P2" ran postures "P" and "2"; methods="kkt" said unknown method 'k'; sections=8 a TypeError
+    (name,) = kw
+    with pytest.raises(ValueError, match=rf"^{name} must be a sequence, e\.g\. .*, got "):
+        ProtocolConfig(**kw)
+    assert ProtocolConfig(**{name: [kw[name]]}).to_dict()[name] == (kw[name],)  # as a sequence of one: fine

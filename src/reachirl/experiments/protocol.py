@@ -24,7 +24,7 @@ import hashlib
 import json
 import time
 import zlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -84,6 +84,14 @@ class ProtocolConfig:
     posture_transfer: bool = False  # also learn on every posture but one and predict the held-out one
 
     def __post_init__(self) -> None:
+        # names and counts come as sequences: a bare string was taken letter by letter (postures="P2" ran the
+        # postures "P" and "2"; methods="kkt" an unknown method 'k'), a bare number failed with a TypeError
+        for name, example in (("sections", "(1, 6, 8)"), ("postures", "('P2',)"), ("methods", "('moirl',)")):
+            v = getattr(self, name)
+            if v is None and name == "postures":
+                continue
+            if isinstance(v, str | bytes) or not isinstance(v, Iterable):
+                raise InputError(f"{name} must be a sequence, e.g. {example}, got {v!r}")
         if (what := not_real(list(self.sections))) is not None:
             raise InputError(f"--sections must be positive integers, got {what}")
         for name in ("seed", "n_train", "n_cv", "n_iscv", "n_nodes", "max_iter", "tol", "uncertainty"):
