@@ -52,3 +52,16 @@ def test_protocol_config_refuses_a_bare_name_or_number_for_a_sequence(kw):
     with pytest.raises(ValueError, match=rf"^{name} must be a sequence, e\.g\. .*, got "):
         ProtocolConfig(**kw)
     assert ProtocolConfig(**{name: [kw[name]]}).to_dict()[name] == (kw[name],)  # as a sequence of one: fine
+
+
+def test_an_estimators_repr_names_its_class_and_the_parameters_changed():
+    from reachirl import MOIRL
+    from reachirl.irl.baselines import KKTIOC, BilevelIOC, MaxEntIRL
+
+    assert repr(MOIRL()) == "MOIRL()"
+    assert repr(MOIRL(4, max_iter=5, rollout="per_demo")) == "MOIRL(n_windows=4, rollout='per_demo', max_iter=5)"
+    assert repr(MaxEntIRL(8, tol=0.001)) == "MaxEntIRL(tol=0.001)"
+    assert repr(BilevelIOC(2, method="nelder-mead")) == "BilevelIOC(n_windows=2, method='nelder-mead')"
+    assert repr(KKTIOC().set_params(pooling="per_demo")) == "KKTIOC(pooling='per_demo')"
+    mask = np.ones(7, dtype=bool)
+    assert repr(MOIRL(feature_mask=mask)) == f"MOIRL(feature_mask={mask!r})"

@@ -62,6 +62,21 @@ class WeightEstimator:
                         names.append(p.name)
         return {k: getattr(self, k) for k in names if hasattr(self, k)}
 
+    def __repr__(self) -> str:
+        """``MOIRL(n_windows=4, max_iter=5)``: the class and the parameters that differ from their defaults
+        (scikit-learn's), not ``<... object at 0x...>``."""
+        defaults: dict = {}
+        for cls in type(self).__mro__:
+            if "__init__" in cls.__dict__ and cls is not object:
+                for p in inspect.signature(cls.__init__).parameters.values():
+                    defaults.setdefault(p.name, p.default)
+        changed = [
+            f"{k}={v!r}"
+            for k, v in self.get_params().items()
+            if defaults.get(k, inspect.Parameter.empty) is inspect.Parameter.empty or not _same(v, defaults[k])
+        ]
+        return f"{type(self).__name__}({', '.join(changed)})"
+
     def set_params(self, **params) -> WeightEstimator:
         """Set constructor parameters (scikit-learn style); an unknown name is a ``ValueError`` naming it."""
         known = self.get_params()
