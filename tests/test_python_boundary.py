@@ -65,3 +65,15 @@ def test_an_estimators_repr_names_its_class_and_the_parameters_changed():
     assert repr(KKTIOC().set_params(pooling="per_demo")) == "KKTIOC(pooling='per_demo')"
     mask = np.ones(7, dtype=bool)
     assert repr(MOIRL(feature_mask=mask)) == f"MOIRL(feature_mask={mask!r})"
+
+
+def test_a_learned_models_repr_summarises_its_provenance(fitted, tiny_trials):
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.model import LearnedModel
+
+    model = LearnedModel.from_estimator(fitted, load_trials(tiny_trials)[:3])
+    rollout = {"history": [{"merit": 1.0, "weights": model.weights.tolist()}] * 300}
+    big = LearnedModel(model.weights, model.n_nodes, model.method, {**model.info, **rollout})
+    text = repr(big)  # a notebook prints a loaded model whole: it was over 100,000 characters for one fit
+    assert text.startswith("LearnedModel(weights=array(") and "method='kkt'" in text and len(text) < 2000
+    assert f"info=<{len(big.info)} keys>, uncertainty=None)" in text

@@ -61,6 +61,17 @@ class LearnedModel:
 
     __hash__ = None  # its info and uncertainty are mutable mappings
 
+    def __repr__(self) -> str:
+        """The weights, discretisation and method, with ``info`` and ``uncertainty`` summarised: in full (a
+        history, a rollout, hundreds of weight samples) they made a repr of over 100,000 characters, which a
+        notebook printed whole for ``load_model(path)``."""
+        unc = self.uncertainty
+        unc = "None" if unc is None else f"<{len(unc.get('weight_samples') or ())} weight samples>"
+        return (
+            f"LearnedModel(weights={self.weights!r}, n_nodes={self.n_nodes!r}, method={self.method!r}, "
+            f"info=<{len(self.info)} keys>, uncertainty={unc})"
+        )
+
     @classmethod
     def from_estimator(cls, est, trials: Sequence = ()) -> LearnedModel:
         """The model of a fitted estimator (MOIRL or a baseline), as ``reachirl fit`` writes it: with its
