@@ -77,3 +77,14 @@ def test_a_learned_models_repr_summarises_its_provenance(fitted, tiny_trials):
     text = repr(big)  # a notebook prints a loaded model whole: it was over 100,000 characters for one fit
     assert text.startswith("LearnedModel(weights=array(") and "method='kkt'" in text and len(text) < 2000
     assert f"info=<{len(big.info)} keys>, uncertainty=None)" in text
+
+
+def test_a_learned_model_keeps_its_own_read_only_weights():
+    from reachirl.irl.model import LearnedModel
+
+    w = np.full((2, 7), 0.1)
+    model = LearnedModel(w, n_nodes=20)
+    w[0, 0] = -5.0  # the caller's array (an estimator's weights_) changed after: not the model's
+    assert model.weights[0, 0] == 0.1
+    with pytest.raises(ValueError, match="read-only"):
+        model.weights[0, 0] = -5.0  # past the check that weights are >= 0

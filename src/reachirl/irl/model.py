@@ -47,6 +47,8 @@ class LearnedModel:
             raise ValueError(f"weights must have shape (n_windows, {N_FEATURES}), got {w.shape}")
         if not np.all(np.isfinite(w)) or np.any(w < 0):
             raise ValueError("weights must be finite and >= 0")
+        w = w.copy()  # the model's own, read-only: the caller's array (an estimator's weights_) changed later, or
+        w.setflags(write=False)  # the model's changed in place, would change a frozen model past these checks
         object.__setattr__(self, "weights", w)
         # what load_model would refuse is refused here, so that a model saved is a model that loads
         check_model_dict(to_jsonable(self.to_dict()), "LearnedModel")
