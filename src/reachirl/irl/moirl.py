@@ -171,7 +171,9 @@ class MOIRL(WeightEstimator):
     * ``feature_mask``: ``(7,)`` or ``(n_windows, 7)`` booleans; a ``False`` feature is left out of the cost
       (weight 0, never learned). ``None``: every feature.
     * ``experimental``: a mapping of :class:`~reachirl.irl.options.Options` fields that override the method's.
-    * ``callback(iteration_record)``: called after every iteration (progress).
+    * ``callback(iteration_record)``: called after every iteration (progress); of an observed fit, after each of
+      its second stage's only: its whole-rollout first stage (``plain_fit_``, up to ``max_iter`` iterations of
+      its own) calls it for none.
 
     The fit makes no random choice: the same demonstrations give the same weights.
 
