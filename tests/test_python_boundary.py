@@ -88,3 +88,16 @@ def test_a_learned_model_keeps_its_own_read_only_weights():
     assert model.weights[0, 0] == 0.1
     with pytest.raises(ValueError, match="read-only"):
         model.weights[0, 0] = -5.0  # past the check that weights are >= 0
+
+
+@pytest.mark.parametrize("n_nodes", [3, 100_000])
+def test_an_estimators_n_nodes_out_of_range_is_named_as_its_own(tiny_trials, n_nodes):
+    from reachirl import MOIRL
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.baselines import KKTIOC
+
+    trials = load_trials(tiny_trials)[:1]
+    for est in (MOIRL(1, n_nodes=n_nodes), KKTIOC(1, n_nodes=n_nodes)):
+        name = type(est).__name__
+        with pytest.raises(ValueError, match=rf"^{name}: n_nodes must be an integer in \[4, 1000\], got {n_nodes}$"):
+            est.fit(trials)

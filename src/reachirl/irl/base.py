@@ -17,6 +17,7 @@ from ..data.checks import check_start_and_target, check_trial_moves, check_trial
 from ..data.trial import Trial
 from ..doc import BACKENDS, DocSolution, ReachingTask, observation
 from ..errors import NotFittedError
+from ..validation import check_n_nodes
 
 __all__ = ["WeightEstimator", "caller_shows_fit_warnings", "log_fit_warning"]
 
@@ -106,6 +107,8 @@ class WeightEstimator:
             v = getattr(self, name)
             if not isinstance(v, int | np.integer) or isinstance(v, bool):
                 raise ValueError(f"{name} must be an integer, got {v!r}")
+        # the estimator's own parameter, named as such (it was refused later as "ReachingTask: n_nodes ...")
+        check_n_nodes(self.n_nodes, type(self).__name__)
         if self.backend not in BACKENDS:
             raise ValueError(f"backend must be 'casadi' or 'crocoddyl', got {self.backend!r}")
         if not 1 <= self.n_windows <= self.n_nodes:
