@@ -101,3 +101,15 @@ def test_an_estimators_n_nodes_out_of_range_is_named_as_its_own(tiny_trials, n_n
         name = type(est).__name__
         with pytest.raises(ValueError, match=rf"^{name}: n_nodes must be an integer in \[4, 1000\], got {n_nodes}$"):
             est.fit(trials)
+
+
+def test_protocol_config_takes_numpy_numbers_for_tol_and_uncertainty():
+    from reachirl.experiments.protocol import ProtocolConfig
+
+    # "uncertainty must be 0 (none) or a number of samples from 20 to 1000, got np.int64(20)": it is one
+    config = ProtocolConfig(tol=np.float64(1e-3), uncertainty=np.int64(20), seed=np.int64(1))
+    assert (config.tol, config.uncertainty) == (1e-3, 20)
+    assert type(config.tol) is float and type(config.uncertainty) is int
+    assert ProtocolConfig(uncertainty=20) == ProtocolConfig(uncertainty=np.int64(20))
+    with pytest.raises(ValueError, match="uncertainty must be 0"):
+        ProtocolConfig(uncertainty=np.int64(5))

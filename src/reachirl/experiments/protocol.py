@@ -133,6 +133,9 @@ class ProtocolConfig:
             check_windows(resolve_options(self.seed_form, self.experimental), min(secs))
         except (ValueError, TypeError) as e:
             raise InputError(f"experimental: {e}") from None
+        for name in ("tol", "uncertainty"):  # a numpy number is the number it holds (seed, max_iter, ... took them)
+            if isinstance(getattr(self, name), np.integer | np.floating):
+                object.__setattr__(self, name, getattr(self, name).item())
         if self.tol is not None and not (isinstance(self.tol, int | float) and 0 <= self.tol < 0.5):
             raise InputError(f"tol must be a number in [0, 0.5), got {self.tol!r}")
         if not (isinstance(self.uncertainty, int) and (self.uncertainty == 0 or 20 <= self.uncertainty <= 1000)):
