@@ -113,3 +113,17 @@ def test_protocol_config_takes_numpy_numbers_for_tol_and_uncertainty():
     assert ProtocolConfig(uncertainty=20) == ProtocolConfig(uncertainty=np.int64(20))
     with pytest.raises(ValueError, match="uncertainty must be 0"):
         ProtocolConfig(uncertainty=np.int64(5))
+
+
+def test_a_task_starting_outside_the_joint_limits_names_each_joints_range(arm):
+    from reachirl import ReachingTask
+
+    # the limits read "[[-150. -5.], [120. 160.]] deg": the lower bounds, then the upper ones
+    with pytest.raises(
+        ValueError,
+        match=r"^q0 = \(-90\.0°, -20\.0°\) lies outside the joint limits q1 in \[-150\.0°, 120\.0°\], "
+        r"q2 in \[-5\.0°, 160\.0°\]$",
+    ):
+        ReachingTask(arm, np.deg2rad([-90, -20]), 0.5, 0.7)
+    with pytest.raises(ValueError, match=r"q0 = \(-5156\.6°, 5156\.6°\) .*; radians are expected \(degrees\?\)$"):
+        ReachingTask(arm, [-90, 90], 0.5, 0.7)  # np.deg2rad forgotten

@@ -95,9 +95,13 @@ class ReachingTask:
         if np.any(self.qd_max <= 0):
             raise ValueError(f"qd_max must be > 0, got {self.qd_max}")
         if np.any(self.q0 < self.q_lower - 1e-9) or np.any(self.q0 > self.q_upper + 1e-9):
+            lo, hi = np.rad2deg(self.q_lower), np.rad2deg(self.q_upper)
+            # each joint's own range (the lower and the upper bounds were printed as two pairs, [[q1, q2], [q1,
+            # q2]], which read as q1 in [-150, -5]), and what a start beyond a full turn most likely is
+            hint = "; radians are expected (degrees?)" if np.any(np.abs(self.q0) > 2 * np.pi) else ""
             raise ValueError(
-                f"q0 {np.rad2deg(self.q0).round(1)} deg lies outside the joint limits "
-                f"[{np.rad2deg(self.q_lower).round(1)}, {np.rad2deg(self.q_upper).round(1)}] deg"
+                f"q0 = ({np.rad2deg(self.q0[0]):.1f}°, {np.rad2deg(self.q0[1]):.1f}°) lies outside the joint limits "
+                f"q1 in [{lo[0]:.1f}°, {hi[0]:.1f}°], q2 in [{lo[1]:.1f}°, {hi[1]:.1f}°]{hint}"
             )
         if abs(self.target_x) > self.arm.length:
             raise ValueError(f"target_x {self.target_x:.3f} m is out of reach of an arm {self.arm.length:.3f} m long")
