@@ -127,3 +127,12 @@ def test_a_task_starting_outside_the_joint_limits_names_each_joints_range(arm):
         ReachingTask(arm, np.deg2rad([-90, -20]), 0.5, 0.7)
     with pytest.raises(ValueError, match=r"q0 = \(-5156\.6°, 5156\.6°\) .*; radians are expected \(degrees\?\)$"):
         ReachingTask(arm, [-90, 90], 0.5, 0.7)  # np.deg2rad forgotten
+
+
+@pytest.mark.parametrize("t", [0.0, np.zeros((3, 1)), np.zeros(1)], ids=["scalar", "2-d", "one knot"])
+def test_a_doc_solution_with_a_bad_time_vector_is_a_value_error_naming_it(t):
+    from reachirl import DocSolution
+
+    z = np.zeros((3, 2))
+    with pytest.raises(ValueError, match=r"^DocSolution\.t must have shape \(N\+1,\) with N >= 1, got "):
+        DocSolution(t, z, z, z[:2], 0.0, True, 0, 0.0)

@@ -142,6 +142,8 @@ class DocSolution:
     warm: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if np.ndim(self.t) != 1 or np.shape(self.t)[0] < 2:  # a scalar t raised an IndexError below
+            raise ValueError(f"DocSolution.t must have shape (N+1,) with N >= 1, got {np.shape(self.t)}")
         n = np.shape(self.t)[0] - 1
         for name, shape in (("q", (n + 1, 2)), ("qd", (n + 1, 2)), ("tau", (n, 2))):
             if np.shape(getattr(self, name)) != shape:
