@@ -44,14 +44,13 @@ def test_scoring_no_trials_is_a_value_error_not_minus_infinity(fitted, empty):
 @pytest.mark.parametrize(
     "kw", [{"sections": 8}, {"postures": "P2"}, {"methods": "kkt"}], ids=["sections", "postures", "methods"]
 )
-def test_protocol_config_refuses_a_bare_name_or_number_for_a_sequence(kw):
+def test_protocol_config_takes_a_single_name_or_number_as_a_sequence_of_one(kw):
     from reachirl.experiments.protocol import ProtocolConfig
 
     # postures="P2" ran postures "P" and "2"; methods="kkt" said unknown method 'k'; sections=8 a TypeError
     (name,) = kw
-    with pytest.raises(ValueError, match=rf"^{name} must be a sequence, e\.g\. .*, got "):
-        ProtocolConfig(**kw)
-    assert ProtocolConfig(**{name: [kw[name]]}).to_dict()[name] == (kw[name],)  # as a sequence of one: fine
+    assert ProtocolConfig(**kw) == ProtocolConfig(**{name: [kw[name]]})
+    assert getattr(ProtocolConfig(**kw), name) == (kw[name],)
 
 
 def test_an_estimators_repr_names_its_class_and_the_parameters_changed():

@@ -84,14 +84,13 @@ class ProtocolConfig:
     posture_transfer: bool = False  # also learn on every posture but one and predict the held-out one
 
     def __post_init__(self) -> None:
-        # names and counts come as sequences: a bare string was taken letter by letter (postures="P2" ran the
-        # postures "P" and "2"; methods="kkt" an unknown method 'k'), a bare number failed with a TypeError
-        for name, example in (("sections", "(1, 6, 8)"), ("postures", "('P2',)"), ("methods", "('moirl',)")):
+        # a single name or number is a sequence of one, as select_trials takes it: a bare string was taken letter
+        # by letter (postures="P2" ran the postures "P" and "2"; methods="kkt" was an unknown method 'k'), a bare
+        # number failed with a TypeError
+        for name in ("sections", "postures", "methods"):
             v = getattr(self, name)
-            if v is None and name == "postures":
-                continue
-            if isinstance(v, str | bytes) or not isinstance(v, Iterable):
-                raise InputError(f"{name} must be a sequence, e.g. {example}, got {v!r}")
+            if v is not None and (isinstance(v, str | bytes) or not isinstance(v, Iterable)):
+                object.__setattr__(self, name, (v,))
         if (what := not_real(list(self.sections))) is not None:
             raise InputError(f"--sections must be positive integers, got {what}")
         for name in ("seed", "n_train", "n_cv", "n_iscv", "n_nodes", "max_iter", "tol", "uncertainty"):
