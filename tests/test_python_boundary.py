@@ -135,3 +135,14 @@ def test_a_doc_solution_with_a_bad_time_vector_is_a_value_error_naming_it(t):
     z = np.zeros((3, 2))
     with pytest.raises(ValueError, match=r"^DocSolution\.t must have shape \(N\+1,\) with N >= 1, got "):
         DocSolution(t, z, z, z[:2], 0.0, True, 0, 0.0)
+
+
+@pytest.mark.parametrize("given", ["one trial", "a file name", "a list of names"])
+def test_saving_a_model_names_trials_that_are_not_a_sequence_of_trial(fitted, tiny_trials, given):
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.model import LearnedModel
+
+    trials = load_trials(tiny_trials)[:3]
+    arg = {"one trial": trials[0], "a file name": str(tiny_trials), "a list of names": ["T0", "T1"]}[given]
+    with pytest.raises(TypeError, match=r"^trials must be the sequence of Trial the estimator was fitted on, got a "):
+        LearnedModel.from_estimator(fitted, arg)

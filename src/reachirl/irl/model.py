@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import math
 import zipfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
@@ -87,7 +88,18 @@ class LearnedModel:
         if method is None:
             raise ValueError(f"not an estimator of reachirl.irl.methods.METHODS: {type(est).__name__}")
         est = est._as_fitted()  # as it was fitted: set_params since changes the next fit only
-        info = estimator_info(est, method, list(trials))
+        # the sequence fit took (one Trial or a file name failed inside as "'Trial' object is not iterable")
+        if isinstance(trials, Trial | str | PathLike) or not isinstance(trials, Iterable):
+            raise TypeError(
+                f"trials must be the sequence of Trial the estimator was fitted on, got a {type(trials).__name__}"
+            )
+        trials = list(trials)
+        bad = next((t for t in trials if not isinstance(t, Trial)), None)
+        if bad is not None:
+            raise TypeError(
+                f"trials must be the sequence of Trial the estimator was fitted on, got a {type(bad).__name__} in it"
+            )
+        info = estimator_info(est, method, trials)
         unc = info.pop("uncertainty", None)
         return cls(weights=est.weights_, n_nodes=est.n_nodes, method=method, info=info, uncertainty=unc)
 
