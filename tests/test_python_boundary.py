@@ -146,3 +146,18 @@ def test_saving_a_model_names_trials_that_are_not_a_sequence_of_trial(fitted, ti
     arg = {"one trial": trials[0], "a file name": str(tiny_trials), "a list of names": ["T0", "T1"]}[given]
     with pytest.raises(TypeError, match=r"^trials must be the sequence of Trial the estimator was fitted on, got a "):
         LearnedModel.from_estimator(fitted, arg)
+
+
+@pytest.mark.parametrize("workers", ["2", None, 0, 2.5, True])
+def test_reproduce_refuses_a_number_of_workers_that_is_not_one_before_any_work(tmp_path, workers):
+    from reachirl.experiments.datasets import toy
+    from reachirl.experiments.protocol import ProtocolConfig
+    from reachirl.experiments.runner import reproduce
+
+    dataset = toy(postures=("P2",), n_trials=2, n_nodes=20)
+    config = ProtocolConfig(sections=(1,), n_train=1, n_nodes=20, max_iter=1, uncertainty=0)
+    out = tmp_path / "run"
+    # "2" and None failed mid-run ('<=' not supported between 'str' and 'int'), after the folder was made
+    with pytest.raises(ValueError, match=r"^workers must be a number of worker processes, at least 1 .*, got "):
+        reproduce(dataset, config, out, workers=workers)
+    assert not out.exists()

@@ -20,6 +20,8 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
 from ..io import hold_folder, remove_temporaries
 from .processes import local_executor, stop_workers, worker_died
@@ -380,8 +382,9 @@ def reproduce(
     out_option: str = "out_dir",
 ) -> RunResult:
     """Run (or resume) the whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`),
-    checkpointing each unit under ``out_dir/units/``, and return the :class:`RunResult`. Nothing else is
-    written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
+    checkpointing each unit under ``out_dir/units/``, and return the :class:`RunResult`: in this process
+    (``workers=1``), in ``workers`` local processes, or on the Dask scheduler at ``scheduler``. Nothing
+    else is written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish). ``out_option``: what named
     ``out_dir`` to the caller (the argument; the command line's ``--out``), in the error of a folder that another
     command is writing into.
@@ -397,6 +400,11 @@ def reproduce(
     )
     from .truth_solves import truth_jobs
 
+    # before anything: a number of workers that is not one failed mid-run, after the output folder was made
+    if isinstance(workers, bool) or not isinstance(workers, int | np.integer) or workers < 1:
+        raise InputError(
+            f"workers must be a number of worker processes, at least 1 (1 runs in this process), got {workers!r}"
+        )
     trials = list(dataset.trials)
     if not trials:
         raise InputError("no trials to run the protocol on", dataset.source)
