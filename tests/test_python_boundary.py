@@ -161,3 +161,26 @@ def test_reproduce_refuses_a_number_of_workers_that_is_not_one_before_any_work(t
     with pytest.raises(ValueError, match=r"^workers must be a number of worker processes, at least 1 .*, got "):
         reproduce(dataset, config, out, workers=workers)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("shape", [(2, 5), (5, 3), (3,), ()], ids=["joints first", "three columns", "three", "scalar"])
+def test_the_arms_kinematics_and_dynamics_refuse_arrays_without_a_pair_per_row(arm, shape):
+    # a joints-first (2, n) array, or three columns, was read by its first two columns: a wrong answer, silently
+    bad, ok = np.zeros(shape), np.zeros((5, 2))
+    calls = {
+        "fk": lambda: arm.fk(bad),
+        "elbow": lambda: arm.elbow(bad),
+        "jacobian": lambda: arm.jacobian(bad),
+        "ik": lambda: arm.ik(bad),
+        "mass_matrix": lambda: arm.mass_matrix(bad),
+        "gravity_torque": lambda: arm.gravity_torque(bad),
+        "fingertip_velocity": lambda: arm.fingertip_velocity(ok, bad),
+        "fingertip_speed": lambda: arm.fingertip_speed(ok, bad),
+        "coriolis": lambda: arm.coriolis(ok, bad),
+        "inverse_dynamics": lambda: arm.inverse_dynamics(ok, ok, bad),
+        "forward_dynamics": lambda: arm.forward_dynamics(ok, ok, bad),
+    }
+    for name, call in calls.items():
+        with pytest.raises(ValueError, match=rf"^ArmModel\.{name}: \w+ must have shape \(\.\.\., 2\), .*got \("):
+            call()
+    assert arm.fk(ok).shape == (5, 2) and arm.fk(ok[0]).shape == (2,)  # a pair, or pairs: as before

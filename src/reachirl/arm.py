@@ -148,6 +148,16 @@ def anthropometry_problem(column: str, value: float) -> str | None:
 MAX_SEGMENT_LENGTH_M = 3.0
 
 
+def _pairs(where: str, name: str, v) -> np.ndarray:
+    """``v`` as floats of shape ``(..., 2)``, one pair (q1, q2), (x, y) or (τ1, τ2) along the last axis; any other
+    shape is a ``ValueError`` naming ``where``, ``name`` and the shape (a joints-first ``(2, n)`` array, or three
+    columns, was read silently by its first two columns)."""
+    a = np.asarray(v, dtype=float)
+    if a.ndim == 0 or a.shape[-1] != 2:
+        raise ValueError(f"ArmModel.{where}: {name} must have shape (..., 2), one pair per row, got {a.shape}")
+    return a
+
+
 @dataclass(frozen=True)
 class ArmModel:
     """A planar two-link arm in SI units (a segment longer than :data:`MAX_SEGMENT_LENGTH_M` is refused: millimetres).
@@ -267,7 +277,7 @@ class ArmModel:
     # ------------------------------------------------------------------ kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
         """Fingertip position, ``(..., 2)`` from ``q`` of shape ``(..., 2)``."""
-        q = np.asarray(q, dtype=float)
+        q = _pairs("fk", "q", q)
         q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
         return np.stack(
             [self.l1 * np.cos(q1) + self.l2 * np.cos(q12), self.l1 * np.sin(q1) + self.l2 * np.sin(q12)], axis=-1
@@ -275,12 +285,12 @@ class ArmModel:
 
     def elbow(self, q: np.ndarray) -> np.ndarray:
         """Elbow position ``(..., 2)``."""
-        q = np.asarray(q, dtype=float)
+        q = _pairs("elbow", "q", q)
         return self.l1 * np.stack([np.cos(q[..., 0]), np.sin(q[..., 0])], axis=-1)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Fingertip Jacobian ``dP/dq``, shape ``(..., 2, 2)``."""
-        q = np.asarray(q, dtype=float)
+        q = _pairs("jacobian", "q", q)
         q1, q12 = q[..., 0], q[..., 0] + q[..., 1]
         s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q12), np.cos(q12)
         J = np.empty((*q.shape[:-1], 2, 2))
@@ -292,12 +302,12 @@ class ArmModel:
 
     def fingertip_velocity(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """Fingertip velocity ``J(q) qd``, shape ``(..., 2)``."""
-        return np.einsum("...ij,...j->...i", self.jacobian(q), np.asarray(qd, dtype=float))
+        return np.einsum("...ij,...j->...i", self.jacobian(q), _pairs("fingertip_velocity", "qd", qd))
 
     def fingertip_speed(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """Fingertip speed ``‖J(q) q̇‖``, shape ``(...)``: ``√(q̇ᵀ JᵀJ q̇)``, where ``JᵀJ`` depends on the elbow angle
         only (one cosine per sample instead of the Jacobian's four sines and cosines)."""
-        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        q, qd = _pairs("fingertip_speed", "q", q), _pairs("fingertip_speed", "qd", qd)
         c = self.l1 * self.l2 * np.cos(q[..., 1])
         w1, w12 = qd[..., 0], qd[..., 0] + qd[..., 1]  # the upper arm's and the forearm's absolute angular rates
         return np.sqrt(np.maximum(self.l1**2 * w1**2 + self.l2**2 * w12**2 + 2.0 * c * w1 * w12, 0.0))
@@ -309,7 +319,7 @@ class ArmModel:
         ``q1 = atan2(y, x) - acos((x²+y²+l1²-l2²) / (2 l1 r))``, ``q2 = pi - acos((l1²+l2²-r²) / (2 l1 l2))``.
         Raises ``ValueError`` when a point is out of reach.
         """
-        p = np.asarray(p, dtype=float)
+        p = _pairs("ik", "p", p)
         r2 = p[..., 0] ** 2 + p[..., 1] ** 2
         r = np.sqrt(r2)
         tol = 1e-9
@@ -330,7 +340,7 @@ class ArmModel:
     # ------------------------------------------------------------------ dynamics (closed form)
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """Joint-space inertia ``M(q)``, shape ``(..., 2, 2)``."""
-        q = np.asarray(q, dtype=float)
+        q = _pairs("mass_matrix", "q", q)
         cq2 = np.cos(q[..., 1])
         a = self.i1 + self.i2 + self.m1 * self.c1**2 + self.m2 * (self.l1**2 + self.c2**2)
         b = self.m2 * self.l1 * self.c2
@@ -343,13 +353,13 @@ class ArmModel:
 
     def coriolis(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """Coriolis and centrifugal torques ``C(q, qd) qd``, shape ``(..., 2)``."""
-        q, qd = np.asarray(q, dtype=float), np.asarray(qd, dtype=float)
+        q, qd = _pairs("coriolis", "q", q), _pairs("coriolis", "qd", qd)
         h = self.m2 * self.l1 * self.c2 * np.sin(q[..., 1])
         return np.stack([-h * (2 * qd[..., 0] * qd[..., 1] + qd[..., 1] ** 2), h * qd[..., 0] ** 2], axis=-1)
 
     def gravity_torque(self, q: np.ndarray) -> np.ndarray:
         """Gravity torques ``g(q)`` (the torque needed to hold still), shape ``(..., 2)``."""
-        q = np.asarray(q, dtype=float)
+        q = _pairs("gravity_torque", "q", q)
         c1, c12 = np.cos(q[..., 0]), np.cos(q[..., 0] + q[..., 1])
         g2 = self.gravity * self.m2 * self.c2 * c12
         g1 = self.gravity * (self.m1 * self.c1 + self.m2 * self.l1) * c1 + g2
@@ -362,11 +372,11 @@ class ArmModel:
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
         """``tau = M(q) qdd + b(q, qd)``, vectorised over leading axes."""
         M = self.mass_matrix(q)
-        return np.einsum("...ij,...j->...i", M, np.asarray(qdd, dtype=float)) + self.bias(q, qd)
+        return np.einsum("...ij,...j->...i", M, _pairs("inverse_dynamics", "qdd", qdd)) + self.bias(q, qd)
 
     def forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """``qdd = M(q)^-1 (tau - b(q, qd))``, vectorised over leading axes."""
-        rhs = np.asarray(tau, dtype=float) - self.bias(q, qd)
+        rhs = _pairs("forward_dynamics", "tau", tau) - self.bias(q, qd)
         return np.linalg.solve(self.mass_matrix(q), rhs[..., None])[..., 0]
 
     # ------------------------------------------------------------------ Pinocchio
