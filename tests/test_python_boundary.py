@@ -184,3 +184,49 @@ def test_the_arms_kinematics_and_dynamics_refuse_arrays_without_a_pair_per_row(a
         with pytest.raises(ValueError, match=rf"^ArmModel\.{name}: \w+ must have shape \(\.\.\., 2\), .*got \("):
             call()
     assert arm.fk(ok).shape == (5, 2) and arm.fk(ok[0]).shape == (2,)  # a pair, or pairs: as before
+
+
+def test_estimators_give_scikit_learn_the_tags_its_model_selection_reads(monkeypatch):
+    import sys
+    import types
+    from dataclasses import dataclass, field
+
+    from reachirl import MOIRL
+    from reachirl.irl.baselines import KKTIOC, BilevelIOC, MaxEntIRL
+
+    @dataclass
+    class TargetTags:
+        required: bool
+
+    @dataclass
+    class InputTags:
+        two_d_array: bool = True
+
+    @dataclass
+    class Tags:
+        estimator_type: str | None
+        target_tags: TargetTags
+        no_validation: bool = False
+        input_tags: InputTags = field(default_factory=InputTags)
+
+    # scikit-learn's own classes where it is installed (it is no dependency): the fields reachirl sets
+    fake = types.ModuleType("sklearn.utils")
+    fake.Tags, fake.TargetTags, fake.InputTags = Tags, TargetTags, InputTags
+    monkeypatch.setitem(sys.modules, "sklearn", types.ModuleType("sklearn"))
+    monkeypatch.setitem(sys.modules, "sklearn.utils", fake)
+    for est in (MOIRL(), MaxEntIRL(), BilevelIOC(), KKTIOC()):
+        tags = est.__sklearn_tags__()
+        assert tags.estimator_type is None and tags.target_tags.required is False  # fit takes no y
+        assert tags.input_tags.two_d_array is False and tags.no_validation is True  # Trial objects, checked by fit
+
+
+def test_cross_val_score_runs_on_a_list_of_trials(tiny_trials):
+    pytest.importorskip("sklearn", minversion="1.6")
+    from sklearn.model_selection import KFold, cross_val_score
+
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.baselines import KKTIOC
+
+    # scikit-learn >= 1.6 refused it: "'KKTIOC' object has no attribute '__sklearn_tags__'"
+    scores = cross_val_score(KKTIOC(1, n_nodes=20), load_trials(tiny_trials)[:4], cv=KFold(2))
+    assert scores.shape == (2,) and np.all(scores < 0)

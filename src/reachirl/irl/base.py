@@ -78,6 +78,20 @@ class WeightEstimator:
         ]
         return f"{type(self).__name__}({', '.join(changed)})"
 
+    def __sklearn_tags__(self):
+        """scikit-learn's tags, which its model selection reads from version 1.6 on (``cross_val_score``,
+        ``GridSearchCV``, ``KFold`` splits of a list of trials refused every estimator here without them): neither
+        a classifier nor a regressor, ``fit`` without ``y``, demonstrations that are :class:`Trial` objects checked
+        by ``fit`` itself, not a 2-D array. Only scikit-learn calls it, so only it imports scikit-learn."""
+        from sklearn.utils import InputTags, Tags, TargetTags
+
+        return Tags(
+            estimator_type=None,
+            target_tags=TargetTags(required=False),
+            input_tags=InputTags(two_d_array=False),
+            no_validation=True,
+        )
+
     def set_params(self, **params) -> WeightEstimator:
         """Set constructor parameters (scikit-learn style); an unknown name is a ``ValueError`` naming it."""
         known = self.get_params()
