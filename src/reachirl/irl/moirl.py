@@ -163,7 +163,7 @@ class MOIRL(WeightEstimator):
       ``None``: 1e-4, or 0 with ``seed_form``).
     * ``n_nodes``, ``backend``: the DOC's knots and solver stack (``"casadi"`` or ``"crocoddyl"``).
     * ``seed_form``: the paper's method exactly as written (:data:`reachirl.irl.options.SEED_FORM`).
-    * ``uncertainty``: a number ``K ≥ 20`` of weight samples from the weights' posterior given the training data
+    * ``uncertainty``: a number ``20 ≤ K ≤ 1000`` of weight samples from the weights' posterior given the training data
       and the share intervals (:func:`reachirl.irl.uncertainty.weight_uncertainty`), or ``None``; ``True`` is
       :data:`~reachirl.irl.uncertainty.DEFAULT_SAMPLES` (40, as ``reachirl fit --uncertainty``), ``False`` and ``0``
       none (as ``uncertainty = 0`` in a ``reproduce`` run file).
