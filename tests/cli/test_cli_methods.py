@@ -208,3 +208,22 @@ def test_uncertainty_asked_of_methods_without_samples_is_refused(tiny_trials, tm
     proc = cli("reproduce", "--config", out / "run.toml", "--no-progress", "--out", out)  # resumed: every unit reused
     assert proc.returncode == 0, proc.stderr
     assert "1 unit(s) already done" in proc.stderr and "takes none" not in proc.stderr
+
+
+@pytest.mark.parametrize(
+    ("extra", "said"),
+    [
+        (["--seed-form"], "--seed-form: --method kkt takes none (the paper's MO-IRL form)"),
+        (["--rollout", "per_demo"], "--rollout per_demo: --method kkt takes none (MO-IRL's and MaxEnt's training"),
+        (["--set", "rollout=mean"], "--set: rollout=mean: --method kkt takes none"),
+    ],
+)
+def test_moirl_options_asked_of_methods_without_them_are_refused(tiny_trials, tmp_path, cli, extra, said):
+    """reproduce --method kkt --seed-form ran, and its run.toml recorded seed_form = true though nothing used it;
+    fit --method kkt --seed-form refuses it."""
+    args = ["--data", tiny_trials, "--sections", "1", "--nodes", "20", "--n-train", "2", "--workers", "1"]
+    out = tmp_path / "k"
+    proc = cli("reproduce", *args, "--method", "kkt", *extra, "--no-progress", "--out", out)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert said in proc.stderr
+    assert not (out / "units").exists()

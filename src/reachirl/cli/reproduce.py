@@ -569,7 +569,8 @@ def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, m
     flag = getattr(args, key) if key in FLAG_KEYS else getattr(args, f"key_{key}", None)
     if flag is None:  # given by --set
         raise InputError(f"{key}={value}: {why}", "--set")
-    raise InputError(f"--{key.replace('_', '-')} {value}: {why}")
+    shown = "" if value is True else f" {value}"  # a switch: --seed-form, not --seed-form True
+    raise InputError(f"--{key.replace('_', '-')}{shown}: {why}")
 
 
 def _stopped(result) -> int:
@@ -647,6 +648,9 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
         # the default (40, not in opts) asks nothing: such a run draws no samples, silently
         what = "weight samples are drawn for moirl and maxent fits only"
         _refuse_unused(args, opts, from_file, "uncertainty", what, config.methods)
+        # MO-IRL's own form and rollouts, as fit refuses --seed-form and --rollout with --method bilevel or kkt
+        _refuse_unused(args, opts, from_file, "seed_form", "the paper's MO-IRL form", config.methods)
+        _refuse_unused(args, opts, from_file, "rollout", "MO-IRL's and MaxEnt's training rollouts", config.methods)
     workers = args.workers or (os.cpu_count() or 1)
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
