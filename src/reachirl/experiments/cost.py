@@ -120,7 +120,8 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
         )
         + " The posterior is a local (Gauss-Newton) model at the fit: a few weight samples are solved by the DOC "
         "again, and 'samples as good as the fit' counts those whose reaches the demonstrations cannot tell from "
-        "the fit's (one-sided paired t-test, 5 %), with the range of their merit's rise over the fit's in units of "
+        "the fit's (a rise of their merit within the merit noise, or not significant in a one-sided paired t-test, "
+        "5 %), with the range of their merit's rise over the fit's in units of "
         "the merit noise (the rise the demonstrations can tell from noise; under 1, none they can tell); few or "
         "none means the samples are costs the local model does not rule out, not costs shown to explain the "
         "reaches equally well.",

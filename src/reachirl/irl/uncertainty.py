@@ -20,7 +20,7 @@ narrows the samples; in the others the prior speaks, and the intervals say so. E
 ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
 percentiles over the draws, and a share whose interval is wider than :data:`UNDETERMINED_WIDTH`, or does not
 contain the fit's own share, is reported as undetermined. A few samples are solved by the DOC and tested against
-the fit (:func:`indistinguishable`, a
+the fit (:func:`indistinguishable`: a merit rise within the noise ``δm``, or not significant in a
 one-sided paired t-test over the demonstrations; ``checked``, with each sample's merit rise in units of ``δm``): the
 model is linear, the DOC is not, and the samples far from the fit usually fail the test (docs/method.md: a local
 model cannot see the other basins where costs as good as the fit's lie; only the prior's width covers them). On
