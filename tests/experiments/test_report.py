@@ -357,7 +357,7 @@ def test_on_virtual_subjects_the_cost_section_says_whether_the_data_tells_the_tr
     results = {
         f"moirl-{p}-s2": {
             "key": f"moirl-{p}-s2",
-            "unit": {"posture": p},
+            "unit": {"posture": p, "sections": 2},
             "uncertainty": unc,
             "truth_solves": {"versus_fit": v},
         }
@@ -372,12 +372,16 @@ def test_on_virtual_subjects_the_cost_section_says_whether_the_data_tells_the_tr
         }
         for p, tv in (("P1", 0.81), ("P2", 0.3), ("P3", 0.5), ("P4", 0.5), ("P5", 0.6))
     }
+    # a unit of another section count than the truth's gets no judgement (truth_comparison has none for it)
+    results["moirl-P1-s3"] = {**results["moirl-P1-s2"], "key": "moirl-P1-s3", "unit": {"posture": "P1", "sections": 3}}
     lines = cost_section(SimpleNamespace(results=results), true, metrics)
     (header,) = [line for line in lines if line.startswith("| unit |")]
     said = {}
     for p in ("P1", "P2", "P3", "P4", "P5"):
         (row,) = [line for line in lines if line.startswith(f"| moirl-{p}-s2 |")]
         said[p] = dict(zip(header.strip("| ").split(" | "), row.strip("| ").split(" | "), strict=True))
+    (row,) = [line for line in lines if line.startswith("| moirl-P1-s3 |")]
+    assert row.rstrip().endswith("| — |")
     assert [said[p]["truth against the fit"] for p in ("P1", "P2", "P3", "P4", "P5")] == [
         "as good (0.19× noise)",
         "worse (35× noise)",

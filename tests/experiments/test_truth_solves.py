@@ -83,8 +83,12 @@ def test_the_workers_solves_equal_solving_again(run, monkeypatch):
     assert set(got["P4"]) == set(SETS) and got == serial(run, "moirl", ["P4"])
     shares = truth_comparison(run.dataset, run.results, "moirl", ["P4"])
     assert shares[2]["P4"]["shares_on"] == "true_rollout"
+    # the worker judged the truth against the fit (the fitted estimator is gone after the unit)
+    assert shares[2]["P4"]["truth_versus_fit"] == solves["versus_fit"] and solves["versus_fit"]["converged"]
     monkeypatch.setitem(r, "truth_solves", {})  # as a checkpoint of an earlier version: solved here
     again = truth_comparison(run.dataset, run.results, "moirl", ["P4"])
+    assert again[2]["P4"].pop("truth_versus_fit") is None  # that needs the fit: not solved again, not made up
+    shares[2]["P4"].pop("truth_versus_fit")
     assert json.dumps(again, default=np.ndarray.tolist) == json.dumps(shares, default=np.ndarray.tolist)
 
 
@@ -104,10 +108,12 @@ def test_a_checkpoint_without_them_or_for_other_weights_is_solved_again(run, mon
     other["reference"]["features"] = np.ones((8, 7)).tolist()
     monkeypatch.setitem(r, "truth_solves", other)
     assert prediction_agreement(run, "moirl", ["P4"]) == want
-    assert (
-        json.dumps(truth_comparison(run.dataset, run.results, "moirl", ["P4"]), default=np.ndarray.tolist)
-        == want_shares
-    )
+    got = truth_comparison(run.dataset, run.results, "moirl", ["P4"])
+    # the checkpoint's judgement of the truth against the fit was of those other weights: not this truth's
+    assert got[2]["P4"].pop("truth_versus_fit") is None
+    expected = json.loads(want_shares)
+    expected[2]["P4"].pop("truth_versus_fit")
+    assert json.dumps(got, default=np.ndarray.tolist) == json.dumps(expected)
 
 
 def test_a_resumed_run_reuses_the_agreement(run):

@@ -81,8 +81,10 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
             "dominant_feature_agreement": float(np.mean(dom_l == dom_t)),
             "learned_dominant": [FEATURES[i] for i in dom_l],
             "true_dominant": [FEATURES[i] for i in dom_t],
-            # whether the training reaches tell the truth's cost from the fit's (the unit's worker solved it)
-            "truth_versus_fit": (r.get("truth_solves") or {}).get("versus_fit"),
+            # whether the training reaches tell the truth's cost from the fit's: the unit's worker solved it, for these
+            # weights (its reference's); none in a checkpoint of an earlier version, and none can be solved here
+            # without the fitted estimator
+            "truth_versus_fit": (r.get("truth_solves") or {}).get("versus_fit") if found else None,
         }
     return learned, true, metrics
 

@@ -165,7 +165,10 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
                 row += f" {100 * _truth_coverage(u, np.asarray(ts)):.0f} % |"
             else:
                 row += " — |"
-            row += f" {_versus((r.get('truth_solves') or {}).get('versus_fit'))} |"
+            m = (truth_metrics or {}).get(p) or {}  # truth_comparison's: for the truth's section count only
+            row += (
+                f" {_versus(m.get('truth_versus_fit') if m.get('sections') == r['unit'].get('sections') else None)} |"
+            )
         lines.append(row)
     lines.append("")
     return lines + _truth_sentence(truth_metrics)
