@@ -272,3 +272,29 @@ def test_simulate_refuses_pd_gains_for_an_open_loop_playback(arm, tmp_path, caps
     err = capsys.readouterr().err
     assert "--kp applies only with --mode pd" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_render_unavailable_is_one_line_exit_2_before_any_work(arm, tmp_path, capsys, monkeypatch):
+    """No OSMesa (or no OpenGL context of MUJOCO_GL's backend) is the machine's, not reachirl's: --render is refused
+    before a DOC is solved, exit 2 in one line naming the animation and why (it was an internal error, exit 1)."""
+    import reachirl.sim.render as render
+
+    trials, model = _trials_file(arm, tmp_path)
+    why = "libOSMesa cannot be loaded (libOSMesa.so.8: cannot open shared object file); install Debian's libosmesa6"
+    monkeypatch.setattr(render, "osmesa_available", lambda: (False, why))
+    out = tmp_path / "reach.gif"
+    assert main(["simulate", "--model", str(model), str(trials), "--trial", "0", "--render", str(out)]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and f"{out}: --render: cannot render offscreen here: {why}" in err
+    assert captured.out == "" and not out.exists()  # refused before the playback
+
+
+def test_an_unknown_mujoco_gl_is_one_line_exit_2(arm, tmp_path, cli, monkeypatch):
+    # MuJoCo refuses it as it is imported: an internal error (exit 1) before, with or without --render
+    trials, model = _trials_file(arm, tmp_path)
+    monkeypatch.setenv("MUJOCO_GL", "bogus")
+    proc = cli("simulate", "--model", model, trials, "--trial", "0")
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.strip()
+    assert len(err.splitlines()) == 1 and "MUJOCO_GL: bogus" in err and "internal error" not in err

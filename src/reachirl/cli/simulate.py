@@ -176,8 +176,14 @@ def run(args: argparse.Namespace) -> int:
     from ..data.trial import load_trials
     from ..io import atomic_write_json
     from ..irl.model import load_model
-    from ..sim import simulate as sim
-    from ..sim.render import osmesa_available
+
+    try:
+        from ..sim import simulate as sim
+        from ..sim.render import render_available
+    except RuntimeError as e:  # MuJoCo refuses an unknown MUJOCO_GL as it is imported: the user's setting
+        if "MUJOCO_GL" not in str(e):
+            raise
+        raise InputError(f"{e} (MuJoCo takes osmesa, egl or glfw here; unset, osmesa without a display)") from None
     from ..validation import check_output_file, check_output_kind
 
     _check_mode_options(args)
@@ -193,10 +199,13 @@ def run(args: argparse.Namespace) -> int:
         check_output_kind(args.render, suffix, "--render", ANIMATION_KINDS[suffix])
     if args.out is not None and args.render is not None and same_file(args.out, args.render):
         raise InputError("--render and --out are the same file; give each its own", args.render)
-    if args.render is not None:
-        ok, why = osmesa_available()
+    if args.render is not None:  # before any work: a missing OpenGL is the machine's, said in one line
+        ok, why = render_available()
         if not ok:
-            raise RuntimeError(f"cannot render offscreen: {why}")
+            raise InputError(
+                f"--render: cannot render offscreen here: {why} (without --render the playback runs alone)",
+                args.render,
+            )
     model = load_model(args.model)
     check_model_rollout(model, args.model)
     backend = args.backend or model.backend

@@ -19,7 +19,7 @@ from ..arm import ArmModel
 from ..io import atomic_path
 from .mjcf import arm_mujoco_model
 
-__all__ = ["RenderClip", "osmesa_available", "render_frames", "write_animation"]
+__all__ = ["RenderClip", "osmesa_available", "render_available", "render_frames", "write_animation"]
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +56,32 @@ def osmesa_available() -> tuple[bool, str]:
         except OSError as e:
             return False, f"libOSMesa cannot be loaded ({e}); install Debian's libosmesa6"
     return True, "osmesa"
+
+
+def render_available() -> tuple[bool, str]:
+    """Whether MuJoCo can render offscreen here, tried on a tiny scene (the library :func:`osmesa_available` looks
+    for, then an OpenGL context of the ``MUJOCO_GL`` backend: an unknown value, or ``glfw`` without a display,
+    fails only there), and why not: a reason in one line."""
+    import os
+    import warnings
+
+    ok, why = osmesa_available()
+    if not ok:
+        return ok, why
+    backend = os.environ.get("MUJOCO_GL") or "(unset)"
+    try:
+        with warnings.catch_warnings():  # GLFW warns on stderr before it fails: the reason is said once, below
+            warnings.simplefilter("ignore")
+            model = mujoco.MjModel.from_xml_string("<mujoco/>")
+            renderer = mujoco.Renderer(model, height=16, width=16)
+            renderer.close()
+    except Exception as e:  # ImportError, RuntimeError (an unknown MUJOCO_GL), mujoco.FatalError (no context)
+        text = " ".join(str(e).split())[:200]
+        return False, (
+            f"MuJoCo cannot make an OpenGL context with MUJOCO_GL={backend} ({type(e).__name__}: {text}); set "
+            "MUJOCO_GL=osmesa (Debian's libosmesa6) or egl"
+        )
+    return True, why
 
 
 def _add_ghost(scene, arm: ArmModel, q: np.ndarray) -> None:
