@@ -102,6 +102,19 @@ def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
     assert not (d / "x").exists()
 
 
+def test_a_seed_form_that_is_not_a_boolean_is_refused_not_read_as_true(fitted, capsys):
+    # "no" was read as true: the figures' titles said "moirl (seed form)" of a default fit
+    d, trials, model = fitted
+    bad = json.loads(model.read_text())
+    bad["info"]["seed_form"] = "no"
+    (d / "bad_sf.json").write_text(json.dumps(bad))
+    capsys.readouterr()
+    assert main(["plot", "--model", str(d / "bad_sf.json"), str(trials), "--out", str(d / "y")]) == 2
+    err = capsys.readouterr().err
+    assert f"{d / 'bad_sf.json'}: field 'info.seed_form': expected true or false, found 'no'" in err
+    assert len(err.strip().splitlines()) == 1 and not (d / "y").exists()
+
+
 @pytest.mark.parametrize(("which", "name"), [("model", "weights.png"), ("trials", "prediction.pdf")])
 def test_plot_never_writes_over_an_input_named_as_one_of_its_figures(fitted, tmp_path, capsys, which, name):
     """--out DIR where DIR/<figure> is the model or the trials file read (the earlier figures are removed first,

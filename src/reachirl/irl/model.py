@@ -252,12 +252,13 @@ def check_model_dict(d, path) -> None:
             f"field 'method': expected one of {', '.join(METHODS)}, found {brief(d['method'])}",
             path,
         )
-    observe = d.get("info", {}).get("observe")
-    require(
-        observe is None or isinstance(observe, bool),
-        f"field 'info.observe': expected true or false, found {brief(observe)}",
-        path,
-    )
+    for key in ("observe", "seed_form"):  # seed_form names the method in figures' titles: "no" is not true
+        flag = d.get("info", {}).get(key)
+        require(
+            flag is None or isinstance(flag, bool),
+            f"field 'info.{key}': expected true or false, found {brief(flag)}",
+            path,
+        )
     backend = d.get("info", {}).get("backend")
     require(
         backend is None or backend in ("casadi", "crocoddyl"),
