@@ -281,6 +281,23 @@ def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
     assert len(err.splitlines()) == 1
 
 
+def test_plot_of_a_run_whose_unit_predictions_are_missing_names_them(run_folder, tmp_path, capsys):
+    """A unit NPZ removed (its JSON checkpoint says it wrote one): the figures drawn from it were left out without
+    a word (exit 0, fig2_prediction and fig4_iscv not written); now refused in one line naming the file."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    for npz in (run / "units").glob("*.npz"):
+        npz.unlink()
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(tmp_path / "figs"), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and ".npz: missing: the predictions of the run's unit" in err, err
+    assert f"rerun `reachirl reproduce` into {run} to recompute it" in err
+    assert not any((tmp_path / "figs").rglob("*.png"))
+
+
 @pytest.fixture(scope="module")
 def run_folder(fitted):
     d, trials, _ = fitted

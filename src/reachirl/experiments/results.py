@@ -162,11 +162,20 @@ def _npz_problem(npz: Path, sha256: str | None) -> str | None:
 
 
 def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
-    """A unit's predictions (``units/<key>.npz``; empty if it has none). A damaged file is an ``InputError``
-    naming it: ``reproduce`` into the same folder recomputes the unit (it checks each checkpoint first)."""
-    _, npz = unit_paths(out_dir, key)
+    """A unit's predictions (``units/<key>.npz``; empty if it has none). A damaged file, or a missing one that the
+    unit's JSON checkpoint says it wrote (``has_arrays``: the figures drawn from it would be left out without a
+    word), is an ``InputError`` naming it: ``reproduce`` into the same folder recomputes the unit (it checks each
+    checkpoint first)."""
+    js, npz = unit_paths(out_dir, key)
     if not npz.is_file():
-        return {}
+        res, _ = _parse_checkpoint(js) if js.is_file() else (None, None)
+        if not (isinstance(res, dict) and res.get("has_arrays")):
+            return {}
+        raise InputError(
+            f"missing: the predictions of the run's unit {key}, which its checkpoint {js.name} says it wrote; rerun "
+            f"`reachirl reproduce` into {out_dir} to recompute it",
+            npz,
+        )
     problem = _npz_problem(npz, None)
     if problem is None:
         try:
