@@ -34,7 +34,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
         "evaluate",
         help="predict every trial from its own start and report joint-angle RMSE",
         description="Predict every trial by the DOC under the model's weights, from the trial's own arm, start, "
-        "target and duration, and write the RMSE of the joint angles (degrees, on the DOC's knots) to "
+        "target and duration, as the model was fitted (seen as recorded, between the crossings of the trial's "
+        "onset threshold, unless it was fitted with --seed-form), and write the RMSE of the joint angles "
+        "(degrees, on N+1 points of normalised time: the DOC's knots, or the part seen evenly resampled) to "
         "METRICS.json; with --predictions, also the trajectories as CSV and OpenSim MOT (docs/outputs.md).",
     )
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
