@@ -809,3 +809,18 @@ def test_a_runs_figure_titles_name_a_backend_other_than_casadi(run_folder, tmp_p
             assert said["fig4_iscv.png"].endswith("predicted on crocoddyl (solid)")
         else:
             assert not said, said
+
+
+def test_plot_draws_each_demonstration_on_its_own_time(fitted, tmp_path, monkeypatch):
+    """The x axis says time (s): a demonstration ends at its own duration, not at its prediction's (an observed
+    prediction lasts longer or shorter than its trial; the demonstrations were stretched to the predictions' time)."""
+    _, path, model = fitted
+    drawn = _figures_drawn(monkeypatch)
+    argv = ["plot", "--model", str(model), str(path), "--subject", "S02", "--no-pdf", "--out", str(tmp_path / "f")]
+    assert main(argv) == 0
+    _, lines = drawn["prediction.png"]
+    trials = [t for t in load_trials(path) if t.subject == "S02"]
+    demo_ends = [float(x[-1]) for x, _ in lines[0::2]]  # a demonstration, then its prediction, per trial
+    pred_ends = [float(x[-1]) for x, _ in lines[1::2]]
+    assert demo_ends == pytest.approx([t.duration for t in trials], rel=1e-12)
+    assert max(abs(p - d) for p, d in zip(pred_ends, demo_ends, strict=True)) > 1e-3  # the two times differ here

@@ -109,6 +109,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True, backend: s
             "trials/t": np.stack([e.prediction.t for _, e in drawn]),
             "trials/pred_q": np.stack([e.prediction.q for _, e in drawn]),
             "trials/pred_qd": np.stack([e.prediction.qd for _, e in drawn]),
+            "trials/demo_t": np.stack([d.t for d in demos]),  # each on its own time: "time (s)" is true of both
             "trials/demo_q": np.stack([d.q for d in demos]),
             "trials/demo_qd": np.stack([d.qd for d in demos]),
         }

@@ -234,9 +234,12 @@ def _grid(axes, nrows, ncols, figsize):
 
 def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes=None):
     """Demonstrations (orange, dashed) and DOC predictions (blue, solid) of one set: q1, q2 (top), q̇1, q̇2
-    (bottom); the same two colours in every panel, as the legend says."""
+    (bottom); the same two colours in every panel, as the legend says. ``{set_name}/t`` are the predictions'
+    times; the demonstrations are drawn on ``{set_name}/demo_t``, their own times, when given (a prediction seen as
+    recorded lasts longer or shorter than its trial), else on the predictions' (the same normalised time)."""
     fig, axes = _grid(axes, 2, 2, (7.5, 5.0))
     t = arrays[f"{set_name}/t"]
+    t_demo = arrays.get(f"{set_name}/demo_t", t)
     for j in range(2):
         for row, (kind, unit) in enumerate((("q", "deg"), ("qd", "deg/s"))):
             ax = axes[row, j]
@@ -244,7 +247,7 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             pred = np.rad2deg(arrays[f"{set_name}/pred_{kind}"][..., j])
             for i in range(t.shape[0]):
                 ax.plot(
-                    t[i],
+                    t_demo[i],
                     demo[i],
                     "--",
                     color=DEMO_COLOUR,
