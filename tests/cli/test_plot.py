@@ -295,7 +295,24 @@ def test_plot_of_a_run_whose_unit_predictions_are_missing_names_them(run_folder,
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and ".npz: missing: the predictions of the run's unit" in err, err
     assert f"rerun `reachirl reproduce` into {run} to recompute it" in err
-    assert not any((tmp_path / "figs").rglob("*.png"))
+    assert not (tmp_path / "figs").exists()
+
+
+def test_plot_of_a_run_refused_leaves_no_out_folder_it_made(run_folder, tmp_path, capsys):
+    # a damaged checkpoint found while drawing: the --out folder made for the figures was left behind, empty
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    for npz in (run / "units").glob("*.npz"):
+        npz.write_bytes(npz.read_bytes()[:100])  # truncated
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(tmp_path / "new" / "figs"), "--no-pdf"]) == 2
+    assert "damaged checkpoint" in capsys.readouterr().err
+    assert not (tmp_path / "new" / "figs").exists()
+    (tmp_path / "mine").mkdir()  # a folder that was there stays
+    assert main(["plot", str(run), "--out", str(tmp_path / "mine"), "--no-pdf"]) == 2
+    assert (tmp_path / "mine").is_dir()
 
 
 @pytest.fixture(scope="module")

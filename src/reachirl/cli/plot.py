@@ -271,19 +271,26 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     import shutil
     import tempfile
 
+    made = not out.exists()
     # one command at a time in the folder: a second plot would remove this one's hidden folder while it draws
     with holding_folder(out, "--out") as make:
         make()
-        for stale in out.glob(f"{PARTIAL_PREFIX}*"):
-            shutil.rmtree(stale, ignore_errors=True)
-        tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
         try:
-            names = _figure_files(draw(tmp), pdf)
-            for n in names:
-                os.replace(tmp / n, out / n)  # each synced to the disk when drawn (atomic_path)
-            sync_folder(out)  # and the renames
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
+            for stale in out.glob(f"{PARTIAL_PREFIX}*"):
+                shutil.rmtree(stale, ignore_errors=True)
+            tmp = Path(tempfile.mkdtemp(prefix=PARTIAL_PREFIX, dir=out))
+            try:
+                names = _figure_files(draw(tmp), pdf)
+                for n in names:
+                    os.replace(tmp / n, out / n)  # each synced to the disk when drawn (atomic_path)
+                sync_folder(out)  # and the renames
+            finally:
+                shutil.rmtree(tmp, ignore_errors=True)
+        except BaseException:  # a refusal (a damaged checkpoint) or a failure: no empty --out made for nothing
+            if made:
+                with contextlib.suppress(OSError):
+                    out.rmdir()  # only when empty
+            raise
     return [out / n for n in names]
 
 
