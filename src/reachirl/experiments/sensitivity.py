@@ -103,7 +103,11 @@ class SensitivityConfig:
         if self.sections is not None and int(self.sections) < 1:
             raise InputError(f"--sections must be a positive integer, got {self.sections}")
         if not (self.occlusion or self.sensitivity):
-            raise InputError("nothing to do: both the occlusion and the sensitivity analyses are switched off")
+            raise InputError(
+                "both the occlusion and the sensitivity analyses are switched off, which leaves only what the "
+                "training trials determine: that is in the run's models (models/*.json, 'uncertainty.determination', "
+                "unless the run was made with uncertainty 0), so nothing is analysed"
+            )
 
 
 # ---------------------------------------------------------------------- the run
