@@ -841,3 +841,20 @@ def test_plot_draws_each_demonstration_on_its_own_time(fitted, tmp_path, monkeyp
     pred_ends = [float(x[-1]) for x, _ in lines[1::2]]
     assert demo_ends == pytest.approx([t.duration for t in trials], rel=1e-12)
     assert max(abs(p - d) for p, d in zip(pred_ends, demo_ends, strict=True)) > 1e-3  # the two times differ here
+
+
+def test_a_prediction_figure_without_the_demonstrations_times_says_they_are_scaled():
+    """A run's fig2_prediction has no demonstration times (its units hold the predictions'): the demonstrations
+    are drawn on their predictions' time, which the x axis says (it said time (s), as if it were theirs)."""
+    import matplotlib.pyplot as plt
+
+    from reachirl.experiments import figures as fg
+
+    t = np.linspace(0.0, 1.1, 5)[None]
+    arrays = {"train/t": t, **{f"train/{k}_{v}": np.zeros((1, 5, 2)) for k in ("demo", "pred") for v in ("q", "qd")}}
+    fig = fg.plot_prediction(arrays, "train")
+    assert fig.axes[2].get_xlabel() == "prediction's time (s); demonstrations scaled to it"
+    plt.close(fig)
+    fig = fg.plot_prediction({**arrays, "train/demo_t": np.linspace(0.0, 1.0, 5)[None]}, "train")
+    assert fig.axes[2].get_xlabel() == "time (s)" and fig.axes[2].get_lines()[0].get_xdata()[-1] == 1.0
+    plt.close(fig)

@@ -262,8 +262,9 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             ax.set_ylabel(f"{sym}{j + 1} ({unit})", fontsize=10)
             ax.tick_params(labelsize=9)
             ax.grid(alpha=0.3)
-            if row == 1:
-                ax.set_xlabel("time (s)", fontsize=10)
+            if row == 1:  # without their own times the demonstrations are on their predictions' time
+                own = f"{set_name}/demo_t" in arrays
+                ax.set_xlabel("time (s)" if own else "prediction's time (s); demonstrations scaled to it", fontsize=9)
     axes[0, 0].legend(loc="best", fontsize=9)
     if not title:
         from .protocol import SET_LABELS
