@@ -753,3 +753,24 @@ def test_the_sensitivity_figure_names_its_percentage_and_says_when_it_has_no_int
     assert "no 95 % intervals: fewer than 5 trials in every set" in texts, texts
     with_ci = [r | {"cv_ci_lo": 0.1, "cv_ci_hi": 0.3} if r["analysis"] == "occlude_feature" else r for r in rows]
     assert not [t for ax in plot_sensitivity(with_ci, "P2").axes for t in ax.texts]
+
+
+def test_occlusion_of_another_method_names_the_method_analysed(small_run, monkeypatch):
+    # of a run of moirl and kkt, --method kkt was refused as "the run's method is 'kkt'"
+    import dataclasses
+
+    import reachirl.experiments.sensitivity as sens
+
+    real = sens.load_run
+
+    def both(run_dir):
+        dataset, config, units, subject = real(run_dir)
+        return dataset, dataclasses.replace(config, methods=("moirl", "kkt")), units, subject
+
+    monkeypatch.setattr(sens, "load_run", both)
+    with pytest.raises(
+        InputError,
+        match=r"results\.json: occlusion refits need MO-IRL; the method analysed \(--method\) is 'kkt' \(use "
+        r"--no-occlusion, or --method moirl\)$",
+    ):
+        run_sensitivity(small_run, SensitivityConfig(method="kkt"))

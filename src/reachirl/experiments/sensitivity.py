@@ -477,7 +477,12 @@ def run_sensitivity(
     if method not in pconfig.methods:
         raise InputError(f"--method {method!r} was not run; the run has {', '.join(pconfig.methods)}", results)
     if config.occlusion and method != "moirl":
-        raise InputError(f"occlusion refits need MO-IRL; the run's method is {method!r} (use --no-occlusion)", results)
+        chosen = "--method" if config.method else "the run's first method"
+        raise InputError(
+            f"occlusion refits need MO-IRL; the method analysed ({chosen}) is {method!r} (use --no-occlusion"
+            + (", or --method moirl)" if "moirl" in pconfig.methods else ")"),
+            results,
+        )
     sections = int(config.sections or max(pconfig.sections))
     if sections not in pconfig.sections:
         raise InputError(
