@@ -517,7 +517,7 @@ def attacks():
         str(W / "p.npz"),
     ]
     # ---- reproduce
-    RQ = lambda o, *a: [
+    RQ0 = lambda o, *a: [
         R,
         "reproduce",
         "--quick",
@@ -527,30 +527,13 @@ def attacks():
         "1",
         "--nodes",
         "20",
-        "--max-iter",
-        "1",
         "--out",
         str(W / o),
         *a,
     ]
+    RQ = lambda o, *a: RQ0(o, "--max-iter", "1", *a)
     # without --max-iter: a run of bilevel alone refuses it (its max_iter is MO-IRL's and MaxEnt's)
-    A["reproduce:bilevel"] = lambda: [
-        R,
-        "reproduce",
-        "--quick",
-        "--data",
-        T,
-        "--workers",
-        "1",
-        "--nodes",
-        "20",
-        "--out",
-        str(W / "rb"),
-        "--method",
-        "bilevel",
-        "--sections",
-        "1",
-    ]
+    A["reproduce:bilevel"] = lambda: RQ0("rb", "--method", "bilevel", "--sections", "1")
     A["reproduce:scheduler-bad"] = lambda: RQ("rs", "--scheduler", "foo://bar:1")
     A["reproduce:scheduler-closed"] = lambda: RQ("rs2", "--scheduler", "tcp://127.0.0.1:1")
     A["reproduce:one-trial"] = lambda: [

@@ -90,29 +90,18 @@ def test_plot_gives_evaluates_rmse_on_the_chosen_held_out_trials(fitted, capsys)
     assert abs(whole - metrics) > 0.05
 
 
-def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys):
+@pytest.mark.parametrize(("field", "value"), [("observe", "yes"), ("seed_form", "no")])
+def test_plot_reads_the_model_through_the_checked_loader(fitted, capsys, field, value):
+    # info.seed_form "no" was read as true: the figures' titles said "moirl (seed form)" of a default fit
     d, trials, model = fitted
     bad = json.loads(model.read_text())
-    bad["info"]["observe"] = "yes"
-    (d / "bad.json").write_text(json.dumps(bad))
+    bad["info"][field] = value
+    (d / f"bad_{field}.json").write_text(json.dumps(bad))
     capsys.readouterr()
-    assert main(["plot", "--model", str(d / "bad.json"), str(trials), "--out", str(d / "x")]) == 2
+    assert main(["plot", "--model", str(d / f"bad_{field}.json"), str(trials), "--out", str(d / field)]) == 2
     err = capsys.readouterr().err
-    assert "field 'info.observe': expected true or false" in err and len(err.strip().splitlines()) == 1
-    assert not (d / "x").exists()
-
-
-def test_a_seed_form_that_is_not_a_boolean_is_refused_not_read_as_true(fitted, capsys):
-    # "no" was read as true: the figures' titles said "moirl (seed form)" of a default fit
-    d, trials, model = fitted
-    bad = json.loads(model.read_text())
-    bad["info"]["seed_form"] = "no"
-    (d / "bad_sf.json").write_text(json.dumps(bad))
-    capsys.readouterr()
-    assert main(["plot", "--model", str(d / "bad_sf.json"), str(trials), "--out", str(d / "y")]) == 2
-    err = capsys.readouterr().err
-    assert f"{d / 'bad_sf.json'}: field 'info.seed_form': expected true or false, found 'no'" in err
-    assert len(err.strip().splitlines()) == 1 and not (d / "y").exists()
+    assert f"{d / f'bad_{field}.json'}: field 'info.{field}': expected true or false, found '{value}'" in err
+    assert len(err.strip().splitlines()) == 1 and not (d / field).exists()
 
 
 @pytest.mark.parametrize(("which", "name"), [("model", "weights.png"), ("trials", "prediction.pdf")])
