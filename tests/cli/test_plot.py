@@ -126,6 +126,15 @@ def test_plot_never_writes_over_an_input_named_as_one_of_its_figures(fitted, tmp
     ("change", "match"),
     [
         ({"info.history": "garbage"}, "field 'info.history': expected a list of objects"),
+        # entries the convergence figure cannot plot drew an empty figure, exit 0
+        (
+            {"info.history": [{"iteration": 0, "merit": 0.5}, {"iteration": "x", "merit": "y"}]},
+            "field 'info.history', entry 1: 'iteration' expected a whole number >= 0, found 'x'",
+        ),
+        (
+            {"info.history": [{"iteration": 0, "merit": "y"}]},
+            "field 'info.history', entry 0: 'merit' expected a finite number or null, found 'y'",
+        ),
         ({"method": "foo"}, "field 'method': expected one of moirl, maxent, bilevel, kkt, found 'foo'"),
         ({"uncertainty": {"share_intervals": None}}, "field 'uncertainty.share_intervals': expected an object"),
         ({"uncertainty": []}, "field 'uncertainty': expected an object or null"),
@@ -135,21 +144,21 @@ def test_plot_never_writes_over_an_input_named_as_one_of_its_figures(fitted, tmp
         ),
     ],
 )
-def test_a_models_optional_fields_are_checked_before_any_figure(fitted, capsys, change, match):
+def test_a_models_optional_fields_are_checked_before_any_figure(fitted, capsys, tmp_path, change, match):
     """A damaged history or uncertainty record is refused before the predictions and figures, not halfway."""
-    d, trials, model = fitted
+    _, trials, model = fitted
     bad = json.loads(model.read_text())
     for key, value in change.items():
         if key.startswith("info."):
             bad["info"][key[5:]] = value
         else:
             bad[key] = value
-    (d / "bad2.json").write_text(json.dumps(bad))
+    (tmp_path / "bad2.json").write_text(json.dumps(bad))
     capsys.readouterr()
-    assert main(["plot", "--model", str(d / "bad2.json"), str(trials), "--out", str(d / "y")]) == 2
+    assert main(["plot", "--model", str(tmp_path / "bad2.json"), str(trials), "--out", str(tmp_path / "y")]) == 2
     err = capsys.readouterr().err
     assert match in err and len(err.strip().splitlines()) == 1, err
-    assert not (d / "y").exists()
+    assert not (tmp_path / "y").exists()
 
 
 def test_plot_of_a_run_folder_refuses_a_trial_choice(tmp_path, capsys):
@@ -615,7 +624,10 @@ def test_plot_draws_a_bilevel_search_per_evaluation_and_names_the_seed_form(fitt
 
     _, path, model = fitted
     d = js.loads(model.read_text())
-    history = [{"evaluation": k + 1, "merit": m, "converged": True} for k, m in enumerate((0.5, 0.4, np.inf, 0.3))]
+    # a failed evaluation's merit is written as null (MODEL.json holds no Infinity)
+    history = [
+        {"evaluation": k + 1, "merit": m, "converged": m is not None} for k, m in enumerate((0.5, 0.4, None, 0.3))
+    ]
     bilevel = tmp_path / "bilevel.json"
     bilevel.write_text(
         js.dumps({**d, "method": "bilevel", "info": {**d["info"], "method": "bilevel", "history": history}})

@@ -300,6 +300,20 @@ def check_model_dict(d, path) -> None:
         f"field 'info.history': expected a list of objects (one per iteration), found {brief(history)}",
         path,
     )
+    for i, h in enumerate(history or []):  # what the convergence figure plots: a damaged entry drew an empty plot
+        for key in ("iteration", "evaluation"):
+            v = h.get(key)
+            require(
+                v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 0),
+                f"field 'info.history', entry {i}: '{key}' expected a whole number >= 0, found {brief(v)}",
+                path,
+            )
+        v = h.get("merit")
+        require(
+            v is None or (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)),
+            f"field 'info.history', entry {i}: 'merit' expected a finite number or null, found {brief(v)}",
+            path,
+        )
     _check_uncertainty(d.get("uncertainty"), len(w), path)
 
 
