@@ -21,9 +21,6 @@ MIN_NODES, MAX_NODES = NODES_RANGE
 
 METHODS = ("moirl", "maxent", "bilevel", "kkt")
 
-MAX_ITER_DEFAULT = 30
-"""MO-IRL's and MaxEnt's ``--max-iter`` when not given (bilevel has none but its DOC-solve budget)."""
-
 
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
@@ -53,7 +50,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         metavar="N",
         help=(
             f"iterations at most, 1 to {MAX_ITER}: of moirl and maxent per stage (an observed fit runs a whole-rollout "
-            f"stage, then the observed one; default {MAX_ITER_DEFAULT}); of bilevel's direct search (default: none, "
+            "stage, then the observed one; default 30); of bilevel's direct search (default: none, "
             "its budget of 400 DOC solves stops it); not with kkt, which solves once"
         ),
     )
@@ -172,7 +169,6 @@ def run(args: argparse.Namespace) -> int:
     is_moirl = issubclass(CLASSES[args.method], MOIRL)
     if is_moirl:
         kwargs.update(
-            max_iter=MAX_ITER_DEFAULT if args.max_iter is None else args.max_iter,
             rollout=args.rollout or "per_task",  # MOIRL's own default
             seed_form=args.seed_form,
             uncertainty=args.uncertainty,
@@ -185,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
         )
     elif args.max_iter is not None and args.method == "kkt":  # one solve: no iterations to limit
         raise InputError("--max-iter applies to moirl, maxent and bilevel, not kkt, which solves once")
-    elif args.max_iter is not None:  # bilevel's direct search (not given: its budget of DOC solves alone stops it)
+    if args.max_iter is not None:  # else the method's own: MO-IRL's 30 per stage, bilevel's DOC-solve budget alone
         kwargs["max_iter"] = args.max_iter
 
     with console.status(f"fitting {args.method} with {args.sections} section(s) on {len(trials)} trials") as status:

@@ -280,7 +280,9 @@ def run_unit_and_truth(unit: Unit, split: Split, job: Mapping | None = None) -> 
         w_ref = np.asarray(job["reference"], dtype=float)
         phi = reference_features(list(split.train), w_ref, unit.n_nodes, unit.backend, unit.observe)
         solves["reference"] = {"weights": w_ref.tolist(), "features": None if phi is None else phi.tolist()}
-        if hasattr(est, "train_solutions_"):  # MO-IRL's and MaxEnt's fits keep their training rollouts
+        from ..irl.methods import builds_on_moirl
+
+        if builds_on_moirl(unit.method):  # MO-IRL's and MaxEnt's fits keep their training rollouts
             from ..irl.uncertainty import versus_fit
 
             # whether the training reaches can tell the truth's cost from the fit's (the report's evidence)
