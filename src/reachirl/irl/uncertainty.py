@@ -142,9 +142,8 @@ def indistinguishable(errors: np.ndarray, errors_fit: np.ndarray, level: float =
     """Whether the demonstrations cannot tell the per-demonstration errors ``errors (D,)`` from the fit's
     ``errors_fit (D,)``: their mean rise is at most the merit noise ``δm`` (:func:`merit_noise`, the rise that
     defines a determined direction), or a one-sided paired t-test over the demonstrations does not find it
-    significant at ``level``. Told apart, then, only by a rise both beyond the noise and consistent: the paired
-    test alone flags a rise of 1e-5 ``δm`` that every demonstration shares (a warm re-solve of the fit's own
-    weights)."""
+    significant at ``level``: told apart only by a rise both beyond the noise and consistent over the
+    demonstrations."""
     d = np.asarray(errors, dtype=float) - np.asarray(errors_fit, dtype=float)
     if not np.all(np.isfinite(d)):
         return False
