@@ -12,7 +12,7 @@ shared, so prefer these and ``ratios_cpu``) and wall time, iteration counts, the
 the cache holds; ``compiled`` times the same cold and warm solves with the compiled solvers of
 :mod:`reachirl.doc.compiled` (compiling them first if they are not cached, and saying how long that took) and
 checks that their solutions are bit-identical. There too, the warm solves once more by exact Newton from the
-previous solution (:mod:`reachirl.doc.newton`, MO-IRL's experimental ``warm_newton``): its CPU time, how often it
+previous solution (:mod:`reachirl.doc.newton`, as MO-IRL's ``warm_newton`` does): its CPU time, how often it
 answered, its largest difference from fatrop's warm answer, and both warm solves against the plain warm solve.
 """
 
@@ -141,7 +141,7 @@ def compiled_figures(problems, reference, reference_warm) -> dict:
             c1 = time.process_time()
             warm = solve_doc(task, w2, warm_start=sol)
             c2 = time.process_time()
-            newton = solve_doc(task, w2, warm_start=sol, newton=True)  # MO-IRL's experimental warm_newton
+            newton = solve_doc(task, w2, warm_start=sol, newton=True)  # as MO-IRL's warm_newton
             c3 = time.process_time()
             cpu.append(c1 - c0)
             cpu_warm.append(c2 - c1)
@@ -257,8 +257,8 @@ def _run(n_repeats: int, sweep: bool, seed: int) -> dict:
     out["compiled"] = compiled_figures(problems, colds, warms)
     out["compiled"]["cold_cpu_vs_vm"] = out["compiled"]["cold_cpu_median_s"] / r["cold_cpu_median_s"]
     out["compiled"]["warm_cpu_vs_vm"] = out["compiled"]["warm_cpu_median_s"] / r["warm_cpu_median_s"]
-    # the solves reachirl runs (compiled) against the plain reference's warm solve: fatrop's warm solve (the fits'
-    # default) and exact Newton's (the experimental ``warm_newton``; the predictions' solver)
+    # the solves reachirl runs (compiled) against the plain reference's warm solve: fatrop's warm solve and exact
+    # Newton's (the fits' warm solves, ``warm_newton``, and the predictions' solver)
     c, plain_warm = out["compiled"], b["warm_cpu_median_s"]
     c["warm_cpu_vs_plain_warm"] = c["warm_cpu_median_s"] / plain_warm
     c["warm_newton"]["cpu_vs_plain_warm"] = c["warm_newton"]["cpu_median_s"] / plain_warm

@@ -216,8 +216,8 @@ def render(snap: dict) -> str:
             nw = d.get("newton_warm")
             if nw:
                 lines += [
-                    f"  The same warm solves by exact Newton from the previous solution (MO-IRL's experimental "
-                    f"`warm_newton`, off by default): {nw['cpu_ms']} ms (warm / plain warm {nw['vs_plain_warm']:.2f}); "
+                    f"  The same warm solves as MO-IRL makes them, by exact Newton from the previous solution "
+                    f"(`warm_newton`, on by default): {nw['cpu_ms']} ms (warm / plain warm {nw['vs_plain_warm']:.2f}); "
                     f"Newton answered {nw['answered']}, fatrop the rest; at most {nw['max_diff_deg']}° from "
                     "fatrop's warm answer.",
                     "",

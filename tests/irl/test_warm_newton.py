@@ -1,5 +1,5 @@
-"""MO-IRL's experimental ``warm_newton``: the line search's warm solves by exact Newton on the knots, with fatrop
-where Newton cannot vouch for its answer."""
+"""MO-IRL's ``warm_newton`` (on by default): the line search's warm solves by exact Newton on the knots, with
+fatrop where Newton cannot vouch for its answer; off, every warm solve is fatrop's."""
 
 import pytest
 
@@ -13,9 +13,9 @@ def p2(recorded):
     return select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
 
 
-def test_a_warm_newton_fit_solves_its_line_search_by_newton_to_the_same_merit(p2):
-    base = MOIRL(2, n_nodes=40, max_iter=4).fit(p2)
-    fast = MOIRL(2, n_nodes=40, max_iter=4, experimental={"warm_newton": True}).fit(p2)
+def test_a_fit_solves_its_line_search_by_newton_unless_told_otherwise(p2):
+    fast = MOIRL(2, n_nodes=40, max_iter=4).fit(p2)
+    base = MOIRL(2, n_nodes=40, max_iter=4, experimental={"warm_newton": False}).fit(p2)
     assert fast.n_iter_ >= 1 and base.n_iter_ >= 1
     # the accepted tries' rollouts (warm solves of the training tasks) came from Newton, and only there
     assert all(s.status.startswith("newton") for s in fast.train_solutions_)
@@ -24,9 +24,9 @@ def test_a_warm_newton_fit_solves_its_line_search_by_newton_to_the_same_merit(p2
     assert fast.merit_ == pytest.approx(base.merit_, rel=0.05)
 
 
-def test_warm_newton_is_a_stated_departure_and_is_validated(p2):
-    options = resolve_options(experimental={"warm_newton": True})
-    assert "experimental warm_newton = True" in departures(options, "per_task", 1e-4)
+def test_fatrop_warm_solves_are_a_stated_departure_and_the_option_is_validated(p2):
+    options = resolve_options(experimental={"warm_newton": False})
+    assert "experimental warm_newton = False" in departures(options, "per_task", 1e-4)
     assert not any("warm_newton" in d for d in departures(resolve_options(), "per_task", 1e-4))
     with pytest.raises(ValueError, match="warm_newton must be True or False, got 'yes'"):
         MOIRL(2, n_nodes=40, experimental={"warm_newton": "yes"}).fit(p2)

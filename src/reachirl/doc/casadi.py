@@ -392,9 +392,8 @@ def solve(
 
     With ``newton`` (predictions), a cold start from ``guess`` (a similar reach moved to this task) is first
     solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), which either vouches for its answer or
-    gives way to fatrop from the same start; so is a warm start (MO-IRL's experimental ``warm_newton``). MO-IRL
-    does not use it by default: its line searches compare merits near their thresholds, and an answer that
-    differs at the solvers' tolerance changes which steps they accept (``docs/design-notes.md``).
+    gives way to fatrop from the same start; so is a warm start (MO-IRL's line search, unless its
+    ``warm_newton`` option is off).
 
     ``iterations`` and ``solve_time`` count every attempt.
     """

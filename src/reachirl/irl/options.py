@@ -45,8 +45,7 @@ class Options:
     * ``frozen_windows``: windows whose weights stay at ``ω₀`` (occlusion).
     * ``warm_newton``: the line search's warm solves (the same reach under new weights) by exact Newton on the
       knots from the previous solution (:mod:`reachirl.doc.newton`), fatrop where Newton cannot vouch for its
-      answer (the CasADi backend). Off by default: the searches compare merits at the solvers' tolerance, so
-      the fits, and every table, change (what was measured: ``docs/design-notes.md``).
+      answer (the CasADi backend); ``False``: every warm solve by fatrop.
     * Variants measured and kept off: ``smoothness`` (a number or ``"cv"``), ``cv_folds``, ``feature_cutoff``,
       ``memory``, ``use_gamma``, ``l1``, ``n_suffixes``, ``acceptance`` (``"merit"``, ``"either"``,
       ``"multimodal"``), ``armijo_c1``, ``curvature_c2``.
@@ -77,7 +76,7 @@ class Options:
     acceptance: str = "merit"
     armijo_c1: float = 1e-4
     curvature_c2: float = 0.9
-    warm_newton: bool = False
+    warm_newton: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):  # a numpy scalar (np.True_, np.int64(5)) is the Python value it stands for
