@@ -6,7 +6,8 @@ posture of the built-in virtual subjects (training split of :func:`reachirl.expe
 and on the UE-ADL sample, and writes ``benchmarks/learned_weights.json``: per fit, the weights and every trial
 of the split (training, CV, ISCV) as a DOC task (arm, q0, target, duration). Fits run on the CasADi backend
 (the sweep is about what the backends do with these weights, not about the fits themselves). Fit budgets are
-kept modest (``--max-iter``, ``--max-evals``): the weights of a shorter fit are the same kind of numbers.
+kept modest (``--max-iter`` for MO-IRL and MaxEnt, ``--max-evals`` for bilevel; KKT solves once and takes
+neither): the weights of a shorter fit are the same kind of numbers.
 """
 
 from __future__ import annotations
@@ -45,6 +46,20 @@ def to_task(d: dict, n_nodes: int = 100):
     return ReachingTask(ArmModel(**d["arm"]), np.array(d["q0"]), d["target_x"], d["duration"], n_nodes)
 
 
+def fit_budget(method: str, max_iter: int, max_evals: int) -> dict:
+    """The hyperparameters of a ``method`` fit here: 100 knots, and the budget the method takes: ``max_evals``
+    (DOC solves) for bilevel, ``max_iter`` (iterations per stage) for MO-IRL and the estimators built on it
+    (:func:`reachirl.irl.methods.builds_on_moirl`), none for KKT, which solves once."""
+    from reachirl.irl.methods import builds_on_moirl
+
+    kw: dict = {"n_nodes": 100}
+    if method == "bilevel":
+        kw["max_evals"] = max_evals
+    elif builds_on_moirl(method):
+        kw["max_iter"] = max_iter
+    return kw
+
+
 def main(argv=None) -> None:
     from reachirl.experiments import datasets
     from reachirl.experiments.protocol import ProtocolConfig, split_trials
@@ -76,12 +91,7 @@ def main(argv=None) -> None:
                 for s in args.sections:
                     if (source, method, posture, s) in done:
                         continue
-                    kw = {"n_nodes": 100}
-                    if method == "bilevel":
-                        kw["max_evals"] = args.max_evals
-                    else:
-                        kw["max_iter"] = args.max_iter
-                    est = make_estimator(method, s, **kw)
+                    est = make_estimator(method, s, **fit_budget(method, args.max_iter, args.max_evals))
                     t0 = time.perf_counter()
                     est.fit(list(split.train))
                     fits.append(
