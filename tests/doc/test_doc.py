@@ -208,11 +208,36 @@ def test_warm_start_reaches_the_same_optimum_in_fewer_iterations(solved, rng):
     assert warm.cost == pytest.approx(cold.cost, rel=1e-4)
 
 
-def test_warm_start_from_another_task_shape_falls_back_to_cold(arm, solved):
-    _, w, sol = solved
-    other = make_task(arm, TEST_POSTURES_DEG[1], n_nodes=60)
+def test_warm_start_from_another_task_on_the_same_knots_is_solved_cold(arm, solved):
+    task, w, sol = solved
+    other = make_task(arm, TEST_POSTURES_DEG[2], n_nodes=task.n_nodes)
     out = solve_doc(other, w, warm_start=sol)
-    assert out.converged and out.q.shape == (61, 2)
+    cold = solve_doc(other, w)
+    assert out.converged and out.iterations == cold.iterations
+    np.testing.assert_array_equal(out.q, cold.q)
+
+
+def test_warm_start_on_another_number_of_knots_is_refused(arm, solved):
+    # it was silently ignored, the task solved cold, hiding the caller's mix-up of tasks
+    task, w, sol = solved
+    other = make_task(arm, TEST_POSTURES_DEG[1], n_nodes=60)
+    want = rf"^warm_start is a solution on {task.n_nodes + 1} knots, but the task has 61 \(n_nodes=60\)"
+    with pytest.raises(ValueError, match=want):
+        solve_doc(other, w, warm_start=sol)
+
+
+@pytest.mark.parametrize("backend", ["casadi", "crocoddyl"])
+def test_each_backend_refuses_a_warm_start_on_another_number_of_knots(arm, backend):
+    impl = pytest.importorskip(f"reachirl.doc.{backend}")
+    task = make_task(arm, TEST_POSTURES_DEG[0], n_nodes=30)
+    n = 20
+    foreign = DocSolution(
+        t=np.linspace(0.0, 1.0, n + 1), q=np.zeros((n + 1, 2)), qd=np.zeros((n + 1, 2)), tau=np.zeros((n, 2)),
+        cost=1.0, converged=True, iterations=1, solve_time=0.0, backend=backend,
+        warm={"backend": backend, "task": ("another",), "fscale": 1.0, "knots": (np.zeros((n + 1, 2)),) * 3},
+    )  # fmt: skip
+    with pytest.raises(ValueError, match=r"^warm_start is a solution on 21 knots, but the task has 31 \(n_nodes=30\)"):
+        impl.solve(task, np.full((2, 7), 0.05), warm_start=foreign)
 
 
 def test_weights_change_the_optimum(arm):

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..features import N_FEATURES
 from ..validation import brief, not_real
-from .task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, DocSolution, ReachingTask
+from .task import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER, DEFAULT_QD_MAX, DocSolution, ReachingTask, check_warm_start_knots
 
 __all__ = [
     "BACKENDS",
@@ -64,9 +64,11 @@ def solve_doc(
     """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
 
     ``warm_start`` is a previous :class:`DocSolution` of the same task (other weights, as in MO-IRL's line
-    search); the solve then starts from its solution. A solution of another task is ignored (measured: it costs
-    more iterations than a cold start). When a warm start fails, the solve is retried cold unless
-    ``retry_cold=False`` (MO-IRL's line search: a try the warm start cannot reach is rejected anyway).
+    search); the solve then starts from its solution. A solution of another task on the same knots is ignored
+    (the solve is cold: another reach's solution costs more iterations than a cold start); one on another
+    number of knots raises a ``ValueError`` naming both counts. When a warm start fails, the solve is retried
+    cold unless ``retry_cold=False`` (MO-IRL's line search: a try the warm start cannot reach is rejected
+    anyway).
     ``guess`` (a joint path ``(N+1, 2)`` on the task's knots, e.g. the demonstrations' mean) replaces the
     minimum-jerk path of the cold start; with ``newton`` (the CasADi backend; predictions, whose ``guess`` is a
     similar reach moved to the task), that start is first solved by exact Newton on the knots
@@ -83,6 +85,7 @@ def solve_doc(
         raise TypeError(f"task must be a ReachingTask, got {type(task).__name__}")
     if warm_start is not None and not isinstance(warm_start, DocSolution):
         raise TypeError(f"warm_start must be a DocSolution (an earlier solve_doc's), got {type(warm_start).__name__}")
+    check_warm_start_knots(task, warm_start)
     w = check_weights(weights, task.n_nodes)
     scale = float(w.max())
     # ω / max(ω), rounded to 40 significant bits: ω and c·ω then give the same numbers (not merely equal to

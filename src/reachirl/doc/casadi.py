@@ -53,7 +53,15 @@ from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
 from . import compiled
 from .newton import newton_solve
 from .symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
-from .task import DocSolution, ReachingTask, min_jerk, on_bar, rest_to_rest_knots, warm_start_key
+from .task import (
+    DocSolution,
+    ReachingTask,
+    check_warm_start_knots,
+    min_jerk,
+    on_bar,
+    rest_to_rest_knots,
+    warm_start_key,
+)
 
 __all__ = [
     "FATROP_OPTIONS",
@@ -387,8 +395,9 @@ def solve(
     guess: np.ndarray | None = None,
     newton: bool = False,
 ) -> DocSolution:
-    """Solve the DOC; warm from ``warm_start`` when it is the same task, cold otherwise, and cold again when
-    the warm attempt fails and ``retry_cold``. A cold fatrop solve that fails is retried with IPOPT.
+    """Solve the DOC; warm from ``warm_start`` when it is the same task, cold when it is another task on the
+    same knots, and cold again when the warm attempt fails and ``retry_cold``; a ``warm_start`` on another
+    number of knots raises a ``ValueError``. A cold fatrop solve that fails is retried with IPOPT.
 
     With ``newton`` (predictions), a cold start from ``guess`` (a similar reach moved to this task) is first
     solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), which either vouches for its answer or
@@ -397,6 +406,7 @@ def solve(
 
     ``iterations`` and ``solve_time`` count every attempt.
     """
+    check_warm_start_knots(task, warm_start)
     nlp = build_nlp(task.n_nodes)
     bounds = nlp.bounds(task)
     lbx, ubx = bounds["lbx"], bounds["ubx"]
@@ -409,12 +419,7 @@ def solve(
     fscale = 1.0
 
     kind = "fatrop_warm"
-    same_task = (
-        warm is not None
-        and warm.get("backend") == "casadi"
-        and warm.get("task") == key
-        and warm["knots"][0].shape == (task.n_nodes + 1, 2)
-    )
+    same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
     if same_task and newton:
         # the same reach under new weights, by exact Newton from the previous solution (MO-IRL's
         # ``warm_newton``); fatrop from the same point where Newton cannot vouch for its answer

@@ -129,8 +129,8 @@ def predict_reach(
     :meth:`~reachirl.irl.model.LearnedModel.predict`): for a :class:`~reachirl.data.trial.Trial`, the DOC from its
     own arm, start, target and duration, seen as it was recorded when ``observe`` (:func:`predict`'s ``seen``); for a
     :class:`ReachingTask`, its DOC on ``n_nodes`` knots (the task's own are replaced: the weights' windows and
-    ``path`` are on the model's knots). Without ``warm_start`` the solve starts from ``path`` moved to the task,
-    when given."""
+    ``path`` are on the model's knots, and so must ``warm_start`` be). Without ``warm_start`` the solve starts
+    from ``path`` moved to the task, when given."""
     path = path if warm_start is None else None
     if isinstance(trial_or_task, Trial):
         threshold = trial_or_task.onset_threshold if observe else None

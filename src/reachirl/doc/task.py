@@ -32,6 +32,7 @@ __all__ = [
     "DEFAULT_Q_UPPER",
     "DocSolution",
     "ReachingTask",
+    "check_warm_start_knots",
     "min_jerk",
     "moved_path",
     "on_bar",
@@ -225,6 +226,20 @@ def moved_path(task: ReachingTask, path: np.ndarray) -> np.ndarray:
         raise ValueError(f"path must be a finite joint path of shape {(task.n_nodes + 1, 2)}, got {path.shape}")
     s = min_jerk(np.linspace(0.0, 1.0, task.n_nodes + 1))[:, None]
     return path + (task.q0 - path[0]) * (1.0 - s) + (on_bar(task, path[-1]) - path[-1]) * s
+
+
+def check_warm_start_knots(task: ReachingTask, warm_start: DocSolution | None) -> None:
+    """Raise a ``ValueError`` naming both knot counts when ``warm_start`` is a solution on another number of
+    knots than ``task`` (``n_nodes + 1``): such a solution cannot start the task's solve, and a caller passing
+    one has mixed up its tasks. ``None`` passes."""
+    if warm_start is None:
+        return
+    have, want = np.shape(warm_start.q)[0], task.n_nodes + 1
+    if have != want:
+        raise ValueError(
+            f"warm_start is a solution on {have} knots, but the task has {want} (n_nodes={task.n_nodes}): "
+            "a warm start must be a solution of the same task; pass warm_start=None to solve cold"
+        )
 
 
 def warm_start_key(task: ReachingTask) -> tuple:

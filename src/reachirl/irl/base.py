@@ -176,7 +176,8 @@ class WeightEstimator:
         (:mod:`reachirl.doc.observation`): the rest-to-rest DOC's own onset-to-offset part, on ``N + 1`` knots,
         whose ``cost`` is the whole DOC's optimum. A :class:`ReachingTask` is solved on the fit's ``n_nodes`` (its
         own are replaced: the weights' windows and the start path are on the fit's knots). Without
-        ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task."""
+        ``warm_start`` the solve starts from :meth:`rollout_path`, moved to the task; a ``warm_start`` must be
+        on the fit's knots (:func:`reachirl.doc.solve_doc` raises a ``ValueError`` otherwise)."""
         est = self._as_fitted()
         path = est.rollout_path() if warm_start is None else None
         observe = bool(getattr(est, "observe", False))

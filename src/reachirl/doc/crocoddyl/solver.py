@@ -12,7 +12,7 @@ import numpy as np
 
 from ...errors import interrupt_pending, solver_interrupts
 from ...features import euler_knots, trajectory_cost
-from ..task import DocSolution, ReachingTask, min_jerk, rest_to_rest_knots, warm_start_key
+from ..task import DocSolution, ReachingTask, check_warm_start_knots, min_jerk, rest_to_rest_knots, warm_start_key
 from .knots import _J_ENERGY
 from .options import DEFAULT_OPTIONS, CsqpOptions
 from .problem import ReachingProblem, build_problem
@@ -194,11 +194,13 @@ def solve(
 ) -> DocSolution:
     """Solve the reaching DOC with CSQP; ``warm_start`` (a previous Crocoddyl solution of the same task, under
     other weights) seeds the primal trajectory ``(q, q̇, τ)`` (CSQP has no dual warm start); a solution of
-    another task (or backend) is ignored, as :func:`reachirl.doc.solve_doc` documents (warm-start timings:
-    ``reachirl bench backends``).
+    another task on the same knots (or of another backend) is ignored and one on another number of knots raises
+    a ``ValueError``, as :func:`reachirl.doc.solve_doc` documents (warm-start timings: ``reachirl bench
+    backends``).
     ``status`` reports the last KKT residual, the gaps' max-norm, the summed constraint violation and the ADMM
     iterations of all QPs.
     """
+    check_warm_start_knots(task, warm_start)
     options = options or DEFAULT_OPTIONS
     weights = np.asarray(weights, dtype=float)
     n = task.n_nodes
