@@ -89,6 +89,51 @@ def test_a_learned_model_keeps_its_own_read_only_weights():
         model.weights[0, 0] = -5.0  # past the check that weights are >= 0
 
 
+def _uncertainty(n_windows: int) -> dict:
+    shares = [[1 / 7] * 7] * n_windows
+    return {
+        "n_samples": 1,
+        "weight_samples": [[[0.1] * 7] * n_windows],
+        "share_intervals": {"low": shares, "high": shares, "determined": [[True] * 7] * n_windows},
+    }
+
+
+def test_a_learned_models_info_and_uncertainty_are_read_only(tmp_path):
+    # a frozen model's info and uncertainty were plain dicts: changed in place (or through the caller's dict), the
+    # model changed past the checks of its construction
+    import copy
+    import pickle
+    from dataclasses import replace
+
+    from reachirl.irl.model import LearnedModel, load_model, save_model
+
+    info = {"backend": "casadi", "history": [{"iteration": 0, "merit": 1.0}], "warnings": ["w"]}
+    unc = _uncertainty(2)
+    model = LearnedModel(np.full((2, 7), 0.1), n_nodes=20, info=info, uncertainty=unc)
+    info["backend"], unc["n_samples"] = "crocoddyl", 5  # the caller's dicts, changed after: not the model's
+    assert model.backend == "casadi" and model.uncertainty["n_samples"] == 1
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        model.info["backend"] = "crocoddyl"  # past the check of info.backend
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        model.info["history"][0]["merit"] = float("nan")
+    with pytest.raises(AttributeError, match="'tuple' object has no attribute 'append'"):
+        model.info["warnings"].append("x")
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        model.uncertainty["share_intervals"]["low"] = None
+    with pytest.raises(TypeError, match="does not support item assignment"):
+        model.uncertainty["weight_samples"][0][0] = [-1.0] * 7
+
+    # the file, equality, copies and the repr work as before
+    assert load_model(save_model(tmp_path / "m.json", model)) == model
+    plain = {"backend": "casadi", "history": [{"iteration": 0, "merit": 1.0}], "warnings": ["w"]}
+    assert model.to_dict()["info"] == plain
+    assert type(model.to_dict()["uncertainty"]["share_intervals"]) is dict
+    assert pickle.loads(pickle.dumps(model)) == model and copy.deepcopy(model) == model
+    changed = replace(model, info={**model.info, "backend": "crocoddyl"})
+    assert changed.backend == "crocoddyl" and changed != model and model.backend == "casadi"
+    assert repr(model).endswith("info=<3 keys>, uncertainty=<1 weight samples>)")
+
+
 @pytest.mark.parametrize("n_nodes", [3, 100_000])
 def test_an_estimators_n_nodes_out_of_range_is_named_as_its_own(tiny_trials, n_nodes):
     from reachirl import MOIRL

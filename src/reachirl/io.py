@@ -9,7 +9,7 @@ import os
 import re
 import tempfile
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -280,8 +280,9 @@ def atomic_write_text(path: str | os.PathLike, text: str, *, durable: bool = Tru
 
 
 def to_jsonable(obj):
-    """Numpy arrays and scalars to plain lists and numbers; non-finite floats to None."""
-    if isinstance(obj, dict):
+    """Numpy arrays and scalars to plain lists and numbers, mappings (e.g. ``MappingProxyType``) to dicts;
+    non-finite floats to None."""
+    if isinstance(obj, Mapping):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
         return [to_jsonable(v) for v in obj]

@@ -505,12 +505,12 @@ def test_a_rollout_of_cut_and_uncut_trials_is_compared_whole_and_says_so(arm):
     )
     # what the model says: the option, and that no trial was compared as recorded (it said every trial was)
     info = LearnedModel.from_estimator(est, demos).info
-    assert info["observe"] is True and info["observed_trial_ids"] == []
+    assert info["observe"] is True and info["observed_trial_ids"] == ()  # a model's info is read-only: lists are tuples
     for rollout, trials, seen in (("per_task", cut, cut), ("per_demo", demos, cut[:2])):
         ok = _MOIRL(1, n_nodes=20, max_iter=1, rollout=rollout).fit(trials)
         assert not [w for w in ok.warnings_ if "not cut at a speed threshold" in w]
         info = LearnedModel.from_estimator(ok, trials).info
-        assert info["observed_trial_ids"] == [t.id for t in seen], rollout
+        assert info["observed_trial_ids"] == tuple(t.id for t in seen), rollout
 
 
 def test_a_fit_logs_its_warnings_unless_its_caller_shows_them(arm, caplog):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+from collections.abc import Mapping
 from pathlib import Path
 
 from ..errors import InputError
@@ -157,7 +158,7 @@ def model_figures(model, trials, errors, out: Path, pdf: bool = True, backend: s
         from ..experiments.method import convergence_text
 
         options = model.info.get("options")  # every option in force, when the model file records them
-        words = convergence_text(options if isinstance(options, dict) else {"observe": model.info.get("observe")})
+        words = convergence_text(options if isinstance(options, Mapping) else {"observe": model.info.get("observe")})
         _save(
             fg.plot_convergence(
                 {(method, n): history},

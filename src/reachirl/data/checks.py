@@ -201,7 +201,7 @@ def check_model_rollout(model, path: object) -> None:
     limits."""
     from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 
-    rollout = model.info.get("rollout_q") if isinstance(model.info, dict) else None
+    rollout = model.info.get("rollout_q") if isinstance(model.info, Mapping) else None
     if rollout is None:
         return
     r = np.asarray(rollout, dtype=float)

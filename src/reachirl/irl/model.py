@@ -6,10 +6,11 @@ from __future__ import annotations
 
 import math
 import zipfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from os import PathLike
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
@@ -29,16 +30,42 @@ MODEL_FORMAT = "reachirl-model/1"
 MAX_MODEL_BYTES = 64 * 1024**2
 
 
+def _read_only(obj):
+    """``obj`` (JSON-like) as a read-only copy: each mapping a :class:`types.MappingProxyType`, each list, tuple
+    or array a tuple, of read-only values; anything else as it is."""
+    if isinstance(obj, Mapping):
+        return MappingProxyType({k: _read_only(v) for k, v in obj.items()})
+    if isinstance(obj, np.ndarray):
+        return _read_only(obj.tolist())
+    if isinstance(obj, list | tuple):
+        return tuple(_read_only(v) for v in obj)
+    return obj
+
+
+def _plain(obj):
+    """A :func:`_read_only` value as a plain, mutable copy: mappings as dicts, tuples as lists."""
+    if isinstance(obj, Mapping):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_plain(v) for v in obj]
+    return obj
+
+
 @dataclass(frozen=True, eq=False)  # its own __eq__; unhashable (dataclass(eq=True) replaced __hash__ = None)
 class LearnedModel:
     """Weights ``(n_windows, 7)`` (columns in FEATURES order), the DOC discretisation they were learned on, and
-    free-form provenance (method, hyperparameters, history, training trials)."""
+    free-form provenance (method, hyperparameters, history, training trials).
+
+    The model is read-only throughout: ``weights`` is a read-only array, and ``info`` and ``uncertainty`` are
+    read-only copies of what was given (each mapping a :class:`types.MappingProxyType`, each list a tuple), so
+    that a model changes only by :func:`dataclasses.replace`, which checks the new one (e.g.
+    ``replace(model, info={**model.info, "note": "..."})``). :meth:`to_dict` gives plain, mutable copies."""
 
     weights: np.ndarray
     n_nodes: int = 100
     method: str = "moirl"
-    info: dict = field(default_factory=dict)
-    uncertainty: dict | None = None  # weight samples and share intervals (reachirl.irl.uncertainty)
+    info: Mapping = field(default_factory=dict)
+    uncertainty: Mapping | None = None  # weight samples and share intervals (reachirl.irl.uncertainty)
 
     def __post_init__(self) -> None:
         if (what := not_real(self.weights)) is not None:
@@ -51,6 +78,10 @@ class LearnedModel:
         w = w.copy()  # the model's own, read-only: the caller's array (an estimator's weights_) changed later, or
         w.setflags(write=False)  # the model's changed in place, would change a frozen model past these checks
         object.__setattr__(self, "weights", w)
+        # read-only copies: the caller's dict changed later, or the model's changed in place, would change a frozen
+        # model past the checks below
+        object.__setattr__(self, "info", _read_only(self.info))
+        object.__setattr__(self, "uncertainty", _read_only(self.uncertainty))
         # what load_model would refuse is refused here, so that a model saved is a model that loads
         check_model_dict(to_jsonable(self.to_dict()), "LearnedModel")
 
@@ -62,7 +93,12 @@ class LearnedModel:
         rest = ("n_nodes", "method", "info", "uncertainty")
         return np.array_equal(self.weights, other.weights) and all(getattr(self, k) == getattr(other, k) for k in rest)
 
-    __hash__ = None  # its info and uncertainty are mutable mappings
+    __hash__ = None  # unhashable, as a DocSolution is: equal by the value of its weights array
+
+    def __reduce__(self):
+        """Pickling and :mod:`copy` rebuild the model from plain copies (a ``MappingProxyType`` is not
+        picklable)."""
+        return type(self), (self.weights, self.n_nodes, self.method, _plain(self.info), _plain(self.uncertainty))
 
     def __repr__(self) -> str:
         """The weights, discretisation and method, with ``info`` and ``uncertainty`` summarised: in full (a
@@ -104,7 +140,8 @@ class LearnedModel:
         return cls(weights=est.weights_, n_nodes=est.n_nodes, method=method, info=info, uncertainty=unc)
 
     def to_dict(self) -> dict:
-        """The MODEL.json content (:func:`save_model` writes it)."""
+        """The MODEL.json content (:func:`save_model` writes it), with ``info`` and ``uncertainty`` as plain,
+        mutable copies (dicts and lists)."""
         return {
             "format": MODEL_FORMAT,
             "method": self.method,
@@ -112,8 +149,8 @@ class LearnedModel:
             "n_nodes": self.n_nodes,
             "features": list(FEATURES),
             "weights": self.weights,
-            "info": self.info,
-            **({} if self.uncertainty is None else {"uncertainty": self.uncertainty}),
+            "info": _plain(self.info),
+            **({} if self.uncertainty is None else {"uncertainty": _plain(self.uncertainty)}),
         }
 
     @property
