@@ -38,6 +38,108 @@ def test_a_new_export_removes_the_files_an_earlier_one_listed_and_it_does_not_wr
     assert list(pd.read_csv(tmp_path / "index.csv")["file"]) == ["S1_T2"]
 
 
+def test_a_failed_prediction_is_listed_and_not_exported(tmp_path):
+    # it was exported like the others: only METRICS.json said converged false, the trajectory files could not
+    from reachirl.data.exports import is_export
+
+    t = np.linspace(0, 1, 5)
+    arrays = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))}
+
+    def item(tid, converged):
+        return TrajectoryExport(tid, t, arrays, arrays, converged=converged)
+
+    export_trajectories(tmp_path, [item(i, True) for i in ("S1/T1", "S1/T2", "S1/T3")])
+    export_trajectories(tmp_path, [item("S1/T1", True), item("S1/T2", False), item("S1/T3", True)])
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "S1_T1.csv",
+        "S1_T1.mot",
+        "S1_T3.csv",
+        "S1_T3.mot",
+        "index.csv",
+    ]  # the earlier export's files of the failed prediction removed too
+    idx = pd.read_csv(tmp_path / "index.csv", keep_default_na=False, dtype=str)
+    assert idx.to_dict("records") == [
+        {"id": "S1/T1", "file": "S1_T1", "set": "", "converged": "true"},
+        {"id": "S1/T2", "file": "", "set": "", "converged": "false"},
+        {"id": "S1/T3", "file": "S1_T3", "set": "", "converged": "true"},
+    ]
+    assert is_export(tmp_path)
+    export_trajectories(tmp_path, [TrajectoryExport("S1/T4", t, arrays)])  # no prediction: converged unknown
+    assert (tmp_path / "index.csv").read_text() == "id,file,set,converged\nS1/T4,S1_T4,,\n"
+
+
+def test_an_export_from_before_the_converged_column_is_still_an_export(tmp_path):
+    from reachirl.cli._args import refuse_foreign_export_files
+    from reachirl.data.exports import is_export
+
+    (tmp_path / "index.csv").write_text("id,file,set\nS1/T1,S1_T1,\n")
+    (tmp_path / "S1_T1.csv").write_text("old")
+    assert is_export(tmp_path)
+    refuse_foreign_export_files(tmp_path, ["index.csv", "S1_T1.csv"], "--predictions")  # its files, replaced
+    t = np.linspace(0, 1, 5)
+    export_trajectories(tmp_path, [TrajectoryExport("S1/T2", t, {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))})])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["S1_T2.csv", "S1_T2.mot", "index.csv"]
+
+
+def test_evaluate_leaves_a_failed_prediction_out_of_its_export(tmp_path, tiny_trials, monkeypatch, capsys):
+    import json
+    from dataclasses import replace
+
+    from reachirl.cli import main
+    from reachirl.irl.model import LearnedModel, save_model
+
+    real = LearnedModel.evaluate
+
+    def second_fails(self, trials, *args, **kwargs):
+        errors = real(self, trials, *args, **kwargs)
+        return [replace(e, converged=False) if i == 1 else e for i, e in enumerate(errors)]
+
+    monkeypatch.setattr(LearnedModel, "evaluate", second_fails)
+    model = save_model(tmp_path / "m.json", LearnedModel(np.full((1, 7), 0.1), n_nodes=20))
+    pred, out = tmp_path / "pred", tmp_path / "metrics.json"
+    argv = ["evaluate", "--model", str(model), str(tiny_trials), "--out", str(out), "--predictions", str(pred)]
+    assert main(argv) == 0
+    trials = load_trials(tiny_trials)
+    stdout = capsys.readouterr().out
+    assert (
+        f"wrote 5 trajectories (.csv, .mot) and index.csv to {pred}; 1 whose DOC did not converge left out "
+        "(index.csv: converged false)"
+    ) in stdout
+    idx = pd.read_csv(pred / "index.csv", keep_default_na=False, dtype=str)
+    assert list(idx["id"]) == [t.id for t in trials]
+    assert list(idx["converged"]) == ["true", "false", "true", "true", "true", "true"]
+    assert idx["file"][1] == "" and not list(pred.glob(f"{safe_name(trials[1].id)}.*"))
+    assert all((pred / f"{name}.csv").is_file() and (pred / f"{name}.mot").is_file() for name in idx["file"][2:])
+    assert [t["converged"] for t in json.loads(out.read_text())["trials"]][1] is False
+
+
+def test_reproduce_leaves_a_failed_prediction_out_of_its_export(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from reachirl.experiments import report
+
+    n = 5
+    ids = np.array(["S1/P1/right/T1", "S1/P1/right/T2"])
+    arrays = {
+        "train/ids": ids,
+        "train/sides": np.array(["right", "right"]),
+        "train/t": np.tile(np.linspace(0, 1, n), (2, 1)),
+    }
+    for who in ("demo", "pred"):
+        arrays |= {f"train/{who}_q": np.zeros((2, n, 2)), f"train/{who}_qd": np.zeros((2, n, 2))}
+        arrays[f"train/{who}_tau"] = np.zeros((2, n - 1, 2))
+    monkeypatch.setattr(report, "load_unit_arrays", lambda out_dir, key: arrays)
+    trials = [{"id": ids[0], "converged": True}, {"id": ids[1], "converged": False}]
+    run = SimpleNamespace(out_dir=tmp_path, results={"u": {"sets": {"train": {"trials": trials}}}})
+    (index,) = report.write_predictions(run)
+    assert index.read_text().splitlines() == [
+        "id,file,set,converged",
+        "S1/P1/right/T1,S1_P1_right_T1,train,true",
+        "S1/P1/right/T2,,train,false",
+    ]
+    assert sorted(p.name for p in index.parent.iterdir()) == ["S1_P1_right_T1.csv", "S1_P1_right_T1.mot", "index.csv"]
+
+
 @pytest.fixture(scope="module")
 def exported(tiny_trials, tmp_path_factory, cli):
     d = tmp_path_factory.mktemp("exp")
@@ -54,7 +156,8 @@ def test_evaluate_predictions_csv_and_mot(exported, tiny_trials):
     trials = load_trials(tiny_trials)
     assert f"wrote 6 trajectories (.csv, .mot) and index.csv to {pred}" in proc.stdout
     idx = pd.read_csv(pred / "index.csv", keep_default_na=False)
-    assert list(idx["id"]) == [t.id for t in trials] and list(idx.columns) == ["id", "file", "set"]
+    assert list(idx["id"]) == [t.id for t in trials] and list(idx.columns) == ["id", "file", "set", "converged"]
+    assert list(idx["converged"]) == [True] * len(trials)  # pandas reads true/false as booleans
     for tr, name in zip(trials, idx["file"], strict=True):
         df = pd.read_csv(pred / f"{name}.csv")
         assert tuple(df.columns) == CSV_COLUMNS

@@ -60,7 +60,8 @@ def add_parser(sub) -> argparse.ArgumentParser:
         metavar="DIR",
         help="also write each trial's demonstration and prediction (q, q̇, τ in SI and degrees) as "
         "DIR/<trial id>.csv and the predicted angles as the OpenSim motion file DIR/<trial id>.mot "
-        "(slashes in ids become _; DIR/index.csv maps ids to files) (default: none)",
+        "(slashes in ids become _; DIR/index.csv maps ids to files). A prediction whose DOC did not converge "
+        "is left out: index.csv lists it with no file and converged false (default: none)",
     )
     add_selection(p, "predict")
     return p
@@ -83,7 +84,7 @@ def summary_line(summary: dict, backend: str) -> str:
 
 def prediction_exports(trials, errors, set_name: str = ""):
     """One :class:`~reachirl.data.exports.TrajectoryExport` per trial: the demonstration resampled on the DOC's
-    knots beside the prediction."""
+    knots beside the prediction, and whether its DOC converged (one that did not is listed, not written)."""
     from ..data.exports import TrajectoryExport
 
     out = []
@@ -98,6 +99,7 @@ def prediction_exports(trials, errors, set_name: str = ""):
                 set=set_name,
                 demo={"q": demo.q, "qd": demo.qd, "tau": demo.tau[:-1]},
                 pred={"q": sol.q, "qd": sol.qd, "tau": sol.tau},
+                converged=bool(e.converged),
             )
         )
     return out
@@ -158,6 +160,8 @@ def _evaluate(args: argparse.Namespace, make_predictions) -> int:
     )
     print(summary_line(summary, backend))
     if args.predictions is not None:
-        print(f"wrote {len(errors)} trajectories (.csv, .mot) and index.csv to {args.predictions}")
+        failed = sum(not e.converged for e in errors)
+        left_out = f"; {failed} whose DOC did not converge left out (index.csv: converged false)" if failed else ""
+        print(f"wrote {len(errors) - failed} trajectories (.csv, .mot) and index.csv to {args.predictions}{left_out}")
     print(f"wrote {args.out}")
     return 0

@@ -10,7 +10,10 @@
   names of OpenSim's ``arm26`` model: ``r_shoulder_elev = q1 + 90°`` (0 with the arm hanging, positive
   forward) and ``r_elbow_flex = q2`` (``l_`` for a left arm). :func:`reachirl.data.readers.read_mot` reads it
   back into reachirl's convention.
-* ``index.csv`` — which file holds which trial: ``id,file,set``.
+* ``index.csv`` — which file holds which trial: ``id,file,set,converged``. A prediction whose DOC did not
+  converge is no prediction: it is left out (no ``.csv``, no ``.mot``) and listed with an empty ``file`` and
+  ``converged`` ``false``; ``converged`` is ``true`` for the others, and empty in an export without predictions.
+  An export of an earlier version, whose index has no ``converged`` column, is recognised as one all the same.
 
 Trial ids contain slashes (``subject/posture/side/trial``); :func:`safe_name` turns them into file names.
 Every file is written atomically.
@@ -53,7 +56,9 @@ SHOULDER_OFFSET_DEG = 90.0  # r_shoulder_elev = q1 + 90°
 @dataclass(frozen=True)
 class TrajectoryExport:
     """One trial to export. ``demo`` and ``pred`` map ``"q"``, ``"qd"`` (``(n, 2)``, rad, rad/s) and optionally
-    ``"tau"`` (``(n, 2)`` or ``(n - 1, 2)`` per interval, N·m) on the samples ``t (n,)`` (s)."""
+    ``"tau"`` (``(n, 2)`` or ``(n - 1, 2)`` per interval, N·m) on the samples ``t (n,)`` (s). ``converged``:
+    whether the DOC of ``pred`` converged (``None``: no prediction); one that did not is listed in the index and
+    written to no file."""
 
     id: str
     t: np.ndarray
@@ -61,6 +66,7 @@ class TrajectoryExport:
     pred: Mapping[str, np.ndarray] | None = None
     side: str = "right"
     set: str = ""
+    converged: bool | None = None
 
 
 def safe_name(trial_id: str) -> str:
@@ -130,16 +136,18 @@ def _number_lines(data: np.ndarray) -> str:
     return "\n".join(lines) + "\n"
 
 
-INDEX_COLUMNS = ("id", "file", "set")
+INDEX_COLUMNS = ("id", "file", "set", "converged")
 """The header of an export's ``index.csv``."""
+EARLIER_INDEX_COLUMNS = ("id", "file", "set")
+"""The header of an ``index.csv`` written before the ``converged`` column: still an export's."""
 
 
 def is_export(folder: str | Path) -> bool:
     """Whether ``folder`` holds an export of :func:`export_trajectories` (its ``index.csv`` has
-    :data:`INDEX_COLUMNS`)."""
+    :data:`INDEX_COLUMNS`, or :data:`EARLIER_INDEX_COLUMNS`)."""
     try:
         with open(Path(folder) / "index.csv", encoding="utf-8") as fh:
-            return fh.readline().strip() == ",".join(INDEX_COLUMNS)
+            return fh.readline().strip() in {",".join(INDEX_COLUMNS), ",".join(EARLIER_INDEX_COLUMNS)}
     except (OSError, UnicodeDecodeError):
         return False
 
@@ -160,9 +168,11 @@ def _remove(out: Path, names) -> None:
 def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], mot: bool = True) -> Path:
     """Write ``<safe id>.csv`` (and ``.mot``) per item and ``index.csv`` under ``out_dir``; returns the index.
 
-    Two ids that map to one file name get ``-2``, ``-3`` ... appended. The files an earlier export listed in
-    ``out_dir``'s ``index.csv`` and this one does not write are removed, so that the folder holds what its index
-    says (a user's other files stay), and so are the temporaries a killed export left. The earlier ``index.csv``
+    An item whose prediction did not converge (``converged=False``) gets no file: the index lists it with an empty
+    ``file`` and ``converged`` ``false`` (see the module docstring). Two ids that map to one file name get ``-2``,
+    ``-3`` ... appended. The files an earlier export listed in ``out_dir``'s ``index.csv`` and this one does not
+    write (a failed prediction's among them) are removed, so that the folder holds what its index says (a user's
+    other files stay), and so are the temporaries a killed export left. The earlier ``index.csv``
     goes first and the new one is written last, so an interrupted export leaves a folder without an index, never
     an index over a mix of two exports. The index and the folder are synced to the disk; the trajectory files,
     derived and many, are not one by one (:func:`reachirl.io.atomic_path`, ``durable=False``): a crash of the
@@ -176,6 +186,9 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     used: set[str] = set()
     index = [INDEX_COLUMNS]
     for it in items:
+        if it.converged is False:  # a failed DOC is no prediction: listed, not written (nor its name taken)
+            index.append((it.id, "", it.set, "false"))
+            continue
         base = safe_name(it.id)
         name, k = base, 1
         while name in used:
@@ -188,7 +201,7 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
             src = it.pred if it.pred is not None else it.demo
             cols, deg = opensim_coordinates(src["q"], it.side)
             write_mot(out / f"{name}.mot", it.t, deg, columns=cols, durable=False)
-        index.append((it.id, name, it.set))
+        index.append((it.id, name, it.set, "" if it.converged is None else "true"))
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerows(index)
     atomic_write_text(out / "index.csv", buf.getvalue())

@@ -523,7 +523,8 @@ def write_figures(
 
 def write_predictions(run: RunResult) -> list[Path]:
     """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit
-    (:func:`reachirl.data.exports.export_trajectories`), from the units' NPZ files; returns the index files."""
+    (:func:`reachirl.data.exports.export_trajectories`), from the units' NPZ files; a prediction whose DOC did not
+    converge (the unit's record of the trial) is left out, listed in the index as such. Returns the index files."""
     from ..data.exports import TrajectoryExport, export_trajectories
 
     written = []
@@ -533,6 +534,8 @@ def write_predictions(run: RunResult) -> list[Path]:
         for s in SETS:
             if f"{s}/ids" not in a:
                 continue
+            records = ((run.results[key].get("sets") or {}).get(s) or {}).get("trials") or ()
+            converged = {str(r.get("id")): r.get("converged") for r in records}
             for i, tid in enumerate(a[f"{s}/ids"]):
                 items.append(
                     TrajectoryExport(
@@ -542,6 +545,7 @@ def write_predictions(run: RunResult) -> list[Path]:
                         set=s,
                         demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
                         pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                        converged=converged.get(str(tid)) is not False,
                     )
                 )
         if items:
