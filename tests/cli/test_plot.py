@@ -742,6 +742,33 @@ def test_plot_of_a_run_into_its_own_figures_folder_replaces_its_figures(run_fold
     assert is_marked_figure(run / "figures" / "fig3_weights.png")
 
 
+@pytest.mark.parametrize("inside", ["units", "units/figs", "models", "predictions", "predictions/a/b"])
+def test_plot_of_a_run_refuses_an_out_among_the_runs_data(run_folder, tmp_path, capsys, inside):
+    """plot RUN --out RUN/units drew the figures (and the hidden folder they are drawn in) among the run's
+    checkpoints, which a rerun reads back; so for its models and exported predictions. Refused before any work,
+    exit 2 in one line naming --out; the run's folder is left as it was."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    (run / "models").mkdir(exist_ok=True)
+    (run / "predictions").mkdir(exist_ok=True)
+    before = sorted(p for p in run.rglob("*"))
+    out = run / inside
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(out), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    name = inside.split("/")[0]
+    assert err == [
+        f"reachirl plot: error: {out}: --out is inside the run's own {name}/ folder, which `reachirl reproduce` "
+        f"writes and reads back; give the figures a folder of their own (e.g. {run.resolve() / 'figures'})"
+    ], err
+    assert sorted(p for p in run.rglob("*")) == before
+    # the run's folder itself and its figures folder stay allowed
+    assert main(["plot", str(run), "--out", str(run), "--no-pdf"]) == 0
+    assert main(["plot", str(run), "--out", str(run / "figures"), "--no-pdf"]) == 0
+
+
 def test_plot_of_a_run_being_written_is_refused_until_the_writer_ends(run_folder, tmp_path, capsys):
     """plot RUN --out RUN/figures while a reproduce runs into RUN (which holds RUN, not RUN/figures) drew a run
     being rewritten into the folder the run writes; it is refused (exit 2) before it changes anything, and draws

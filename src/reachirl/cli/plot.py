@@ -12,7 +12,9 @@ on the plotted trials: it solves no DOC) and
 ``convergence``, ``methods``) drawn again from its ``results.json`` and ``units/``. Every figure is written as
 ``.png`` and ``.pdf``, marked as reachirl's in its metadata; a file of DIR with a figure's name that does not carry
 that mark (the user's own) is refused, never replaced, but in the run's own ``RUN_DIR/figures``, which holds what
-``reproduce`` drew. A ``RUN_DIR`` that a command writes into now (a ``reproduce`` still running) is refused.
+``reproduce`` drew. DIR may be ``RUN_DIR`` itself or its ``figures`` folder, never one of the run's data folders
+(``units``, ``models``, ``predictions``) nor a folder inside one: refused before any work. A ``RUN_DIR`` that a
+command writes into now (a ``reproduce`` still running) is refused.
 """
 
 from __future__ import annotations
@@ -295,10 +297,32 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
     return [out / n for n in names]
 
 
+#: the folders of a ``reproduce`` run that hold its data (checkpoints, models, exported predictions), which a rerun
+#: reads, replaces or removes: no figure is written among them
+RUN_DATA_FOLDERS = ("units", "models", "predictions")
+
+
+def refuse_the_runs_data_folders(out: Path, run_dir: Path) -> None:
+    """Before any work: ``out`` is not one of the data folders of the run ``run_dir`` (:data:`RUN_DATA_FOLDERS`) nor
+    inside one (the figures and the hidden folder they are drawn in would mix with the run's checkpoints, models or
+    exports); an :class:`InputError` naming ``out``. ``run_dir`` itself and its ``figures`` folder are allowed."""
+    o, run = out.resolve(), run_dir.resolve()
+    for name in RUN_DATA_FOLDERS:
+        own = run / name
+        if o == own or own in o.parents:
+            raise InputError(
+                f"--out is inside the run's own {name}/ folder, which `reachirl reproduce` writes and reads back; "
+                f"give the figures a folder of their own (e.g. {run / 'figures'})",
+                out,
+            )
+
+
 def run(args: argparse.Namespace) -> int:
     from ..validation import check_output_dir
 
     out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
+    if args.model is None and args.source.is_dir():  # a run's figures: never among its checkpoints or models
+        refuse_the_runs_data_folders(out, args.source)
     # one command at a time in the folder (from the start when it exists: refused before any work)
     with holding_folder(out, "--out") as make:
         return _plot(args, out, make)
