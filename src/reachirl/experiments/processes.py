@@ -3,7 +3,9 @@
 
 A worker ignores Ctrl-C (the coordinating process ends the workers), dies with its parent (even a SIGKILLed one)
 and has its memory (address space) capped. :func:`stop_workers` cancels what has not started and terminates the
-workers, without waiting for the work in progress.
+workers, without waiting for the work in progress. ``spawn`` imports the main script again in each worker: a
+script that would start the workers again there (its call outside ``if __name__ == "__main__":``) is refused
+before they start (:func:`check_entry_point_guarded`).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import multiprocessing
 import os
 from collections.abc import Callable
 
-__all__ = ["local_executor", "stop_workers", "worker_died", "worker_init"]
+__all__ = ["check_entry_point_guarded", "local_executor", "stop_workers", "worker_died", "worker_init"]
 
 
 def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
@@ -54,9 +56,68 @@ class _Pool(cf.ProcessPoolExecutor):
             signal.signal(signal.SIGINT, previous)
 
 
+def _unguarded_call_line() -> tuple[str, int] | None:
+    """The script and line of the top-level statement of ``__main__`` that led to this call, when that statement is
+    not inside an ``if`` testing ``__name__``: a spawned worker imports the main module again and would run it
+    again. None when the main module has no source file (an interactive session, ``python -c``) or is a package's
+    ``__main__`` (``python -m PACKAGE``: not imported again in a worker), when no top-level statement of it is on
+    the stack (a call from another thread), or when its source cannot be read."""
+    import ast
+    import sys
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path:
+        return None
+    name = getattr(getattr(main, "__spec__", None), "name", None)
+    if name == "__main__" or (name or "").endswith(".__main__"):  # a package's __main__ (python -m PACKAGE)
+        return None  # is not imported again in a spawned worker
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is vars(main) and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None:
+        return None
+    line = frame.f_lineno
+    try:
+        with open(path, "rb") as f:
+            tree = ast.parse(f.read(), filename=path)
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, ast.If)
+            and node.lineno <= line <= (node.end_lineno or node.lineno)
+            and any(isinstance(n, ast.Name) and n.id == "__name__" for n in ast.walk(node.test))
+        ):
+            return None
+    return str(path), line
+
+
+def check_entry_point_guarded(option: str = "workers") -> None:
+    """Before local worker processes are started: the main script does not start them from its top-level code
+    outside ``if __name__ == "__main__":``. Workers are started with ``spawn``, which imports the main script
+    again in each worker: such a call would run again there, and the workers fail as they start. Refused, an
+    :class:`~reachirl.errors.InputError` naming the script and the line, saying to protect the entry point or to
+    set ``option`` to 1 (run in this process)."""
+    from ..errors import InputError
+
+    found = _unguarded_call_line()
+    if found is None:
+        return
+    path, line = found
+    raise InputError(
+        f"line {line} starts local worker processes from the script's top-level code, outside "
+        f'`if __name__ == "__main__":`; each worker imports the script again and would run it again. Put the '
+        f'script\'s entry point under `if __name__ == "__main__":`, or use {option}=1 (runs in this process)',
+        path,
+    )
+
+
 def local_executor(workers: int, memory_gb: float, then: Callable[[], None] | None = None) -> cf.ProcessPoolExecutor:
     """A pool of ``workers`` bounded local processes (:func:`worker_init`; ``then``: a module-level function each
-    runs once started)."""
+    runs once started); refused when the main script would start it again in each worker
+    (:func:`check_entry_point_guarded`)."""
+    check_entry_point_guarded()
     # spawn: never fork a process holding CasADi/IPOPT state or threads; workers import reachirl afresh
     ctx = multiprocessing.get_context("spawn")
     return _Pool(max_workers=workers, mp_context=ctx, initializer=worker_init, initargs=(os.getpid(), memory_gb, then))

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import hold_folder, remove_temporaries
-from .processes import local_executor, stop_workers, worker_died
+from .processes import check_entry_point_guarded, local_executor, stop_workers, worker_died
 from .protocol import Split, Unit
 from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
 from .truth_solves import run_unit_and_truth
@@ -387,7 +387,9 @@ def reproduce(
     else is written here: :func:`reachirl.experiments.report.write_outputs` writes the tables, figures and report
     (``result.stopped`` is true when ``max_units`` cut the run short; rerun to finish). ``out_option``: what named
     ``out_dir`` to the caller (the argument; the command line's ``--out``), in the error of a folder that another
-    command is writing into.
+    command is writing into. With ``workers`` > 1 (and no ``scheduler``), a main script that calls it from its
+    top-level code outside ``if __name__ == "__main__":`` is refused before any work
+    (:func:`~reachirl.experiments.processes.check_entry_point_guarded`): each spawned worker would run it again.
     """
     from .pairs import pair_splits, pair_training_subjects
     from .protocol import (
@@ -405,6 +407,8 @@ def reproduce(
         raise InputError(
             f"workers must be a number of worker processes, at least 1 (1 runs in this process), got {workers!r}"
         )
+    if workers > 1 and scheduler is None:  # spawned workers import the main script again: never a rerun of it
+        check_entry_point_guarded()
     trials = list(dataset.trials)
     if not trials:
         raise InputError("no trials to run the protocol on", dataset.source)
