@@ -871,9 +871,81 @@ def test_plot_draws_each_demonstration_on_its_own_time(fitted, tmp_path, monkeyp
     assert max(abs(p - d) for p, d in zip(pred_ends, demo_ends, strict=True)) > 1e-3  # the two times differ here
 
 
+def _prediction_drawn(monkeypatch) -> dict:
+    """``{file name: (x label of the bottom-left axes, [x of each line of the top-left axes])}`` of every prediction
+    figure drawn from now on."""
+    from reachirl.experiments import figures as fg
+
+    drawn, real = {}, fg.plot_prediction
+
+    def plot_prediction(arrays, set_name="train", title="", axes=None):
+        fig = real(arrays, set_name, title, axes)
+        drawn[set_name] = (fig.axes[2].get_xlabel(), [np.asarray(ln.get_xdata()) for ln in fig.axes[0].get_lines()])
+        return fig
+
+    monkeypatch.setattr(fg, "plot_prediction", plot_prediction)
+    return drawn
+
+
+def _units_as_written_before_demonstration_times(run: Path) -> None:
+    """Rewrite the run's checkpoints as a reachirl of before ``<set>/demo_t`` wrote them: the NPZ without those
+    entries, its SHA-256 and the JSON's checksum to match."""
+    import hashlib
+
+    from reachirl.experiments.results import content_checksum
+    from reachirl.io import npz_bytes
+
+    for npz in sorted((run / "units").glob("*.npz")):
+        with np.load(npz, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files if not k.endswith("/demo_t")}
+        data = npz_bytes(dict(sorted(arrays.items())))
+        npz.write_bytes(data)
+        js = npz.with_suffix(".json")
+        res = json.loads(js.read_text())
+        res["npz_sha256"] = hashlib.sha256(data).hexdigest()
+        res["checksum"] = content_checksum(res)
+        js.write_text(json.dumps(res))
+
+
+def test_a_runs_prediction_figure_draws_each_demonstration_on_its_own_time(fitted, run_folder, tmp_path, monkeypatch):
+    """fig2_prediction stretched the demonstrations to their predictions' time (the units held no other); the units
+    now hold each demonstration's own times, and the figure draws each on them, its x axis saying time (s).
+    Checkpoints without them (written before) are still plotted, and reused by a resume of the same inputs and
+    code, their demonstrations drawn on their predictions' time as the x axis says."""
+    import shutil
+
+    _, trials, _ = fitted
+    durations = {t.id: t.duration for t in load_trials(trials)}
+    drawn = _prediction_drawn(monkeypatch)
+    assert main(["plot", str(run_folder), "--out", str(tmp_path / "f"), "--no-pdf"]) == 0
+    label, lines = drawn["train"]
+    (npz,) = (run_folder / "units").glob("*.npz")
+    with np.load(npz) as z:
+        ids, pred_t = list(z["train/ids"]), z["train/t"]
+    demo_ends = [float(x[-1]) for x in lines[0::2]]  # a demonstration, then its prediction, per trial
+    assert label == "time (s)" and demo_ends == pytest.approx([durations[i] for i in ids], rel=1e-6)
+    assert [float(x[-1]) for x in lines[1::2]] == pytest.approx(pred_t[:, -1].tolist())
+
+    run = tmp_path / "run"  # a run of before: its units without the demonstrations' times
+    shutil.copytree(run_folder, run)
+    _units_as_written_before_demonstration_times(run)
+    before = {p.name: p.read_bytes() for p in (run / "units").iterdir()}
+    assert main(["plot", str(run), "--out", str(tmp_path / "g"), "--no-pdf"]) == 0
+    label, lines = drawn["train"]
+    assert label == "prediction's time (s); demonstrations scaled to it"
+    assert [float(x[-1]) for x in lines[0::2]] == pytest.approx(pred_t[:, -1].tolist())
+    table = (run / "table.csv").read_bytes()
+    args = ["reproduce", "--data", str(trials), "--quick", "--sections", "1", "--uncertainty", "0", "--max-iter", "1"]
+    assert main([*args, "--workers", "1", "--no-progress", "--out", str(run)]) == 0  # resumed: every unit reused
+    assert {p.name: p.read_bytes() for p in (run / "units").iterdir()} == before
+    assert (run / "table.csv").read_bytes() == table
+    assert drawn["train"][0] == "prediction's time (s); demonstrations scaled to it"
+
+
 def test_a_prediction_figure_without_the_demonstrations_times_says_they_are_scaled():
-    """A run's fig2_prediction has no demonstration times (its units hold the predictions'): the demonstrations
-    are drawn on their predictions' time, which the x axis says (it said time (s), as if it were theirs)."""
+    """A run's fig2_prediction from units written before they recorded the demonstrations' times: the
+    demonstrations are drawn on their predictions' time, which the x axis says (it said time (s), as if it were
+    theirs)."""
     import matplotlib.pyplot as plt
 
     from reachirl.experiments import figures as fg

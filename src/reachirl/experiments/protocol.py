@@ -527,6 +527,7 @@ def unit_payload(unit: Unit, split: Split, est, fit_time: float) -> dict:
             arrays[f"{name}/pred_q"] = np.stack([e.prediction.q for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_qd"] = np.stack([e.prediction.qd for e in errs]).astype(np.float32)
             arrays[f"{name}/pred_tau"] = np.stack([e.prediction.tau for e in errs]).astype(np.float32)
+            arrays[f"{name}/demo_t"] = np.stack([d.t for d in demos]).astype(np.float32)  # each on its own time
             arrays[f"{name}/demo_q"] = np.stack([d.q for d in demos]).astype(np.float32)
             arrays[f"{name}/demo_qd"] = np.stack([d.qd for d in demos]).astype(np.float32)
             arrays[f"{name}/demo_tau"] = np.stack([d.tau[:-1] for d in demos]).astype(np.float32)
