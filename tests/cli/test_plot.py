@@ -761,7 +761,7 @@ def test_plot_of_a_run_refuses_an_out_among_the_runs_data(run_folder, tmp_path, 
     name = inside.split("/")[0]
     assert err == [
         f"reachirl plot: error: {out}: --out is inside the run's own {name}/ folder, which `reachirl reproduce` "
-        f"writes and reads back; give the figures a folder of their own (e.g. {run.resolve() / 'figures'})"
+        f"writes and reads back; choose another --out for the figures (e.g. {run.resolve() / 'figures'})"
     ], err
     assert sorted(p for p in run.rglob("*")) == before
     # the run's folder itself and its figures folder stay allowed

@@ -474,7 +474,7 @@ def test_an_out_folder_inside_the_runs_own_folders_is_refused(small_run, capsys,
     name = inside.split("/")[0]
     assert len(err) == 1 and err[0].endswith(
         f"{out}: --out is inside the run's own {name}/ folder, which "
-        "`reachirl reproduce` writes; give the analysis a folder of its own "
+        "`reachirl reproduce` writes and reads back; choose another --out for the analysis "
         f"(e.g. {small_run.resolve() / 'sensitivity'})"
     ), err
     assert sorted(p.name for p in (small_run / "units").iterdir()) == before

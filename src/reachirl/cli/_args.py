@@ -332,3 +332,18 @@ def _trials_header(d: object) -> bool:
 #: the trials file ``preprocess`` may replace (its own earlier output, of this reachirl or an older one),
 #: recognised by its ``meta.json`` header
 TRIALS_KIND: tuple[str, Callable[[object], bool]] = ("reachirl trials file", _trials_header)
+
+
+def refuse_out_in_run_folders(out: Path, run_dir: Path, folders: tuple[str, ...], what: str, example: str) -> None:
+    """Before any work: ``out`` is none of the ``reproduce`` run ``run_dir``'s ``folders`` nor inside one (``what``,
+    the command's outputs, would mix with the files a rerun of the run reads back, replaces or removes); an
+    :class:`InputError` naming ``out`` and suggesting ``run_dir / example``."""
+    o, run = out.resolve(), run_dir.resolve()
+    for name in folders:
+        own = run / name
+        if o == own or own in o.parents:
+            raise InputError(
+                f"--out is inside the run's own {name}/ folder, which `reachirl reproduce` writes and reads back; "
+                f"choose another --out for {what} (e.g. {run / example})",
+                out,
+            )

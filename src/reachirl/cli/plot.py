@@ -26,7 +26,14 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import holding_folder, reading_folder, sync_folder
-from ._args import PREDICTION_BACKEND_HELP, add_selection, output_folder_files, picked_trials, refuse_foreign_figures
+from ._args import (
+    PREDICTION_BACKEND_HELP,
+    add_selection,
+    output_folder_files,
+    picked_trials,
+    refuse_foreign_figures,
+    refuse_out_in_run_folders,
+)
 
 
 def add_parser(sub) -> argparse.ArgumentParser:
@@ -302,27 +309,12 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
 RUN_DATA_FOLDERS = ("units", "models", "predictions")
 
 
-def refuse_the_runs_data_folders(out: Path, run_dir: Path) -> None:
-    """Before any work: ``out`` is not one of the data folders of the run ``run_dir`` (:data:`RUN_DATA_FOLDERS`) nor
-    inside one (the figures and the hidden folder they are drawn in would mix with the run's checkpoints, models or
-    exports); an :class:`InputError` naming ``out``. ``run_dir`` itself and its ``figures`` folder are allowed."""
-    o, run = out.resolve(), run_dir.resolve()
-    for name in RUN_DATA_FOLDERS:
-        own = run / name
-        if o == own or own in o.parents:
-            raise InputError(
-                f"--out is inside the run's own {name}/ folder, which `reachirl reproduce` writes and reads back; "
-                f"give the figures a folder of their own (e.g. {run / 'figures'})",
-                out,
-            )
-
-
 def run(args: argparse.Namespace) -> int:
     from ..validation import check_output_dir
 
     out = check_output_dir(args.out)  # before any prediction: a folder in which files can be written
     if args.model is None and args.source.is_dir():  # a run's figures: never among its checkpoints or models
-        refuse_the_runs_data_folders(out, args.source)
+        refuse_out_in_run_folders(out, args.source, RUN_DATA_FOLDERS, "the figures", "figures")
     # one command at a time in the folder (from the start when it exists: refused before any work)
     with holding_folder(out, "--out") as make:
         return _plot(args, out, make)

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io import holding_folder, reading_folder, remove_temporaries
 from ..validation import NODES_RANGE, check_output_dir
-from ._args import int_in, non_negative_int, number_in, refuse_overwrite
+from ._args import int_in, non_negative_int, number_in, refuse_out_in_run_folders, refuse_overwrite
 
 #: local worker processes at most (as reproduce's --workers)
 MAX_WORKERS = 256
@@ -82,7 +82,7 @@ def run(args) -> int:
         raise InputError("exists and is not a folder; --out needs a folder", out)
     check_output_dir(out)  # before any work: a folder in which files can be written (not below a file)
     refuse_overwrite({"--out": out}, [args.run_dir])
-    _refuse_the_runs_own_folders(out, Path(args.run_dir))
+    refuse_out_in_run_folders(out, Path(args.run_dir), RUN_FOLDERS, "the analysis", "sensitivity")
     _check_analysis_options(args)
     cfg = SensitivityConfig(
         percent=args.percent,
@@ -149,20 +149,6 @@ def _check_analysis_options(args) -> None:
 
 #: the folders of a `reproduce` run that it writes and reads back (its checkpoints, figures, models, predictions)
 RUN_FOLDERS = ("units", "figures", "models", "predictions")
-
-
-def _refuse_the_runs_own_folders(out: Path, run_dir: Path) -> None:
-    """Before any work: ``--out`` is not one of the run's own folders, nor inside one (the analysis's files would
-    mix with the run's checkpoints or figures, which a rerun of the run reads or replaces)."""
-    o, run = out.resolve(), run_dir.resolve()
-    for name in RUN_FOLDERS:
-        own = run / name
-        if o == own or own in o.parents:
-            raise InputError(
-                f"--out is inside the run's own {name}/ folder, which `reachirl reproduce` writes; give the analysis "
-                f"a folder of its own (e.g. {run / 'sensitivity'})",
-                out,
-            )
 
 
 def _refuse_foreign_outputs(out: Path) -> None:
