@@ -260,7 +260,12 @@ def test_an_export_never_replaces_the_users_own_files(base, tmp_path, capsys, co
     option = {"evaluate": "--predictions", "preprocess": "--export"}[command]
     mine = folder / "index.csv"
     mine.write_text("subject,note\nS01,my own table\n")
-    _fails([*argv, option, folder], capsys, rf"index\.csv: {option}: exists and is not the index of an earlier export")
+    _fails(
+        [*argv, option, folder],
+        capsys,
+        rf"index\.csv: {option}: exists and is not the index of an earlier export \(its header is neither "
+        r"id,file,set,converged nor an earlier export's id,file,set\)",
+    )
     assert mine.read_text() == "subject,note\nS01,my own table\n" and not (tmp_path / argv[-1]).exists()
     mine.unlink()
     assert main([*map(str, argv), option, str(folder)]) == 0  # an export, then a file of the user's own beside it

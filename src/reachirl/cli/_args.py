@@ -238,7 +238,7 @@ def refuse_foreign_export_files(folder: object, names, option: str) -> None:
     export's files. An ``index.csv`` that is not an export's, or a file of ``names`` that the earlier export's index
     does not list, is the user's own: refused (:class:`InputError` naming it). Without an index (none yet, or an
     export interrupted after removing it) the files cannot be told apart and are replaced as before."""
-    from ..data.exports import INDEX_COLUMNS, is_export, listed_names
+    from ..data.exports import EARLIER_INDEX_COLUMNS, INDEX_COLUMNS, is_export, listed_names
 
     if folder is None or not Path(folder).is_dir():
         return
@@ -248,8 +248,9 @@ def refuse_foreign_export_files(folder: object, names, option: str) -> None:
         return
     if not is_export(folder):
         raise InputError(
-            f"{option}: exists and is not the index of an earlier export (its header is not "
-            f"{','.join(INDEX_COLUMNS)}); it would be replaced (choose another folder, or remove it first)",
+            f"{option}: exists and is not the index of an earlier export (its header is neither "
+            f"{','.join(INDEX_COLUMNS)} nor an earlier export's {','.join(EARLIER_INDEX_COLUMNS)}); it would be "
+            "replaced (choose another folder, or remove it first)",
             index,
         )
     earlier = listed_names(folder)
