@@ -239,7 +239,8 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
     recorded lasts longer or shorter than its trial), else on the predictions' (the same normalised time)."""
     fig, axes = _grid(axes, 2, 2, (7.5, 5.0))
     t = arrays[f"{set_name}/t"]
-    t_demo = arrays.get(f"{set_name}/demo_t", t)
+    own = f"{set_name}/demo_t" in arrays  # without their own times the demonstrations are on their predictions'
+    t_demo = arrays[f"{set_name}/demo_t"] if own else t
     for j in range(2):
         for row, (kind, unit) in enumerate((("q", "deg"), ("qd", "deg/s"))):
             ax = axes[row, j]
@@ -262,8 +263,7 @@ def plot_prediction(arrays: dict, set_name: str = "train", title: str = "", axes
             ax.set_ylabel(f"{sym}{j + 1} ({unit})", fontsize=10)
             ax.tick_params(labelsize=9)
             ax.grid(alpha=0.3)
-            if row == 1:  # without their own times the demonstrations are on their predictions' time
-                own = f"{set_name}/demo_t" in arrays
+            if row == 1:
                 ax.set_xlabel("time (s)" if own else "prediction's time (s); demonstrations scaled to it", fontsize=9)
     axes[0, 0].legend(loc="best", fontsize=9)
     if not title:
