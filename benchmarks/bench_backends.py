@@ -10,7 +10,8 @@ the same changed problems solved cold (``cold2``, to tell what the warm start sa
 ``solve_time``; medians over the problems of the median over repeats), the agreement of the two backends (q
 RMSE in degrees, relative cost difference under ``features.trajectory_cost``), and where the Crocoddyl
 backend's time goes (:func:`_profile_crocoddyl`, one cold solve; :func:`_warm_breakdown`, every warm solve, with
-the ratio the warm solves would have if the knot models cost nothing).
+the ratio the warm solves would have if the knot models cost nothing), and the compiled knots against the Python
+ones on the same solves (:func:`_python_knots`).
 
 ``learned_weights``: the same comparison on the weights real fits produce (:func:`learned_sweep`, from
 ``benchmarks/learned_weights.json``, made by ``benchmarks/learned_weights.py``): both convergence rates,
@@ -22,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -61,35 +63,42 @@ def _time(f, n: int) -> float:
 def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     """Where a Crocoddyl solve's time goes, measured piece by piece in this run.
 
-    Per knot (µs per call): the Python knot model (``knot_*``), the C++ ``IntegratedActionModelEuler`` inside
-    it with the five built-in features (``inner_*``), the custom terms' arithmetic (energy, torque change) in
-    Python scalars, an empty Python action model (the floor of any Python knot: the C++ → Python call), and a
-    CasADi ``Function`` of the custom terms called from Python (the compiled-derivatives route). Per solve
-    (ms): the SQP iterations × the calcDiff of the 100 knots, the rollouts × their calc (one per SQP iteration and
-    one per line-search try, counted in a second, identical solve), and CSQP's ADMM iterations (× the time of
-    one, from ``computeDirection``, with the bounds the solve had), against the measured solve time; the rest is
-    the monitor callback, the line search's and the QPs' other work, and bookkeeping.
+    Per knot (µs per call): the compiled knot as CSQP calls it (``knot_*``: the whole problem's calc or calcDiff
+    from C++, over the knots), the Python knot called from Python (``python_knot_*``), the C++
+    ``IntegratedActionModelEuler`` inside both with the five built-in features (``inner_*``), the custom terms'
+    arithmetic (energy, torque change) in Python scalars, an empty Python action model (the floor of any Python
+    knot: the C++ → Python call), and a CasADi ``Function`` of the custom terms called from Python. Per solve
+    (ms, the compiled knots): the SQP iterations × the calcDiff of the 100 knots, the rollouts × their calc (one
+    per SQP iteration and one per line-search try, counted in the Python knots' identical solve), and CSQP's
+    ADMM iterations (× the time of one, from ``computeDirection``, with the bounds the solve had), against the
+    measured solve time; the rest is the monitor callback, the line search's and the QPs' other work, and
+    bookkeeping.
     """
     import math
 
     import casadi as ca
     import crocoddyl
 
-    from reachirl import solve_doc
     from reachirl.doc import crocoddyl as cb
 
     scale = cb.weight_scale(task, w)[0]
     prob = cb.build_problem(task.arm, task.n_nodes, w.shape[0])
     prob.update(task, w * scale)
-    m = prob.running[task.n_nodes // 2]
-    d = m.createData()
+    python = cb.build_problem(task.arm, task.n_nodes, w.shape[0], replace(cb.DEFAULT_OPTIONS, compiled_knots=False))
+    python.update(task, w * scale)
+    pm = python.running[task.n_nodes // 2]
+    pd = pm.createData()
     x = np.r_[task.q0, 0.5, -0.3, 1.0, 0.5]
     u = np.array([2.0, 1.0])
+    xs0, us0 = [x] * (task.n_nodes + 1), [u] * task.n_nodes
     out = {
-        "knot_calc_us": 1e6 * _time(lambda: m.calc(d, x, u), n_calls),
-        "knot_calcdiff_us": 1e6 * _time(lambda: m.calcDiff(d, x, u), n_calls),
-        "inner_calc_us": 1e6 * _time(lambda: m.inner.calc(d.inner, x[:4], u), n_calls),
-        "inner_calcdiff_us": 1e6 * _time(lambda: m.inner.calcDiff(d.inner, x[:4], u), n_calls),
+        "python_knot_calc_us": 1e6 * _time(lambda: pm.calc(pd, x, u), n_calls),
+        "python_knot_calcdiff_us": 1e6 * _time(lambda: pm.calcDiff(pd, x, u), n_calls),
+        "inner_calc_us": 1e6 * _time(lambda: pm.inner.calc(pd.inner, x[:4], u), n_calls),
+        "inner_calcdiff_us": 1e6 * _time(lambda: pm.inner.calcDiff(pd.inner, x[:4], u), n_calls),
+        # the compiled knots as CSQP calls them (from C++, the whole problem), per knot
+        "knot_calc_us": 1e6 * _time(lambda: prob.problem.calc(xs0, us0), 50) / task.n_nodes,
+        "knot_calcdiff_us": 1e6 * _time(lambda: prob.problem.calcDiff(xs0, us0), 50) / task.n_nodes,
     }
 
     def custom_terms():
@@ -113,7 +122,6 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
 
     e = Empty()
     empty = crocoddyl.ShootingProblem(np.zeros(6), [e] * task.n_nodes, e)
-    xs0, us0 = [np.zeros(6)] * (task.n_nodes + 1), [np.zeros(2)] * task.n_nodes
     out["empty_python_knot_calc_plus_calcdiff_us"] = (
         1e6 * _time(lambda: (empty.calc(xs0, us0), empty.calcDiff(xs0, us0)), 50) / task.n_nodes
     )
@@ -126,12 +134,12 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     out["custom_terms_casadi_function_us"] = 1e6 * _time(lambda: f(x, u, pn), max(n_calls // 10, 10))
 
     # one solve, then its pieces at its solution
-    sol = solve_doc(task, w, backend="crocoddyl")
+    sol = _croc_solve(task, w)
     iters = sol.iterations
     qp_iters = int(sol.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in sol.status else 0
-    # the same solve again (deterministic), counting the rollouts
+    # the same solve again with the Python knots (the same iterates), counting the rollouts
     with _counting_rollouts() as rollouts:
-        again = solve_doc(task, w, backend="crocoddyl")
+        again = _croc_solve(task, w, compiled=False)
     assert again.iterations == iters
     xs, us = cb.solver._to_shooting(task, sol.q, sol.qd, sol.tau)
     # the ADMM iterations are timed with the bounds the solve had (the running ones screened out, by default)
@@ -153,7 +161,7 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     }
     pieces["rest_ms"] = 1e3 * total - sum(pieces.values())
     python_share = 1.0 - (out["inner_calc_us"] + out["inner_calcdiff_us"]) / (
-        out["knot_calc_us"] + out["knot_calcdiff_us"]
+        out["python_knot_calc_us"] + out["python_knot_calcdiff_us"]
     )
     out.update(
         {
@@ -174,10 +182,20 @@ def _profile_crocoddyl(task, w, n_calls: int = 2000) -> dict:
     return out
 
 
+def _croc_solve(task, w, warm_start=None, compiled: bool = True):
+    """A Crocoddyl solve as ``solve_doc`` makes it (weights over their largest), with the compiled knots or the
+    Python ones."""
+    from reachirl.doc import crocoddyl as cb
+
+    options = replace(cb.DEFAULT_OPTIONS, compiled_knots=compiled)
+    return cb.solve(task, w / np.max(w), warm_start=warm_start, options=options)
+
+
 @contextlib.contextmanager
 def _counting_rollouts():
-    """Count the Crocoddyl solves' rollouts meanwhile (one per SQP iteration and one per line-search try: the
-    terminal knot's calc runs once per rollout); yields a one-element list holding the count."""
+    """Count the rollouts of the Python knots' Crocoddyl solves meanwhile (one per SQP iteration and one per
+    line-search try: the terminal knot's calc runs once per rollout); yields a one-element list holding the
+    count. The compiled knots' solves make the same iterates (bit-identical knots), so the same rollouts."""
     from reachirl.doc import crocoddyl as cb
 
     count = [0]
@@ -195,18 +213,23 @@ def _counting_rollouts():
 
 
 def _warm_one(task, w, w2) -> tuple[float, int, int, int, float]:
-    """One warm solve (cold at ``w``, then warm at ``w2``): its CPU time, SQP iterations, rollouts, ADMM
-    iterations and knot models' time (s)."""
+    """One warm solve of the default (compiled) knots (cold at ``w``, then warm at ``w2``): its CPU time, SQP
+    iterations, rollouts (counted on the Python knots' identical solve), ADMM iterations and knot models' time
+    (s)."""
     from reachirl.doc import crocoddyl as cb
 
-    cold = solve_doc(task, w, backend="crocoddyl")
+    cold = _croc_solve(task, w)
+    c0 = time.process_time()
+    warm = _croc_solve(task, w2, warm_start=cold)
+    cpu = time.process_time() - c0
+    python_cold = _croc_solve(task, w, compiled=False)
     with _counting_rollouts() as rollouts:
-        c0 = time.process_time()
-        warm = solve_doc(task, w2, backend="crocoddyl", warm_start=cold)
-        cpu = time.process_time() - c0
+        again = _croc_solve(task, w2, warm_start=python_cold, compiled=False)
+    if again.iterations != warm.iterations or not np.array_equal(again.q, warm.q):
+        raise AssertionError("the Python and compiled knots' warm solves differ")
     qp_iters = int(warm.status.split(" QP iterations")[0].rsplit(", ", 1)[-1]) if "QP iter" in warm.status else 0
     prob = cb.build_problem(task.arm, task.n_nodes, w2.shape[0])
-    prob.update(task, w2 * cb.weight_scale(task, w2)[0])
+    prob.update(task, w2 / np.max(w2) * cb.weight_scale(task, w2 / np.max(w2))[0])
     xs, us = cb.solver._to_shooting(task, warm.q, warm.qd, warm.tau)
     knots = rollouts[0] * _time(lambda: prob.problem.calc(xs, us), 20) + warm.iterations * _time(
         lambda: prob.problem.calcDiff(xs, us), 20
@@ -233,6 +256,36 @@ def _warm_breakdown(probs, casadi_warm_cpu_median_s: float) -> dict:
         "admm_iterations_median": _median(qps),
         "knots_share_of_time": float(knots.sum() / cpu.sum()),
         "without_knots_vs_casadi_warm": _median(cpu - knots) / casadi_warm_cpu_median_s,
+    }
+
+
+def _python_knots(probs) -> dict:
+    """The Crocoddyl solves of :func:`_run` (cold at ``w``, warm at ``w2``) with the Python knots and with the
+    compiled ones, interleaved: the CPU medians of each, the compiled over the Python, and how many problems'
+    solves were identical (the two knots compute the same numbers, so their solves must be)."""
+    cpu = {False: ([], []), True: ([], [])}
+    same = 0
+    for task, w, w2 in probs:
+        sols = {}
+        for compiled in (False, True):
+            c0 = time.process_time()
+            s = _croc_solve(task, w, compiled=compiled)
+            c1 = time.process_time()
+            sw = _croc_solve(task, w2, warm_start=s, compiled=compiled)
+            c2 = time.process_time()
+            cpu[compiled][0].append(c1 - c0)
+            cpu[compiled][1].append(c2 - c1)
+            sols[compiled] = (s, sw)
+        same += int(all(np.array_equal(a.q, b.q) for a, b in zip(sols[False], sols[True], strict=True)))
+    (pc, pw), (cc, cw) = cpu[False], cpu[True]
+    return {
+        "python_cold_cpu_median_s": _median(pc),
+        "python_warm_cpu_median_s": _median(pw),
+        "compiled_cold_cpu_median_s": _median(cc),
+        "compiled_warm_cpu_median_s": _median(cw),
+        "compiled_over_python_cold": _median(cc) / _median(pc),
+        "compiled_over_python_warm": _median(cw) / _median(pw),
+        "identical": f"{same}/{len(probs)}",
     }
 
 
@@ -395,6 +448,7 @@ def _run(n_repeats: int, seed: int, windows, learned_stride: int) -> dict:
     )
     summary["crocoddyl_profile"] = _profile_crocoddyl(probs[0][0], probs[0][1])
     summary["crocoddyl_warm"] = _warm_breakdown(probs, summary["casadi"]["warm_cpu_median_s"])
+    summary["crocoddyl_python_knots"] = _python_knots(probs)
     summary["problems"] = rows
     summary["learned_weights"] = learned_sweep(learned_stride)
     summary["setup"] = {

@@ -133,6 +133,13 @@ def bench_numbers(bench: dict) -> dict:
             "agreement_q_deg_max": round(bk["agreement"]["q_rmse_deg_max"], 3),
             "agreement_cost_pct_max": float(f"{bk['agreement']['cost_diff_pct_max_abs']:.2g}"),  # 2 significant
         }
+        pk = bk.get("crocoddyl_python_knots")
+        if pk:
+            out["backends"]["python_knots"] = {
+                "compiled_over_python_cold": round(pk["compiled_over_python_cold"], 2),
+                "compiled_over_python_warm": round(pk["compiled_over_python_warm"], 2),
+                "identical": pk["identical"],
+            }
         cw = bk.get("crocoddyl_warm")
         if cw:
             out["backends"]["warm"] = {
@@ -248,6 +255,13 @@ def render(snap: dict) -> str:
                 f"{100 * b['warm']['knots_share_of_time']:.0f} % of their time; without that time, the warm "
                 f"solve would take {b['warm']['without_knots_vs_casadi_warm']}× CasADi's."
                 if b.get("warm")
+                else ""
+            )
+            + (
+                f" Its knot models are compiled: the same solves ({b['python_knots']['identical']} identical) take "
+                f"{b['python_knots']['compiled_over_python_cold']}× (cold) and "
+                f"{b['python_knots']['compiled_over_python_warm']}× (warm) the CPU time of the same knots in Python."
+                if b.get("python_knots")
                 else ""
             ),
             "",

@@ -95,11 +95,12 @@ def _finite_difference(model, x, u, h=1e-6):
     return Lx, Fx, Gx, Lu, Fu, Gu
 
 
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
 @pytest.mark.parametrize("feature", [*FEATURES, "all"])
-def test_knot_derivatives_match_finite_differences(arm, rng, feature):
+def test_knot_derivatives_match_finite_differences(arm, rng, feature, compiled):
     task = make_task(arm, "P2")
     w = random_weights(rng, 1) if feature == "all" else np.eye(len(FEATURES))[[FEATURES.index(feature)]]
-    prob = cb.build_problem(arm, task.n_nodes, 1)
+    prob = cb.build_problem(arm, task.n_nodes, 1, cb.CsqpOptions(compiled_knots=compiled))
     prob.update(task, w)
     for _ in range(3):
         x = np.r_[rng.uniform(-1, 1.5, 2), rng.uniform(-3, 3, 2), rng.uniform(-5, 5, 2)]

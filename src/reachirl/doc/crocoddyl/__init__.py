@@ -24,9 +24,11 @@ Layers, Crocoddyl's vocabulary from the bottom up:
     exactly the Euler acceleration ``(q̇_{k+1} − q̇_k) / dt`` of features.py).
   - ``joint_velocity``: ``ResidualModelState`` with activation on ``q̇``.
   - ``joint_torque``: ``ResidualModelControl``.
-* **Action model per knot** (:class:`KnotModel`, Python): wraps the knot's ``IntegratedActionModelEuler``
-  (C++, dynamics and the costs above) and adds the two terms that need the augmented state or are non-smooth,
-  with analytic derivatives (Gauss-Newton Hessians, like Crocoddyl's residual costs):
+* **Action model per knot**: wraps the knot's ``IntegratedActionModelEuler`` (C++, dynamics and the costs
+  above) and adds the two terms that need the augmented state or are non-smooth, with analytic derivatives
+  (Gauss-Newton Hessians, like Crocoddyl's residual costs). It is compiled (``knot.cpp``, built once per machine
+  by :mod:`.native`, so that CSQP never calls into Python per knot); :class:`KnotModel` is the same knot in
+  Python, bit for bit, used where the compiled one cannot be built or with ``CsqpOptions(compiled_knots=False)``:
 
   - ``torque_change``: ``(ω/dt) ‖τ_k − τ_{k−1}‖²``, with ``τ_{−1} = g(q0)`` (held at rest) carried in ``x_0``.
   - ``energy``: ``ω dt (√(r² + ε²) − ε)``, ``r = q̇_kᵀτ_k``. This smooth absolute value differs from ``|r|``
@@ -48,8 +50,9 @@ and the weights are updated in place before each solve (weights through ``costs.
   (after α = 1, halving from twice the last accepted step). Why each option is what it is:
   :class:`CsqpOptions`.
 
-The modules: :mod:`.knots` (the knot's action model and cost), :mod:`.problem` (the shooting problem),
-:mod:`.options` (the CSQP settings) and :mod:`.solver` (the stopping test, the cold start and the retries).
+The modules: :mod:`.knots` (the knot's action model and cost), :mod:`.native` (the compiled knot),
+:mod:`.problem` (the shooting problem), :mod:`.options` (the CSQP settings) and :mod:`.solver` (the stopping
+test, the cold start and the retries).
 """
 
 from . import solver

@@ -59,36 +59,22 @@ class KnotData(crocoddyl.ActionDataAbstract):
         self.xnext4, self.xnext_tau = self.xnext[:4], self.xnext[4:]
 
 
-class KnotModel(crocoddyl.ActionModelAbstract):
-    """One knot of the reach with the augmented state ``x = (q, q̇, τ_prev)`` and control ``u = τ``.
+class KnotSettings:
+    """What the Python knot and the compiled one (:mod:`reachirl.doc.crocoddyl.native`) share: the handles on
+    the inner model and its cost items, and setting the knot's time step and weights."""
 
-    ``inner`` is the knot's ``IntegratedActionModelEuler`` on ``(q, q̇)``; it holds the built-in costs (its
-    differential model's ``costs``) and constraints. This model adds ``energy`` and ``torque_change`` and owns
-    the constraint bounds ``g_lb``/``g_ub``. Set the knot's weights with :meth:`set_weights`.
-    """
-
-    def __init__(self, inner, first: bool, terminal: bool, energy_smoothing: float):
+    def _settings(self, inner, first: bool, n_constraints: int) -> None:
         self.inner = inner
         self.dam = inner.differential
         self.costs = self.dam.costs
-        ng = int(self.dam.constraints.ng) if self.dam.constraints is not None else 0
-        crocoddyl.ActionModelAbstract.__init__(self, crocoddyl.StateVector(_NX), _NU, 1, ng, 0)
-        self.first, self.terminal = first, terminal
-        self.n_constraints = ng
-        self.eps = float(energy_smoothing)
-        self.exact_hessian = False
-        self.dt = float(inner.dt)
-        self.w_energy = 0.0
-        self.w_torque_change = 0.0
+        self.first = first
+        self.n_constraints = n_constraints
         # keep the cost items (shared with the C++ sum) to change their weights without a map lookup
         self._items = (
             {name: self.costs.costs[name] for names in CROCODDYL_COST_ITEMS.values() for name in names}
-            if not terminal
+            if not self.terminal
             else {}
         )
-
-    def createData(self):  # noqa: N802  (Crocoddyl's API)
-        return KnotData(self)
 
     def set_dt(self, dt: float) -> None:
         self.dt = float(dt)
@@ -103,6 +89,30 @@ class KnotModel(crocoddyl.ActionModelAbstract):
                 self._items[name].weight = weight
         self.w_energy = float(w[_J_ENERGY])
         self.w_torque_change = float(w[_J_TORQUE_CHANGE])
+
+
+class KnotModel(KnotSettings, crocoddyl.ActionModelAbstract):
+    """One knot of the reach with the augmented state ``x = (q, q̇, τ_prev)`` and control ``u = τ``.
+
+    ``inner`` is the knot's ``IntegratedActionModelEuler`` on ``(q, q̇)``; it holds the built-in costs (its
+    differential model's ``costs``) and constraints. This model adds ``energy`` and ``torque_change`` and owns
+    the constraint bounds ``g_lb``/``g_ub``. Set the knot's weights with :meth:`set_weights`.
+    """
+
+    def __init__(self, inner, first: bool, terminal: bool, energy_smoothing: float):
+        dam = inner.differential
+        ng = int(dam.constraints.ng) if dam.constraints is not None else 0
+        crocoddyl.ActionModelAbstract.__init__(self, crocoddyl.StateVector(_NX), _NU, 1, ng, 0)
+        self.terminal = terminal
+        self.eps = float(energy_smoothing)
+        self.exact_hessian = False
+        self.dt = float(inner.dt)
+        self.w_energy = 0.0
+        self.w_torque_change = 0.0
+        self._settings(inner, first, ng)
+
+    def createData(self):  # noqa: N802  (Crocoddyl's API)
+        return KnotData(self)
 
     # Crocoddyl calls calc(data, x) on the terminal knot and calc(data, x, u) on the others.
     def calc(self, data, x, u=None):

@@ -68,6 +68,9 @@ class CsqpOptions:
     * ``line_search_growth``: after α = 1, a cold solve's line search halves from min(½, growth × the last
       accepted α), rounded down to a power of two, instead of from ½ (the monitor sets ``alphas`` before each
       search); 0 keeps CSQP's own search, which warm starts and retries always use.
+    * ``compiled_knots``: the knots' ``calc`` and ``calcDiff`` run compiled (:mod:`reachirl.doc.crocoddyl.native`;
+      the same arithmetic, bit-identical results), or in Python (:class:`KnotModel`) when false or where the
+      compiled knot cannot be built.
     """
 
     max_iter: int = 200
@@ -96,6 +99,7 @@ class CsqpOptions:
     fallback_smoothing_factor: float = 10.0  # then with ε × this (cold), refined at ε from there; 0: off
     screen_bounds: bool = True  # first solve without the running knots' joint-limit and speed bounds
     line_search_growth: float = 2.0  # >0: after α = 1, a cold line search starts at min(½, this × last α)
+    compiled_knots: bool = True  # the knots in C++ (native.py) where they build; False: the Python knots
 
 
 DEFAULT_OPTIONS = CsqpOptions()

@@ -15,7 +15,8 @@ import pinocchio as pin
 from ...arm import ArmModel
 from ...features import N_FEATURES, window_index
 from ..task import ReachingTask
-from .knots import _NX, KnotModel
+from .knots import _NX
+from .native import knot_class
 from .options import DEFAULT_OPTIONS, CsqpOptions
 
 log = logging.getLogger(__name__)
@@ -79,6 +80,7 @@ class ReachingProblem:
         bounds_residual = crocoddyl.ResidualModelState(state, np.zeros(4), nu)
         tip_residual = crocoddyl.ResidualModelFrameTranslation(state, tip, np.zeros(3), nu)
 
+        knot = knot_class(options.compiled_knots)
         dt = 1.0 / n
         running = []
         for k in range(n):
@@ -92,7 +94,7 @@ class ReachingProblem:
                 )
             dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
             running.append(
-                KnotModel(
+                knot(
                     crocoddyl.IntegratedActionModelEuler(dam, dt),
                     first=(k == 0),
                     terminal=False,
@@ -107,7 +109,7 @@ class ReachingProblem:
             crocoddyl.ConstraintModelResidual(state, tip_residual, np.full(3, -np.inf), np.full(3, np.inf)),
         )
         dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, actuation, costs, constraints)
-        terminal = KnotModel(
+        terminal = knot(
             crocoddyl.IntegratedActionModelEuler(dam, 0.0),
             first=False,
             terminal=True,
@@ -115,6 +117,11 @@ class ReachingProblem:
         )
         self.running, self.terminal = running, terminal
         self.problem = crocoddyl.ShootingProblem(np.zeros(_NX), running, terminal)
+        # One thread: with knots all in C++, Crocoddyl would evaluate them over its OpenMP threads, which changes the
+        # solves' last bits (and a fit's decisions with them) and competes with the worker processes. (Set only
+        # when it is not 1 already: Crocoddyl warns on stderr at every setting once a Python model exists.)
+        if self.problem.nthreads != 1:
+            self.problem.nthreads = 1
         self.lock = threading.Lock()
 
     def update(self, task: ReachingTask, weights: np.ndarray, running_bounds: bool = True) -> None:
