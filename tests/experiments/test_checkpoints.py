@@ -306,3 +306,22 @@ def test_a_killed_figure_worker_is_named_with_its_figure_and_a_rerun_draws_it(
     results = json.loads((out / "results.json").read_text())
     assert results["run"]["computed"] == [] and results["run"]["reused"] == [KEY]  # the units were kept
     assert list((out / "figures").glob("*.png"))
+
+
+def test_results_list_the_computed_units_in_the_units_order_not_as_workers_finished_them(
+    trials_file, tmp_path, monkeypatch
+):
+    from reachirl.experiments import runner
+
+    real = runner.run_units
+
+    def finished_backwards(units, *args, **kwargs):  # as two workers may finish them
+        s = real(units, *args, **kwargs)
+        return runner.RunSummary(s.results, s.computed[::-1], s.reused, s.stopped_early)
+
+    monkeypatch.setattr(runner, "run_units", finished_backwards)
+    argv = ["reproduce", "--quick", "--data", str(trials_file), "--workers", "1", "--nodes", "20", "--max-iter", "1"]
+    argv += ["--sections", "1", "2", "--n-train", "2", "--no-progress", "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert results["run"]["computed"] == ["moirl-P2-s2", "moirl-P2-s1"]

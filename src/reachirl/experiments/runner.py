@@ -459,10 +459,12 @@ def reproduce(
     transfer = {k: r for k, r in summary.results.items() if r["unit"].get("held_out_posture") is not None}
     pairs = {k: r for k, r in summary.results.items() if k not in main and k not in transfer}
     summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)
+    order = {u.key: i for i, u in enumerate(units)}
     run_info = {
         "code_fingerprints": {m: code_fingerprint(m, config.backend) for m in config.methods},
         "n_units": len(units),
-        "computed": summary.computed,
+        # in the units' order, not the order the workers finished them in: the same run, the same results.json
+        "computed": sorted(summary.computed, key=order.__getitem__),
         "reused": summary.reused,
         "executor": f"dask ({scheduler})"
         if scheduler
