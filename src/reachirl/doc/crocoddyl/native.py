@@ -1,12 +1,11 @@
 """The compiled knot: ``knot.cpp``, the C++ twin of :class:`~reachirl.doc.crocoddyl.knots.KnotModel`, built once
 per machine against the installed Crocoddyl and cached.
 
-CSQP calls each knot's ``calc`` and ``calcDiff`` from C++ several times per SQP iteration. Through the Python
-knot every such call crosses into Python (about 6 and 14 µs per knot); the compiled knot does the same arithmetic,
-in the same order (its results are bit-identical; tested), on the same inner ``IntegratedActionModelEuler`` and
-its built-in Crocoddyl costs and constraints.
+CSQP calls each knot's ``calc`` and ``calcDiff`` from C++ several times per SQP iteration; the compiled knot
+answers without calling into Python. It does the Python knot's arithmetic in the same order (bit-identical
+results) on the same inner ``IntegratedActionModelEuler`` and its built-in Crocoddyl costs and constraints.
 
-The first problem a process builds compiles ``knot.cpp`` (``g++``, about 6 s of CPU) unless it is cached, under
+The first problem a process builds compiles ``knot.cpp`` with ``g++`` unless it is cached, under
 a file lock so that workers starting together compile it once. The cache is
 ``<cache>/crocoddyl-<version>/knot-<hash>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
 ``~/.cache/reachirl``); the hash covers the source, the compiler command and Python's extension suffix. Where
