@@ -30,7 +30,7 @@ from pathlib import Path
 
 import crocoddyl
 
-from ...io import cache_root
+from ...io import atomic_path, cache_root
 from .knots import KnotModel, KnotSettings
 
 __all__ = ["SOURCE", "build_command", "knot_class", "status"]
@@ -104,15 +104,11 @@ def _build(folder: Path) -> Path:
         if not target.exists():
             if shutil.which(os.environ.get("CXX", "g++")) is None:
                 raise OSError("no C++ compiler (g++, or $CXX) on the PATH")
-            tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
-            try:
+            with atomic_path(target, durable=False) as tmp:
                 done = subprocess.run(build_command(SOURCE, tmp), capture_output=True, text=True)
                 if done.returncode != 0:
                     lines = done.stderr.strip().splitlines() or ["(no output)"]
                     raise OSError(f"g++ failed: {next((x for x in lines if 'error' in x), lines[-1])}")
-                os.replace(tmp, target)
-            finally:
-                tmp.unlink(missing_ok=True)
     return target
 
 
