@@ -607,15 +607,30 @@ def test_a_signal_stops_every_command_on_both_backends(world, tmp_path, command,
     assert not [f for f in tmp_path.rglob(".*") if f.name.endswith(".tmp")], "temporary files left"
 
 
+def _units_done(out: Path) -> int:
+    return len(list((out / "units").glob("*.json")))
+
+
+def _sigterm_after_units(argv: list[str], out: Path, n: int) -> None:
+    """Start ``argv``, send SIGTERM as soon as ``n`` units are on disk, and check it stopped as terminated."""
+    p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
+    deadline = time.monotonic() + 300
+    while _units_done(out) < n and p.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert p.poll() is None, f"the run ended before its unit {n} was done: the signal would come too late"
+    p.send_signal(signal.SIGTERM)
+    assert p.wait(timeout=30) == 143, p.stderr.read()
+
+
 def test_sigterm_during_reproduce_with_one_worker_resumes_to_identical_tables(world, tmp_path):
     out = tmp_path / "run"
     argv = [REACHIRL, "reproduce", "--data", str(world / "trials.npz"), "--out", str(out), *RUN_ARGS]
-    for delay in (3.0, 5.0):
-        p = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=ENV)
-        time.sleep(delay)
-        if p.poll() is None:
-            p.send_signal(signal.SIGTERM)
-            assert p.wait(timeout=30) == 143, p.stderr.read()
+    total = _units_done(world / "run")
+    _sigterm_after_units(argv, out, 1)  # signalled on progress, not after a fixed delay: a fast machine is no
+    done = _units_done(out)  # reason for the run to end first
+    assert 1 <= done < total, done
+    if done + 1 < total:  # a second interrupt of the resumed run, inside its own units
+        _sigterm_after_units(argv, out, done + 1)
     again = subprocess.run(argv, capture_output=True, text=True, timeout=600, env=ENV)
     assert again.returncode == 0, again.stderr
     for name in ("table.csv", "table.md"):
