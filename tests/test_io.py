@@ -5,6 +5,7 @@ import json
 import os
 import stat
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -149,3 +150,30 @@ def test_a_bulk_exports_files_are_not_synced_one_by_one_but_its_index_and_folder
     syncs = [e for e in events if e[0] != "replace"]
     assert syncs == [("fsync file", index), ("fsync folder", tmp_path.stat().st_ino)]
     assert len(events) == 2 + 7  # six trajectory files and the index renamed into place
+
+
+def test_to_jsonable_gives_json_of_numpy_values_and_null_for_non_finite_numbers(tmp_path):
+    from types import MappingProxyType
+
+    from reachirl.io import to_jsonable
+
+    class Ratio(float):  # a float subclass takes the general path, as numpy's float64 does
+        pass
+
+    value = MappingProxyType(
+        {
+            "a": np.array([[1.5, np.nan], [np.inf, -2.0]]),
+            1: (np.float32(0.25), np.int64(3), np.bool_(True), True, None, "x", Path("/p/q"), Ratio(float("nan"))),
+            "plain": [1.0, float("-inf"), 2, False],
+        }
+    )
+    got = to_jsonable(value)
+    assert got == {
+        "a": [[1.5, None], [None, -2.0]],
+        "1": [0.25, 3, True, True, None, "x", "/p/q", None],
+        "plain": [1.0, None, 2, False],
+    }
+    assert [type(v) for v in got["1"][:4]] == [float, int, bool, bool]
+    assert type(got["plain"][3]) is bool and type(got["plain"][2]) is int
+    atomic_write_json(tmp_path / "v.json", value)
+    assert json.loads((tmp_path / "v.json").read_text()) == got

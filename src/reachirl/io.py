@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import os
 import re
 import tempfile
@@ -282,6 +283,11 @@ def atomic_write_text(path: str | os.PathLike, text: str, *, durable: bool = Tru
 def to_jsonable(obj):
     """Numpy arrays and scalars to plain lists and numbers, mappings (e.g. ``MappingProxyType``) to dicts;
     non-finite floats to None."""
+    t = type(obj)
+    if t is float:  # the leaves first: a model or a run holds hundreds of thousands of them
+        return obj if math.isfinite(obj) else None
+    if t is int or t is str or t is bool or obj is None:
+        return obj
     if isinstance(obj, Mapping):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):

@@ -30,9 +30,15 @@ MODEL_FORMAT = "reachirl-model/1"
 MAX_MODEL_BYTES = 64 * 1024**2
 
 
+#: the types :func:`_read_only` and :func:`_plain` return as they are, tested first (a model holds many of them)
+_LEAVES = frozenset({float, int, str, bool, type(None)})
+
+
 def _read_only(obj):
     """``obj`` (JSON-like) as a read-only copy: each mapping a :class:`types.MappingProxyType`, each list, tuple
     or array a tuple, of read-only values; anything else as it is."""
+    if type(obj) in _LEAVES:
+        return obj
     if isinstance(obj, Mapping):
         return MappingProxyType({k: _read_only(v) for k, v in obj.items()})
     if isinstance(obj, np.ndarray):
@@ -44,6 +50,8 @@ def _read_only(obj):
 
 def _plain(obj):
     """A :func:`_read_only` value as a plain, mutable copy: mappings as dicts, tuples as lists."""
+    if type(obj) in _LEAVES:
+        return obj
     if isinstance(obj, Mapping):
         return {k: _plain(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple):
@@ -252,20 +260,19 @@ def check_model_dict(d, path) -> None:
     n_nodes = int(d.get("n_nodes", 100))
     w = d.get("weights")
     require(isinstance(w, list) and len(w) > 0, f"field 'weights': expected a list of rows, found {brief(w)}", path)
+    # the messages of the loops below are made only for a value that fails (a model holds thousands of values)
     for i, row in enumerate(w):
-        require(
+        if not (
             isinstance(row, list)
             and len(row) == len(FEATURES)
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in row),
-            f"field 'weights', row {i}: expected {len(FEATURES)} numbers, found {brief(row)}",
-            path,
-        )
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in row)
+        ):
+            raise InputError(f"field 'weights', row {i}: expected {len(FEATURES)} numbers, found {brief(row)}", path)
         for j, v in enumerate(row):
-            require(
-                math.isfinite(float(v)) and float(v) >= 0,
-                f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {brief(v)}",
-                path,
-            )
+            if not (math.isfinite(float(v)) and float(v) >= 0):
+                raise InputError(
+                    f"field 'weights', row {i}, {FEATURES[j]}: expected a finite number >= 0, found {brief(v)}", path
+                )
     require(
         any(float(v) > 0 for row in w for v in row),
         "field 'weights': all weights are zero, so the DOC would have no cost to minimise",
@@ -317,11 +324,10 @@ def check_model_dict(d, path) -> None:
             path,
         )
         for i, r in enumerate(rollout):
-            require(
-                all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r),
-                f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}",
-                path,
-            )
+            if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in r):
+                raise InputError(
+                    f"field 'info.rollout_q', row {i}: expected 2 finite numbers (rad), found {brief(r)}", path
+                )
 
     phi = d.get("info", {}).get("reach_features")
     if phi is not None:
@@ -340,17 +346,15 @@ def check_model_dict(d, path) -> None:
     for i, h in enumerate(history or []):  # what the convergence figure plots: a damaged entry drew an empty plot
         for key in ("iteration", "evaluation"):
             v = h.get(key)
-            require(
-                v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 0),
-                f"field 'info.history', entry {i}: '{key}' expected a whole number >= 0, found {brief(v)}",
-                path,
-            )
+            if not (v is None or (isinstance(v, int) and not isinstance(v, bool) and v >= 0)):
+                raise InputError(
+                    f"field 'info.history', entry {i}: '{key}' expected a whole number >= 0, found {brief(v)}", path
+                )
         v = h.get("merit")
-        require(
-            v is None or (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)),
-            f"field 'info.history', entry {i}: 'merit' expected a finite number or null, found {brief(v)}",
-            path,
-        )
+        if not (v is None or (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v))):
+            raise InputError(
+                f"field 'info.history', entry {i}: 'merit' expected a finite number or null, found {brief(v)}", path
+            )
     _check_uncertainty(d.get("uncertainty"), len(w), path)
 
 
