@@ -147,6 +147,37 @@ def test_the_all_pairs_units_failures_flags_and_warnings_are_said_too(trials_fil
     assert note in (out / "report.md").read_text()
 
 
+def _files(folder) -> dict:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_units_model_and_predictions_are_written_as_it_finishes_and_a_reused_units_at_the_end(
+    trials_file, tmp_path, monkeypatch
+):
+    """While the other units run, not after the last: what the end of the run writes is what was left. A rerun
+    that reuses every unit writes them all at the end, the same files."""
+    from reachirl.experiments import report
+
+    seen = []
+    real = report.write_predictions
+
+    def at_the_end(run, skip=frozenset()):
+        there = {d.name for d in (run.out_dir / "predictions").iterdir() if (d / "index.csv").is_file()}
+        seen.append((set(skip), there, {p.stem for p in (run.out_dir / "models").glob("*.json")}))
+        return real(run, skip)
+
+    monkeypatch.setattr(report, "write_predictions", at_the_end)
+    out = tmp_path / "out"
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main(argv) == 0
+    keys = {p.stem for p in (out / "units").glob("*.json")}
+    assert len(keys) == 4 and seen[0] == (keys, keys, keys)
+    first = {k: _files(out / k) for k in ("predictions", "models")}
+    assert main(argv) == 0  # every unit reused: nothing written until the end, then all of it
+    assert seen[1][:2] == (set(), set())  # (the models, written just before the predictions, are there)
+    assert {k: _files(out / k) for k in ("predictions", "models")} == first
+
+
 def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     trials_file, reference_run, tmp_path, monkeypatch
 ):
@@ -161,7 +192,7 @@ def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     finished = ("table.md", "table.csv", "report.md", "results.json")
     assert all((out / f).exists() for f in finished)
 
-    def interrupted(run):
+    def interrupted(*args):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(report, "write_predictions", interrupted)
@@ -216,13 +247,13 @@ def test_a_rerun_with_other_options_stopped_early_leaves_no_earlier_results(tria
     finished = ("table.md", "table.csv", "report.md", "results.json")
     assert not any((out / f).exists() for f in finished)
     assert not list((out / "figures").glob("fig*.png"))
-    assert [p.relative_to(out) for p in (out / "predictions").rglob("*")] == [
-        mine.parent.relative_to(out),
-        mine.relative_to(out),
-    ]
     assert mine.read_text() == "keep"
     models = [json.loads(p.read_text())["info"] for p in (out / "models").glob("*.json")]
-    assert len(models) == 1  # only the new run's finished unit (the earlier run wrote 4)
+    assert len(models) == 1  # only the new run's finished unit (the earlier run wrote 4), and its predictions
+    exports = sorted(d.name for d in (out / "predictions").iterdir() if (d / "index.csv").is_file())
+    assert exports == [models[0]["unit"]]
+    others = [p for p in (out / "predictions").rglob("*") if p.is_file() and p.parent.name != exports[0]]
+    assert others == ([] if mine.parent.name == exports[0] else [mine])  # no earlier export's file
     assert main(argv) == 0  # and back to the earlier options: its units are still checkpointed, reused
     _same_table(out, reference_run)
 

@@ -573,12 +573,12 @@ def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, m
     raise InputError(f"--{key.replace('_', '-')}{shown}: {why}")
 
 
-def _stopped(result) -> int:
+def _stopped(result, written: set[str]) -> int:
     """A run stopped by --max-units: the finished units' models (`evaluate`, `plot`, `simulate` can use them
-    now) and how to finish."""
+    now; those ``written`` as they finished are there already) and how to finish."""
     from ..experiments.cost import write_models
 
-    write_models(result)
+    write_models(result, written)
     print(
         f"stopped after {len(result.summary.computed)} new unit(s) (--max-units); rerun with the same --out to finish",
         file=sys.stderr,
@@ -625,7 +625,7 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
 
     from ..experiments import datasets
     from ..experiments.rendering import FigureWorkers
-    from ..experiments.report import remove_previous_outputs, write_outputs
+    from ..experiments.report import UnitOutputs, remove_previous_outputs, write_outputs
     from ..experiments.runner import reproduce
 
     try:
@@ -691,7 +691,11 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
         if reused:
             err.print(f"[dim]{reused} unit(s) already done in {out / 'units'}; reusing them[/]")
 
+    unit_outputs = UnitOutputs(out)
+
     def on_done(key, res, reused):
+        if not reused:  # its model and predictions now, while the other units run (a reused unit's: at the end)
+            unit_outputs(key, res)
         progress.update(state["task"], advance=1, description=f"{key}{' (reused)' if reused else ''}")
         state["done"] += 1
         if state["total"] - state["done"] < workers:  # a core is idle until the run ends: start the figures' workers
@@ -719,8 +723,8 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
                 out_option="--out",
             )
         if result.stopped:
-            return _stopped(result)
-        outputs = write_outputs(result, workers=workers, ahead=ahead)
+            return _stopped(result, unit_outputs.written)
+        outputs = write_outputs(result, workers=workers, ahead=ahead, units=unit_outputs)
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)

@@ -13,31 +13,41 @@ from ..io import atomic_write_text
 from ..irl.model import LearnedModel, save_model
 from ..irl.uncertainty import PRIOR_LOG_SD, UNDETERMINED_WIDTH, claim_verdict, mean_width, prior_gives_verdict
 
-__all__ = ["claim_verdict", "cost_section", "uncertainty_summary", "write_models", "write_posture_transfer"]
+__all__ = [
+    "claim_verdict",
+    "cost_section",
+    "uncertainty_summary",
+    "write_model",
+    "write_models",
+    "write_posture_transfer",
+]
 
 
-def write_models(run) -> list[Path]:
+def write_models(run, skip=frozenset()) -> list[Path]:
     """``RUN_DIR/models/<unit key>.json``: each unit's model as ``reachirl fit`` writes it, for ``evaluate``,
-    ``plot`` and ``simulate``."""
-    out = []
+    ``plot`` and ``simulate`` (but those of the units in ``skip``, already written by :func:`write_model`)."""
     every = {**run.results, **run.pairs, **run.transfer}
-    for key, r in sorted(every.items()):
-        info = dict(r.get("model_info") or {"method": r["unit"]["method"]})
-        # the fit's whole history as `reachirl fit` keeps it (a unit checkpointed before it was kept: the
-        # result's short one)
-        info.setdefault("history", r.get("history", []))
-        # as the checkpoint's model_info has them (one written before it did: from the unit); "run" is this
-        # run's folder, where the checkpoint may name the one it was computed in (a folder moved since)
-        info.update({"unit": key, "backend": r["unit"]["backend"], "run": str(Path(run.out_dir).resolve())})
-        model = LearnedModel(
-            weights=np.asarray(r["weights"], dtype=float),
-            n_nodes=int(r["unit"]["n_nodes"]),
-            method=r["unit"]["method"],
-            info=info,
-            uncertainty=r.get("uncertainty"),
-        )
-        out.append(save_model(Path(run.out_dir) / "models" / f"{key}.json", model))
-    return out
+    return [write_model(run.out_dir, key, r) for key, r in sorted(every.items()) if key not in skip]
+
+
+def write_model(out_dir, key: str, r: dict) -> Path:
+    """``out_dir/models/<key>.json``: the model of the unit ``key`` (its result ``r``), as ``reachirl fit`` writes
+    it."""
+    info = dict(r.get("model_info") or {"method": r["unit"]["method"]})
+    # the fit's whole history as `reachirl fit` keeps it (a unit checkpointed before it was kept: the result's
+    # short one)
+    info.setdefault("history", r.get("history", []))
+    # as the checkpoint's model_info has them (one written before it did: from the unit); "run" is this run's
+    # folder, where the checkpoint may name the one it was computed in (a folder moved since)
+    info.update({"unit": key, "backend": r["unit"]["backend"], "run": str(Path(out_dir).resolve())})
+    model = LearnedModel(
+        weights=np.asarray(r["weights"], dtype=float),
+        n_nodes=int(r["unit"]["n_nodes"]),
+        method=r["unit"]["method"],
+        info=info,
+        uncertainty=r.get("uncertainty"),
+    )
+    return save_model(Path(out_dir) / "models" / f"{key}.json", model)
 
 
 def uncertainty_summary(unc: dict | None) -> dict | None:

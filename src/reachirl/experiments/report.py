@@ -1,9 +1,10 @@
-"""Everything ``reproduce`` writes once the units are done, one function per output:
+"""Everything ``reproduce`` writes from its units' results, one function per output:
 
 * :func:`write_tables` — ``table.md`` and ``table.csv``;
 * :func:`write_figures` — ``figures/*.png`` (and ``.pdf``), drawn in worker processes
   (:mod:`reachirl.experiments.rendering`; :func:`figure_jobs` says what they draw);
-* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`);
+* :func:`write_predictions` — ``predictions/<unit key>/<trial id>.csv`` and ``.mot`` (:mod:`reachirl.data.exports`),
+  of the units that :class:`UnitOutputs` did not write as they finished;
 * :func:`write_results_json` — ``results.json``;
 * :func:`write_report` — ``report.md``.
 
@@ -37,10 +38,11 @@ from .names import CONVERGENCE_TITLE, backend_text, natural_key, sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
 from .protocol import SET_LABELS, SETS, ProtocolConfig, unit_observes
 from .rendering import FigureJob, FigureWorkers, drawing
-from .results import RunResult, load_unit_arrays
+from .results import RunResult, is_table_unit, load_unit_arrays
 
 __all__ = [
     "RESULTS_FORMAT",
+    "UnitOutputs",
     "figure_jobs",
     "prediction_note",
     "weights_caption",
@@ -50,6 +52,7 @@ __all__ = [
     "write_report",
     "write_results_json",
     "write_tables",
+    "write_unit_predictions",
 ]
 
 RESULTS_FORMAT = "reachirl-reproduce/1"
@@ -521,36 +524,61 @@ def write_figures(
     return figs
 
 
-def write_predictions(run: RunResult) -> list[Path]:
-    """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit
-    (:func:`reachirl.data.exports.export_trajectories`), from the units' NPZ files; a prediction whose DOC did not
-    converge (the unit's record of the trial) is left out, listed in the index as such. Returns the index files."""
+def write_predictions(run: RunResult, skip=frozenset()) -> list[Path]:
+    """``predictions/<unit key>/<trial id>.csv`` and ``.mot`` for every trial of every set of every unit but those
+    in ``skip`` (already written by :func:`write_unit_predictions`). Returns the index files."""
+    written = [write_unit_predictions(run.out_dir, k, run.results[k]) for k in sorted(run.results) if k not in skip]
+    return [p for p in written if p is not None]
+
+
+def write_unit_predictions(out_dir, key: str, result: dict) -> Path | None:
+    """``out_dir/predictions/<key>/``: the unit's every trial of every set (:func:`reachirl.data.exports.
+    export_trajectories`), read from its NPZ checkpoint; a prediction whose DOC did not converge (the unit's
+    record of the trial) is left out, listed in the index as such. Returns the index (None: no trials)."""
     from ..data.exports import TrajectoryExport, export_trajectories
 
-    written = []
-    for key in sorted(run.results):
-        a = load_unit_arrays(run.out_dir, key)
-        items = []
-        for s in SETS:
-            if f"{s}/ids" not in a:
-                continue
-            records = ((run.results[key].get("sets") or {}).get(s) or {}).get("trials") or ()
-            converged = {str(r.get("id")): r.get("converged") for r in records}
-            for i, tid in enumerate(a[f"{s}/ids"]):
-                items.append(
-                    TrajectoryExport(
-                        id=str(tid),
-                        t=a[f"{s}/t"][i].astype(float),
-                        side=str(a[f"{s}/sides"][i]),
-                        set=s,
-                        demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
-                        pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
-                        converged=converged.get(str(tid)) is not False,
-                    )
+    a = load_unit_arrays(out_dir, key)
+    items = []
+    for s in SETS:
+        if f"{s}/ids" not in a:
+            continue
+        records = ((result.get("sets") or {}).get(s) or {}).get("trials") or ()
+        converged = {str(r.get("id")): r.get("converged") for r in records}
+        for i, tid in enumerate(a[f"{s}/ids"]):
+            items.append(
+                TrajectoryExport(
+                    id=str(tid),
+                    t=a[f"{s}/t"][i].astype(float),
+                    side=str(a[f"{s}/sides"][i]),
+                    set=s,
+                    demo={k: a[f"{s}/demo_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                    pred={k: a[f"{s}/pred_{k}"][i].astype(float) for k in ("q", "qd", "tau")},
+                    converged=converged.get(str(tid)) is not False,
                 )
-        if items:
-            written.append(export_trajectories(run.out_dir / "predictions" / key, items))
-    return written
+            )
+    return export_trajectories(Path(out_dir) / "predictions" / key, items) if items else None
+
+
+class UnitOutputs:
+    """A unit's own outputs, written by the coordinating process as the unit finishes, while the others run: its
+    model (:func:`~reachirl.experiments.cost.write_model`) and, for a unit of the table, its predictions
+    (:func:`write_unit_predictions`). Given to :func:`write_outputs`, which writes the other units' (those reused
+    from checkpoints, and all of them without it)."""
+
+    def __init__(self, out_dir) -> None:
+        self.out_dir = Path(out_dir)
+        self.written: set[str] = set()
+        self.predictions_s = 0.0  # the predictions' part of the time spent here, s
+
+    def __call__(self, key: str, result: dict) -> None:
+        from .cost import write_model
+
+        write_model(self.out_dir, key, result)
+        if is_table_unit(result):
+            t0 = time.perf_counter()
+            write_unit_predictions(self.out_dir, key, result)
+            self.predictions_s += time.perf_counter() - t0
+        self.written.add(key)
 
 
 def write_results_json(
@@ -676,10 +704,13 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     return removed
 
 
-def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None = None) -> dict:
+def write_outputs(
+    run: RunResult, workers: int = 1, ahead: FigureWorkers | None = None, units: UnitOutputs | None = None
+) -> dict:
     """Every output of a finished run (see the module docstring), in turn; the figures are drawn in ``workers``
     processes while the other files are written (``workers`` > 1; :mod:`reachirl.experiments.rendering`; those
-    of ``ahead`` when they were started before the run ended).
+    of ``ahead`` when they were started before the run ended). The units' own outputs that ``units`` wrote as
+    they finished are not written again.
 
     ``report.md``, ``results.json`` and last the tables are written at the end, and a previous run's are removed
     first: a folder without ``table.csv`` is a run that has not finished (an interrupted one), never one that looks
@@ -712,7 +743,8 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
     from .cost import cost_section, write_models, write_posture_transfer
 
     with drawing(jobs, workers, ahead) as figures:  # drawn in other processes meanwhile (workers > 1)
-        write_models(run)
+        skip = frozenset() if units is None else frozenset(units.written)
+        write_models(run, skip)
         extra_md: list[str] = cost_section(run, truth[1] or None, truth[2] or None)
         extra_md += write_posture_transfer(run)
         if run.config.iscv == "all-pairs":
@@ -722,8 +754,8 @@ def write_outputs(run: RunResult, workers: int = 1, ahead: FigureWorkers | None 
             figs.update(pairs_out["figures"])
             extra_md += pairs_out["markdown"]
         t_pred = time.perf_counter()
-        write_predictions(run)
-        predictions_s = time.perf_counter() - t_pred
+        write_predictions(run, skip)
+        predictions_s = time.perf_counter() - t_pred + (0.0 if units is None else units.predictions_s)
         figures.wait()
     fig_time = time.perf_counter() - t_fig
     computed = set(run.run_info.get("computed", []))

@@ -59,6 +59,11 @@ class RunResult:
         return self.summary.results
 
 
+def is_table_unit(result: dict) -> bool:
+    """Whether the unit of ``result`` is one of the run's table (not an all-pairs or posture-transfer unit)."""
+    return result["unit"].get("train_subject") is None and result["unit"].get("held_out_posture") is None
+
+
 def unit_paths(out_dir: Path, key: str) -> tuple[Path, Path]:
     d = Path(out_dir) / "units"
     return d / f"{key}.json", d / f"{key}.npz"

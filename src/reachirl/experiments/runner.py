@@ -26,7 +26,7 @@ from ..errors import InputError
 from ..io import hold_folder, remove_temporaries
 from .processes import check_entry_point_guarded, local_executor, stop_workers, worker_died
 from .protocol import Split, Unit
-from .results import RunResult, RunSummary, load_unit, load_unit_arrays, save_unit, unit_paths
+from .results import RunResult, RunSummary, is_table_unit, load_unit, load_unit_arrays, save_unit, unit_paths
 from .truth_solves import run_unit_and_truth
 
 __all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
@@ -451,11 +451,7 @@ def reproduce(
         on_done=on_done,
         truth_jobs=truth_jobs(units, splits, getattr(dataset, "truth", None), config.methods[0]),
     )
-    main = {
-        k: r
-        for k, r in summary.results.items()
-        if r["unit"].get("train_subject") is None and r["unit"].get("held_out_posture") is None
-    }
+    main = {k: r for k, r in summary.results.items() if is_table_unit(r)}
     transfer = {k: r for k, r in summary.results.items() if r["unit"].get("held_out_posture") is not None}
     pairs = {k: r for k, r in summary.results.items() if k not in main and k not in transfer}
     summary = RunSummary(main, summary.computed, summary.reused, summary.stopped_early)
