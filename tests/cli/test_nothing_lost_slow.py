@@ -52,14 +52,14 @@ RUN_ARGS = [
 @pytest.fixture(scope="module")
 def world(tmp_path_factory) -> Path:
     """Valid inputs: one virtual subject's reaches of P1-P3 (TRC, 3 trials each; MOT), their trials file, the same
-    reaches three times over (27 trials, for runs long enough to interrupt), models of 20 and 300 knots, and a
-    quick protocol run."""
+    reaches six times over (54 trials: runs of 10 s or more, interrupted at 2.5 s even on a fast machine), models
+    of 20 and 300 knots, and a quick protocol run."""
     d = tmp_path_factory.mktemp("world")
     synth(d / "syn", ("P1", "P2", "P3"), trials=3)
     synth(d / "mot", ("P2",), fmt="mot")
     preprocess(d / "syn", d / "trials.npz")
     trials = load_trials(d / "trials.npz")
-    save_trials(d / "many.npz", [replace(t, trial_id=f"{t.trial_id}-{k}") for k in range(3) for t in trials])
+    save_trials(d / "many.npz", [replace(t, trial_id=f"{t.trial_id}-{k}") for k in range(6) for t in trials])
     save_model(d / "model.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=20))
     save_model(d / "model300.json", LearnedModel(weights=np.full((2, 7), 0.05), n_nodes=300))
     p = subprocess.run(
@@ -70,9 +70,9 @@ def world(tmp_path_factory) -> Path:
         env=ENV,
     )
     assert p.returncode == 0, p.stderr
-    many = d / "many_trc"  # 600 recordings (symlinks) for a preprocess long enough to interrupt (~5 s)
+    many = d / "many_trc"  # 1,200 recordings (symlinks) for a preprocess long enough to interrupt (~12 s)
     many.mkdir()
-    for k in range(600):
+    for k in range(1200):
         (many / f"R{k:03d}.trc").symlink_to(d / "syn" / "S01_P2_T01.trc")
     return d
 
