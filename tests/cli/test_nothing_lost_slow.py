@@ -15,6 +15,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -87,12 +88,18 @@ def _write(p: Path, lines: list[str]) -> Path:
     return p
 
 
+#: the attacks run in two threads, and a patch of a module's function is not per thread: two overlapping patches
+#: left the second one's file written with the checks restored (it was refused) and the module patched for good
+_PATCHING = threading.Lock()
+
+
 def _trials_with(w: Path, src: Path, name: str, **changes) -> Path:
     """``src`` with ``changes`` made to every trial, written past save_trials' checks (a file edited by hand)."""
     from unittest import mock
 
-    with mock.patch("reachirl.data.trial._check_file_trials"):
-        save_trials(w / name, [replace(t, **changes) for t in load_trials(src)])
+    trials = [replace(t, **changes) for t in load_trials(src)]
+    with _PATCHING, mock.patch("reachirl.data.trial._check_file_trials"):
+        save_trials(w / name, trials)
     return w / name
 
 
