@@ -32,7 +32,7 @@ from ..irl.model import MODEL_FORMAT
 from ..irl.provenance import versions
 from . import tables as tb
 from .analysis import methods_run, prediction_agreement, section_comparisons, truth_comparison
-from .cost import uncertainty_summary
+from .cost import uncertainty_summary, write_model
 from .method import convergence_text, method_lines, unit_method
 from .names import CONVERGENCE_TITLE, backend_text, natural_key, sections_text
 from .no_data import annotate_no_data, csv_with_reasons, split_reasons
@@ -571,8 +571,6 @@ class UnitOutputs:
         self.predictions_s = 0.0  # the predictions' part of the time spent here, s
 
     def __call__(self, key: str, result: dict) -> None:
-        from .cost import write_model
-
         write_model(self.out_dir, key, result)
         if is_table_unit(result):
             t0 = time.perf_counter()
