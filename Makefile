@@ -20,12 +20,15 @@ system-deps:
 	  else echo "note: libOSMesa not found; MuJoCo rendering will be unavailable (apt-get install libosmesa6)"; fi; \
 	fi
 
+# The editable install leaves src/ uncompiled: where PYTHONDONTWRITEBYTECODE is set, every process (the command's,
+# each worker's) would compile reachirl's sources anew (about 0.1 s each), hence compileall.
 $(STAMP): requirements.lock pyproject.toml
 	@$(MAKE) --no-print-directory system-deps
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -r requirements.lock
 	$(PY) -m pip install -q --no-deps --no-build-isolation -e .
+	$(PY) -m compileall -q src >/dev/null
 	@touch $(STAMP)
 
 run: install

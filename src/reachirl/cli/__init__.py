@@ -21,6 +21,18 @@ from .. import errors
 from ..errors import InputError, Terminated
 
 COMMANDS = ("reproduce", "synth", "preprocess", "fit", "evaluate", "plot", "simulate", "bench", "sensitivity")
+#: each command's line in ``reachirl --help`` and its parser's ``help``: listing the commands imports none of them
+SUMMARIES = {
+    "reproduce": "run the seed paper's protocol and write its table and figures",
+    "synth": "write virtual subjects (Berret's protocol) with their true cost weights",
+    "preprocess": "motion-capture files -> trials (q, qd, qdd, tau on the subject's planar arm)",
+    "fit": "learn cost weights from demonstration trials",
+    "evaluate": "predict every trial from its own start and report joint-angle RMSE",
+    "plot": "draw predictions, weight shares and convergence as PNG and PDF",
+    "simulate": "play predicted reaches back in MuJoCo and render them",
+    "bench": "run the performance benchmarks and print their figures",
+    "sensitivity": "occlusion, sensitivity and identifiability of a reproduce run's costs",
+}
 
 
 _Terminated = Terminated
@@ -85,13 +97,19 @@ def _signed_axes(argv: list[str]) -> list[str]:
     return out
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(commands=COMMANDS) -> argparse.ArgumentParser:
+    """The command line's parser, with the options of ``commands`` (each imports its module); the other commands
+    are listed with their :data:`SUMMARIES` line only (``main`` builds the one command it runs: importing every
+    command's module took a second before ``reachirl --help`` or any command)."""
     parser = OneLineParser(prog="reachirl", description="Learn human reaching costs with MO-IRL and predict reaches.")
     verbose_help = "log progress details to stderr, and show the traceback of an internal error"
     parser.add_argument("-v", "--verbose", action="store_true", help=verbose_help)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=OneLineParser)
     parser.commands = {}  # each command's parser: an unknown option is its error, named as its own
     for name in COMMANDS:
+        if name not in commands:
+            sub.add_parser(name, help=SUMMARIES[name])
+            continue
         module = importlib.import_module(f"{__name__}.{name}")
         p = parser.commands[name] = module.add_parser(sub)
         # -v anywhere on the line: SUPPRESS keeps the top-level value when the subcommand's flag is absent
@@ -120,8 +138,10 @@ def main(argv: list[str] | None = None) -> int:
     previous = _catch_signals()
     try:
         try:
-            parser = build_parser()
-            args, unknown = parser.parse_known_args(_signed_axes(sys.argv[1:] if argv is None else list(argv)))
+            argv = _signed_axes(sys.argv[1:] if argv is None else list(argv))
+            named = next((a for a in argv if not a.startswith("-")), None)  # the only top-level option is a flag
+            parser = build_parser((named,) if named in COMMANDS else ())
+            args, unknown = parser.parse_known_args(argv)
         except KeyboardInterrupt as e:  # Ctrl-C or SIGTERM (Terminated) while loading: nothing was done
             terminated = isinstance(e, Terminated)
             print(f"reachirl: {'terminated' if terminated else 'interrupted'}", file=sys.stderr, flush=True)

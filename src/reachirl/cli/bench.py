@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import atomic_write_json
+from . import SUMMARIES
 
 SUITES = ("doc", "predict", "backends", "irl")
 
@@ -28,7 +29,7 @@ def _bench_dir() -> Path:
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "bench",
-        help="run the performance benchmarks and print their figures",
+        help=SUMMARIES["bench"],
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

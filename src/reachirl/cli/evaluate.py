@@ -17,6 +17,7 @@ from ..io import atomic_write_json, holding_folder
 from ..irl.model import load_model
 from ..irl.provenance import fingerprint
 from ..validation import check_output_dir, check_output_file, check_output_kind
+from . import SUMMARIES
 from ._args import (
     JSON_KINDS,
     PREDICTION_BACKEND_HELP,
@@ -32,7 +33,7 @@ from ._args import (
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "evaluate",
-        help="predict every trial from its own start and report joint-angle RMSE",
+        help=SUMMARIES["evaluate"],
         description="Predict every trial by the DOC under the model's weights, from the trial's own arm, start, "
         "target and duration, as the model was fitted (seen as recorded, between the crossings of the trial's "
         "onset threshold, unless it was fitted with --seed-form), and write the RMSE of the joint angles "

@@ -15,6 +15,7 @@ from ..irl.model import LearnedModel, save_model
 from ..irl.options import ROLLOUTS
 from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width, prior_gives_verdict
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
+from . import SUMMARIES
 from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite, samples_or_none
 
 MIN_NODES, MAX_NODES = NODES_RANGE
@@ -25,7 +26,7 @@ METHODS = ("moirl", "maxent", "bilevel", "kkt")
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "fit",
-        help="learn cost weights from demonstration trials",
+        help=SUMMARIES["fit"],
         description="Learn the time-varying cost weights (n_windows x 7, FEATURES order) behind the trials of a "
         "trials file with MO-IRL or a baseline, and write them with their provenance to MODEL.json "
         "(schema: docs/outputs.md).",

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..io import holding_folder, reading_folder, sync_folder
+from . import SUMMARIES
 from ._args import (
     PREDICTION_BACKEND_HELP,
     add_selection,
@@ -39,7 +40,7 @@ from ._args import (
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "plot",
-        help="draw predictions, weight shares and convergence as PNG and PDF",
+        help=SUMMARIES["plot"],
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

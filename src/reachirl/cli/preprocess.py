@@ -29,6 +29,7 @@ from ..data.trial import Trial, save_trials
 from ..data.ue_adl import parse_trial_name
 from ..errors import InputError
 from ..io import holding_folder
+from . import SUMMARIES
 from ._args import (
     TRIALS_KIND,
     export_names,
@@ -57,7 +58,7 @@ def _segment_cutoff(text: str) -> float | str | None:
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "preprocess",
-        help="motion-capture files -> trials (q, qd, qdd, tau on the subject's planar arm)",
+        help=SUMMARIES["preprocess"],
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

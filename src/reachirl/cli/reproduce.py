@@ -25,6 +25,7 @@ from ..errors import InputError
 from ..io import holding_folder
 from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE
+from . import SUMMARIES
 from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
 
 MAX_SUBJECTS = 100
@@ -81,7 +82,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     )
     p = subparsers.add_parser(
         "reproduce",
-        help="run the seed paper's protocol and write its table and figures",
+        help=SUMMARIES["reproduce"],
         description=__doc__.replace("``", "") + "\n" + keys_text,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

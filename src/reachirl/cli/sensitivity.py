@@ -22,6 +22,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io import holding_folder, reading_folder, remove_temporaries
 from ..validation import NODES_RANGE, check_output_dir
+from . import SUMMARIES
 from ._args import int_in, non_negative_int, number_in, refuse_out_in_run_folders, refuse_overwrite
 
 #: local worker processes at most (as reproduce's --workers)
@@ -31,7 +32,7 @@ MAX_WORKERS = 256
 def add_parser(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "sensitivity",
-        help="occlusion, sensitivity and identifiability of a reproduce run's costs",
+        help=SUMMARIES["sensitivity"],
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

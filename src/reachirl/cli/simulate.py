@@ -17,6 +17,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import InputError
+from . import SUMMARIES
 from ._args import (
     ANIMATION_KINDS,
     JSON_KINDS,
@@ -37,7 +38,7 @@ MODES = ("open-loop", "pd")
 def add_parser(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "simulate",
-        help="play predicted reaches back in MuJoCo and render them",
+        help=SUMMARIES["simulate"],
         description=__doc__.replace("``", ""),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
+from . import SUMMARIES
 from ._args import float_in, int_in, non_negative_int
 
 
@@ -13,7 +14,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
     p = subparsers.add_parser(
         "synth",
-        help="write virtual subjects (Berret's protocol) with their true cost weights",
+        help=SUMMARIES["synth"],
         description=(
             "Generate virtual subjects reaching to a vertical bar from Berret et al. 2011's five initial "
             "postures. Each reach is the DOC solution under the subject's true time-varying weights "

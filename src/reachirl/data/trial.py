@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt
 
 from ..arm import ArmModel
 from ..errors import InputError
@@ -215,6 +214,8 @@ class Trial:
         scipy's ``sosfiltfilt`` on a uniform grid at the trial's own mean rate) and ``q̇``, ``q̈``, ``τ``
         re-derived. For features of derivatives up to the third order (``τ̇``), which amplify the noise that the
         recording's position filter leaves; the initial state keeps its velocity."""
+        from scipy.signal import butter, sosfiltfilt  # here: scipy.signal costs every command 0.4 s to import
+
         n = self.t.shape[0]
         fs = (n - 1) / self.duration
         if not 0 < cutoff_hz < fs / 2:
