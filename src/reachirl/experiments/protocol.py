@@ -22,11 +22,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 import time
 import zlib
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
@@ -229,45 +230,56 @@ class Unit:
         return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-# The modules a unit's numbers depend on, so that a checkpoint made by other code is not reused.
-_CODE_COMMON = (
-    "arm.py",
-    "features.py",
-    "doc/evaluation.py",
-    "data/trial.py",
-    "doc/__init__.py",
-    "doc/task.py",
-    "doc/observation.py",
-    "irl/base.py",
-    "irl/objective.py",
-    "irl/moirl.py",
-    "experiments/protocol.py",
-)
+# Where a unit runs: what it imports, directly or not, is what its numbers depend on (:func:`code_fingerprint`).
+_UNIT_ENTRIES = ("experiments/truth_solves.py", "experiments/protocol.py")
+_RELATIVE_IMPORT = re.compile(r"^[ \t]*from[ \t]+(\.+)([\w.]*)[ \t]+import[ \t]+(\([^)]*\)|[^\n#]+)", re.M)
+_PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+
+
+def source_closure(entries: Iterable[str], skip: Iterable[str] = ()) -> list[str]:
+    """reachirl's modules (paths below the package, e.g. ``"doc/newton.py"``) that the modules ``entries`` import
+    by relative imports, at the top or inside a function, directly or through each other, with their packages'
+    ``__init__.py``; none whose path starts with one of ``skip``."""
+    skip = tuple(skip)
+    seen: set[str] = set()
+    todo = list(entries)
+    while todo:
+        rel = todo.pop()
+        if rel in seen or rel.startswith(skip) or not (_PACKAGE_ROOT / rel).is_file():
+            continue
+        seen.add(rel)
+        pkg = PurePosixPath(rel).parent
+        todo += [f"{p}/__init__.py" for p in (pkg, *pkg.parents) if str(p) != "."]
+        for dots, module, names in _RELATIVE_IMPORT.findall((_PACKAGE_ROOT / rel).read_text(encoding="utf-8")):
+            base = pkg
+            for _ in range(len(dots) - 1):
+                base = base.parent
+            target = base.joinpath(*module.split(".")) if module else base
+            for sub in ["", *(n.split(" as ")[0].strip() for n in names.strip("()").split(","))]:
+                path = target / sub if sub else target
+                todo += [f"{path}.py", f"{path}/__init__.py"]
+    return sorted(seen)
+
+
+def source_fingerprint(entries: Iterable[str], skip: Iterable[str] = ()) -> str:
+    """A hash of the source of :func:`source_closure` ``(entries, skip)``: any edit to a module they use changes it."""
+    h = hashlib.sha256()
+    for name in source_closure(entries, skip):
+        h.update(name.encode())
+        h.update((_PACKAGE_ROOT / name).read_bytes())
+    return h.hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=16)
 def code_fingerprint(method: str = "moirl", backend: str = "casadi") -> str:
-    """A hash of the source of the modules a unit's result depends on: the arm, features, evaluation, the DOC
-    backend, MO-IRL, and for a baseline ``irl/baselines/`` and ``irl/methods.py``."""
-    root = Path(__file__).resolve().parent.parent
-    backend_dir = root / "doc" / backend  # a backend is one module (casadi.py) or a package (crocoddyl/)
-    names = [*_CODE_COMMON]
-    if backend_dir.is_dir():
-        names += sorted(p.relative_to(root).as_posix() for p in backend_dir.glob("*.py"))
-    else:
-        names.append(f"doc/{backend}.py")
-    if method != "moirl":
-        names += [
-            "irl/methods.py",
-            *sorted(p.relative_to(root).as_posix() for p in (root / "irl" / "baselines").glob("*.py")),
-        ]
-    h = hashlib.sha256()
-    for name in names:
-        f = root / name
-        if f.is_file():
-            h.update(name.encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
+    """A hash of the source of every module a unit's result depends on (:func:`source_closure` of the modules a
+    unit runs in), so that a checkpoint made by other code is not reused. Left out: the other DOC backends' modules
+    (CasADi's stays: the uncertainty's sensitivities use it), the data sets' loaders (a unit's trials enter by their
+    own fingerprint) and, for MO-IRL, the baselines'."""
+    skip = ["experiments/datasets.py", *(f"doc/{b}" for b in BACKENDS if b not in (backend, "casadi"))]
+    if method == "moirl":
+        skip.append("irl/baselines/")
+    return source_fingerprint(_UNIT_ENTRIES, skip)
 
 
 def _safe(name: str) -> str:
