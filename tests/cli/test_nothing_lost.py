@@ -903,7 +903,7 @@ def test_sigterm_while_the_commands_load_is_said_and_exits_143():
     script = (
         "import os, signal, sys, time\n"
         "import reachirl.cli as cli\n"
-        "def loading():\n"
+        "def loading(*commands):\n"
         "    os.kill(os.getpid(), signal.SIGTERM)\n"
         "    time.sleep(10)\n"
         "cli.build_parser = loading\n"
