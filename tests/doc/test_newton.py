@@ -137,6 +137,26 @@ def test_a_warm_newton_solve_is_fatrops_warm_solve_under_new_weights(recorded_p4
     assert answered >= 3
 
 
+def test_a_newton_answers_cost_is_the_trajectory_cost_of_its_reach(recorded_p4):
+    """Newton's answer reports the objective its last step evaluated (not recomputed): the DOC's cost of the
+    returned knots, computed independently by ``reachirl.features``, to rounding; the windows' weights included."""
+    rng = np.random.default_rng(5)
+    w = nominal_weights()
+    w = w * np.exp(0.2 * rng.standard_normal(w.shape))  # every window its own weights
+    trials = recorded_p4
+    path = solve_doc(observed_task(trials[0], 60, trials[0].onset_threshold), w).q
+    answered = 0
+    for trial in trials[1:6]:
+        task = observed_task(trial, 60, trial.onset_threshold)
+        sol = solve_doc(task, w * 1e3, guess=moved_path(task, path), newton=True)  # any scale: ω and cω alike
+        if not sol.status.startswith("newton"):
+            continue
+        answered += 1
+        expected = trajectory_cost(task.arm, sol.q, sol.qd, sol.tau, task.dt, w * 1e3)
+        assert sol.cost == pytest.approx(expected, rel=1e-9)
+    assert answered >= 3
+
+
 def test_newton_gives_way_when_it_cannot_vouch_for_its_answer():
     w = nominal_weights()
     task = _task((3.0, -2.0))

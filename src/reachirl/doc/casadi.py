@@ -417,6 +417,7 @@ def solve(
     stats: dict = {}
     ok = False
     fscale = 1.0
+    cost = None  # Newton's answer comes with its objective
 
     kind = "fatrop_warm"
     same_task = warm is not None and warm.get("backend") == "casadi" and warm.get("task") == key
@@ -427,7 +428,7 @@ def solve(
         found = newton_solve(task, weights, warm["knots"][0])
         elapsed, attempts = time.perf_counter() - t0, 1
         if found is not None:
-            q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
+            q, ok, kind, fscale, iterations, cost = found.q, True, "newton", found.fscale, found.iterations, found.cost
     if q is None and same_task:
         # the same reach under new weights (MO-IRL's line search): reuse the primal point and the scale
         fscale = warm["fscale"]
@@ -446,7 +447,7 @@ def solve(
         found = newton_solve(task, weights, start)
         elapsed, attempts = elapsed + time.perf_counter() - t0, attempts + 1
         if found is not None:
-            q, ok, kind, fscale, iterations = found.q, True, "newton", found.fscale, found.iterations
+            q, ok, kind, fscale, iterations, cost = found.q, True, "newton", found.fscale, found.iterations, found.cost
     if q is None and (x is None or (retry_cold and not ok)):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
         # change of weights
@@ -470,7 +471,7 @@ def solve(
         q=q,
         qd=qd,
         tau=tau,
-        cost=trajectory_cost(task.arm, q, qd, tau, task.dt, weights),
+        cost=trajectory_cost(task.arm, q, qd, tau, task.dt, weights) if cost is None else cost,
         converged=ok,
         iterations=iterations,
         solve_time=elapsed,

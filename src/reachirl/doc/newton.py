@@ -67,13 +67,15 @@ _ROWS = 82  # the stage function's output: gradient (8), Hessian (64), power, it
 @dataclass(frozen=True)
 class NewtonResult:
     """The knots ``q (N+1, 2)`` of the optimum (``q_N = q_{N−1}``), the steps taken, the kinks at the end, the
-    objective's scale used and the bar's multiplier."""
+    objective's scale used, the bar's multiplier and the objective at the optimum (unscaled: the stages' costs of
+    the last step, the DOC's objective to rounding)."""
 
     q: np.ndarray
     iterations: int
     n_kinks: int
     fscale: float
     bar_multiplier: float
+    cost: float = math.nan
 
 
 @functools.lru_cache(maxsize=8)
@@ -459,7 +461,14 @@ def _answer(task, q0, q, kink, lam, mu, sigma, w_knot, fscale, out, it) -> Newto
     if not _verified(task, q0, q, kink, lam, w_e, sigma, e, out, jtip, curv):
         return None
     qs = np.vstack([q0, q, q[-1:]])
-    return NewtonResult(q=qs, iterations=it, n_kinks=int(kink.sum()), fscale=float(fscale), bar_multiplier=float(mu))
+    return NewtonResult(
+        q=qs,
+        iterations=it,
+        n_kinks=int(kink.sum()),
+        fscale=float(fscale),
+        bar_multiplier=float(mu),
+        cost=float(np.sum(res[_ROWS - 1])) / float(fscale),
+    )
 
 
 def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:

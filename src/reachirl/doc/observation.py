@@ -21,11 +21,13 @@ Both sides are compared on normalised time, so the result hardly depends on the 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
+from scipy import sparse
 from scipy.interpolate import BSpline, make_interp_spline
 
 from ..data.trial import Trial
@@ -157,10 +159,44 @@ class _Cut(NamedTuple):
     b: float
 
 
+@functools.lru_cache(maxsize=8)
+def _unit_knots(n: int) -> tuple[np.ndarray, np.ndarray, object, object]:
+    """For ``n + 1`` equally spaced knots on [0, 1]: the not-a-knot cubic's B-spline knots, the matrix that takes the
+    knot values to its coefficients, and the (sparse) matrices that take the coefficients to its values and slopes
+    at the :data:`_FINE` samples per interval. A B-spline on knots scaled by ``T`` has the same coefficients and
+    values, and its slopes divided by ``T``: every DOC solution of ``n`` intervals shares them."""
+    u = np.linspace(0.0, 1.0, n + 1)
+    unit = make_interp_spline(u, np.eye(n + 1), k=3)
+    slope = BSpline(unit.t, np.eye(n + 1), 3).derivative()
+    uf = np.linspace(0.0, 1.0, _FINE * n + 1)
+    values = BSpline.design_matrix(uf, unit.t, 3).tocsr()
+    slopes = sparse.csr_matrix(BSpline.design_matrix(uf, slope.t, 2) @ slope.c[: len(slope.t) - 3])
+    return unit.t, np.ascontiguousarray(unit.c), values, slopes
+
+
+def _equally_spaced(t: np.ndarray) -> bool:
+    """Whether the knots ``t`` are ``linspace(0, t[-1], len(t))`` (a DOC solution's), to rounding."""
+    return t[0] == 0.0 and bool(np.all(np.abs(np.diff(t) - t[-1] / (len(t) - 1)) <= 1e-12 * t[-1]))
+
+
 def _knot_spline(t: np.ndarray, y: np.ndarray) -> BSpline:
     """The not-a-knot cubic interpolant of the knot values ``y (N+1, ...)`` (``CubicSpline``'s default; as a
-    B-spline, which scipy builds three times faster)."""
-    return make_interp_spline(t, y, k=3)
+    B-spline, which scipy builds three times faster; on equally spaced knots from the shared matrices of
+    :func:`_unit_knots`, ten times faster again, equal to rounding)."""
+    if not _equally_spaced(t):
+        return make_interp_spline(t, y, k=3)
+    knots, coef, _, _ = _unit_knots(len(t) - 1)
+    y = np.asarray(y, dtype=float)
+    c = (coef @ y.reshape(len(t), -1)).reshape(y.shape)
+    return BSpline.construct_fast(knots * float(t[-1]), c, 3)
+
+
+def _fine_samples(sol: DocSolution, spline: BSpline, tf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``q`` and ``q̇`` of ``spline`` (``sol``'s knots' spline) at the fine times ``tf``."""
+    if not _equally_spaced(sol.t):
+        return spline(tf), spline(tf, 1)
+    _, _, values, slopes = _unit_knots(len(sol.t) - 1)
+    return values @ spline.c, (slopes @ spline.c) / float(sol.t[-1])
 
 
 def _cut(sol: DocSolution, task: ReachingTask, threshold: float | None) -> _Cut:
@@ -170,7 +206,7 @@ def _cut(sol: DocSolution, task: ReachingTask, threshold: float | None) -> _Cut:
     if check_threshold(threshold) is None:
         return _Cut(spline, np.array([0.0, end]), np.zeros(2), 0, None, None, 0.0, end)
     tf = np.linspace(0.0, end, _FINE * n + 1)
-    speed = arm.fingertip_speed(spline(tf), spline(tf, 1))
+    speed = arm.fingertip_speed(*_fine_samples(sol, spline, tf))
     p = int(np.argmax(speed))
     thr = threshold * speed[p]
     below_before = np.flatnonzero(speed[:p] < thr)
