@@ -71,9 +71,9 @@ def test_observed_knots_are_the_knots_of_the_observed_trial():
 
 
 def test_the_shared_spline_matrices_give_scipys_interpolant_and_its_fine_samples():
-    """A DOC solution's knots are equally spaced: its spline comes from matrices shared by every solution of N
-    intervals (coefficients, fine values and slopes), and must be scipy's not-a-knot interpolant of the same knots
-    to rounding, at any time and in its first two derivatives; knots spaced otherwise take scipy's own."""
+    """A DOC solution's knots are equally spaced: a prediction's spline comes from matrices shared by every solution
+    of N intervals (coefficients, fine values and slopes), and must be scipy's not-a-knot interpolant of the same
+    knots to rounding, at any time and in its first two derivatives; knots spaced otherwise take scipy's own."""
     from scipy.interpolate import make_interp_spline
 
     from reachirl.doc import observation as obs
@@ -82,17 +82,20 @@ def test_the_shared_spline_matrices_give_scipys_interpolant_and_its_fine_samples
     for duration in (task.duration, 0.37, 2.9):
         t = np.linspace(0.0, duration, N + 1)
         ref = make_interp_spline(t, sol.q, k=3)
-        mine = obs._knot_spline(t, sol.q)
+        mine = obs._knot_spline(t, sol.q, shared=True)
         x = np.random.default_rng(1).uniform(0.0, duration, 300)
         for nu in (0, 1, 2):  # each derivative divides the knots' rounding by the interval once more
             expected = ref(x, nu)
             np.testing.assert_allclose(mine(x, nu), expected, rtol=0, atol=1e-12 * np.max(np.abs(expected)))
         fine = np.linspace(0.0, duration, obs._FINE * N + 1)
-        q, qd = obs._fine_samples(replace(sol, t=t), mine, fine)
+        q, qd = obs._fine_samples(replace(sol, t=t), mine, fine, shared=True)
         np.testing.assert_allclose(q, ref(fine), rtol=0, atol=1e-12 * np.max(np.abs(sol.q)))
         np.testing.assert_allclose(qd, ref(fine, 1), rtol=0, atol=1e-12 * np.max(np.abs(ref(fine, 1))))
     uneven = np.sort(np.r_[0.0, np.random.default_rng(2).uniform(0.0, 1.0, N - 1), 1.0])
-    np.testing.assert_array_equal(obs._knot_spline(uneven, sol.q).c, make_interp_spline(uneven, sol.q, k=3).c)
+    scipys = make_interp_spline(uneven, sol.q, k=3).c
+    np.testing.assert_array_equal(obs._knot_spline(uneven, sol.q, shared=True).c, scipys)
+    # MO-IRL's rollouts (the default) keep scipy's own spline, bit for bit
+    np.testing.assert_array_equal(obs._knot_spline(sol.t, sol.q).c, make_interp_spline(sol.t, sol.q, k=3).c)
 
 
 def test_seen_as_recorded_the_true_weights_reproduce_their_reach():
