@@ -71,3 +71,14 @@ def test_a_relative_import_inside_a_function_is_followed(package_copy):
     before = _fingerprints()
     _edit(package_copy, "irl/extra_helper.py")
     assert all(v != before[c] for c, v in _fingerprints().items())
+
+
+def test_a_parenthesised_import_with_comments_is_followed(package_copy):
+    for name in ("extra_one", "extra_two"):
+        (package_copy / "irl" / f"{name}.py").write_text("X = 1\n")
+    with open(package_copy / "irl" / "moirl.py", "a", encoding="utf-8") as fh:
+        fh.write("\nfrom . import (  # two helpers\n    extra_one,  # the first\n    extra_two as second,\n)\n")
+    for name in ("extra_one", "extra_two"):
+        before = _fingerprints()
+        _edit(package_copy, f"irl/{name}.py")
+        assert all(v != before[c] for c, v in _fingerprints().items())

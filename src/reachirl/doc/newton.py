@@ -75,7 +75,7 @@ class NewtonResult:
     n_kinks: int
     fscale: float
     bar_multiplier: float
-    cost: float = math.nan
+    cost: float
 
 
 @functools.lru_cache(maxsize=8)

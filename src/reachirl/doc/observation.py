@@ -160,7 +160,7 @@ class _Cut(NamedTuple):
 
 
 @functools.lru_cache(maxsize=8)
-def _unit_knots(n: int) -> tuple[np.ndarray, np.ndarray, object, object]:
+def _unit_knots(n: int) -> tuple[np.ndarray, np.ndarray, sparse.csr_matrix, sparse.csr_matrix]:
     """For ``n + 1`` equally spaced knots on [0, 1]: the not-a-knot cubic's B-spline knots, the matrix that takes the
     knot values to its coefficients, and the (sparse) matrices that take the coefficients to its values and slopes
     at the :data:`_FINE` samples per interval. A B-spline on knots scaled by ``T`` has the same coefficients and
@@ -302,10 +302,9 @@ def observed_knots(
     off the solution's spline: ``q_k`` at ``t_k = a + k (b − a)/N``, ``q̇_0`` its slope at ``a``, Euler
     differences, inverse-dynamics torques, ``dt = (b − a)/N``. (The trial of :func:`observe` is sampled on a grid
     that contains the ``t_k``, so its own spline passes through the same values: equal to rounding, tested.)
-    The solution's own knots without a threshold. MO-IRL reads every rollout this way, with scipy's spline: a
-    fit's line search amplifies rounding (with the shared matrices of ``shared``, :func:`_knot_spline`, one of the
-    Berret-size study's 300 all-pairs fits took another step, and 16 of its 7,200 pair RMSEs moved by 0.01-0.03°),
-    so its numbers stay those it always saw; :func:`observed_solution` (predictions) takes the shared matrices."""
+    The solution's own knots without a threshold. MO-IRL reads every rollout this way, with scipy's own spline
+    (a fit's line search amplifies rounding: its rollouts are read bit for bit as they always were); ``shared``:
+    with the shared matrices of :func:`_knot_spline`, as :func:`observed_solution` reads a prediction."""
     n = task.n_nodes
     if check_threshold(threshold) is None:
         return sol.q, sol.qd, sol.tau, task.dt

@@ -255,7 +255,8 @@ def source_closure(entries: Iterable[str], skip: Iterable[str] = ()) -> list[str
             for _ in range(len(dots) - 1):
                 base = base.parent
             target = base.joinpath(*module.split(".")) if module else base
-            for sub in ["", *(n.split(" as ")[0].strip() for n in names.strip("()").split(","))]:
+            names = re.sub(r"#[^\n]*", "", names).strip("()")  # a parenthesised list may hold comments
+            for sub in ["", *(n.split(" as ")[0].strip() for n in names.split(","))]:
                 path = target / sub if sub else target
                 todo += [f"{path}.py", f"{path}/__init__.py"]
     return sorted(seen)
