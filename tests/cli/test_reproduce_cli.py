@@ -204,6 +204,29 @@ def test_a_run_interrupted_while_writing_its_outputs_never_looks_finished(
     _same_table(out, reference_run)
 
 
+def test_an_interrupt_inside_an_atomic_write_leaves_no_temporary(trials_file, tmp_path, monkeypatch):
+    """Ctrl-C just after an atomic write made its temporary and before its own cleanup could run (here: as the
+    temporary's permissions are set, the first unit's checkpoint being written) leaves no temporary in the run's
+    folders."""
+    import os
+
+    from reachirl import io
+
+    chmod = os.chmod
+
+    def interrupted(path, mode, *args, **kwargs):
+        if str(path).endswith(".tmp") and f"{os.sep}units{os.sep}" in str(path):
+            raise KeyboardInterrupt
+        return chmod(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(io.os, "chmod", interrupted)
+    out = tmp_path / "out"
+    argv = ["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS]
+    assert main(argv) == 130
+    assert (out / "units").is_dir()
+    assert [p.name for p in out.rglob(".*") if p.is_file()] == []
+
+
 def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monkeypatch, capsys):
     """Ctrl-C once the report and results.json are written: still no table, so the folder reads as unfinished."""
     import shutil

@@ -610,7 +610,15 @@ def run(args) -> int:
     refuse_overwrite({"--out": out}, [args.data, args.config])
     _refuse_foreign_run_files(out, args.config)
     with holding_folder(out, "--out"):  # before any work; a folder made by the run is held once made (the runner)
-        return _run(args, out, opts, from_file)
+        try:
+            return _run(args, out, opts, from_file)
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM, every worker ended: an atomic write it came in the middle of
+            # (after its temporary was made, before its cleanup could run) leaves nothing behind
+            from ..experiments.runner import clean_stale_temporaries
+
+            if out.is_dir():
+                clean_stale_temporaries(out)
+            raise
 
 
 def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
