@@ -227,6 +227,51 @@ def test_an_interrupt_inside_an_atomic_write_leaves_no_temporary(trials_file, tm
     assert [p.name for p in out.rglob(".*") if p.is_file()] == []
 
 
+def test_a_run_that_swallows_an_interrupt_is_ended_outright_and_leaves_no_temporary(trials_file, tmp_path):
+    """A SIGINT that code swallows and runs on after (as compiled solvers can), here while the first unit's
+    checkpoint is synced: the command is ended outright after the grace period, and the temporary that write had
+    made is removed first, as the command's own cleanup would have."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out, marker = tmp_path / "out", tmp_path / "syncing"
+    script = (
+        "import sys, time\n"
+        "from pathlib import Path\n"
+        "from reachirl import io\n"
+        "from reachirl.cli import main\n"
+        "sync = io._fsync\n"
+        "def stuck(path):\n"
+        "    if path.name.endswith('.tmp') and path.parent.name == 'units':\n"
+        f"        Path({str(marker)!r}).touch()\n"
+        "        for _ in range(600):  # a minute, whatever the signals\n"
+        "            try:\n"
+        "                time.sleep(0.1)\n"
+        "            except KeyboardInterrupt:\n"
+        "                pass\n"
+        "    sync(path)\n"
+        "io._fsync = stuck\n"
+        f"sys.exit(main(['reproduce', '--data', {str(trials_file)!r}, '--out', {str(out)!r}, '--workers', '1', "
+        f"*{ARGS!r}]))\n"
+    )
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not marker.exists() and p.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert marker.exists(), p.stderr.read() if p.poll() is not None else "the run never reached its first unit"
+        assert [f.name for f in (out / "units").glob(".*.tmp")], "no temporary to leave: the test would test nothing"
+        p.send_signal(signal.SIGINT)
+        rc = p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert rc == 130, p.stderr.read()
+    assert [f.name for f in out.rglob(".*") if f.is_file()] == []
+
+
 def test_the_tables_are_written_last(trials_file, reference_run, tmp_path, monkeypatch, capsys):
     """Ctrl-C once the report and results.json are written: still no table, so the folder reads as unfinished."""
     import shutil

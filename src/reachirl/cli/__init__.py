@@ -9,6 +9,7 @@ nothing is written after it); 141, silently, when standard output's reader close
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import os
@@ -41,6 +42,15 @@ _Terminated = Terminated
 #: swallows the interrupt and runs on (the solves of reachirl itself stop within a fraction of a second)
 STOP_GRACE_S = 1.5
 _watchdog: dict = {}
+#: what a command asked to be done if it is ended outright (:func:`at_forced_exit`)
+_at_forced_exit: list = []
+
+
+def at_forced_exit(fn) -> None:
+    """Call ``fn()`` (from the watchdog's thread, its errors ignored) if the command is ended outright
+    :data:`STOP_GRACE_S` after a signal, just before the process exits: e.g. remove what its atomic writes had
+    begun (a command stuck in compiled code never reaches its own cleanup)."""
+    _at_forced_exit.append(fn)
 
 
 def _arm_watchdog(command: str, signum: int) -> None:
@@ -51,6 +61,9 @@ def _arm_watchdog(command: str, signum: int) -> None:
     code = 143 if signum == signal.SIGTERM else 130
 
     def force_exit() -> None:
+        for fn in list(_at_forced_exit):
+            with contextlib.suppress(Exception):
+                fn()
         try:
             print(
                 f"reachirl {command}: {'terminated' if code == 143 else 'interrupted'}", file=sys.__stderr__, flush=True
@@ -158,6 +171,7 @@ def main(argv: list[str] | None = None) -> int:
         timer = _watchdog.pop("timer", None)
         if timer is not None:
             timer.cancel()
+        _at_forced_exit.clear()
 
 
 def _interrupted(args, terminated: bool) -> int:

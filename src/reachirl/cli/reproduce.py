@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..io import holding_folder
 from ..irl.options import ROLLOUTS
 from ..validation import MAX_ITER, NODES_RANGE
-from . import SUMMARIES
+from . import SUMMARIES, at_forced_exit
 from ._args import int_in, non_negative_int, number_below, refuse_overwrite, samples_or_none
 
 MAX_SUBJECTS = 100
@@ -609,15 +609,18 @@ def run(args) -> int:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
     _refuse_foreign_run_files(out, args.config)
+    from ..experiments.runner import clean_stale_temporaries
+
+    def clean() -> None:  # the temporaries of atomic writes an interrupt came in the middle of
+        if out.is_dir():
+            clean_stale_temporaries(out)
+
+    at_forced_exit(clean)  # a run ended outright, stuck in compiled code after a signal, never reaches the except
     with holding_folder(out, "--out"):  # before any work; a folder made by the run is held once made (the runner)
         try:
             return _run(args, out, opts, from_file)
-        except KeyboardInterrupt:  # Ctrl-C or SIGTERM, every worker ended: an atomic write it came in the middle of
-            # (after its temporary was made, before its cleanup could run) leaves nothing behind
-            from ..experiments.runner import clean_stale_temporaries
-
-            if out.is_dir():
-                clean_stale_temporaries(out)
+        except KeyboardInterrupt:  # Ctrl-C or SIGTERM, every worker ended: nothing half written is left behind
+            clean()
             raise
 
 
