@@ -256,7 +256,13 @@ def test_a_run_that_swallows_an_interrupt_is_ended_outright_and_leaves_no_tempor
         f"sys.exit(main(['reproduce', '--data', {str(trials_file)!r}, '--out', {str(out)!r}, '--workers', '1', "
         f"*{ARGS!r}]))\n"
     )
-    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    p = subprocess.Popen(
+        [sys.executable, "-c", script],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # a background job inherits SIGINT ignored
+    )
     try:
         deadline = time.monotonic() + 120
         while not marker.exists() and p.poll() is None and time.monotonic() < deadline:
