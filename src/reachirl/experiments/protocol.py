@@ -262,13 +262,18 @@ def source_closure(entries: Iterable[str], skip: Iterable[str] = ()) -> list[str
     return sorted(seen)
 
 
-def source_fingerprint(entries: Iterable[str], skip: Iterable[str] = ()) -> str:
-    """A hash of the source of :func:`source_closure` ``(entries, skip)``: any edit to a module they use changes it."""
+def sources_hash(names: Iterable[str]) -> str:
+    """A hash of the modules ``names`` (paths below the package), each its path and its source, in that order."""
     h = hashlib.sha256()
-    for name in source_closure(entries, skip):
+    for name in names:
         h.update(name.encode())
         h.update((_PACKAGE_ROOT / name).read_bytes())
     return h.hexdigest()[:16]
+
+
+def source_fingerprint(entries: Iterable[str], skip: Iterable[str] = ()) -> str:
+    """:func:`sources_hash` of :func:`source_closure` ``(entries, skip)``: any edit to a module they use changes it."""
+    return sources_hash(source_closure(entries, skip))
 
 
 @functools.lru_cache(maxsize=16)

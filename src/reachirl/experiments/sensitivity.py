@@ -319,14 +319,9 @@ _ANALYSIS_CODE = (
 
 @functools.lru_cache(maxsize=1)
 def _analysis_fingerprint() -> str:
-    import hashlib
+    from .protocol import sources_hash
 
-    root = Path(__file__).resolve().parent.parent
-    h = hashlib.sha256()
-    for name in _ANALYSIS_CODE:
-        h.update(name.encode())
-        h.update((root / name).read_bytes())
-    return h.hexdigest()[:16]
+    return sources_hash(_ANALYSIS_CODE)
 
 
 def _job_fingerprint(name: tuple, chosen: tuple, config: SensitivityConfig) -> str:
