@@ -397,6 +397,7 @@ def _print_table(console, outputs, config, postures) -> None:
     from rich.table import Table
 
     from ..experiments import tables as tb
+    from ..experiments.names import sections_text
 
     for m, table in outputs["tables"].items():
         t = Table(title=f"{m} ({config.backend} DOC): RMSE of the joint angles (deg), mean ± SD", show_lines=False)
@@ -404,7 +405,7 @@ def _print_table(console, outputs, config, postures) -> None:
         t.add_column("joint")
         for s in tb.SETS:
             for n in config.sections:
-                t.add_column(f"{tb.SET_LABELS[s]} ({outputs['n_trials'][s]})\n{n} sec.", justify="center")
+                t.add_column(f"{tb.SET_LABELS[s]} ({outputs['n_trials'][s]})\n{sections_text(n)}", justify="center")
         rows = tb.table_rows(table, postures, config.sections)
         for i, row in enumerate(rows):
             p, j = row[0], row[1]

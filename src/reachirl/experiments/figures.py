@@ -470,7 +470,7 @@ def plot_methods(headlines: dict, sections: Sequence[int], ax=None, title: str =
     else:
         fig = ax.figure
     methods = list(headlines)
-    labels = [f"{SET_LABELS[s]} · {n} sec." for s in SETS for n in sections]  # as the tables' columns
+    labels = [f"{SET_LABELS[s]} · {sections_text(n)}" for s in SETS for n in sections]  # as the tables' columns
     x = np.arange(len(labels))
     width = 0.8 / max(1, len(methods))
     for k, m in enumerate(methods):

@@ -26,6 +26,7 @@ import numpy as np
 from ..data.trial import Trial
 from ..errors import InputError
 from ..io import atomic_write_text
+from .names import sections_text
 
 __all__ = [
     "ALL",
@@ -276,7 +277,7 @@ def plot_iscv_vs_cv(
             and r["n"]
         ]
         data += [diag, off]
-        labels += [f"CV\n{n} sec.", f"ISCV\n{n} sec."]
+        labels += [f"CV\n{sections_text(n)}", f"ISCV\n{sections_text(n)}"]
     keep = [i for i, d in enumerate(data) if d]
     axes[0].boxplot([data[i] for i in keep], tick_labels=[labels[i] for i in keep])
     axes[0].set_ylabel("RMSE of q (deg), per subject pair and posture")
@@ -284,7 +285,7 @@ def plot_iscv_vs_cv(
     for k, n in enumerate(sections):
         s = transfer_summary(rows, method, postures, n)
         rho = "n/a" if s["spearman_rho"] is None else f"{s['spearman_rho']:.2f}"
-        axes[1].scatter(s["cv"], s["iscv"], s=18, color=f"C{k}", label=f"{n} sec. (ρ = {rho}, n = {s['n']})")
+        axes[1].scatter(s["cv"], s["iscv"], s=18, color=f"C{k}", label=f"{sections_text(n)} (ρ = {rho}, n = {s['n']})")
     lim = axes[1].get_xlim()[1], axes[1].get_ylim()[1]
     top = max(lim)
     axes[1].plot([0, top], [0, top], color="0.7", lw=0.8, ls="--")

@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .names import natural_key
+from .names import natural_key, sections_text
 from .protocol import SET_LABELS, SETS
 
 __all__ = [
@@ -363,7 +363,7 @@ def to_markdown(
     head = [
         "posture",
         "joint",
-        *[f"{SET_LABELS[s]} ({n_trials.get(s, '?')}) · {n} sec." for s in SETS for n in sections],
+        *[f"{SET_LABELS[s]} ({n_trials.get(s, '?')}) · {sections_text(n)}" for s in SETS for n in sections],
     ]
     lines = [f"**{title}**", ""] if title else []
     lines += ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * 2 + [":---:"] * (len(head) - 2)) + "|"]
@@ -407,7 +407,7 @@ def seed_markdown() -> str:
     head = [
         "posture",
         "joint",
-        *[f"{SET_LABELS[s]} ({n_trials[s]}) · {n} sec." for s in SETS for n in SEED_SECTIONS],
+        *[f"{SET_LABELS[s]} ({n_trials[s]}) · {sections_text(n)}" for s in SETS for n in SEED_SECTIONS],
     ]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * 2 + [":---:"] * (len(head) - 2)) + "|"]
     for p in [*postures, ALL]:
