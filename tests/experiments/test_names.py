@@ -1,4 +1,4 @@
-"""Postures and subjects sort with their numbers by value."""
+"""Names: postures and subjects sort with their numbers by value, and a count of sections is written out."""
 
 from reachirl.experiments.names import natural_key
 

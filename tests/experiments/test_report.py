@@ -528,7 +528,8 @@ def test_the_methods_figure_says_what_its_bars_and_error_bars_are():
     heads = {m: {s: {8: cell} for s in ("train", "cv", "iscv")} for m in ("moirl", "maxent")}
     fig = fg.plot_methods(heads, [8])
     ax = fig.axes[0]
-    assert [t.get_text() for t in ax.get_xticklabels()] == ["Training · 8 sections", "CV · 8 sections", "ISCV · 8 sections"]
+    ticks = [t.get_text() for t in ax.get_xticklabels()]
+    assert ticks == ["Training · 8 sections", "CV · 8 sections", "ISCV · 8 sections"]
     assert "mean ± SD" in ax.get_ylabel()
     import inspect
 
