@@ -612,3 +612,18 @@ def test_virtual_subjects_without_the_truths_section_count_say_why_nothing_is_co
     section = report.split("## Virtual subjects: learned vs true weights", 1)[1].split("\n## ", 1)[0]
     assert "the true cost (truth.json) has 8 windows and this run's section counts are 1" in section, section
     assert "`--sections 8`" in section
+
+
+def test_the_weight_samples_time_is_said_as_part_of_the_fits(reference_run):
+    """A run spends a third of its fits on the weight samples; the timing said nothing of it, nor of how to skip it."""
+    from reachirl.cli.reproduce import _timing_line
+
+    timing = json.loads((reference_run / "results.json").read_text())["timing"]
+    units = [json.loads(f.read_text()) for f in (reference_run / "units").glob("*.json")]
+    own = [u["uncertainty"]["time_s"] for u in units]
+    assert len(own) == 4 and all(0 < t < u["fit"]["time_s"] for t, u in zip(own, units, strict=True))
+    assert timing["uncertainty_s_sum"] == pytest.approx(sum(own), rel=1e-9)
+    assert 0 < timing["uncertainty_s_sum"] < timing["fit_s_sum"]
+    line = _timing_line(timing)
+    assert f"{timing['uncertainty_s_sum']:.1f} s of it the weight samples (--uncertainty 0 draws none)" in line
+    assert "weight samples" not in _timing_line({**timing, "uncertainty_s_sum": 0.0})

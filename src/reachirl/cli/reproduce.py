@@ -393,6 +393,16 @@ def _quick_postures(config, dataset):
     return replace(config, postures=tuple(chosen))
 
 
+def _timing_line(tm: dict) -> str:
+    """The run's time, as printed at its end: the weight samples' part of the fits named, with how to skip it."""
+    samples = tm.get("uncertainty_s_sum", 0.0)
+    of_it = f", {samples:.1f} s of it the weight samples (--uncertainty 0 draws none)" if samples > 0 else ""
+    return (
+        f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (fits {tm['fit_s_sum']:.1f} s{of_it}; "
+        f"evaluation {tm['evaluation_s_sum']:.1f} s; summed over the workers), figures/report {tm['report_s']:.1f} s"
+    )
+
+
 def _print_table(console, outputs, config, postures) -> None:
     from rich.table import Table
 
@@ -741,12 +751,7 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
     _print_table(out_console, outputs, config, result.postures)
     for n in outputs["notes"]:
         out_console.print(f"[dim]- {n}[/]", highlight=False)
-    tm = outputs["timing"]
-    out_console.print(
-        f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (fits {tm['fit_s_sum']:.1f} s + "
-        f"evaluation {tm['evaluation_s_sum']:.1f} s over the workers), figures/report {tm['report_s']:.1f} s",
-        highlight=False,
-    )
+    out_console.print(_timing_line(outputs["timing"]), highlight=False)
     # each written only when the data allows it (an earlier run's is removed first); asked for and not written:
     # said here as report.md says it, not left for the reader to find missing
     extras = []

@@ -761,6 +761,10 @@ def write_outputs(
     every = [*results.values(), *run.pairs.values(), *run.transfer.values()]
     timing["fit_s_sum"] = sum(r["fit"]["time_s"] for r in every if r["key"] in computed)
     timing["evaluation_s_sum"] = sum(r["evaluation"]["time_s"] for r in every if r["key"] in computed)
+    # the weight samples' part of fit_s_sum (reproduce --uncertainty 0 draws none)
+    timing["uncertainty_s_sum"] = sum(
+        (r.get("uncertainty") or {}).get("time_s", 0.0) for r in every if r["key"] in computed
+    )
     timing["figures_s"] = fig_time
     timing["predictions_s"] = predictions_s
     timing["report_s"] = time.perf_counter() - t0
@@ -964,8 +968,9 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
         f"{len(run_info.get('reused', []))} reused from checkpoints in units/); "
         f"executor: {run_info.get('executor')}.",
         "- Time split (s): " + ", ".join(f"{k} {v:.1f}" for k, v in timing.items()) + ".",
-        "  (`fit_s_sum` and `evaluation_s_sum` add the units' own times over the workers; `units_wall_s` is "
-        "the wall time of all units; `report_s` includes `figures_s`.)",
+        "  (`fit_s_sum` and `evaluation_s_sum` add the units' own times over the workers, `uncertainty_s_sum` the "
+        "weight samples' part of `fit_s_sum`; `units_wall_s` is the wall time of all units; `report_s` includes "
+        "`figures_s`.)",
         "- Files: `table.md`, `table.csv`, `results.json` (every unit's weights, history, per-trial RMSE), "
         "`units/*.json` + `units/*.npz` (checkpoints and predictions), `figures/*.png`, "
         "`predictions/<unit>/<trial id>.csv|.mot` (schemas: docs/outputs.md in the source).",

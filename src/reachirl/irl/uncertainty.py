@@ -31,6 +31,7 @@ cost from the fit's.
 from __future__ import annotations
 
 import logging
+import time
 from collections import Counter
 from dataclasses import dataclass
 
@@ -317,7 +318,8 @@ def weight_uncertainty(
     intervals' ``mean_width`` and the claim's ``fraction`` under the prior alone: what the data adds),
     ``determination`` (:meth:`Determination.to_dict`), ``prior``, ``checked``, ``doc_solves`` and, for several
     tasks, ``pooling``: the same intervals' mean width and determined directions from each task's demonstrations
-    alone beside the pooled ones (how much pooling narrows them)."""
+    alone beside the pooled ones (how much pooling narrows them); ``time_s``, its wall time (part of the fit's)."""
+    t_start = time.perf_counter()
     rng = np.random.default_rng(np.random.SeedSequence([int(random_state), 0x5EED]))
     free = est._movable(est._w_fit.shape)
     cols = np.flatnonzero(free.reshape(-1))
@@ -394,6 +396,7 @@ def weight_uncertainty(
         },
         "doc_solves": int(solves),
         "pooling": pooling,
+        "time_s": time.perf_counter() - t_start,
     }
 
 
