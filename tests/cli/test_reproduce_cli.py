@@ -625,5 +625,6 @@ def test_the_weight_samples_time_is_said_as_part_of_the_fits(reference_run):
     assert timing["uncertainty_s_sum"] == pytest.approx(sum(own), rel=1e-9)
     assert 0 < timing["uncertainty_s_sum"] < timing["fit_s_sum"]
     line = _timing_line(timing)
-    assert f"{timing['uncertainty_s_sum']:.1f} s of it the weight samples (--uncertainty 0 draws none)" in line
+    assert f"of which weight samples {timing['uncertainty_s_sum']:.1f} s;" in line
+    assert line.endswith("; --uncertainty 0 draws no weight samples")
     assert "weight samples" not in _timing_line({**timing, "uncertainty_s_sum": 0.0})

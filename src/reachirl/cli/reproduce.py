@@ -396,10 +396,12 @@ def _quick_postures(config, dataset):
 def _timing_line(tm: dict) -> str:
     """The run's time, as printed at its end: the weight samples' part of the fits named, with how to skip it."""
     samples = tm.get("uncertainty_s_sum", 0.0)
-    of_it = f", {samples:.1f} s of it the weight samples (--uncertainty 0 draws none)" if samples > 0 else ""
+    of_it = f", of which weight samples {samples:.1f} s" if samples > 0 else ""
+    skip = "; --uncertainty 0 draws no weight samples" if samples > 0 else ""
     return (
-        f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (fits {tm['fit_s_sum']:.1f} s{of_it}; "
-        f"evaluation {tm['evaluation_s_sum']:.1f} s; summed over the workers), figures/report {tm['report_s']:.1f} s"
+        f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (summed over the workers: fits "
+        f"{tm['fit_s_sum']:.1f} s{of_it}; evaluation {tm['evaluation_s_sum']:.1f} s), figures/report "
+        f"{tm['report_s']:.1f} s{skip}"
     )
 
 
