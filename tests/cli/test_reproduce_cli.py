@@ -615,7 +615,7 @@ def test_virtual_subjects_without_the_truths_section_count_say_why_nothing_is_co
 
 
 def test_the_weight_samples_time_is_said_as_part_of_the_fits(reference_run):
-    """A run spends a third of its fits on the weight samples; the timing said nothing of it, nor of how to skip it."""
+    """The weight samples take up to half a run's fit time; the timing said nothing of it, nor of how to skip them."""
     from reachirl.cli.reproduce import _timing_line
 
     timing = json.loads((reference_run / "results.json").read_text())["timing"]
