@@ -397,12 +397,12 @@ def _timing_line(tm: dict) -> str:
     """The run's time, as printed at its end: the weight samples' part of the fits named, with how to skip it."""
     samples = tm.get("uncertainty_s_sum", 0.0)
     of_it = f", of which weight samples {samples:.1f} s" if samples > 0 else ""
-    skip = "; --uncertainty 0 draws no weight samples" if samples > 0 else ""
-    return (
+    line = (
         f"time: data {tm['data_s']:.1f} s, units {tm['units_wall_s']:.1f} s (summed over the workers: fits "
         f"{tm['fit_s_sum']:.1f} s{of_it}; evaluation {tm['evaluation_s_sum']:.1f} s), figures/report "
-        f"{tm['report_s']:.1f} s{skip}"
+        f"{tm['report_s']:.1f} s"
     )
+    return line + "; --uncertainty 0 draws no weight samples" if samples > 0 else line
 
 
 def _print_table(console, outputs, config, postures) -> None:
