@@ -123,6 +123,25 @@ def bench_numbers(bench: dict) -> dict:
             "newton_from_optimum_deg": float(f"{pr['max_from_optimum_deg']['newton']:.2g}"),
             "fatrop_from_optimum_deg": round(pr["max_from_optimum_deg"]["fatrop"], 4),
         }
+    ck = bench.get("checks")
+    if ck:
+        cost = ck["cost_vs_fatrop"]
+        out["checks"] = {
+            "n_solves": ck["n_solves"],
+            "default_cpu_ms_median": round(ck["cpu_ms_default"]["median"], 1),
+            "default_cpu_ms_mean": round(ck["cpu_ms_default"]["mean"], 1),
+            "fatrop_cpu_ms_median": round(ck["cpu_ms_fatrop"]["median"], 1),
+            "fatrop_cpu_ms_mean": round(ck["cpu_ms_fatrop"]["mean"], 1),
+            "ratio_cpu_total": round(ck["ratio_cpu_total"], 2),
+            "answered_by": ck["answered_by"],
+            "not_converged": ck["not_converged"],
+            "diff_deg_median": float(f"{ck['diff_deg']['median']:.2g}"),
+            "diff_deg_p90": float(f"{ck['diff_deg']['p90']:.2g}"),
+            "cost_higher": cost["higher_by_more_than_1e-6"],
+            "cost_lower": cost["lower_by_more_than_1e-6"],
+            "largest_rise_pct": float(f"{100 * cost['largest_rise']:.2g}"),
+            "largest_fall_pct": float(f"{100 * cost['largest_fall']:.2g}"),
+        }
     bk = bench.get("backends")
     if bk and "casadi" in bk and "crocoddyl" in bk:
         a, c = bk["casadi"], bk["crocoddyl"]
@@ -240,6 +259,22 @@ def render(snap: dict) -> str:
             f"every prediction converged; the two answers differ by at most {pr['max_diff_deg']}°, fatrop's "
             f"tolerance: from the optimum (Newton rerun from fatrop's answer) fatrop lies up to "
             f"{pr['fatrop_from_optimum_deg']}° away, Newton {pr['newton_from_optimum_deg']}°.",
+            "",
+        ]
+    ck = (snap.get("bench") or {}).get("checks")
+    if ck:
+        by = ", ".join(f"{k} {v}" for k, v in sorted(ck["answered_by"].items(), key=lambda kv: -kv[1]))
+        lines += [
+            f"- **The uncertainty's checked samples** (`reachirl bench checks`, same machine; {ck['n_solves']} "
+            "re-solves of the built-in data's 8-section protocol fits under their first weight samples, warm from "
+            f"the fits' solutions, CPU): the default path {ck['default_cpu_ms_median']} ms median "
+            f"({ck['default_cpu_ms_mean']} ms mean) against {ck['fatrop_cpu_ms_median']} ms "
+            f"({ck['fatrop_cpu_ms_mean']} ms) for fatrop from the same start, {ck['ratio_cpu_total']:.2f} of its "
+            f"total. Answered by: {by}. Not converged: {ck['not_converged']['default_path']} on the default path, "
+            f"{ck['not_converged']['fatrop_path']} on fatrop's. The answers lie {ck['diff_deg_median']}° apart "
+            f"(median; 90th percentile {ck['diff_deg_p90']}°); the default path's cost is lower than fatrop's by "
+            f"more than 1e-6 on {ck['cost_lower']} (up to {-ck['largest_fall_pct']} %), higher on "
+            f"{ck['cost_higher']} (at most {ck['largest_rise_pct']} %; another local optimum).",
             "",
         ]
     b = (snap.get("bench") or {}).get("backends")

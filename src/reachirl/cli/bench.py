@@ -2,7 +2,8 @@
 
 Suites live in the source checkout's ``benchmarks/`` folder (``bench_<suite>.py`` with ``run(...) -> dict``):
 ``doc`` (CasADi DOC against a plain formulation), ``predict`` (predictions by exact Newton against fatrop
-from the same start), ``backends`` (CasADi against Crocoddyl/CSQP) and ``irl``
+from the same start), ``checks`` (the uncertainty's checked samples by the interior point on the knots against
+fatrop from the same start), ``backends`` (CasADi against Crocoddyl/CSQP) and ``irl``
 (MO-IRL against the baselines on virtual subjects). Every timing is reported beside a baseline measured in the
 same run, since shared machines are noisy.
 """
@@ -19,7 +20,7 @@ from ..errors import InputError
 from ..io import atomic_write_json
 from . import SUMMARIES
 
-SUITES = ("doc", "predict", "backends", "irl")
+SUITES = ("doc", "predict", "checks", "backends", "irl")
 
 
 def _bench_dir() -> Path:
@@ -76,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         quick = {
             "doc": {"n_repeats": 6, "sweep": False},
             "predict": {"postures": ("P2", "P4"), "stride": 4},
+            "checks": {"postures": ("P2",), "n_check": 4},
             "backends": {"n_repeats": 1, "learned_stride": 20},
             "irl": {"quick": True},
         }

@@ -363,22 +363,27 @@ class MOIRL(WeightEstimator):
             return trial_from_solution(sol, task.arm, task.target_x)
         return observe(sol, task, self._thresholds[i])
 
-    def _rollout(self, task, w, warm: DocSolution | None, guess: np.ndarray) -> tuple[DocSolution, int]:
+    def _rollout(
+        self, task, w, warm: DocSolution | None, guess: np.ndarray, far: bool = False
+    ) -> tuple[DocSolution, int]:
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
-        Returns the solution and the number of solver runs behind it."""
+        ``far``: weights far from ``warm``'s (the uncertainty's samples), solved by the interior point on the knots
+        where Newton gives way (the line search's tries keep fatrop there: its tables were measured so). Returns the
+        solution and the number of solver runs behind it."""
         w = self._effective(w)
-        sol = solve_doc(task, w, backend=self.backend, warm_start=warm, newton=self._o.warm_newton)
+        sol = solve_doc(task, w, backend=self.backend, warm_start=warm, newton=self._o.warm_newton, interior=far)
         runs = sol.attempts
         if not sol.converged:
             sol = solve_doc(task, w, backend=self.backend, guess=guess)
             runs += sol.attempts
         return sol, runs
 
-    def _rollouts(self, tasks, w, warm, guesses) -> tuple[list[DocSolution], int, int]:
-        """Rollouts of every task; returns them, the solver runs, and how many needed more than one run."""
+    def _rollouts(self, tasks, w, warm, guesses, far: bool = False) -> tuple[list[DocSolution], int, int]:
+        """Rollouts of every task (``far``: see :meth:`_rollout`); returns them, the solver runs, and how many
+        needed more than one run."""
         sols, runs, rescued = [], 0, 0
         for i, task in enumerate(tasks):
-            sol, n = self._rollout(task, w, None if warm is None else warm[i], guesses[i])
+            sol, n = self._rollout(task, w, None if warm is None else warm[i], guesses[i], far)
             sols.append(sol)
             runs += n
             rescued += int(sol.converged and n > 1 and warm is not None)

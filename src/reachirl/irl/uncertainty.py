@@ -467,10 +467,10 @@ def one_demo_tasks(trials) -> list[str]:
 
 
 def rollout_errors(est, w: np.ndarray) -> tuple[np.ndarray | None, list, int]:
-    """``est``'s training rollouts re-solved under the weights ``w (S, 7)`` (warm from the fit's): each
-    demonstration's error ``(D,)`` as the merit weighs it (None when a solve failed), the solutions, and the
-    solver runs spent."""
-    cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses)
+    """``est``'s training rollouts re-solved under the weights ``w (S, 7)`` (warm from the fit's; far from them:
+    the interior point on the knots where Newton gives way): each demonstration's error ``(D,)`` as the merit
+    weighs it (None when a solve failed), the solutions, and the solver runs spent."""
+    cand, runs, _ = est._rollouts(est.tasks_, w, est.train_solutions_, est._guesses, far=True)
     if not all(c.converged for c in cand):
         return None, cand, runs
     states = [est._state(i, t, c) for i, (t, c) in enumerate(zip(est.tasks_, cand, strict=True))]

@@ -1,0 +1,401 @@
+"""A primal-dual interior point on the reach's knots: the DOC's optimum from a far start, with the energy's corners
+and the bounds inside the method.
+
+:mod:`reachirl.doc.newton` solves the DOC on its knots ``q_1 … q_{N−1}`` (the dynamics eliminated) by exact Newton,
+which needs the energy's corners and the active bounds known near its start. From a start far from the answer
+(the fit's reach under weights a factor 100 from the fit's, as the uncertainty's checked samples are) the corners
+move at every step and Newton rarely settles. This method keeps the knots as its unknowns and handles what moves
+as an interior point does (fatrop's and IPOPT's method, on the same problem):
+
+* The energy ``w|e_k|`` of stage ``k`` (``e_k = q̇_kᵀτ_k``) is ``w(s⁺_k + s⁻_k)`` with ``e_k = s⁺_k − s⁻_k``,
+  ``s± ≥ 0`` (the NLP's exact slack form), with dual variables ``z±_k`` and the multiplier ``y_k`` of the split.
+* The joint limits and the speed bound are ``s_b(q) ≥ 0``, linear in the knots, with duals ``z_b``.
+* The barrier ``−μ Σ ln s`` and the perturbed complementarity ``s z = μ``, for ``μ`` from :data:`MU_START` down
+  to :data:`MU_END` (IPOPT's monotone rule: ``μ ← min(0.2 μ, μ^1.5)`` once the error is below ``10 μ``).
+
+Each Newton step of the primal-dual equations is condensed stage by stage: the slacks and duals of stage ``k``
+depend on its own power only, so they add ``D_k ∇e_k ∇e_kᵀ`` (``D_k`` from ``z±/s±``) to the stage's 8 × 8
+Hessian, and the bounds add ``Aᵀ diag(z_b/s_b) A`` on neighbouring knots. The system is the knots' banded one
+(half-bandwidth 7, with the bar's multiplier last), solved by one banded LU (LAPACK's ``dgbsv``). The stages'
+derivatives are :mod:`reachirl.doc.newton`'s compiled stage function (the Lagrangian ``f + Σ y_k e_k``).
+
+Globalisation: the step is damped until the primal barrier function (the slacks at their optimum for the power,
+``φ_μ(e) = r − μ ln(μ + r)``, ``r = √(w²e² + μ²)``, the bounds' barrier and ``ν|c|`` for the bar) falls by an
+Armijo fraction of its directional derivative (a backtracking line search after the fraction to the boundary).
+The Hessian is regularised (``+δI``) until it is positive definite on the bar's null space (a banded Cholesky of
+``H + ρ ĉĉᵀ``), so that the step is a descent direction. After each step the slacks are reset to their optimum
+for the new power (``s±(e)``, which keeps the split exact), and a step whose duals point uphill is taken again
+with the duals at their central values (the primal barrier's Newton step).
+
+:func:`interior_solve` returns None whenever it cannot vouch for its answer: no convergence within
+:data:`MAX_ITER` steps, a failed factorisation or line search, or a regularised Hessian at the end (a saddle).
+The caller then solves the DOC as before (fatrop).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg.lapack import dgbsv as _gbsv
+from scipy.linalg.lapack import dpbtrf as _pbtrf
+
+from .newton import _ROWS, NewtonResult, _arm_params, _knot_windows, _layout, _path, _scatter, _stage_map, _workspace
+from .task import ReachingTask
+
+__all__ = ["MAX_ITER", "interior_solve"]
+
+MAX_ITER = 150  # steps; measured on the checked samples of `make run`: median 29, 96 of 105 within 150
+MU_START = 1e-5  # the barrier parameter at the start (fatrop's warm start's, on the same order-one objective)
+MU_END = 1e-9
+TOL = 1e-7  # the primal-dual equations' error at MU_END (fatrop stops at 1e-6)
+BAR_TOL = 1e-10  # m: the fingertip's distance from the bar
+_BW = 7  # half-bandwidth of the knots' system (a stage couples four knots; the bar's multiplier sits last)
+_FRACTION = 0.99  # of the way to the boundary, at most (slacks and duals stay positive)
+_ARMIJO = 1e-4
+
+
+class _Layout:
+    """Where each stage's derivatives go in the banded system of ``n`` stages (LAPACK's LU storage,
+    ``(3·BW + 1, size)`` column-major; ``A[i, j]`` at row ``2·BW + i − j``): the gradient's and the Hessian's
+    scatter, the bounds' diagonal and off-diagonal entries (a knot and the one before it), and the bar's."""
+
+    def __init__(self, n: int) -> None:
+        var, _ = _layout(n)
+        qvar = np.where(var >= 0, var - var // 3, -1)  # (n, 8): each stage-local coordinate's knot unknown
+        self.m = m = 2 * (n - 1)
+        self.size = m + 1
+        k, i = np.nonzero(qvar >= 0)
+        self.g_rows, self.g_src = qvar[k, i], i + 8 * k  # into the (8, n) gradient, column-major
+        rows = np.repeat(qvar[:, :, None], 8, axis=2)
+        cols = np.repeat(qvar[:, None, :], 8, axis=1)
+        kk, ii, jj = np.nonzero((rows >= 0) & (cols >= 0))
+        self.h_pos = self.band(rows[kk, ii, jj], cols[kk, ii, jj])
+        self.h_src = ii + 8 * jj + 64 * kk  # into the (64, n) Hessians, column-major
+        self.lu_size = (3 * _BW + 1) * self.size
+        unknowns = np.arange(m)
+        self.diag = self.band(unknowns, unknowns)
+        self.below = self.band(unknowns[2:], unknowns[2:] - 2)  # (q_k, q_{k−1}), joint by joint
+        self.above = self.band(unknowns[2:] - 2, unknowns[2:])
+        last = np.array([m - 2, m - 1])
+        self.tip_block = self.band(last[[0, 0, 1, 1]], last[[0, 1, 0, 1]])
+        self.tip_col = self.band(last, np.full(2, m))
+        self.tip_row = self.band(np.full(2, m), last)
+        self.gather = _scatter(n).gather
+
+    @staticmethod
+    def band(rows, cols) -> np.ndarray:
+        return (2 * _BW + np.asarray(rows) - np.asarray(cols)) + (3 * _BW + 1) * np.asarray(cols)
+
+
+@functools.lru_cache(maxsize=8)
+def _lay(n: int) -> _Layout:
+    return _Layout(n)
+
+
+def _split(e: np.ndarray, c: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    """The slacks ``(s⁺, s⁻)`` of the powers ``e`` that minimise ``c(s⁺ + s⁻) − μ ln s⁺ − μ ln s⁻`` subject to
+    ``s⁺ − s⁻ = e`` (``c > 0``): ``s⁻ = (μ − ce + r) / (2c)``, ``r = √(c²e² + μ²)``."""
+    r = np.sqrt(c**2 * e**2 + mu**2)
+    sm = (mu - c * e + r) / (2 * c)
+    return e + sm, sm
+
+
+def _energy_barrier(e: np.ndarray, c: np.ndarray, mu: float) -> tuple[np.ndarray, np.ndarray]:
+    """That minimum (up to a constant) and its derivative in ``e``: ``φ = r − μ ln(μ + r)``, ``φ' = c²e / (μ + r)``;
+    ``φ → c|e|`` as ``μ → 0``."""
+    r = np.sqrt(c**2 * e**2 + mu**2)
+    return r - mu * np.log(mu + r), c**2 * e / (mu + r)
+
+
+def _to_boundary(v: np.ndarray, dv: np.ndarray) -> float:
+    """The longest step (at most 1) keeping ``v + α dv`` at least ``1 − _FRACTION`` of ``v``."""
+    neg = dv < 0
+    if not neg.any():
+        return 1.0
+    return min(1.0, float(np.min(-_FRACTION * v[neg] / dv[neg])))
+
+
+class _Reach:
+    """One DOC on its knots: the task's constants and what every step evaluates (the stages' derivatives through
+    :mod:`.newton`'s compiled stage function, the bounds' slacks, the bar, the barrier function)."""
+
+    def __init__(self, task: ReachingTask, weights: np.ndarray, q: np.ndarray, fscale: float | None) -> None:
+        n = self.n = task.n_nodes
+        self.lay = _lay(n)
+        w_knot = np.asarray(weights, dtype=float)[_knot_windows(n, weights.shape[0])]  # (n, 7)
+        self.dt = float(task.dt)
+        self.q0 = np.asarray(task.q0, dtype=float)
+        self.lo, self.hi, self.vmax = (np.asarray(a, dtype=float) for a in (task.q_lower, task.q_upper, task.qd_max))
+        self.l1, self.l2, self.target = task.arm.l1, task.arm.l2, task.target_x
+        self.trigger, inputs, (self.out_flat,) = _workspace(_stage_map, n)
+        self.x_in, ws_in, self.y_in, arm_in, dt_in, self.fs_in = inputs
+        ws_in[:] = np.vstack([w_knot.T, np.zeros(n)]).reshape(-1, order="F")  # σ = 0: the energy is the split's
+        arm_in[:], dt_in[0] = _arm_params(task.arm), self.dt
+        if fscale is None:  # 1 / the start's cost: an objective of order one
+            self.fs_in[0], self.act = 1.0, np.zeros(0, dtype=int)
+            cost = float(np.sum(self.evaluate(q, np.zeros(0))[_ROWS - 1]))
+            fscale = 1.0 / cost if math.isfinite(cost) and cost > 1e-300 else 1.0
+        self.fscale = self.fs_in[0] = fscale
+        w_e = fscale * self.dt * w_knot[:, 1]
+        act = np.flatnonzero(w_e > 0)
+        self.act = act[act > 0]  # the stages with an energy term (stage 0's power is zero: q̇_0 = 0)
+        self.c = w_e[self.act]
+        # ∂s_b/∂q_k of each slack kind (q − lo, hi − q, vmax − q̇, vmax + q̇); ∂/∂q_{k−1} is minus the speeds'
+        self.a_own = np.array([1.0, -1.0, -1.0 / self.dt, 1.0 / self.dt])[:, None, None]
+
+    def evaluate(self, q: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The stage function's output ``(82, n)`` at the inner knots ``q (N−1, 2)``, with the multipliers ``y`` of
+        the energy's split on the stages :attr:`act` (the Lagrangian ``f + Σ y_k e_k``)."""
+        self.x_in[:] = _path(self.q0, q)[self.lay.gather]
+        self.y_in[:] = 0.0
+        self.y_in[self.act] = y
+        self.trigger()
+        return self.out_flat.reshape(_ROWS, self.n, order="F").copy()
+
+    def slacks(self, q: np.ndarray) -> np.ndarray:
+        """The bounds' slacks ``(4, N−1, 2)``: ``q − lo``, ``hi − q``, ``vmax − q̇``, ``vmax + q̇``."""
+        s = np.empty((4, self.n - 1, 2))
+        v = s[3]
+        v[0] = q[0] - self.q0
+        np.subtract(q[1:], q[:-1], out=v[1:])
+        v /= self.dt
+        np.subtract(self.vmax, v, out=s[2])
+        v += self.vmax
+        np.subtract(q, self.lo, out=s[0])
+        np.subtract(self.hi, q, out=s[1])
+        return s
+
+    def tip(self, qn: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+        """The bar's constraint ``P_x(q_{N−1}) − target``, its gradient and its Hessian (row-major)."""
+        l1, l2 = self.l1, self.l2
+        c1, c12, s1, s12 = math.cos(qn[0]), math.cos(qn[0] + qn[1]), math.sin(qn[0]), math.sin(qn[0] + qn[1])
+        jac = np.array([-l1 * s1 - l2 * s12, -l2 * s12])
+        curv = -np.array([l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12])
+        return l1 * c1 + l2 * c12 - self.target, jac, curv
+
+    def merit(self, q: np.ndarray, out: np.ndarray, mu: float, nu: float) -> float:
+        """The primal barrier function: the smooth terms, the energy's barrier (:func:`_energy_barrier`), the
+        bounds' ``−μ Σ ln s_b`` and ``ν |bar|``; infinite outside the bounds."""
+        s_b = self.slacks(q)
+        if np.any(s_b <= 0):
+            return math.inf
+        e = out[72, self.act]
+        smooth = float(np.sum(out[_ROWS - 1]) - np.sum(self.c * np.abs(e)))
+        energy = float(np.sum(_energy_barrier(e, self.c, mu)[0]))
+        return smooth + energy - mu * float(np.sum(np.log(s_b))) + nu * abs(self.tip(q[-1])[0])
+
+
+@dataclass
+class _Iterate:
+    """The method's point: the inner knots ``q``, the stage function's output there, the energy split's slacks
+    ``s±``, duals ``z±`` and multipliers ``y`` (on the stages with energy), the bounds' slacks and duals, the bar's
+    multiplier."""
+
+    q: np.ndarray
+    out: np.ndarray
+    sp: np.ndarray
+    sm: np.ndarray
+    zp: np.ndarray
+    zm: np.ndarray
+    y: np.ndarray
+    s_b: np.ndarray
+    zb: np.ndarray
+    lam: float = 0.0
+
+    def center(self, reach: _Reach, mu: float) -> None:
+        """The duals at their central values for the slacks (``z = μ / s``, ``y = c − z⁺``), the stages' output
+        evaluated at the new ``y``."""
+        self.zp, self.zm, self.zb = mu / self.sp, mu / self.sm, mu / self.s_b
+        self.y = reach.c - self.zp
+        self.out = reach.evaluate(self.q, self.y)
+
+
+def interior_solve(
+    task: ReachingTask, weights: np.ndarray, q_start: np.ndarray, fscale: float | None = None, max_iter: int = MAX_ITER
+) -> NewtonResult | None:
+    """The DOC's optimum from the joint path ``q_start (N+1, 2)`` (strictly inside the joint limits and the speed
+    bound), or None when the method cannot vouch for it (module docstring). ``weights (n_windows, 7)``;
+    ``fscale``: the objective's scale, by default ``1 / cost`` of the start (the tolerances are relative to an
+    objective of order one)."""
+    q = np.array(q_start[1 : task.n_nodes], dtype=float)
+    reach = _Reach(task, weights, q, fscale)
+    s_b = reach.slacks(q)
+    if np.any(s_b <= 0):
+        return None
+    mu = MU_START
+    out = reach.evaluate(q, np.zeros(reach.act.size))
+    sp, sm = _split(out[72, reach.act], reach.c, mu)
+    x = _Iterate(q, out, sp, sm, sp, sm, sp, s_b, s_b)
+    x.center(reach, mu)
+    nu, delta, central, m0, it = 1.0, 0.0, False, None, 0
+    while True:
+        solved = _error(reach, x, mu) <= max(10.0 * mu, TOL) and abs(reach.tip(x.q[-1])[0]) < BAR_TOL
+        if not solved:
+            if it >= max_iter:
+                return None
+            step = _step(reach, x, mu, delta)
+            if step is None:
+                return None
+            dq, dlam, dx, dy, dzp, dzm, delta = step
+            ds_b = reach.slacks(x.q + dq) - x.s_b
+            dzb = mu / x.s_b - x.zb - x.zb / x.s_b * ds_b
+            if m0 is None or 2.0 * abs(x.lam + dlam) > nu:
+                nu = max(nu, 2.0 * abs(x.lam + dlam))
+                m0 = reach.merit(x.q, x.out, mu, nu)
+            dm = _slope(reach, x, mu, nu, dx, ds_b)
+            solved = dm > -1e-13 * max(1.0, abs(m0))  # nothing left to gain above round-off
+            if solved and dm > 1e-10:  # uphill: the duals' own step; again with the duals at their centre
+                if central:
+                    return None
+                x.center(reach, mu)
+                central, m0 = True, None
+                continue
+        if solved:
+            if mu <= MU_END:
+                if delta > 0.0:
+                    return None  # a saddle or a maximum: the Hessian needed regularising at the end
+                return _result(x, reach, it)
+            mu = max(MU_END, min(0.2 * mu, mu**1.5))
+            x.sp, x.sm = _split(x.out[72, reach.act], reach.c, mu)
+            central, m0 = False, None
+            continue
+        it += 1
+        alpha_d = min(_to_boundary(x.zp, dzp), _to_boundary(x.zm, dzm), _to_boundary(x.zb.ravel(), dzb.ravel()))
+        alpha = _to_boundary(x.s_b.ravel(), ds_b.ravel())
+        for _ in range(30):  # backtracking (Armijo) on the barrier function
+            q_try = x.q + alpha * dq
+            out_try = reach.evaluate(q_try, x.y + alpha * dy)
+            m_try = reach.merit(q_try, out_try, mu, nu)
+            if math.isfinite(m_try) and m_try <= m0 + _ARMIJO * alpha * dm:
+                break
+            alpha *= 0.5
+        else:
+            return None
+        x.q, x.out, m0 = q_try, out_try, m_try
+        x.lam += alpha * dlam
+        x.y = x.y + alpha * dy
+        x.zp, x.zm, x.zb = x.zp + alpha_d * dzp, x.zm + alpha_d * dzm, x.zb + alpha_d * dzb
+        x.s_b = reach.slacks(x.q)
+        x.sp, x.sm = _split(x.out[72, reach.act], reach.c, mu)  # the split exact again
+        central = False
+
+
+def _bounds_gradient(reach: _Reach, v: np.ndarray) -> np.ndarray:
+    """``Aᵀ v`` for ``v (4, N−1, 2)`` on the bounds' slacks: ``(N−1, 2)`` on the knots."""
+    a = reach.a_own
+    g = (a * v).sum(axis=0)
+    g[:-1] -= (a[2:] * v[2:, 1:]).sum(axis=0)
+    return g
+
+
+def _error(reach: _Reach, x: _Iterate, mu: float) -> float:
+    """The largest residual of the primal-dual equations at ``μ``: stationarity in the knots, in the slacks ``s±``,
+    and the complementarity of the split and of the bounds."""
+    lay, m = reach.lay, reach.lay.m
+    grad = np.bincount(lay.g_rows, weights=x.out[0:8].reshape(-1, order="F")[lay.g_src], minlength=m)
+    grad[m - 2 :] += x.lam * reach.tip(x.q[-1])[1]
+    r_q = grad - _bounds_gradient(reach, x.zb).reshape(-1)
+    return max(
+        float(np.max(np.abs(r_q))),
+        float(np.max(np.abs(reach.c - x.y - x.zp), initial=0.0)),
+        float(np.max(np.abs(reach.c + x.y - x.zm), initial=0.0)),
+        float(np.max(np.abs(x.sp * x.zp - mu), initial=0.0)),
+        float(np.max(np.abs(x.sm * x.zm - mu), initial=0.0)),
+        float(np.max(np.abs(x.s_b * x.zb - mu))),
+    )
+
+
+def _slope(reach: _Reach, x: _Iterate, mu: float, nu: float, dx: np.ndarray, ds_b: np.ndarray) -> float:
+    """The barrier function's directional derivative along the step (``dx (8, n)``: each stage's knots' step;
+    ``ds_b``: the bounds' slacks' step); the step meets the linearised bar, so ``ν |bar|`` falls by itself."""
+    e, de = x.out[72, reach.act], x.out[73:81, reach.act]
+    slope = x.out[0:8].copy()
+    slope[:, reach.act] += de * (_energy_barrier(e, reach.c, mu)[1] - x.y)  # the Lagrangian's y e taken out
+    return float(np.sum(slope * dx)) - mu * float(np.sum(ds_b / x.s_b)) - nu * abs(reach.tip(x.q[-1])[0])
+
+
+def _step(reach: _Reach, x: _Iterate, mu: float, last: float):
+    """One condensed primal-dual Newton step (module docstring): ``(dq, dλ, dx, dy, dz⁺, dz⁻, δ)``, with
+    ``dx (8, n)`` the stages' local steps and ``δ`` the regularisation used (tried from ``last / 3`` after a
+    regularised step, as IPOPT does); None if the factorisations fail."""
+    lay, act, c = reach.lay, reach.act, reach.c
+    m, size, n = lay.m, lay.size, reach.n
+    out, sp, sm, zp, zm = x.out, x.sp, x.sm, x.zp, x.zm
+    de = out[73:81, act]
+    cval, cj, ccurv = reach.tip(x.q[-1])
+    r_sp, r_sm = c - x.y - zp, c + x.y - zm
+    d = 1.0 / (sp / zp + sm / zm)  # the split's curvature in the power, from z±/s±
+    b = (mu - sm * zm - sm * r_sm) / zm - (mu - sp * zp - sp * r_sp) / zp  # the split itself is exact
+    hess = out[8:72].copy()
+    hess[:, act] += (de[:, None, :] * de[None, :, :]).reshape(64, -1) * d
+    ab = np.bincount(lay.h_pos, weights=hess.reshape(-1, order="F")[lay.h_src], minlength=lay.lu_size)
+    g_loc = out[0:8].copy()
+    g_loc[:, act] += de * (d * b)
+    g = np.bincount(lay.g_rows, weights=g_loc.reshape(-1, order="F")[lay.g_src], minlength=m)
+    g[m - 2 :] += x.lam * cj
+    # the bounds: gradient −Aᵀ(μ/s_b), Hessian Aᵀ diag(z_b/s_b) A (a knot, and a knot with the one before it)
+    a, sig = reach.a_own, x.zb / x.s_b
+    g -= _bounds_gradient(reach, mu / x.s_b).reshape(-1)
+    hd = (a**2 * sig).sum(axis=0)
+    hd[:-1] += (a[2:] ** 2 * sig[2:, 1:]).sum(axis=0)
+    ho = -(a[2:] ** 2 * sig[2:, 1:]).sum(axis=0)  # (q_{k+1}, q_k) for k = 1 … N−2
+    ab[lay.diag] += hd.reshape(-1)
+    ab[lay.below] += ho.reshape(-1)
+    ab[lay.above] += ho.reshape(-1)
+    ab[lay.tip_block] += x.lam * ccurv
+    ab[lay.tip_col] += cj
+    ab[lay.tip_row] += cj
+    ab = ab.reshape(3 * _BW + 1, size, order="F")
+    delta = _regularisation(ab, m, cj, last)
+    if delta is None:
+        return None
+    ab[2 * _BW, :m] += delta
+    _, _, step, info = _gbsv(_BW, _BW, ab, -np.r_[g, cval], overwrite_ab=True)
+    if info != 0 or not np.all(np.isfinite(step)):
+        return None
+    dpath = np.zeros(2 * (n + 3))
+    dpath[6 : 6 + m] = step[:m]
+    dpath[-2:] = step[m - 2 : m]  # q_N = q_{N−1}
+    dx = dpath[lay.gather].reshape(8, n, order="F")
+    dy = d * (np.sum(de * dx[:, act], axis=0) + b)
+    return step[:m].reshape(-1, 2), float(step[m]), dx, dy, r_sp - dy, r_sm + dy, delta
+
+
+def _regularisation(ab: np.ndarray, m: int, cj: np.ndarray, last: float) -> float | None:
+    """The smallest ``δ`` tried (0, then from ``last / 3`` or 1e-10 of the diagonal, growing eightfold) that makes
+    the knots' Hessian in the LU storage ``ab`` plus ``δI`` positive definite on the bar's null space: a banded
+    Cholesky of ``H + δI + ρ ĉĉᵀ`` (``ĉ`` the bar's unit gradient ``cj``, ``ρ`` a thousand times the largest
+    diagonal entry); None if 40 tries do not."""
+    upper = ab[_BW : 2 * _BW + 1, :m].copy()  # the upper band, diagonal last, as LAPACK's dpbtrf reads it
+    scale = max(1.0, float(np.max(np.abs(upper[_BW]))))
+    u = cj / max(float(np.hypot(cj[0], cj[1])), 1e-300)
+    rho = 1e3 * scale
+    upper[_BW, m - 2] += rho * u[0] ** 2
+    upper[_BW, m - 1] += rho * u[1] ** 2
+    upper[_BW - 1, m - 1] += rho * u[0] * u[1]
+    delta = 0.0
+    for k in range(40):
+        trial = upper.copy()
+        trial[_BW] += delta
+        if _pbtrf(trial, lower=0)[1] == 0:
+            return delta
+        delta = last / 3.0 if k == 0 and last > 0 else max(1e-10 * scale, 8.0 * delta)
+    return None
+
+
+def _result(x: _Iterate, reach: _Reach, it: int) -> NewtonResult:
+    """The answer as :mod:`.newton`'s result: the knots ``(N+1, 2)``, the steps, the corners (stages whose power is
+    below a thousandth of its largest), the scale, the bar's multiplier and the objective (unscaled, with the
+    exact ``|e|``: the stages' costs)."""
+    e = np.abs(x.out[72, reach.act])
+    return NewtonResult(
+        q=np.vstack([reach.q0, x.q, x.q[-1:]]),
+        iterations=it,
+        n_kinks=int(np.sum(e < 1e-3 * max(float(e.max(initial=0.0)), 1e-300))),
+        fscale=float(reach.fscale),
+        bar_multiplier=float(x.lam),
+        cost=float(np.sum(x.out[_ROWS - 1])) / float(reach.fscale),
+    )
