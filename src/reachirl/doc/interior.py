@@ -230,7 +230,7 @@ def interior_solve(
     sp, sm = _split(out[72, reach.act], reach.c, mu)
     x = _Iterate(q, out, sp, sm, sp, sm, sp, s_b, s_b)
     x.center(reach, mu)
-    nu, delta, central, m0, it = 1.0, 0.0, False, None, 0
+    nu, delta, central, m0, it = 0.0, 0.0, False, None, 0
     while True:
         solved = _error(reach, x, mu) <= max(10.0 * mu, TOL) and abs(reach.tip(x.q[-1])[0]) < BAR_TOL
         if not solved:
@@ -242,8 +242,11 @@ def interior_solve(
             dq, dlam, dx, dy, dzp, dzm, delta = step
             ds_b = reach.slacks(x.q + dq) - x.s_b
             dzb = mu / x.s_b - x.zb - x.zb / x.s_b * ds_b
-            if m0 is None or 2.0 * abs(x.lam + dlam) > nu:
-                nu = max(nu, 2.0 * abs(x.lam + dlam))
+            # the bar's penalty above its multiplier, set afresh each step (kept from the largest multiplier
+            # seen, it stayed large after the far start and took more steps: design-notes)
+            nu_new = 2.0 * abs(x.lam + dlam) + 1e-3
+            if m0 is None or nu_new != nu:
+                nu = nu_new
                 m0 = reach.merit(x.q, x.out, mu, nu)
             dm = _slope(reach, x, mu, nu, dx, ds_b)
             solved = dm > -1e-13 * max(1.0, abs(m0))  # nothing left to gain above round-off
