@@ -4,8 +4,8 @@
 On the built-in virtual subjects, each posture's protocol fit (MO-IRL with weight samples, training split of
 :func:`reachirl.experiments.protocol.split_trials`) re-solves its training rollouts under its first ``n_check``
 weight samples (weights up to a factor of a few hundred from the fit's), warm from the fit's solutions, as
-:func:`reachirl.irl.uncertainty.rollout_errors` does: by the default path (exact Newton, then the interior point,
-then fatrop) and by fatrop alone (the path before the interior point; a cold retry where its warm start fails),
+:func:`reachirl.irl.uncertainty.rollout_errors` does: by its path (exact Newton, then the interior point, then
+fatrop) and by fatrop alone (the path before the interior point; a cold retry where its warm start fails),
 interleaved. Reported: CPU per re-solve of each path (median, mean, 90th percentile) and the ratio of the totals,
 which solver answered, the re-solves that did not converge on each path, and how the answers compare: the
 largest joint-angle difference, and the default path's cost relative to fatrop's (fatrop stops at its tolerance,
@@ -37,7 +37,8 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, n_check: int
                 out = {}
                 for default in (True, False):
                     t0 = time.process_time()
-                    out[default] = (solve_doc(task, w, warm_start=before, newton=default), time.process_time() - t0)
+                    sol = solve_doc(task, w, warm_start=before, newton=default, interior=default)
+                    out[default] = (sol, time.process_time() - t0)
                 (new, t_new), (old, t_old) = out[True], out[False]
                 both = new.converged and old.converged
                 rows.append(

@@ -141,7 +141,7 @@ def compiled_figures(problems, reference, reference_warm) -> dict:
             c1 = time.process_time()
             warm = solve_doc(task, w2, warm_start=sol)
             c2 = time.process_time()
-            newton = solve_doc(task, w2, warm_start=sol, newton=True, interior=False)  # as MO-IRL's warm_newton
+            newton = solve_doc(task, w2, warm_start=sol, newton=True)  # as MO-IRL's warm_newton
             c3 = time.process_time()
             cpu.append(c1 - c0)
             cpu_warm.append(c2 - c1)

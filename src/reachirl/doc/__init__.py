@@ -60,7 +60,7 @@ def solve_doc(
     retry_cold: bool = True,
     guess: np.ndarray | None = None,
     newton: bool = False,
-    interior: bool = True,
+    interior: bool = False,
 ) -> DocSolution:
     """Solve the reaching DOC of ``task`` under ``weights`` (shape ``(n_windows, 7)``, columns in FEATURES order).
 
@@ -74,9 +74,9 @@ def solve_doc(
     minimum-jerk path of the cold start; with ``newton`` (the CasADi backend; predictions, whose ``guess`` is a
     similar reach moved to the task), that start is first solved by exact Newton on the knots
     (:mod:`reachirl.doc.newton`), at the same optimum in a fraction of the time, with fatrop as its fallback;
-    with ``newton`` and a ``warm_start`` of the same task, Newton starts from that solution instead. Where Newton
-    gives way, the interior point on the knots (:mod:`reachirl.doc.interior`) solves from the same start before
-    fatrop, unless ``interior=False`` (MO-IRL's line search, whose tables were measured with fatrop there).
+    with ``newton`` and a ``warm_start`` of the same task, Newton starts from that solution instead, and with
+    ``interior`` too (weights far from the warm start's: the uncertainty's checked samples), the interior point on
+    the knots (:mod:`reachirl.doc.interior`) solves where Newton gives way, before fatrop.
     A solution that did not converge is returned with ``converged=False``, never raised.
 
     The problem is scale-free: ω and c·ω (any c > 0) have the same optimum. The backends solve it for

@@ -37,9 +37,10 @@ Solvers (the measurements behind the choice are in ``docs/design-notes.md``, "DO
   previous primal point with a small initial barrier parameter and bound push (:data:`FATROP_WARM_OPTIONS`).
 * **IPOPT** (:data:`IPOPT_OPTIONS`) is the fallback: a cold fatrop solve that does not converge is solved
   again cold with IPOPT.
-* With ``newton`` (:func:`solve`), the knots-only solvers come first, from the same start: exact Newton
-  (:mod:`reachirl.doc.newton`), then the interior point on the knots (:mod:`reachirl.doc.interior`), each of which
-  answers only when it can vouch for its answer; fatrop (then IPOPT) solves the rest.
+* With ``newton`` (:func:`solve`), exact Newton on the knots (:mod:`reachirl.doc.newton`) comes first, from the
+  same start, and with ``interior`` a warm start Newton gives way on goes to the interior point on the knots
+  (:mod:`reachirl.doc.interior`); each answers only when it can vouch for its answer, and fatrop (then IPOPT)
+  solves the rest.
 """
 
 from __future__ import annotations
@@ -398,17 +399,18 @@ def solve(
     retry_cold: bool = True,
     guess: np.ndarray | None = None,
     newton: bool = False,
-    interior: bool = True,
+    interior: bool = False,
 ) -> DocSolution:
     """Solve the DOC; warm from ``warm_start`` when it is the same task, cold when it is another task on the
     same knots, and cold again when the warm attempt fails and ``retry_cold``; a ``warm_start`` on another
     number of knots raises a ``ValueError``. A cold fatrop solve that fails is retried with IPOPT.
 
     With ``newton`` (predictions), a cold start from ``guess`` (a similar reach moved to this task) is first
-    solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), then, where Newton gives way, by the
-    interior point on the knots (:mod:`reachirl.doc.interior`; not with ``interior=False``); each either vouches
-    for its answer or gives way to fatrop from the same start. So is a warm start (MO-IRL's line search, without
-    the interior point, and the uncertainty's checked samples; unless MO-IRL's ``warm_newton`` option is off).
+    solved by exact Newton on the knots (:mod:`reachirl.doc.newton`), which either vouches for its answer or
+    gives way to fatrop from the same start; so is a warm start (MO-IRL's line search, unless its
+    ``warm_newton`` option is off). With ``interior`` too, a warm start that Newton gives way on (weights far from
+    the warm start's: the uncertainty's checked samples) is solved by the interior point on the knots
+    (:mod:`reachirl.doc.interior`) before fatrop.
 
     ``iterations`` and ``solve_time`` count every attempt.
     """
@@ -454,7 +456,7 @@ def solve(
         ok = _converged(stats, x)
     if q is None and x is None and newton and guess is not None:
         # a close start (a similar reach moved to this task): exact Newton first, which vouches for its answer
-        # or gives way to the interior point on the knots, then to fatrop, from the same start
+        # or gives way to the interior point from the same start
         start = np.array(guess, dtype=float)
         start[0], start[-2] = task.q0, start[-1]  # at rest at both ends, as _pack makes it
         start[1:] = np.clip(start[1:], task.q_lower, task.q_upper)
@@ -463,13 +465,6 @@ def solve(
         elapsed, attempts = elapsed + time.perf_counter() - t0, attempts + 1
         if found is not None:
             q, ok, kind, fscale, iterations, cost = found.q, True, "newton", found.fscale, found.iterations, found.cost
-        elif interior:  # the interior point on the knots from the same start, then fatrop
-            t0 = time.perf_counter()
-            found = interior_solve(task, weights, start)
-            elapsed, attempts = elapsed + time.perf_counter() - t0, attempts + 1
-            if found is not None:
-                q, ok, kind, fscale, cost = found.q, True, "interior", found.fscale, found.cost
-                iterations += found.iterations
     if q is None and (x is None or (retry_cold and not ok)):
         # cold: a neighbouring reach's solution misleads the solver, and so does a warm start after a large
         # change of weights

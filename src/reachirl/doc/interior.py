@@ -3,7 +3,7 @@ and the bounds inside the method.
 
 :mod:`reachirl.doc.newton` solves the DOC on its knots ``q_1 … q_{N−1}`` (the dynamics eliminated) by exact Newton,
 which needs the energy's corners and the active bounds known near its start. From a start far from the answer
-(the fit's reach under weights a factor 100 from the fit's, as the uncertainty's checked samples are) the corners
+(the fit's reach under weights a factor 10-250 from the fit's, as the uncertainty's checked samples are) the corners
 move at every step and Newton rarely settles. This method keeps the knots as its unknowns and handles what moves
 as an interior point does (fatrop's and IPOPT's method, on the same problem):
 
@@ -20,8 +20,9 @@ Hessian, and the bounds add ``Aᵀ diag(z_b/s_b) A`` on neighbouring knots. The 
 derivatives are :mod:`reachirl.doc.newton`'s compiled stage function (the Lagrangian ``f + Σ y_k e_k``).
 
 Globalisation: the step is damped until the primal barrier function (the slacks at their optimum for the power,
-``φ_μ(e) = r − μ ln(μ + r)``, ``r = √(w²e² + μ²)``, the bounds' barrier and ``ν|c|`` for the bar) falls by an
-Armijo fraction of its directional derivative (a backtracking line search after the fraction to the boundary).
+``φ_μ(e) = r − μ ln(μ + r)``, ``r = √(w²e² + μ²)``, the bounds' barrier and ``ν|c|`` for the bar, ``ν`` twice
+the bar's new multiplier) falls by an Armijo fraction of its directional derivative (a backtracking line search
+after the fraction to the boundary).
 The Hessian is regularised (``+δI``) until it is positive definite on the bar's null space (a banded Cholesky of
 ``H + ρ ĉĉᵀ``), so that the step is a descent direction. After each step the slacks are reset to their optimum
 for the new power (``s±(e)``, which keeps the split exact), and a step whose duals point uphill is taken again
@@ -47,7 +48,7 @@ from .task import ReachingTask
 
 __all__ = ["MAX_ITER", "interior_solve"]
 
-MAX_ITER = 150  # steps; measured on the checked samples of `make run`: median 29, 96 of 105 within 150
+MAX_ITER = 150  # steps; on `make run`'s checked samples: median 17, the slowest answer 106 (design-notes)
 MU_START = 1e-5  # the barrier parameter at the start (fatrop's warm start's, on the same order-one objective)
 MU_END = 1e-9
 TOL = 1e-7  # the primal-dual equations' error at MU_END (fatrop stops at 1e-6)

@@ -44,9 +44,8 @@ class Options:
       ``"gauss-newton"``): the step on a model of the merit when the likelihood's lowers none.
     * ``frozen_windows``: windows whose weights stay at ``ω₀`` (occlusion).
     * ``warm_newton``: the line search's warm solves (the same reach under new weights) by exact Newton on the
-      knots from the previous solution (:mod:`reachirl.doc.newton`), then the interior point on the knots
-      (:mod:`reachirl.doc.interior`), fatrop where neither can vouch for its answer (the CasADi backend);
-      ``False``: every warm solve by fatrop.
+      knots from the previous solution (:mod:`reachirl.doc.newton`), fatrop where Newton cannot vouch for its
+      answer (the CasADi backend); ``False``: every warm solve by fatrop.
     * Variants measured and kept off: ``smoothness`` (a number or ``"cv"``), ``cv_folds``, ``feature_cutoff``,
       ``memory``, ``use_gamma``, ``l1``, ``n_suffixes``, ``acceptance`` (``"merit"``, ``"either"``,
       ``"multimodal"``), ``armijo_c1``, ``curvature_c2``.
