@@ -267,12 +267,13 @@ def render(snap: dict) -> str:
         lines += [
             f"- **The uncertainty's checked samples** (`reachirl bench checks`, same machine; {ck['n_solves']} "
             "re-solves of the built-in data's 8-section protocol fits under their first weight samples, warm from "
-            f"the fits' solutions, CPU): the default path {ck['default_cpu_ms_median']} ms median "
+            "the fits' solutions, CPU): by their path (exact Newton, then the interior point on the knots, then "
+            f"fatrop) {ck['default_cpu_ms_median']} ms median "
             f"({ck['default_cpu_ms_mean']} ms mean) against {ck['fatrop_cpu_ms_median']} ms "
             f"({ck['fatrop_cpu_ms_mean']} ms) for fatrop from the same start, {ck['ratio_cpu_total']:.2f} of its "
-            f"total. Answered by: {by}. Not converged: {ck['not_converged']['default_path']} on the default path, "
+            f"total. Answered by: {by}. Not converged: {ck['not_converged']['default_path']} on their path, "
             f"{ck['not_converged']['fatrop_path']} on fatrop's. The answers lie {ck['diff_deg_median']}° apart "
-            f"(median; 90th percentile {ck['diff_deg_p90']}°); the default path's cost is lower than fatrop's by "
+            f"(median; 90th percentile {ck['diff_deg_p90']}°); their path's cost is lower than fatrop's by "
             f"more than 1e-6 on {ck['cost_lower']} (up to {-ck['largest_fall_pct']} %), higher on "
             f"{ck['cost_higher']} (at most {ck['largest_rise_pct']} %; another local optimum).",
             "",
