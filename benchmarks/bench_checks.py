@@ -5,11 +5,11 @@ On the built-in virtual subjects, each posture's protocol fit (MO-IRL with weigh
 :func:`reachirl.experiments.protocol.split_trials`) re-solves its training rollouts under its first ``n_check``
 weight samples (weights up to a factor of a few hundred from the fit's), warm from the fit's solutions, as
 :func:`reachirl.irl.uncertainty.rollout_errors` does: by their path (exact Newton, then the interior point, then
-fatrop; the ``default`` keys) and by fatrop alone (the path before the interior point; a cold retry where its warm start fails),
-interleaved. Reported: CPU per re-solve of each path (median, mean, 90th percentile) and the ratio of the totals,
-which solver answered, the re-solves that did not converge on each path, and how the answers compare: the
-largest joint-angle difference, and their path's cost relative to fatrop's (fatrop stops at its tolerance,
-1e-6 of an order-one objective; a difference of several per cent is another local optimum).
+fatrop; the ``default`` keys) and by fatrop alone (the path before the interior point; a cold retry where its warm
+start fails), interleaved. Reported: CPU per re-solve of each path (median, mean, 90th percentile) and the ratio
+of the totals, which solver answered, the re-solves that did not converge on each path, and how the answers
+compare: the largest joint-angle difference, and their path's cost relative to fatrop's (fatrop stops at its
+tolerance, 1e-6 of an order-one objective; a difference of several per cent is another local optimum).
 """
 
 from __future__ import annotations
