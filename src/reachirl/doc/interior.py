@@ -199,11 +199,11 @@ class _Iterate:
     out: np.ndarray
     sp: np.ndarray
     sm: np.ndarray
-    zp: np.ndarray
-    zm: np.ndarray
-    y: np.ndarray
     s_b: np.ndarray
-    zb: np.ndarray
+    zp: np.ndarray | None = None  # None until :meth:`center` sets the duals
+    zm: np.ndarray | None = None
+    y: np.ndarray | None = None
+    zb: np.ndarray | None = None
     lam: float = 0.0
 
     def center(self, reach: _Reach, mu: float) -> None:
@@ -229,8 +229,8 @@ def interior_solve(
     mu = MU_START
     out = reach.evaluate(q, np.zeros(reach.act.size))
     sp, sm = _split(out[72, reach.act], reach.c, mu)
-    x = _Iterate(q, out, sp, sm, sp, sm, sp, s_b, s_b)
-    x.center(reach, mu)
+    x = _Iterate(q, out, sp, sm, s_b)
+    x.center(reach, mu)  # the duals start at their central values
     nu, delta, central, m0, it = 0.0, 0.0, False, None, 0
     while True:
         solved = _error(reach, x, mu) <= max(10.0 * mu, TOL) and abs(reach.tip(x.q[-1])[0]) < BAR_TOL
