@@ -141,8 +141,8 @@ def test_it_gives_way_when_it_cannot_vouch_for_its_answer(recorded_p4, monkeypat
 
 
 def test_the_line_search_keeps_fatrop_and_the_checked_samples_take_the_interior_point(recorded_p4, monkeypatch):
-    """MO-IRL's fits solve without the interior point (with it, some all-pairs tables moved by more than 0.01°); the
-    uncertainty's re-solves under far weights (``rollout_errors``) take it."""
+    """MO-IRL's fits solve without the interior point; the uncertainty's re-solves under far weights
+    (``rollout_errors``) take it."""
     from reachirl.irl import moirl, uncertainty
 
     asked = []

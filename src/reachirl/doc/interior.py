@@ -48,7 +48,7 @@ from .task import ReachingTask
 
 __all__ = ["MAX_ITER", "interior_solve"]
 
-MAX_ITER = 150  # steps; on `make run`'s checked samples: median 17, the slowest answer 106 (design-notes)
+MAX_ITER = 150  # steps (`make run`'s checked samples: median 17, at most 106)
 MU_START = 1e-5  # the barrier parameter at the start (fatrop's warm start's, on the same order-one objective)
 MU_END = 1e-9
 TOL = 1e-7  # the primal-dual equations' error at MU_END (fatrop stops at 1e-6)
@@ -243,8 +243,7 @@ def interior_solve(
             dq, dlam, dx, dy, dzp, dzm, delta = step
             ds_b = reach.slacks(x.q + dq) - x.s_b
             dzb = mu / x.s_b - x.zb - x.zb / x.s_b * ds_b
-            # the bar's penalty above its multiplier, set afresh each step (kept from the largest multiplier
-            # seen, it stayed large after the far start and took more steps: design-notes)
+            # the bar's penalty: above its new multiplier, set afresh each step (design-notes, "the bar's penalty")
             nu_new = 2.0 * abs(x.lam + dlam) + 1e-3
             if m0 is None or nu_new != nu:
                 nu = nu_new

@@ -367,10 +367,9 @@ class MOIRL(WeightEstimator):
         self, task, w, warm: DocSolution | None, guess: np.ndarray, far: bool = False
     ) -> tuple[DocSolution, int]:
         """One DOC: warm from ``warm`` (same task), then cold, then from ``guess`` (the demonstrations' path).
-        ``far``: weights far from ``warm``'s (the uncertainty's samples), solved by the interior point on the knots
-        where Newton gives way (the line search's tries keep fatrop there: with the interior point, some all-pairs
-        tables moved by more than 0.01°, design-notes). Returns the solution and the number of solver runs behind
-        it."""
+        ``far``: weights far from ``warm``'s (the uncertainty's samples, not the line search's tries), solved by the
+        interior point on the knots where Newton gives way. Returns the solution and the number of solver runs
+        behind it."""
         w = self._effective(w)
         sol = solve_doc(task, w, backend=self.backend, warm_start=warm, newton=self._o.warm_newton, interior=far)
         runs = sol.attempts
