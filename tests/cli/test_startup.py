@@ -1,5 +1,6 @@
 """What a command imports before it works: the help lists every command without importing them, a command
-imports its own module only, and a unit's worker leaves out scipy's statistics and signal packages."""
+imports its own module only, a unit's worker leaves out scipy's statistics and signal packages, and
+``reproduce``'s own process scipy's optimisation and interpolation."""
 
 import json
 import subprocess
@@ -12,7 +13,7 @@ from scipy import stats
 from reachirl.cli import COMMANDS, SUMMARIES
 from reachirl.irl.uncertainty import indistinguishable, merit_noise
 
-_HEAVY = ("scipy.stats", "scipy.signal", "casadi", "matplotlib")
+_HEAVY = ("scipy.stats", "scipy.signal", "scipy.optimize", "scipy.interpolate", "casadi", "matplotlib")
 
 
 def _imports_after(code: str) -> dict:
@@ -74,6 +75,18 @@ def test_a_units_worker_leaves_out_scipy_stats_and_signal():
     )
     assert "scipy.stats" not in seen["heavy"] and "scipy.signal" not in seen["heavy"]
     assert "casadi" in seen["heavy"]  # the probe did import the solver's side
+
+
+def test_reproduce_starts_its_units_without_scipy_optimize():
+    """What ``reproduce``'s own process imports before it starts the units' workers (the command, the runner, the
+    report, the data sets, the virtual subjects): not scipy.optimize and scipy.interpolate (0.25 s), which only
+    the workers use; a core waits for the command's imports."""
+    seen = _imports_after(
+        "import reachirl.cli.reproduce, reachirl.experiments.runner, reachirl.experiments.report, "
+        "reachirl.experiments.datasets, reachirl.virtual"
+    )
+    assert "scipy.optimize" not in seen["heavy"] and "scipy.interpolate" not in seen["heavy"]
+    assert "casadi" in seen["heavy"]  # the probe did import the DOC's modules
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 10, 40])

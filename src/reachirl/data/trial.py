@@ -15,7 +15,6 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from ..arm import ArmModel
 from ..errors import InputError
@@ -33,6 +32,15 @@ __all__ = [
     "trial_from_knots",
     "trial_from_solution",
 ]
+
+
+def _spline(t: np.ndarray, y: np.ndarray):
+    """scipy's cubic spline through ``y (n, k)`` at ``t``, along axis 0."""
+    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    from scipy.interpolate import CubicSpline
+
+    return CubicSpline(t, y, axis=0)
+
 
 TRIALS_FORMAT = "reachirl-trials/1"
 #: the ``format`` of a trials file's header in every version of it, :data:`TRIALS_FORMAT` and those before and after
@@ -181,7 +189,7 @@ class Trial:
         kept = self.__dict__.setdefault("_q_at", {})  # beside the fields: not compared, not a field of replace()
         q = kept.get(n_points)
         if q is None:
-            q = CubicSpline(self.t, self.q, axis=0)(np.linspace(0.0, self.duration, n_points))
+            q = _spline(self.t, self.q)(np.linspace(0.0, self.duration, n_points))
             q.setflags(write=False)
             if len(kept) < 8:
                 kept[n_points] = q
@@ -191,8 +199,8 @@ class Trial:
         """The same reach on ``n_points`` equally spaced samples (cubic spline; torques re-derived)."""
         t_new = np.linspace(0.0, self.duration, n_points)
         q = self.q_at(n_points)
-        qd = CubicSpline(self.t, self.qd, axis=0)(t_new)
-        qdd = CubicSpline(self.t, self.qdd, axis=0)(t_new)
+        qd = _spline(self.t, self.qd)(t_new)
+        qdd = _spline(self.t, self.qdd)(t_new)
         tau = self.arm.inverse_dynamics(q, qd, qdd)
         return replace(self, t=t_new, q=q, qd=qd, qdd=qdd, tau=tau)
 
@@ -221,10 +229,10 @@ class Trial:
         if not 0 < cutoff_hz < fs / 2:
             raise ValueError(f"cutoff must be in (0, {fs / 2:g}) Hz for a trial sampled at {fs:g} Hz, got {cutoff_hz}")
         t = np.linspace(0.0, self.duration, n)
-        q = CubicSpline(self.t, self.q, axis=0)(t)
+        q = _spline(self.t, self.q)(t)
         sos = butter(order, cutoff_hz, fs=fs, output="sos")
         q = sosfiltfilt(sos, q, axis=0, padtype="odd", padlen=min(n - 1, 3 * (2 * len(sos) + 1)))
-        spline = CubicSpline(t, q, axis=0)
+        spline = _spline(t, q)
         qd, qdd = spline(t, 1), spline(t, 2)
         return replace(
             self, t=t, q=q, qd=qd, qdd=qdd, tau=self.arm.inverse_dynamics(q, qd, qdd), x0=np.r_[q[0], self.x0[2:]]

@@ -24,17 +24,19 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from scipy import sparse
-from scipy.interpolate import BSpline, make_interp_spline
 
 from ..data.trial import Trial
 from ..errors import InputError
 from ..features import euler_knots
 from . import DocSolution, ReachingTask, solve_doc
 from .task import moved_path
+
+if TYPE_CHECKING:
+    from scipy.interpolate import BSpline
 
 __all__ = [
     "MOVING_FRACTION",
@@ -165,6 +167,8 @@ def _unit_knots(n: int) -> tuple[np.ndarray, np.ndarray, sparse.csr_matrix, spar
     knot values to its coefficients, and the (sparse) matrices that take the coefficients to its values and slopes
     at the :data:`_FINE` samples per interval. A B-spline on knots scaled by ``T`` has the same coefficients and
     values, and its slopes divided by ``T``: every DOC solution of ``n`` intervals shares them."""
+    from scipy.interpolate import BSpline, make_interp_spline  # here: it imports scipy.optimize (see _knot_spline)
+
     u = np.linspace(0.0, 1.0, n + 1)
     unit = make_interp_spline(u, np.eye(n + 1), k=3)
     slope = BSpline(unit.t, np.eye(n + 1), 3).derivative()
@@ -183,6 +187,9 @@ def _knot_spline(t: np.ndarray, y: np.ndarray, shared: bool = False) -> BSpline:
     """The not-a-knot cubic interpolant of the knot values ``y (N+1, ...)`` (``CubicSpline``'s default; as a
     B-spline, which scipy builds three times faster). ``shared``: on equally spaced knots, from the matrices of
     :func:`_unit_knots`, seven times faster again and equal to rounding (not bit for bit)."""
+    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    from scipy.interpolate import BSpline, make_interp_spline
+
     if not (shared and _equally_spaced(t)):
         return make_interp_spline(t, y, k=3)
     knots, coef, _, _ = _unit_knots(len(t) - 1)

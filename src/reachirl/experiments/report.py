@@ -754,6 +754,7 @@ def write_outputs(
         t_pred = time.perf_counter()
         write_predictions(run, skip)
         predictions_s = time.perf_counter() - t_pred + (0.0 if units is None else units.predictions_s)
+        comparisons = section_comparisons(run)
         figures.wait()
     fig_time = time.perf_counter() - t_fig
     computed = set(run.run_info.get("computed", []))
@@ -770,7 +771,6 @@ def write_outputs(
     timing["report_s"] = time.perf_counter() - t0
     timing["total_s"] = sum(timing.get(k, 0.0) for k in ("data_s", "units_wall_s", "report_s"))
     run.timing = timing
-    comparisons = section_comparisons(run)
     md_tables = markdown_tables(tables, postures, sections, n_trials)
     write_report(run, tables, md_tables, notes, figs, truth[2], comparisons, extra_md)
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)

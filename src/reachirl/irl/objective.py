@@ -29,7 +29,6 @@ Changing a feature's unit rescales its weight and leaves every step, in ω-space
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import Bounds, lsq_linear, minimize
 
 __all__ = [
     "Group",
@@ -145,6 +144,8 @@ def solve_delta(
 def minimize_in_box(fun, lower: np.ndarray, upper: np.ndarray | None, max_iter: int) -> tuple[np.ndarray, dict]:
     """Minimise ``fun(x) -> (value, gradient)`` over a matrix ``x`` of ``lower``'s shape within the bounds, from
     ``x = 0``, with scipy's L-BFGS-B. Returns ``x`` and the solver's report."""
+    from scipy.optimize import Bounds, minimize  # here: the command's own process never needs scipy.optimize
+
     shape = lower.shape
 
     def flat(x: np.ndarray) -> tuple[float, np.ndarray]:
@@ -316,5 +317,7 @@ def gauss_newton_step(residuals: np.ndarray, jacobians: np.ndarray, bound: float
     rho = ridge * max(float(np.sum(a * a)) / n_dir, 1e-300)
     a = np.vstack([a, np.sqrt(rho) * np.eye(n_dir)])
     b = np.concatenate([-r.reshape(-1) / np.sqrt(d), np.zeros(n_dir)])
+    from scipy.optimize import lsq_linear
+
     res = lsq_linear(a, b, bounds=(-bound, bound), method="bvls")
     return np.clip(res.x, -bound, bound)

@@ -8,7 +8,6 @@ import os
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from ..arm import ArmModel
 from ..data.trial import Trial, trial_from_knots
@@ -198,8 +197,11 @@ def simulate_trial(
     )
 
 
-def _reach_spline(t_knots: np.ndarray, q_knots: np.ndarray) -> CubicSpline:
+def _reach_spline(t_knots: np.ndarray, q_knots: np.ndarray):
     """A C² joint path through the DOC knots, at rest at both ends."""
+    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    from scipy.interpolate import CubicSpline
+
     return CubicSpline(t_knots, q_knots, axis=0, bc_type="clamped")
 
 

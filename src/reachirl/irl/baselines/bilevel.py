@@ -20,7 +20,6 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import minimize
 
 from ...data.trial import Trial
 from ...doc import DocSolution, solve_doc
@@ -155,6 +154,8 @@ class BilevelIOC(WeightEstimator):
         def count(_xk) -> None:
             nonlocal n_iter
             n_iter += 1
+
+        from scipy.optimize import minimize  # here: the command's own process never needs scipy.optimize
 
         try:
             bounds = [(-self.log_bound, self.log_bound)] * theta0.size

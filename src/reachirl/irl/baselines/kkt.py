@@ -46,7 +46,6 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 from scipy.linalg import qr
-from scipy.optimize import nnls
 
 from ...data.trial import Trial
 from ...doc.symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
@@ -187,6 +186,8 @@ class KKTIOC(WeightEstimator):
         n = A.shape[1]
         R = qr(A, mode="r")[0][:n]  # ‖Aω̃‖ = ‖Rω̃‖: a square system for the NNLS
         if w_rel is None:
+            from scipy.optimize import nnls  # here: the command's own process never needs scipy.optimize
+
             rho = self.norm_weight * max(float(np.linalg.norm(R)), 1e-300)
             w_rel, _ = nnls(np.vstack([R, rho * np.ones((1, n))]), np.r_[np.zeros(R.shape[0]), rho], maxiter=50 * n)
             w_rel = w_rel / max(w_rel.sum(), 1e-300)
