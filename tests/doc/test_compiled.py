@@ -3,6 +3,7 @@ never in the way (a broken cache file, no compiler, a bad setting)."""
 
 import time
 
+import casadi as ca
 import numpy as np
 import pytest
 
@@ -63,6 +64,42 @@ def test_compiled_solver_is_bit_identical_and_cached(cache, monkeypatch, arm, tm
         assert a.converged and b.converged and c.converged
         assert np.array_equal(a.q, b.q) and np.array_equal(a.q, c.q)
         assert a.cost == b.cost == c.cost and a.iterations == b.iterations == c.iterations
+
+
+def test_a_cached_solver_is_found_without_building_the_nlp(cache, monkeypatch, arm):
+    """A process whose compiled solvers are cached finds them from the note of the code that built them, without
+    the NLP's symbolic graph; the note names the solver the graph's own hash names, and one that names no cached
+    solver is not trusted."""
+    tasks, w = _problems(arm)
+    monkeypatch.setenv("REACHIRL_COMPILE", "on")
+    first = _solve_all(tasks[:1], w)  # compiles both solvers, and notes where they are
+    nlp = cas.build_nlp(N)
+    paths = {k: compiled.cache_path(nlp.nlp, slot.spec[2]) for k, slot in nlp.slots.items()}
+    notes = sorted((cache / f"casadi-{ca.__version__}" / "paths").glob("*.txt"))
+    assert sorted(n.read_text().strip() for n in notes) == sorted(p.parent.name for p in paths.values())
+
+    cas.build_nlp.cache_clear()
+    again = _solve_all(tasks[:1], w)
+    nlp = cas.build_nlp(N)
+    assert "_graph" not in vars(nlp), "the compiled solvers were found without building the NLP"
+    assert {"fatrop_compiled", "fatrop_warm_compiled"} <= set(nlp._solvers)
+    for a, b in zip(first, again, strict=True):
+        assert np.array_equal(a.q, b.q) and a.cost == b.cost
+
+    for note in notes:  # a note naming no cached solver (another version's, a removed one): the graph decides
+        note.write_text("doc-000000000000000000000000\n")
+    cas.build_nlp.cache_clear()
+    nlp = cas.build_nlp(N)
+    assert {k: slot.get() is not None for k, slot in nlp.slots.items()} == {"cold": True, "warm": True}
+    assert "_graph" in vars(nlp)
+    assert {k: s._path for k, s in nlp.slots.items()} == paths
+
+
+@pytest.mark.parametrize("n", [2, 5, 100])
+def test_the_nlp_sizes_without_its_graph_are_the_graphs(n):
+    nlp = cas._Nlp(n)
+    sizes = (nlp.n_z, nlp.n_g)
+    assert (nlp.nlp["x"].numel(), nlp.nlp["g"].numel()) == sizes
 
 
 def test_a_broken_cache_file_is_ignored(cache, monkeypatch, arm):

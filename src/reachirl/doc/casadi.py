@@ -46,8 +46,11 @@ Solvers (the measurements behind the choice are in ``docs/design-notes.md``, "DO
 from __future__ import annotations
 
 import functools
+import hashlib
+import json
 import threading
 import time
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -148,10 +151,34 @@ _BOUNDS_KEPT = 32  # sets of joint limits whose bounds an NLP keeps (~16 kB each
 
 
 class _Nlp:
-    """The NLP of a number of knots, with its solvers (built lazily, each used under ``lock``)."""
+    """The NLP of a number of knots, with its solvers (built lazily, each used under ``lock``). Its symbolic graph
+    (:attr:`nlp`) is built on first use: a process whose compiled solvers are cached never needs it."""
 
     def __init__(self, n: int):
         self.n = n
+        self.n_z = 2 + (n - 1) * (NX + NU) + NX  # q̈_0, (x_k, u_k) for k = 1 … N−1, x_N
+        self.n_g = n * NX + (n - 1) + 2 + 1  # the gaps, the energy splits, q̇_N = 0 and the bar
+        self._solvers: dict = {}
+        self._bounds: dict = {}
+        self.lock = threading.Lock()
+        self.slots = {
+            kind: compiled.Slot(n, lambda: self.nlp, spec, kind=kind, recipe=_recipe(n, spec))
+            for kind, spec in (("cold", self.cold_solver_spec()), ("warm", self.warm_solver_spec()))
+        }
+
+    @property
+    def nlp(self) -> dict:
+        """CasADi's NLP dict ``{"x", "p", "f", "g"}``."""
+        return self._graph["nlp"]
+
+    @property
+    def objective(self):
+        """The NLP's objective as a ``casadi.Function`` of ``(z, p)``."""
+        return self._graph["objective"]
+
+    @functools.cached_property
+    def _graph(self) -> dict:
+        n = self.n
         arm = ca.SX.sym("arm", len(ARM_FIELDS))
         q0 = ca.SX.sym("q0", 2)
         target = ca.SX.sym("target")
@@ -199,17 +226,11 @@ class _Nlp:
         g.append(fingertip(arm_l, xs[n][0:2])[0] - target)
         z = ca.vertcat(*z_blocks)
         gg = ca.vertcat(*g)
-        self.n_z, self.n_g = z.numel(), gg.numel()
-        self.p = ca.vertcat(arm, q0, target, dt, fscale, w)
-        self.nlp = {"x": z, "p": self.p, "f": fscale * obj, "g": gg}
-        self.objective = ca.Function("objective", [z, self.p], [self.nlp["f"]])
-        self._solvers: dict = {}
-        self._bounds: dict = {}
-        self.lock = threading.Lock()
-        self.slots = {
-            "cold": compiled.Slot(n, self.nlp, self.cold_solver_spec(), kind="cold"),
-            "warm": compiled.Slot(n, self.nlp, self.warm_solver_spec(), kind="warm"),
-        }
+        if (z.numel(), gg.numel()) != (self.n_z, self.n_g):  # pragma: no cover - the counts above are the layout's
+            raise AssertionError(f"the NLP has {z.numel()} variables and {gg.numel()} constraints")
+        p = ca.vertcat(arm, q0, target, dt, fscale, w)
+        nlp = {"x": z, "p": p, "f": fscale * obj, "g": gg}
+        return {"nlp": nlp, "objective": ca.Function("objective", [z, p], [nlp["f"]])}
 
     def kkt_functions(self) -> dict:
         """CasADi functions of the KKT conditions (built on first use, for :mod:`reachirl.doc.sensitivity`):
@@ -290,6 +311,31 @@ class _Nlp:
                 self._bounds.pop(next(iter(self._bounds)))
             self._bounds[key] = out
         return out
+
+
+@functools.lru_cache(maxsize=1)
+def _sources() -> bytes:
+    """The code that builds the NLP and compiles its solvers (this module, the arm's symbolic equations, the
+    features' count, :mod:`.compiled`); empty when it cannot be read."""
+    here = Path(__file__).parent
+    try:
+        return b"\0".join(
+            f.read_bytes()
+            for f in (here / "casadi.py", here / "symbolic.py", here / "compiled.py", here.parent / "features.py")
+        )
+    except OSError:
+        return b""
+
+
+def _recipe(n: int, spec: tuple[str, str, dict]) -> str:
+    """A hash of what the compiled solver ``spec`` of the NLP of ``n`` knots is made of, short of the NLP itself
+    (:func:`reachirl.doc.compiled.remembered_path`); empty when the code cannot be read."""
+    code = _sources()
+    if not code:
+        return ""
+    h = hashlib.sha256(code)
+    h.update(json.dumps([ca.__version__, n, spec], sort_keys=True, default=str).encode())
+    return h.hexdigest()[:32]
 
 
 @functools.lru_cache(maxsize=16)

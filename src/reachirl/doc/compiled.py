@@ -22,8 +22,10 @@ its sources into the working directory: the solving process never changes its ow
 The cache holds CasADi's own serialisation of the solver (no pickle) beside the library it links to, in
 ``<cache>/casadi-<version>/doc-<hash>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
 ``~/.cache/reachirl``). The hash covers the CasADi version, the NLP's own serialisation and the solver
-options, so a change of formulation or options never loads a stale solver. A file that does not load is
-ignored (the virtual machine solves instead), and so is a missing compiler.
+options, so a change of formulation or options never loads a stale solver. That hash needs the NLP's symbolic
+graph; a note in ``paths/`` remembers it under a hash of the code that builds the NLP (:func:`remembered_path`), so
+that a process whose solvers are cached never builds the graph. A file that does not load is ignored (the virtual
+machine solves instead), and so is a missing compiler.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import InputError
-from ..io import atomic_path, cache_root
+from ..io import atomic_path, atomic_write_text, cache_root
 
 __all__ = [
     "AUTO_AFTER",
@@ -55,6 +57,8 @@ __all__ = [
     "mode",
     "on_setting",
     "release",
+    "remember",
+    "remembered_path",
     "setting",
     "start_background",
 ]
@@ -136,6 +140,35 @@ def cache_path(nlp: dict, options: dict) -> Path:
     h.update(f.serialize().encode())
     h.update(json.dumps(_options(options), sort_keys=True, default=str).encode())
     return cache_root() / f"casadi-{ca.__version__}" / f"doc-{h.hexdigest()[:24]}" / "solver.casadi"
+
+
+def _note(recipe: str) -> Path:
+    import casadi as ca
+
+    return cache_root() / f"casadi-{ca.__version__}" / "paths" / f"{recipe}.txt"
+
+
+def remembered_path(recipe: str, nlp: Callable[[], dict], options: dict) -> Path:
+    """:func:`cache_path` of ``nlp()`` under ``options``, or the path noted under ``recipe`` (a hash of the code
+    that builds the NLP and of the options; :func:`remember`) while the solver there is in the cache: the NLP's
+    symbolic graph, which the hash of its serialisation needs (0.3 s of CPU at N = 100, in every process that
+    solves), is built only where that code changed or the solver is not compiled yet."""
+    note = _note(recipe)
+    with contextlib.suppress(OSError, UnicodeDecodeError):
+        name = note.read_text(encoding="utf-8").strip()
+        path = note.parent.parent / name / "solver.casadi"
+        if name.startswith("doc-") and name == Path(name).name and path.is_file():
+            return path
+    return cache_path(nlp(), options)
+
+
+def remember(recipe: str, path: Path) -> None:
+    """Note under ``recipe`` that its solver is at ``path`` (for :func:`remembered_path`); nothing if it cannot."""
+    note = _note(recipe)
+    with contextlib.suppress(OSError):
+        if not (note.is_file() and note.read_bytes().strip() == path.parent.name.encode()):
+            note.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(note, path.parent.name + "\n", durable=False)
 
 
 def load(path: Path):
@@ -243,12 +276,15 @@ def start_background(n: int, path: Path, kind: str = "cold") -> bool:
 
 class Slot:
     """The compiled ``kind`` solver (``"cold"`` or ``"warm"``) of one NLP in this process: when to load it and
-    when to have it compiled (see the module docstring). ``spec`` is ``(name, plugin, options)`` of the solver
-    to compile."""
+    when to have it compiled (see the module docstring). ``nlp()`` builds the NLP (CasADi's dict), ``spec`` is
+    ``(name, plugin, options)`` of the solver to compile and ``recipe`` a hash of the code that builds them
+    (:func:`remembered_path`; empty: the NLP is built to find the solver's file)."""
 
-    def __init__(self, n: int, nlp: dict, spec: tuple[str, str, dict], kind: str = "cold"):
+    def __init__(
+        self, n: int, nlp: Callable[[], dict], spec: tuple[str, str, dict], kind: str = "cold", recipe: str = ""
+    ):
         _check_kind(kind)
-        self.n, self.nlp, self.spec, self.kind = n, nlp, spec, kind
+        self.n, self.nlp, self.spec, self.kind, self.recipe = n, nlp, spec, kind, recipe
         self.solves = 0
         self._path: Path | None = None
 
@@ -259,13 +295,18 @@ class Slot:
             return None
         self.solves += 1
         if self._path is None:
-            self._path = cache_path(self.nlp, self.spec[2])
+            options = self.spec[2]
+            self._path = (
+                remembered_path(self.recipe, self.nlp, options) if self.recipe else cache_path(self.nlp(), options)
+            )
         k, after = self.solves, AUTO_AFTER if self.kind == "cold" else AUTO_AFTER_WARM
         solver = load(self._path) if k == 1 or (k > after and k % POLL_EVERY == 0) else None
         if solver is None and how == "on" and k == 1:
             solver = compile_or_wait(self.n, self._path, self.kind)
         if solver is None and how == "auto" and k == after:
             start_background(self.n, self._path, self.kind)
+        if solver is not None and self.recipe:
+            remember(self.recipe, self._path)
         return solver
 
 
