@@ -166,3 +166,23 @@ def test_bad_setting_is_an_input_error(monkeypatch, cli, tiny_trials):
         "reachirl preprocess: error: environment variable REACHIRL_COMPILE='fast': expected one of auto, on, off"
     ]
     assert not (tiny_trials.parent / "never.npz").exists()
+
+
+def test_preload_readies_the_solvers_a_solve_uses(cache, arm):
+    """What a unit worker loads before its first unit: the cold and warm fatrop solvers of its number of knots
+    (here on CasADi's VM), and Newton's stage functions; the solves after it use them."""
+    from reachirl.doc import newton
+
+    with compiled.setting("off"):
+        cas.preload(N)
+        nlp = cas.build_nlp(N)
+        assert {"fatrop", "fatrop_warm"} <= set(nlp._solvers)
+        solvers = dict(nlp._solvers)
+        assert {(b.__name__, n) for b, n in newton._local.spaces} >= {
+            ("_step_function", N),
+            ("_minimum_band", N),
+            ("_stage_map", N),
+        }
+        tasks, w = _problems(arm)
+        assert all(s.converged for s in _solve_all(tasks[:1], w))
+        assert all(nlp._solvers[k] is solvers[k] for k in ("fatrop", "fatrop_warm"))

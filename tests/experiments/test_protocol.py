@@ -343,3 +343,31 @@ def test_a_run_into_a_folder_another_command_writes_into_names_the_argument_not_
         ):
             reproduce(toy, _config(sections=(1,)), out)
     assert list(out.iterdir()) == []
+
+
+def test_units_run_on_the_workers_started_ahead(toy, tmp_path, monkeypatch):
+    """``reproduce``'s unit workers, started before the data are loaded (:class:`UnitWorkers`): ``run_units``
+    takes them over and starts none of its own, with the same results as its own workers'; workers no unit took
+    are ended when their ``with`` block ends."""
+    from children import children_gone
+    from reachirl.experiments import runner
+
+    cfg = _config(sections=(1,), max_iter=2)
+    splits = {p: split_trials(toy.trials, p, cfg) for p in ("P2", "P4")}
+    units = make_units(["P2", "P4"], cfg)
+    own = run_units(units, splits, tmp_path / "own", workers=2)
+    with runner.UnitWorkers(2, cfg.n_nodes) as ahead:
+        ahead.start()
+        monkeypatch.setattr(runner, "unit_executor", lambda n: pytest.fail("run_units started workers of its own"))
+        taken = run_units(units, splits, tmp_path / "ahead", workers=2, ahead=ahead)
+        assert ahead.pool is None, "taken over"
+    assert children_gone()
+    assert sorted(taken.computed) == sorted(own.computed) == sorted(u.key for u in units)
+    for key, res in own.results.items():
+        assert np.array_equal(taken.results[key]["weights"], res["weights"])
+
+    with runner.UnitWorkers(2, cfg.n_nodes) as idle:  # every unit reused: nothing takes them
+        idle.start()
+        again = run_units(units, splits, tmp_path / "ahead", workers=2, ahead=idle)
+        assert again.reused and not again.computed and idle.pool is not None
+    assert idle.pool is None and children_gone()

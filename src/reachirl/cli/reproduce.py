@@ -347,6 +347,11 @@ def _naming_run_file(err: InputError, run_file, from_file: set[str]) -> InputErr
     return InputError(msg, run_file) if keys else err
 
 
+def _nodes(args, opts: dict) -> int:
+    """The DOC's number of intervals the run asks for (``--nodes``, else the protocol's)."""
+    return opts.get("nodes") or (QUICK if args.quick else FULL)["nodes"]
+
+
 def _config(args, opts: dict):
     from ..experiments.protocol import ProtocolConfig
 
@@ -369,7 +374,7 @@ def _config(args, opts: dict):
         cv=opts.get("cv", "rest"),
         n_cv=pick("n_cv"),
         n_iscv=pick("n_iscv"),
-        n_nodes=opts.get("nodes") or base["nodes"],
+        n_nodes=_nodes(args, opts),
         max_iter=opts.get("max_iter") or base["max_iter"],
         tol=opts.get("tol"),
         backend=opts.get("backend", "casadi"),
@@ -621,23 +626,28 @@ def run(args) -> int:
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
-    _refuse_foreign_run_files(out, args.config)
-    from ..experiments.runner import clean_stale_temporaries
+    from ..experiments.runner import UnitWorkers, clean_stale_temporaries
 
-    def clean() -> None:  # the temporaries of atomic writes an interrupt came in the middle of
-        if out.is_dir():
-            clean_stale_temporaries(out)
+    args.workers = args.workers or (os.cpu_count() or 1)
+    # ended on leaving, unless the units took them over
+    with UnitWorkers(args.workers if args.scheduler is None else 1, _nodes(args, opts)) as unit_workers:
+        unit_workers.start()  # on the core this process leaves idle while it imports and loads the data
+        _refuse_foreign_run_files(out, args.config)
 
-    at_forced_exit(clean)  # a run ended outright, stuck in compiled code after a signal, never reaches the except
-    with holding_folder(out, "--out"):  # before any work; a folder made by the run is held once made (the runner)
-        try:
-            return _run(args, out, opts, from_file)
-        except KeyboardInterrupt:  # Ctrl-C or SIGTERM, every worker ended: nothing half written is left behind
-            clean()
-            raise
+        def clean() -> None:  # the temporaries of atomic writes an interrupt came in the middle of
+            if out.is_dir():
+                clean_stale_temporaries(out)
+
+        at_forced_exit(clean)  # a run ended outright, stuck in compiled code after a signal, never reaches the except
+        with holding_folder(out, "--out"):  # before any work; a folder made by the run is held once made (the runner)
+            try:
+                return _run(args, out, opts, from_file, unit_workers)
+            except KeyboardInterrupt:  # Ctrl-C or SIGTERM, every worker ended: nothing half written is left behind
+                clean()
+                raise
 
 
-def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
+def _run(args, out: Path, opts: dict, from_file: set[str], unit_workers) -> int:
     from rich.console import Console
     from rich.progress import (
         BarColumn,
@@ -676,7 +686,7 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
         # MO-IRL's own form and rollouts, as fit refuses --seed-form and --rollout with --method bilevel or kkt
         _refuse_unused(args, opts, from_file, "seed_form", "the paper's MO-IRL form", config.methods)
         _refuse_unused(args, opts, from_file, "rollout", "MO-IRL's and MaxEnt's training rollouts", config.methods)
-    workers = args.workers or (os.cpu_count() or 1)
+    workers = args.workers
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
 
@@ -746,6 +756,7 @@ def _run(args, out: Path, opts: dict, from_file: set[str]) -> int:
                 on_start=on_start,
                 on_done=on_done,
                 out_option="--out",
+                ahead=unit_workers,
             )
         if result.stopped:
             return _stopped(result, unit_outputs.written)

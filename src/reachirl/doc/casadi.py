@@ -57,7 +57,7 @@ import numpy as np
 
 from ..errors import solver_interrupts
 from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
-from . import compiled
+from . import compiled, newton
 from .interior import interior_solve
 from .newton import newton_solve
 from .symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
@@ -78,6 +78,7 @@ __all__ = [
     "build_nlp",
     "guess_knots",
     "initial_guess",
+    "preload",
     "solve",
 ]
 
@@ -345,6 +346,16 @@ def build_nlp(n: int) -> _Nlp:
 
 
 compiled.on_setting(build_nlp.cache_clear)  # each NLP holds its solvers: a change of compile mode drops them
+
+
+def preload(n: int) -> None:
+    """Load (or build) in this process what a solve on ``n`` knots uses: the cold and warm fatrop solvers (the
+    compiled ones when cached) and the Newton and interior-point stage functions. A worker does it before its
+    first unit, while its coordinator is still starting."""
+    nlp = build_nlp(n)
+    for kind in _FATROP_SLOT:
+        nlp.fatrop(kind)
+    newton.preload(n)
 
 
 def guess_knots(task: ReachingTask) -> np.ndarray:

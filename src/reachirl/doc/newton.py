@@ -49,7 +49,7 @@ from . import compiled
 from .symbolic import ARM_FIELDS, fingertip_jacobian, inverse_dynamics, mass_matrix
 from .task import ReachingTask
 
-__all__ = ["MAX_ITER", "NewtonResult", "newton_solve"]
+__all__ = ["MAX_ITER", "NewtonResult", "newton_solve", "preload"]
 
 MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a fit's moved reach); then the interior point takes over
 STEP_TOL = 1e-6  # rad: a last step this small, with the gradient below LOOSE_GRAD_TOL, is converged (quadratic
@@ -387,6 +387,13 @@ def _workspace(build, n: int):
             buf.set_res(i, a)
         space = spaces[build, n] = (buf, trigger, inputs, outputs)  # the buffer object keeps the trigger valid
     return space[1:]
+
+
+def preload(n: int) -> None:
+    """Build (or load, compiled) this thread's stage functions of ``n`` intervals: Newton's step, its check of
+    the minimum, and the stage map the interior point evaluates."""
+    for build in (_step_function, _minimum_band, _stage_map):
+        _workspace(build, n)
 
 
 def newton_solve(

@@ -11,11 +11,19 @@ before they start (:func:`check_entry_point_guarded`).
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import multiprocessing
 import os
 from collections.abc import Callable
 
-__all__ = ["check_entry_point_guarded", "local_executor", "stop_workers", "worker_died", "worker_init"]
+__all__ = [
+    "WorkersAhead",
+    "check_entry_point_guarded",
+    "local_executor",
+    "stop_workers",
+    "worker_died",
+    "worker_init",
+]
 
 
 def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
@@ -150,3 +158,38 @@ def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
             if p.is_alive():
                 p.kill()  # cannot be ignored; reaped once the kernel has ended it (seconds on a loaded machine)
                 p.join(timeout=15.0)
+
+
+class WorkersAhead:
+    """``workers`` local processes started before their work (:meth:`start`), so that their start and
+    ``ready(*args)`` (run once in each: its imports, what it loads) overlap what the caller does meanwhile.
+    :meth:`take` hands the pool over to its work; a ``with`` block ends the processes on leaving if no work took
+    them (an error, Ctrl-C, nothing to do)."""
+
+    def __init__(self, workers: int, memory_gb: Callable[[], float], ready: Callable[..., None], *args) -> None:
+        self.workers = int(workers)
+        self.pool: cf.ProcessPoolExecutor | None = None
+        self._memory_gb, self._ready = memory_gb, (functools.partial(ready, *args) if args else ready)
+
+    def start(self) -> None:
+        """Start the processes now (once; nothing with fewer than 2 workers: the work then runs in-process)."""
+        if self.pool is not None or self.workers < 2:
+            return
+        self.pool = local_executor(self.workers, self._memory_gb(), self._ready)
+        for _ in range(self.workers):  # one process is started per task submitted while none is idle
+            self.pool.submit(int)
+
+    def take(self) -> cf.ProcessPoolExecutor | None:
+        """The started pool, handed over (None if not started)."""
+        pool, self.pool = self.pool, None
+        return pool
+
+    def stop(self) -> None:
+        if self.pool is not None:
+            stop_workers(self.take())
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

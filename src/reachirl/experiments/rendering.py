@@ -18,6 +18,8 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .processes import WorkersAhead
+
 __all__ = ["FIGURE_MEMORY_GB", "Drawing", "FigureJob", "FigureWorkers", "draw", "drawing"]
 
 #: memory (address space) of one figure worker, GB
@@ -49,41 +51,13 @@ def _ready() -> None:
     importlib.import_module(f"{__package__}.figures")
 
 
-class FigureWorkers:
+class FigureWorkers(WorkersAhead):
     """``workers`` figure processes, started ahead of the figures (:meth:`start`: e.g. when the run's last units
     leave a core idle) so that their start and imports are done when the figures come. A ``with`` block ends
     them on leaving (an error, Ctrl-C, or figures never drawn); :func:`drawing` takes them over."""
 
     def __init__(self, workers: int) -> None:
-        self.workers = int(workers)
-        self.pool = None
-
-    def start(self) -> None:
-        """Start the processes now (once; nothing with fewer than 2 workers: figures are then drawn in-process)."""
-        if self.pool is not None or self.workers < 2:
-            return
-        from .processes import local_executor
-
-        self.pool = local_executor(self.workers, FIGURE_MEMORY_GB, _ready)
-        for _ in range(self.workers):  # one process is started per task submitted while none is idle
-            self.pool.submit(_ready)
-
-    def take(self):
-        """The started pool, handed over (None if not started)."""
-        pool, self.pool = self.pool, None
-        return pool
-
-    def stop(self) -> None:
-        if self.pool is not None:
-            from .processes import stop_workers
-
-            stop_workers(self.take())
-
-    def __enter__(self) -> FigureWorkers:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
+        super().__init__(workers, lambda: FIGURE_MEMORY_GB, _ready)
 
 
 class Drawing:

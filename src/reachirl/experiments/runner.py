@@ -24,12 +24,21 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import hold_folder, remove_temporaries
-from .processes import check_entry_point_guarded, local_executor, stop_workers, worker_died
+from .processes import WorkersAhead, check_entry_point_guarded, local_executor, stop_workers, worker_died
 from .protocol import Split, Unit
 from .results import RunResult, RunSummary, is_table_unit, load_unit, load_unit_arrays, save_unit, unit_paths
 from .truth_solves import run_unit_and_truth
 
-__all__ = ["RunResult", "RunSummary", "load_unit", "load_unit_arrays", "reproduce", "run_units", "unit_paths"]
+__all__ = [
+    "RunResult",
+    "RunSummary",
+    "UnitWorkers",
+    "load_unit",
+    "load_unit_arrays",
+    "reproduce",
+    "run_units",
+    "unit_paths",
+]
 
 log = logging.getLogger(__name__)
 
@@ -135,9 +144,30 @@ def _env_float(name: str, default: float, least: float = 0.0) -> float:
 MIN_UNIT_MEMORY_GB = 1.0
 
 
+def _unit_memory_gb() -> float:
+    return _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB, MIN_UNIT_MEMORY_GB)
+
+
 def unit_executor(workers: int) -> cf.ProcessPoolExecutor:
     """Local worker processes for units (and `sensitivity`'s refits), each capped at `REACHIRL_UNIT_MEMORY_GB`."""
-    return local_executor(workers, _env_float("REACHIRL_UNIT_MEMORY_GB", UNIT_MEMORY_GB, MIN_UNIT_MEMORY_GB))
+    return local_executor(workers, _unit_memory_gb())
+
+
+def _unit_ready(n_nodes: int) -> None:
+    """A unit worker's start: the modules a unit runs and the DOC solvers of ``n_nodes`` intervals."""
+    from ..doc.casadi import preload
+    from .truth_solves import run_unit_and_truth  # noqa: F401 - the modules a unit runs
+
+    preload(n_nodes)
+
+
+class UnitWorkers(WorkersAhead):
+    """The units' ``workers`` local processes, started before the data are loaded (:meth:`start`), each importing
+    what a unit runs and loading the DOC solvers of ``n_nodes`` intervals meanwhile; :func:`run_units` takes them
+    over (``ahead``). A ``with`` block ends them on leaving if no unit ran (an error, Ctrl-C, every unit reused)."""
+
+    def __init__(self, workers: int, n_nodes: int) -> None:
+        super().__init__(workers, _unit_memory_gb, _unit_ready, int(n_nodes))
 
 
 def _dask_client(address: str):
@@ -169,11 +199,13 @@ def run_units(
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
     truth_jobs: Mapping[str, dict] | None = None,
+    ahead: WorkersAhead | None = None,
 ) -> RunSummary:
     """Run (or reuse) every unit; ``splits`` maps a unit's ``split_key`` (its posture, or (posture, training
     subject) for an all-pairs unit) to its :class:`Split`. ``truth_jobs`` maps the keys of the units whose workers
     also solve under the true weights to what they solve (:func:`reachirl.experiments.truth_solves.truth_jobs`):
-    they do it after the unit, and the checkpoint keeps it.
+    they do it after the unit, and the checkpoint keeps it. ``ahead``: local workers started before the run
+    (:class:`UnitWorkers`), which run the units in place of new ones.
 
     ``on_start(n_total, n_reused)`` is called once, ``on_done(key, result, reused)`` per unit. ``max_units``
     stops after that many *new* units (for tests and for splitting a long run).
@@ -246,7 +278,7 @@ def run_units(
             finish(payload)
     elif scheduler is None:
         timeout = _env_float("REACHIRL_UNIT_TIMEOUT_S", UNIT_TIMEOUT_S)
-        ex = unit_executor(min(workers, len(todo)))
+        ex = (ahead.take() if ahead is not None else None) or unit_executor(min(workers, len(todo)))
         try:
             futures = {
                 ex.submit(_run_unit_bounded, u, splits[u.split_key], timeout, truth_jobs.get(u.key)): u.key
@@ -380,6 +412,7 @@ def reproduce(
     on_start: Callable[[int, int], None] | None = None,
     on_done: Callable[[str, dict, bool], None] | None = None,
     out_option: str = "out_dir",
+    ahead: WorkersAhead | None = None,
 ) -> RunResult:
     """Run (or resume) the whole protocol on ``dataset`` (:class:`~reachirl.experiments.datasets.Dataset`),
     checkpointing each unit under ``out_dir/units/``, and return the :class:`RunResult`: in this process
@@ -390,6 +423,7 @@ def reproduce(
     command is writing into. With ``workers`` > 1 (and no ``scheduler``), a main script that calls it from its
     top-level code outside ``if __name__ == "__main__":`` is refused before any work
     (:func:`~reachirl.experiments.processes.check_entry_point_guarded`): each spawned worker would run it again.
+    ``ahead``: the local workers, started before the data were loaded (:class:`UnitWorkers`).
     """
     from .pairs import pair_splits, pair_training_subjects
     from .protocol import (
@@ -450,6 +484,7 @@ def reproduce(
         on_start=start,
         on_done=on_done,
         truth_jobs=truth_jobs(units, splits, getattr(dataset, "truth", None), config.methods[0]),
+        ahead=ahead,
     )
     main = {k: r for k, r in summary.results.items() if is_table_unit(r)}
     transfer = {k: r for k, r in summary.results.items() if r["unit"].get("held_out_posture") is not None}
