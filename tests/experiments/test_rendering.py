@@ -175,3 +175,21 @@ def test_a_figure_worker_killed_is_said_as_such_and_the_others_end(tmp_path):
             with drawing(jobs(tmp_path), workers=2, ahead=ahead):
                 os.kill(victim.pid, signal.SIGKILL)
     assert children_gone()
+
+
+def test_a_png_is_cropped_as_savefigs_tight_box_crops_it(tmp_path):
+    """``save`` finds a PNG's tight box without matplotlib's layout-only draw: the same bytes as
+    ``savefig(bbox_inches="tight")``, for a figure whose caption and legend lie outside the axes (and the
+    figure); the figure keeps its own dpi."""
+    import matplotlib.pyplot as plt
+
+    from reachirl.experiments.figures import plot_weights, save
+
+    shares = {(p, n): np.linspace(0.05, 0.9, n * 7).reshape(n, 7) for p in ("P1", "P2") for n in (1, 3)}
+    fig = plot_weights(shares, ["P1", "P2"], [1, 3], note="a caption set below the axes, " * 12)
+    fig.axes[0].legend(["shares"], loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    save(fig, tmp_path / "ours.png", close=False)
+    fig.savefig(tmp_path / "tight.png", dpi=200, bbox_inches="tight", metadata={"Software": "reachirl"})
+    assert (tmp_path / "ours.png").read_bytes() == (tmp_path / "tight.png").read_bytes()
+    assert fig.dpi == 100.0, "the figure's own dpi is left as it was"
+    plt.close(fig)
