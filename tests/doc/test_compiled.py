@@ -186,3 +186,38 @@ def test_preload_readies_the_solvers_a_solve_uses(cache, arm):
         tasks, w = _problems(arm)
         assert all(s.converged for s in _solve_all(tasks[:1], w))
         assert all(nlp._solvers[k] is solvers[k] for k in ("fatrop", "fatrop_warm"))
+
+
+def test_the_kkt_functions_are_saved_once_and_loaded_after(cache, monkeypatch):
+    """The sensitivity's KKT functions: the first process builds them from the NLP and saves them; the next
+    loads them without building the NLP's graph, and they evaluate bit for bit as built. A saved file that does
+    not load is built again; with REACHIRL_COMPILE=off nothing is saved."""
+    monkeypatch.setenv("REACHIRL_COMPILE", "auto")
+    rng = np.random.default_rng(0)
+    built = cas.build_nlp(N).kkt_functions()
+    z, p = rng.normal(size=cas.build_nlp(N).n_z), np.abs(rng.normal(size=cas.build_nlp(N).nlp["p"].numel()))
+    lam = rng.normal(size=cas.build_nlp(N).n_g)
+
+    def values(f):
+        return [np.asarray(f["H"](z, p, lam)), *(np.asarray(f[k](z, p)) for k in ("grad", "A", "B"))]
+
+    saved = sorted(p.name for p in cache.rglob("*.casadi"))
+    assert saved == ["A.casadi", "B.casadi", "H.casadi", "grad.casadi"]
+    cas.build_nlp.cache_clear()
+    nlp = cas.build_nlp(N)
+    loaded = nlp.kkt_functions()
+    assert "_graph" not in vars(nlp), "loaded, not built"
+    assert all(np.array_equal(a, b) for a, b in zip(values(built), values(loaded), strict=True))
+
+    next(cache.rglob("H.casadi")).write_bytes(b"not a CasADi file")
+    cas.build_nlp.cache_clear()
+    nlp = cas.build_nlp(N)
+    again = nlp.kkt_functions()
+    assert "_graph" in vars(nlp), "built again"
+    assert all(np.array_equal(a, b) for a, b in zip(values(built), values(again), strict=True))
+
+    for f in cache.rglob("*.casadi"):
+        f.unlink()
+    with compiled.setting("off"):
+        cas.build_nlp(N).kkt_functions()
+    assert not list(cache.rglob("*.casadi"))

@@ -234,21 +234,25 @@ class _Nlp:
         return {"nlp": nlp, "objective": ca.Function("objective", [z, p], [nlp["f"]])}
 
     def kkt_functions(self) -> dict:
-        """CasADi functions of the KKT conditions (built on first use, for :mod:`reachirl.doc.sensitivity`):
+        """CasADi functions of the KKT conditions (made on first use, for :mod:`reachirl.doc.sensitivity`):
         ``grad(z, p)`` = ∇_z f, ``A(z, p)`` = ∂g/∂z, ``H(z, p, λ)`` = ∇²_zz (f + λᵀg) and ``B(z, p)`` =
-        ∂(∇_z f)/∂w (the per-knot weights, ``N × 7`` in row-major order)."""
+        ∂(∇_z f)/∂w (the per-knot weights, ``N × 7`` in row-major order). Loaded from the cache when an earlier
+        process saved them (:func:`reachirl.doc.compiled.cached_functions`), else built from the NLP."""
         if "kkt" not in self._solvers:
-            z, p, f, g = self.nlp["x"], self.nlp["p"], self.nlp["f"], self.nlp["g"]
-            lam = ca.SX.sym("lam", g.numel())
-            w = p[p.numel() - self.n * N_FEATURES :]
-            grad = ca.gradient(f, z)
-            self._solvers["kkt"] = {
-                "grad": ca.Function("kkt_grad", [z, p], [grad]),
-                "A": ca.Function("kkt_A", [z, p], [ca.jacobian(g, z)]),
-                "H": ca.Function("kkt_H", [z, p, lam], [ca.hessian(f + ca.dot(lam, g), z)[0]]),
-                "B": ca.Function("kkt_B", [z, p], [ca.jacobian(grad, w)]),
-            }
+            self._solvers["kkt"] = compiled.cached_functions(_recipe(self.n, ("kkt",)), self._kkt_build)
         return self._solvers["kkt"]
+
+    def _kkt_build(self) -> dict:
+        z, p, f, g = self.nlp["x"], self.nlp["p"], self.nlp["f"], self.nlp["g"]
+        lam = ca.SX.sym("lam", g.numel())
+        w = p[p.numel() - self.n * N_FEATURES :]
+        grad = ca.gradient(f, z)
+        return {
+            "grad": ca.Function("kkt_grad", [z, p], [grad]),
+            "A": ca.Function("kkt_A", [z, p], [ca.jacobian(g, z)]),
+            "H": ca.Function("kkt_H", [z, p, lam], [ca.hessian(f + ca.dot(lam, g), z)[0]]),
+            "B": ca.Function("kkt_B", [z, p], [ca.jacobian(grad, w)]),
+        }
 
     def cold_solver_spec(self) -> tuple[str, str, dict]:
         """``(name, plugin, options)`` of the cold fatrop solver (the one :mod:`.compiled` compiles)."""

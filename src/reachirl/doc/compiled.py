@@ -50,6 +50,7 @@ __all__ = [
     "MODES",
     "Slot",
     "cache_path",
+    "cached_functions",
     "compile_or_wait",
     "compile_solver",
     "compiled_function",
@@ -169,6 +170,30 @@ def remember(recipe: str, path: Path) -> None:
         if not (note.is_file() and note.read_bytes().strip() == path.parent.name.encode()):
             note.parent.mkdir(parents=True, exist_ok=True)
             atomic_write_text(note, path.parent.name + "\n", durable=False)
+
+
+def cached_functions(recipe: str, build: Callable[[], dict]) -> dict:
+    """``build()`` (CasADi functions by name), saved in the cache under ``recipe`` (a hash of the code that builds
+    them) by the first process that builds them and loaded by the others: CasADi's own serialisation of the same
+    functions, which evaluate bit for bit as built (tested), in a third of the time building them takes (the
+    KKT functions at N = 100: 0.18 s against 0.5 s). Built every time when :func:`mode` is ``off``, when the code
+    cannot be hashed (empty ``recipe``), or when a saved file does not load."""
+    import casadi as ca
+
+    if mode() == "off" or not recipe:
+        return build()
+    folder = cache_root() / f"casadi-{ca.__version__}" / f"fn-{recipe}"
+    with contextlib.suppress(Exception):  # none saved yet, or a file that does not load: built below
+        names = (folder / "names.txt").read_text(encoding="utf-8").split()
+        return {name: ca.Function.load(str(folder / f"{name}.casadi")) for name in names}
+    functions = build()
+    with contextlib.suppress(OSError, RuntimeError):
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, f in functions.items():
+            with atomic_path(folder / f"{name}.casadi") as tmp:
+                f.save(str(tmp))
+        atomic_write_text(folder / "names.txt", "\n".join(functions) + "\n", durable=False)  # last: all or none
+    return functions
 
 
 def load(path: Path):
