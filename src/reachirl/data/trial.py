@@ -36,7 +36,7 @@ __all__ = [
 
 def _spline(t: np.ndarray, y: np.ndarray):
     """scipy's cubic spline through ``y (n, k)`` at ``t``, along axis 0."""
-    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    # imported here: scipy.interpolate imports scipy.optimize, which the command's own process never needs
     from scipy.interpolate import CubicSpline
 
     return CubicSpline(t, y, axis=0)

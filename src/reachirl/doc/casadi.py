@@ -332,14 +332,16 @@ def _sources() -> bytes:
         return b""
 
 
-def _recipe(n: int, spec: tuple[str, str, dict]) -> str:
-    """A hash of what the compiled solver ``spec`` of the NLP of ``n`` knots is made of, short of the NLP itself
-    (:func:`reachirl.doc.compiled.remembered_path`); empty when the code cannot be read."""
+def _recipe(n: int, what: tuple) -> str:
+    """A hash of the code that builds the NLP, CasADi's version, ``n`` and ``what`` (a solver's ``(name, plugin,
+    options)``, or a name for functions made from the NLP): the cache's key of what is made from the NLP of ``n``
+    knots, known without building it (:func:`reachirl.doc.compiled.remembered_path`,
+    :func:`reachirl.doc.compiled.cached_functions`); empty when the code cannot be read."""
     code = _sources()
     if not code:
         return ""
     h = hashlib.sha256(code)
-    h.update(json.dumps([ca.__version__, n, spec], sort_keys=True, default=str).encode())
+    h.update(json.dumps([ca.__version__, n, what], sort_keys=True, default=str).encode())
     return h.hexdigest()[:32]
 
 

@@ -24,8 +24,9 @@ The cache holds CasADi's own serialisation of the solver (no pickle) beside the 
 ``~/.cache/reachirl``). The hash covers the CasADi version, the NLP's own serialisation and the solver
 options, so a change of formulation or options never loads a stale solver. That hash needs the NLP's symbolic
 graph; a note in ``paths/`` remembers it under a hash of the code that builds the NLP (:func:`remembered_path`), so
-that a process whose solvers are cached never builds the graph. A file that does not load is ignored (the virtual
-machine solves instead), and so is a missing compiler.
+that a process whose solvers are cached never builds the graph; the uncertainty's KKT functions are likewise
+saved once, under such a hash, in ``fn-<hash>/`` (:func:`cached_functions`). A file that does not load is ignored
+(the virtual machine solves instead, or the functions are built), and so is a missing compiler.
 """
 
 from __future__ import annotations
@@ -152,8 +153,8 @@ def _note(recipe: str) -> Path:
 def remembered_path(recipe: str, nlp: Callable[[], dict], options: dict) -> Path:
     """:func:`cache_path` of ``nlp()`` under ``options``, or the path noted under ``recipe`` (a hash of the code
     that builds the NLP and of the options; :func:`remember`) while the solver there is in the cache: the NLP's
-    symbolic graph, which the hash of its serialisation needs (0.3 s of CPU at N = 100, in every process that
-    solves), is built only where that code changed or the solver is not compiled yet."""
+    symbolic graph, which the hash of its serialisation needs, is built only where that code changed or the solver
+    is not compiled yet."""
     note = _note(recipe)
     with contextlib.suppress(OSError, UnicodeDecodeError):
         name = note.read_text(encoding="utf-8").strip()
@@ -174,10 +175,9 @@ def remember(recipe: str, path: Path) -> None:
 
 def cached_functions(recipe: str, build: Callable[[], dict]) -> dict:
     """``build()`` (CasADi functions by name), saved in the cache under ``recipe`` (a hash of the code that builds
-    them) by the first process that builds them and loaded by the others: CasADi's own serialisation of the same
-    functions, which evaluate bit for bit as built (tested), in a third of the time building them takes (the
-    KKT functions at N = 100: 0.18 s against 0.5 s). Built every time when :func:`mode` is ``off``, when the code
-    cannot be hashed (empty ``recipe``), or when a saved file does not load."""
+    them) by the first process that builds them and loaded by the others (``fn-<recipe>/``): CasADi's own
+    serialisation of the same functions, which evaluate bit for bit as built. Built every time when :func:`mode`
+    is ``off``, when the code cannot be hashed (empty ``recipe``), or when a saved file does not load."""
     import casadi as ca
 
     if mode() == "off" or not recipe:

@@ -187,7 +187,7 @@ def _knot_spline(t: np.ndarray, y: np.ndarray, shared: bool = False) -> BSpline:
     """The not-a-knot cubic interpolant of the knot values ``y (N+1, ...)`` (``CubicSpline``'s default; as a
     B-spline, which scipy builds three times faster). ``shared``: on equally spaced knots, from the matrices of
     :func:`_unit_knots`, seven times faster again and equal to rounding (not bit for bit)."""
-    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    # imported here: scipy.interpolate imports scipy.optimize, which the command's own process never needs
     from scipy.interpolate import BSpline, make_interp_spline
 
     if not (shared and _equally_spaced(t)):

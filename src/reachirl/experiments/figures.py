@@ -179,8 +179,8 @@ def save(fig, path, close: bool = True) -> None:
 
 def _tight_png_bbox(fig, dpi: float):
     """The region ``savefig(bbox_inches="tight")`` crops a PNG at ``dpi`` to (the figure's tight box on an Agg
-    renderer at that dpi, padded by ``savefig.pad_inches``), without the layout-only draw of the whole figure
-    that matplotlib makes to find it: the same image, a tenth to a sixth less of the figure's CPU."""
+    renderer at that dpi, padded by ``savefig.pad_inches``), found without the layout-only draw of the whole
+    figure that matplotlib makes to find it: the same image."""
     before = fig.dpi
     fig.dpi = dpi
     try:

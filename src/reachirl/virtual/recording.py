@@ -199,7 +199,7 @@ def simulate_trial(
 
 def _reach_spline(t_knots: np.ndarray, q_knots: np.ndarray):
     """A C² joint path through the DOC knots, at rest at both ends."""
-    # imported here: scipy.interpolate imports scipy.optimize, 0.25 s that the command's own process never needs
+    # imported here: scipy.interpolate imports scipy.optimize, which the command's own process never needs
     from scipy.interpolate import CubicSpline
 
     return CubicSpline(t_knots, q_knots, axis=0, bc_type="clamped")
