@@ -519,7 +519,7 @@ def solve(
         ok = _converged(stats, x)
     if q is None and x is None and newton and guess is not None:
         # a close start (a similar reach moved to this task): exact Newton first, which vouches for its answer
-        # or gives way to the interior point from the same start
+        # or gives way to fatrop from the same start
         start = np.array(guess, dtype=float)
         start[0], start[-2] = task.q0, start[-1]  # at rest at both ends, as _pack makes it
         start[1:] = np.clip(start[1:], task.q_lower, task.q_upper)

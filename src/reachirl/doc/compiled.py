@@ -141,20 +141,27 @@ def cache_path(nlp: dict, options: dict) -> Path:
     h.update(ca.__version__.encode())
     h.update(f.serialize().encode())
     h.update(json.dumps(_options(options), sort_keys=True, default=str).encode())
-    return cache_root() / f"casadi-{ca.__version__}" / f"doc-{h.hexdigest()[:24]}" / "solver.casadi"
+    return _folder() / f"doc-{h.hexdigest()[:24]}" / "solver.casadi"
+
+
+def _folder() -> Path:
+    """The cache's folder of this CasADi version's solvers and functions."""
+    import casadi as ca
+
+    return cache_root() / f"casadi-{ca.__version__}"
 
 
 def _note(recipe: str) -> Path:
-    import casadi as ca
-
-    return cache_root() / f"casadi-{ca.__version__}" / "paths" / f"{recipe}.txt"
+    return _folder() / "paths" / f"{recipe}.txt"
 
 
 def remembered_path(recipe: str, nlp: Callable[[], dict], options: dict) -> Path:
     """:func:`cache_path` of ``nlp()`` under ``options``, or the path noted under ``recipe`` (a hash of the code
     that builds the NLP and of the options; :func:`remember`) while the solver there is in the cache: the NLP's
     symbolic graph, which the hash of its serialisation needs, is built only where that code changed or the solver
-    is not compiled yet."""
+    is not compiled yet (or always, with an empty ``recipe``: code that cannot be hashed)."""
+    if not recipe:
+        return cache_path(nlp(), options)
     note = _note(recipe)
     with contextlib.suppress(OSError, UnicodeDecodeError):
         name = note.read_text(encoding="utf-8").strip()
@@ -165,7 +172,10 @@ def remembered_path(recipe: str, nlp: Callable[[], dict], options: dict) -> Path
 
 
 def remember(recipe: str, path: Path) -> None:
-    """Note under ``recipe`` that its solver is at ``path`` (for :func:`remembered_path`); nothing if it cannot."""
+    """Note under ``recipe`` that its solver is at ``path`` (for :func:`remembered_path`); nothing if it cannot, or
+    with an empty ``recipe``."""
+    if not recipe:
+        return
     note = _note(recipe)
     with contextlib.suppress(OSError):
         if not (note.is_file() and note.read_bytes().strip() == path.parent.name.encode()):
@@ -182,7 +192,7 @@ def cached_functions(recipe: str, build: Callable[[], dict]) -> dict:
 
     if mode() == "off" or not recipe:
         return build()
-    folder = cache_root() / f"casadi-{ca.__version__}" / f"fn-{recipe}"
+    folder = _folder() / f"fn-{recipe}"
     with contextlib.suppress(Exception):  # none saved yet, or a file that does not load: built below
         names = (folder / "names.txt").read_text(encoding="utf-8").split()
         return {name: ca.Function.load(str(folder / f"{name}.casadi")) for name in names}
@@ -320,17 +330,14 @@ class Slot:
             return None
         self.solves += 1
         if self._path is None:
-            options = self.spec[2]
-            self._path = (
-                remembered_path(self.recipe, self.nlp, options) if self.recipe else cache_path(self.nlp(), options)
-            )
+            self._path = remembered_path(self.recipe, self.nlp, self.spec[2])
         k, after = self.solves, AUTO_AFTER if self.kind == "cold" else AUTO_AFTER_WARM
         solver = load(self._path) if k == 1 or (k > after and k % POLL_EVERY == 0) else None
         if solver is None and how == "on" and k == 1:
             solver = compile_or_wait(self.n, self._path, self.kind)
         if solver is None and how == "auto" and k == after:
             start_background(self.n, self._path, self.kind)
-        if solver is not None and self.recipe:
+        if solver is not None:
             remember(self.recipe, self._path)
         return solver
 
@@ -351,7 +358,7 @@ def compiled_function(f):
     h = hashlib.sha256()
     h.update(ca.__version__.encode())
     h.update(f.serialize().encode())
-    path = cache_root() / f"casadi-{ca.__version__}" / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
+    path = _folder() / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
     try:
         if not path.is_file():
             cc = shutil.which("gcc") or shutil.which("cc")

@@ -51,7 +51,7 @@ from .task import ReachingTask
 
 __all__ = ["MAX_ITER", "NewtonResult", "newton_solve", "preload"]
 
-MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a fit's moved reach); then the interior point takes over
+MAX_ITER = 16  # Newton steps (measured: 3 to 15 from a fit's moved reach); then fatrop, or the interior point
 STEP_TOL = 1e-6  # rad: a last step this small, with the gradient below LOOSE_GRAD_TOL, is converged (quadratic
 # convergence: the next step would be ~1e-12 rad)
 LOOSE_GRAD_TOL = 1e-5
