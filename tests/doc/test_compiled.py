@@ -221,3 +221,40 @@ def test_the_kkt_functions_are_saved_once_and_loaded_after(cache, monkeypatch):
     with compiled.setting("off"):
         cas.build_nlp(N).kkt_functions()
     assert not list(cache.rglob("*.casadi"))
+
+
+@pytest.mark.parametrize("kind", ["ipopt", "fatrop"])
+def test_a_virtual_machine_solver_is_saved_once_and_loaded_after(cache, monkeypatch, arm, kind):
+    """The solvers CasADi's virtual machine runs (IPOPT, the fallback; fatrop before its compiled form exists):
+    the first process makes one from the NLP and saves it; the next loads it and it solves bit for bit as made
+    (IPOPT without building the NLP's graph; fatrop's compiled slot builds it to look for its compiled form). With
+    REACHIRL_COMPILE=off nothing is saved."""
+    monkeypatch.setenv("REACHIRL_COMPILE", "auto")
+    tasks, w = _problems(arm)
+    task = tasks[0]
+
+    def solve_once():
+        nlp = cas.build_nlp(N)
+        b = nlp.bounds(task)
+        x0 = np.clip(cas.initial_guess(task), b["lbx"], b["ubx"])
+        x, stats, _ = cas._run(nlp, kind, {**b, "x0": x0, "p": nlp.params(task, w, 1.0)})
+        assert cas._converged(stats, x)
+        return nlp, x
+
+    made_nlp, made = solve_once()
+    assert "_graph" in vars(made_nlp)
+    assert len(list(cache.rglob(f"doc_{kind}.casadi"))) == 1
+    cas.build_nlp.cache_clear()
+    loaded_nlp, loaded = solve_once()
+    assert loaded_nlp._solvers[kind].name() == f"doc_{kind}"
+    if kind == "ipopt":
+        assert "_graph" not in vars(loaded_nlp), "loaded, not built"
+    assert np.array_equal(made, loaded)
+
+    for f in cache.rglob("*.casadi"):
+        f.unlink()
+    cas.build_nlp.cache_clear()
+    with compiled.setting("off"):
+        _, off = solve_once()
+    assert not list(cache.rglob("*.casadi"))
+    assert np.array_equal(made, off)

@@ -275,16 +275,19 @@ class _Nlp:
         return self._solvers[key]
 
     def solver(self, kind: str):
-        """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"`` on CasADi's VM; built on first use."""
+        """``"fatrop"``, ``"fatrop_warm"``, ``"ipopt"`` or ``"ipopt_warm"`` on CasADi's VM; made on first use, and
+        saved in the cache by the first process that makes it (:func:`reachirl.doc.compiled.cached_functions`:
+        the others load it without building the NLP's graph)."""
         if kind not in self._solvers:
             if kind.startswith("fatrop"):
                 name, plugin, opts = self.slots[_FATROP_SLOT[kind]].spec
-                self._solvers[kind] = ca.nlpsol(name, plugin, self.nlp, opts)
             else:
-                opts = dict(IPOPT_OPTIONS)
+                name, plugin, opts = f"doc_{kind}", "ipopt", dict(IPOPT_OPTIONS)
                 if kind == "ipopt_warm":
                     opts.update(IPOPT_WARM_OPTIONS)
-                self._solvers[kind] = ca.nlpsol(f"doc_{kind}", "ipopt", self.nlp, opts)
+            recipe = _recipe(self.n, ("vm", name, plugin, opts))
+            made = compiled.cached_functions(recipe, lambda: {name: ca.nlpsol(name, plugin, self.nlp, opts)})
+            self._solvers[kind] = made[name]
         return self._solvers[kind]
 
     def params(self, task: ReachingTask, weights: np.ndarray, fscale: float) -> np.ndarray:
