@@ -170,7 +170,8 @@ def test_bad_setting_is_an_input_error(monkeypatch, cli, tiny_trials):
 
 def test_preload_readies_the_solvers_a_solve_uses(cache, arm):
     """What a unit worker loads before its first unit: the cold and warm fatrop solvers of its number of knots
-    (here on CasADi's VM), and Newton's stage functions; the solves after it use them."""
+    (here on CasADi's VM), and the functions of Newton's and the interior point's steps; the solves after it use
+    them."""
     from reachirl.doc import newton
 
     with compiled.setting("off"):
@@ -181,7 +182,8 @@ def test_preload_readies_the_solvers_a_solve_uses(cache, arm):
         assert {(b.__name__, n) for b, n in newton._local.spaces} >= {
             ("_step_function", N),
             ("_minimum_band", N),
-            ("_stage_map", N),
+            ("_barrier_function", N),
+            ("_kkt_function", N),
         }
         tasks, w = _problems(arm)
         assert all(s.converged for s in _solve_all(tasks[:1], w))

@@ -49,6 +49,70 @@ def test_the_energy_barrier_is_the_slacks_minimum(e):
     assert interior._energy_barrier(np.array([e]), np.array([c]), 1e-14)[0][0] == pytest.approx(c * abs(e), abs=1e-12)
 
 
+def _central_system(task, w, q, mu, fscale=None):
+    """The reach, the iterate at ``q`` with its slacks at their optimum and its duals central, and its system."""
+    reach = interior._Reach(task, w, q, fscale)
+    out, phi, tip = reach.evaluate(q, np.zeros(reach.act.size), mu)
+    sp, sm = interior._split(out[72, reach.act], reach.c, mu)
+    x = interior._Iterate(q, out, phi, tip, sp, sm, reach.slacks(q))
+    x.center(reach, mu)
+    ab, rhs, error, *_ = reach.kkt(x, mu)
+    return reach, x, ab.copy(), rhs, error
+
+
+@pytest.mark.parametrize("tight", [False, True])
+def test_the_step_system_is_the_barrier_functions_newton_system(recorded_p4, tight):
+    """With the split's slacks at their optimum and the duals central (``z = μ/s``, ``y = c − z⁺``, ``λ = 0``), the
+    condensed primal-dual system is Newton's on the primal barrier function: its right-hand side is minus the
+    barrier function's gradient in the knots and its knots' block that function's Hessian, both against central
+    finite differences of the barrier function the line search evaluates; the bar's column and row are its
+    constraint's gradient, the bar's right-hand side its distance, the residual the gradient's largest entry, and
+    the barrier function is infinite outside the bounds. At a small ``μ`` (the energy's curvature weighs) and with
+    bounds close to the path and a large ``μ`` (theirs does)."""
+    trial = recorded_p4[1]
+    task = observed_task(trial, 30, trial.onset_threshold)
+    w = nominal_weights()
+    q = solve_doc(task, w * np.array([2.0, 0.5, 1.0, 1.0, 3.0, 1.0, 0.7])).q[1:-1] + 0.002  # off the optimum
+    mu = 1e-3
+    if tight:
+        speeds = np.abs(np.diff(np.vstack([task.q0, q]), axis=0)) / task.dt
+        task = dataclasses.replace(
+            task, q_lower=q.min(axis=0) - 0.01, q_upper=q.max(axis=0) + 0.01, qd_max=1.1 * speeds.max(axis=0)
+        )
+        mu = 1.0
+    reach, x, ab, rhs, error = _central_system(task, w, q, mu)
+    m = reach.lay.m
+
+    def phi(qq):
+        return reach.evaluate(qq, x.y, mu)[1]
+
+    def gradient(qq):  # at the same objective scale
+        return -_central_system(task, w, qq, mu, reach.fscale)[3][:m]
+
+    h = 1e-6
+    steps = np.eye(m).reshape(m, -1, 2)
+    fd = np.array([(phi(q + h * e) - phi(q - h * e)) / (2 * h) for e in steps])
+    g = -rhs[:m]
+    assert np.max(np.abs(g - fd)) < 2e-5 * max(1.0, np.max(np.abs(g)))
+    assert error == pytest.approx(np.max(np.abs(g)), rel=1e-12)
+    assert rhs[m] == pytest.approx(-(task.arm.fk(q[-1])[0] - task.target_x), abs=1e-12)
+    bar = np.array([(task.arm.fk(q[-1] + h * e)[0] - task.arm.fk(q[-1] - h * e)[0]) / (2 * h) for e in np.eye(2)])
+    bw = interior._BW
+    column, row = ab[2 * bw + np.arange(m - 2, m) - m, m], ab[2 * bw + m - np.arange(m - 2, m), np.arange(m - 2, m)]
+    assert np.allclose(column, bar, rtol=1e-7, atol=1e-9) and np.allclose(row, bar, rtol=1e-7, atol=1e-9)
+    h = 1e-6
+    fd_h = np.array([(gradient(q + h * e) - gradient(q - h * e)) / (2 * h) for e in steps]).T
+    dense = np.zeros((m, m))
+    for j in range(m):
+        for i in range(max(0, j - bw), min(m, j + bw + 1)):
+            dense[i, j] = ab[2 * bw + i - j, j]
+    assert np.max(np.abs(dense - fd_h)) < 1e-4 * np.max(np.abs(dense))
+    assert np.max(np.abs(fd_h[np.abs(np.subtract.outer(range(m), range(m))) > bw])) < 1e-6 * np.max(np.abs(dense))
+    outside = q.copy()
+    outside[5, 0] = task.q_lower[0] - 1e-3
+    assert reach.evaluate(outside, x.y, mu)[1] == np.inf
+
+
 def test_far_weights_are_solved_as_fatrop_solves_them(recorded_p4):
     """The uncertainty's checked samples re-solve the fit's reach under weights far from the fit's (factors of
     ten and more): the interior point from the fit's solution answers, its optimum is exact Newton's (started there,

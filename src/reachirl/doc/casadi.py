@@ -57,7 +57,7 @@ import numpy as np
 
 from ..errors import solver_interrupts
 from ..features import N_FEATURES, euler_knots, trajectory_cost, window_index
-from . import compiled, newton
+from . import compiled, interior, newton
 from .interior import interior_solve
 from .newton import newton_solve
 from .symbolic import ARM_FIELDS, fingertip, fingertip_jacobian, inverse_dynamics, mass_matrix
@@ -359,12 +359,13 @@ compiled.on_setting(build_nlp.cache_clear)  # each NLP holds its solvers: a chan
 
 def preload(n: int) -> None:
     """Load (or build) in this process what a solve on ``n`` knots uses: the cold and warm fatrop solvers (the
-    compiled ones when cached) and the Newton and interior-point stage functions. A worker does it before its
-    first unit, while its coordinator is still starting."""
+    compiled ones when cached) and the functions of Newton's and the interior point's steps. A worker does it
+    before its first unit, while its coordinator is still starting."""
     nlp = build_nlp(n)
     for kind in _FATROP_SLOT:
         nlp.fatrop(kind)
     newton.preload(n)
+    interior.preload(n)
 
 
 def guess_knots(task: ReachingTask) -> np.ndarray:

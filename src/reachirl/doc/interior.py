@@ -16,8 +16,11 @@ as an interior point does (fatrop's and IPOPT's method, on the same problem):
 Each Newton step of the primal-dual equations is condensed stage by stage: the slacks and duals of stage ``k``
 depend on its own power only, so they add ``D_k ∇e_k ∇e_kᵀ`` (``D_k`` from ``z±/s±``) to the stage's 8 × 8
 Hessian, and the bounds add ``Aᵀ diag(z_b/s_b) A`` on neighbouring knots. The system is the knots' banded one
-(half-bandwidth 7, with the bar's multiplier last), solved by one banded LU (LAPACK's ``dgbsv``). The stages'
-derivatives are :mod:`reachirl.doc.newton`'s compiled stage function (the Lagrangian ``f + Σ y_k e_k``).
+(half-bandwidth 7, with the bar's multiplier last), solved by one banded LU (LAPACK's ``dgbsv``). That system
+and its residual are one CasADi function (:func:`_kkt_function`), and the stages' derivatives (the Lagrangian
+``f + Σ y_k e_k``, by :mod:`reachirl.doc.newton`'s stage function) with the barrier function below another
+(:func:`_barrier_function`), both compiled to C when :mod:`reachirl.doc.compiled` can: Python does little more
+per step than call them, the factorisations and the line search.
 
 Globalisation: the step is damped until the primal barrier function (the slacks at their optimum for the power,
 ``φ_μ(e) = r − μ ln(μ + r)``, ``r = √(w²e² + μ²)``, the bounds' barrier and ``ν|c|`` for the bar, ``ν`` twice
@@ -39,14 +42,28 @@ import functools
 import math
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 from scipy.linalg.lapack import dgbsv as _gbsv
 from scipy.linalg.lapack import dpbtrf as _pbtrf
 
-from .newton import _ROWS, NewtonResult, _arm_params, _knot_windows, _layout, _path, _scatter, _stage_map, _workspace
+from ..features import N_FEATURES
+from .newton import (
+    _ROWS,
+    NewtonResult,
+    _arm_params,
+    _gather_sum,
+    _knot_windows,
+    _layout,
+    _path,
+    _scatter,
+    _stage_map,
+    _workspace,
+)
+from .symbolic import ARM_FIELDS
 from .task import ReachingTask
 
-__all__ = ["MAX_ITER", "interior_solve"]
+__all__ = ["MAX_ITER", "interior_solve", "preload"]
 
 MAX_ITER = 150  # steps (`make run`'s checked samples: median 17, at most 106)
 MU_START = 1e-5  # the barrier parameter at the start (fatrop's warm start's, on the same order-one objective)
@@ -119,9 +136,148 @@ def _to_boundary(v: np.ndarray, dv: np.ndarray) -> float:
     return min(1.0, float(np.min(-_FRACTION * v[neg] / dv[neg])))
 
 
+def _arm_symbols():
+    """The arm's parameters (a symbol) and its ``l1``, ``l2``."""
+    arm = ca.MX.sym("arm", len(ARM_FIELDS))
+    return arm, arm[ARM_FIELDS.index("l1")], arm[ARM_FIELDS.index("l2")]
+
+
+def _bar(l1, l2, qn, target):
+    """The bar's constraint ``P_x(q_{N−1}) − target``, its gradient and its Hessian (row-major)."""
+    c1, c12, s1, s12 = ca.cos(qn[0]), ca.cos(qn[0] + qn[1]), ca.sin(qn[0]), ca.sin(qn[0] + qn[1])
+    jac = ca.vertcat(-l1 * s1 - l2 * s12, -l2 * s12)
+    curv = -ca.vertcat(l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12)
+    return l1 * c1 + l2 * c12 - target, jac, curv
+
+
+def _bounds_gradient(a, v: ca.MX, m: int) -> ca.MX:
+    """``Aᵀ v`` for the bounds' slacks' ``v`` (``(4, N−1, 2)`` row-major, ``4m/2`` long): ``(m,)`` on the knots. ``a``:
+    ``∂s_b/∂q_k`` of each slack kind; ``∂/∂q_{k−1}`` is minus the speeds'."""
+    v0, v1, v2, v3 = (v[i * m : (i + 1) * m] for i in range(4))
+    g = a[0] * v0 + a[1] * v1 + a[2] * v2 + a[3] * v3
+    return ca.vertcat(g[: m - 2] - (a[2] * v2[2:] + a[3] * v3[2:]), g[m - 2 :])
+
+
+@functools.lru_cache(maxsize=8)
+def _barrier_function(n: int) -> ca.Function:
+    """The stages' derivatives and the primal barrier function at a point, in one function (compiled to C when
+    :func:`reachirl.doc.compiled.compiled_function` can).
+
+    Inputs: the flat path ``q_{−2} … q_N``, the stages' weights and zero sides ``(8, n)`` column-major, the split's
+    multipliers ``y`` (zero on the stages without energy), the arm, ``dt``, the objective's scale, the stages with
+    energy (1/0) and their ``c`` (zero elsewhere), ``μ``, the joint limits, the speed bound and the bar. Outputs:
+    the stage function's output ``(82, n)`` (the Lagrangian ``f + Σ y_k e_k``), the barrier function without the
+    bar's penalty (the smooth terms, the energy's barrier :func:`_energy_barrier`, the bounds' ``−μ Σ ln s_b``;
+    infinite outside the bounds) and the bar's ``|P_x − target|``."""
+    lay = _lay(n)
+    m = lay.m
+    path = ca.MX.sym("path", 2 * (n + 3))
+    ws = ca.MX.sym("ws", (N_FEATURES + 1) * n)
+    y, mask, c = ca.MX.sym("y", n), ca.MX.sym("mask", n), ca.MX.sym("c", n)
+    arm, l1, l2 = _arm_symbols()
+    dt, fscale, mu, target = ca.MX.sym("dt"), ca.MX.sym("fscale"), ca.MX.sym("mu"), ca.MX.sym("target")
+    lo, hi, vmax = ca.MX.sym("lo", 2), ca.MX.sym("hi", 2), ca.MX.sym("vmax", 2)
+    x = ca.reshape(path[lay.gather.tolist()], 8, n)
+    out = _stage_map(n)(x, ca.reshape(ws, N_FEATURES + 1, n), y.T, arm, dt, fscale)  # (82, n)
+    q, v = path[6 : 6 + m], (path[6 : 6 + m] - path[4 : 4 + m]) / dt  # the inner knots and their speeds
+    lo_, hi_, vmax_ = (ca.repmat(b, n - 1, 1) for b in (lo, hi, vmax))
+    s_b = ca.vertcat(q - lo_, hi_ - q, vmax_ - v, v + vmax_)
+    e = out[72, :].T
+    smooth = ca.sum1(out[_ROWS - 1, :].T) - ca.sum1(c * ca.fabs(e))
+    r = ca.sqrt(c**2 * e**2 + mu**2)
+    energy = ca.sum1(mask * (r - mu * ca.log(mu + r)))
+    phi = ca.if_else(ca.mmin(s_b) > 0, smooth + energy - mu * ca.sum1(ca.log(s_b)), ca.inf)
+    tip = _bar(l1, l2, path[2 * (n + 1) : 2 * (n + 2)], target)[0]
+    return ca.Function(
+        f"reachirl_interior_barrier_{n}",
+        [path, ws, y, arm, dt, fscale, mask, c, mu, lo, hi, vmax, target],
+        [ca.vec(out), phi, ca.fabs(tip)],
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _kkt_function(n: int) -> ca.Function:
+    """One condensed primal-dual Newton step's system (module docstring) but its factorisation, in one function
+    (compiled to C when :func:`reachirl.doc.compiled.compiled_function` can).
+
+    Inputs: the stage function's output ``(82, n)`` (column-major), the stages with energy (1/0) and their ``c``,
+    the split's ``y``, ``s±`` and ``z±`` (each ``(n,)``; on the stages without energy ``y = 0`` and the others 1),
+    the bounds' slacks and duals (``(4, N−1, 2)`` row-major), ``∂s_b/∂q_k`` of each slack kind ``(4,)``, the bar's
+    multiplier, ``μ``, ``q_{N−1}``, the arm and the bar. Outputs: the knots' system in LAPACK's LU storage
+    (``(3·BW + 1, size)`` column-major; the bar's multiplier last), its right-hand side ``−(g, bar)``, the
+    largest residual of the primal-dual equations at ``μ`` (stationarity in the knots and in ``s±``, the
+    complementarity of the split and of the bounds), the split's condensed curvature ``D`` and right-hand side
+    ``b`` per stage, and the bar's gradient."""
+    lay = _lay(n)
+    m = lay.m
+    raw = ca.MX.sym("out", _ROWS * n)
+    mask, c, y = ca.MX.sym("mask", n), ca.MX.sym("c", n), ca.MX.sym("y", n)
+    sp, sm, zp, zm = (ca.MX.sym(name, n) for name in ("sp", "sm", "zp", "zm"))
+    s_b, zb = ca.MX.sym("s_b", 4 * m), ca.MX.sym("zb", 4 * m)
+    a = ca.MX.sym("a", 4)
+    lam, mu, qn = ca.MX.sym("lam"), ca.MX.sym("mu"), ca.MX.sym("qn", 2)
+    arm, l1, l2 = _arm_symbols()
+    target = ca.MX.sym("target")
+    out = ca.reshape(raw, _ROWS, n)
+    de = out[73:81, :]
+    cval, cj, ccurv = _bar(l1, l2, qn, target)
+    r_sp, r_sm = c - y - zp, c + y - zm
+    d = mask * (1.0 / (sp / zp + sm / zm))  # the split's curvature in the power, from z±/s±
+    b = (mu - sm * zm - sm * r_sm) / zm - (mu - sp * zp - sp * r_sp) / zp  # the split itself is exact
+    pairs = list(range(64))
+    hess = out[8:72, :] + (de[[k // 8 for k in pairs], :] * de[[k % 8 for k in pairs], :]) * ca.repmat(d.T, 64, 1)
+    g_loc = out[0:8, :] + de * ca.repmat((d * b).T, 8, 1)
+    last = [m - 2, m - 1]
+    g = _gather_sum(m, [(lay.g_rows, lay.g_src, 8 * n, ca.vec(g_loc)), (last, [0, 1], 2, lam * cj)])
+    g = g - _bounds_gradient(a, mu / s_b, m)
+    # the bounds' Hessian Aᵀ diag(z_b/s_b) A: a knot, and a knot with the one before it
+    sig = zb / s_b
+    s0, s1, s2, s3 = (sig[i * m : (i + 1) * m] for i in range(4))
+    a2 = a**2
+    hd = a2[0] * s0 + a2[1] * s1 + a2[2] * s2 + a2[3] * s3
+    hd = ca.vertcat(hd[: m - 2] + (a2[2] * s2[2:] + a2[3] * s3[2:]), hd[m - 2 :])
+    ho = -(a2[2] * s2[2:] + a2[3] * s3[2:])  # (q_{k+1}, q_k) for k = 1 … N−2
+    ab = _gather_sum(
+        lay.lu_size,
+        [
+            (lay.h_pos, lay.h_src, 64 * n, ca.vec(hess)),
+            (lay.diag, range(m), m, hd),
+            (lay.below, range(m - 2), m - 2, ho),
+            (lay.above, range(m - 2), m - 2, ho),
+            (lay.tip_block, range(4), 4, lam * ccurv),
+            (lay.tip_col, range(2), 2, cj),
+            (lay.tip_row, range(2), 2, cj),
+        ],
+    )
+    grad = _gather_sum(m, [(lay.g_rows, lay.g_src, 8 * n, ca.vec(out[0:8, :])), (last, [0, 1], 2, lam * cj)])
+    r_q = grad - _bounds_gradient(a, zb, m)
+    error = ca.mmax(
+        ca.vertcat(
+            ca.fabs(r_q),
+            mask * ca.fabs(r_sp),
+            mask * ca.fabs(r_sm),
+            mask * ca.fabs(sp * zp - mu),
+            mask * ca.fabs(sm * zm - mu),
+            ca.fabs(s_b * zb - mu),
+        )
+    )
+    return ca.Function(
+        f"reachirl_interior_kkt_{n}",
+        [raw, mask, c, y, sp, sm, zp, zm, s_b, zb, a, lam, mu, qn, arm, target],
+        [ab, -ca.vertcat(g, cval), error, d, b, cj],
+    )
+
+
+def preload(n: int) -> None:
+    """Build (or load, compiled) this thread's functions of ``n`` stages: the barrier function and the step's
+    system."""
+    for build in (_barrier_function, _kkt_function):
+        _workspace(build, n)
+
+
 class _Reach:
-    """One DOC on its knots: the task's constants and what every step evaluates (the stages' derivatives through
-    :mod:`.newton`'s compiled stage function, the bounds' slacks, the bar, the barrier function)."""
+    """One DOC on its knots: the task's constants, in the buffers of the two compiled functions every step calls
+    (:func:`_barrier_function`, :func:`_kkt_function`), and the bounds' slacks."""
 
     def __init__(self, task: ReachingTask, weights: np.ndarray, q: np.ndarray, fscale: float | None) -> None:
         n = self.n = task.n_nodes
@@ -130,31 +286,61 @@ class _Reach:
         self.dt = float(task.dt)
         self.q0 = np.asarray(task.q0, dtype=float)
         self.lo, self.hi, self.vmax = (np.asarray(a, dtype=float) for a in (task.q_lower, task.q_upper, task.qd_max))
-        self.l1, self.l2, self.target = task.arm.l1, task.arm.l2, task.target_x
-        self.trigger, inputs, (self.out_flat,) = _workspace(_stage_map, n)
-        self.x_in, ws_in, self.y_in, arm_in, dt_in, self.fs_in = inputs
+        arm = _arm_params(task.arm)
+        self.trigger, inputs, (self.out_flat, self.phi_out, self.tip_out) = _workspace(_barrier_function, n)
+        self.path_in, ws_in, self.y_in, arm_in, dt_in, self.fs_in, mask_in, c_in, self.mu_in, *fixed = inputs
         ws_in[:] = np.vstack([w_knot.T, np.zeros(n)]).reshape(-1, order="F")  # σ = 0: the energy is the split's
-        arm_in[:], dt_in[0] = _arm_params(task.arm), self.dt
+        arm_in[:], dt_in[0], self.y_in[:], mask_in[:], c_in[:] = arm, self.dt, 0.0, 0.0, 0.0
+        for buffer, value in zip(fixed, (self.lo, self.hi, self.vmax, task.target_x), strict=True):
+            buffer[:] = value
+        self.act = np.zeros(0, dtype=int)
         if fscale is None:  # 1 / the start's cost: an objective of order one
-            self.fs_in[0], self.act = 1.0, np.zeros(0, dtype=int)
-            cost = float(np.sum(self.evaluate(q, np.zeros(0))[_ROWS - 1]))
+            self.fs_in[0] = 1.0
+            cost = float(np.sum(self.evaluate(q, np.zeros(0), MU_START)[0][_ROWS - 1]))
             fscale = 1.0 / cost if math.isfinite(cost) and cost > 1e-300 else 1.0
         self.fscale = self.fs_in[0] = fscale
         w_e = fscale * self.dt * w_knot[:, 1]
         act = np.flatnonzero(w_e > 0)
         self.act = act[act > 0]  # the stages with an energy term (stage 0's power is zero: q̇_0 = 0)
         self.c = w_e[self.act]
+        mask_in[self.act], c_in[self.act] = 1.0, self.c
         # ∂s_b/∂q_k of each slack kind (q − lo, hi − q, vmax − q̇, vmax + q̇); ∂/∂q_{k−1} is minus the speeds'
         self.a_own = np.array([1.0, -1.0, -1.0 / self.dt, 1.0 / self.dt])[:, None, None]
+        self.kkt_trigger, k_in, (self.ab_out, self.rhs_out, self.err_out, self.d_out, self.b_out, self.cj_out) = (
+            _workspace(_kkt_function, n)
+        )
+        self.k_raw, k_mask, k_c, *self.k_split, self.k_sb, self.k_zb, k_a, self.k_lam, self.k_mu, self.k_qn = k_in[:14]
+        k_arm, k_target = k_in[14:]
+        k_mask[:], k_c[:] = mask_in, c_in
+        for buffer in self.k_split:  # y, s±, z± off the stages with energy: y = 0, the others 1
+            buffer[:] = 1.0
+        self.k_split[0][:] = 0.0
+        k_a[:], k_arm[:], k_target[0] = self.a_own.reshape(-1), arm, task.target_x
 
-    def evaluate(self, q: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """The stage function's output ``(82, n)`` at the inner knots ``q (N−1, 2)``, with the multipliers ``y`` of
-        the energy's split on the stages :attr:`act` (the Lagrangian ``f + Σ y_k e_k``)."""
-        self.x_in[:] = _path(self.q0, q)[self.lay.gather]
-        self.y_in[:] = 0.0
+    def evaluate(self, q: np.ndarray, y: np.ndarray, mu: float) -> tuple[np.ndarray, float, float]:
+        """At the inner knots ``q (N−1, 2)``, with the split's multipliers ``y`` on the stages :attr:`act`: the
+        stage function's output ``(82, n)`` (the Lagrangian ``f + Σ y_k e_k``), the barrier function at ``μ``
+        without the bar's penalty (infinite outside the bounds) and the bar's ``|P_x − target|``
+        (:func:`_barrier_function`)."""
+        self.path_in[:] = _path(self.q0, q)
         self.y_in[self.act] = y
+        self.mu_in[0] = mu
         self.trigger()
-        return self.out_flat.reshape(_ROWS, self.n, order="F").copy()
+        return self.out_flat.reshape(_ROWS, self.n, order="F").copy(), float(self.phi_out[0]), float(self.tip_out[0])
+
+    def kkt(self, x: _Iterate, mu: float):
+        """The step's system at ``x`` (:func:`_kkt_function`): the LU storage ``(3·BW + 1, size)`` (this reach's
+        buffer: overwritten by the next call), the right-hand side, the largest residual, ``D`` and ``b`` on the
+        stages :attr:`act`, and the bar's gradient."""
+        self.k_raw[:] = x.out.reshape(-1, order="F")
+        for buffer, value in zip(self.k_split, (x.y, x.sp, x.sm, x.zp, x.zm), strict=True):
+            buffer[self.act] = value
+        self.k_sb[:], self.k_zb[:] = x.s_b.reshape(-1), x.zb.reshape(-1)
+        self.k_lam[0], self.k_mu[0], self.k_qn[:] = x.lam, mu, x.q[-1]
+        self.kkt_trigger()
+        ab = self.ab_out.reshape(3 * _BW + 1, self.lay.size, order="F")
+        act = self.act
+        return ab, self.rhs_out.copy(), float(self.err_out[0]), self.d_out[act], self.b_out[act], self.cj_out.copy()
 
     def slacks(self, q: np.ndarray) -> np.ndarray:
         """The bounds' slacks ``(4, N−1, 2)``: ``q − lo``, ``hi − q``, ``vmax − q̇``, ``vmax + q̇``."""
@@ -169,34 +355,18 @@ class _Reach:
         np.subtract(self.hi, q, out=s[1])
         return s
 
-    def tip(self, qn: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-        """The bar's constraint ``P_x(q_{N−1}) − target``, its gradient and its Hessian (row-major)."""
-        l1, l2 = self.l1, self.l2
-        c1, c12, s1, s12 = math.cos(qn[0]), math.cos(qn[0] + qn[1]), math.sin(qn[0]), math.sin(qn[0] + qn[1])
-        jac = np.array([-l1 * s1 - l2 * s12, -l2 * s12])
-        curv = -np.array([l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12])
-        return l1 * c1 + l2 * c12 - self.target, jac, curv
-
-    def merit(self, q: np.ndarray, out: np.ndarray, mu: float, nu: float) -> float:
-        """The primal barrier function: the smooth terms, the energy's barrier (:func:`_energy_barrier`), the
-        bounds' ``−μ Σ ln s_b`` and ``ν |bar|``; infinite outside the bounds."""
-        s_b = self.slacks(q)
-        if np.any(s_b <= 0):
-            return math.inf
-        e = out[72, self.act]
-        smooth = float(np.sum(out[_ROWS - 1]) - np.sum(self.c * np.abs(e)))
-        energy = float(np.sum(_energy_barrier(e, self.c, mu)[0]))
-        return smooth + energy - mu * float(np.sum(np.log(s_b))) + nu * abs(self.tip(q[-1])[0])
-
 
 @dataclass
 class _Iterate:
-    """The method's point: the inner knots ``q``, the stage function's output there, the energy split's slacks
-    ``s±``, duals ``z±`` and multipliers ``y`` (on the stages with energy), the bounds' slacks and duals, the bar's
+    """The method's point: the inner knots ``q``, the stage function's output there, the barrier function (at the
+    current ``μ``, without the bar's penalty) and the bar's ``|P_x − target|``, the energy split's slacks ``s±``,
+    duals ``z±`` and multipliers ``y`` (on the stages with energy), the bounds' slacks and duals, the bar's
     multiplier."""
 
     q: np.ndarray
     out: np.ndarray
+    phi: float
+    tip: float
     sp: np.ndarray
     sm: np.ndarray
     s_b: np.ndarray
@@ -211,7 +381,7 @@ class _Iterate:
         evaluated at the new ``y``."""
         self.zp, self.zm, self.zb = mu / self.sp, mu / self.sm, mu / self.s_b
         self.y = reach.c - self.zp
-        self.out = reach.evaluate(self.q, self.y)
+        self.out, self.phi, self.tip = reach.evaluate(self.q, self.y, mu)
 
 
 def interior_solve(
@@ -227,17 +397,18 @@ def interior_solve(
     if np.any(s_b <= 0):
         return None
     mu = MU_START
-    out = reach.evaluate(q, np.zeros(reach.act.size))
+    out, phi, tip = reach.evaluate(q, np.zeros(reach.act.size), mu)
     sp, sm = _split(out[72, reach.act], reach.c, mu)
-    x = _Iterate(q, out, sp, sm, s_b)
+    x = _Iterate(q, out, phi, tip, sp, sm, s_b)
     x.center(reach, mu)  # the duals start at their central values
     nu, delta, central, m0, it = 0.0, 0.0, False, None, 0
     while True:
-        solved = _error(reach, x, mu) <= max(10.0 * mu, TOL) and abs(reach.tip(x.q[-1])[0]) < BAR_TOL
+        system = reach.kkt(x, mu)
+        solved = system[2] <= max(10.0 * mu, TOL) and x.tip < BAR_TOL
         if not solved:
             if it >= max_iter:
                 return None
-            step = _step(reach, x, mu, delta)
+            step = _step(reach, x, system, delta)
             if step is None:
                 return None
             dq, dlam, dx, dy, dzp, dzm, delta = step
@@ -247,7 +418,7 @@ def interior_solve(
             nu_new = 2.0 * abs(x.lam + dlam) + 1e-3
             if m0 is None or nu_new != nu:
                 nu = nu_new
-                m0 = reach.merit(x.q, x.out, mu, nu)
+                m0 = x.phi + nu * x.tip
             dm = _slope(reach, x, mu, nu, dx, ds_b)
             solved = dm > -1e-13 * max(1.0, abs(m0))  # nothing left to gain above round-off
             if solved and dm > 1e-10:  # uphill: the duals' own step; again with the duals at their centre
@@ -263,6 +434,7 @@ def interior_solve(
                 return _result(x, reach, it)
             mu = max(MU_END, min(0.2 * mu, mu**1.5))
             x.sp, x.sm = _split(x.out[72, reach.act], reach.c, mu)
+            x.out, x.phi, x.tip = reach.evaluate(x.q, x.y, mu)  # the barrier function at the new μ
             central, m0 = False, None
             continue
         it += 1
@@ -270,14 +442,14 @@ def interior_solve(
         alpha = _to_boundary(x.s_b.ravel(), ds_b.ravel())
         for _ in range(30):  # backtracking (Armijo) on the barrier function
             q_try = x.q + alpha * dq
-            out_try = reach.evaluate(q_try, x.y + alpha * dy)
-            m_try = reach.merit(q_try, out_try, mu, nu)
+            out_try, phi_try, tip_try = reach.evaluate(q_try, x.y + alpha * dy, mu)
+            m_try = phi_try + nu * tip_try
             if math.isfinite(m_try) and m_try <= m0 + _ARMIJO * alpha * dm:
                 break
             alpha *= 0.5
         else:
             return None
-        x.q, x.out, m0 = q_try, out_try, m_try
+        x.q, x.out, x.phi, x.tip, m0 = q_try, out_try, phi_try, tip_try, m_try
         x.lam += alpha * dlam
         x.y = x.y + alpha * dy
         x.zp, x.zm, x.zb = x.zp + alpha_d * dzp, x.zm + alpha_d * dzm, x.zb + alpha_d * dzb
@@ -286,84 +458,36 @@ def interior_solve(
         central = False
 
 
-def _bounds_gradient(reach: _Reach, v: np.ndarray) -> np.ndarray:
-    """``Aᵀ v`` for ``v (4, N−1, 2)`` on the bounds' slacks: ``(N−1, 2)`` on the knots."""
-    a = reach.a_own
-    g = (a * v).sum(axis=0)
-    g[:-1] -= (a[2:] * v[2:, 1:]).sum(axis=0)
-    return g
-
-
-def _error(reach: _Reach, x: _Iterate, mu: float) -> float:
-    """The largest residual of the primal-dual equations at ``μ``: stationarity in the knots, in the slacks ``s±``,
-    and the complementarity of the split and of the bounds."""
-    lay, m = reach.lay, reach.lay.m
-    grad = np.bincount(lay.g_rows, weights=x.out[0:8].reshape(-1, order="F")[lay.g_src], minlength=m)
-    grad[m - 2 :] += x.lam * reach.tip(x.q[-1])[1]
-    r_q = grad - _bounds_gradient(reach, x.zb).reshape(-1)
-    return max(
-        float(np.max(np.abs(r_q))),
-        float(np.max(np.abs(reach.c - x.y - x.zp), initial=0.0)),
-        float(np.max(np.abs(reach.c + x.y - x.zm), initial=0.0)),
-        float(np.max(np.abs(x.sp * x.zp - mu), initial=0.0)),
-        float(np.max(np.abs(x.sm * x.zm - mu), initial=0.0)),
-        float(np.max(np.abs(x.s_b * x.zb - mu))),
-    )
-
-
 def _slope(reach: _Reach, x: _Iterate, mu: float, nu: float, dx: np.ndarray, ds_b: np.ndarray) -> float:
     """The barrier function's directional derivative along the step (``dx (8, n)``: each stage's knots' step;
     ``ds_b``: the bounds' slacks' step); the step meets the linearised bar, so ``ν |bar|`` falls by itself."""
     e, de = x.out[72, reach.act], x.out[73:81, reach.act]
     slope = x.out[0:8].copy()
     slope[:, reach.act] += de * (_energy_barrier(e, reach.c, mu)[1] - x.y)  # the Lagrangian's y e taken out
-    return float(np.sum(slope * dx)) - mu * float(np.sum(ds_b / x.s_b)) - nu * abs(reach.tip(x.q[-1])[0])
+    return float(np.sum(slope * dx)) - mu * float(np.sum(ds_b / x.s_b)) - nu * x.tip
 
 
-def _step(reach: _Reach, x: _Iterate, mu: float, last: float):
-    """One condensed primal-dual Newton step (module docstring): ``(dq, dλ, dx, dy, dz⁺, dz⁻, δ)``, with
-    ``dx (8, n)`` the stages' local steps and ``δ`` the regularisation used (tried from ``last / 3`` after a
-    regularised step, as IPOPT does); None if the factorisations fail."""
+def _step(reach: _Reach, x: _Iterate, system, last: float):
+    """One condensed primal-dual Newton step (module docstring) from ``system`` (:meth:`_Reach.kkt` at ``x``):
+    ``(dq, dλ, dx, dy, dz⁺, dz⁻, δ)``, with ``dx (8, n)`` the stages' local steps and ``δ`` the regularisation used
+    (tried from ``last / 3`` after a regularised step, as IPOPT does); None if the factorisations fail."""
     lay, act, c = reach.lay, reach.act, reach.c
-    m, size, n = lay.m, lay.size, reach.n
-    out, sp, sm, zp, zm = x.out, x.sp, x.sm, x.zp, x.zm
-    de = out[73:81, act]
-    cval, cj, ccurv = reach.tip(x.q[-1])
-    r_sp, r_sm = c - x.y - zp, c + x.y - zm
-    d = 1.0 / (sp / zp + sm / zm)  # the split's curvature in the power, from z±/s±
-    b = (mu - sm * zm - sm * r_sm) / zm - (mu - sp * zp - sp * r_sp) / zp  # the split itself is exact
-    hess = out[8:72].copy()
-    hess[:, act] += (de[:, None, :] * de[None, :, :]).reshape(64, -1) * d
-    ab = np.bincount(lay.h_pos, weights=hess.reshape(-1, order="F")[lay.h_src], minlength=lay.lu_size)
-    g_loc = out[0:8].copy()
-    g_loc[:, act] += de * (d * b)
-    g = np.bincount(lay.g_rows, weights=g_loc.reshape(-1, order="F")[lay.g_src], minlength=m)
-    g[m - 2 :] += x.lam * cj
-    # the bounds: gradient −Aᵀ(μ/s_b), Hessian Aᵀ diag(z_b/s_b) A (a knot, and a knot with the one before it)
-    a, sig = reach.a_own, x.zb / x.s_b
-    g -= _bounds_gradient(reach, mu / x.s_b).reshape(-1)
-    hd = (a**2 * sig).sum(axis=0)
-    hd[:-1] += (a[2:] ** 2 * sig[2:, 1:]).sum(axis=0)
-    ho = -(a[2:] ** 2 * sig[2:, 1:]).sum(axis=0)  # (q_{k+1}, q_k) for k = 1 … N−2
-    ab[lay.diag] += hd.reshape(-1)
-    ab[lay.below] += ho.reshape(-1)
-    ab[lay.above] += ho.reshape(-1)
-    ab[lay.tip_block] += x.lam * ccurv
-    ab[lay.tip_col] += cj
-    ab[lay.tip_row] += cj
-    ab = ab.reshape(3 * _BW + 1, size, order="F")
+    m, n = lay.m, reach.n
+    ab, rhs, _, d, b, cj = system
     delta = _regularisation(ab, m, cj, last)
     if delta is None:
         return None
     ab[2 * _BW, :m] += delta
-    _, _, step, info = _gbsv(_BW, _BW, ab, -np.r_[g, cval], overwrite_ab=True)
+    _, _, step, info = _gbsv(_BW, _BW, ab, rhs, overwrite_ab=True)
     if info != 0 or not np.all(np.isfinite(step)):
         return None
     dpath = np.zeros(2 * (n + 3))
     dpath[6 : 6 + m] = step[:m]
     dpath[-2:] = step[m - 2 : m]  # q_N = q_{N−1}
     dx = dpath[lay.gather].reshape(8, n, order="F")
+    de = x.out[73:81, act]
     dy = d * (np.sum(de * dx[:, act], axis=0) + b)
+    r_sp, r_sm = c - x.y - x.zp, c + x.y - x.zm
     return step[:m].reshape(-1, 2), float(step[m]), dx, dy, r_sp - dy, r_sm + dy, delta
 
 

@@ -390,9 +390,9 @@ def _workspace(build, n: int):
 
 
 def preload(n: int) -> None:
-    """Build (or load, compiled) this thread's stage functions of ``n`` intervals: Newton's step, its check of
-    the minimum, and the stage map the interior point evaluates."""
-    for build in (_step_function, _minimum_band, _stage_map):
+    """Build (or load, compiled) this thread's functions of ``n`` intervals: Newton's step and its check of the
+    minimum."""
+    for build in (_step_function, _minimum_band):
         _workspace(build, n)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from collections.abc import Sequence
@@ -28,13 +29,19 @@ def fingerprint(trials: Sequence[Trial]) -> str:
 
 def versions() -> dict[str, str | None]:
     """The installed versions of reachirl and the solvers (``None`` where a package is missing)."""
-    out = {}
+    return dict(_installed())
+
+
+@functools.lru_cache(maxsize=1)
+def _installed() -> tuple[tuple[str, str | None], ...]:
+    """What :func:`versions` reports, read once per process (each read scans the installed packages' metadata)."""
+    out = []
     for name in _PACKAGES:
         try:
-            out[name] = metadata.version(name)
+            out.append((name, metadata.version(name)))
         except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
+            out.append((name, None))
+    return tuple(out)
 
 
 def _jsonable(v):
