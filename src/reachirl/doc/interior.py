@@ -151,8 +151,8 @@ def _bar(l1, l2, qn, target):
 
 
 def _bounds_gradient(a, v: ca.MX, m: int) -> ca.MX:
-    """``Aᵀ v`` for the bounds' slacks' ``v`` (``(4, N−1, 2)`` row-major, ``4m/2`` long): ``(m,)`` on the knots. ``a``:
-    ``∂s_b/∂q_k`` of each slack kind; ``∂/∂q_{k−1}`` is minus the speeds'."""
+    """``Aᵀ v`` for ``v`` on the bounds' slacks (``(4, N−1, 2)`` row-major, ``4m`` long): ``(m,)`` on the knots.
+    ``a``: ``∂s_b/∂q_k`` of each slack kind; ``∂/∂q_{k−1}`` is minus the speeds'."""
     v0, v1, v2, v3 = (v[i * m : (i + 1) * m] for i in range(4))
     g = a[0] * v0 + a[1] * v1 + a[2] * v2 + a[3] * v3
     return ca.vertcat(g[: m - 2] - (a[2] * v2[2:] + a[3] * v3[2:]), g[m - 2 :])
@@ -304,8 +304,6 @@ class _Reach:
         self.act = act[act > 0]  # the stages with an energy term (stage 0's power is zero: q̇_0 = 0)
         self.c = w_e[self.act]
         mask_in[self.act], c_in[self.act] = 1.0, self.c
-        # ∂s_b/∂q_k of each slack kind (q − lo, hi − q, vmax − q̇, vmax + q̇); ∂/∂q_{k−1} is minus the speeds'
-        self.a_own = np.array([1.0, -1.0, -1.0 / self.dt, 1.0 / self.dt])[:, None, None]
         self.kkt_trigger, k_in, (self.ab_out, self.rhs_out, self.err_out, self.d_out, self.b_out, self.cj_out) = (
             _workspace(_kkt_function, n)
         )
@@ -315,7 +313,8 @@ class _Reach:
         for buffer in self.k_split:  # y, s±, z± off the stages with energy: y = 0, the others 1
             buffer[:] = 1.0
         self.k_split[0][:] = 0.0
-        k_a[:], k_arm[:], k_target[0] = self.a_own.reshape(-1), arm, task.target_x
+        # ∂s_b/∂q_k of each slack kind (q − lo, hi − q, vmax − q̇, vmax + q̇); ∂/∂q_{k−1} is minus the speeds'
+        k_a[:], k_arm[:], k_target[0] = [1.0, -1.0, -1.0 / self.dt, 1.0 / self.dt], arm, task.target_x
 
     def evaluate(self, q: np.ndarray, y: np.ndarray, mu: float) -> tuple[np.ndarray, float, float]:
         """At the inner knots ``q (N−1, 2)``, with the split's multipliers ``y`` on the stages :attr:`act`: the
