@@ -100,7 +100,6 @@ def test_the_step_system_is_the_barrier_functions_newton_system(recorded_p4, tig
     bw = interior._BW
     column, row = ab[2 * bw + np.arange(m - 2, m) - m, m], ab[2 * bw + m - np.arange(m - 2, m), np.arange(m - 2, m)]
     assert np.allclose(column, bar, rtol=1e-7, atol=1e-9) and np.allclose(row, bar, rtol=1e-7, atol=1e-9)
-    h = 1e-6
     fd_h = np.array([(gradient(q + h * e) - gradient(q - h * e)) / (2 * h) for e in steps]).T
     dense = np.zeros((m, m))
     for j in range(m):
