@@ -41,6 +41,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -52,6 +53,7 @@ from .newton import (
     _ROWS,
     NewtonResult,
     _arm_params,
+    _bar_terms,
     _gather_sum,
     _knot_windows,
     _layout,
@@ -136,20 +138,6 @@ def _to_boundary(v: np.ndarray, dv: np.ndarray) -> float:
     return min(1.0, float(np.min(-_FRACTION * v[neg] / dv[neg])))
 
 
-def _arm_symbols():
-    """The arm's parameters (a symbol) and its ``l1``, ``l2``."""
-    arm = ca.MX.sym("arm", len(ARM_FIELDS))
-    return arm, arm[ARM_FIELDS.index("l1")], arm[ARM_FIELDS.index("l2")]
-
-
-def _bar(l1, l2, qn, target):
-    """The bar's constraint ``P_x(q_{N−1}) − target``, its gradient and its Hessian (row-major)."""
-    c1, c12, s1, s12 = ca.cos(qn[0]), ca.cos(qn[0] + qn[1]), ca.sin(qn[0]), ca.sin(qn[0] + qn[1])
-    jac = ca.vertcat(-l1 * s1 - l2 * s12, -l2 * s12)
-    curv = -ca.vertcat(l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12)
-    return l1 * c1 + l2 * c12 - target, jac, curv
-
-
 def _bounds_gradient(a, v: ca.MX, m: int) -> ca.MX:
     """``Aᵀ v`` for ``v`` on the bounds' slacks (``(4, N−1, 2)`` row-major, ``4m`` long): ``(m,)`` on the knots.
     ``a``: ``∂s_b/∂q_k`` of each slack kind; ``∂/∂q_{k−1}`` is minus the speeds'."""
@@ -174,7 +162,7 @@ def _barrier_function(n: int) -> ca.Function:
     path = ca.MX.sym("path", 2 * (n + 3))
     ws = ca.MX.sym("ws", (N_FEATURES + 1) * n)
     y, mask, c = ca.MX.sym("y", n), ca.MX.sym("mask", n), ca.MX.sym("c", n)
-    arm, l1, l2 = _arm_symbols()
+    arm = ca.MX.sym("arm", len(ARM_FIELDS))
     dt, fscale, mu, target = ca.MX.sym("dt"), ca.MX.sym("fscale"), ca.MX.sym("mu"), ca.MX.sym("target")
     lo, hi, vmax = ca.MX.sym("lo", 2), ca.MX.sym("hi", 2), ca.MX.sym("vmax", 2)
     x = ca.reshape(path[lay.gather.tolist()], 8, n)
@@ -187,7 +175,7 @@ def _barrier_function(n: int) -> ca.Function:
     r = ca.sqrt(c**2 * e**2 + mu**2)
     energy = ca.sum1(mask * (r - mu * ca.log(mu + r)))
     phi = ca.if_else(ca.mmin(s_b) > 0, smooth + energy - mu * ca.sum1(ca.log(s_b)), ca.inf)
-    tip = _bar(l1, l2, path[2 * (n + 1) : 2 * (n + 2)], target)[0]
+    tip = _bar_terms(arm, path[2 * (n + 1) : 2 * (n + 2)])[0] - target
     return ca.Function(
         f"reachirl_interior_barrier_{n}",
         [path, ws, y, arm, dt, fscale, mask, c, mu, lo, hi, vmax, target],
@@ -216,11 +204,10 @@ def _kkt_function(n: int) -> ca.Function:
     s_b, zb = ca.MX.sym("s_b", 4 * m), ca.MX.sym("zb", 4 * m)
     a = ca.MX.sym("a", 4)
     lam, mu, qn = ca.MX.sym("lam"), ca.MX.sym("mu"), ca.MX.sym("qn", 2)
-    arm, l1, l2 = _arm_symbols()
-    target = ca.MX.sym("target")
+    arm, target = ca.MX.sym("arm", len(ARM_FIELDS)), ca.MX.sym("target")
     out = ca.reshape(raw, _ROWS, n)
     de = out[73:81, :]
-    cval, cj, ccurv = _bar(l1, l2, qn, target)
+    tip, cj, ccurv = _bar_terms(arm, qn)
     r_sp, r_sm = c - y - zp, c + y - zm
     d = mask * (1.0 / (sp / zp + sm / zm))  # the split's curvature in the power, from z±/s±
     b = (mu - sm * zm - sm * r_sm) / zm - (mu - sp * zp - sp * r_sp) / zp  # the split itself is exact
@@ -264,7 +251,7 @@ def _kkt_function(n: int) -> ca.Function:
     return ca.Function(
         f"reachirl_interior_kkt_{n}",
         [raw, mask, c, y, sp, sm, zp, zm, s_b, zb, a, lam, mu, qn, arm, target],
-        [ab, -ca.vertcat(g, cval), error, d, b, cj],
+        [ab, -ca.vertcat(g, tip - target), error, d, b, cj],
     )
 
 
@@ -273,6 +260,17 @@ def preload(n: int) -> None:
     system."""
     for build in (_barrier_function, _kkt_function):
         _workspace(build, n)
+
+
+class _System(NamedTuple):
+    """One step's system at an iterate (:meth:`_Reach.kkt`)."""
+
+    ab: np.ndarray  # LAPACK's LU storage (3·BW + 1, size): the reach's buffer, overwritten by the next call
+    rhs: np.ndarray  # −(the gradient in the knots, the bar)
+    error: float  # the largest residual of the primal-dual equations
+    d: np.ndarray  # the split's condensed curvature, on the stages with energy
+    b: np.ndarray  # and its right-hand side
+    cj: np.ndarray  # the bar's gradient
 
 
 class _Reach:
@@ -327,19 +325,23 @@ class _Reach:
         self.trigger()
         return self.out_flat.reshape(_ROWS, self.n, order="F").copy(), float(self.phi_out[0]), float(self.tip_out[0])
 
-    def kkt(self, x: _Iterate, mu: float):
-        """The step's system at ``x`` (:func:`_kkt_function`): the LU storage ``(3·BW + 1, size)`` (this reach's
-        buffer: overwritten by the next call), the right-hand side, the largest residual, ``D`` and ``b`` on the
-        stages :attr:`act`, and the bar's gradient."""
+    def kkt(self, x: _Iterate, mu: float) -> _System:
+        """The step's system at ``x`` (:func:`_kkt_function`)."""
         self.k_raw[:] = x.out.reshape(-1, order="F")
         for buffer, value in zip(self.k_split, (x.y, x.sp, x.sm, x.zp, x.zm), strict=True):
             buffer[self.act] = value
         self.k_sb[:], self.k_zb[:] = x.s_b.reshape(-1), x.zb.reshape(-1)
         self.k_lam[0], self.k_mu[0], self.k_qn[:] = x.lam, mu, x.q[-1]
         self.kkt_trigger()
-        ab = self.ab_out.reshape(3 * _BW + 1, self.lay.size, order="F")
         act = self.act
-        return ab, self.rhs_out.copy(), float(self.err_out[0]), self.d_out[act], self.b_out[act], self.cj_out.copy()
+        return _System(
+            self.ab_out.reshape(3 * _BW + 1, self.lay.size, order="F"),
+            self.rhs_out.copy(),
+            float(self.err_out[0]),
+            self.d_out[act],
+            self.b_out[act],
+            self.cj_out.copy(),
+        )
 
     def slacks(self, q: np.ndarray) -> np.ndarray:
         """The bounds' slacks ``(4, N−1, 2)``: ``q − lo``, ``hi − q``, ``vmax − q̇``, ``vmax + q̇``."""
@@ -403,7 +405,7 @@ def interior_solve(
     nu, delta, central, m0, it = 0.0, 0.0, False, None, 0
     while True:
         system = reach.kkt(x, mu)
-        solved = system[2] <= max(10.0 * mu, TOL) and x.tip < BAR_TOL
+        solved = system.error <= max(10.0 * mu, TOL) and x.tip < BAR_TOL
         if not solved:
             if it >= max_iter:
                 return None
@@ -466,18 +468,18 @@ def _slope(reach: _Reach, x: _Iterate, mu: float, nu: float, dx: np.ndarray, ds_
     return float(np.sum(slope * dx)) - mu * float(np.sum(ds_b / x.s_b)) - nu * x.tip
 
 
-def _step(reach: _Reach, x: _Iterate, system, last: float):
+def _step(reach: _Reach, x: _Iterate, system: _System, last: float):
     """One condensed primal-dual Newton step (module docstring) from ``system`` (:meth:`_Reach.kkt` at ``x``):
     ``(dq, dλ, dx, dy, dz⁺, dz⁻, δ)``, with ``dx (8, n)`` the stages' local steps and ``δ`` the regularisation used
     (tried from ``last / 3`` after a regularised step, as IPOPT does); None if the factorisations fail."""
     lay, act, c = reach.lay, reach.act, reach.c
     m, n = lay.m, reach.n
-    ab, rhs, _, d, b, cj = system
-    delta = _regularisation(ab, m, cj, last)
+    ab, d, b = system.ab, system.d, system.b
+    delta = _regularisation(ab, m, system.cj, last)
     if delta is None:
         return None
     ab[2 * _BW, :m] += delta
-    _, _, step, info = _gbsv(_BW, _BW, ab, rhs, overwrite_ab=True)
+    _, _, step, info = _gbsv(_BW, _BW, ab, system.rhs, overwrite_ab=True)
     if info != 0 or not np.all(np.isfinite(step)):
         return None
     dpath = np.zeros(2 * (n + 3))

@@ -165,11 +165,7 @@ def _step_function(n: int) -> ca.Function:
     # one step late
     delta = (ca.if_else(kink_new, 0, sigma_new) * w_e + lam_new) - coef
     qb = path[2 * (n + 1) : 2 * (n + 2)]  # q_{N−1}
-    c1, c12, s1, s12 = ca.cos(qb[0]), ca.cos(qb[0] + qb[1]), ca.sin(qb[0]), ca.sin(qb[0] + qb[1])
-    l1, l2 = arm[ARM_FIELDS.index("l1")], arm[ARM_FIELDS.index("l2")]
-    tip = l1 * c1 + l2 * c12
-    jtip = ca.vertcat(-l1 * s1 - l2 * s12, -l2 * s12)
-    hess_tip = -ca.vertcat(l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12)
+    tip, jtip, hess_tip = _bar_terms(arm, qb)
     # the residual and the LU storage: sums of 0/1 operators applied to what they gather (:func:`_gather_sum`);
     # the stages' gradients and Hessians are read where the stage function wrote them
     g_rows, g_cols = lay.grad_terms
@@ -203,6 +199,16 @@ def _step_function(n: int) -> ca.Function:
         [path, wk, sigma, kink, lam, mu, first, auto, arm, dt, fscale, target],
         [lu, r, sigma_new, kink_new, lam_new, changed, used, ca.vec(raw)],
     )
+
+
+def _bar_terms(arm: ca.MX, qn: ca.MX) -> tuple[ca.MX, ca.MX, ca.MX]:
+    """The fingertip's ``P_x`` at ``q_{N−1} = qn`` (the bar's constraint is ``P_x − target``), its gradient and its
+    Hessian (row-major), for the arm's parameters ``arm`` (:data:`~reachirl.doc.symbolic.ARM_FIELDS`)."""
+    l1, l2 = arm[ARM_FIELDS.index("l1")], arm[ARM_FIELDS.index("l2")]
+    c1, c12, s1, s12 = ca.cos(qn[0]), ca.cos(qn[0] + qn[1]), ca.sin(qn[0]), ca.sin(qn[0] + qn[1])
+    jac = ca.vertcat(-l1 * s1 - l2 * s12, -l2 * s12)
+    curv = -ca.vertcat(l1 * c1 + l2 * c12, l2 * c12, l2 * c12, l2 * c12)
+    return l1 * c1 + l2 * c12, jac, curv
 
 
 def _gather_sum(n_rows: int, ops) -> ca.MX:
