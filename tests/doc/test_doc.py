@@ -347,6 +347,38 @@ def test_a_task_of_non_numbers_names_the_field(arm, args, match):
         ReachingTask(arm, *args)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"q0": np.array([0.0, np.nan])}, r"^q0 must be finite, got \[ 0\. nan\]$"),
+        ({"q_upper": np.array([np.inf, 2.5])}, r"^q_upper must be finite, got \[inf 2\.5\]$"),
+        ({"q_lower": np.array([0.5, 0.0]), "q_upper": np.array([0.5, 2.6])}, r"^q_lower \[0\.5 0\. \] must be below"),
+        ({"q_lower": [-2.6, 0.1], "q_upper": [2.1, 0.1]}, r"^q_lower \[-2\.6  0\.1\] must be below q_upper"),
+        ({"qd_max": np.array([10.0, 0.0])}, r"^qd_max must be > 0, got \[10\.  0\.\]$"),
+        ({"q0": np.array([0.0, 3.0])}, r"^q0 = \(0\.0°, 171\.9°\) lies outside the joint limits"),
+    ],
+)
+def test_a_task_of_float_arrays_is_checked_as_lists_are(arm, kwargs, match):
+    # float64 pairs (another task's, a trial's posture) take a shorter path through the checks than lists do
+    base = {"q0": np.array([0.0, 1.0]), "q_lower": np.array([-2.6, 0.0]), "q_upper": np.array([2.1, 2.6])}
+    with pytest.raises(ValueError, match=match):
+        ReachingTask(arm, target_x=0.3, duration=0.7, **{**base, **kwargs})
+
+
+def test_a_task_keeps_read_only_copies_of_its_pairs_and_replace_checks_again(arm):
+    import dataclasses
+
+    q0 = np.array([0.0, 1.0])
+    task = ReachingTask(arm, q0, 0.3, 0.7)
+    assert q0.flags.writeable  # the caller's array is left as it was; the task's pair cannot be written
+    with pytest.raises(ValueError, match="read-only"):
+        task.q0[0] = 1.0
+    longer = dataclasses.replace(task, duration=1.4)
+    assert longer.q0 is task.q0 and longer.duration == 1.4  # a checked pair is taken as it is
+    with pytest.raises(ValueError, match=r"^qd_max must be > 0"):
+        dataclasses.replace(task, qd_max=np.array([-1.0, 10.0]))
+
+
 def test_a_model_of_complex_weights_is_not_built():
     # the cast to float dropped the imaginary part, with a ComplexWarning only
     from reachirl.irl.model import LearnedModel

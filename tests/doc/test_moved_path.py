@@ -31,6 +31,24 @@ def test_the_moved_path_starts_at_the_task_and_ends_on_its_bar():
     assert abs(ARM.fk(on_bar(task, q))[0] - task.target_x) < 1e-12
 
 
+def test_the_bar_projection_takes_the_steps_of_the_arms_own_kinematics():
+    # on_bar works on scalars (every solve ends with it): its steps are the minimum-norm Newton steps of the arm's
+    # fk and jacobian, number for number, from postures on the bar to a solver's tolerance and from farther
+    rng = np.random.default_rng(3)
+    task = _task((4.0, -3.0), reach=0.92)
+    start = on_bar(task, np.array([0.3, 1.2]))
+    for dq in [*rng.normal(0.0, 1e-6, (1000, 2)), *rng.normal(0.0, 0.05, (1000, 2))]:
+        q = start + dq
+        ref = q.copy()
+        for _ in range(20):
+            r = task.target_x - float(ARM.fk(ref)[0])
+            if abs(r) < 1e-15:
+                break
+            j = ARM.jacobian(ref)[0]
+            ref += j * (r / float(j @ j))
+        np.testing.assert_array_equal(on_bar(task, q), ref)
+
+
 def test_starting_from_a_similar_reach_finds_the_same_optimum_in_fewer_iterations():
     w = nominal_weights()
     mean = solve_doc(_task(), w)

@@ -18,6 +18,7 @@ with a vector ``q̇⁺``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -42,6 +43,13 @@ __all__ = [
 
 
 def _vec2(name: str, v) -> np.ndarray:
+    if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (2,):  # e.g. another task's (a replace)
+        if not (math.isfinite(v[0]) and math.isfinite(v[1])):
+            raise ValueError(f"{name} must be finite, got {v}")
+        if v.flags.writeable:
+            v = v.view()
+            v.setflags(write=False)
+        return v
     if (what := not_real(v)) is not None:
         raise ValueError(f"{name} must be 2 real numbers, got {what}")
     try:
@@ -79,23 +87,26 @@ class ReachingTask:
                 object.__setattr__(self, name, number(getattr(self, name)))
             except (TypeError, ValueError):
                 raise ValueError(f"{name} must be a number ({unit}), got {brief(getattr(self, name))}") from None
-        if not np.isfinite(self.target_x):
+        if not math.isfinite(self.target_x):
             raise ValueError(f"target_x must be finite, got {self.target_x}")
-        if not (np.isfinite(self.duration) and self.duration > 0):
+        if not (math.isfinite(self.duration) and self.duration > 0):
             raise ValueError(f"duration must be a positive number of seconds, got {self.duration}")
         # physical and numerical ranges (InputError is a ValueError): a reach, a human-sized arm, a DOC that
         # builds and solves in seconds
         check_duration(self.duration, "ReachingTask")
         check_arm(self.arm, "ReachingTask")
         object.__setattr__(self, "n_nodes", check_n_nodes(self.n_nodes, "ReachingTask"))
-        for name in ("q_lower", "q_upper"):
-            if np.any(np.abs(getattr(self, name)) > 2 * np.pi):
+        # on the two joints' numbers (a task is made for every prediction: numpy's calls cost more than the checks)
+        (lo1, lo2), (hi1, hi2) = self.q_lower.tolist(), self.q_upper.tolist()
+        for name, pair in (("q_lower", (lo1, lo2)), ("q_upper", (hi1, hi2))):
+            if max(abs(pair[0]), abs(pair[1])) > 2 * np.pi:
                 raise ValueError(f"{name} {getattr(self, name)} is beyond a full turn of a joint: radians are expected")
-        if np.any(self.q_lower >= self.q_upper):
+        if lo1 >= hi1 or lo2 >= hi2:
             raise ValueError(f"q_lower {self.q_lower} must be below q_upper {self.q_upper}")
-        if np.any(self.qd_max <= 0):
+        if min(self.qd_max.tolist()) <= 0:
             raise ValueError(f"qd_max must be > 0, got {self.qd_max}")
-        if np.any(self.q0 < self.q_lower - 1e-9) or np.any(self.q0 > self.q_upper + 1e-9):
+        a1, a2 = self.q0.tolist()
+        if a1 < lo1 - 1e-9 or a2 < lo2 - 1e-9 or a1 > hi1 + 1e-9 or a2 > hi2 + 1e-9:
             lo, hi = np.rad2deg(self.q_lower), np.rad2deg(self.q_upper)
             # each joint's own range (the lower and the upper bounds were printed as two pairs, [[q1, q2], [q1,
             # q2]], which read as q1 in [-150, -5]), and what a start beyond a full turn most likely is
@@ -177,7 +188,7 @@ class DocSolution:
     def finite(self) -> bool:
         """Whether every knot of ``q``, ``q̇`` and ``τ`` is a finite number (a solution with none is never
         converged)."""
-        return bool(np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.qd)) and np.all(np.isfinite(self.tau)))
+        return bool(np.isfinite(self.q).all() and np.isfinite(self.qd).all() and np.isfinite(self.tau).all())
 
     @property
     def state(self) -> np.ndarray:
@@ -204,15 +215,20 @@ def min_jerk(s: np.ndarray) -> np.ndarray:
 def on_bar(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     """The posture ``q (2,)`` moved onto the bar (fingertip ``P_x = task.target_x``) by minimum-norm Newton steps.
 
-    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact."""
-    q = np.array(q, dtype=float)
+    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact. In
+    scalars (every solve ends here): the operations of :meth:`~reachirl.arm.ArmModel.fk` and ``jacobian``, the
+    gradient's squared norm by numpy's dot product, so the same numbers as on arrays."""
+    l1, l2 = task.arm.l1, task.arm.l2
+    q1, q2 = (float(v) for v in np.asarray(q, dtype=float).reshape(2))
     for _ in range(20):  # Newton: one or two steps from a solver's answer, a few from a posture centimetres away
-        r = task.target_x - float(task.arm.fk(q)[0])
+        r = task.target_x - (l1 * math.cos(q1) + l2 * math.cos(q1 + q2))
         if abs(r) < 1e-15:
             break
-        j = task.arm.jacobian(q)[0]
-        q += j * (r / float(j @ j))
-    return q
+        s12 = math.sin(q1 + q2)
+        j = np.array([-l1 * math.sin(q1) - l2 * s12, -l2 * s12])
+        k = r / float(j @ j)
+        q1, q2 = q1 + float(j[0]) * k, q2 + float(j[1]) * k
+    return np.array([q1, q2])
 
 
 def moved_path(task: ReachingTask, path: np.ndarray) -> np.ndarray:

@@ -97,7 +97,9 @@ class Drawing:
         except BaseException:
             self.stop()
             raise
-        self._pool.shutdown(wait=True)
+        # every figure is written: the workers end on their own (their interpreters' exit, a tenth of a second,
+        # overlaps what the caller writes next; Python joins them at its own exit)
+        self._pool.shutdown(wait=False)
         self._pool = None
         return written
 
