@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from reachirl.experiments import figures as fg
-from reachirl.experiments.analysis import paired_comparison
+from reachirl.experiments.analysis import paired_comparison, signed_rank_p
 from reachirl.experiments.method import convergence_text, method_lines
 from reachirl.experiments.protocol import ProtocolConfig
 from reachirl.experiments.report import prediction_note, protocol_line, weights_caption
@@ -35,6 +35,29 @@ def test_fifty_trials_of_two_fits_are_two_samples_not_fifty():
     assert c["n"] == 2 and c["n_lower"] == 2 and c["mean_diff_deg"] == pytest.approx(-0.5)
     assert c["per_posture"] == pytest.approx({"P1": -0.5, "P2": -0.5})
     assert c["wilcoxon_p"] == pytest.approx(0.5) and c["min_p"] == pytest.approx(0.5)  # no evidence either way
+
+
+def test_the_signed_rank_p_value_is_scipys_exact_one():
+    # counted in reachirl (scipy.stats costs a run half a second to import and tear down): the same number as
+    # scipy's exact test, ties (mean ranks, the rank sum rounded away from the centre) and zeros (dropped) included
+    import warnings
+
+    from scipy.stats import wilcoxon
+
+    rng = np.random.default_rng(7)
+    cases = [rng.normal(size=n) for n in range(1, 16)]
+    cases += [rng.integers(-3, 4, size=n).astype(float) for n in range(2, 16) for _ in range(20)]
+    cases += [np.round(rng.normal(size=n), 1) for n in range(2, 12) for _ in range(10)]
+    compared = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy warns that ties make its exact test conservative
+        for d in cases:
+            if np.any(d != 0):
+                assert signed_rank_p(d) == float(wilcoxon(d, method="exact").pvalue), d
+                compared += 1
+    assert compared > 350
+    assert signed_rank_p([0.0, 0.0]) == 1.0  # nothing to rank
+    assert signed_rank_p(-np.arange(1.0, 7.0)) == 2 / 64  # all six lower: the smallest p six postures can give
 
 
 def test_six_postures_all_lower_reach_significance_and_mixed_ones_do_not():
