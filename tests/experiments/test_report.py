@@ -574,3 +574,22 @@ def test_a_convergence_panel_of_one_iteration_ticks_whole_iterations():
     ticks = [t for t in one.get_xticks() if one.get_xlim()[0] <= t <= one.get_xlim()[1]]
     assert ticks and all(float(t).is_integer() for t in ticks), ticks
     assert eight.get_xlim()[1] - eight.get_xlim()[0] < 3  # a panel of several iterations keeps its own span
+
+
+def test_the_merits_log_axis_is_labelled_in_plain_numbers_on_matplotlibs_own_ticks():
+    """0.6 rather than 6 × 10⁻¹ (typeset as mathematical text, whose parser cost a figure worker a tenth of a
+    second): the same ticks labelled as matplotlib's own log formatter labels them, only the text differs."""
+    import matplotlib.pyplot as plt
+
+    hist = {("P1", 6): [{"iteration": i, "merit": m} for i, m in enumerate([0.62, 0.31, 0.12, 0.093])]}
+    fig = fg.plot_convergence(hist, [6])
+    fig.canvas.draw()
+    ax = fig.axes[0]
+    ours = [(t.get_text(), t.get_position()[1]) for t in ax.get_yticklabels(which="both") if t.get_text()]
+    ax.set_yscale("log")  # matplotlib's own formatters back, on the same limits
+    ax.set_ylim(*ax.get_ylim())
+    fig.canvas.draw()
+    theirs = [t.get_position()[1] for t in ax.get_yticklabels(which="both") if t.get_text()]
+    plt.close(fig)
+    assert [y for _, y in ours] == pytest.approx(theirs) and len(ours) >= 4
+    assert [text for text, _ in ours] == [f"{y:g}" for _, y in ours] and not any("$" in t for t, _ in ours)
