@@ -365,7 +365,7 @@ def test_a_task_of_float_arrays_is_checked_as_lists_are(arm, kwargs, match):
         ReachingTask(arm, target_x=0.3, duration=0.7, **{**base, **kwargs})
 
 
-def test_a_task_keeps_read_only_copies_of_its_pairs_and_replace_checks_again(arm):
+def test_a_task_keeps_its_pairs_read_only_and_replace_checks_them_again(arm):
     import dataclasses
 
     q0 = np.array([0.0, 1.0])

@@ -139,8 +139,7 @@ def signed_rank_p(d) -> float:
     their mean rank, the positive differences' rank sum ``T`` set against its null distribution (each of the
     ``2ⁿ`` sign patterns of the ranks ``1 … n`` equally likely, the patterns of each sum counted), a non-integral
     ``T`` (ties) rounded away from the centre; ``p = min(1, 2 min(P(T' ≤ ⌈T⌉), P(T' ≥ ⌊T⌋)))``. 1 without a
-    non-zero difference. Counted here: importing ``scipy.stats`` (and tearing it down at exit) costs a run half
-    a second at its very end."""
+    non-zero difference. Without scipy.stats, whose import and teardown take half a second."""
     d = np.asarray(d, dtype=float).reshape(-1)
     d = d[d != 0]
     n = d.size

@@ -393,8 +393,8 @@ def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
 
 class _DecimalLogLabels(matplotlib.ticker.LogFormatterSciNotation):
     """A log axis's labels as plain numbers (0.6, 0.1, 1, 3e-05) on the ticks matplotlib's own formatter labels:
-    a merit spans a decade or two, where 0.6 reads more easily than 6 × 10⁻¹, and matplotlib typesets its labels
-    as mathematical text, whose parser a figure worker built (a tenth of a second) for this figure alone."""
+    over the decade or two a merit spans, 0.6 reads more easily than 6 × 10⁻¹, and needs no mathematical text
+    (whose parser takes a tenth of a second to build)."""
 
     def __call__(self, x, pos=None):
         return f"{x:g}" if super().__call__(x, pos) else ""
