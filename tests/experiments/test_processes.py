@@ -1,10 +1,14 @@
 """Local worker processes: they run what they are given after their own set-up, and are ended at once."""
 
 import concurrent.futures as cf
+import functools
 import os
 import time
 
+import pytest
+
 from children import children_gone
+from reachirl.errors import InputError
 from reachirl.experiments.processes import local_executor, stop_workers
 
 
@@ -14,6 +18,22 @@ def test_a_worker_runs_its_setup_then_its_tasks():
         assert ex.submit(os.getppid).result(timeout=60) == os.getpid()
     finally:
         stop_workers(ex)
+
+
+def test_a_worker_whose_setup_fails_says_why_in_one_line(capfd):
+    # its set-up raised in the pool's initializer: a traceback on stderr ("Exception in initializer"), then a pool
+    # broken as if the worker had been killed ("a worker process died (killed, or out of memory)")
+    ex = local_executor(1, 4.0, then=functools.partial(int, "seven"))
+    try:
+        for _ in range(2):  # every task says it, the worker stays
+            with pytest.raises(InputError) as e:
+                ex.submit(os.getpid).result(timeout=60)
+            assert str(e.value) == (
+                "a worker process could not start (ValueError: invalid literal for int() with base 10: 'seven')"
+            )
+    finally:
+        stop_workers(ex)
+    assert "Traceback" not in capfd.readouterr().err
 
 
 def test_stopping_ends_a_busy_worker_at_once():

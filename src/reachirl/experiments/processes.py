@@ -26,9 +26,16 @@ __all__ = [
 ]
 
 
+#: in a worker process: why its set-up (``worker_init``'s ``then``) failed, which each of its tasks says
+_start_failure: str | None = None
+
+
 def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
     """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped; then
-    ``then()`` (e.g. imports the worker's modules before its first task)."""
+    ``then()`` (e.g. imports the worker's modules before its first task). A ``then()`` that fails leaves the
+    worker running, and each task it is given raises the reason (:func:`_started`): one line to the coordinator,
+    instead of a traceback on stderr and a pool broken as if the worker had been killed."""
+    global _start_failure
     import signal
 
     from ..workers import die_with_parent
@@ -43,7 +50,21 @@ def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | No
     except (ImportError, ValueError, OSError):
         pass
     if then is not None:
-        then()
+        try:
+            then()
+        except Exception as e:
+            memory = f"; its memory limit is {memory_gb:g} GB" if isinstance(e, MemoryError) else ""
+            _start_failure = f"{type(e).__name__}: {e}{memory}"
+
+
+def _started(fn, /, *args, **kwargs):
+    """``fn(*args, **kwargs)`` in a worker whose set-up succeeded; in one whose set-up failed, an
+    :class:`~reachirl.errors.InputError` saying why (exit 2 and one line, as a worker that died)."""
+    if _start_failure is not None:
+        from ..errors import InputError
+
+        raise InputError(f"a worker process could not start ({_start_failure})")
+    return fn(*args, **kwargs)
 
 
 class _Pool(cf.ProcessPoolExecutor):
@@ -56,10 +77,10 @@ class _Pool(cf.ProcessPoolExecutor):
         import threading
 
         if threading.current_thread() is not threading.main_thread():
-            return super().submit(fn, *args, **kwargs)
+            return super().submit(_started, fn, *args, **kwargs)
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
         try:
-            return super().submit(fn, *args, **kwargs)
+            return super().submit(_started, fn, *args, **kwargs)
         finally:
             signal.signal(signal.SIGINT, previous)
 
