@@ -33,8 +33,7 @@ _start_failure: str | None = None
 def worker_init(parent_pid: int, memory_gb: float, then: Callable[[], None] | None = None) -> None:
     """Bounds of a local worker: it dies with its parent (even a SIGKILLed one) and its memory is capped; then
     ``then()`` (e.g. imports the worker's modules before its first task). A ``then()`` that fails leaves the
-    worker running, and each task it is given raises the reason (:func:`_started`): one line to the coordinator,
-    instead of a traceback on stderr and a pool broken as if the worker had been killed."""
+    worker running, each task it is given raising the reason (:func:`_started`)."""
     global _start_failure
     import signal
 
