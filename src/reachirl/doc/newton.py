@@ -47,7 +47,7 @@ from scipy.linalg.lapack import dpbtrf as _pbtrf
 from ..features import N_FEATURES, window_index
 from . import compiled
 from .symbolic import ARM_FIELDS, fingertip_jacobian, inverse_dynamics, mass_matrix
-from .task import ReachingTask
+from .task import ReachingTask, fingertip_x
 
 __all__ = ["MAX_ITER", "NewtonResult", "newton_solve", "preload"]
 
@@ -469,7 +469,7 @@ def _answer(task, q0, q, kink, lam, mu, sigma, w_knot, fscale, out, it) -> Newto
     res = out.reshape(_ROWS, n, order="F")
     e = res[72]
     w_e = fscale * float(task.dt) * w_knot[:, 1]
-    _, jtip = _fingertip(task, q[-1])
+    _, jtip = fingertip_x(task, q[-1])
     curv = mu * _fingertip_hessian(task, q[-1])  # the bar's curvature in the Lagrangian
     if not _verified(task, q0, q, kink, lam, w_e, sigma, e, out, jtip, curv):
         return None
@@ -482,14 +482,6 @@ def _answer(task, q0, q, kink, lam, mu, sigma, w_knot, fscale, out, it) -> Newto
         bar_multiplier=float(mu),
         cost=float(np.sum(res[_ROWS - 1])) / float(fscale),
     )
-
-
-def _fingertip(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
-    """The fingertip's ``P_x(q)`` and its gradient."""
-    a = task.arm
-    q1, q12 = float(q[0]), float(q[0] + q[1])
-    c1, c12, s1, s12 = math.cos(q1), math.cos(q12), math.sin(q1), math.sin(q12)
-    return a.l1 * c1 + a.l2 * c12, np.array([-a.l1 * s1 - a.l2 * s12, -a.l2 * s12])
 
 
 def _fingertip_hessian(task: ReachingTask, q: np.ndarray) -> np.ndarray:

@@ -34,6 +34,7 @@ __all__ = [
     "DocSolution",
     "ReachingTask",
     "check_warm_start_knots",
+    "fingertip_x",
     "min_jerk",
     "moved_path",
     "on_bar",
@@ -212,23 +213,27 @@ def min_jerk(s: np.ndarray) -> np.ndarray:
     return 10 * s**3 - 15 * s**4 + 6 * s**5
 
 
+def fingertip_x(task: ReachingTask, q: np.ndarray) -> tuple[float, np.ndarray]:
+    """The fingertip's ``P_x`` at a posture ``q (2,)`` of ``task``'s arm and its gradient ``(2,)``: the operations of
+    :meth:`~reachirl.arm.ArmModel.fk` and ``jacobian`` on scalars (the same numbers, without their arrays' cost)."""
+    a = task.arm
+    q1, q12 = float(q[0]), float(q[0] + q[1])
+    c1, c12, s1, s12 = math.cos(q1), math.cos(q12), math.sin(q1), math.sin(q12)
+    return a.l1 * c1 + a.l2 * c12, np.array([-a.l1 * s1 - a.l2 * s12, -a.l2 * s12])
+
+
 def on_bar(task: ReachingTask, q: np.ndarray) -> np.ndarray:
     """The posture ``q (2,)`` moved onto the bar (fingertip ``P_x = task.target_x``) by minimum-norm Newton steps.
 
-    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact. In
-    scalars (every solve ends here): the operations of :meth:`~reachirl.arm.ArmModel.fk` and ``jacobian``, the
-    gradient's squared norm by numpy's dot product, so the same numbers as on arrays."""
-    l1, l2 = task.arm.l1, task.arm.l2
-    q1, q2 = (float(v) for v in np.asarray(q, dtype=float).reshape(2))
+    The solvers meet the constraint to their feasibility tolerance (fatrop: ~1e-10 m); this makes it exact."""
+    q = np.array(q, dtype=float).reshape(2)
     for _ in range(20):  # Newton: one or two steps from a solver's answer, a few from a posture centimetres away
-        r = task.target_x - (l1 * math.cos(q1) + l2 * math.cos(q1 + q2))
+        p, j = fingertip_x(task, q)
+        r = task.target_x - p
         if abs(r) < 1e-15:
             break
-        s12 = math.sin(q1 + q2)
-        j = np.array([-l1 * math.sin(q1) - l2 * s12, -l2 * s12])
-        k = r / float(j @ j)
-        q1, q2 = q1 + float(j[0]) * k, q2 + float(j[1]) * k
-    return np.array([q1, q2])
+        q += j * (r / float(j @ j))
+    return q
 
 
 def moved_path(task: ReachingTask, path: np.ndarray) -> np.ndarray:
