@@ -1,6 +1,9 @@
 """The compiled DOC solver (reachirl.doc.compiled): same answers as CasADi's virtual machine, bit for bit, and
 never in the way (a broken cache file, no compiler, a bad setting)."""
 
+import os
+import subprocess
+import sys
 import time
 
 import casadi as ca
@@ -261,3 +264,51 @@ def test_a_virtual_machine_solver_is_saved_once_and_loaded_after(cache, monkeypa
         _, off = solve_once()
     assert not list(cache.rglob("*.casadi"))
     assert np.array_equal(made, off)
+
+
+def test_prepare_compiles_both_solvers_once_and_solves_load_them(cache, monkeypatch, arm):
+    """``make run``'s set-up (``python -m reachirl.doc.compile_job prepare N``): both solvers compiled side by side
+    into the cache, said in one line each; a run after it loads them (no compilation, the VM's answers bit for
+    bit), and a second set-up compiles nothing."""
+    tasks, w = _problems(arm)
+    with compiled.setting("off"):
+        vm = _solve_all(tasks[:1], w)
+    env = {**os.environ, "REACHIRL_COMPILE": "auto"}
+    cmd = [sys.executable, "-m", "reachirl.doc.compile_job", "prepare", str(N)]
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines() == [f"the {k} DOC solver of {N} knots: compiled, cached" for k in ("cold", "warm")]
+    assert len(list(cache.rglob("solver.casadi"))) == 2 and not list(cache.rglob("*.lock"))
+
+    monkeypatch.setenv("REACHIRL_COMPILE", "auto")
+    monkeypatch.setattr(compiled, "start_background", lambda *a, **k: pytest.fail("compiled again"))
+    cas.build_nlp.cache_clear()
+    after = _solve_all(tasks[:1], w)
+    assert {"fatrop_compiled", "fatrop_warm_compiled"} <= set(cas.build_nlp(N)._solvers)
+    for a, b in zip(vm, after, strict=True):
+        assert np.array_equal(a.q, b.q) and a.cost == b.cost and a.iterations == b.iterations
+    cas.build_nlp.cache_clear()
+    assert cas.prepare(N) == {"cold": True, "warm": True}, "already cached: nothing compiled"
+
+
+def test_prepare_without_a_compiler_or_when_off_leaves_the_virtual_machine(cache, monkeypatch, cli):
+    """No C compiler: each solver said not compiled, exit 0 and no lock left behind (the run solves on CasADi's
+    VM); ``REACHIRL_COMPILE=off``: nothing tried; a bad setting: exit 2 and one line."""
+    cmd = [sys.executable, "-m", "reachirl.doc.compile_job", "prepare", str(N)]
+    env = {k: v for k, v in os.environ.items() if k != "REACHIRL_COMPILE"}
+    r = subprocess.run(cmd, env={**env, "PATH": ""}, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert [line.split(": ", 1)[1] for line in r.stdout.splitlines()] == [
+        "not compiled (no C compiler, or REACHIRL_COMPILE=off): CasADi's VM solves"
+    ] * 2
+    assert not list(cache.rglob("solver.casadi")) and not list(cache.rglob("*.lock"))
+
+    with compiled.setting("off"):
+        monkeypatch.setattr(compiled, "start_background", lambda *a, **k: pytest.fail("compiled when off"))
+        assert cas.prepare(N) == {"cold": False, "warm": False}
+
+    r = subprocess.run(cmd, env={**env, "REACHIRL_COMPILE": "fast"}, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip().splitlines() == [
+        "error: environment variable REACHIRL_COMPILE='fast': expected one of auto, on, off"
+    ]

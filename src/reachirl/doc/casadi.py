@@ -79,6 +79,7 @@ __all__ = [
     "guess_knots",
     "initial_guess",
     "preload",
+    "prepare",
     "solve",
 ]
 
@@ -366,6 +367,12 @@ def preload(n: int) -> None:
         nlp.fatrop(kind)
     newton.preload(n)
     interior.preload(n)
+
+
+def prepare(n: int) -> dict[str, bool]:
+    """Compile and cache the cold and warm fatrop solvers of ``n`` knots where they are not cached yet, and wait
+    (:func:`reachirl.doc.compiled.prepare`): ``{"cold": cached, "warm": cached}``."""
+    return compiled.prepare(list(build_nlp(n).slots.values()))
 
 
 def guess_knots(task: ReachingTask) -> np.ndarray:

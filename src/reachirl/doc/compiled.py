@@ -58,6 +58,7 @@ __all__ = [
     "load",
     "mode",
     "on_setting",
+    "prepare",
     "release",
     "remember",
     "remembered_path",
@@ -307,6 +308,30 @@ def start_background(n: int, path: Path, kind: str = "cold") -> bool:
         env={**os.environ, "REACHIRL_COMPILE": "off"},
     )
     return True
+
+
+def prepare(slots: list[Slot]) -> dict[str, bool]:
+    """Have the solver of each of ``slots`` compiled and cached where it is not yet, all at once, each in a
+    process of its own (:func:`start_background`), and wait for them: ``{kind: cached}``, False where it could not
+    be (no C compiler, an unwritable cache, :func:`mode` ``off``). The set-up a machine does once
+    (``make run``): afterwards every process that solves loads these solvers instead of CasADi's VM."""
+    if mode() == "off":
+        return {slot.kind: False for slot in slots}
+    paths = {}
+    for slot in slots:
+        path = remembered_path(slot.recipe, slot.nlp, slot.spec[2])
+        if load(path) is None:
+            start_background(slot.n, path, slot.kind)
+        paths[slot.kind] = path
+    deadline = time.monotonic() + STALE_LOCK_S
+    while any(_lock(p).exists() for p in paths.values()) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    cached = {}
+    for slot in slots:
+        cached[slot.kind] = load(paths[slot.kind]) is not None
+        if cached[slot.kind]:
+            remember(slot.recipe, paths[slot.kind])
+    return cached
 
 
 class Slot:
