@@ -14,10 +14,12 @@ disk, so it is done only where it pays off, which the environment variable ``REA
   same solver wait for that file instead of compiling it again.
 * ``on``: the first cold (warm) solve of a number of knots compiles the cold (warm) solver (and waits),
   unless it is cached.
-
-Compilation always runs in a process of its own (``python -m reachirl.doc.compile_job``), because CasADi writes
-its sources into the working directory: the solving process never changes its own.
 * ``off``: never compile, never load.
+
+:func:`prepare` compiles the solvers of one number of knots before any solve, side by side (``make run`` has its
+own compiled so, once per machine: ``python -m reachirl.doc.compile_job prepare 100``). Compilation always runs
+in a process of its own (``python -m reachirl.doc.compile_job``), because CasADi writes its sources into the
+working directory: the solving process never changes its own.
 
 The cache holds CasADi's own serialisation of the solver (no pickle) beside the library it links to, in
 ``<cache>/casadi-<version>/doc-<hash>/`` (``$REACHIRL_CACHE``, else ``$XDG_CACHE_HOME/reachirl``, else
