@@ -52,5 +52,5 @@ def _prepare(n: int) -> int:
     return 0
 
 
-if __name__ == "__main__":  # pragma: no cover - run as a detached process by start_background
+if __name__ == "__main__":  # pragma: no cover - run as a process of its own (start_background, make run)
     sys.exit(main(sys.argv[1:]))
