@@ -34,7 +34,8 @@ $(STAMP): requirements.lock pyproject.toml
 
 # make run's DOC solvers (100 knots, cold and warm) compiled to C once, side by side (about a minute; again when the
 # code that builds them changes): its fatrop solves then take about half their CPU, with the same answers bit for bit.
-# Without a C compiler they are not, and CasADi's virtual machine solves (reachirl.doc.compiled).
+# Without a C compiler they are not, and CasADi's virtual machine solves (reachirl.doc.compiled). After emptying the
+# cache (~/.cache/reachirl), `rm .venv/.solvers` has them compiled again.
 $(SOLVERS): $(STAMP) src/reachirl/doc/casadi.py src/reachirl/doc/symbolic.py src/reachirl/doc/compiled.py src/reachirl/features.py
 	$(PY) -m reachirl.doc.compile_job prepare 100
 	@touch $(SOLVERS)

@@ -46,9 +46,9 @@ def _prepare(n: int) -> int:
     except InputError as e:  # REACHIRL_COMPILE set to what it cannot be
         print(f"error: {e}", file=sys.stderr)
         return 2
+    off = "not compiled (no C compiler, an unwritable cache or REACHIRL_COMPILE=off): CasADi's VM solves"
     for kind, ok in cached.items():
-        how = "compiled, cached" if ok else "not compiled (no C compiler, or REACHIRL_COMPILE=off): CasADi's VM solves"
-        print(f"the {kind} DOC solver of {n} knots: {how}")
+        print(f"the {kind} DOC solver of {n} knots: {'compiled, cached' if ok else off}")
     return 0
 
 
