@@ -49,6 +49,21 @@ def test_stopping_ends_a_busy_worker_at_once():
     assert last.cancelled() or isinstance(last.exception(timeout=10), cf.process.BrokenProcessPool)
 
 
+def test_stopping_ends_the_pools_manager_thread_and_its_wakeup_pipe():
+    # concurrent.futures' exit hook writes to the manager thread's wake-up pipe without its lock; a thread still
+    # closing that pipe at exit made the write fail with an OSError traceback after "interrupted" (Python 3.11)
+    for _ in range(5):
+        ex = local_executor(2, 4.0)
+        futures = [ex.submit(time.sleep, 60) for _ in range(3)]
+        while not any(f.running() for f in futures):
+            time.sleep(0.05)
+        manager = ex._executor_manager_thread
+        stop_workers(ex)
+        assert not manager.is_alive()
+        wakeup = cf.process._threads_wakeups.get(manager)
+        assert wakeup is None or wakeup._closed, "the exit hook skips a closed pipe"
+
+
 SCRIPT = """import sys
 
 from reachirl.experiments import datasets

@@ -57,6 +57,22 @@ def test_workers_draw_the_same_files_as_this_process(tmp_path):
     assert children_gone()
 
 
+def test_closing_after_the_figures_ends_the_pools_manager_thread(tmp_path):
+    # concurrent.futures' exit hook writes to the manager thread's wake-up pipe without its lock; a thread still
+    # closing that pipe at the command's exit made the write fail with an OSError traceback (Python 3.11)
+    import concurrent.futures as cf
+
+    with drawing(jobs(tmp_path), workers=2) as d:
+        d.wait()
+        manager = d._manager
+        assert manager is not None, "the pool ended by wait() is the one close() waits for"
+    d.close()
+    assert not manager.is_alive()
+    wakeup = cf.process._threads_wakeups.get(manager)
+    assert wakeup is None or wakeup._closed, "the exit hook skips a closed pipe"
+    assert children_gone()
+
+
 def test_a_figures_error_is_raised_and_the_workers_end(tmp_path):
     bad = [*jobs(tmp_path), FigureJob(f"{FIGURES}:no_such_plot", {}, (tmp_path / "bad.png",))]
     with pytest.raises(AttributeError, match="no_such_plot"), drawing(bad, workers=2):

@@ -166,6 +166,10 @@ def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
     # the pool's own table of its processes (no public API): the same object its manager thread adds a process
     # to, so a worker started while the pool shuts down is ended too
     table = getattr(ex, "_processes", None) or {}
+    # and its manager thread, which closes its wake-up pipe as it ends; the interpreter's exit writes to that pipe
+    # (concurrent.futures' exit hook, unlocked in Python 3.11): ended below, the write is skipped rather than
+    # racing the close (an OSError traceback after "interrupted"). shutdown() forgets it.
+    manager = getattr(ex, "_executor_manager_thread", None)
     ex.shutdown(wait=False, cancel_futures=True)
     for _ in range(3):
         procs = [p for p in list(table.values()) if p.is_alive()]
@@ -178,6 +182,8 @@ def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
             if p.is_alive():
                 p.kill()  # cannot be ignored; reaped once the kernel has ended it (seconds on a loaded machine)
                 p.join(timeout=15.0)
+    if manager is not None:
+        manager.join(timeout=5.0)
 
 
 class WorkersAhead:

@@ -776,6 +776,7 @@ def write_outputs(
     write_results_json(run, tables, figs, truth[2], notes, doc, comparisons)
     reasons = split_reasons(config)
     write_tables(out, tables, postures, sections, n_trials, notes, reasons, md_tables)  # last: the run is done
+    figures.close()  # the figure workers have ended meanwhile
     return {"tables": tables, "timing": timing, "notes": notes, "figures": sorted(figs), "n_trials": n_trials}
 
 
