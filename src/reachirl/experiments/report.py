@@ -519,8 +519,9 @@ def write_figures(
     """``figures/*.png`` (and ``.pdf`` with ``pdf``) under ``run.out_dir`` (or ``fig_dir``), drawn in ``workers``
     processes (:mod:`reachirl.experiments.rendering`); returns ``{name: {"caption"}}``."""
     jobs, figs = figure_jobs(run, tables, truth, fig_dir, pdf)
-    with drawing(jobs, workers):
+    with drawing(jobs, workers) as figures:
         pass
+    figures.close()
     return figs
 
 
