@@ -64,7 +64,7 @@ def test_closing_after_the_figures_ends_the_pools_manager_thread(tmp_path):
 
     with drawing(jobs(tmp_path), workers=2) as d:
         d.wait()
-        manager = d._manager
+        manager = d._ended._manager
         assert manager is not None, "the pool ended by wait() is the one close() waits for"
     d.close()
     assert not manager.is_alive()

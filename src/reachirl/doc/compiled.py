@@ -319,18 +319,16 @@ def prepare(slots: list[Slot]) -> dict[str, bool]:
     (``make run``): afterwards every process that solves loads these solvers instead of CasADi's VM."""
     if mode() == "off":
         return {slot.kind: False for slot in slots}
-    paths = {}
+    paths = {slot.kind: remembered_path(slot.recipe, slot.nlp, slot.spec[2]) for slot in slots}
+    cached = {kind: load(path) is not None for kind, path in paths.items()}
     for slot in slots:
-        path = remembered_path(slot.recipe, slot.nlp, slot.spec[2])
-        if load(path) is None:
-            start_background(slot.n, path, slot.kind)
-        paths[slot.kind] = path
+        if not cached[slot.kind]:
+            start_background(slot.n, paths[slot.kind], slot.kind)
     deadline = time.monotonic() + STALE_LOCK_S
     while any(_lock(p).exists() for p in paths.values()) and time.monotonic() < deadline:
         time.sleep(0.2)
-    cached = {}
-    for slot in slots:
-        cached[slot.kind] = load(paths[slot.kind]) is not None
+    for slot in slots:  # those compiled here, loaded once to check them
+        cached[slot.kind] = cached[slot.kind] or load(paths[slot.kind]) is not None
         if cached[slot.kind]:
             remember(slot.recipe, paths[slot.kind])
     return cached

@@ -69,7 +69,21 @@ def _started(fn, /, *args, **kwargs):
 class _Pool(cf.ProcessPoolExecutor):
     """A pool whose workers are started with Ctrl-C ignored: a spawned worker imports for a second or two before
     :func:`worker_init` runs, and a Ctrl-C to the terminal's process group then printed its traceback. An ignored
-    signal stays ignored across ``exec``, and Python leaves it so; the pool starts its workers in ``submit``."""
+    signal stays ignored across ``exec``, and Python leaves it so; the pool starts its workers in ``submit``.
+    After ``shutdown``, :meth:`join_manager` waits for the pool's manager thread."""
+
+    _manager = None  # the manager thread, kept from shutdown(), which forgets it
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._manager = getattr(self, "_executor_manager_thread", None) or self._manager
+        super().shutdown(wait=wait, cancel_futures=cancel_futures)
+
+    def join_manager(self, timeout: float) -> None:
+        """Wait (at most ``timeout`` s) for the manager thread of a pool shut down, which closes its wake-up pipe as
+        it ends. Python's exit writes to that pipe while the thread may be closing it (concurrent.futures' exit
+        hook, unlocked in Python 3.11: an OSError traceback); once the thread has ended, the write is skipped."""
+        if self._manager is not None:
+            self._manager.join(timeout=timeout)
 
     def submit(self, fn, /, *args, **kwargs):
         import signal
@@ -166,10 +180,6 @@ def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
     # the pool's own table of its processes (no public API): the same object its manager thread adds a process
     # to, so a worker started while the pool shuts down is ended too
     table = getattr(ex, "_processes", None) or {}
-    # and its manager thread, which closes its wake-up pipe as it ends; the interpreter's exit writes to that pipe
-    # (concurrent.futures' exit hook, unlocked in Python 3.11): ended below, the write is skipped rather than
-    # racing the close (an OSError traceback after "interrupted"). shutdown() forgets it.
-    manager = getattr(ex, "_executor_manager_thread", None)
     ex.shutdown(wait=False, cancel_futures=True)
     for _ in range(3):
         procs = [p for p in list(table.values()) if p.is_alive()]
@@ -182,8 +192,8 @@ def stop_workers(ex: cf.ProcessPoolExecutor) -> None:
             if p.is_alive():
                 p.kill()  # cannot be ignored; reaped once the kernel has ended it (seconds on a loaded machine)
                 p.join(timeout=15.0)
-    if manager is not None:
-        manager.join(timeout=5.0)
+    if isinstance(ex, _Pool):
+        ex.join_manager(5.0)  # no traceback at exit after "interrupted"
 
 
 class WorkersAhead:

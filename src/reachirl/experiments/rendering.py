@@ -67,7 +67,7 @@ class Drawing:
         self._jobs = list(jobs)
         self._pool = ahead.take() if ahead is not None else None
         self._futures: list = []
-        self._manager = None  # the ended pool's manager thread (see close)
+        self._ended = None  # the pool wait() shut down (see close)
         if self._pool is None and workers > 1 and len(self._jobs) > 1:
             from .processes import local_executor
 
@@ -100,18 +100,16 @@ class Drawing:
             raise
         # every figure is written: the workers end on their own (their interpreters' exit, a tenth of a second,
         # overlaps what the caller writes next; close() or Python's own exit joins them)
-        self._manager = getattr(self._pool, "_executor_manager_thread", None)  # shutdown() forgets it
         self._pool.shutdown(wait=False)
-        self._pool = None
+        self._ended, self._pool = self._pool, None
         return written
 
     def close(self) -> None:
-        """Once :meth:`wait` has returned: wait for the pool's manager thread, which ends with the workers. Python's
-        exit writes to that thread's wake-up pipe while the thread may be closing it (concurrent.futures' exit
-        hook, unlocked in Python 3.11: an OSError traceback); ended first, the write is skipped."""
-        if self._manager is not None:
-            self._manager.join(timeout=10.0)
-            self._manager = None
+        """Once :meth:`wait` has returned: wait for the ended pool's manager thread, which ends with the workers
+        (:meth:`reachirl.experiments.processes._Pool.join_manager`: no traceback at Python's exit)."""
+        if self._ended is not None:
+            self._ended.join_manager(10.0)
+            self._ended = None
 
     def stop(self) -> None:
         """End the workers now (what they draw is not written)."""
