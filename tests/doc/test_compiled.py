@@ -312,3 +312,20 @@ def test_prepare_without_a_compiler_or_when_off_leaves_the_virtual_machine(cache
     assert r.stderr.strip().splitlines() == [
         "error: environment variable REACHIRL_COMPILE='fast': expected one of auto, on, off"
     ]
+
+
+def test_a_small_function_is_compiled_again_under_other_flags(cache, monkeypatch):
+    """The compiler's flags are part of a small function's cache key: a library built with other flags is never
+    loaded for these, and each build gives the virtual machine's bits."""
+    x = ca.SX.sym("x", 3)
+    f = ca.Function("reachirl_test_flags", [x], [ca.sin(x) * ca.exp(x[0]) + ca.sumsqr(x)])
+    arg = np.array([0.3, -1.2, 2.5])
+    libraries = []
+    for flags in (("-O3",), ("-O2",)):
+        monkeypatch.setattr(compiled, "FUNCTION_FLAGS", flags)
+        with compiled.setting("on"):
+            fc = compiled.compiled_function(f)
+        assert fc is not None
+        assert np.array_equal(np.asarray(fc(arg)), np.asarray(f(arg)))
+        libraries.append(sorted(p.name for p in cache.rglob("fn-reachirl_test_flags-*.so")))
+    assert len(libraries[0]) == 1 and len(libraries[1]) == 2
