@@ -321,7 +321,7 @@ def test_a_small_function_is_compiled_again_under_other_flags(cache, monkeypatch
     f = ca.Function("reachirl_test_flags", [x], [ca.sin(x) * ca.exp(x[0]) + ca.sumsqr(x)])
     arg = np.array([0.3, -1.2, 2.5])
     libraries = []
-    for flags in (("-O3",), ("-O2",)):
+    for flags in (compiled.FUNCTION_FLAGS, ("-O2",)):
         monkeypatch.setattr(compiled, "FUNCTION_FLAGS", flags)
         with compiled.setting("on"):
             fc = compiled.compiled_function(f)
