@@ -47,10 +47,10 @@ def _vec2(name: str, v) -> np.ndarray:
     if type(v) is np.ndarray and v.dtype == np.float64 and v.shape == (2,):  # e.g. another task's (a replace)
         if not (math.isfinite(v[0]) and math.isfinite(v[1])):
             raise ValueError(f"{name} must be finite, got {v}")
-        if v.flags.writeable:
-            v = v.view()
+        if v.flags.writeable or v.base is not None:  # the caller's, or a view of memory someone may still change
+            v = v.copy()
             v.setflags(write=False)
-        return v
+        return v  # a task's own: read-only, owning its numbers
     if (what := not_real(v)) is not None:
         raise ValueError(f"{name} must be 2 real numbers, got {what}")
     try:
