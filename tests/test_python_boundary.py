@@ -29,13 +29,15 @@ def test_a_trial_keeps_its_own_read_only_time_and_start(arm):
 def test_a_task_keeps_its_own_read_only_start_and_bounds(arm):
     from reachirl.doc.task import ReachingTask
 
-    q0, lower = np.array([-1.0, 1.2]), np.array([-2.6, 0.05])
+    q0, lower, row = np.array([-1.0, 1.2]), np.array([-2.6, 0.05]), np.array([[-1.0, 1.2]])
     view = np.array([-1.0, 1.2]).view()
     view.setflags(write=False)  # read-only, but a view of an array its owner may still change
     task = ReachingTask(arm, q0, 0.5, 0.8, n_nodes=20, q_lower=lower)
     from_view = ReachingTask(arm, view, 0.5, 0.8, n_nodes=20)
-    q0[0], lower[0], view.base[0] = 9.0, 1.0, 9.0  # the caller's arrays, changed after: not the tasks'
-    assert task.q0.tolist() == [-1.0, 1.2] and task.q_lower[0] == -2.6 and from_view.q0[0] == -1.0
+    from_row = ReachingTask(arm, row, 0.5, 0.8, n_nodes=20)  # (1, 2): reshaped
+    q0[0], lower[0], view.base[0], row[0, 0] = 9.0, 1.0, 9.0, 9.0  # the caller's arrays, changed after
+    assert task.q0.tolist() == [-1.0, 1.2] and task.q_lower[0] == -2.6
+    assert from_view.q0[0] == -1.0 and from_row.q0[0] == -1.0
     for name in ("q0", "q_lower", "q_upper", "qd_max"):
         with pytest.raises(ValueError, match="read-only"):
             getattr(task, name)[0] = 1.0

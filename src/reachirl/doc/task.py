@@ -54,7 +54,7 @@ def _vec2(name: str, v) -> np.ndarray:
     if (what := not_real(v)) is not None:
         raise ValueError(f"{name} must be 2 real numbers, got {what}")
     try:
-        a = np.asarray(v, dtype=float).reshape(-1)
+        a = np.array(v, dtype=float).reshape(-1)  # a copy, never a view of the caller's
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be 2 numbers, got {brief(v)}") from None
     if a.shape != (2,):
