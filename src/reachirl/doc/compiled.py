@@ -74,13 +74,15 @@ AUTO_AFTER_WARM = 3000  # warm solves likewise (~50 s of solving; `make run` mak
 KINDS = ("cold", "warm")
 # measured at N = 100: -O0 runs slower than CasADi's virtual machine; -Os compiles 54 s, not 36; -O2 and -O3
 # compile 80 s, not 49, and solve no faster (warm 10.9 ms with each of -O1, -O2, -O3, interleaved in one process)
-# -ffp-contract=off: no multiply-add fused into one rounding, so that compiled code gives the virtual machine's bits
-# on processors whose baseline has them too (aarch64); x86-64's has none, and its code is the same without the flag
-JIT_FLAGS = ("-O1", "-ffp-contract=off")
+# every compiled code's: no multiply-add fused into one rounding, so that it gives the virtual machine's bits on
+# processors whose baseline has such an instruction (aarch64); x86-64's has none, and its code is the same without it
+# (nor -march=native: its fused multiply-adds change the bits, and a library built for one processor would crash
+# another that shares the cache)
+SAME_BITS = ("-ffp-contract=off",)
+JIT_FLAGS = ("-O1", *SAME_BITS)
 # the small functions of compiled_function: Newton's step function at N = 100 ran in 125 µs at -O3 against 155 µs at
-# -O2, with the same bits (no -march=native: its fused multiply-adds change them, and a library built for one
-# processor would crash another that shares the cache)
-FUNCTION_FLAGS = ("-O3", "-ffp-contract=off")
+# -O2, with the same bits
+FUNCTION_FLAGS = ("-O3", *SAME_BITS)
 POLL_EVERY = 50  # past its threshold, a slot looks for the background compilation's file every this many solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
 STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died
