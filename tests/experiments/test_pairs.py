@@ -181,3 +181,41 @@ def test_a_failed_prediction_is_counted_in_its_pair_not_averaged_in(tmp_path):
     md = "\n".join(write_pairs(run, fig_dir=tmp_path / "figures")["markdown"])
     assert "**2 prediction(s) failed**" in md and "nan" not in md
     assert "nan" not in (tmp_path / "iscv_pairs.csv").read_text()
+
+
+def test_the_pair_heatmaps_are_drawn_from_the_jobs_write_pairs_returns(pairs_run, tmp_path, monkeypatch):
+    """write_pairs writes iscv_pairs.csv and returns its figures as jobs (drawn beside the run's other figures,
+    in the figure workers): it draws nothing itself, and a heatmap job gives each panel its subject × subject
+    matrix on one colour scale."""
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    from reachirl.experiments import pairs
+    from reachirl.experiments.rendering import draw
+
+    numbers = {"sections": int, "rmse_q_mean_deg": float, "rmse_q_sd_deg": float, "n": int, "doc_failures": int}
+    rows = [{k: numbers.get(k, str)(v) for k, v in r.items()} for r in _rows(pairs_run)]
+    monkeypatch.setattr(pairs, "pair_rows", lambda run: rows)
+    config = SimpleNamespace(methods=("moirl",), sections=(1,), iscv="all-pairs")
+    run = SimpleNamespace(out_dir=tmp_path, config=config, postures=["P2"], dataset=SimpleNamespace(subjects="ab"))
+    out = pairs.write_pairs(run)
+    assert (tmp_path / "iscv_pairs.csv").read_text() == (pairs_run / "iscv_pairs.csv").read_text()
+    assert not (tmp_path / "figures").exists()  # nothing drawn: the caller draws the jobs
+    names = [j.paths[-1].name for j in out["jobs"]]
+    assert names == ["iscv_pairs_moirl_s1.png", "iscv_vs_cv_moirl.png"] and list(out["figures"]) == names
+    heat = out["jobs"][0]
+    subjects, matrix = heat.kwargs["matrices"]["P2"]
+    assert subjects == ["S01", "S02", "S03"] and heat.kwargs["vmax"] == np.nanmax(matrix)
+    assert matrix[1, 2] == next(
+        r["rmse_q_mean_deg"]
+        for r in rows
+        if (r["train_subject"], r["test_subject"], r["posture"]) == ("S02", "S03", "P2")
+    )
+    fig = pairs.plot_pair_matrices(**heat.kwargs)
+    image = fig.axes[0].images[0]
+    np.testing.assert_array_equal(image.get_array(), matrix)
+    assert image.get_clim() == (0, heat.kwargs["vmax"])
+    plt.close(fig)
+    for job in out["jobs"]:
+        assert draw(job) == job.paths and job.paths[-1].is_file()

@@ -593,3 +593,34 @@ def test_the_merits_log_axis_is_labelled_in_plain_numbers_on_matplotlibs_own_tic
     plt.close(fig)
     assert [y for _, y in ours] == pytest.approx(theirs) and len(ours) >= 4
     assert [text for text, _ in ours] == [f"{y:g}" for _, y in ours] and not any("$" in t for t, _ in ours)
+
+
+def test_the_iscv_figure_draws_every_trials_measured_and_predicted_curves_in_degrees():
+    """fig4_iscv draws each posture's trials as line collections (a study's panel holds hundreds): every trial's
+    measured curve dashed and its prediction solid, per joint, in degrees over normalised time, inside the axes."""
+    import matplotlib.pyplot as plt
+
+    rng = np.random.default_rng(0)
+    n_trials, n_pts = 3, 7
+    arrays = {"iscv/t": np.tile(np.linspace(0.0, 1.2, n_pts), (n_trials, 1))}
+    for who in ("demo", "pred"):
+        for kind in ("q", "qd"):
+            arrays[f"iscv/{who}_{kind}"] = rng.normal(size=(n_trials, n_pts, 2))
+    fig = fg.plot_iscv({"P2": arrays})
+    s = np.linspace(0.0, 1.0, n_pts)
+    for row, kind in enumerate(("q", "qd")):
+        ax = fig.axes[row]
+        drawn = ax.collections
+        assert len(drawn) == 4  # per joint: the measured curves, then the predicted ones
+        for c, (j, who) in zip(drawn, [(j, w) for j in range(2) for w in ("demo", "pred")], strict=True):
+            want = np.rad2deg(arrays[f"iscv/{who}_{kind}"][..., j])
+            segs = c.get_segments()
+            assert len(segs) == n_trials
+            for i in range(n_trials):
+                np.testing.assert_array_equal(segs[i][:, 0], s)
+                np.testing.assert_allclose(segs[i][:, 1], want[i])
+            assert (c.get_linestyle()[0][1] is None) == (who == "pred")  # dashed measured, solid predicted
+        lo, hi = ax.get_ylim()
+        every = np.rad2deg(np.concatenate([arrays[f"iscv/{w}_{kind}"].ravel() for w in ("demo", "pred")]))
+        assert lo <= every.min() and every.max() <= hi
+    plt.close(fig)

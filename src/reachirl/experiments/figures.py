@@ -355,6 +355,15 @@ def plot_weights(
     return fig
 
 
+def _curves(ax, x: np.ndarray, ys: np.ndarray, colour, style: str, lw: float, alpha: float) -> None:
+    """The curves ``ys (n, len(x))`` over ``x`` as one line collection: a study's ISCV panel holds hundreds of
+    trials, and a ``Line2D`` each took seconds to make and draw."""
+    from matplotlib.collections import LineCollection
+
+    segments = np.stack([np.broadcast_to(x, ys.shape), ys], axis=-1)
+    ax.add_collection(LineCollection(segments, colors=colour, linestyles=style, linewidths=lw, alpha=alpha))
+
+
 def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
     """ISCV trials of each posture (columns): q (top) and q̇ (bottom), measured dashed, predicted solid,
     q1 blue,
@@ -372,11 +381,9 @@ def plot_iscv(arrays_by_posture: dict, axes=None, title: str = ""):
         for row, kind in enumerate(("q", "qd")):
             ax = axes[row, c]
             for j in range(2):
-                demo = np.rad2deg(a[f"iscv/demo_{kind}"][..., j])
-                pred = np.rad2deg(a[f"iscv/pred_{kind}"][..., j])
-                for i in range(demo.shape[0]):
-                    ax.plot(s, demo[i], "--", color=JOINT_COLOURS[j], lw=0.8, alpha=0.5)
-                    ax.plot(s, pred[i], "-", color=JOINT_COLOURS[j], lw=1.0, alpha=0.8)
+                for who, style, lw, alpha in (("demo", "--", 0.8, 0.5), ("pred", "-", 1.0, 0.8)):
+                    _curves(ax, s, np.rad2deg(a[f"iscv/{who}_{kind}"][..., j]), JOINT_COLOURS[j], style, lw, alpha)
+            ax.autoscale_view()
             ax.plot([], [], "k--", label="measured")
             ax.plot([], [], "k-", label="predicted")
             ax.set_ylabel("q (deg)" if kind == "q" else "q̇ (deg/s)")

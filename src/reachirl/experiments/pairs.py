@@ -9,9 +9,10 @@ that keep their per-trial RMSEs only (no prediction arrays).
 :func:`pair_rows` turns the units into the subject × subject RMSE matrix: one row per (method, posture,
 sections, train_subject, test_subject) with the RMSE of q (mean, population SD, n over the test subject's
 trials). The diagonal (train_subject = test_subject) is the training subject's own CV set. Posture ``ALL`` pools
-every posture's trials. :func:`write_pairs` writes ``iscv_pairs.csv``, one heatmap per method and section count
-(``figures/iscv_pairs_<method>_s<n>.png``) and ``figures/iscv_vs_cv_<method>.png``: does a subject's own CV
-RMSE predict how well its weights transfer to the others (Spearman ρ)?
+every posture's trials. :func:`write_pairs` writes ``iscv_pairs.csv`` and returns the figures for the report's
+figure workers to draw: one heatmap per method and section count (``figures/iscv_pairs_<method>_s<n>.png``) and
+``figures/iscv_vs_cv_<method>.png``: does a subject's own CV RMSE predict how well its weights transfer to the
+others (Spearman ρ)?
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ __all__ = [
     "pair_splits",
     "pair_training_subjects",
     "plot_iscv_vs_cv",
+    "plot_pair_matrices",
     "plot_pair_matrix",
     "transfer_summary",
     "write_pairs",
@@ -299,12 +301,29 @@ def plot_iscv_vs_cv(
     return fig
 
 
-def write_pairs(run, fig_dir: Path | None = None) -> dict:
-    """``iscv_pairs.csv`` and the all-pairs figures of ``run``; returns ``{"rows", "figures": {name: {caption}},
-    "markdown": [lines for report.md]}``."""
+def plot_pair_matrices(matrices: dict, vmax: float, title: str = ""):
+    """One train × test heatmap (:func:`plot_pair_matrix`) per panel of ``matrices`` (``{panel: (subjects,
+    matrix)}``: a posture, or ALL), side by side on one colour scale up to ``vmax``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .figures import save
+    fig, axes = plt.subplots(1, len(matrices), figsize=(4.2 * len(matrices), 3.8), squeeze=False)
+    for ax, (p, (subjects, mat)) in zip(axes[0], matrices.items(), strict=True):
+        plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
+def write_pairs(run, fig_dir: Path | None = None) -> dict:
+    """``iscv_pairs.csv``, and what the all-pairs figures of ``run`` are; returns ``{"rows", "jobs": [the figures
+    to draw, :class:`~reachirl.experiments.rendering.FigureJob`], "figures": {name: {caption}}, "markdown": [lines
+    for report.md]}``. The caller draws the jobs (:func:`reachirl.experiments.rendering.drawing`), beside the run's
+    other figures."""
+    from .rendering import FigureJob
 
     out = Path(run.out_dir)
     fig_dir = fig_dir or out / "figures"
@@ -312,10 +331,11 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
     n_subjects = len(run.dataset.subjects)
     if n_subjects < 2:  # no pair to learn on one subject and predict another
         note = f"Not run: it needs at least two subjects, and this data has {n_subjects}."
-        return {"rows": [], "figures": {}, "markdown": [*head, note, ""]}
+        return {"rows": [], "jobs": [], "figures": {}, "markdown": [*head, note, ""]}
     rows = pair_rows(run)
     atomic_write_text(out / "iscv_pairs.csv", to_csv(rows))
     methods, postures, sections = list(run.config.methods), list(run.postures), list(run.config.sections)
+    jobs: list[FigureJob] = []
     figs: dict[str, dict] = {}
     md = list(head)
     failed = sum(r["doc_failures"] for r in rows if r["posture"] != ALL)
@@ -331,29 +351,29 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
             mats = {p: pair_matrix(rows, m, p, n) for p in panels}
             if not any(mat.size for _, mat in mats.values()):
                 continue
-            vmax = max(np.nanmax(mat) for _, mat in mats.values() if mat.size)
-            fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.8), squeeze=False)
-            for ax, p in zip(axes[0], panels, strict=True):
-                subjects, mat = mats[p]
-                plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax)
-            fig.suptitle(
-                f"{m}, {n} section(s): RMSE of q (deg), weights of row subject on column subject's trials "
-                "(diagonal: own CV)",
-                fontsize=10,
-            )
-            fig.tight_layout()
+            vmax = max(float(np.nanmax(mat)) for _, mat in mats.values() if mat.size)
             name = f"iscv_pairs_{m}_s{n}.png"
-            fig_dir.mkdir(parents=True, exist_ok=True)
-            save(fig, fig_dir / name)
+            title = (
+                f"{m}, {n} section(s): RMSE of q (deg), weights of row subject on column subject's trials "
+                "(diagonal: own CV)"
+            )
+            jobs.append(
+                FigureJob(
+                    f"{__name__}:plot_pair_matrices",
+                    {"matrices": mats, "vmax": vmax, "title": title},
+                    (fig_dir / name,),
+                )
+            )
             figs[name] = {
                 "caption": f"All-pairs ISCV, {m}, {n} section(s): subject × subject matrix of the RMSE "
                 f"of q per posture{' and pooled (ALL)' if len(panels) > 1 else ''}; row = "
                 "the subject the weights were learned on, column = the subject predicted; "
                 "the outlined diagonal is the training subject's own CV."
             }
-        fig = plot_iscv_vs_cv(rows, m, postures, sections, title=f"{m}: CV against ISCV over all subject pairs")
         name = f"iscv_vs_cv_{m}.png"
-        save(fig, fig_dir / name)
+        title = f"{m}: CV against ISCV over all subject pairs"
+        kwargs = {"rows": rows, "method": m, "postures": postures, "sections": sections, "title": title}
+        jobs.append(FigureJob(f"{__name__}:plot_iscv_vs_cv", kwargs, (fig_dir / name,)))
         figs[name] = {
             "caption": f"{m}: distribution of CV and all-pairs ISCV RMSEs, and each training subject's "
             "CV against the mean RMSE of its weights on the other subjects (Spearman ρ)."
@@ -401,4 +421,4 @@ def write_pairs(run, fig_dir: Path | None = None) -> dict:
         "`iscv_pairs.csv` and the figures `iscv_pairs_*.png`, `iscv_vs_cv_*.png`.",
         "",
     ]
-    return {"rows": rows, "figures": figs, "markdown": md}
+    return {"rows": rows, "jobs": jobs, "figures": figs, "markdown": md}

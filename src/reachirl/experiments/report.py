@@ -739,6 +739,14 @@ def write_outputs(
                 truth[2][p]["predictions"] = a
     t_fig = time.perf_counter()
     jobs, figs = figure_jobs(run, tables, truth)
+    pairs_md: list[str] = []
+    if run.config.iscv == "all-pairs":  # iscv_pairs.csv now, its figures drawn with the others
+        from .pairs import write_pairs
+
+        pairs_out = write_pairs(run)
+        jobs = [*pairs_out["jobs"], *jobs]  # the costliest first: a study's heatmaps of every pair
+        figs.update(pairs_out["figures"])
+        pairs_md = pairs_out["markdown"]
     from .cost import cost_section, write_models, write_posture_transfer
 
     with drawing(jobs, workers, ahead) as figures:  # drawn in other processes meanwhile (workers > 1)
@@ -746,12 +754,7 @@ def write_outputs(
         write_models(run, skip)
         extra_md: list[str] = cost_section(run, truth[1] or None, truth[2] or None)
         extra_md += write_posture_transfer(run)
-        if run.config.iscv == "all-pairs":
-            from .pairs import write_pairs
-
-            pairs_out = write_pairs(run)
-            figs.update(pairs_out["figures"])
-            extra_md += pairs_out["markdown"]
+        extra_md += pairs_md
         t_pred = time.perf_counter()
         write_predictions(run, skip)
         predictions_s = time.perf_counter() - t_pred + (0.0 if units is None else units.predictions_s)
