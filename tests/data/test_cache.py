@@ -125,3 +125,71 @@ def test_the_key_is_the_content_not_the_order(folder):
     assert cache.content_key(files, {"a": 1}) == cache.content_key(files[::-1], {"a": 1})
     assert cache.content_key(files, {"a": 1}) != cache.content_key(files, {"a": 2})
     assert cache.content_key(files, {}) != cache.content_key(files[1:], {})
+
+
+def _header(path) -> dict:
+    import json
+
+    with np.load(path, allow_pickle=False) as z:
+        return json.loads(bytes(z["meta.json"]).decode())
+
+
+def test_the_cache_keeps_its_trials_packed_and_reads_them_back_bit_for_bit(counted, tmp_path):
+    """The cache's file holds each field's arrays end to end (a handful of entries, however many trials), and
+    loading it gives the preprocessed trials to the last bit, as the per-trial layout of `preprocess --out` does."""
+    import zipfile
+
+    from reachirl.data.trial import load_trials, save_trials
+
+    load, _ = counted
+    first = load()
+    (path,) = cached_files(tmp_path)
+    assert _header(path)["layout"] == "packed"
+    with zipfile.ZipFile(path) as zf:
+        assert sorted(zf.namelist()) == sorted(
+            f"{n}.npy" for n in ("meta.json", "t", "q", "qd", "qdd", "tau", "x0", "n_samples")
+        )
+    per_trial = save_trials(tmp_path / "per_trial.npz", first)
+    assert "layout" not in _header(per_trial)
+    assert same(load_trials(path), first) and same(load_trials(per_trial), first)
+    for a, b in zip(load_trials(path), first, strict=True):
+        assert all(getattr(a, f).tobytes() == getattr(b, f).tobytes() for f in ("t", "q", "qd", "qdd", "tau", "x0"))
+
+
+def _rewritten(src, dst, change):
+    """``src`` (a packed trials file) written again to ``dst`` with ``change(arrays, header)`` applied."""
+    import json
+
+    from reachirl.io import npz_bytes
+
+    with np.load(src, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    header = json.loads(bytes(arrays.pop("meta.json")).decode())
+    change(arrays, header)
+    arrays["meta.json"] = np.frombuffer(json.dumps(header).encode(), dtype=np.uint8)
+    dst.write_bytes(npz_bytes(arrays))
+    return dst
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        (lambda a, h: a.pop("qd"), r"packed trials file lacks arrays \['qd'\]"),
+        (lambda a, h: a.update(n_samples=a["n_samples"][:-1]), r"n_samples must be 2 counts \(one per trial\)"),
+        (lambda a, h: a.update(n_samples=a["n_samples"] + 1), r"array t has shape \(\d+,\), expected \(\d+,\)"),
+        (lambda a, h: a.update(q=a["q"][:, :1]), r"array q has shape \(\d+, 1\), expected \(\d+, 2\)"),
+        (lambda a, h: a.update(n_samples=a["n_samples"].astype(float)), r"n_samples must be 2 counts"),
+        (lambda a, h: h.update(layout="columns"), r"meta.json: unknown layout 'columns'"),
+    ],
+)
+def test_a_damaged_packed_trials_file_is_refused_naming_what_is_wrong(counted, tmp_path, change, said):
+    from reachirl.data.trial import load_trials
+    from reachirl.errors import InputError
+
+    load, _ = counted
+    load()
+    (path,) = cached_files(tmp_path)
+    bad = _rewritten(path, tmp_path / "bad.npz", change)
+    with pytest.raises(InputError, match=said) as e:
+        load_trials(bad)
+    assert e.value.path == bad

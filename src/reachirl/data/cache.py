@@ -1,5 +1,5 @@
 """Preprocessed trials kept on disk: a folder of recordings is preprocessed once, and later loads read the
-trials back from a trials file (:func:`reachirl.data.trial.save_trials`' NPZ, no pickle) instead.
+trials back from a trials file (:func:`reachirl.data.trial.save_trials`' packed NPZ, no pickle) instead.
 
 The key is a SHA-256 of the content of every file the preprocessing reads, the options it was given, and the
 code that preprocesses (the source of ``reachirl.data``, the arm and the features, any further sources the caller
@@ -28,7 +28,7 @@ __all__ = ["CACHE_FORMAT", "cache_dir", "cache_path", "cached_trials", "code_ver
 
 log = logging.getLogger(__name__)
 
-CACHE_FORMAT = "reachirl-trials-cache/1"
+CACHE_FORMAT = "reachirl-trials-cache/2"
 """Bump when what a cached file holds changes for the same key."""
 
 _PACKAGE = Path(__file__).resolve().parent.parent  # src/reachirl
@@ -105,7 +105,7 @@ def cached_trials(
 
 def _store(path: Path, name: str, trials: Sequence[Trial]) -> None:
     try:
-        save_trials(path, trials)
+        save_trials(path, trials, packed=True)  # a few entries: read ten times faster than one per array
     except OSError as e:  # a read-only or full cache folder: the trials are still returned
         log.debug("trials cache: cannot write %s (%s)", path, e)
         return

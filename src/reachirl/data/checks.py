@@ -14,7 +14,7 @@ import numpy as np
 
 from ..arm import DEFAULT_Q_LOWER, DEFAULT_Q_UPPER
 from ..errors import InputError
-from ..validation import brief, check_arm, check_duration, require
+from ..validation import brief, check_arm, check_duration
 
 __all__ = [
     "ELBOW_HYPEREXTENSION_DEG",
@@ -235,38 +235,31 @@ _META_TYPES = {"subject": str, "posture": str, "trial_id": str, "side": str, "so
 
 
 def check_trial_meta(m, i: int, path) -> None:
-    """One trial's entry in a trials file's ``meta.json``."""
+    """One trial's entry in a trials file's ``meta.json``. (Each message is made only for an entry that fails: a
+    study's file holds thousands.)"""
     where = f"trial {i}"
-    require(isinstance(m, dict), f"{where}: expected an object, found {brief(m)}", path)
+    if not isinstance(m, dict):
+        raise InputError(f"{where}: expected an object, found {brief(m)}", path)
     for key in ("subject", "posture", "trial_id", "target_x", "arm"):
-        require(key in m, f"{where}: field '{key}' is missing", path)
+        if key not in m:
+            raise InputError(f"{where}: field '{key}' is missing", path)
     for key, typ in _META_TYPES.items():
-        if key in m:
-            require(
-                isinstance(m[key], typ | int) and not isinstance(m[key], bool),
-                f"{where}: field '{key}' must be a string, found {brief(m[key])}",
-                path,
-            )
+        if key in m and not (isinstance(m[key], typ | int) and not isinstance(m[key], bool)):
+            raise InputError(f"{where}: field '{key}' must be a string, found {brief(m[key])}", path)
     tx = m["target_x"]
-    require(
-        isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx),
-        f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}",
-        path,
-    )
+    if not (isinstance(tx, int | float) and not isinstance(tx, bool) and math.isfinite(tx)):
+        raise InputError(f"{where}: field 'target_x' must be a finite number (m), found {brief(tx)}", path)
     th = m.get("onset_threshold")
-    require(
-        th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0),
-        f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}",
-        path,
-    )
-    arm = m["arm"]
-    require(isinstance(arm, dict), f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
-    for k, v in arm.items():
-        require(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v),
-            f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}",
-            path,
+    if not (th is None or (isinstance(th, int | float) and not isinstance(th, bool) and 0.0 < th < 1.0)):
+        raise InputError(
+            f"{where}: field 'onset_threshold' must be null or a fraction in (0, 1), found {brief(th)}", path
         )
+    arm = m["arm"]
+    if not isinstance(arm, dict):
+        raise InputError(f"{where}: field 'arm' must be an object, found {brief(arm)}", path)
+    for k, v in arm.items():
+        if not (isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)):
+            raise InputError(f"{where}: field 'arm.{k}' must be a finite number, found {brief(v)}", path)
 
 
 def check_trial_physics(trial, i: int, path) -> None:
