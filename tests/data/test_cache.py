@@ -178,6 +178,10 @@ def _rewritten(src, dst, change):
         (lambda a, h: a.update(n_samples=a["n_samples"][:-1]), r"n_samples must be 2 counts \(one per trial\)"),
         (lambda a, h: a.update(n_samples=a["n_samples"] + 1), r"array t has shape \(\d+,\), expected \(\d+,\)"),
         (lambda a, h: a.update(q=a["q"][:, :1]), r"array q has shape \(\d+, 1\), expected \(\d+, 2\)"),
+        (
+            lambda a, h: a.update(x0=a["x0"][:1]),
+            r"array x0 has shape \(1, 4\), expected \(2, 4\) \(one row per trial\)",
+        ),
         (lambda a, h: a.update(n_samples=a["n_samples"].astype(float)), r"n_samples must be 2 counts"),
         (lambda a, h: h.update(layout="columns"), r"meta.json: unknown layout 'columns'"),
     ],

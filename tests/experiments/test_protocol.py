@@ -371,3 +371,23 @@ def test_units_run_on_the_workers_started_ahead(toy, tmp_path, monkeypatch):
         again = run_units(units, splits, tmp_path / "ahead", workers=2, ahead=idle)
         assert again.reused and not again.computed and idle.pool is not None
     assert idle.pool is None and children_gone()
+
+
+def test_a_splits_trials_are_hashed_once_for_all_its_units(toy, monkeypatch):
+    """Every section count's unit of a split fingerprints the same trials: they are hashed once per split (a
+    study's split holds hundreds), and a split of other trials still gives other fingerprints."""
+    from dataclasses import replace
+
+    from reachirl.experiments import protocol
+
+    hashed = []
+    real = protocol.fingerprint
+    monkeypatch.setattr(protocol, "fingerprint", lambda trials: hashed.append(len(trials)) or real(trials))
+    cfg = _config(sections=(1, 3, 8))
+    split = split_trials(toy.trials, "P2", cfg)
+    units = [u for u in make_units(["P2"], cfg) if u.split_key == "P2"]
+    fps = [u.fingerprint(split) for u in units]
+    assert len(units) == 3 and len(set(fps)) == 3  # the units differ by their sections
+    assert hashed == [3, 1, 3]  # train, CV and ISCV, once
+    moved = replace(split, iscv=(replace(split.iscv[0], target_x=split.iscv[0].target_x + 1e-3), *split.iscv[1:]))
+    assert all(u.fingerprint(moved) != fp for u, fp in zip(units, fps, strict=True))

@@ -417,7 +417,8 @@ def _packed(z, files: set[str], n_trials: int, path: Path):
     cols = {n: z[n] for n in (*_ARRAYS, "x0")}
     for n, shape in (("t", (total,)), *((n, (total, 2)) for n in _ARRAYS[1:]), ("x0", (n_trials, 4))):
         if cols[n].shape != shape:
-            raise InputError(f"array {n} has shape {cols[n].shape}, expected {shape} (n_samples' sum)", path)
+            rows = "one row per trial" if n == "x0" else "n_samples' sum of rows"
+            raise InputError(f"array {n} has shape {cols[n].shape}, expected {shape} ({rows})", path)
     starts = np.concatenate([[0], np.cumsum(counts)]).tolist()
     return lambda i: {n: cols[n][starts[i] : starts[i + 1]] for n in _ARRAYS} | {"x0": cols["x0"][i]}
 

@@ -167,6 +167,17 @@ class Split:
     def sets(self) -> dict[str, tuple[Trial, ...]]:
         return {"train": self.train, "cv": self.cv, "iscv": self.iscv}
 
+    @functools.cached_property
+    def identity(self) -> dict[str, dict]:
+        """Each set's trials as a unit's fingerprint records them: their :func:`fingerprint` (``"data"``) and ids
+        (``"ids"``). Made once per split: every section count's unit asks for it, and a study's split holds
+        hundreds of trials."""
+        sets = self.sets()
+        return {
+            "data": {k: fingerprint(v) for k, v in sets.items()},
+            "ids": {k: [t.id for t in v] for k, v in sets.items()},
+        }
+
 
 @dataclass(frozen=True)
 class Unit:
@@ -221,8 +232,7 @@ class Unit:
                     for k, v in asdict(self).items()
                     if not (k in ("train_subject", "held_out_posture") and v is None)
                 },
-                "data": {k: fingerprint(v) for k, v in split.sets().items()},
-                "ids": {k: [t.id for t in v] for k, v in split.sets().items()},
+                **split.identity,
             },
             sort_keys=True,
             default=str,
