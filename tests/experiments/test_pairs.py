@@ -186,7 +186,7 @@ def test_a_failed_prediction_is_counted_in_its_pair_not_averaged_in(tmp_path):
 def test_the_pair_heatmaps_are_drawn_from_the_jobs_write_pairs_returns(pairs_run, tmp_path, monkeypatch):
     """write_pairs writes iscv_pairs.csv and returns its figures as jobs (drawn beside the run's other figures,
     in the figure workers): it draws nothing itself, and a heatmap job gives each panel its subject × subject
-    matrix on one colour scale."""
+    matrix on one colour scale, with one colour bar."""
     from types import SimpleNamespace
 
     import matplotlib.pyplot as plt
@@ -216,6 +216,9 @@ def test_the_pair_heatmaps_are_drawn_from_the_jobs_write_pairs_returns(pairs_run
     image = fig.axes[0].images[0]
     np.testing.assert_array_equal(image.get_array(), matrix)
     assert image.get_clim() == (0, heat.kwargs["vmax"])
+    bar = fig.axes[-1]  # one colour bar for the panels, which share the scale
+    assert len(fig.axes) == len(heat.kwargs["matrices"]) + 1 and bar.get_ylabel() == "RMSE of q (deg)"
+    assert bar.get_ylim() == (0, heat.kwargs["vmax"])
     plt.close(fig)
     for job in out["jobs"]:
         assert draw(job) == job.paths and job.paths[-1].is_file()

@@ -199,10 +199,20 @@ def transfer_summary(rows: Sequence[dict], method: str, postures: Sequence[str],
 
 
 # ---------------------------------------------------------------------- figures
+_COLOUR_LABEL = "RMSE of q (deg)"
+
+
 def plot_pair_matrix(
-    subjects: Sequence[str], matrix: np.ndarray, ax=None, title: str = "", vmax=None, annotate: bool | None = None
+    subjects: Sequence[str],
+    matrix: np.ndarray,
+    ax=None,
+    title: str = "",
+    vmax=None,
+    annotate: bool | None = None,
+    colorbar: bool = True,
 ):
-    """A train × test subject heatmap of the RMSE of q (deg); the diagonal (CV) is outlined."""
+    """A train × test subject heatmap of the RMSE of q (deg); the diagonal (CV) is outlined. ``colorbar``: its
+    colour bar beside it (not when several heatmaps share one)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -240,7 +250,8 @@ def plot_pair_matrix(
                         color="white" if dark else "black",
                     )
     ax.set_title(title, fontsize=9)
-    fig.colorbar(im, ax=ax, shrink=0.8, label="RMSE of q (deg)")
+    if colorbar:
+        fig.colorbar(im, ax=ax, shrink=0.8, label=_COLOUR_LABEL)
     return fig
 
 
@@ -303,15 +314,21 @@ def plot_iscv_vs_cv(
 
 def plot_pair_matrices(matrices: dict, vmax: float, title: str = ""):
     """One train × test heatmap (:func:`plot_pair_matrix`) per panel of ``matrices`` (``{panel: (subjects,
-    matrix)}``: a posture, or ALL), side by side on one colour scale up to ``vmax``."""
+    matrix)}``: a posture, or ALL), side by side on one colour scale up to ``vmax``, with one colour bar."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, len(matrices), figsize=(4.2 * len(matrices), 3.8), squeeze=False)
-    for ax, (p, (subjects, mat)) in zip(axes[0], matrices.items(), strict=True):
-        plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax)
+    n = len(matrices)
+    fig, axes = plt.subplots(
+        1, n + 1, figsize=(3.6 * n + 0.9, 3.8), squeeze=False, gridspec_kw={"width_ratios": [1] * n + [0.06]}
+    )
+    for ax, (p, (subjects, mat)) in zip(axes[0, :n], matrices.items(), strict=True):
+        plot_pair_matrix(subjects, mat, ax=ax, title=f"{p}", vmax=vmax, colorbar=False)
+        if ax is not axes[0, 0]:
+            ax.set_ylabel("")
+    fig.colorbar(axes[0, 0].images[0], cax=axes[0, -1], label=_COLOUR_LABEL)  # one scale for every panel
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
