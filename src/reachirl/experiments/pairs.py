@@ -336,10 +336,9 @@ def plot_pair_matrices(matrices: dict, vmax: float, title: str = ""):
 
 
 def write_pairs(run, fig_dir: Path | None = None) -> dict:
-    """``iscv_pairs.csv``, and what the all-pairs figures of ``run`` are; returns ``{"rows", "jobs": [the figures
-    to draw, :class:`~reachirl.experiments.rendering.FigureJob`], "figures": {name: {caption}}, "markdown": [lines
-    for report.md]}``. The caller draws the jobs (:func:`reachirl.experiments.rendering.drawing`), beside the run's
-    other figures."""
+    """Write ``iscv_pairs.csv`` of ``run``; return it with the all-pairs figures as jobs for the caller to draw
+    beside the run's other figures (:func:`reachirl.experiments.rendering.drawing`): ``{"rows", "jobs": [FigureJob],
+    "figures": {name: {caption}}, "markdown": [lines for report.md]}``."""
     from .rendering import FigureJob
 
     out = Path(run.out_dir)
