@@ -181,6 +181,35 @@ def test_a_unit_over_its_time_limit_is_stopped(trials_file, tmp_path, monkeypatc
     assert "REACHIRL_UNIT_TIMEOUT_S=nan: expected a positive number" in capsys.readouterr().err
 
 
+def test_a_time_limit_that_a_library_turned_into_its_own_error_is_still_the_time_limit(monkeypatch):
+    """The alarm's exception can be raised inside a library that replaces it with its own (numpy's "'axis' must
+    be None, an integer or a tuple of integers" made a timed-out unit an internal error, once): after the alarm,
+    any error is the time limit; before it, an error stays itself."""
+    import time
+
+    from reachirl.experiments import runner
+    from reachirl.experiments.protocol import ProtocolConfig, make_units
+
+    unit = make_units(["P2"], ProtocolConfig(sections=(1,)))[0]
+
+    def replaced(unit, split, job):  # a library that catches whatever interrupts it and raises its own error
+        try:
+            time.sleep(5.0)
+        except runner.UnitTimeoutError:
+            raise TypeError("'axis' must be None, an integer or a tuple of integers") from None
+
+    monkeypatch.setattr(runner, "run_named_unit", replaced)
+    with pytest.raises(runner.UnitTimeoutError, match=rf"unit {unit.key} ran longer than 0.05 s"):
+        runner._run_unit_bounded(unit, None, 0.05)
+
+    def broken(unit, split, job):
+        raise TypeError("a bug of the unit's own")
+
+    monkeypatch.setattr(runner, "run_named_unit", broken)
+    with pytest.raises(TypeError, match="a bug of the unit's own"):
+        runner._run_unit_bounded(unit, None, 60.0)
+
+
 def test_an_interrupted_runs_temporaries_are_removed_wherever_it_writes(tmp_path):
     """Atomic writes' temporaries (``.<name>.<8 random>.<ext>``) that a killed run left, in every folder a run
     writes, are removed; files that only look alike are kept."""
