@@ -284,30 +284,25 @@ def save_trials(path: str | Path, trials: Sequence[Trial], packed: bool = False)
     if bad is not None:
         raise TypeError(f"save_trials takes a sequence of Trial, got a {type(bad).__name__}")
     _check_file_trials(trials, path)
-    arrays: dict[str, np.ndarray] = {}
-    meta = []
     if packed:
-        for name in _ARRAYS:
-            arrays[name] = np.concatenate([getattr(tr, name) for tr in trials])
+        arrays = {name: np.concatenate([getattr(tr, name) for tr in trials]) for name in _ARRAYS}
         arrays["x0"] = np.stack([tr.x0 for tr in trials])
         arrays["n_samples"] = np.array([tr.t.size for tr in trials], dtype=np.int64)
-    for i, tr in enumerate(trials):
-        if not packed:
-            for name in _ARRAYS:
-                arrays[f"{i}/{name}"] = getattr(tr, name)
-            arrays[f"{i}/x0"] = tr.x0
-        meta.append(
-            {
-                "subject": tr.subject,
-                "posture": tr.posture,
-                "trial_id": tr.trial_id,
-                "side": tr.side,
-                "source": tr.source,
-                "target_x": tr.target_x,
-                "arm": tr.arm.to_dict(),
-                "onset_threshold": tr.onset_threshold,
-            }
-        )
+    else:
+        arrays = {f"{i}/{name}": getattr(tr, name) for i, tr in enumerate(trials) for name in (*_ARRAYS, "x0")}
+    meta = [
+        {
+            "subject": tr.subject,
+            "posture": tr.posture,
+            "trial_id": tr.trial_id,
+            "side": tr.side,
+            "source": tr.source,
+            "target_x": tr.target_x,
+            "arm": tr.arm.to_dict(),
+            "onset_threshold": tr.onset_threshold,
+        }
+        for tr in trials
+    ]
     header = {"format": TRIALS_FORMAT, "n_trials": len(trials), "trials": meta}
     if packed:
         header["layout"] = "packed"
@@ -350,21 +345,18 @@ def load_trials(path: str | Path) -> list[Trial]:
             layout = header.get("layout", "per-trial")
             if layout not in ("per-trial", "packed"):
                 raise InputError(f"meta.json: unknown layout {brief(layout)} (expected 'packed' or none)", path)
-            arrays_of = _packed(z, files, len(header["trials"]), path) if layout == "packed" else None
+            arrays_of = (_packed if layout == "packed" else _per_trial)(z, files, len(header["trials"]), path)
             out = []
             arms: dict = {}  # one ArmModel per subject's arm, shared by its trials
             for i, m in enumerate(header["trials"]):
                 check_trial_meta(m, i, path)
-                if arrays_of is None:
-                    missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
-                    if missing:
-                        raise InputError(f"trial {i} lacks arrays {missing}", path)
+                arrays = arrays_of(i)
                 out.append(
                     _trial_in_file(
                         path,
                         i,
                         m,
-                        lambda m=m, i=i: Trial(
+                        lambda m=m, arrays=arrays: Trial(
                             subject=m["subject"],
                             posture=m["posture"],
                             trial_id=m["trial_id"],
@@ -373,7 +365,7 @@ def load_trials(path: str | Path) -> list[Trial]:
                             target_x=m["target_x"],
                             arm=_arm_in_file(m["arm"], arms),
                             onset_threshold=m.get("onset_threshold"),
-                            **(arrays_of(i) if arrays_of else {n: z[f"{i}/{n}"] for n in (*_ARRAYS, "x0")}),
+                            **arrays,
                         ),
                     )
                 )
@@ -402,6 +394,18 @@ def _check_file_trials(trials: Sequence[Trial], path: object) -> None:
         if tr.id in seen:  # its predictions, exports and METRICS rows would be told apart by nothing
             raise InputError(f"trial {i} has the id {tr.id!r} of trial {seen[tr.id]}; ids must be unique", path)
         seen[tr.id] = i
+
+
+def _per_trial(z, files: set[str], n_trials: int, path: Path):
+    """Trial ``i``'s arrays of a per-trial trials file ``z`` (``"<i>/<field>"``), as a function of ``i``."""
+
+    def arrays_of(i: int) -> dict:
+        missing = [n for n in (*_ARRAYS, "x0") if f"{i}/{n}" not in files]
+        if missing:
+            raise InputError(f"trial {i} lacks arrays {missing}", path)
+        return {n: z[f"{i}/{n}"] for n in (*_ARRAYS, "x0")}
+
+    return arrays_of
 
 
 def _packed(z, files: set[str], n_trials: int, path: Path):
