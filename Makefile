@@ -3,7 +3,10 @@ PYTHON ?= python3.11
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
-SOLVERS := $(VENV)/.solvers
+# reachirl's cache folder, as reachirl.io.cache_root finds it; make run's solvers are noted there (in the folder of
+# the CasADi version the lock pins), so that emptying the cache has them compiled again
+CACHE   := $(or $(REACHIRL_CACHE),$(if $(XDG_CACHE_HOME),$(XDG_CACHE_HOME)/reachirl),$(HOME)/.cache/reachirl)
+SOLVERS := $(CACHE)/casadi-$(shell sed -n 's/^casadi==//p' requirements.lock)/make-run-solvers.stamp
 export MUJOCO_GL ?= osmesa
 export PYOPENGL_PLATFORM ?= osmesa
 export OMP_NUM_THREADS ?= 1
@@ -34,11 +37,11 @@ $(STAMP): requirements.lock pyproject.toml
 
 # make run's DOC solvers (100 knots, cold and warm) compiled to C once, side by side (about a minute; again when the
 # code that builds them changes): its fatrop solves then take about half their CPU, with the same answers bit for bit.
-# Without a C compiler they are not, and CasADi's virtual machine solves (reachirl.doc.compiled). After emptying the
-# cache (~/.cache/reachirl), `rm .venv/.solvers` has them compiled again.
+# Without a C compiler they are not, and CasADi's virtual machine solves (reachirl.doc.compiled). The note lives in the
+# cache: a cache emptied (or another REACHIRL_CACHE) has them compiled again; an unwritable one is no error.
 $(SOLVERS): $(STAMP) src/reachirl/doc/casadi.py src/reachirl/doc/symbolic.py src/reachirl/doc/compiled.py src/reachirl/features.py
 	$(PY) -m reachirl.doc.compile_job prepare 100
-	@touch $(SOLVERS)
+	@mkdir -p $(dir $(SOLVERS)) 2>/dev/null && touch $(SOLVERS) 2>/dev/null || true
 
 run: install $(SOLVERS)
 	$(VENV)/bin/reachirl reproduce --out results
