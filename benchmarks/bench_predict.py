@@ -91,9 +91,11 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int 
             "fatrop": float(np.nanmax([r["from_optimum"][1] for r in rows])),
             "n_checked": int(sum(np.isfinite(r["from_optimum"][0]) for r in rows)),
         },
+        # the same optimum is the target: Newton's answer within 0.01° of it. Fatrop's answer from the same start
+        # (the path before Newton) stops at its own tolerance, up to about 0.02° away (``max_from_optimum_deg``):
+        # not a target, the reason the two answers differ (``max_diff_deg``)
         "targets": {
             "median_prediction_le_3ms_cpu": bool(np.median(t_new) <= 3.0),
-            "predictions_within_0_01_deg": bool(max(r["diff_deg"] for r in rows) <= 0.01),
             "newton_within_0_01_deg_of_optimum": bool(np.nanmax([r["from_optimum"][0] for r in rows]) <= 0.01),
         },
     }
