@@ -7,6 +7,9 @@ STAMP  := $(VENV)/.installed
 # the CasADi version the lock pins), so that emptying the cache has them compiled again
 CACHE   := $(or $(REACHIRL_CACHE),$(if $(XDG_CACHE_HOME),$(XDG_CACHE_HOME)/reachirl),$(HOME)/.cache/reachirl)
 SOLVERS := $(CACHE)/casadi-$(shell sed -n 's/^casadi==//p' requirements.lock)/make-run-solvers.stamp
+ifneq ($(words $(SOLVERS)),1)  # a cache path with a space is no make target: the note stays in the environment
+SOLVERS := $(VENV)/.solvers
+endif
 export MUJOCO_GL ?= osmesa
 export PYOPENGL_PLATFORM ?= osmesa
 export OMP_NUM_THREADS ?= 1
