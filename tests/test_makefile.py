@@ -16,9 +16,8 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="needs make
 
 
 def _planned(cache: str) -> str:
-    env = {k: v for k, v in os.environ.items() if k != "XDG_CACHE_HOME"}
-    out = subprocess.run(
-        ["make", "-n", "run"], cwd=ROOT, env={**env, "REACHIRL_CACHE": cache}, capture_output=True, text=True
+    out = subprocess.run(  # REACHIRL_CACHE comes before XDG_CACHE_HOME and ~/.cache, as in reachirl.io.cache_root
+        ["make", "-n", "run"], cwd=ROOT, env={**os.environ, "REACHIRL_CACHE": cache}, capture_output=True, text=True
     )
     assert out.returncode == 0, out.stderr
     return out.stdout

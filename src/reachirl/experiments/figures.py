@@ -356,8 +356,8 @@ def plot_weights(
 
 
 def _curves(ax, x: np.ndarray, ys: np.ndarray, colour, style: str, lw: float, alpha: float) -> None:
-    """The curves ``ys (n, len(x))`` over ``x`` as one line collection: a study's ISCV panel holds hundreds of
-    trials, and a ``Line2D`` each took seconds to make and draw."""
+    """The curves ``ys (n, len(x))`` over ``x`` on ``ax``, as one line collection (a study's ISCV panel holds
+    hundreds of trials)."""
     from matplotlib.collections import LineCollection
 
     segments = np.stack([np.broadcast_to(x, ys.shape), ys], axis=-1)
