@@ -294,3 +294,119 @@ def test_cross_val_score_runs_on_a_list_of_trials(tiny_trials):
     # scikit-learn >= 1.6 refused it: "'KKTIOC' object has no attribute '__sklearn_tags__'"
     scores = cross_val_score(KKTIOC(1, n_nodes=20), load_trials(tiny_trials)[:4], cv=KFold(2))
     assert scores.shape == (2,) and np.all(scores < 0)
+
+
+def test_a_saved_model_records_the_trials_its_estimator_was_fitted_on(fitted, tiny_trials):
+    from reachirl.data.trial import load_trials
+    from reachirl.irl.model import LearnedModel
+
+    trials = load_trials(tiny_trials)
+    own = tuple(t.id for t in trials[:3])
+    # left out, the record is the fit's own (it was empty: n_trials 0, no ids)
+    assert LearnedModel.from_estimator(fitted).info["trial_ids"] == own
+    assert LearnedModel.from_estimator(fitted, load_trials(tiny_trials)[:3]).info["trial_ids"] == own  # read again
+    # other trials were written as the fit's: another subject's ids, postures and fingerprint in MODEL.json
+    for other in (trials[3:6], trials[:2], trials[2::-1]):
+        with pytest.raises(ValueError, match=r"^trials must be the 3 the estimator was fitted on \(the first '"):
+            LearnedModel.from_estimator(fitted, other)
+
+
+def test_scoring_one_trial_names_score_not_evaluate(fitted, tiny_trials):
+    from reachirl.data.trial import load_trials
+
+    with pytest.raises(TypeError, match=r"^score takes a sequence of Trial, got a Trial$"):
+        fitted.score(load_trials(tiny_trials)[0])
+
+
+@pytest.mark.parametrize(("name", "value"), [("w0", "0.05"), ("beta", "1e-10"), ("max_tries", "3"), ("shrink", "0.5")])
+def test_an_option_given_as_text_is_named_not_compared(name, value):
+    from reachirl.irl.options import Options
+
+    # "0.05" passed the finiteness check and failed the next comparison: "'>' not supported between 'str' and 'int'"
+    with pytest.raises(ValueError, match=rf"^{name} must be an? (number|integer), not text \(got '{value}'\)$"):
+        Options(**{name: value})
+
+
+def test_the_arms_dynamics_refuse_arrays_of_different_lengths_and_text(arm):
+    five, four = np.zeros((5, 2)), np.zeros((4, 2))
+    for name, call in {
+        "inverse_dynamics": lambda: arm.inverse_dynamics(five, four, five),
+        "forward_dynamics": lambda: arm.forward_dynamics(five, five, np.zeros((1, 2))),
+        "coriolis": lambda: arm.coriolis(four, five),
+    }.items():
+        with pytest.raises(ValueError, match=rf"^ArmModel\.{name}: the arrays must have one shape, got q \("):
+            call()
+    with pytest.raises(ValueError, match=r"^ArmModel\.fk: q must be numbers of shape \(\.\.\., 2\), got 'ab'$"):
+        arm.fk("ab")
+    tau = arm.inverse_dynamics(five + 0.3, five + 1.0, five - 2.0)  # one shape: as before
+    assert np.allclose(arm.forward_dynamics(five + 0.3, five + 1.0, tau), -2.0)
+
+
+_PER_TIME = r"q must have shape \(10, 2\), one \(q1, q2\) per time, "
+
+
+@pytest.mark.parametrize(
+    ("t", "q", "message"),
+    [
+        (np.linspace(0, 1, 10), np.zeros((12, 2)), _PER_TIME + r"got \(12, 2\)"),
+        (np.linspace(0, 1, 10), np.zeros((2, 10)), _PER_TIME + r"got \(2, 10\)"),
+        (np.zeros((3, 1)), np.zeros((3, 2)), r"t must be a 1-D array of at least 3 times, got shape \(3, 1\)"),
+        ("abc", np.zeros((3, 2)), r"t and q must be numbers \(could not convert string to float: 'abc'\)"),
+    ],
+    ids=["more knots", "joints first", "column of times", "text"],
+)
+def test_a_trial_from_knots_names_the_array_of_the_wrong_shape(arm, t, q, message):
+    from reachirl.data.trial import trial_from_knots
+
+    # numpy's own words before: "operands could not be broadcast together with shapes (11,2) (9,1)"
+    with pytest.raises(ValueError, match=rf"^trial_from_knots: {message}$"):
+        trial_from_knots(arm, t, q, 0.3)
+
+
+def test_anthropometric_ranges_include_the_ends_their_messages_quote():
+    from reachirl import ArmModel
+
+    # "hand_m 0.02 is not a segment length in metres (0.02-1.0)": the message's range contradicted the check
+    assert ArmModel.from_anthropometrics(1.76, 70.0, "M", hand_m=0.02, upper_arm_m=1.0).l1 == 1.0
+    assert ArmModel.from_anthropometrics(2.6, 300.0, "M").length > 0
+    with pytest.raises(ValueError, match=r"^hand_m 0\.019 is not a segment length in metres \(0\.02-1\.0\)"):
+        ArmModel.from_anthropometrics(1.76, 70.0, "M", hand_m=0.019)
+
+
+def test_a_trial_whose_target_is_not_where_it_ends_is_refused_by_fit_and_by_a_trials_file(tiny_trials, tmp_path):
+    import dataclasses
+
+    from reachirl import MOIRL
+    from reachirl.data.trial import load_trials, save_trials
+    from reachirl.errors import InputError
+
+    trials = load_trials(tiny_trials)[:2]
+    end = float(trials[1].arm.fk(trials[1].q[-1])[0])
+    # a target of another reach (or in other units) was fitted without a word: the DOC's bar, not the reach's end
+    moved = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.2)]
+    where = rf"^trial 1 \({trials[1].id}\): field 'target_x' = {end - 0.2:.4g} m is 0\.200 m from where the reach ends"
+    with pytest.raises(InputError, match=where):
+        MOIRL(n_windows=1, n_nodes=20, max_iter=1).fit(moved)
+    with pytest.raises(InputError, match=r"moved\.npz: trial 1 .*field 'target_x' = .* from where the reach ends"):
+        save_trials(tmp_path / "moved.npz", moved)  # nor written to a trials file, which load_trials checks alike
+    assert not (tmp_path / "moved.npz").exists()
+    near = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.02)]  # short of the bar, as recordings end
+    assert load_trials(save_trials(tmp_path / "near.npz", near))[1].target_x == end - 0.02
+
+
+def test_a_model_whose_sample_count_contradicts_its_samples_is_refused(tmp_path):
+    import json
+
+    from reachirl.errors import InputError
+    from reachirl.irl.model import LearnedModel, load_model, save_model
+
+    path = save_model(tmp_path / "m.json", LearnedModel(np.full((2, 7), 0.1), n_nodes=20, uncertainty=_uncertainty(2)))
+    d = json.loads(path.read_text())
+    d["uncertainty"]["n_samples"] = 7
+    path.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=r"field 'uncertainty\.weight_samples': 1 samples, but .*n_samples' says 7"):
+        load_model(path)
+    d["uncertainty"]["n_samples"] = "1"
+    path.write_text(json.dumps(d))
+    with pytest.raises(InputError, match=r"field 'uncertainty\.n_samples': expected a count >= 0, found '1'"):
+        load_model(path)

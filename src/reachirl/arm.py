@@ -62,7 +62,7 @@ def sex_key(text) -> str | None:
     return {"M": "M", "MALE": "M", "F": "F", "FEMALE": "F"}.get(str(text).strip().upper())
 
 
-#: what a subject's stature (m), body mass (kg) and arm segment length (m) may be (open ranges)
+#: what a subject's stature (m), body mass (kg) and arm segment length (m) may be (closed ranges: the ends included)
 STATURE_RANGE_M = (0.5, 2.6)
 BODY_MASS_RANGE_KG = (10.0, 300.0)
 SEGMENT_RANGE_M = (0.02, 1.0)
@@ -85,7 +85,7 @@ def unit_slip(value: float, quantity: str) -> str:
     return next((f"; in {unit}?" for lo, hi, unit in _SLIPS[quantity] if lo <= value < hi), "")
 
 
-#: kg/m²: what a subject's body-mass index, ``mass_kg / height_m²``, may be (open range): adults range from about 13
+#: kg/m²: what a subject's body-mass index, ``mass_kg / height_m²``, may be (closed range): adults range from about 13
 #: (severe thinness) to the 50s (class III obesity), and health records' cleaning takes a BMI below 12 or above 60
 #: as a slip. A mass in pounds is 2.2 times its kilograms: for a BMI of 27 or more it reads above 60 and is refused
 #: (below, :data:`BMI_NOTE` notes it); a mass in stones (6.35 kg) reads below 12
@@ -103,7 +103,7 @@ def bmi_problem(height_m: float, mass_kg: float) -> str | None:
     a person's (12-60); mass_kg in pounds (72.6 kg)?"``; ``None`` within."""
     bmi = mass_kg / height_m**2
     lo, hi = BMI_RANGE
-    if lo < bmi < hi:
+    if lo <= bmi <= hi:
         return None
     unit, factor = ("pounds", POUND_KG) if bmi >= hi else ("stones", STONE_KG)
     kg = mass_kg * factor
@@ -117,7 +117,7 @@ def bmi_problem(height_m: float, mass_kg: float) -> str | None:
 def bmi_note(height_m: float, mass_kg: float) -> str | None:
     """A note on a BMI in range but :data:`BMI_NOTE` or higher (the mass it would be in pounds), or ``None``."""
     bmi = mass_kg / height_m**2
-    if not BMI_NOTE <= bmi < BMI_RANGE[1]:
+    if not BMI_NOTE <= bmi <= BMI_RANGE[1]:
         return None
     return (
         f"mass_kg {mass_kg} and height_m {height_m} give a body-mass index of {bmi:.1f} kg/m², rare: if the mass is "
@@ -139,7 +139,7 @@ def anthropometry_problem(column: str, value: float) -> str | None:
     :meth:`ArmModel.from_anthropometrics` both say, such as ``"height_m 172.0 is not a stature in metres (0.5-2.6);
     in centimetres?"``; ``None`` when it lies in its range."""
     (lo, hi), what, said, quantity = _COLUMNS[column]
-    if lo < value < hi:
+    if lo <= value <= hi:
         return None
     return f"{column} {value} is not {what} ({said}){unit_slip(value, quantity)}"
 
@@ -148,11 +148,23 @@ def anthropometry_problem(column: str, value: float) -> str | None:
 MAX_SEGMENT_LENGTH_M = 3.0
 
 
+def _same_rows(where: str, **arrays: np.ndarray) -> None:
+    """The arrays of one call (``q``, ``q̇``, ...) hold as many pairs each: a ``ValueError`` naming ``where`` and
+    the shapes otherwise (numpy broadcast a single pair, or failed on its own terms)."""
+    shapes = {name: a.shape for name, a in arrays.items()}
+    if len(set(shapes.values())) > 1:
+        said = ", ".join(f"{name} {shape}" for name, shape in shapes.items())
+        raise ValueError(f"ArmModel.{where}: the arrays must have one shape, got {said}")
+
+
 def _pairs(where: str, name: str, v) -> np.ndarray:
     """``v`` as floats of shape ``(..., 2)``, one pair (q1, q2), (x, y) or (τ1, τ2) along the last axis; any other
     shape is a ``ValueError`` naming ``where``, ``name`` and the shape (a joints-first ``(2, n)`` array, or three
     columns, was read silently by its first two columns)."""
-    a = np.asarray(v, dtype=float)
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"ArmModel.{where}: {name} must be numbers of shape (..., 2), got {brief(v)}") from None
     if a.ndim == 0 or a.shape[-1] != 2:
         raise ValueError(f"ArmModel.{where}: {name} must have shape (..., 2), one pair per row, got {a.shape}")
     return a
@@ -354,6 +366,7 @@ class ArmModel:
     def coriolis(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """Coriolis and centrifugal torques ``C(q, qd) qd``, shape ``(..., 2)``."""
         q, qd = _pairs("coriolis", "q", q), _pairs("coriolis", "qd", qd)
+        _same_rows("coriolis", q=q, qd=qd)
         h = self.m2 * self.l1 * self.c2 * np.sin(q[..., 1])
         return np.stack([-h * (2 * qd[..., 0] * qd[..., 1] + qd[..., 1] ** 2), h * qd[..., 0] ** 2], axis=-1)
 
@@ -370,13 +383,16 @@ class ArmModel:
         return self.coriolis(q, qd) + self.gravity_torque(q)
 
     def inverse_dynamics(self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
-        """``tau = M(q) qdd + b(q, qd)``, vectorised over leading axes."""
-        M = self.mass_matrix(q)
-        return np.einsum("...ij,...j->...i", M, _pairs("inverse_dynamics", "qdd", qdd)) + self.bias(q, qd)
+        """``tau = M(q) qdd + b(q, qd)``, vectorised over leading axes (the three of one shape)."""
+        q, qd, qdd = (_pairs("inverse_dynamics", n, v) for n, v in (("q", q), ("qd", qd), ("qdd", qdd)))
+        _same_rows("inverse_dynamics", q=q, qd=qd, qdd=qdd)
+        return np.einsum("...ij,...j->...i", self.mass_matrix(q), qdd) + self.bias(q, qd)
 
     def forward_dynamics(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """``qdd = M(q)^-1 (tau - b(q, qd))``, vectorised over leading axes."""
-        rhs = _pairs("forward_dynamics", "tau", tau) - self.bias(q, qd)
+        """``qdd = M(q)^-1 (tau - b(q, qd))``, vectorised over leading axes (the three of one shape)."""
+        q, qd, tau = (_pairs("forward_dynamics", n, v) for n, v in (("q", q), ("qd", qd), ("tau", tau)))
+        _same_rows("forward_dynamics", q=q, qd=qd, tau=tau)
+        rhs = tau - self.bias(q, qd)
         return np.linalg.solve(self.mass_matrix(q), rhs[..., None])[..., 0]
 
     # ------------------------------------------------------------------ Pinocchio

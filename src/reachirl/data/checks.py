@@ -20,6 +20,7 @@ __all__ = [
     "ELBOW_HYPEREXTENSION_DEG",
     "LENGTH_TOLERANCE",
     "MIN_REACH_RANGE",
+    "TARGET_GAP",
     "check_model_rollout",
     "check_segment_lengths",
     "check_start_and_target",
@@ -40,6 +41,11 @@ LENGTH_TOLERANCE = 0.20
 #: noise (3 mm of marker noise at 100 Hz ranges over about 8 mm at 3 Hz)
 MIN_REACH_RANGE = 0.05
 
+#: the largest gap between a trial's ``target_x`` and its fingertip's x at offset, as a fraction of the arm's length:
+#: the target is where the reach ends (recordings cut at 5 % of peak speed end 2-3 % of an arm's length short of it,
+#: UE-ADL's at most 2.3 %); further apart, the target belongs to another reach or another unit
+TARGET_GAP = 0.10
+
 #: degrees: how far past straight (0°) a human elbow hyperextends: typically up to 10-15°, and joint centres from
 #: markers add a few degrees. An elbow alone beyond the model's lower limit (-5°) by no more than this is a real
 #: hyperextended posture, said as such; further, or with the shoulder out too, it is a mirrored or backwards recording
@@ -51,8 +57,9 @@ def _deg(v: float) -> str:
 
 
 def check_start_and_target(trial, path: object, where: str | None = None) -> None:
-    """The target lies in front of the shoulder within the arm's reach, ``0 < target_x <= l1 + l2``, and the
-    start velocities are within the DOC's speed bound ``|q̇0| <= qd_max`` (rad/s)."""
+    """The target lies in front of the shoulder within the arm's reach, ``0 < target_x <= l1 + l2``, where the reach
+    ends (the fingertip's x at offset within :data:`TARGET_GAP` of the arm's length of it), and the start
+    velocities are within the DOC's speed bound ``|q̇0| <= qd_max`` (rad/s)."""
     from ..arm import DEFAULT_QD_MAX
 
     length = trial.arm.length
@@ -61,6 +68,15 @@ def check_start_and_target(trial, path: object, where: str | None = None) -> Non
         raise InputError(
             f"field 'target_x' = {tx:.4g} m is outside the arm's reach (0, {length:.3f}] m (in front of the "
             "shoulder, at most l1 + l2 away)",
+            path,
+            where,
+        )
+    end_x = float(trial.arm.fk(trial.q[-1])[0])
+    if abs(end_x - tx) > TARGET_GAP * length:
+        raise InputError(
+            f"field 'target_x' = {tx:.4g} m is {abs(end_x - tx):.3f} m from where the reach ends (the fingertip at "
+            f"x = {end_x:.3f} m at offset; at most {TARGET_GAP:.0%} of the arm's {length:.3f} m): the target is "
+            "the fingertip's x at offset",
             path,
             where,
         )

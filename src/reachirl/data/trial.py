@@ -511,7 +511,14 @@ def trial_from_knots(
 
     For a DOC solution these are exactly its own velocities and torques (used for virtual subjects and tests).
     """
-    t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+    try:
+        t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"trial_from_knots: t and q must be numbers ({e})") from None
+    if t.ndim != 1 or t.size < 3:
+        raise ValueError(f"trial_from_knots: t must be a 1-D array of at least 3 times, got shape {t.shape}")
+    if q.shape != (t.size, 2):
+        raise ValueError(f"trial_from_knots: q must have shape ({t.size}, 2), one (q1, q2) per time, got {q.shape}")
     dt = np.diff(t)[:, None]
     qd = np.vstack([np.zeros(2), np.diff(q, axis=0) / dt])
     qdd = np.diff(qd, axis=0) / dt

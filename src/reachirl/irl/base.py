@@ -113,6 +113,7 @@ class WeightEstimator:
             raise ValueError("fit needs at least one demonstration")
         if not all(isinstance(t, Trial) for t in trials):
             raise TypeError("fit takes a sequence of Trial")
+        self.__dict__["_next_trials"] = tuple(trials)  # the fit's own, once it ends (_keep_fit_params)
         for i, t in enumerate(trials):  # as load_trials checks a file's: angles in degrees, a start at 1e6 rad/s
             check_trial_physics(t, i, None)
             check_start_and_target(t, None, f"trial {i} ({t.id})")
@@ -138,6 +139,13 @@ class WeightEstimator:
         describes the fit with them, whatever ``set_params`` changes afterwards for the next fit."""
         # copies: a mapping or an array of the parameters changed in place after the fit is a change too
         self.__dict__["_fit_params"] = {k: v if callable(v) else copy.deepcopy(v) for k, v in self.get_params().items()}
+        self.__dict__["_fit_trials"] = self.__dict__.pop("_next_trials", ())
+
+    def fitted_trials(self) -> tuple[Trial, ...]:
+        """The demonstrations the last successful ``fit`` learned from, in the order it was given them: the record
+        a saved model keeps (:meth:`reachirl.irl.model.LearnedModel.from_estimator`)."""
+        self._check_fitted()
+        return self.__dict__.get("_fit_trials", ())
 
     def _as_fitted(self) -> WeightEstimator:
         """The fitted estimator with the parameters its fit ran with (scikit-learn style: ``set_params`` after
@@ -196,6 +204,8 @@ class WeightEstimator:
         demonstrations are their own targets). For held-out trials, pass trials not fitted on."""
         from ..doc.evaluation import evaluate_trials, summarise
 
+        if isinstance(trials, Trial | str | PathLike) or not isinstance(trials, Iterable):
+            raise TypeError(f"score takes a sequence of Trial, got a {type(trials).__name__}")
         est = self._as_fitted()
         errors = evaluate_trials(
             est.weights_,

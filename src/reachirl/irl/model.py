@@ -124,9 +124,11 @@ class LearnedModel:
         """The model of a fitted estimator (MOIRL or a baseline), as ``reachirl fit`` writes it: with its
         provenance in ``info`` (:func:`reachirl.irl.provenance.estimator_info`), among which ``observe`` and
         ``rollout_q``, without which the model would predict unlike the estimator (uncut, from a cold start).
-        ``trials``: the trials it was fitted on, for the record (their ids and fingerprint)."""
+        The record names the trials the estimator was fitted on (their ids and fingerprint:
+        :meth:`~reachirl.irl.base.WeightEstimator.fitted_trials`); ``trials``, when given, must be those, in the
+        order fit took them (a ``ValueError`` otherwise: a record of other trials would misstate the fit)."""
         from .methods import METHODS
-        from .provenance import estimator_info
+        from .provenance import estimator_info, fingerprint
 
         method = next((name for name, c in METHODS.items() if type(est) is c), None)
         if method is None:
@@ -142,6 +144,17 @@ class LearnedModel:
         if bad is not None:
             raise TypeError(
                 f"trials must be the sequence of Trial the estimator was fitted on, got a {type(bad).__name__} in it"
+            )
+        fitted = est.fitted_trials()  # empty: fitted by a version that kept no record, which trials then gives
+        if fitted and not trials:
+            trials = list(fitted)
+        elif fitted and (
+            len(trials) != len(fitted)
+            or any(a is not b and fingerprint([a]) != fingerprint([b]) for a, b in zip(trials, fitted, strict=True))
+        ):
+            raise ValueError(
+                f"trials must be the {len(fitted)} the estimator was fitted on (the first {fitted[0].id!r}), in that "
+                f"order; got {len(trials)} (the first {trials[0].id!r}): leave trials out to record the fit's own"
             )
         info = estimator_info(est, method, trials)
         unc = info.pop("uncertainty", None)
@@ -386,6 +399,19 @@ def _check_uncertainty(unc, n_windows: int, path) -> None:
             samples is None or (isinstance(samples, list) and all(_is_matrix(m, n_windows, ok) for m in samples)),
             f"field 'uncertainty.{key}': expected a list of {n_windows} × {len(FEATURES)} matrices of {what}, "
             f"found {brief(samples)}",
+            path,
+        )
+    n = unc.get("n_samples")
+    require(
+        n is None or (isinstance(n, int) and not isinstance(n, bool) and n >= 0),
+        f"field 'uncertainty.n_samples': expected a count >= 0, found {brief(n)}",
+        path,
+    )
+    for key in ("weight_samples", "share_samples"):  # K samples, as n_samples says
+        samples = unc.get(key)
+        require(
+            n is None or samples is None or len(samples) == n,
+            f"field 'uncertainty.{key}': {len(samples or ())} samples, but 'uncertainty.n_samples' says {n}",
             path,
         )
     iv = unc.get("share_intervals")

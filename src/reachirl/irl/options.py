@@ -198,6 +198,8 @@ def _check(o: Options) -> None:
         v = getattr(o, name)
         kind = "an integer" if name in _INTEGERS else "a number"
         need(not isinstance(v, bool | np.bool_), f"{name} must be {kind}, not a boolean (got {v!r})")
+        # text is no number ("0.05" would pass float() and then fail a comparison); smoothness may be "cv"
+        need(not isinstance(v, str) or name == "smoothness", f"{name} must be {kind}, not text (got {v!r})")
     need(isinstance(o.observe, bool), f"observe must be True or False, got {o.observe!r}")
     need(isinstance(o.warm_newton, bool), f"warm_newton must be True or False, got {o.warm_newton!r}")
     need(o.merit in ("state", "normalised"), f"merit must be 'state' or 'normalised', got {o.merit!r}")
