@@ -54,6 +54,19 @@ def cache_root() -> Path:
     return Path.home() / ".cache" / "reachirl"
 
 
+#: the temporaries of this process's atomic writes in progress (:func:`atomic_path`)
+_pending: set[Path] = set()
+
+
+def remove_pending_temporaries() -> None:
+    """Remove the temporaries of the atomic writes in progress: for a process about to be ended outright
+    (``os._exit``: the command line's watchdog, after a signal that compiled code swallowed), which never reaches
+    their own cleanup. Safe from another thread; what cannot be removed is left."""
+    for tmp in list(_pending):
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None, *, durable: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``, on error it is removed.
@@ -78,6 +91,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None, *, durable: 
         raise OSError(e.errno, e.strerror or str(e), str(path)) from e
     os.close(fd)
     tmp = Path(tmp)
+    _pending.add(tmp)
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a result file gets the usual permissions
@@ -97,6 +111,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None, *, durable: 
         raise OSError(e.errno, e.strerror or str(e), str(path)) from e
     finally:
         tmp.unlink(missing_ok=True)
+        _pending.discard(tmp)
 
 
 def _fsync(path: Path) -> None:

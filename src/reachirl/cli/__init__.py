@@ -61,6 +61,10 @@ def _arm_watchdog(command: str, signum: int) -> None:
     code = 143 if signum == signal.SIGTERM else 130
 
     def force_exit() -> None:
+        io = sys.modules.get("reachirl.io")  # no import from this thread: a process that never wrote has none
+        with contextlib.suppress(Exception):
+            if io is not None:
+                io.remove_pending_temporaries()  # the atomic writes in progress (an animation being encoded, ...)
         for fn in list(_at_forced_exit):
             with contextlib.suppress(Exception):
                 fn()

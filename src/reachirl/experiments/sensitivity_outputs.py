@@ -144,7 +144,9 @@ def _markdown(out: dict) -> list[str]:
             "Δ: RMSE of q of the refit minus the full fit's, mean over trials. 95 % CI: the paired differences "
             "resampled over the trials, given the two fits (each held as it is): whether these fits predict these "
             "trials differently, not how uncertain their weights are. A trial whose prediction's DOC failed in either "
-            "fit is left out of its set's Δ and counted beside it."
+            "fit is left out of its set's Δ and counted beside it. A verdict is taken on the CV trials, else the ISCV "
+            "trials, else the training trials (a set of fewer than 5 has no interval) and names its set: "
+            "`needed (train)` is in-sample evidence, not held-out."
             + (
                 f" {ALL} pools every posture's trials, which share their posture's fits, as if independent: its "
                 "interval is narrower than the postures' fits warrant, and each verdict is followed by the "
