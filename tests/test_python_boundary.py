@@ -383,15 +383,16 @@ def test_a_trial_whose_target_is_not_where_it_ends_is_refused_by_fit_and_by_a_tr
     trials = load_trials(tiny_trials)[:2]
     end = float(trials[1].arm.fk(trials[1].q[-1])[0])
     # a target of another reach (or in other units) was fitted without a word: the DOC's bar, not the reach's end
-    moved = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.2)]
-    where = rf"^trial 1 \({trials[1].id}\): field 'target_x' = {end - 0.2:.4g} m is 0\.200 m from where the reach ends"
+    moved = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.25)]
+    where = rf"^trial 1 \({trials[1].id}\): field 'target_x' = {end - 0.25:.4g} m is 0\.250 m from where the reach ends"
     with pytest.raises(InputError, match=where):
         MOIRL(n_windows=1, n_nodes=20, max_iter=1).fit(moved)
     with pytest.raises(InputError, match=r"moved\.npz: trial 1 .*field 'target_x' = .* from where the reach ends"):
         save_trials(tmp_path / "moved.npz", moved)  # nor written to a trials file, which load_trials checks alike
     assert not (tmp_path / "moved.npz").exists()
-    near = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.02)]  # short of the bar, as recordings end
-    assert load_trials(save_trials(tmp_path / "near.npz", near))[1].target_x == end - 0.02
+    # short of the bar, as recordings end, or on an arm whose segments are the subject-info file's: taken
+    near = [trials[0], dataclasses.replace(trials[1], target_x=end - 0.15)]
+    assert load_trials(save_trials(tmp_path / "near.npz", near))[1].target_x == end - 0.15
 
 
 def test_a_model_whose_sample_count_contradicts_its_samples_is_refused(tmp_path):

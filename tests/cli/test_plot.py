@@ -479,8 +479,9 @@ def test_a_model_from_the_estimator_predicts_as_the_estimator(fitted, tmp_path):
 
     _, trials_path, _ = fitted
     trials = load_trials(trials_path)
-    est = MOIRL(2, n_nodes=N, max_iter=2).fit([t for t in trials if t.subject == "S01"])
-    model = load_model(save_model(tmp_path / "m.json", LearnedModel.from_estimator(est, trials)))
+    own = [t for t in trials if t.subject == "S01"]
+    est = MOIRL(2, n_nodes=N, max_iter=2).fit(own)
+    model = load_model(save_model(tmp_path / "m.json", LearnedModel.from_estimator(est, own)))
     assert model.observe and model.rollout_q is not None and model.method == "moirl"
     for trial, err in zip(trials[3:], model.evaluate(trials[3:]), strict=True):
         np.testing.assert_allclose(err.prediction.q, est.predict(trial).q, atol=1e-9)

@@ -42,9 +42,10 @@ LENGTH_TOLERANCE = 0.20
 MIN_REACH_RANGE = 0.05
 
 #: the largest gap between a trial's ``target_x`` and its fingertip's x at offset, as a fraction of the arm's length:
-#: the target is where the reach ends (recordings cut at 5 % of peak speed end 2-3 % of an arm's length short of it,
-#: UE-ADL's at most 2.3 %); further apart, the target belongs to another reach or another unit
-TARGET_GAP = 0.10
+#: the target is where the reach ends, measured on the markers (recordings cut at 5 % of peak speed end 2-3 % of an
+#: arm's length short of it; UE-ADL's at most 2.3 %), while the arm's segments may be the subject-info file's, up to
+#: LENGTH_TOLERANCE (20 %) from the markers'; further apart, the target belongs to another reach or another unit
+TARGET_GAP = 0.30
 
 #: degrees: how far past straight (0°) a human elbow hyperextends: typically up to 10-15°, and joint centres from
 #: markers add a few degrees. An elbow alone beyond the model's lower limit (-5°) by no more than this is a real
