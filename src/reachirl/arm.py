@@ -159,8 +159,8 @@ def _same_rows(where: str, **arrays: np.ndarray) -> None:
 
 def _pairs(where: str, name: str, v) -> np.ndarray:
     """``v`` as floats of shape ``(..., 2)``, one pair (q1, q2), (x, y) or (τ1, τ2) along the last axis; any other
-    shape is a ``ValueError`` naming ``where``, ``name`` and the shape (a joints-first ``(2, n)`` array, or three
-    columns, was read silently by its first two columns)."""
+    shape, or what is not numbers, is a ``ValueError`` naming ``where``, ``name`` and the shape or value (a
+    joints-first ``(2, n)`` array, or three columns, was read silently by its first two columns)."""
     try:
         a = np.asarray(v, dtype=float)
     except (TypeError, ValueError):

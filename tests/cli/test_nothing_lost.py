@@ -340,49 +340,12 @@ def test_a_command_ended_outright_in_compiled_code_leaves_no_temporary(base, tmp
     """A SIGINT swallowed while ``evaluate`` writes its output (as a video encoder or a solver can: here the
     temporary's sync never returns): the command is ended outright after the grace period, and the temporary of
     the write in progress is removed first; ``simulate --render`` left its animation's before."""
-    import subprocess
-    import sys
-    import time
+    from children import interrupted_while_syncing
 
     out, marker = tmp_path / "metrics.json", tmp_path / "syncing"
-    script = (
-        "import sys, time\n"
-        "from pathlib import Path\n"
-        "from reachirl import io\n"
-        "from reachirl.cli import main\n"
-        "sync = io._fsync\n"
-        "def stuck(path):\n"
-        "    if path.name.startswith('.metrics.json.'):\n"
-        f"        Path({str(marker)!r}).touch()\n"
-        "        for _ in range(600):  # a minute, whatever the signals\n"
-        "            try:\n"
-        "                time.sleep(0.1)\n"
-        "            except KeyboardInterrupt:\n"
-        "                pass\n"
-        "    sync(path)\n"
-        "io._fsync = stuck\n"
-        f"sys.exit(main(['evaluate', '--model', {str(base / 'model.json')!r}, {str(base / 'trials.npz')!r}, "
-        f"'--out', {str(out)!r}]))\n"
-    )
-    p = subprocess.Popen(
-        [sys.executable, "-c", script],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # a background job inherits SIGINT ignored
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while not marker.exists() and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert marker.exists(), p.stderr.read() if p.poll() is not None else "evaluate never reached its output"
-        assert [f.name for f in tmp_path.glob(".metrics.json.*")], "no temporary to leave: the test would test nothing"
-        p.send_signal(signal.SIGINT)
-        rc = p.wait(timeout=30)
-    finally:
-        if p.poll() is None:
-            p.kill()
-    assert rc == 130, p.stderr.read()
+    argv = ["evaluate", "--model", base / "model.json", base / "trials.npz", "--out", out]
+    rc, err = interrupted_while_syncing(argv, "path.name.startswith('.metrics.json.')", marker, tmp_path)
+    assert rc == 130, err
     assert sorted(f.name for f in tmp_path.iterdir()) == ["syncing"]
 
 

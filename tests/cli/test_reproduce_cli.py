@@ -231,50 +231,13 @@ def test_a_run_that_swallows_an_interrupt_is_ended_outright_and_leaves_no_tempor
     """A SIGINT that code swallows and runs on after (as compiled solvers can), here while the first unit's
     checkpoint is synced: the command is ended outright after the grace period, and the temporary that write had
     made is removed first, as the command's own cleanup would have."""
-    import signal
-    import subprocess
-    import sys
-    import time
+    from children import interrupted_while_syncing
 
     out, marker = tmp_path / "out", tmp_path / "syncing"
-    script = (
-        "import sys, time\n"
-        "from pathlib import Path\n"
-        "from reachirl import io\n"
-        "from reachirl.cli import main\n"
-        "sync = io._fsync\n"
-        "def stuck(path):\n"
-        "    if path.name.endswith('.tmp') and path.parent.name == 'units':\n"
-        f"        Path({str(marker)!r}).touch()\n"
-        "        for _ in range(600):  # a minute, whatever the signals\n"
-        "            try:\n"
-        "                time.sleep(0.1)\n"
-        "            except KeyboardInterrupt:\n"
-        "                pass\n"
-        "    sync(path)\n"
-        "io._fsync = stuck\n"
-        f"sys.exit(main(['reproduce', '--data', {str(trials_file)!r}, '--out', {str(out)!r}, '--workers', '1', "
-        f"*{ARGS!r}]))\n"
-    )
-    p = subprocess.Popen(
-        [sys.executable, "-c", script],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # a background job inherits SIGINT ignored
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while not marker.exists() and p.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert marker.exists(), p.stderr.read() if p.poll() is not None else "the run never reached its first unit"
-        assert [f.name for f in (out / "units").glob(".*.tmp")], "no temporary to leave: the test would test nothing"
-        p.send_signal(signal.SIGINT)
-        rc = p.wait(timeout=30)
-    finally:
-        if p.poll() is None:
-            p.kill()
-    assert rc == 130, p.stderr.read()
+    argv = ["reproduce", "--data", trials_file, "--out", out, "--workers", "1", *ARGS]
+    unit_checkpoint = "path.name.endswith('.tmp') and path.parent.name == 'units'"
+    rc, err = interrupted_while_syncing(argv, unit_checkpoint, marker, out / "units")
+    assert rc == 130, err
     assert [f.name for f in out.rglob(".*") if f.is_file()] == []
 
 
