@@ -204,8 +204,9 @@ def test_uncertainty_asked_of_methods_without_samples_is_refused(tiny_trials, tm
     proc = cli("reproduce", *args, "--method", "kkt", "--no-progress", "--out", out)
     assert proc.returncode == 0, proc.stderr
     assert "note:" not in proc.stderr and "takes none" not in proc.stderr
-    run_toml = (out / "run.toml").read_text()
-    assert "uncertainty = 40" in run_toml and "max_iter = 30" in run_toml
+    run_toml = (out / "run.toml").read_text()  # what the run computed with: none of MO-IRL's keys (they were there)
+    assert all(f"\n{key} =" not in run_toml for key in ("uncertainty", "max_iter", "tol", "seed_form", "rollout"))
+    assert "[experimental]" not in run_toml and "tol:" not in run_toml  # nor said to be at its default
     report = (out / "report.md").read_text()
     assert "they are drawn for moirl and maxent fits only" in report
     proc = cli("reproduce", "--config", out / "run.toml", "--no-progress", "--out", out)  # resumed: every unit reused
@@ -219,6 +220,9 @@ def test_uncertainty_asked_of_methods_without_samples_is_refused(tiny_trials, tm
         (["--seed-form"], "--seed-form: --method kkt takes none (the paper's MO-IRL form)"),
         (["--rollout", "per_demo"], "--rollout per_demo: --method kkt takes none (MO-IRL's and MaxEnt's training"),
         (["--set", "rollout=mean"], "--set: rollout=mean: --method kkt takes none"),
+        (["--tol", "0.01"], "--tol 0.01: --method kkt takes none (MO-IRL's and MaxEnt's stopping tolerance)"),
+        (["--set", "tol=0"], "--set: tol=0: --method kkt takes none"),
+        (["--set", 'experimental={merit = "state"}'], "--set: experimental="),
     ],
 )
 def test_moirl_options_asked_of_methods_without_them_are_refused(tiny_trials, tmp_path, cli, extra, said):
@@ -230,3 +234,26 @@ def test_moirl_options_asked_of_methods_without_them_are_refused(tiny_trials, tm
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert said in proc.stderr
     assert not (out / "units").exists()
+
+
+@pytest.mark.parametrize(
+    ("lines", "said"),
+    [
+        ("tol = 0.01\n", "tol = 0.01: --method kkt takes none (MO-IRL's and MaxEnt's stopping tolerance)"),
+        ("seed_form = true\n", "seed_form = true: --method kkt takes none (the paper's MO-IRL form)"),
+        ('[experimental]\nmerit = "state"\nobserve = false\n', "[experimental] merit, observe: --method kkt takes"),
+    ],
+    ids=["tol", "seed_form", "experimental"],
+)
+def test_a_run_file_asking_moirl_options_of_kkt_alone_is_refused_in_its_own_words(
+    tiny_trials, tmp_path, cli, lines, said
+):
+    """tol and an [experimental] table were taken by a kkt run (and written back into its run.toml), which uses
+    neither, while fit --method kkt --config refused them; a value is said as the file wrote it (true, not True)."""
+    run_file = tmp_path / "kkt.toml"
+    run_file.write_text('methods = ["kkt"]\n' + lines)
+    args = ["--data", tiny_trials, "--sections", "1", "--nodes", "20", "--n-train", "2", "--workers", "1"]
+    proc = cli("reproduce", *args, "--config", run_file, "--no-progress", "--out", tmp_path / "k")
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert f"{run_file}: {said}" in proc.stderr
+    assert not (tmp_path / "k" / "units").exists()

@@ -354,3 +354,20 @@ def test_results_list_the_computed_units_in_the_units_order_not_as_workers_finis
     assert main(argv) == 0
     results = json.loads((tmp_path / "out" / "results.json").read_text())
     assert results["run"]["computed"] == ["moirl-P2-s2", "moirl-P2-s1"]
+
+
+def test_an_experimental_table_spelling_out_a_methods_own_value_keys_the_same_units():
+    """[experimental] merit = "normalised" (MO-IRL's own) gave other unit keys than no table, so a run resumed from
+    a file that spelt the defaults out computed every unit again; a value that changes the method still keys
+    others, and what is a default is the method's: MaxEnt keeps every trajectory (memory None), MO-IRL one."""
+    from reachirl.experiments.protocol import ProtocolConfig, make_units
+
+    def options(experimental: dict) -> list:
+        config = ProtocolConfig(sections=(8,), methods=("moirl", "maxent"), experimental=experimental)
+        return [u.estimator_options for u in make_units(["P2"], config)]
+
+    plain = options({})
+    moirl, maxent = options({"merit": "normalised", "w0": 0.05, "memory": 1})
+    assert moirl == plain[0] and maxent != plain[1]
+    assert dict(dict(maxent)["experimental"]) == {"memory": 1}
+    assert options({"merit": "state"})[0] != plain[0]

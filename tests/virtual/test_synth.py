@@ -541,3 +541,14 @@ def test_a_truth_file_with_its_windows_numbered_in_order_is_read_in_that_order(t
     rows = [[1.0, 1, 0, 0, 0, 0, 0, 0], ["2", 0, 0, 0, 1, 0, 0, 0]]
     ri = read_relative_importance(_truth_csv(tmp_path / "t.csv", rows))
     assert np.argmax(ri[0]) == 0 and np.argmax(ri[1]) == FEATURES.index("joint_acceleration")
+
+
+@pytest.mark.parametrize(("value", "shown"), [(-1.0, "-1"), (float("nan"), "nan"), (float("inf"), "inf")])
+def test_a_truth_with_a_negative_or_non_finite_importance_names_its_window_and_feature(value, shown):
+    from reachirl.virtual.recording import check_relative_importance
+
+    ri = np.ones((3, 7))
+    ri[1, 1] = value  # window 2, energy (FEATURES order); said without where before
+    said = rf"^relative importance must be finite and >= 0: window 2, energy, is {shown}$"
+    with pytest.raises(ValueError, match=said):
+        check_relative_importance(ri)

@@ -457,15 +457,21 @@ RUN_FILE_HEADER = "reproduce: the options of this run"
 """What the first line of a run's own ``run.toml`` says after ``# reachirl VERSION``."""
 
 
+#: the run-file keys of MO-IRL and the methods built on it (MaxEnt): a run of bilevel and KKT alone takes none
+_MOIRL_KEYS = ("max_iter", "tol", "seed_form", "rollout", "uncertainty", "experimental")
+
+
 def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
-    """What writes ``DIR/run.toml``: every option the run uses, so that ``reproduce --config DIR/run.toml`` repeats
-    it (called once the units are ready to run, so that a stopped or interrupted run has it too).
+    """What writes ``DIR/run.toml``: every option the run uses (a run of bilevel and KKT alone: none of
+    :data:`_MOIRL_KEYS`), so that ``reproduce --config DIR/run.toml`` repeats it (called once the units are ready to
+    run, so that a stopped or interrupted run has it too).
 
     When ``--config`` is that very file (resuming a run with its own options), it is left as it is; with other
     options (flags that override it) it would be replaced, so the run is refused here, before any work."""
     import tomllib
 
     from .. import __version__
+    from ..irl.methods import builds_on_moirl
     from ._args import same_file
     from .runfile import dumps, read_run_file, write_run_file
 
@@ -496,8 +502,11 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
         "uncertainty": config.uncertainty,
         "experimental": dict(config.experimental),
     }
+    unused = () if any(builds_on_moirl(m) for m in config.methods) else _MOIRL_KEYS
+    resolved = {k: v for k, v in resolved.items() if k not in unused}  # options no method of the run takes
     if args.config is not None and same_file(Path(args.config), out / "run.toml"):
-        if read_run_file(args.config) == tomllib.loads(dumps(resolved)):
+        own = {k: v for k, v in read_run_file(args.config).items() if k not in unused}  # an earlier version's too
+        if own == tomllib.loads(dumps(resolved)):
             return lambda: None  # the run's own options: nothing to write
         raise InputError(
             "--config is this run folder's own run.toml, and the options given change it; the run would replace "
@@ -516,6 +525,8 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     }
     if resolved["data"] is not None:
         del left_out["subjects"]  # the data's own subjects
+    if "tol" not in resolved:
+        del left_out["tol"]
     defaults = [f"{k}: {v}" for k, v in left_out.items() if resolved.get(k) is None]
     header = (
         f"reachirl {__version__} {RUN_FILE_HEADER}; repeat it with "
@@ -577,19 +588,28 @@ def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
 def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, methods) -> None:
     """Refuse the option ``key`` (``what`` it is, and why the other methods have none) when it was asked for and no
     method of the run (``methods``) takes it: :class:`InputError` naming the flag, ``--set`` or the run file it came
-    from. Not given, 0 (none), or only recorded in a run's own ``run.toml`` (which records every option, defaults
-    too: resuming the run is no ask) is no ask."""
+    from. Not given, 0 (none; for ``tol``, 0 is asked), an empty table, or only recorded in a run's own
+    ``run.toml`` (which records every option, defaults too: resuming the run is no ask) is no ask."""
     value = opts.get(key)
-    if not value or (key in from_file and _is_run_toml(Path(args.config))):
+    asked = value is not None if key == "tol" else bool(value)
+    if not asked or (key in from_file and _is_run_toml(Path(args.config))):
         return
     why = f"--method {' '.join(methods)} takes none ({what})"
-    if key in from_file:
-        raise InputError(f"{key} = {value}: {why}", args.config)
+    if key in from_file:  # in the file's own words: true, "per_demo", [experimental] merit, observe
+        said = f"[experimental] {', '.join(value)}" if isinstance(value, dict) else f"{key} = {_toml_value(value)}"
+        raise InputError(f"{said}: {why}", args.config)
     flag = getattr(args, key) if key in FLAG_KEYS else getattr(args, f"key_{key}", None)
     if flag is None:  # given by --set
         raise InputError(f"{key}={value}: {why}", "--set")
     shown = "" if value is True else f" {value}"  # a switch: --seed-form, not --seed-form True
     raise InputError(f"--{key.replace('_', '-')}{shown}: {why}")
+
+
+def _toml_value(v) -> str:
+    """``v`` as a run file writes it: ``true``, ``"per_demo"``, ``0.01``."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    return f'"{v}"' if isinstance(v, str) else str(v)
 
 
 def _stopped(result, written: set[str]) -> int:
@@ -686,6 +706,8 @@ def _run(args, out: Path, opts: dict, from_file: set[str], unit_workers) -> int:
         # MO-IRL's own form and rollouts, as fit refuses --seed-form and --rollout with --method bilevel or kkt
         _refuse_unused(args, opts, from_file, "seed_form", "the paper's MO-IRL form", config.methods)
         _refuse_unused(args, opts, from_file, "rollout", "MO-IRL's and MaxEnt's training rollouts", config.methods)
+        _refuse_unused(args, opts, from_file, "tol", "MO-IRL's and MaxEnt's stopping tolerance", config.methods)
+        _refuse_unused(args, opts, from_file, "experimental", "the table of MO-IRL's options", config.methods)
     workers = args.workers
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping

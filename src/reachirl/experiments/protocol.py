@@ -419,14 +419,24 @@ def _method_options(method: str, config: ProtocolConfig) -> tuple:
     """The unit options of ``method``: ``rollout``, ``seed_form``, ``experimental`` and ``uncertainty`` for MO-IRL
     and the estimators built on it (MaxEnt); bilevel and KKT fit whole reaches with their own defaults. Sorted
     ``(key, value)`` pairs, ``experimental`` as sorted pairs too (hashable)."""
-    from ..irl.methods import builds_on_moirl
+    from ..irl.methods import METHODS, builds_on_moirl
+    from ..irl.options import resolve_options
 
     if not builds_on_moirl(method):
         return ()
+    # an experimental option at the method's own value changes nothing: left out, so that a table that spells out
+    # a default keys the same units as one that leaves it out (it reran them)
+    defaults = getattr(METHODS[method], "_option_defaults", None)
+    base = resolve_options(config.seed_form, None, defaults)
+    changed = {
+        k: v
+        for k, v in config.experimental.items()
+        if getattr(resolve_options(config.seed_form, {k: v}, defaults), k) != getattr(base, k)
+    }
     opts = {
         "rollout": config.rollout,
         "seed_form": config.seed_form,
-        "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in config.experimental.items())),
+        "experimental": tuple(sorted((str(k), _hashable(v)) for k, v in changed.items())),
     }
     return tuple(sorted(opts.items()))
 

@@ -46,8 +46,10 @@ def check_relative_importance(ri) -> tuple[tuple[float, ...], ...]:
             f"relative importance must be 1 to {MAX_TRUTH_WINDOWS} windows × {len(FEATURES)} features, "
             f"got shape {a.shape}"
         )
-    if not np.all(np.isfinite(a)) or np.any(a < 0):
-        raise ValueError("relative importance must be finite and >= 0")
+    bad = np.argwhere(~np.isfinite(a) | (a < 0))
+    if bad.size:
+        w, j = (int(i) for i in bad[0])
+        raise ValueError(f"relative importance must be finite and >= 0: window {w + 1}, {FEATURES[j]}, is {a[w, j]:g}")
     empty = [i + 1 for i, row in enumerate(a) if row.sum() <= 0]
     if empty:
         raise ValueError(f"relative importance: window {empty[0]} weighs no feature (its row sums to 0)")
