@@ -425,7 +425,7 @@ def _method_options(method: str, config: ProtocolConfig) -> tuple:
     if not builds_on_moirl(method):
         return ()
     # an experimental option at the method's own value changes nothing: left out, so that a table that spells out
-    # a default keys the same units as one that leaves it out (it reran them)
+    # a default keys the same units (and resumes them) as one that leaves it out
     defaults = getattr(METHODS[method], "_option_defaults", None)
     base = resolve_options(config.seed_form, None, defaults)
     changed = {
