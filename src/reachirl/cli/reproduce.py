@@ -457,8 +457,16 @@ RUN_FILE_HEADER = "reproduce: the options of this run"
 """What the first line of a run's own ``run.toml`` says after ``# reachirl VERSION``."""
 
 
-#: the run-file keys of MO-IRL and the methods built on it (MaxEnt): a run of bilevel and KKT alone takes none
-_MOIRL_KEYS = ("max_iter", "tol", "seed_form", "rollout", "uncertainty", "experimental")
+#: the run-file keys of MO-IRL and the methods built on it (MaxEnt), each with what it is: a run of bilevel and KKT
+#: alone takes none (refused when asked, as fit refuses them; left out of its run.toml)
+_MOIRL_KEYS = {
+    "max_iter": "moirl's and maxent's iterations at most; bilevel stops at its budget of DOC solves, kkt solves once",
+    "uncertainty": "weight samples are drawn for moirl and maxent fits only",
+    "seed_form": "the paper's MO-IRL form",
+    "rollout": "MO-IRL's and MaxEnt's training rollouts",
+    "tol": "MO-IRL's and MaxEnt's stopping tolerance",
+    "experimental": "the table of MO-IRL's options",
+}
 
 
 def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
@@ -502,7 +510,7 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
         "uncertainty": config.uncertainty,
         "experimental": dict(config.experimental),
     }
-    unused = () if any(builds_on_moirl(m) for m in config.methods) else _MOIRL_KEYS
+    unused = {} if any(builds_on_moirl(m) for m in config.methods) else _MOIRL_KEYS
     resolved = {k: v for k, v in resolved.items() if k not in unused}  # options no method of the run takes
     if args.config is not None and same_file(Path(args.config), out / "run.toml"):
         own = {k: v for k, v in read_run_file(args.config).items() if k not in unused}  # an earlier version's too
@@ -596,20 +604,15 @@ def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, m
         return
     why = f"--method {' '.join(methods)} takes none ({what})"
     if key in from_file:  # in the file's own words: true, "per_demo", [experimental] merit, observe
-        said = f"[experimental] {', '.join(value)}" if isinstance(value, dict) else f"{key} = {_toml_value(value)}"
+        from .runfile import dumps
+
+        said = f"[experimental] {', '.join(value)}" if isinstance(value, dict) else dumps({key: value}).strip()
         raise InputError(f"{said}: {why}", args.config)
     flag = getattr(args, key) if key in FLAG_KEYS else getattr(args, f"key_{key}", None)
     if flag is None:  # given by --set
         raise InputError(f"{key}={value}: {why}", "--set")
     shown = "" if value is True else f" {value}"  # a switch: --seed-form, not --seed-form True
     raise InputError(f"--{key.replace('_', '-')}{shown}: {why}")
-
-
-def _toml_value(v) -> str:
-    """``v`` as a run file writes it: ``true``, ``"per_demo"``, ``0.01``."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    return f'"{v}"' if isinstance(v, str) else str(v)
 
 
 def _stopped(result, written: set[str]) -> int:
@@ -696,18 +699,8 @@ def _run(args, out: Path, opts: dict, from_file: set[str], unit_workers) -> int:
     if unknown:
         raise InputError(f"--method {unknown[0]!r}: expected one of {', '.join(METHODS)}")
     if not any(builds_on_moirl(m) for m in config.methods):  # as fit refuses them with --method bilevel or kkt
-        why = "bilevel stops at its budget of DOC solves, kkt solves once"
-        _refuse_unused(
-            args, opts, from_file, "max_iter", f"moirl's and maxent's iterations at most; {why}", config.methods
-        )
-        # the default (40, not in opts) asks nothing: such a run draws no samples, silently
-        what = "weight samples are drawn for moirl and maxent fits only"
-        _refuse_unused(args, opts, from_file, "uncertainty", what, config.methods)
-        # MO-IRL's own form and rollouts, as fit refuses --seed-form and --rollout with --method bilevel or kkt
-        _refuse_unused(args, opts, from_file, "seed_form", "the paper's MO-IRL form", config.methods)
-        _refuse_unused(args, opts, from_file, "rollout", "MO-IRL's and MaxEnt's training rollouts", config.methods)
-        _refuse_unused(args, opts, from_file, "tol", "MO-IRL's and MaxEnt's stopping tolerance", config.methods)
-        _refuse_unused(args, opts, from_file, "experimental", "the table of MO-IRL's options", config.methods)
+        for key, what in _MOIRL_KEYS.items():  # a default (not in opts) asks nothing
+            _refuse_unused(args, opts, from_file, key, what, config.methods)
     workers = args.workers
     err = Console(stderr=True)
     out_console = Console() if Console().is_terminal else Console(width=200)  # logs: no wrapping
