@@ -222,7 +222,8 @@ def test_uncertainty_asked_of_methods_without_samples_is_refused(tiny_trials, tm
         (["--set", "rollout=mean"], "--set: rollout=mean: --method kkt takes none"),
         (["--tol", "0.01"], "--tol 0.01: --method kkt takes none (MO-IRL's and MaxEnt's stopping tolerance)"),
         (["--set", "tol=0"], "--set: tol=0: --method kkt takes none"),
-        (["--set", 'experimental={merit = "state"}'], "--set: experimental="),
+        (["--set", 'experimental={merit = "state"}'], '--set: experimental={merit = "state"}: --method kkt takes none'),
+        (["--set", "seed_form=true"], "--set: seed_form=true: --method kkt takes none"),
     ],
 )
 def test_moirl_options_asked_of_methods_without_them_are_refused(tiny_trials, tmp_path, cli, extra, said):

@@ -389,7 +389,10 @@ def test_the_posture_transfer_text_names_the_rollout_its_fits_used():
 @pytest.mark.parametrize(
     "text, match",
     [
-        ('seed_form = "false"', r"seed_form: expected true or false; got 'false'"),
+        # each value as the run file wrote it, not as Python does ('false', True)
+        ('seed_form = "false"', r'seed_form: expected true or false; got "false"'),
+        ("subjects = true", r"subjects: expected a number of built-in virtual subjects, 2 to 100; got true"),
+        ('methods = ["moirl", 2]', r'methods: expected a list of names, got \["moirl", 2\]'),
         ("posture_transfer = 1", r"posture_transfer: expected true or false; got 1"),
         ("uncertainty = 40.5", r"uncertainty: expected weight samples, 20 to 1000, or 0 for none; got 40\.5"),
         ("sections = [8, 0]", r"sections: expected a list of section counts, each 1 or more; got \[8, 0\]"),

@@ -261,7 +261,7 @@ COMMAND_LINE_ONLY = {"out": "--out DIR"}
 def run_options(args) -> tuple[dict, set[str]]:
     """The run's options: the run file, then ``--set``, then the flags given; every key checked (exit 2 naming the
     key or the file). ``experimental`` is a table. Also returns the keys whose value is the run file's."""
-    from .runfile import parse_assignment, read_run_file
+    from .runfile import parse_assignment, read_run_file, written
 
     opts: dict = {}
     where = None
@@ -301,7 +301,7 @@ def run_options(args) -> tuple[dict, set[str]]:
         if opts.get(key) is not None and not (
             isinstance(opts[key], list) and all(isinstance(x, str) and x for x in opts[key])
         ):
-            raise InputError(f"{key}: expected a list of names, got {opts[key]!r}", where)
+            raise InputError(f"{key}: expected a list of names, got {written(opts[key])}", where)
     if isinstance(opts.get("sections"), int):
         opts["sections"] = [opts["sections"]]
     exp = opts.get("experimental", {})
@@ -309,10 +309,10 @@ def run_options(args) -> tuple[dict, set[str]]:
         raise InputError("experimental: expected a table of MO-IRL options", where)
     for key, (_, kind) in RUN_KEYS.items():
         if key in opts and not _valid(kind, opts[key]):
-            raise InputError(f"{key}: {RUN_KEYS[key][0]}; got {opts[key]!r}", where)
+            raise InputError(f"{key}: {RUN_KEYS[key][0]}; got {written(opts[key])}", where)
     for key, (what, kind) in OTHER_KEYS.items():  # e.g. seed_form = "no" once read as true
         if key in opts and opts[key] is not None and not _valid(kind, opts[key]):
-            raise InputError(f"{key}: expected {what}; got {opts[key]!r}", where)
+            raise InputError(f"{key}: expected {what}; got {written(opts[key])}", where)
     return opts, from_file
 
 
@@ -603,14 +603,14 @@ def _refuse_unused(args, opts: dict, from_file: set[str], key: str, what: str, m
     if not asked or (key in from_file and _is_run_toml(Path(args.config))):
         return
     why = f"--method {' '.join(methods)} takes none ({what})"
-    if key in from_file:  # in the file's own words: true, "per_demo", [experimental] merit, observe
-        from .runfile import dumps
+    from .runfile import written
 
-        said = f"[experimental] {', '.join(value)}" if isinstance(value, dict) else dumps({key: value}).strip()
+    if key in from_file:  # in the file's own words: true, "per_demo", [experimental] merit, observe
+        said = f"[experimental] {', '.join(value)}" if isinstance(value, dict) else f"{key} = {written(value)}"
         raise InputError(f"{said}: {why}", args.config)
     flag = getattr(args, key) if key in FLAG_KEYS else getattr(args, f"key_{key}", None)
-    if flag is None:  # given by --set
-        raise InputError(f"{key}={value}: {why}", "--set")
+    if flag is None:  # given by --set, as it was written there (a word without its quotes)
+        raise InputError(f"{key}={value if isinstance(value, str) else written(value)}: {why}", "--set")
     shown = "" if value is True else f" {value}"  # a switch: --seed-form, not --seed-form True
     raise InputError(f"--{key.replace('_', '-')}{shown}: {why}")
 

@@ -74,6 +74,17 @@ def _value(v: Any) -> str:
     raise ValueError(f"a run file cannot hold {type(v).__name__} values")
 
 
+def written(v: Any) -> str:
+    """``v`` as a run file writes it (``true``, ``"P2"``, ``[8, 0]``, ``{merit = "state"}``); a value a run file
+    cannot hold (a date, a non-finite number) as Python writes it."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {written(x)}" for k, x in v.items()) + "}"
+    try:
+        return _value(v)
+    except ValueError:
+        return repr(v)
+
+
 def dumps(options: dict[str, Any]) -> str:
     """TOML text of ``options``: scalars and lists at the top (``None`` left out: the default), mappings as
     tables."""
