@@ -400,6 +400,10 @@ def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, refere
     assert unit["unit"]["tol"] == 3e-4 and ref["unit"]["tol"] is None
     assert ["rollout", "per_task"] in ref["unit"]["estimator_options"]
     assert unit["history"][0]["doc_solves"] == n_train and ref["history"][0]["doc_solves"] == 1
+    # the run's own run file keeps the table, and says the options it leaves out are at their defaults
+    own = (out / "run.toml").read_text()
+    assert tomllib.loads(own)["experimental"] == {"merit_model": "gauss-newton"}
+    assert "[experimental]: every one not in its table at the method's default" in own
 
 
 @pytest.mark.parametrize(

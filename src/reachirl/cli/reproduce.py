@@ -536,6 +536,9 @@ def _run_file(out, args, opts: dict, config) -> Callable[[], None]:
     if "tol" not in resolved:
         del left_out["tol"]
     defaults = [f"{k}: {v}" for k, v in left_out.items() if resolved.get(k) is None]
+    if "experimental" in resolved:  # about thirty options: named by the class, not here
+        set_here = "every one" if not resolved["experimental"] else "every one not in its table"
+        defaults.append(f"[experimental]: {set_here} at the method's default (reachirl.irl.options.Options)")
     header = (
         f"reachirl {__version__} {RUN_FILE_HEADER}; repeat it with "
         f"`reachirl reproduce --config {out / 'run.toml'} --out DIR`"
