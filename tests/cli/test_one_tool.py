@@ -140,9 +140,10 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
     assert run_file["sections"] == [2] and run_file["rollout"] == "per_task" and run_file["uncertainty"] == 0
     # an option at its default is not in the TOML, and its comment says what it is
     assert "tol" not in run_file and "tol: 0.0001, MO-IRL's own" in (run / "run.toml").read_text()
-    assert run_file["experimental"] == {} and "[experimental]: every one at the method's default" in (
-        run / "run.toml"
-    ).read_text()
+    assert (
+        run_file["experimental"] == {}
+        and "[experimental]: every one at the method's default" in (run / "run.toml").read_text()
+    )
     again = tmp_path / "again"
     assert main(["reproduce", "--config", str(run / "run.toml"), "--out", str(again), "--workers", "1"]) == 0
     assert (again / "table.csv").read_bytes() == (run / "table.csv").read_bytes()
