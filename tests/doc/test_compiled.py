@@ -329,3 +329,52 @@ def test_a_small_function_is_compiled_again_under_other_flags(cache, monkeypatch
         assert np.array_equal(np.asarray(fc(arg)), np.asarray(f(arg)))
         libraries.append(sorted(p.name for p in cache.rglob("fn-reachirl_test_flags-*.so")))
     assert len(libraries[0]) == 1 and len(libraries[1]) == 2
+
+
+def test_entries_unused_for_months_are_removed_when_a_new_one_is_written(cache):
+    """Each version of the NLP's code kept its solvers (about 20 MB each) for ever. Loading an entry marks it
+    used; writing a new one removes those of every CasADi version no process used for KEEP_UNUSED_S, the notes
+    that named them and make run's note that its solvers are compiled, and keeps the rest."""
+    old = time.time() - compiled.KEEP_UNUSED_S - 86400.0
+    here, other, third = cache / f"casadi-{ca.__version__}", cache / "casadi-0.0.0", cache / "casadi-0.0.1"
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("reachirl_test_used", [x], [ca.sumsqr(x)])
+    solver = here / "doc-used" / "solver.casadi"
+    solver.parent.mkdir(parents=True)
+    f.save(str(solver))
+    for stale in (
+        here / "doc-stale",
+        here / "fn-stale",
+        other / "doc-stale",
+        third / "fn-stale",
+        here / "doc-busy.lock",
+    ):
+        stale.mkdir(parents=True)
+        (stale / "solver.casadi").write_text("")
+    (here / "fn-stale-0123.so").write_text("")
+    (here / "paths").mkdir()
+    for recipe, name in (("a", "doc-stale"), ("b", "doc-used"), ("c", "")):
+        (here / "paths" / f"{recipe}.txt").write_text(name + "\n")
+    (here / "make-run-solvers.stamp").write_text("")
+    (other / "make-run-solvers.stamp").write_text("")
+    (third / "make-run-solvers.stamp").write_text("")
+    for entry in [*here.iterdir(), *other.iterdir(), *third.iterdir()]:
+        os.utime(entry, (old, old))
+
+    assert compiled.load(solver) is not None  # used now: kept
+    assert compiled.load(here / "doc-missing" / "solver.casadi") is None
+    with compiled.setting("on"):
+        g = compiled.compiled_function(f)  # a new entry: the library of f, which prunes
+    assert g is not None and np.isclose(float(g([1.0, 2.0])), 5.0)
+    left = sorted(str(p.relative_to(cache)) for p in cache.rglob("*") if p.parent.name.startswith("casadi-"))
+    assert left == sorted(
+        [
+            "casadi-0.0.1/make-run-solvers.stamp",  # no solver of that version went (a function did)
+            f"casadi-{ca.__version__}/doc-busy.lock",  # a compilation's lock: never removed here
+            f"casadi-{ca.__version__}/doc-used",
+            next(str(p.relative_to(cache)) for p in here.glob("fn-reachirl_test_used-*.so")),
+            f"casadi-{ca.__version__}/paths",
+        ]
+    ), left
+    assert sorted(p.name for p in (here / "paths").iterdir()) == ["b.txt"]
+    assert compiled.prune() == []  # nothing more to remove; the new library and the used solver are recent

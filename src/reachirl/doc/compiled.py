@@ -29,6 +29,11 @@ graph; a note in ``paths/`` remembers it under a hash of the code that builds th
 that a process whose solvers are cached never builds the graph; the uncertainty's KKT functions are likewise
 saved once, under such a hash, in ``fn-<hash>/`` (:func:`cached_functions`). A file that does not load is ignored
 (the virtual machine solves instead, or the functions are built), and so is a missing compiler.
+
+Each version of that code keeps its own entries (about 20 MB a solver). Loading an entry marks it used (its
+modification time); whenever a process writes a new one, the entries of every CasADi version's folder that no
+process has used for :data:`KEEP_UNUSED_S` are removed (:func:`prune`): an upgrade's old solvers go, the ones in
+use stay.
 """
 
 from __future__ import annotations
@@ -59,6 +64,7 @@ __all__ = [
     "compiled_function",
     "load",
     "mode",
+    "prune",
     "on_setting",
     "prepare",
     "release",
@@ -86,6 +92,7 @@ FUNCTION_FLAGS = ("-O3", *SAME_BITS)
 POLL_EVERY = 50  # past its threshold, a slot looks for the background compilation's file every this many solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
 STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died
+KEEP_UNUSED_S = 60 * 86400.0  # a solver or function no process has loaded for this long is removed (prune)
 _ON_SETTING: list[Callable[[], None]] = []  # what setting() calls on both sides of its block (see on_setting)
 
 
@@ -206,7 +213,9 @@ def cached_functions(recipe: str, build: Callable[[], dict]) -> dict:
     folder = _folder() / f"fn-{recipe}"
     with contextlib.suppress(Exception):  # none saved yet, or a file that does not load: built below
         names = (folder / "names.txt").read_text(encoding="utf-8").split()
-        return {name: ca.Function.load(str(folder / f"{name}.casadi")) for name in names}
+        loaded = {name: ca.Function.load(str(folder / f"{name}.casadi")) for name in names}
+        _used(folder)
+        return loaded
     functions = build()
     with contextlib.suppress(OSError, RuntimeError):
         folder.mkdir(parents=True, exist_ok=True)
@@ -214,6 +223,7 @@ def cached_functions(recipe: str, build: Callable[[], dict]) -> dict:
             with atomic_path(folder / f"{name}.casadi") as tmp:
                 f.save(str(tmp))
         atomic_write_text(folder / "names.txt", "\n".join(functions) + "\n", durable=False)  # last: all or none
+        prune()
     return functions
 
 
@@ -231,9 +241,51 @@ def load(path: Path):
                 st = old.stat()
                 if st.st_size == 0 and time.time() - st.st_mtime > STALE_TMP_S:
                     old.unlink()
-        return ca.Function.load(str(path))
+        solver = ca.Function.load(str(path))
+        _used(path.parent)
+        return solver
     except Exception:
         return None
+
+
+def _used(path: Path) -> None:
+    """Mark the cache entry ``path`` (a ``doc-`` or ``fn-`` folder, a function's library) used now, for
+    :func:`prune`; nothing where the cache is read-only."""
+    with contextlib.suppress(OSError):
+        os.utime(path)
+
+
+def prune(now: float | None = None) -> list[Path]:
+    """Remove the solvers and functions (``doc-*``, ``fn-*``) of every ``casadi-<version>/`` folder of the cache
+    that no process has used (:func:`_used`) for :data:`KEEP_UNUSED_S`, the notes (``paths/``) of the solvers gone,
+    and ``make run``'s note that its solvers are compiled if one of them went; returns what was removed. Called
+    where a new entry is written; a file that cannot be removed (another user's, in use) stays."""
+    import shutil
+
+    now = time.time() if now is None else now
+    removed: list[Path] = []
+
+    def remove(entry: Path) -> None:
+        with contextlib.suppress(OSError):  # removed meanwhile by another process, or not ours to remove
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed.append(entry)
+
+    for folder in cache_root().glob("casadi-*"):
+        for entry in [*folder.glob("doc-*"), *folder.glob("fn-*")]:
+            with contextlib.suppress(OSError):
+                if entry.suffix != ".lock" and now - entry.stat().st_mtime > KEEP_UNUSED_S:
+                    remove(entry)
+        if any(p.parent == folder and p.name.startswith("doc-") for p in removed):
+            remove(folder / "make-run-solvers.stamp")
+        for note in folder.glob("paths/*.txt"):
+            with contextlib.suppress(OSError, UnicodeDecodeError):
+                name = note.read_text(encoding="utf-8").strip()
+                if not (name and (folder / name).is_dir()):
+                    remove(note)
+    return removed
 
 
 def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path):
@@ -261,6 +313,7 @@ def compile_solver(name: str, solver: str, nlp: dict, options: dict, path: Path)
         obj.unlink()
     with atomic_path(path) as tmp:
         f.save(str(tmp))
+    prune()
     return f
 
 
@@ -412,6 +465,9 @@ def compiled_function(f):
                 )
                 with atomic_path(path) as out:
                     shutil.copyfile(lib, out)
-        return ca.external(f.name(), str(path))
+            prune()
+        loaded = ca.external(f.name(), str(path))
+        _used(path)
+        return loaded
     except (OSError, subprocess.SubprocessError, RuntimeError):
         return None
