@@ -39,6 +39,23 @@ def fitted(recorded):
     return MOIRL(2, n_nodes=40, max_iter=3).fit(trials), trials
 
 
+def test_the_shares_are_the_terms_of_the_cost_each_rollout_minimised(fitted):
+    """Recorded trials are cut at a speed threshold, so a fit's rollouts are rest-to-rest DOCs seen between their
+    crossings of it. The shares were taken on the windows of the part seen, which begin after the weights' first
+    window starts and end before their last one ends (up to 0.23 total variation at onset and end on make run's
+    fits): now on the whole DOC's windows, where ``ω·Φ`` sums to the cost the DOC minimised."""
+    from reachirl.doc.observation import observed_knots
+    from reachirl.features import windowed_features
+
+    est, _ = fitted
+    (task,), (sol,) = est.tasks_, est.train_solutions_
+    assert est._thresholds[0] is not None  # cut trials: the part seen is not the whole DOC
+    phi = est.reach_features()
+    assert np.isclose(float(np.sum(est.weights_ * phi)), sol.cost, rtol=1e-9)
+    seen = windowed_features(task.arm, *observed_knots(sol, task, est._thresholds[0]), 2)
+    assert not np.isclose(float(np.sum(est.weights_ * seen)), sol.cost, rtol=1e-3)
+
+
 def test_the_residuals_are_the_merit_and_their_jacobian_matches_re_solved_finite_differences(fitted):
     est, _ = fitted
     free = est._movable(est._w_fit.shape)

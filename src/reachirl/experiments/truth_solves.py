@@ -85,25 +85,22 @@ def reference_features(
 ) -> np.ndarray | None:
     """Φ ``(n_windows, 7)`` of the DOC under ``weights`` over the trials' mean task (noise-free), on which learned
     and true cost shares are compared; ``None`` if that DOC does not converge. With ``observe`` and trials cut
-    at one onset threshold, the reach is the rest-to-rest DOC seen between its own crossings of that threshold
-    (:mod:`reachirl.doc.observation`), as an observed unit predicts its trials, so its windows are the
-    demonstrations'; otherwise the DOC over the mean duration.
+    at one onset threshold, the DOC is the rest-to-rest one an observed unit predicts its trials by, and Φ is the
+    whole DOC's on its own windows, the ones the weights act on (as a fit's
+    :meth:`~reachirl.irl.moirl.MOIRL.reach_features`); otherwise the DOC over the mean duration.
 
     Not the demonstrations' Φ*: the position noise a recording keeps (after its filter) inflates the features
     of second and third derivatives (joint acceleration, torque change) by up to two orders of magnitude, so
     shares on Φ* credit the true weights with costs that hardly shape their own reach."""
     from ..data.trial import trial_from_solution
-    from ..doc.observation import observe as seen_as_recorded
+    from ..features import windowed_features
 
     sol, task, threshold = _truth_reach(trials, weights, n_nodes, backend, observe)
     if not sol.converged:
         return None
-    reach = (
-        seen_as_recorded(sol, task, threshold)
-        if threshold is not None
-        else trial_from_solution(sol, task.arm, task.target_x)
-    )
-    return reach.features(n_nodes, weights.shape[0])
+    if threshold is not None:
+        return windowed_features(task.arm, sol.q, sol.qd, sol.tau, task.dt, weights.shape[0])
+    return trial_from_solution(sol, task.arm, task.target_x).features(n_nodes, weights.shape[0])
 
 
 def nominal_true_weights(truth: dict | None) -> tuple[np.ndarray, int] | None:

@@ -420,15 +420,22 @@ class MOIRL(WeightEstimator):
         )
 
     def reach_features(self) -> np.ndarray | None:
-        """Φ ``(n_windows, 7)`` of the fit's training rollouts (their mean), seen as the demonstrations were
-        recorded, as the merit and the uncertainty's cost shares see them; ``None`` if a rollout did not
-        converge."""
+        """Φ ``(n_windows, 7)`` of the fit's training rollouts (their mean), each the whole DOC on the windows the
+        weights act on: ``ω·Φ`` are the terms of the cost each rollout minimised (its ``trajectory_cost``), so the
+        cost shares are each window's own. A rollout seen as recorded (cut at a speed threshold) is the middle of a
+        rest-to-rest DOC whose windows begin before its onset and end after its offset; the windows of the part
+        seen are not those the weights act on. ``None`` if a rollout did not converge."""
         est = self._as_fitted()
         sols = getattr(est, "train_solutions_", None)
         if not sols or not all(s.converged for s in sols):
             return None
-        phi = est._features(est.tasks_, sols, np.array([0]))
-        return np.mean(phi[:, 0] if phi.ndim == 4 else phi, axis=0)  # with suffixes: the whole reach's
+        return np.mean(
+            [
+                windowed_features(task.arm, s.q, s.qd, s.tau, task.dt, est.n_windows)
+                for task, s in zip(est.tasks_, sols, strict=True)
+            ],
+            axis=0,
+        )
 
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
