@@ -106,6 +106,29 @@ def test_the_segmentation_speed_falls_back_to_the_given_speed():
     assert s5.max() == pytest.approx(1.875 * np.hypot(0.3, 0.1) / 0.6, rel=0.03)
 
 
+def test_unfiltered_angles_still_find_onset_and_offset_on_a_filtered_speed():
+    """--cutoff 0 (angles unfiltered) turned the segmentation speed's filter off too, "auto" and an explicit
+    --segment-cutoff alike: a reach with 2 mm of marker noise was cut on noise (1.27 s for 0.66 s, measured on
+    a virtual trial). Now a given cutoff applies as given, and "auto" starts from the default cutoff."""
+    raw = PreprocessOptions(cutoff_hz=None)
+    t, p = _reach(0.002, 3)
+    assert segmentation_cutoff(t, p, 1.0, PreprocessOptions(cutoff_hz=None, segment_cutoff_hz=3.0)) == 3.0
+    assert segmentation_cutoff(t, p, 1.0, raw) == segmentation_cutoff(t, p, 1.0, PreprocessOptions())
+    clean_t, clean_p = _reach(0.0, 0)
+    assert segmentation_cutoff(clean_t, clean_p, 1.0, raw) == PreprocessOptions().cutoff_hz  # never unfiltered
+    assert segmentation_cutoff(t, p, 1.0, PreprocessOptions(cutoff_hz=None, segment_cutoff_hz=None)) is None
+    assert (
+        segmentation_cutoff(t, p, 1.0, PreprocessOptions(cutoff_hz=None, segment_cutoff_hz=60.0)) is None
+    )  # > Nyquist
+    # the reach found where the default finds it, not on the raw speed's noise
+    raw_speed = np.linalg.norm(np.gradient(p, t, axis=0), axis=1)
+    on, off = detect_onset_offset(segmentation_speed(t, p, raw_speed, raw))
+    ref = _deviation(PreprocessOptions(), seeds=())[0]
+    assert abs(on - ref[0]) <= 2 and abs(off - ref[1]) <= 2, (on, off, ref)
+    bad_on, bad_off = detect_onset_offset(raw_speed)
+    assert bad_off - bad_on > (ref[1] - ref[0]) + 20  # what it was: the noise's speed crosses 5 % far outside
+
+
 @pytest.mark.parametrize("bad", [0.0, -1.0, "fast", float("nan")])
 def test_a_bad_segmentation_cutoff_is_refused(bad):
     with pytest.raises(ValueError, match="segment_cutoff_hz must be 'auto', a number > 0 or None"):

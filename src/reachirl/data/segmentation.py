@@ -91,7 +91,10 @@ def segmentation_cutoff(
     """The low-pass cutoff (Hz) of the speed that finds onset and offset, or ``None`` for the angles' own
     ``cutoff_hz`` speed (Berret's).
 
-    A number in ``options.segment_cutoff_hz`` is used as given (when below ``cutoff_hz``). ``"auto"`` measures
+    A number in ``options.segment_cutoff_hz`` is used as given (when below ``cutoff_hz`` and half the frame rate).
+    With the angles unfiltered (``cutoff_hz`` None) it applies all the same, and ``"auto"`` starts from the default
+    cutoff (:class:`PreprocessOptions`'), whose speed it takes where the noise allows: onset and offset are never
+    found on an unfiltered speed unless ``segment_cutoff_hz`` is None. ``"auto"`` measures
     the markers' noise and lowers the cutoff only as far as it must: the noise is the RMS of ``points`` above
     ``cutoff_hz`` (what the angles' filter removes, rescaled by the share of white noise it holds); from it
     the filter's response predicts the RMS noise of the speed at each cutoff, and the highest cutoff (in
@@ -103,15 +106,19 @@ def segmentation_cutoff(
     the record is accepted, instead of logging it (a record cut at a gap holds a fragment of the reach, whose
     peak speed is not the reach's, until the cut is checked)."""
     fc, base = options.segment_cutoff_hz, options.cutoff_hz
-    if fc is None or base is None:
+    if fc is None:
         return None
     rate = 1.0 / float(np.median(np.diff(t)))
-    if t.shape[0] <= filter_padlen(options.filter_order) or base >= rate / 2:
+    if t.shape[0] <= filter_padlen(options.filter_order):
         return None
-    if fc != "auto":
-        return float(fc) if float(fc) < base else None
+    if fc != "auto":  # below the angles' cutoff (any, when they are not filtered) and the Nyquist frequency
+        return float(fc) if float(fc) < min(base or np.inf, rate / 2) else None
+    unfiltered = base is None  # the angles unfiltered: the speed is still found on the default cutoff's at most
+    base = PreprocessOptions.cutoff_hz if unfiltered else base
+    if base >= rate / 2:
+        return None
     points = np.asarray(points, dtype=float).reshape(t.shape[0], -1)
-    if filtered is None:
+    if filtered is None or unfiltered:
         filtered = lowpass(points, rate, base, options.filter_order, source)
     gains = functools.partial(noise_gains, round(rate, 6), order=options.filter_order)  # cached per rate
     noise_var = float(np.mean((points - filtered.reshape(points.shape)) ** 2)) / gains(float(base))[0]  # per axis
@@ -121,7 +128,7 @@ def segmentation_cutoff(
 
     target = SEGMENT_NOISE_FRACTION * options.onset_threshold * peak_speed
     if speed_noise(base) <= target:
-        return None
+        return float(base) if unfiltered else None
     for f in np.arange(base - 0.5, MIN_SEGMENT_CUTOFF_HZ - 1e-9, -0.5):
         if speed_noise(f) <= target:
             return float(f)
