@@ -380,6 +380,35 @@ def test_a_real_recording_with_two_frames_swapped_is_refused(tmp_path, synth, ca
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("file", "marker"), [("ADL001FR1.csv", "RUAR3"), ("ADL001FR1.csv", "RSHO3"), ("ADL001_static.csv", "RGTH")]
+)
+def test_a_marker_exported_at_the_labs_origin_is_unseen_not_a_position(tmp_path, synth, capsys, file, marker):
+    """Vicon's CSV (and TRC) marked a lost marker 0,0,0, which was read as a position: an elbow-cluster marker at
+    the origin in every frame bent the elbow 8-14° where it bends 28-94°, a shoulder marker moved the target by 10
+    cm; three such frames of a static trial shortened the upper arm by 3 cm. Now unseen, as in C3D: the cluster's
+    other markers give the same trial."""
+    folder = tmp_path / "ADL001"
+    folder.mkdir()
+    for name in ("ADL001FR1.csv", "ADL001_static.csv"):
+        shutil.copy(synth.SAMPLE / "ADL001" / name, folder)
+    lines = (folder / file).read_text(encoding="utf-8-sig").splitlines()
+    col = [c.split(":")[-1] for c in lines[2].split(",")].index(marker)
+    for i in range(5, len(lines) if file != "ADL001_static.csv" else 8):
+        cells = lines[i].split(",")
+        if lines[i].strip(", "):
+            cells[col : col + 3] = ["0", "0", "0"]
+            lines[i] = ",".join(cells)
+    (folder / file).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    assert _run([synth.SAMPLE / "ADL001" / "ADL001FR1.csv", *info, "--out", tmp_path / "a.npz"], capsys)[0] == 0
+    code, _, err = _run([folder / "ADL001FR1.csv", *info, "--out", tmp_path / "b.npz"], capsys)
+    assert code == 0, err
+    (a,), (b,) = load_trials(tmp_path / "a.npz"), load_trials(tmp_path / "b.npz")
+    assert abs(a.duration - b.duration) < 0.02 and abs(a.target_x - b.target_x) < 0.005
+    assert np.rad2deg(np.abs(a.q_at(101) - b.q_at(101)).max()) < 1.0
+
+
 def test_a_warned_recording_refused_by_its_up_axis_says_the_refusal_alone(tmp_path, synth, cli):
     """UE-ADL's ADL001FR1 under --threshold 0.001 is warned about (its noise is large beside the threshold's speed,
     and no rest is left before the movement); under the lab's forward axis given as up it is refused (by the joint

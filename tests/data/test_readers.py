@@ -35,6 +35,7 @@ def _markers(n=20, seed=0):
 def test_trc_round_trip_in_metres(tmp_path, synth, units):
     mk = _markers()
     mk["EL"][3] = np.nan  # an unseen frame
+    mk["FT"][6] = 0.0  # at the lab's origin exactly: how exports mark an unseen marker (was read as a position)
     p = tmp_path / "a.trc"
     p.write_text(synth.trc_text(mk, rate=120.0, units=units))
     md = read_trc(p)
@@ -42,6 +43,7 @@ def test_trc_round_trip_in_metres(tmp_path, synth, units):
     np.testing.assert_allclose(md.t, np.arange(20) / 120.0, atol=1e-5)
     np.testing.assert_allclose(md["SH"], mk["SH"], atol=1e-6)
     assert np.isnan(md["EL"][3]).all() and np.isfinite(md["EL"][4]).all()
+    assert np.isnan(md["FT"][6]).all() and np.isfinite(md["FT"][[5, 7]]).all()
 
 
 def test_vicon_csv_bom_prefix_and_gaps(tmp_path, synth):

@@ -85,7 +85,8 @@ _UNIT_SCALE = {
 @dataclass(frozen=True)
 class MarkerData:
     """Marker trajectories: ``markers[name]`` is ``(n, 3)`` in metres (NaN where unseen), sampled at ``rate``
-    Hz.
+    Hz. A point exactly at the lab's origin (0, 0, 0) is unseen, in every format: how C3D writers and Vicon's and
+    other exports mark a marker they lost.
 
     ``t`` is the time of each frame in seconds; ``up`` is the lab axis opposite gravity in the file's
     convention (``"+z"`` for Vicon and C3D, ``"+y"`` for OpenSim TRC), used when the caller does not say.
@@ -112,6 +113,7 @@ class MarkerData:
             a = np.array(a, dtype=float)
             if a.ndim != 2 or a.shape[1] != 3:
                 raise InputError(f"marker {name!r} has shape {a.shape}, expected (n, 3)", where)
+            a[np.all(a == 0.0, axis=1)] = np.nan  # exactly at the lab's origin: how exports mark an unseen marker
             if n is None:
                 n = a.shape[0]
             elif a.shape[0] != n:
@@ -420,7 +422,6 @@ def read_c3d(path: str | Path) -> MarkerData:
     if resid is not None:
         r = np.asarray(resid, dtype=float).reshape(-1, pts.shape[1], pts.shape[2])[0].T
         xyz[r < 0] = np.nan
-    xyz[np.all(xyz == 0.0, axis=2)] = np.nan  # the lab's origin exactly: how C3D writers mark an unseen point
     markers = {labels[k]: xyz[:, k, :] for k in range(pts.shape[1])}
     # POINT:Y_SCREEN is the lab axis drawn upwards (Vicon writes +Z; OptiTrack Motive, Y up, +Y)
     declared = y_screen in ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
