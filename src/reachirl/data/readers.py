@@ -182,6 +182,8 @@ def check_even_steps(t: np.ndarray, where, unit: str = "frame") -> None:
             where,
             f"{unit} {k + 2}",
         )
+
+
 MAX_JOINT_SPEED = 100.0  # rad/s (~5700°/s): human joints peak near 20-30 rad/s, in throwing
 
 
