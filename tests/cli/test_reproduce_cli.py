@@ -11,6 +11,7 @@ from folder_locks import held_elsewhere
 from reachirl.cli import main
 from reachirl.data.trial import save_trials
 from reachirl.experiments import datasets
+from reachirl.features import FEATURES
 from reachirl.io import atomic_write_json
 
 
@@ -357,6 +358,25 @@ def test_report_compares_the_fits_predictions_with_the_true_weights(trials_file,
         assert got["n"] == len(mine)
         assert got["learned_vs_true_deg"] == pytest.approx(np.mean(mine), abs=2e-3)
     assert "from the true weights' own" in (reference_run / "table.md").read_text()
+
+
+def test_the_report_names_each_postures_onset_and_end_features_as_results_json_has_them(reference_run):
+    """The report listed the dominant features at onset and end as one alphabetical set over every posture and
+    both ends, so a truth of joint acceleration at onset and torque change at the end read the other way round;
+    results.json gave the dominant features but not the true shares the intervals are set beside."""
+    res = json.loads((reference_run / "results.json").read_text())
+    report = (reference_run / "report.md").read_text()
+    assert res["truth_comparison"]
+    for p, m in res["truth_comparison"].items():
+        ends = [m[k][i] for i in (0, -1) for k in ("true_dominant", "learned_dominant")]
+        assert f"| {p} | " + " | ".join(ends) + " |" in report
+        true, learned = np.array(m["true_shares"]), np.array(m["learned_shares"])
+        assert true.shape == learned.shape == (m["sections"], 7)
+        assert np.allclose(true.sum(axis=1), 1.0) and np.allclose(learned.sum(axis=1), 1.0)
+        assert [FEATURES[j] for j in true.argmax(axis=1)] == m["true_dominant"]
+        tv = np.mean(0.5 * np.abs(true - learned).sum(axis=1))
+        assert tv == pytest.approx(m["mean_total_variation"], abs=1e-12)
+    assert "| posture | onset: true | onset: learned | end: true | end: learned |" in report
 
 
 def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, reference_run, tmp_path):

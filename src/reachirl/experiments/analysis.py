@@ -83,6 +83,9 @@ def truth_comparison(dataset: Dataset, results: dict, method: str, postures) -> 
             "dominant_feature_agreement": float(np.mean(dom_l == dom_t)),
             "learned_dominant": [FEATURES[i] for i in dom_l],
             "true_dominant": [FEATURES[i] for i in dom_t],
+            # the shares themselves (windows × FEATURES), on the reach above: the truth's against each interval
+            "true_shares": s_true.tolist(),
+            "learned_shares": s_learned.tolist(),
             # whether the training reaches tell the truth's cost from the fit's: the unit's worker solved it, for these
             # weights (its reference's); none in a checkpoint of an earlier version, and none can be solved here
             # without the fitted estimator

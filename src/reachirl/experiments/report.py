@@ -955,14 +955,18 @@ def _report_md(run: RunResult, tables, md_tables, notes, figs, truth_metrics, co
                 ]
                 lines.append(f"| {p} | " + " | ".join(cells) + " |")
             lines += [""]
-        ends_true = sorted({m["true_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})
-        ends_learned = sorted({m["learned_dominant"][i] for m in truth_metrics.values() for i in (0, -1)})
         lines += [
-            "At movement onset and termination (first and last windows) the true weights make "
-            f"{', '.join(ends_true)} dominate; the learned weights' point estimates give {', '.join(ends_learned)} "
+            "The largest share at movement onset and termination (the first and last windows of the weights), "
+            "per posture: the true weights' against the learned point estimates' "
             f"({ends_determined_words(run.results, main, truth_metrics)}).",
             "",
+            "| posture | onset: true | onset: learned | end: true | end: learned |",
+            "|---|---|---|---|---|",
         ]
+        for p, m in truth_metrics.items():
+            ends = (m[k][i] for i in (0, -1) for k in ("true_dominant", "learned_dominant"))
+            lines.append(f"| {p} | " + " | ".join(ends) + " |")
+        lines += [""]
     elif virtual:  # said, not left out: a reader of virtual subjects looks for the truth here
         lines += ["## Virtual subjects: learned vs true weights", "", _no_truth_comparison(dataset.truth, sections), ""]
     lines += list(extra_md)
