@@ -379,6 +379,20 @@ def test_the_report_names_each_postures_onset_and_end_features_as_results_json_h
     assert "| posture | onset: true | onset: learned | end: true | end: learned |" in report
 
 
+def test_figure_captions_of_a_run_without_weight_samples_promise_no_hatching(trials_file, tmp_path):
+    """`--uncertainty 0`: the captions of weights_vs_truth.png said "The hatching marks the learned shares whose
+    95 % interval ..." and fig3's "the shares the 95 % intervals bracket", over figures with neither."""
+    out = tmp_path / "out"
+    args = ["--quick", "--sections", "8", "--postures", "P2", "--max-iter", "1", "--uncertainty", "0"]
+    assert main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *args]) == 0
+    figures = json.loads((out / "results.json").read_text())["figures"]
+    truth, weights = figures["figures/weights_vs_truth.png"], figures["figures/fig3_weights.png"]
+    assert "Nothing is hatched: the fits shown have no weight samples" in truth and "hatching marks" not in truth
+    assert "intervals bracket" not in weights and "Nothing is hatched" in weights
+    report = (out / "report.md").read_text()
+    assert "hatching marks" not in report and "intervals bracket" not in report
+
+
 def test_rollout_and_merit_model_options_reach_the_estimator(trials_file, reference_run, tmp_path):
     """``rollout = per_demo`` gives each demonstration its own training rollout: the fit's first iteration
     solves one DOC per training trial (one task's rollout, the default, solves one); the unit records it and the

@@ -537,6 +537,7 @@ def test_a_run_without_weight_samples_says_nothing_is_hatched():
     shares = {("P1", 1): np.full((1, 7), 1 / 7), ("P1", 8): np.full((8, 7), 1 / 7)}
     caption = weights_caption(shares, {})
     assert "Hatched" not in caption and "Nothing is hatched: the fits shown have no weight samples" in caption, caption
+    assert "intervals bracket" not in caption  # no intervals were drawn
     assert "Hatched: undetermined" in weights_caption(
         shares, {k: _intervals(v, np.ones_like(v)) for k, v in shares.items()}
     )

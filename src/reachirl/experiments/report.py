@@ -318,8 +318,8 @@ def weights_caption(shares: dict, intervals: dict, on_reach: bool = True) -> str
             + (f", the largest {quoted}" if found else "")
         )
     base = (
-        "on the fit's own reach (ω·Φ of the reach the weights predict, normalised per window: the shares the 95 % "
-        "intervals bracket)"
+        "on the fit's own reach (ω·Φ of the reach the weights predict, normalised per window"
+        + (": the shares the 95 % intervals bracket)" if intervals else ")")
         if on_reach
         else "on the training demonstrations (ω·Φ*, normalised per window)"
     )
@@ -494,9 +494,14 @@ def figure_jobs(
         figs["weights_vs_truth.png"] = {
             "caption": f"Virtual subjects, {sections_text(n_true)}: learned (top) vs true (bottom) cost shares, "
             f"both on the features of {on}; true weights = mean of the "
-            "training trials' own (jittered) weights from truth.json. The hatching marks the learned shares whose "
-            "95 % interval (on the fit's own reach) is wider than 0.25 or misses the fit's share: undetermined by the "
-            "data, not a finding."
+            "training trials' own (jittered) weights from truth.json. "
+            + (
+                "The hatching marks the learned shares whose 95 % interval (on the fit's own reach) is wider than "
+                "0.25 or misses the fit's share: undetermined by the data, not a finding."
+                if truth_undetermined
+                else "Nothing is hatched: the fits shown have no weight samples (`--uncertainty`), so no learned "
+                "share is a finding."
+            )
         }
     if len(methods) > 1:
         heads = {m: {s: {n: tables[m][tb.ALL][s].get(n, {}).get("q") for n in sections} for s in SETS} for m in methods}
