@@ -625,3 +625,15 @@ def test_the_iscv_figure_draws_every_trials_measured_and_predicted_curves_in_deg
         every = np.rad2deg(np.concatenate([arrays[f"iscv/{w}_{kind}"].ravel() for w in ("demo", "pred")]))
         assert lo <= every.min() and every.max() <= hi
     plt.close(fig)
+
+
+def test_the_figures_feature_labels_are_the_features_names_shortened():
+    """The figures said "torque" for joint_torque (misread as torque change) and "fingertip vel." for
+    cartesian_velocity, while the report, MODEL.json and FEATURES say the names: each label's words are now the
+    name's words, cut short at most."""
+    from reachirl.experiments.figures import SHORT
+
+    assert list(SHORT) == list(FEATURES) or set(SHORT) == set(FEATURES)
+    for name, label in SHORT.items():
+        words, said = name.split("_"), label.lower().replace(".", "").split()
+        assert len(said) == len(words) and all(w.startswith(s) for w, s in zip(words, said, strict=True)), label

@@ -39,14 +39,14 @@ __all__ = [
     "save",
 ]
 
-SHORT = {
-    "cartesian_velocity": "fingertip vel.",
+SHORT = {  # each the feature's name (FEATURES) in words, shortened where it stays unambiguous
+    "cartesian_velocity": "Cartesian vel.",
     "energy": "energy",
     "geodesic": "geodesic",
     "joint_acceleration": "joint acc.",
-    "torque_change": "torque chg.",
+    "torque_change": "torque change",
     "joint_velocity": "joint vel.",
-    "joint_torque": "torque",
+    "joint_torque": "joint torque",
 }
 JOINT_COLOURS = ("tab:blue", "tab:green")
 PRED_COLOUR, DEMO_COLOUR = "tab:blue", "tab:orange"
