@@ -187,6 +187,27 @@ def test_effect_collinearity_finds_weights_that_move_the_path_alike():
     assert pair and pair[0]["cos"] == pytest.approx(-1.0) and pair[0]["window"] == 1
 
 
+def test_the_path_change_is_the_compared_predictions_so_it_bounds_the_rmse_change(recorded):
+    """Trials cut at a speed threshold are compared as recorded, between the prediction's own crossings of it.
+    The path change was measured on the whole DOC, while the RMSE is taken on the part seen: a 10 % weight change
+    moved the DOC by 0.03° and the compared prediction by 3° (its offset where the speed lingers near the
+    threshold), so the table showed an RMSE change of 0.75° beside a path change of 0.03°. Measured on the same
+    prediction, the path change bounds each trial's RMSE change (the triangle inequality)."""
+    from reachirl.data.trial import load_trials, select_trials
+
+    from reachirl.irl.moirl import MOIRL
+
+    trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
+    assert all(t.onset_threshold is not None for t in trials)  # cut, as recordings are
+    w = MOIRL(8, n_nodes=40, max_iter=3).fit(trials[:3]).weights_
+    out = sensitivity_job(w, trials[3:], 40, "casadi", 7, 10.0, observe=True)  # the last window: the offset
+    base = np.array(out["base"])
+    for rec in out["features"]:
+        for name in ("plus", "minus"):
+            change = np.abs(np.array(rec[name]) - base)
+            assert np.all(change <= np.array(rec[f"path_{name}"]) + 1e-9), (change, rec[f"path_{name}"])
+
+
 def test_a_failed_non_finite_prediction_moves_no_path_and_keeps_nan_out_of_effect_collinearity(monkeypatch):
     """A +x % prediction whose DOC failed with a non-finite path: its trial's displacement is zeros (times 0 it
     would be NaN, which makes the feature's norm NaN and drops it from every collinear pair), the others' as
@@ -206,7 +227,7 @@ def test_a_failed_non_finite_prediction_moves_no_path_and_keeps_nan_out_of_effec
         if warm is not None and max(weights[0, j], weights[0, tc]) > 1:  # their +x %: trial 1's DOC fails
             sols[1] = SimpleNamespace(q=np.full((21, 2), np.nan), converged=False)
         ok = np.array([s.converged for s in sols])
-        return np.zeros(2), sols, ok
+        return np.zeros(2), sols, sols, ok
 
     monkeypatch.setattr(sensitivity, "_per_trial", per_trial)
     out = sensitivity_job(np.ones((1, 7)), [None, None], 20, "casadi", 0, 5.0)

@@ -200,20 +200,22 @@ def run_unit(run_dir: str | Path, key: str) -> dict:
 # ---------------------------------------------------------------------- jobs (pure functions)
 def _per_trial(weights, trials, n_nodes, backend, warm=None, observe=False):
     """Per-trial RMSE of the predictions (seen as recorded with ``observe``, as the run predicted them), the DOC
-    solutions themselves (warm starts for the same tasks) and whether each converged (a failed one's RMSE is
-    kept, to be left out by :func:`_converged_pairs`)."""
+    solutions themselves (warm starts for the same tasks), the predictions compared (the part seen, or the
+    solutions) and whether each converged (a failed one's RMSE is kept, to be left out by
+    :func:`_converged_pairs`)."""
     from ..doc.evaluation import rmse_deg
     from ..doc.observation import predict
 
-    out, sols, ok = [], [], []
+    out, sols, seens, ok = [], [], [], []
     for i, t in enumerate(trials):
         sol, seen = predict(
             t, weights, n_nodes, t.onset_threshold if observe else None, backend, None if warm is None else warm[i]
         )
         out.append(rmse_deg(seen.q, t.q_at(n_nodes + 1))[2])
         sols.append(sol)
+        seens.append(seen)
         ok.append(bool(sol.converged))
-    return np.array(out), sols, np.array(ok, dtype=bool)
+    return np.array(out), sols, seens, np.array(ok, dtype=bool)
 
 
 def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tuple[int, ...]) -> dict:
@@ -231,7 +233,7 @@ def occlusion_job(unit: Unit, split: Split, removed: tuple[int, ...], frozen: tu
     est.fit(list(split.train))
     rmse, converged = {}, {}
     for s, tr in split.sets().items():
-        r, _, ok = _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)
+        r, _, _, ok = _per_trial(est.weights_, list(tr), unit.n_nodes, unit.backend, observe=unit.observe)
         rmse[s], converged[s] = r.tolist(), ok.tolist()
     return {"weights": np.asarray(est.weights_).tolist(), "rmse": rmse, "converged": converged, "flag": est.flag_}
 
@@ -246,27 +248,28 @@ def sensitivity_job(
     observe: bool = False,
 ) -> dict:
     """``±percent`` % on each weight of ``window``: per feature, the per-trial RMSE for + and − (predictions
-    seen as recorded with ``observe``) and the change of the DOC path (deg) against the unperturbed one, with
-    whether each prediction converged (``base_converged``, ``plus_converged``, ``minus_converged``); a trial whose
-    changed or unchanged prediction failed moves no path in ``displacement`` (zeros)."""
+    seen as recorded with ``observe``) and the change of the prediction compared (deg; the part seen with
+    ``observe``, on its own normalised time, as the RMSE compares it) against the unperturbed one, with whether
+    each prediction converged (``base_converged``, ``plus_converged``, ``minus_converged``); a trial whose changed
+    or unchanged prediction failed moves no path in ``displacement`` (zeros)."""
     from ..doc.evaluation import rmse_deg
 
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     w = np.asarray(weights, dtype=float)
-    base, sols, base_ok = _per_trial(w, trials, n_nodes, backend, observe=observe)
+    base, sols, seen, base_ok = _per_trial(w, trials, n_nodes, backend, observe=observe)
     out = {"base": base.tolist(), "base_converged": base_ok.tolist(), "features": []}
     for j in range(N_FEATURES):
         rec = {}
         for sign, name in ((1, "plus"), (-1, "minus")):
             wp = w.copy()
             wp[window, j] *= 1 + sign * percent / 100.0
-            r, ps, ok = _per_trial(wp, trials, n_nodes, backend, warm=sols, observe=observe)
+            r, _, ps, ok = _per_trial(wp, trials, n_nodes, backend, warm=sols, observe=observe)
             rec[name] = r.tolist()
             rec[f"{name}_converged"] = ok.tolist()
-            rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, sols, strict=True)]
-            if sign > 0:  # the direction the path moves in (every trial's knots, rad; none where a DOC failed)
+            rec[f"path_{name}"] = [float(rmse_deg(a.q, b.q)[2]) for a, b in zip(ps, seen, strict=True)]
+            if sign > 0:  # the direction the prediction moves in (every trial's knots, rad; none where a DOC failed)
                 rec["displacement"] = np.concatenate(
-                    [np.where(good, a.q - b.q, 0.0).ravel() for a, b, good in zip(ps, sols, ok & base_ok, strict=True)]
+                    [np.where(good, a.q - b.q, 0.0).ravel() for a, b, good in zip(ps, seen, ok & base_ok, strict=True)]
                 )
         out["features"].append(rec)
     return out
