@@ -194,7 +194,6 @@ def test_the_path_change_is_the_compared_predictions_so_it_bounds_the_rmse_chang
     threshold), so the table showed an RMSE change of 0.75° beside a path change of 0.03°. Measured on the same
     prediction, the path change bounds each trial's RMSE change (the triangle inequality)."""
     from reachirl.data.trial import load_trials, select_trials
-
     from reachirl.irl.moirl import MOIRL
 
     trials = select_trials(load_trials(recorded / "trials.npz"), subjects=["S01"], postures=["P2"])
