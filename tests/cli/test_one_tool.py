@@ -57,6 +57,20 @@ def test_the_estimator_and_the_fit_command_learn_the_same_model(recorded, p2, tm
     assert model["info"]["versions"]["reachirl"] and len(model["info"]["trials_fingerprint"]) == 16
 
 
+def test_a_model_with_the_default_weight_samples_records_them_alike_from_python_and_the_cli(recorded, p2, tmp_path):
+    """MOIRL(uncertainty=True) recorded `uncertainty: true` in MODEL.json's parameters where `fit --uncertainty`
+    recorded 40, for the same weights and the same 40 samples."""
+    from reachirl.irl.model import LearnedModel, save_model
+
+    est = MOIRL(2, uncertainty=True, **FAST).fit(p2)
+    save_model(tmp_path / "py.json", LearnedModel.from_estimator(est))
+    args = ["fit", str(recorded / "trials.npz"), "--sections", "2", *FAST_ARGS, "--subject", "S01", "--posture", "P2"]
+    assert main([*args, "--uncertainty", "--out", str(tmp_path / "cli.json")]) == 0
+    py, cli = (json.loads((tmp_path / f"{n}.json").read_text()) for n in ("py", "cli"))
+    assert py["info"]["parameters"]["uncertainty"] == cli["info"]["parameters"]["uncertainty"] == 40
+    assert py["weights"] == cli["weights"] and py["uncertainty"]["n_samples"] == cli["uncertainty"]["n_samples"] == 40
+
+
 def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_read_it(recorded, tmp_path, capsys):
     run = tmp_path / "run"
     assert (

@@ -67,6 +67,10 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
     from .options import departures
 
     params = {k: _jsonable(v) for k, v in est.get_params().items() if k != "callback"}
+    if params.get("uncertainty") is True:  # the samples it stands for: the same record as `fit --uncertainty`'s
+        from .uncertainty import DEFAULT_SAMPLES
+
+        params["uncertainty"] = DEFAULT_SAMPLES
     seen = getattr(est, "observed_", None)  # MO-IRL's; the baselines compare whole rollouts
     if seen is None or len(seen) != len(trials):  # no record, or not told the trials it was fitted on
         seen = [False] * len(trials)
