@@ -150,6 +150,10 @@ def test_reproduce_writes_each_units_model_as_fit_would_and_the_other_commands_r
         == 0
     )
     # run.toml repeats the run: the same table, byte for byte
+    # the trials are cut at a speed threshold: the report says where the weights' windows lie on them
+    edges = json.loads(model_path.read_text())["info"]["window_edges"]
+    assert len(edges) == 3 and edges[0] < 0 < 1 < edges[-1]
+    assert "Windows: the weights act on equal windows of the rest-to-rest DOC" in (run / "report.md").read_text()
     run_file = tomllib.loads((run / "run.toml").read_text())
     assert run_file["sections"] == [2] and run_file["rollout"] == "per_task" and run_file["uncertainty"] == 0
     # an option at its default is not in the TOML, and its comment says what it is

@@ -56,6 +56,34 @@ def test_the_shares_are_the_terms_of_the_cost_each_rollout_minimised(fitted):
     assert not np.isclose(float(np.sum(est.weights_ * seen)), sol.cost, rtol=1e-3)
 
 
+def test_the_windows_edges_on_the_recorded_reach_say_where_the_weights_act(fitted, tmp_path):
+    """Nothing said where a window lies on the recorded reach. MODEL.json's ``window_edges`` are the windows' edges
+    with 0 at the recorded onset and 1 at the offset: there the rollout's fingertip speed crosses the threshold,
+    the first window begins before the onset and the last ends after the offset. A damaged field is refused."""
+    from reachirl.irl.model import LearnedModel, load_model, save_model
+
+    est, _ = fitted
+    (task,), (sol,), (threshold,) = est.tasks_, est.train_solutions_, est._thresholds
+    edges = est.window_edges()
+    assert edges.shape == (3,) and edges[0] < 0 < 1 < edges[-1] and np.allclose(np.diff(edges), np.diff(edges)[0])
+    T = task.duration
+    onset, offset = (np.array([0.0, 1.0]) - edges[0]) / (edges[-1] - edges[0]) * T  # s from the DOC's start
+    from scipy.interpolate import make_interp_spline
+
+    spline = make_interp_spline(sol.t, sol.q, k=3)
+    fine = np.linspace(0.0, T, 4001)
+    speed = task.arm.fingertip_speed(spline(fine), spline(fine, 1))
+    at = np.interp([onset, offset], fine, speed)
+    np.testing.assert_allclose(at, threshold * speed.max(), rtol=0.03)
+    save_model(tmp_path / "m.json", LearnedModel.from_estimator(est))
+    d = json.loads((tmp_path / "m.json").read_text())
+    assert d["info"]["window_edges"] == pytest.approx(edges.tolist())
+    d["info"]["window_edges"] = [0.5, 0.2, 1.0]
+    (tmp_path / "bad.json").write_text(json.dumps(d))
+    with pytest.raises(InputError, match=r"field 'info.window_edges': expected 3 increasing finite numbers"):
+        load_model(tmp_path / "bad.json")
+
+
 def test_the_residuals_are_the_merit_and_their_jacobian_matches_re_solved_finite_differences(fitted):
     est, _ = fitted
     free = est._movable(est._w_fit.shape)

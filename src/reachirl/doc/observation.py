@@ -42,6 +42,7 @@ __all__ = [
     "MOVING_FRACTION",
     "check_threshold",
     "common_threshold",
+    "cut_times",
     "observe",
     "observed_knots",
     "observed_solution",
@@ -232,6 +233,12 @@ def _cut(sol: DocSolution, task: ReachingTask, threshold: float | None, shared: 
     if b - a < 0.1 * end:  # no movement to speak of: keep the whole solution
         return _Cut(spline, tf, speed, p, None, None, 0.0, end)
     return _Cut(spline, tf, speed, p, ia, ib, a, b)
+
+
+def cut_times(sol: DocSolution, task: ReachingTask, threshold: float | None) -> tuple[float, float]:
+    """``(a, b)``: where :func:`observe` cuts ``sol`` (s from its start), the whole solution without a threshold."""
+    cut = _cut(sol, task, threshold)
+    return cut.a, cut.b
 
 
 def observe(sol: DocSolution, task: ReachingTask, threshold: float | None, name: str = "prediction") -> Trial:

@@ -112,7 +112,8 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
         "higher at onset and end than mid-reach, over the posterior's draws (supported in at least 97.5 % of them, "
         "contradicted in at most 2.5 %, undetermined otherwise; a verdict the prior alone gives too is said to be "
         "the prior's, not a finding). The samples are the Gauss-Newton posterior "
-        f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around equal shares, wide enough to "
+        f"of the log-weights with a prior of a factor {np.exp(PRIOR_LOG_SD):.0f} around ω₀ (equal shares of each "
+        "window's demonstrated cost), wide enough to "
         "rule out no share (`docs/method.md`). Beside each fit's mean interval width and claim fraction, the same "
         "under the prior alone, without the data: where they are close, the intervals are the prior's and the "
         "data says little about the cost"
@@ -139,7 +140,7 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
     ]
     rows = [r for r in run.results.values() if r.get("uncertainty")]
     if not rows:
-        return [*lines, _no_samples(run), ""]
+        return [*lines, _no_samples(run), "", *window_sentence(run.results)]
     lines += [
         "| unit | determined directions | shares undetermined | mean width (prior alone) | claim (prior alone) | "
         "most determined direction | samples as good as the fit |"
@@ -181,7 +182,29 @@ def cost_section(run, true_shares: dict | None = None, truth_metrics: dict | Non
             )
         lines.append(row)
     lines.append("")
-    return lines + _truth_sentence(truth_metrics)
+    return lines + window_sentence(run.results) + _truth_sentence(truth_metrics)
+
+
+def window_sentence(results: dict) -> list[str]:
+    """Where the fits' windows lie on the recorded reaches: each section count's mean edges (MODEL.json
+    ``info.window_edges``, 0 at the recorded onset, 1 at the offset) over the units that record them."""
+    by: dict[int, list] = {}
+    for r in results.values():
+        edges = (r.get("model_info") or {}).get("window_edges")
+        if edges is not None and len(edges) > 2:
+            by.setdefault(len(edges) - 1, []).append(edges)
+    if not by:
+        return []
+    said = "; ".join(
+        f"{n} windows: " + ", ".join(f"{e:.2f}" for e in np.mean(by[n], axis=0)) + f" (mean over {len(by[n])} fits)"
+        for n in sorted(by)
+    )
+    return [
+        "Windows: the weights act on equal windows of the rest-to-rest DOC, and the shares are those windows' own. "
+        "On the recorded reach (0 at its onset, 1 at its offset, the speed's crossings of the threshold) their "
+        f"edges lie at {said}: the first window begins before the recorded onset, the last ends after the offset.",
+        "",
+    ]
 
 
 def _truth_sentence(metrics: dict | None) -> list[str]:

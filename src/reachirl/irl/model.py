@@ -4,6 +4,7 @@ predictions of trials."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -348,6 +349,16 @@ def check_model_dict(d, path) -> None:
             _is_matrix(phi, len(w), _weight),
             f"field 'info.reach_features': expected {len(w)} rows of {len(FEATURES)} finite numbers >= 0 (one per "
             f"window of 'weights'), found {brief(phi)}",
+            path,
+        )
+    edges = d.get("info", {}).get("window_edges")
+    if edges is not None:
+        ok = isinstance(edges, list) and len(edges) == len(w) + 1
+        ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in edges)
+        require(
+            ok and all(b > a for a, b in itertools.pairwise(edges)),
+            f"field 'info.window_edges': expected {len(w) + 1} increasing finite numbers (the windows' edges on the "
+            f"recorded reach), found {brief(edges)}",
             path,
         )
     history = d.get("info", {}).get("history")

@@ -437,6 +437,24 @@ class MOIRL(WeightEstimator):
             axis=0,
         )
 
+    def window_edges(self) -> np.ndarray | None:
+        """Where the weights' windows begin and end on the recorded reach, ``(n_windows + 1,)``: 0 at its onset, 1 at
+        its offset (the mean over the training rollouts seen as recorded, each between its own crossings of the
+        onset threshold). The windows split the rest-to-rest DOC evenly, so the first begins before the onset and
+        the last ends after the offset. ``None`` when no rollout is seen as recorded (each is then the DOC over the
+        trial's own duration, and the edges are ``k / n_windows``) or one did not converge."""
+        from ..doc.observation import cut_times
+
+        est = self._as_fitted()
+        sols = getattr(est, "train_solutions_", None)
+        if not sols or not all(s.converged for s in sols) or all(th is None for th in est._thresholds):
+            return None
+        edges = []
+        for task, sol, th in zip(est.tasks_, sols, est._thresholds, strict=True):
+            a, b = cut_times(sol, task, th)
+            edges.append((np.linspace(0.0, task.duration, est.n_windows + 1) - a) / (b - a))
+        return np.mean(edges, axis=0)
+
     def _demo_features(self, trials: Sequence[Trial], starts: np.ndarray) -> np.ndarray:
         return np.stack([self._trajectory_features(t, starts) for t in trials])
 

@@ -56,6 +56,11 @@ def _jsonable(v):
     return v
 
 
+def _window_edges(est):
+    edges = getattr(est, "window_edges", None)
+    return None if edges is None else edges()
+
+
 def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
     """The provenance of a fitted estimator: ``method``, ``parameters`` (its constructor's, callback left out),
     for MO-IRL ``options`` (every :class:`~reachirl.irl.options.Options` field in force), ``tol`` and
@@ -103,6 +108,8 @@ def estimator_info(est, method: str, trials: Sequence[Trial]) -> dict:
         {
             "rollout_q": None if path is None else path.tolist(),  # the fit's own reach: a prediction's cold start
             "reach_features": None if phi is None else phi.tolist(),  # Φ of that reach: the cost shares' base
+            # where the weights' windows lie on the recorded reach (0 onset, 1 offset); None: k / n_windows
+            "window_edges": None if (edges := _window_edges(est)) is None else edges.tolist(),
             "n_iter": getattr(est, "n_iter_", None),
             "n_doc_solves": getattr(est, "n_doc_solves_", None),
             "n_doc_failures": getattr(est, "n_doc_failures_", None),
