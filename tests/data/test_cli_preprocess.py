@@ -140,6 +140,30 @@ def test_mot_angles(tmp_path, reach, capsys):
     assert tr.arm == reach.arm and tr.subject == "r"
 
 
+def test_angles_missing_samples_are_a_gap_refused_beyond_max_gap(tmp_path, reach, capsys):
+    """An angle file's samples are resampled at their own times; rows left out are a gap, bridged as a marker's
+    up to --max-gap samples and refused beyond it (a hole of 13 samples at the peak speed was bridged in silence)."""
+    (tmp_path / "info.csv").write_text(
+        "subject,sex,height_m,mass_kg,upper_arm_m,forearm_m,hand_m\nr,M,1.76,70,0.3,0.26,0.18\n"
+    )
+    peak = int(np.argmax(np.linalg.norm(np.gradient(reach.q, axis=0), axis=1)))
+    for name, keep in (
+        ("r", np.arange(len(reach.t)) != peak),
+        ("r_long", np.abs(np.arange(len(reach.t)) - peak) > 6),
+    ):
+        rows = "".join(
+            f"{t:.3f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t[keep], np.degrees(reach.q[keep]), strict=True)
+        )
+        (tmp_path / f"{name}.mot").write_text(f"r\nversion=1\ninDegrees=yes\nendheader\ntime\tq1\tq2\n{rows}")
+    info = ["--subject-info", tmp_path / "info.csv"]
+    code, _, err = _run([tmp_path / "r.mot", *info, "--out", tmp_path / "s.npz"], capsys)
+    assert code == 0, err
+    code, _, err = _run([tmp_path / "r_long.mot", *info, "--subject", "r", "--out", tmp_path / "l.npz"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert re.search(r"long\.mot: 13 samples are missing between samples \d+ and \d+ .*more than the 10 a gap may", err)
+    assert not (tmp_path / "l.npz").exists()
+
+
 # ---------------------------------------------------------------------- bad input → exit 2, one line
 _VHEAD = "Trajectories\n100\n,,S:SH,,,S:EL,,,S:FT,,\nFrame,Sub Frame,X,Y,Z,X,Y,Z,X,Y,Z\n,,mm,mm,mm,mm,mm,mm,mm,mm,mm\n"
 

@@ -252,10 +252,10 @@ def test_trc_time_not_increasing(tmp_path, synth):
         read_trc(tmp_path / "t.trc")
 
 
-def test_a_time_column_that_skips_or_jitters_is_refused_naming_the_frame(tmp_path, synth):
-    """A TRC with a row deleted (the frames numbered again) or a Time column jittered by 4 ms at 100 Hz was read
-    as evenly sampled: a row left out at the peak speed gave torques of 62 N·m for 10. Times written with three
-    decimals at 120 Hz (steps of 8 and 9 ms) are a sampling, and pass."""
+def test_a_marker_time_column_that_skips_or_jitters_is_refused_naming_the_frame(tmp_path, synth):
+    """A TRC with a row deleted (the frames numbered again) or a Time column jittered was read as evenly sampled:
+    a row left out at the peak speed gave torques of 62 N·m for 10. Times written with three decimals at 120 Hz
+    (steps of 8 and 9 ms) are a sampling, and pass."""
     lines = synth.trc_text(_markers(n=20), rate=100.0).splitlines()
     head, rows = lines[:6], lines[6:]
     del rows[9]  # frame 10; frames 11 ... numbered again from 10, their times kept
@@ -267,15 +267,11 @@ def test_a_time_column_that_skips_or_jitters_is_refused_naming_the_frame(tmp_pat
         r"0\.01 s \(frames missing\?\): the filters need even sampling$",
     ):
         read_trc(tmp_path / "gap.trc")
-    jitter = 0.01 * np.arange(12) + np.where(np.arange(12) == 6, 0.004, 0.0)
-    body = "time\tq1\tq2\n" + "".join(f"{t:.5f}\t{-90 + i}\t{90 - i}\n" for i, t in enumerate(jitter))
-    (tmp_path / "j.mot").write_text(f"reach\ninDegrees=yes\nendheader\n{body}")
-    with pytest.raises(InputError, match=r"j\.mot: sample 7: the time steps 0\.014 s from sample 6 to 7, .*uneven"):
-        read_mot(tmp_path / "j.mot")
+    t = 0.01 * np.arange(12) + np.where(np.arange(12) == 6, 0.004, 0.0)
+    with pytest.raises(InputError, match=r"j: frame 7: the time steps 0\.014 s from frame 6 to 7, .*uneven Time"):
+        MarkerData(rate=100.0, markers={"FT": np.ones((12, 3))}, source="j", t=t)
     rounded = np.round(np.arange(40) / 120.0, 3)  # steps of 8 and 9 ms
-    body = "time\tq1\tq2\n" + "".join(f"{t:.3f}\t{-90 + i}\t{90 - i}\n" for i, t in enumerate(rounded))
-    (tmp_path / "r.mot").write_text(f"reach\ninDegrees=yes\nendheader\n{body}")
-    assert read_mot(tmp_path / "r.mot").t.shape == (40,)
+    assert MarkerData(rate=120.0, markers={"FT": np.ones((40, 3))}, t=rounded).n_frames == 40
 
 
 def test_angle_csv_errors(tmp_path):

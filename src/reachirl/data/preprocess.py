@@ -943,7 +943,8 @@ def angles_to_trial(
     """Joint angles (model convention) → one :class:`Trial`.
 
     The arm comes from the subject info (lengths or Dumas' means scaled by height). Non-uniform samples are
-    first interpolated onto a uniform grid at the median rate; then the angles are low-passed (skipped, with a
+    first interpolated onto a uniform grid at the median rate (samples missing, a step several times the others,
+    are a gap: refused beyond ``max_gap_frames`` of them, as a marker's); then the angles are low-passed (skipped, with a
     log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
     onset and offset, and q̇, q̈, τ follow as for markers. A record whose fingertip ranges over less than
     :data:`MIN_REACH_RANGE` of its distance from the shoulder is refused as for markers (rest and angle noise).
@@ -956,6 +957,15 @@ def angles_to_trial(
     arm = build_arm(info, side)
     t, q = ad.t, ad.q
     dt = np.diff(t)
+    hole = int(np.argmax(dt))
+    missing = int(round(dt[hole] / np.median(dt))) - 1  # samples a step skips: a gap, bridged as markers' are
+    if missing > options.max_gap_frames:
+        raise InputError(
+            f"{missing} samples are missing between samples {hole + 1} and {hole + 2} (the time steps "
+            f"{dt[hole]:.4g} s where the recording's steps are {np.median(dt):.4g} s), more than the "
+            f"{options.max_gap_frames} a gap may last (--max-gap)",
+            src,
+        )
     if np.ptp(dt) > 0.01 * np.median(dt):
         t_u = np.arange(t[0], t[-1] + 1e-12, np.median(dt))
         q = CubicSpline(t, q, axis=0)(t_u)

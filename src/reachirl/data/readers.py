@@ -162,10 +162,11 @@ UNEVEN_STEP = 0.25  # a time step this far from the recording's median one (as a
 
 
 def check_even_steps(t: np.ndarray, where, unit: str = "frame") -> None:
-    """Refuse times ``t`` (increasing) whose steps are not even: one more than :data:`UNEVEN_STEP` away from their
-    median is a frame missing (a row deleted, the frames numbered again) or a Time column that jitters, which the
-    filters and derivatives, made for even sampling, would turn into wrong speeds and torques (a row left out at
-    the peak speed gave 62 N·m for 10). Time written with few decimals (3 at 120 Hz: steps of 8 and 9 ms) passes.
+    """Refuse marker times ``t`` (increasing) whose steps are not even: one more than :data:`UNEVEN_STEP` away from
+    their median is a frame missing (a row deleted, the frames numbered again) or a Time column that jitters, which
+    the filters and derivatives, made for even sampling, would turn into wrong speeds and torques (a row left out
+    at the peak speed gave 62 N·m for 10). Time written with few decimals (3 at 120 Hz: steps of 8 and 9 ms) passes.
+    (Joint angles are resampled at their own times instead: :func:`reachirl.data.preprocess.trial_from_angles`.)
     The :class:`~reachirl.errors.InputError` names the ``unit`` (frame, sample) after the step."""
     if t.shape[0] < 3:
         return
@@ -212,7 +213,6 @@ class AngleData:
                 where,
                 f"sample {bad[0] + 2}",
             )
-        check_even_steps(t, where, "sample")
         if not np.all(np.isfinite(q)):
             k = int(np.flatnonzero(~np.all(np.isfinite(q), axis=1))[0])
             raise InputError("angles contain NaN or infinite values", where, f"sample {k + 1}")
