@@ -944,8 +944,8 @@ def angles_to_trial(
 
     The arm comes from the subject info (lengths or Dumas' means scaled by height). Non-uniform samples are
     first interpolated onto a uniform grid at the median rate (samples missing, a step several times the others,
-    are a gap: refused beyond ``max_gap_frames`` of them, as a marker's); then the angles are low-passed (skipped, with a
-    log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
+    are a gap: refused beyond ``max_gap_frames`` of them, as a marker's); then the angles are low-passed (skipped,
+    with a log note, when the rate is too low for the cutoff), the fingertip speed from forward kinematics gives
     onset and offset, and q̇, q̈, τ follow as for markers. A record whose fingertip ranges over less than
     :data:`MIN_REACH_RANGE` of its distance from the shoulder is refused as for markers (rest and angle noise).
     Left arms' angles are taken as already in the model convention. Its warning (the noise is large) is said once
@@ -958,7 +958,7 @@ def angles_to_trial(
     t, q = ad.t, ad.q
     dt = np.diff(t)
     hole = int(np.argmax(dt))
-    missing = int(round(dt[hole] / np.median(dt))) - 1  # samples a step skips: a gap, bridged as markers' are
+    missing = round(float(dt[hole] / np.median(dt))) - 1  # samples a step skips: a gap, bridged as markers' are
     if missing > options.max_gap_frames:
         raise InputError(
             f"{missing} samples are missing between samples {hole + 1} and {hole + 2} (the time steps "
