@@ -633,21 +633,27 @@ def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
 
 
 @pytest.mark.parametrize(
-    ("marker", "name", "spoil"),
+    ("marker", "name", "spoil", "where"),
     [
-        ("FT", "fingertip", "spike"),  # 40 mm for one frame: 4 m/s, far under the speed limit
-        ("FT", "fingertip", "freeze"),  # held for 15 frames mid-reach, then caught up
-        ("EL", "elbow", "spike"),  # the elbow is checked as well as the fingertip
+        ("FT", "fingertip", "spike", "frame {mid1}"),  # 40 mm for one frame: 4 m/s, far under the speed limit
+        ("FT", "fingertip", "freeze", r"frame \d+"),  # held for 15 frames mid-reach, then caught up
+        ("EL", "elbow", "spike", "frame {mid1}"),  # the elbow is checked as well as the fingertip
+        ("EL", "elbow", "block", "frames {mid1}-{mid3}"),  # three frames off and back
+        ("EL", "elbow", "far", "frame {mid1}"),  # 400 mm: beyond the speed limit, named alike
     ],
 )
-def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, name, spoil):
+def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, name, spoil, where):
+    """A spike is named by its own frames, what to blank: a one-frame spike was named by the frame after it (or
+    by itself) as its two jumps' sizes fell, and a block by the frame after its jump back."""
     spoiled = {k: np.array(v) for k, v in reach.markers.items()}
     mid = len(reach.t) // 2
-    if spoil == "spike":
-        spoiled[marker][mid, 0] += 0.04
+    if spoil in ("spike", "block", "far"):
+        spoiled[marker][mid : mid + (3 if spoil == "block" else 1), 0] += 0.4 if spoil == "far" else 0.04
     else:
         spoiled[marker][mid - 15 : mid] = spoiled[marker][mid - 16]
-    with pytest.raises(InputError, match=rf"s\.trc: frame \d+: the {name} jumps \d+ mm in one frame \(an acceleration"):
+    frame = where.format(mid1=mid + 1, mid3=mid + 3)
+    how = "moves" if spoil == "far" else "jumps"
+    with pytest.raises(InputError, match=rf"s\.trc: {frame}: the {name} {how} \d+ mm in one frame \("):
         _trial(synth, spoiled)
 
 

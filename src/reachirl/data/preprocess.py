@@ -481,7 +481,7 @@ def check_glitches(
                 f"the {k} moves {step[f] * 1000:.0f} mm in one frame ({step[f] * rate:.3g} m/s, faster than any "
                 f"arm's {MAX_FINGERTIP_SPEED:g} m/s): {cause(f, 'a glitch in the markers?')}",
                 src,
-                f"frame {first_frame + f + 2}",
+                _excursion(x, f, first_frame) or f"frame {first_frame + f + 2}",
             )
         h = max(1, round(0.01 * rate))  # frames in 10 ms: finer, a fast recording's noise (or the kinks of a
         # linear gap fill) would pass for acceleration
@@ -494,6 +494,7 @@ def check_glitches(
         worst = int(np.nanargmax(acc))
         if acc[worst] > limit:
             f = worst + int(np.nanargmax(step[worst : worst + 2 * h]))  # the largest of the steps it spans
+            where = _excursion(x, f, first_frame)
             raise InputError(
                 f"the {k} jumps {step[f] * 1000:.0f} mm in one frame (an acceleration of {acc[worst]:.3g} m/s², "
                 f"above the limit of {limit:.3g}): "
@@ -503,12 +504,25 @@ def check_glitches(
                     "frames to be filled as a gap",
                 ),
                 src,
-                f"frame {first_frame + f + 2}",
+                where or f"frame {first_frame + f + 2}",
             )
     _check_back_steps(joints["fingertip"], rate, src, order, first_frame, cause)
     _check_coherent_back_steps(joints, rate, src, order, first_frame, cause)
     for k in ("fingertip", *(k for k in joints if k != "fingertip")):
         _check_spikes(joints[k], k, MIN_SPIKE_M if k == "fingertip" else MIN_JOINT_SPIKE_M, src, first_frame, cause)
+
+
+def _excursion(x: np.ndarray, f: int, first_frame: int, reach: int = 10) -> str | None:
+    """The frames a jump of ``x`` at step ``f`` (into row ``f + 1``) took off its path, where a step within
+    ``reach`` frames jumps back (within half its size): ``"frame N"`` or ``"frames N-M"`` (the rows between the two
+    jumps: a spike, or labels swapped for a few frames, which is what to blank); None where none jumps back (a
+    marker frozen and caught up)."""
+    jump = x[f + 1] - x[f]
+    for g in sorted(range(max(0, f - reach), min(x.shape[0] - 1, f + reach + 1)), key=lambda g: abs(g - f)):
+        if g != f and np.linalg.norm(x[g + 1] - x[g] + jump) < 0.5 * np.linalg.norm(jump):
+            a, b = first_frame + min(f, g) + 2, first_frame + max(f, g) + 1
+            return f"frame {a}" if a == b else f"frames {a}-{b}"
+    return None
 
 
 def _step_noise(x: np.ndarray) -> float:
