@@ -304,10 +304,19 @@ def test_a_noisy_joint_angle_recording_of_rest_is_no_reach(sd_deg):
         angles_to_trial(AngleData(t, q, "r.mot"), subject="S1", posture="P", trial_id="1")
 
 
-def test_units_look_wrong(reach, synth):
-    tiny = {k: v / 1000 for k, v in reach.markers.items()}  # metres read as mm
-    with pytest.raises(InputError, match=r"units look wrong: the median upper arm distance is 0\.3 mm"):
-        _rec(reach, synth, markers=tiny)
+@pytest.mark.parametrize(
+    ("scale", "said"),
+    [
+        (1e-3, r"0\.3 mm, absurdly small for an arm \(metres declared as mm\?\)"),
+        (1e-1, r"30 mm, absurdly small for an arm \(centimetres declared as mm\?\)"),  # was "metres as mm"
+        (10.0, r"3 m, absurdly large for an arm \(millimetres declared as cm\?\)"),  # was "mm as metres"
+        (1e2, r"30 m, absurdly large for an arm \(centimetres declared as metres\?\)"),
+    ],
+)
+def test_units_look_wrong_and_the_mistake_is_named_by_its_factor(reach, synth, scale, said):
+    scaled = {k: v * scale for k, v in reach.markers.items()}
+    with pytest.raises(InputError, match=r"units look wrong: the median upper arm distance is " + said):
+        _rec(reach, synth, markers=scaled)
 
 
 def test_subject_info_too_short_for_the_markers(reach, synth):

@@ -262,24 +262,31 @@ def estimate_lengths(joints: Mapping[str, np.ndarray]) -> dict[str, float]:
     return out
 
 
+#: the unit mistake a length off by a power of ten points to (the factor that brings it to an arm's size)
+_UNIT_MISTAKES = {
+    3: "metres declared as mm?",
+    2: "metres declared as cm?",
+    1: "centimetres declared as mm?",
+    -1: "millimetres declared as cm?",
+    -2: "centimetres declared as metres?",
+    -3: "millimetres declared as metres?",
+}
+
+
 def check_units(lengths: Mapping[str, float], options: PreprocessOptions, source: object) -> None:
     lo, hi = options.segment_range_m
     for name in ("upper_arm", "forearm", "reach", "elbow_fingertip"):
         if name not in lengths:
             continue
         v = lengths[name]
-        if v < lo:
-            raise InputError(
-                f"units look wrong: the median {name.replace('_', ' ')} distance is {v * 1000:.3g} mm, "
-                f"absurdly small for an arm (metres declared as mm?)",
-                source,
-            )
-        if v > hi:
-            raise InputError(
-                f"units look wrong: the median {name.replace('_', ' ')} distance is {v:.3g} m, "
-                f"absurdly large for an arm (mm declared as metres?)",
-                source,
-            )
+        if lo <= v <= hi:
+            continue
+        factor = round(float(np.log10(np.sqrt(lo * hi) / v))) if v > 0 else None
+        why = _UNIT_MISTAKES.get(factor, "the file's units?")
+        size = f"{v * 1000:.3g} mm, absurdly small" if v < lo else f"{v:.3g} m, absurdly large"
+        raise InputError(
+            f"units look wrong: the median {name.replace('_', ' ')} distance is {size} for an arm ({why})", source
+        )
 
 
 def build_arm(info: SubjectInfo, side: str, measured: Mapping[str, float] | None = None) -> ArmModel:
