@@ -138,6 +138,17 @@ def test_mot_angles(tmp_path, reach, capsys):
     assert code == 0, err
     (tr,) = load_trials(tmp_path / "o.npz")
     assert tr.arm == reach.arm and tr.subject == "r"
+    # the time column in milliseconds: "no movement" alone did not say why
+    rows = "".join(
+        f"{1000 * t:.1f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, np.degrees(reach.q), strict=True)
+    )
+    (tmp_path / "r.mot").write_text(f"r\nversion=1\ninDegrees=yes\nendheader\ntime\tq1\tq2\n{rows}")
+    code, _, err = _run(
+        [tmp_path / "r.mot", "--subject-info", tmp_path / "info.csv", "--out", tmp_path / "m.npz"], capsys
+    )
+    assert code == 2 and re.search(r"r\.mot: no movement detected: .*Hz: milliseconds, not seconds\?$", err.strip()), (
+        err
+    )
 
 
 def test_angles_missing_samples_are_a_gap_refused_beyond_max_gap(tmp_path, reach, capsys):

@@ -994,9 +994,16 @@ def angles_to_trial(
     qd, qdd = derivatives(t, q)
     speed = arm.fingertip_speed(q, qd)
     if speed.max() < options.min_peak_speed:
+        slow_clock = rate < 5.0  # a motion-capture rate is tens of Hz or more: a time column in other units
         raise InputError(
             f"no movement detected: the fingertip's peak speed is {speed.max():.3g} m/s "
-            f"(< {options.min_peak_speed:g} m/s)",
+            f"(< {options.min_peak_speed:g} m/s)"
+            + (
+                f"; the time column gives {t.shape[0]} samples over {t[-1] - t[0]:.4g} s, {rate:.3g} Hz: "
+                "milliseconds, not seconds?"
+                if slow_clock
+                else ""
+            ),
             src,
         )
     tip = arm.fk(q_seen)
