@@ -410,6 +410,23 @@ def test_reading_a_device_ends_at_once():
     assert time.monotonic() - t0 < 2.0
 
 
+def test_utf16_text_with_its_byte_order_mark_is_read_and_binary_still_refused(tmp_path):
+    """A Windows export in UTF-16 was refused as "a binary file (it holds NUL bytes)"."""
+    text = "PathFileType\t4\t(X/Y/Z)\tr.trc\nµ line\n"
+    for enc in ("utf-16", "utf-16-le", "utf-16-be"):
+        data = text.encode(enc)
+        if enc != "utf-16":  # the BOM the plain codec writes, by hand for the others
+            data = ("\ufeff" + text).encode(enc)
+        (tmp_path / "u.trc").write_bytes(data)
+        assert read_text(tmp_path / "u.trc") == text
+    (tmp_path / "b.trc").write_bytes(b"\xff\xfe" + b"\x00\xd8" + b"a\x00")  # a lone surrogate: not UTF-16
+    with pytest.raises(InputError, match=r"b\.trc: begins as UTF-16 text \(its byte-order mark\) but does not decode"):
+        read_text(tmp_path / "b.trc")
+    (tmp_path / "n.trc").write_bytes(b"abc\x00def")
+    with pytest.raises(InputError, match=r"n\.trc: is a binary file \(it holds NUL bytes\), expected text"):
+        read_text(tmp_path / "n.trc")
+
+
 # ---------------------------------------------------------------------- output paths
 def test_output_paths_are_checked_before_any_work(files):
     with pytest.raises(InputError, match=r"--out: is a folder, expected a file path"):

@@ -353,8 +353,9 @@ def check_regular_file(path: str | os.PathLike, option: str | None = None) -> Pa
 
 
 def read_text(path: str | os.PathLike) -> str:
-    """A text file's content (UTF-8, a byte-order mark dropped; Latin-1 as the fallback), raising
-    :class:`~reachirl.errors.InputError` naming the file when it is missing, unreadable or empty."""
+    """A text file's content (UTF-8, a byte-order mark dropped; UTF-16 with its byte-order mark, as some Windows
+    exports write it; Latin-1 as the fallback), raising :class:`~reachirl.errors.InputError` naming the file when it
+    is missing, unreadable or empty."""
     from .errors import InputError
 
     p = Path(path)
@@ -362,7 +363,8 @@ def read_text(path: str | os.PathLike) -> str:
     try:
         with open(p, "rb") as fh:  # bounded
             raw = fh.read(65536)
-            if b"\0" not in raw:
+            utf16 = raw[:2] in (b"\xff\xfe", b"\xfe\xff")  # its NUL bytes are text's
+            if b"\0" not in raw or utf16:
                 raw += fh.read(MAX_FILE_BYTES + 1 - len(raw))
     except FileNotFoundError:
         raise InputError("file not found", p) from None
@@ -374,6 +376,11 @@ def read_text(path: str | os.PathLike) -> str:
         raise InputError(f"file is larger than {MAX_FILE_BYTES // 1024**2} MB, more than any input of reachirl", p)
     if raw.startswith(b"PK\x03\x04"):  # a ZIP archive: NumPy's .npz, a trials file given for a text file
         raise InputError("is a ZIP or NPZ archive (a trials file is one), expected text", p)
+    if utf16:
+        try:
+            raw = raw.decode("utf-16").encode("utf-8")
+        except UnicodeDecodeError:
+            raise InputError("begins as UTF-16 text (its byte-order mark) but does not decode as it", p) from None
     if b"\0" in raw[:65536]:
         raise InputError("is a binary file (it holds NUL bytes), expected text", p)
     if not raw.strip():
