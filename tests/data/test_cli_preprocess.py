@@ -444,6 +444,30 @@ def test_a_marker_exported_at_the_labs_origin_is_unseen_not_a_position(tmp_path,
     assert np.rad2deg(np.abs(a.q_at(101) - b.q_at(101)).max()) < 1.0
 
 
+def test_a_cluster_marker_the_export_left_out_is_unseen_as_one_left_empty(tmp_path, synth, capsys):
+    """UE-ADL's reach with RUAR1 (an elbow-cluster marker) left out of the export's header was refused ("marker
+    'RUAR1' (elbow cluster) not found") where the same marker exported empty gave the trial: a cluster needs 3 of
+    its 4 markers. Two left out still leave too few, and the message names one."""
+    folder = tmp_path / "ADL001"
+    folder.mkdir()
+    shutil.copy(synth.SAMPLE / "ADL001" / "ADL001_static.csv", folder)
+    text = (synth.SAMPLE / "ADL001" / "ADL001FR1.csv").read_text(encoding="utf-8-sig").splitlines()
+    info = ["--subject-info", synth.SAMPLE / "subjects.csv"]
+    assert _run([synth.SAMPLE / "ADL001" / "ADL001FR1.csv", *info, "--out", tmp_path / "a.npz"], capsys)[0] == 0
+    for drop, ok in ((("RUAR1",), True), (("RUAR1", "RUAR2"), False)):
+        lines = list(text)
+        for m in drop:
+            lines[2] = lines[2].replace(f"ADL001:{m},", ",")
+        (folder / "ADL001FR1.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+        code, _, err = _run([folder / "ADL001FR1.csv", *info, "--out", tmp_path / "b.npz"], capsys)
+        if ok:
+            assert code == 0, err
+            (a,), (b,) = load_trials(tmp_path / "a.npz"), load_trials(tmp_path / "b.npz")
+            assert np.rad2deg(np.abs(a.q_at(101) - b.q_at(101)).max()) < 1.0
+        else:
+            assert code == 2 and re.search(r"marker 'RUAR[12]' \(elbow cluster\) not found", err), err
+
+
 def test_a_warned_recording_refused_by_its_up_axis_says_the_refusal_alone(tmp_path, synth, cli):
     """UE-ADL's ADL001FR1 under --threshold 0.001 is warned about (its noise is large beside the threshold's speed,
     and no rest is left before the movement); under the lab's forward axis given as up it is refused (by the joint

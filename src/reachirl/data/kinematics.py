@@ -79,6 +79,18 @@ def _marker(md: MarkerData, name: str, role: str) -> np.ndarray:
     return md[found]
 
 
+def _cluster(md: MarkerData, names, joint: str) -> np.ndarray:
+    """The markers ``names`` of ``joint``'s cluster, ``(n, k, 3)``: one the file does not hold is unseen in every
+    frame (as one it holds empty), while 3 of them are there, which a rigid fit needs; otherwise the first missing
+    one is not found (:func:`_marker`'s message)."""
+    found = [resolve_name(m, md.names) for m in names]
+    if sum(f is not None for f in found) < 3:
+        missing = next(m for m, f in zip(names, found, strict=True) if f is None)
+        _marker(md, missing, f"{joint} cluster")
+    unseen = np.full((md.n_frames, 3), np.nan)
+    return np.stack([unseen if f is None else md[f] for f in found], axis=1)
+
+
 def _near_names(name: str, names) -> str:
     """What a "not found" message adds: the names that differ from ``name`` only in case (two or more, so none is
     taken), or the closest names (``difflib``) and then the file's markers, the first 12 of them."""
@@ -103,7 +115,7 @@ def calibrate_static(static: MarkerData, mset: MarkerSet) -> dict[str, tuple[np.
     for joint, spec in mset.joints.items():
         if not spec.needs_static:
             continue
-        cl = np.stack([_marker(static, m, f"{joint} cluster") for m in spec.cluster], axis=1)
+        cl = _cluster(static, spec.cluster, joint)
         lm = np.stack([_marker(static, m, f"{joint} landmark") for m in spec.landmarks], axis=1)
         ok = np.all(np.isfinite(cl), axis=(1, 2)) & np.all(np.isfinite(lm), axis=(1, 2))
         if not ok.any():
@@ -140,7 +152,7 @@ def joint_positions(
                     raise InputError(f"marker {m!r} ({joint}) is empty in every frame", md.source)
             out[joint] = (np.mean(arrs, axis=0), "+".join(spec.markers))
         else:
-            cl = np.stack([_marker(md, m, f"{joint} cluster") for m in spec.cluster], axis=1)
+            cl = _cluster(md, spec.cluster, joint)
             label = f"{joint} cluster {'/'.join(spec.cluster)} (fewer than 3 of its markers seen)"
             out[joint] = (cast_reconstruct(cl, *calib[joint]), label)
     return out
