@@ -138,6 +138,18 @@ def test_mot_angles(tmp_path, reach, capsys):
     assert code == 0, err
     (tr,) = load_trials(tmp_path / "o.npz")
     assert tr.arm == reach.arm and tr.subject == "r"
+    # a 20° spike of one sample of the elbow: taken in before (a peak speed twice the reach's), now refused by the
+    # path of the fingertip the angles place, as a marker's spike is
+    spiked = np.degrees(reach.q)
+    spiked[len(spiked) // 2, 1] += 20.0
+    rows = "".join(f"{t:.3f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, spiked, strict=True))
+    (tmp_path / "r.mot").write_text(f"r\nversion=1\ninDegrees=yes\nendheader\ntime\tq1\tq2\n{rows}")
+    code, _, err = _run(
+        [tmp_path / "r.mot", "--subject-info", tmp_path / "info.csv", "--out", tmp_path / "p.npz"], capsys
+    )
+    assert code == 2 and re.search(
+        r"r\.mot: frame \d+: the fingertip \(from the angles\) leaves its path by \d+ mm", err
+    )
     # the time column in milliseconds: "no movement" alone did not say why
     rows = "".join(
         f"{1000 * t:.1f}\t{a:.6f}\t{b:.6f}\n" for t, (a, b) in zip(reach.t, np.degrees(reach.q), strict=True)

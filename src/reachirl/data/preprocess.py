@@ -582,6 +582,12 @@ def _check_coherent_back_steps(
         )
 
 
+#: m: the fingertip placed by a joint-angle file's angles further than this from its running median is a spike of
+#: the angles (the virtual subjects' angle files, whose noise is 0.1°: at most 9.3 mm, at the peak speed, where the
+#: running median cuts the path's curve; a 20° spike of one sample: 188 mm)
+MIN_ANGLE_SPIKE_M = 0.025
+
+
 def _check_spikes(x: np.ndarray, name: str, least: float, src: str, first_frame: int, cause) -> None:
     """Refuse a joint ``name``'s path ``x`` ``(n, 3)`` that leaves its path for a few frames and comes back: further
     than ``least`` (:data:`MIN_SPIKE_M` for the fingertip, :data:`MIN_JOINT_SPIKE_M` for the others) and
@@ -1007,6 +1013,10 @@ def angles_to_trial(
             src,
         )
     tip = arm.fk(q_seen)
+    # a spike of the angles, as of the markers: the fingertip they place leaves its path for a few samples (a 20°
+    # spike of one sample was taken in: a peak speed twice the reach's)
+    tip3 = np.column_stack([tip, np.zeros(tip.shape[0])])
+    _check_spikes(tip3, "fingertip (from the angles)", MIN_ANGLE_SPIKE_M, src, 0, lambda f, usual: usual)
     # as for markers: the angles' noise at rest (0.1° is about 1 mm at the fingertip) carries the speed above
     # min_peak_speed, and onset and offset were found in it
     rest = _rest_only(tip, float(np.median(np.linalg.norm(tip, axis=1))), rate, options.filter_order, "angle noise")
