@@ -278,6 +278,37 @@ def test_an_export_never_replaces_the_users_own_files(base, tmp_path, capsys, co
     assert (folder / name).read_text() == "my own file\n"
 
 
+def test_an_export_never_removes_the_files_it_reads(base, tmp_path, capsys):
+    """`preprocess EX/*.mot --export EX` removed its own inputs: the earlier export's index listed them and this
+    export, whose names differ, removes what the earlier one wrote and it does not."""
+    ex = tmp_path / "EX"
+    assert (
+        main(
+            [
+                "preprocess",
+                str(base / "syn"),
+                "--markers",
+                MARKERS,
+                "--out",
+                str(tmp_path / "a.npz"),
+                "--export",
+                str(ex),
+            ]
+        )
+        == 0
+    )
+    inputs = sorted(ex.glob("*.mot"))
+    before = {p: _digest(p) for p in ex.iterdir()}
+    capsys.readouterr()
+    _fails(
+        ["preprocess", *inputs, "--subject", "S01", "--out", tmp_path / "b.npz", "--export", ex],
+        capsys,
+        rf"{re.escape(str(inputs[0]))}: --export: is an input file, which an earlier export in .* listed and this one "
+        r"would remove",
+    )
+    assert {p: _digest(p) for p in ex.iterdir()} == before and not (tmp_path / "b.npz").exists()
+
+
 def test_reproduce_and_sensitivity_refuse_their_input_folder_as_output(base, tmp_path, capsys):
     syn = tmp_path / "syn"
     shutil.copytree(base / "syn", syn)

@@ -233,10 +233,11 @@ def refuse_foreign_figures(folder: object, names, option: str) -> None:
             )
 
 
-def refuse_foreign_export_files(folder: object, names, option: str) -> None:
+def refuse_foreign_export_files(folder: object, names, option: str, inputs=()) -> None:
     """Before any work: an export into ``folder`` (writing ``names``, :func:`export_names`) replaces only an earlier
     export's files. An ``index.csv`` that is not an export's, or a file of ``names`` that the earlier export's index
-    does not list, is the user's own: refused (:class:`InputError` naming it). Without an index (none yet, or an
+    does not list, is the user's own: refused (:class:`InputError` naming it); so is one of ``inputs`` among the
+    earlier export's files that this one does not write, which it would remove. Without an index (none yet, or an
     export interrupted after removing it) the files cannot be told apart and are replaced as before."""
     from ..data.exports import EARLIER_INDEX_COLUMNS, INDEX_COLUMNS, is_export, listed_names
 
@@ -254,6 +255,15 @@ def refuse_foreign_export_files(folder: object, names, option: str) -> None:
             index,
         )
     earlier = listed_names(folder)
+    ins = [Path(p) for p in inputs if p is not None and str(p) != ""]
+    for stem in sorted(earlier - {Path(n).stem for n in names}):  # what the export removes
+        for gone in (folder / f"{stem}.csv", folder / f"{stem}.mot"):
+            if any(same_file(gone, inp) for inp in ins):
+                raise InputError(
+                    f"{option}: is an input file, which an earlier export in {folder} listed and this one would "
+                    "remove (choose another folder for the export)",
+                    gone,
+                )
     for n in names:
         if n != "index.csv" and (folder / n).exists() and Path(n).stem not in earlier:
             raise InputError(

@@ -130,7 +130,7 @@ def _evaluate(args: argparse.Namespace, make_predictions) -> int:
     if args.predictions is not None:
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.predictions, names, [args.model, args.trials], "--predictions", {"--out": args.out})
-        refuse_foreign_export_files(args.predictions, names, "--predictions")
+        refuse_foreign_export_files(args.predictions, names, "--predictions", [args.model, args.trials])
     err = Console(stderr=True)
     with Progress(transient=True, console=err, disable=not err.is_terminal) as progress:  # a log: no blank line
         task = progress.add_task("predicting", total=len(trials))

@@ -446,7 +446,7 @@ def _preprocess(args, options, out: Path, make_export) -> int:
     if args.export is not None:  # the export's file names follow the trial ids: checked before anything is written
         names = export_names(tr.id for tr in trials)
         output_folder_files(args.export, names, inputs, "--export", {"--out": out})
-        refuse_foreign_export_files(args.export, names, "--export")
+        refuse_foreign_export_files(args.export, names, "--export", inputs)
     if args.export is not None:
         make_export()  # held before the first change (a folder made meanwhile by another command: refused)
     # the trials file last, an earlier one removed first: an interrupt never leaves it beside another export
