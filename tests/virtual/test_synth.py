@@ -524,6 +524,22 @@ def test_a_missing_truth_file_is_refused_naming_it(tmp_path, capsys):
     assert len(err) == 1 and "none.csv" in err[0] and "no such file" in err[0], err
 
 
+@pytest.mark.parametrize("name", ["manifest.csv", "human_likeness.csv", "my_cost.csv"])
+def test_a_truth_file_inside_the_out_folder_is_refused_and_kept(tmp_path, capsys, name):
+    """`synth --truth st/human_likeness.csv --out st` replaced the user's cost with the human-likeness table."""
+    out = tmp_path / "st"
+    out.mkdir()
+    path = _truth_csv(out / name, [[1, 1, 1, 1, 1, 1, 1]], None)
+    text = path.read_text()
+    assert main(["synth", "--out", str(out), "--truth", str(path), "--subjects", "1", "--trials", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].endswith(
+        f"{path}: --truth lies in --out, whose files synth replaces (a truth "
+        "named manifest.csv or human_likeness.csv was overwritten): keep it outside the folder"
+    ), err
+    assert path.read_text() == text and sorted(p.name for p in out.iterdir()) == [name]
+
+
 def test_the_paper_s_pattern_keeps_its_cached_data_set():
     """A config without a truth of its own is the paper's pattern: the same cache key (and so the same cached
     built-in data) as one that names RELATIVE_IMPORTANCE, and a key of its own for any other cost."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ..errors import InputError
 from . import SUMMARIES
@@ -66,6 +67,12 @@ def run(args) -> int:
     from ..virtual import SynthConfig, format_human_likeness, generate
     from ..virtual.files import read_relative_importance
 
+    if args.truth is not None and Path(args.out).resolve() in Path(args.truth).resolve().parents:
+        raise InputError(
+            "--truth lies in --out, whose files synth replaces (a truth named manifest.csv or human_likeness.csv "
+            "was overwritten): keep it outside the folder",
+            args.truth,
+        )
     truth = None if args.truth is None else read_relative_importance(args.truth)
     try:
         config = SynthConfig(
