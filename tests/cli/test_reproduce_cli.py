@@ -493,18 +493,22 @@ def test_a_bad_tol_is_refused_before_any_work(tmp_path, capsys, tol):
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.parametrize("name", ["report.md", "table.csv", "run.toml"])
+@pytest.mark.parametrize(
+    "name", ["report.md", "table.csv", "run.toml", "figures/fig2_prediction.png", "models/moirl-P2-s1.json"]
+)
 def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_run(trials_file, tmp_path, capsys, name):
     """--out of the user's own holding a file the run replaces or removes (report.md, a table, a run.toml no run
-    wrote): refused before any work, the file left as it was. An earlier run's folder is still rerun into."""
+    wrote; a figure or model of the user's in the run's folders, which the run removed or replaced): refused before
+    any work, the file left as it was. An earlier run's folder is still rerun into."""
     out = tmp_path / "mine"
-    out.mkdir()
+    (out / name).parent.mkdir(parents=True)
     (out / name).write_text("my own notes\n")
     code = main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
     assert f"{name}: --out: exists in a folder that holds no earlier `reachirl reproduce` run" in err[0]
-    assert (out / name).read_text() == "my own notes\n" and sorted(p.name for p in out.iterdir()) == [name]
+    assert (out / name).read_text() == "my own notes\n"
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [name]
 
 
 def test_a_run_toml_given_as_config_is_not_taken_for_the_users_own_file(trials_file, tmp_path, capsys):

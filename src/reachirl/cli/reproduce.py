@@ -572,9 +572,13 @@ def _is_run_results(path: Path) -> bool:
     return isinstance(d, dict) and d.get("format") == RESULTS_FORMAT
 
 
+#: the folders a run writes into (and clears of an earlier run's files)
+RUN_OUTPUT_FOLDERS = ("figures", "models", "predictions", "units")
+
+
 def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
     """Before any work: the files a run replaces or removes at the top of ``out`` (``run.toml`` and
-    :data:`~reachirl.experiments.report.RUN_OUTPUT_FILES`) are an
+    :data:`~reachirl.experiments.report.RUN_OUTPUT_FILES`) and in its folders (:data:`RUN_OUTPUT_FOLDERS`) are an
     earlier run's, never the user's own: in a folder without a run's ``run.toml`` or ``results.json`` (a folder of
     the user's own, given as --out) such a file is refused (:class:`InputError` naming it), and so is a
     ``run.toml`` that no run wrote, unless it is the --config given."""
@@ -588,6 +592,9 @@ def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
         return
     given = config is not None and toml.exists() and same_file(Path(config), toml)
     present = [n for n in ("run.toml", *RUN_OUTPUT_FILES) if (out / n).exists() and not (n == "run.toml" and given)]
+    for sub in RUN_OUTPUT_FOLDERS:  # a file of the user's own in one of them is replaced or removed alike
+        if (out / sub).is_dir():
+            present += [str(p.relative_to(out)) for p in sorted((out / sub).rglob("*")) if not p.is_dir()][:1]
     if present:
         raise InputError(
             "--out: exists in a folder that holds no earlier `reachirl reproduce` run (no run.toml or results.json "
