@@ -279,6 +279,27 @@ def test_plot_of_a_run_with_a_damaged_checkpoint_names_it(fitted, capsys):
     assert len(err.splitlines()) == 1
 
 
+def test_plot_of_a_run_with_other_predictions_in_a_units_place_names_the_file(run_folder, tmp_path, capsys):
+    """A unit's NPZ replaced by other predictions (another unit's copied over it, here its own edited): plot drew
+    them under the unit's title without a word, where reproduce into the folder refuses it by the checksum its JSON
+    checkpoint holds."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    b = sorted((run / "units").glob("*.npz"))[0]
+    with np.load(b) as z:
+        arrays = {k: z[k] for k in z.files}
+    key = next(k for k in arrays if k.endswith("pred_q"))
+    arrays[key] = arrays[key] * np.float32(1.01)
+    np.savez(b, **arrays)
+    capsys.readouterr()
+    assert main(["plot", str(run), "--out", str(tmp_path / "figs"), "--no-pdf"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{b}: damaged checkpoint, content differs from the one its JSON" in err, err
+    assert not (tmp_path / "figs").exists()
+
+
 def test_plot_of_a_run_whose_unit_predictions_are_missing_names_them(run_folder, tmp_path, capsys):
     """A unit NPZ removed (its JSON checkpoint says it wrote one): the figures drawn from it were left out without
     a word (exit 0, fig2_prediction and fig4_iscv not written); now refused in one line naming the file."""

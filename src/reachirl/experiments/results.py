@@ -172,16 +172,18 @@ def load_unit_arrays(out_dir: Path, key: str) -> dict[str, np.ndarray]:
     word), is an ``InputError`` naming it: ``reproduce`` into the same folder recomputes the unit (it checks each
     checkpoint first)."""
     js, npz = unit_paths(out_dir, key)
+    res, _ = _parse_checkpoint(js) if js.is_file() else (None, None)
+    res = res if isinstance(res, dict) else {}
     if not npz.is_file():
-        res, _ = _parse_checkpoint(js) if js.is_file() else (None, None)
-        if not (isinstance(res, dict) and res.get("has_arrays")):
+        if not res.get("has_arrays"):
             return {}
         raise InputError(
             f"missing: the predictions of the run's unit {key}, which its checkpoint {js.name} says it wrote; rerun "
             f"`reachirl reproduce` into {out_dir} to recompute it",
             npz,
         )
-    problem = _npz_problem(npz, None)
+    # another unit's predictions copied in its place were drawn under this unit's title
+    problem = _npz_problem(npz, res.get("npz_sha256"))
     if problem is None:
         try:
             with np.load(npz, allow_pickle=False) as z:
