@@ -441,6 +441,10 @@ def test_output_paths_are_checked_before_any_work(files):
         check_output_dir(files / ("x" * 300) / "sub")
     assert check_output_file(files / "new" / "deeper" / "x.json") == files / "new" / "deeper" / "x.json"
     assert not (files / "new").exists()  # checking creates nothing
+    # `--out newm/` (a folder meant) wrote a file named newm
+    with pytest.raises(InputError, match=r"newm/: --out: ends with '/', a folder; expected a file path \(e\.g\. "):
+        check_output_file(f"{files}/newm/")
+    assert not (files / "newm").exists()
     if os.geteuid() != 0:  # root writes anywhere
         ro = files / "ro"
         ro.mkdir()

@@ -198,6 +198,8 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
     p = Path(path)
     if str(path) == "" or p.name in ("", ".", ".."):
         raise InputError(f"{option}: expected a file path, got {str(path)!r}")
+    if os.fspath(path).endswith(("/", os.sep)):  # Path drops the slash: `--out newm/` wrote a file named newm
+        raise InputError(f"{option}: ends with '/', a folder; expected a file path (e.g. {p / 'out.json'})", path)
     parent = p.absolute().parent
     _check_writable_folder(parent, option)
     if len(os.fsencode(p.name)) + 16 > _name_max(_existing_ancestor(parent)):

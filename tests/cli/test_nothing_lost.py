@@ -956,3 +956,26 @@ def test_sigterm_while_the_commands_load_is_said_and_exits_143():
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert p.returncode == 143, p.stderr
     assert p.stderr == "reachirl: terminated\n"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["fit", "t.npz", "--sections", "1"],
+        ["evaluate", "--model", "m.json", "t.npz"],
+        ["simulate", "--model", "m.json", "t.npz"],
+        ["bench", "doc"],
+        ["preprocess", "rec.trc"],
+    ],
+)
+def test_an_output_file_given_as_a_folder_is_refused_not_written_under_its_name(tmp_path, capsys, argv):
+    """`fit ... --out newm/` wrote a file named newm (a Path drops the slash)."""
+    out = f"{tmp_path}/newm/"
+    try:
+        code = main([*argv, "--out", out])
+    except SystemExit as e:  # argparse's refusal of the option
+        code = e.code
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and re.search(r"--out: .*(a folder|ends with '/')", err[0]), err
+    assert not (tmp_path / "newm").exists()

@@ -29,6 +29,14 @@ def _checked(
     return parse
 
 
+def file_path(text: str) -> Path:
+    """An output file's path; one that ends with '/' names a folder (``Path`` would drop the slash, and the command
+    write a file by the folder's name)."""
+    if text.endswith(("/", os.sep)):
+        raise argparse.ArgumentTypeError(f"expected a file path, got a folder ({text[:200]!r} ends with '/')")
+    return Path(text)
+
+
 def int_at_least(lo: int) -> Callable[[str], int]:
     """An integer ``>= lo``."""
     return _checked(int, lambda v: v >= lo, f"an integer >= {lo}")

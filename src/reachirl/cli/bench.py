@@ -19,6 +19,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..io import atomic_write_json
 from . import SUMMARIES
+from ._args import file_path
 
 SUITES = ("doc", "predict", "checks", "backends", "irl")
 
@@ -37,7 +38,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument(
         "suites", nargs="*", metavar="SUITE", help=f"which suites to run: {', '.join(SUITES)} (default: all)"
     )
-    p.add_argument("--out", type=Path, default=None, help="write all figures to this JSON file (default: print only)")
+    p.add_argument(
+        "--out", type=file_path, default=None, help="write all figures to this JSON file (default: print only)"
+    )
     p.add_argument("--quick", action="store_true", help="fewer repeats (for a smoke test)")
     return p
 

@@ -24,6 +24,7 @@ from ._args import (
     add_selection,
     chosen_trials,
     export_names,
+    file_path,
     output_folder_files,
     refuse_foreign_export_files,
     refuse_overwrite,
@@ -42,7 +43,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--model", type=Path, required=True, help="model JSON written by `reachirl fit`")
     p.add_argument("trials", type=Path, help="trials file")
-    p.add_argument("--out", type=Path, required=True, help="metrics JSON to write")
+    p.add_argument("--out", type=file_path, required=True, help="metrics JSON to write")
     p.add_argument(
         "--backend",
         choices=("casadi", "crocoddyl"),

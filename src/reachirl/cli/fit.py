@@ -16,7 +16,7 @@ from ..irl.options import ROLLOUTS
 from ..irl.uncertainty import DEFAULT_SAMPLES, UNDETERMINED_WIDTH, mean_width, prior_gives_verdict
 from ..validation import MAX_ITER, NODES_RANGE, check_output_file, check_output_kind
 from . import SUMMARIES
-from ._args import JSON_KINDS, add_selection, chosen_trials, int_in, refuse_overwrite, samples_or_none
+from ._args import JSON_KINDS, add_selection, chosen_trials, file_path, int_in, refuse_overwrite, samples_or_none
 
 MIN_NODES, MAX_NODES = NODES_RANGE
 
@@ -43,7 +43,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="number of time windows of weights (e.g. 1, 6, 8), 1 to --nodes (at most 1000); required",
     )
     p.add_argument("--method", choices=METHODS, default="moirl", help="learning method (default: moirl)")
-    p.add_argument("--out", type=Path, required=True, help="model JSON to write")
+    p.add_argument("--out", type=file_path, required=True, help="model JSON to write")
     p.add_argument(
         "--max-iter",
         type=int_in(1, MAX_ITER),

@@ -23,6 +23,7 @@ from ._args import (
     JSON_KINDS,
     PREDICTION_BACKEND_HELP,
     add_selection,
+    file_path,
     int_in,
     number_in,
     picked_trials,
@@ -106,7 +107,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
         help="with --render: animation width and height in pixels, 16 to 1280 (default 480)",
     )
     p.add_argument(
-        "--out", type=Path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
+        "--out", type=file_path, default=None, metavar="SIM.json", help="also write the figures as JSON (default: none)"
     )
     return p
 
