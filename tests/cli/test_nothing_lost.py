@@ -979,3 +979,15 @@ def test_an_output_file_given_as_a_folder_is_refused_not_written_under_its_name(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and re.search(r"--out: .*(a folder|ends with '/')", err[0]), err
     assert not (tmp_path / "newm").exists()
+
+
+def test_a_refused_preprocess_of_a_folder_says_one_line_not_its_notes_first(base, tmp_path, capsys):
+    """`preprocess FOLDER --subject-info EMPTY`: "note: using the folder's manifest ..." came before the refusal."""
+    (tmp_path / "empty.csv").write_text("")
+    _fails(
+        ["preprocess", base / "syn", "--subject-info", tmp_path / "empty.csv", "--out", tmp_path / "o.npz"],
+        capsys,
+        r"empty\.csv: file is empty",
+    )
+    assert main(["preprocess", str(base / "syn"), "--out", str(tmp_path / "o.npz")]) == 0
+    assert "note: using the folder's manifest" in capsys.readouterr().err  # said once the inputs pass

@@ -293,7 +293,8 @@ def _summary(tr: Trial) -> str:
 
 def _folder_defaults(args) -> None:
     """A single INPUT folder with a manifest.csv stands for its manifest (as ``reproduce --data FOLDER``), and
-    its subjects.csv for --subject-info, unless they are given."""
+    its subjects.csv for --subject-info, unless they are given; ``args.notes`` says so, once the inputs pass."""
+    args.notes = []
     if args.manifest or len(args.inputs) != 1 or not Path(args.inputs[0]).is_dir():
         return
     folder = Path(args.inputs[0])
@@ -303,10 +304,10 @@ def _folder_defaults(args) -> None:
     if (folder / "manifest.csv").is_file():
         args.manifest = str(folder / "manifest.csv")
         args.inputs = []
-        print(f"note: using the folder's manifest {args.manifest}", file=sys.stderr)
+        args.notes.append(f"note: using the folder's manifest {args.manifest}")
     if not args.subject_info and (folder / "subjects.csv").is_file():
         args.subject_info = str(folder / "subjects.csv")
-        print(f"note: using the folder's subject info {args.subject_info}", file=sys.stderr)
+        args.notes.append(f"note: using the folder's subject info {args.subject_info}")
     if not (args.markers or args.markerset) and (folder / "truth.json").is_file():  # virtual subjects
         from ..io import read_json
 
@@ -429,6 +430,8 @@ def _preprocess(args, options, out: Path, make_export) -> int:
     markers = (
         parse_marker_map(args.markers) if args.markers else (load_markerset(args.markerset) if args.markerset else None)
     )
+    for note in getattr(args, "notes", ()):  # after the inputs' checks: a refusal is one line
+        print(note, file=sys.stderr)
     lines: list[str] = []
     trials = preprocess_entries(
         entries,
