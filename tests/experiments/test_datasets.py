@@ -31,6 +31,29 @@ def test_builtin_trials_are_preprocessed_once(tmp_path, monkeypatch):
     assert len(datasets.load(None).trials) == len(first.trials) - 1 and len(calls) == 2
 
 
+def test_a_damaged_built_in_data_set_is_made_again(tmp_path, monkeypatch, caplog):
+    """A recording of the cached built-in data cut short refused every later run ("line 31: truncated row"), without
+    saying it was the cache's: the set is made again, once, with a warning."""
+    from recordings import synth
+
+    made = []
+
+    def builtin(seed, n):
+        folder = tmp_path / "builtin"
+        if not (folder / "truth.json").is_file():
+            made.append(synth(folder, ("P4",), subjects=2, trials=1, seed=2))
+        return folder
+
+    monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(reachirl.virtual, "builtin_dataset_dir", builtin)
+    first = datasets.load(None)
+    recording = sorted((tmp_path / "builtin").glob("*.trc"))[0]
+    recording.write_text(recording.read_text()[:3000])
+    again = datasets.load(None)
+    assert len(made) == 2 and "is damaged" in caplog.text and recording.name in caplog.text
+    assert again.describe()["fingerprint"] == first.describe()["fingerprint"]
+
+
 def test_a_relative_data_path_is_recorded_absolute(tmp_path, monkeypatch):
     """results.json's ``source`` is what `reachirl sensitivity` reloads, from whatever folder it is run in."""
     from reachirl.data.trial import save_trials

@@ -244,14 +244,24 @@ def load(
 
         n = 2 if n_subjects is None else int(n_subjects)
         folder = builtin_dataset_dir(seed, n)
-        trials = _builtin_trials(folder, marker_map)
+        try:
+            trials, truth = _builtin_trials(folder, marker_map), _read_truth(folder)
+        except InputError as e:  # a cache file damaged since it was made (cut short, edited): made again, once
+            if e.path is None or Path(folder).resolve() not in Path(str(e.path)).resolve().parents:
+                raise  # not the cache's (a --markers map, say)
+            import shutil
+
+            log.warning("the cached built-in data set %s is damaged (%s); it is made again", folder, e)
+            shutil.rmtree(folder, ignore_errors=True)
+            folder = builtin_dataset_dir(seed, n)
+            trials, truth = _builtin_trials(folder, marker_map), _read_truth(folder)
         return Dataset(
             tuple(trials),
             f"built-in virtual subjects ({n} subjects, seed {seed}): {folder}"
             if n != 2
             else f"built-in virtual subjects (seed {seed}): {folder}",
             "builtin",
-            _read_truth(folder),
+            truth,
         )
     p = Path(path)
     if not p.exists():
