@@ -343,6 +343,32 @@ def run_folder(fitted):
     return run
 
 
+def test_plot_of_a_run_leaves_no_figure_of_an_earlier_set_beside_its_own(run_folder, tmp_path, capsys):
+    """`plot runA --out F` then `plot runB --out F --no-pdf` left runA's PDFs beside runB's PNGs (and a methods
+    figure of a run with two methods after one with one); then `reproduce` into a run whose figures were plotted
+    beside its results (`plot RUN --out RUN`) left them there, the earlier run's beside the new one's."""
+    import shutil
+
+    figs = tmp_path / "F"
+    assert main(["plot", str(run_folder), "--out", str(figs)]) == 0
+    pdfs = sorted(p.name for p in figs.glob("*.pdf"))
+    assert pdfs and (figs / "methods.png").exists() is False
+    shutil.copyfile(figs / "fig2_prediction.png", figs / "methods.png")  # an earlier set's methods figure
+    mine = figs / "fig3_weights_mine.pdf"
+    mine.write_bytes(b"%PDF-1.4 my own")
+    assert main(["plot", str(run_folder), "--out", str(figs), "--no-pdf"]) == 0
+    assert sorted(p.name for p in figs.glob("*.pdf")) == [mine.name]  # the user's own stays
+    assert not (figs / "methods.png").exists() and mine.exists() and (figs / "fig2_prediction.png").exists()
+    run = tmp_path / "run"
+    shutil.copytree(run_folder, run)
+    assert main(["plot", str(run), "--out", str(run), "--no-pdf"]) == 0
+    assert (run / "fig2_prediction.png").exists()
+    shutil.copyfile(run / "run.toml", tmp_path / "cfg.toml")
+    args = ["reproduce", "--config", str(tmp_path / "cfg.toml"), "--set", "seed=4", "--workers", "1", "--out", str(run)]
+    assert main([*args, "--no-progress"]) == 0
+    assert not (run / "fig2_prediction.png").exists() and (run / "figures" / "fig2_prediction.png").exists()
+
+
 def _earlier_figure(path: Path) -> bytes:
     """A figure an earlier `plot` wrote (reachirl's, which a new one may replace); returns its bytes."""
     import matplotlib.pyplot as plt

@@ -44,6 +44,7 @@ __all__ = [
     "RESULTS_FORMAT",
     "UnitOutputs",
     "figure_jobs",
+    "is_run_figure",
     "prediction_note",
     "weights_caption",
     "write_figures",
@@ -677,6 +678,15 @@ def _unit_model(path: Path) -> bool:
 RUN_OUTPUT_FILES = ("results.json", "report.md", "table.md", "table.csv", "iscv_pairs.csv", "posture_transfer.csv")
 
 
+def is_run_figure(name: str) -> bool:
+    """Whether ``name`` is the file of one of a run's figures (``fig2_prediction.png``, ``methods.pdf``,
+    ``iscv_pairs_moirl_s8.png`` ...)."""
+    import re
+
+    stems = "|".join(re.escape(Path(n).stem) for n in _DRAW_ORDER)
+    return re.fullmatch(rf"(?:{stems}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)", name) is not None
+
+
 def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str] = frozenset()) -> list[Path]:
     """What an earlier run into ``out_dir`` wrote and a run of units ``keys`` will not write again: its tables,
     report and results.json (``iscv_pairs.csv`` and ``posture_transfer.csv`` too), its figures (redrawn; a figure
@@ -686,14 +696,15 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     (``units/``) stay, to be reused. ``reachirl reproduce`` calls it with no keys before its first unit, so that
     an interrupted rerun never leaves an earlier run's results looking finished beside the new run's
     ``run.toml``. Returns what was removed."""
-    import re
+    from .figures import is_marked_figure
 
     out = Path(out_dir)
     removed = [out / n for n in RUN_OUTPUT_FILES if (out / n).is_file()]
-    names = "|".join(Path(n).stem for n in _DRAW_ORDER)
-    figure = re.compile(rf"^(?:{names}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)$")
     if (out / "figures").is_dir():
-        removed += [f for f in (out / "figures").iterdir() if f.is_file() and figure.match(f.name)]
+        removed += [f for f in (out / "figures").iterdir() if f.is_file() and is_run_figure(f.name)]
+    if (out / "run.toml").is_file() or (out / "results.json").is_file():  # an earlier run's folder: the figures
+        # that `plot RUN --out RUN` drew of it beside its results (reachirl's only)
+        removed += [f for f in out.iterdir() if is_run_figure(f.name) and f.is_file() and is_marked_figure(f)]
     if (out / "models").is_dir():
         removed += [f for f in (out / "models").glob("*.json") if f.stem not in keys and _unit_model(f)]
     for f in removed:
