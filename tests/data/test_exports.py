@@ -38,6 +38,36 @@ def test_a_new_export_removes_the_files_an_earlier_one_listed_and_it_does_not_wr
     assert list(pd.read_csv(tmp_path / "index.csv")["file"]) == ["S1_T2"]
 
 
+@pytest.mark.parametrize("then", [["S1/T2", "S2/T1"], ["S1/T2"]])
+def test_an_export_interrupted_after_the_index_went_leaves_nothing_the_next_one_keeps(tmp_path, monkeypatch, then):
+    """An export interrupted after removing the earlier index (evaluate --predictions, SIGTERM) left the earlier
+    export's files and its own, unlisted, and the next export kept them all (120 files of a subject no longer
+    exported). Its pending list names them: the next export removes those it does not write again."""
+    from reachirl.data import exports
+
+    t = np.linspace(0, 1, 5)
+    demo = {"q": np.zeros((5, 2)), "qd": np.zeros((5, 2))}
+    export_trajectories(tmp_path, [TrajectoryExport(i, t, demo) for i in ("S1/T1", "S1/T2", "S1/T3")])
+    (tmp_path / "notes.csv").write_text("mine")
+    real, written = exports.write_mot, []
+
+    def interrupted(path, *args, **kwargs):
+        if written:
+            raise KeyboardInterrupt
+        written.append(path)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(exports, "write_mot", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        export_trajectories(tmp_path, [TrajectoryExport(i, t, demo) for i in ("S3/T1", "S3/T2")])
+    assert not (tmp_path / "index.csv").exists() and (tmp_path / "S3_T1.mot").exists()
+    monkeypatch.setattr(exports, "write_mot", real)
+    export_trajectories(tmp_path, [TrajectoryExport(i, t, demo) for i in then])
+    names = {safe_name(i) for i in then}
+    expect = sorted([*(f"{n}.{e}" for n in names for e in ("csv", "mot")), "index.csv", "notes.csv"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == expect
+
+
 def test_a_failed_prediction_is_listed_and_not_exported(tmp_path):
     # it was exported like the others: only METRICS.json said converged false, the trajectory files could not
     from reachirl.data.exports import is_export

@@ -174,13 +174,16 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     write (a failed prediction's among them) are removed, so that the folder holds what its index says (a user's
     other files stay), and so are the temporaries a killed export left. The earlier ``index.csv``
     goes first and the new one is written last, so an interrupted export leaves a folder without an index, never
-    an index over a mix of two exports. The index and the folder are synced to the disk; the trajectory files,
+    an index over a mix of two exports; it leaves its :data:`PENDING` list instead, of the earlier export's files
+    and those it wrote, which the next export removes where it does not write them again. The index and the folder are synced to the disk; the trajectory files,
     derived and many, are not one by one (:func:`reachirl.io.atomic_path`, ``durable=False``): a crash of the
     system itself (not of reachirl) soon after an export may leave one of them short; exporting again rewrites it.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    earlier = listed_names(out)
+    earlier = listed_names(out) | _pending_names(out)  # with an interrupted export's
+    pending = out / PENDING
+    atomic_write_text(pending, "".join(f"{n}\n" for n in sorted(earlier)), durable=False)  # before the index goes
     (out / "index.csv").unlink(missing_ok=True)
     remove_temporaries(out)  # what the atomic writes of a killed export left
     used: set[str] = set()
@@ -195,6 +198,8 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
             k += 1
             name = f"{base}-{k}"
         used.add(name)
+        with open(pending, "a", encoding="utf-8") as fh:  # an interrupt from here on: the next export removes it
+            fh.write(f"{name}\n")
         # not synced one by one (a millisecond each, over a second for a run's ~1,200): see the docstring
         atomic_write_text(out / f"{name}.csv", trajectory_csv(it.t, it.demo, it.pred), durable=False)
         if mot:
@@ -206,15 +211,32 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     csv.writer(buf, lineterminator="\n").writerows(index)
     atomic_write_text(out / "index.csv", buf.getvalue())
     _remove(out, earlier - used)
+    pending.unlink(missing_ok=True)
     return out / "index.csv"
+
+
+PENDING = ".export-pending"
+"""An export's hidden list, while it writes, of the files the earlier export listed and those it wrote so far:
+an export interrupted after removing the earlier index leaves it, and the next export removes what it names and
+does not write again (as it removes an earlier index's files)."""
+
+
+def _pending_names(out: Path) -> set[str]:
+    """The names an interrupted export's :data:`PENDING` list holds (names this module made, never a path)."""
+    try:
+        lines = (out / PENDING).read_text(encoding="utf-8").split()
+    except (OSError, UnicodeDecodeError):
+        return set()
+    return {n for n in lines if n == safe_name(n) and n != "index"}
 
 
 def remove_export(out_dir: str | Path) -> None:
     """Remove what :func:`export_trajectories` wrote into ``out_dir``: the files its ``index.csv`` lists, the
     index, the temporaries of a killed export, and the folder once empty; a user's other files stay."""
     out = Path(out_dir)
-    _remove(out, listed_names(out))
+    _remove(out, listed_names(out) | _pending_names(out))
     (out / "index.csv").unlink(missing_ok=True)
+    (out / PENDING).unlink(missing_ok=True)
     remove_temporaries(out)
     if not any(out.iterdir()):
         out.rmdir()
