@@ -175,9 +175,10 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     other files stay), and so are the temporaries a killed export left. The earlier ``index.csv``
     goes first and the new one is written last, so an interrupted export leaves a folder without an index, never
     an index over a mix of two exports; it leaves its :data:`PENDING` list instead, of the earlier export's files
-    and those it wrote, which the next export removes where it does not write them again. The index and the folder are synced to the disk; the trajectory files,
-    derived and many, are not one by one (:func:`reachirl.io.atomic_path`, ``durable=False``): a crash of the
-    system itself (not of reachirl) soon after an export may leave one of them short; exporting again rewrites it.
+    and those it wrote, which the next export removes where it does not write them again. The index and the
+    folder are synced to the disk; the trajectory files, derived and many, are not one by one
+    (:func:`reachirl.io.atomic_path`, ``durable=False``): a crash of the system itself (not of reachirl) soon after
+    an export may leave one of them short; exporting again rewrites it.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
