@@ -166,7 +166,7 @@ def check_even_steps(t: np.ndarray, where, unit: str = "frame") -> None:
     their median is a frame missing (a row deleted, the frames numbered again) or a Time column that jitters, which
     the filters and derivatives, made for even sampling, would turn into wrong speeds and torques (a row left out
     at the peak speed gave 62 N·m for 10). Time written with few decimals (3 at 120 Hz: steps of 8 and 9 ms) passes.
-    (Joint angles are resampled at their own times instead: :func:`reachirl.data.preprocess.trial_from_angles`.)
+    (Joint angles are resampled at their own times instead: :func:`reachirl.data.preprocess.angles_to_trial`.)
     The :class:`~reachirl.errors.InputError` names the ``unit`` (frame, sample) after the step."""
     if t.shape[0] < 3:
         return

@@ -93,8 +93,8 @@ def segmentation_cutoff(
 
     A number in ``options.segment_cutoff_hz`` is used as given (when below ``cutoff_hz`` and half the frame rate).
     With the angles unfiltered (``cutoff_hz`` None) it applies all the same, and ``"auto"`` starts from the default
-    cutoff (:class:`PreprocessOptions`'), whose speed it takes where the noise allows: onset and offset are never
-    found on an unfiltered speed unless ``segment_cutoff_hz`` is None. ``"auto"`` measures
+    ``cutoff_hz`` of :class:`PreprocessOptions`, whose speed it takes where the noise allows: onset and offset are
+    never found on an unfiltered speed unless ``segment_cutoff_hz`` is None. ``"auto"`` measures
     the markers' noise and lowers the cutoff only as far as it must: the noise is the RMS of ``points`` above
     ``cutoff_hz`` (what the angles' filter removes, rescaled by the share of white noise it holds); from it
     the filter's response predicts the RMS noise of the speed at each cutoff, and the highest cutoff (in
