@@ -149,7 +149,7 @@ def test_a_bulk_exports_files_are_not_synced_one_by_one_but_its_index_and_folder
     index = (tmp_path / "index.csv").stat().st_ino
     syncs = [e for e in events if e[0] != "replace"]
     assert syncs == [("fsync file", index), ("fsync folder", tmp_path.stat().st_ino)]
-    assert len(events) == 2 + 7  # six trajectory files and the index renamed into place
+    assert len(events) == 2 + 8  # the pending list, six trajectory files and the index renamed into place
 
 
 def test_to_jsonable_gives_json_of_numpy_values_and_null_for_non_finite_numbers(tmp_path):
