@@ -2,11 +2,11 @@
 
 For each built-in virtual population (``--seeds``) and posture, the protocol's fit (10 training reaches of the first
 subject, 8 windows, the default method) with 40 weight samples; the fraction of the 56 true cost shares (the true
-weights on their own noise-free reach, the whole DOC on the weights' windows) inside the 95 % intervals (within 0.005, the shares'
-printed precision), the intervals' mean width, the determined directions and shares, the claim's fraction of
-samples, and the samples' CPU time against the fit's; beside them the same coverage and width of intervals drawn
-from the prior alone (no data), which says how much of the coverage the data earns. One JSON line per fit, then the
-means.
+weights on their own noise-free reach, the whole DOC on the weights' windows) inside the 95 % intervals (within
+0.005, the shares' printed precision), the intervals' mean width, the determined directions and shares, the claim's
+fraction of samples, and the samples' CPU time against the fit's; beside them the same coverage and width of
+intervals drawn from the prior alone (no data), which says how much of the coverage the data earns. One JSON line
+per fit, then the means.
 Run: ``.venv/bin/python benchmarks/coverage.py --seeds 0 1 2 3 4 5 6``.
 
 ``--truths K …`` checks that the intervals are calibrated for costs other than the paper's pattern, which the

@@ -5,8 +5,8 @@ On a built-in virtual subject's five postures (one rollout per posture, the defa
 steps in the free log-weights from the Gauss-Newton model of the merit
 (:func:`reachirl.irl.uncertainty.residuals_and_jacobian`), each try one DOC solve per rollout, accepted when the
 merit falls, steps capped at 1 in log-weights. One JSON line per accepted iteration: the merit, the total variation
-between the fit's cost shares (on its own reaches) and the true weights' (on their own reaches, the whole DOC on the weights' windows),
-and at the end the true weights' own merit. A try whose solve fails counts as a rejected try.
+between the fit's cost shares (on its own reaches) and the true weights' (on their own reaches, the whole DOC on the
+weights' windows), and at the end the true weights' own merit. A try whose solve fails counts as a rejected try.
 Run: ``.venv/bin/python benchmarks/pooled_descent.py --seed 0``.
 """
 

@@ -1,13 +1,14 @@
 """One cost learned from a virtual subject's five postures at once, against each posture's true cost.
 
 Evidence for docs/method.md#uncertainty ("Pooling"). For each built-in virtual population (``--seeds``): MO-IRL with
-8 windows and 40 weight samples on the first subject's training trials of every posture (the protocol's split),
-one rollout per posture unless ``--rollout`` says otherwise. One JSON line per population: the directions the
-pooled data determines, the intervals' mean width pooled and from each posture's demonstrations alone
-(``uncertainty.pooling``), and per posture the coverage of its true shares (on its truth's own reach, the whole
-DOC on the weights' windows) by the pooled intervals and the total variation between the learned and the true shares (mean over
-windows), with the fit's CPU time; and whether the pooled training reaches can tell the truth's cost (the mean true
-weights of all the pooled trials) from the fit's (``truth_versus_fit``: :func:`reachirl.irl.uncertainty.versus_fit`).
+8 windows and 40 weight samples on the first subject's training trials of every posture (the protocol's split), one
+rollout per posture unless ``--rollout`` says otherwise. One JSON line per population: the directions the pooled
+data determines, the intervals' mean width pooled and from each posture's demonstrations alone
+(``uncertainty.pooling``), and per posture the coverage of its true shares (on its truth's own reach, the whole DOC
+on the weights' windows) by the pooled intervals and the total variation between the learned and the true shares
+(mean over windows), with the fit's CPU time; and whether the pooled training reaches can tell the truth's cost (the
+mean true weights of all the pooled trials) from the fit's (``truth_versus_fit``:
+:func:`reachirl.irl.uncertainty.versus_fit`).
 Run: ``.venv/bin/python benchmarks/pooling.py --seeds 0 1``.
 """
 
