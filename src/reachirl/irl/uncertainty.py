@@ -14,7 +14,8 @@ features trade against which, in which windows.
 (:func:`laplace_posterior`), with the merit's Gauss-Newton model ``2 gᵀ(η − η̂) + (η − η̂)ᵀ A (η − η̂)`` as the
 likelihood's exponent (centred on the model's own minimum, not on a fit that stopped short of it) at the scale
 ``τ = δm / 4`` (a move to a direction's 95 % edge raises the merit by ``δm``) and a prior ``N(log ω₀, (log 250)²)``
-per log-weight, centred on equal cost shares and wide enough to exclude no share the report can print
+per log-weight, centred on ``ω₀`` (equal shares of each window's demonstrated cost, on the demonstrations' Φ*) and
+wide enough to exclude no share the report can print
 (:data:`PRIOR_LOG_SD`). In the determined directions the data
 narrows the samples; in the others the prior speaks, and the intervals say so. Each window's cost shares
 ``ω_sj Φ_sj / Σ_j ω_sj Φ_sj`` are computed on the fit's own reach; their 95 % intervals are the 2.5 and 97.5
@@ -84,7 +85,8 @@ paper's own windows are dominated by one feature."""
 METHOD = (
     "laplace-gauss-newton: the posterior of the log-weights under the merit's Gauss-Newton model at the fit, "
     "gradient included (likelihood scale: the merit rise the demonstrations can tell from noise) and a prior "
-    "centred on equal cost shares with a factor-250 standard deviation (no share the report prints ruled out)"
+    "centred on w0 (equal shares of the demonstrated cost) with a factor-250 standard deviation (no share the report "
+    "prints ruled out)"
 )
 
 
