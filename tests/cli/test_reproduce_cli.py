@@ -511,6 +511,19 @@ def test_a_folder_of_the_users_own_is_not_cleared_as_an_earlier_run(trials_file,
     assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [name]
 
 
+@pytest.mark.parametrize("inside", ["units", "models/new", "predictions"])
+def test_a_run_inside_another_runs_own_folders_is_refused(trials_file, reference_run, capsys, inside):
+    """`reproduce --out RUN/units` nested a whole run among another run's checkpoints (plot and sensitivity refuse
+    such an --out)."""
+    out = reference_run / inside
+    before = sorted(p.name for p in (reference_run / inside.split("/")[0]).iterdir())
+    code = main(["reproduce", "--data", str(trials_file), "--out", str(out), "--workers", "1", *ARGS])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert f"--out is inside the run's own {inside.split('/')[0]}/ folder" in err[0], err
+    assert sorted(p.name for p in (reference_run / inside.split("/")[0]).iterdir()) == before
+
+
 def test_a_run_toml_given_as_config_is_not_taken_for_the_users_own_file(trials_file, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()

@@ -645,7 +645,7 @@ def test_marker_glitches_and_swaps_are_input_errors(reach, synth):
     ("marker", "name", "spoil", "where"),
     [
         ("FT", "fingertip", "spike", "frame {mid1}"),  # 40 mm for one frame: 4 m/s, far under the speed limit
-        ("FT", "fingertip", "freeze", r"frame \d+"),  # held for 15 frames mid-reach, then caught up
+        ("FT", "fingertip", "freeze", "frames {held}"),  # held for 15 frames mid-reach, then caught up: those
         ("EL", "elbow", "spike", "frame {mid1}"),  # the elbow is checked as well as the fingertip
         ("EL", "elbow", "block", "frames {mid1}-{mid3}"),  # three frames off and back
         ("EL", "elbow", "far", "frame {mid1}"),  # 400 mm: beyond the speed limit, named alike
@@ -660,7 +660,7 @@ def test_jumps_slower_than_the_speed_limit_are_refused(reach, synth, marker, nam
         spoiled[marker][mid : mid + (3 if spoil == "block" else 1), 0] += 0.4 if spoil == "far" else 0.04
     else:
         spoiled[marker][mid - 15 : mid] = spoiled[marker][mid - 16]
-    frame = where.format(mid1=mid + 1, mid3=mid + 3)
+    frame = where.format(mid1=mid + 1, mid3=mid + 3, held=f"{mid - 14}-{mid}")  # rows mid - 15 … mid - 1
     how = "moves" if spoil == "far" else "jumps"
     with pytest.raises(InputError, match=rf"s\.trc: {frame}: the {name} {how} \d+ mm in one frame \("):
         _trial(synth, spoiled)

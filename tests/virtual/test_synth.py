@@ -381,6 +381,11 @@ def test_an_interrupted_synth_never_leaves_new_recordings_under_the_earlier_trut
         preprocess_folder(out, marker_map="shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP")  # never read as a set
     argv = ["preprocess", str(out), "--markers", "shoulder=SHO,elbow=ELB,wrist=WRI,fingertip=FTP"]
     assert main([*argv, "--out", str(tmp_path / "t.npz")]) == 2 and not (tmp_path / "t.npz").exists()
+    # nor its recordings given one by one (they were read: a mix of two seeds' reaches)
+    argv[1:2] = [str(p) for p in sorted(out.glob("*.trc"))]
+    assert (
+        main([*argv, "--subject", "S01", "--out", str(tmp_path / "t.npz")]) == 2 and not (tmp_path / "t.npz").exists()
+    )
     monkeypatch.undo()
     done = generate(out, SynthConfig(**{**cfg, "seed": 1, "n_trials": 1}))  # a smaller set finishes it
     listed = [r["file"] for r in csv.DictReader(open(out / "manifest.csv"))]

@@ -423,6 +423,10 @@ def _preprocess(args, options, out: Path, make_export) -> int:
         if e.static is not None:
             regular_input(e.static, f"the manifest's 'static' of {e.file.name}")
     _refuse_marker_options_for_angles(args, entries, marker_options)
+    from ..virtual.files import refuse_unfinished
+
+    for folder in dict.fromkeys(Path(e.file).parent for e in entries):  # its recordings given one by one too
+        refuse_unfinished(folder)
     inputs = _refuse_overwrite(args, out, entries)
     _check_npz_name(out)
     check_output_kind(out, ".npz", kind=TRIALS_KIND)

@@ -576,6 +576,18 @@ def _is_run_results(path: Path) -> bool:
 RUN_OUTPUT_FOLDERS = ("figures", "models", "predictions", "units")
 
 
+def _refuse_out_in_another_run(out: Path) -> None:
+    """Before any work: ``out`` is not inside one of the folders (:data:`RUN_OUTPUT_FOLDERS`) of an earlier run
+    above it (a run nested in another's ``units/`` mixes with the checkpoints that run reads back)."""
+    from ._args import refuse_out_in_run_folders
+
+    o = out.resolve()
+    for run in o.parents:
+        if _is_run_toml(run / "run.toml") or _is_run_results(run / "results.json"):
+            refuse_out_in_run_folders(out, run, RUN_OUTPUT_FOLDERS, "this run", "runs")
+            return
+
+
 def _refuse_foreign_run_files(out: Path, config: str | None) -> None:
     """Before any work: the files a run replaces or removes at the top of ``out`` (``run.toml`` and
     :data:`~reachirl.experiments.report.RUN_OUTPUT_FILES`) and in its folders (:data:`RUN_OUTPUT_FOLDERS`) are an
@@ -659,6 +671,7 @@ def run(args) -> int:
     if args.data is None and opts.get("data") is not None:
         args.data = str(opts["data"])
     refuse_overwrite({"--out": out}, [args.data, args.config])
+    _refuse_out_in_another_run(out)
     from ..experiments.runner import UnitWorkers, clean_stale_temporaries
 
     args.workers = args.workers or (os.cpu_count() or 1)

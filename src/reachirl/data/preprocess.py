@@ -513,15 +513,23 @@ def check_glitches(
 
 
 def _excursion(x: np.ndarray, f: int, first_frame: int, reach: int = 10) -> str | None:
-    """The frames a jump of ``x`` at step ``f`` (into row ``f + 1``) took off its path, where a step within
-    ``reach`` frames jumps back (within half its size): ``"frame N"`` or ``"frames N-M"`` (the rows between the two
-    jumps: a spike, or labels swapped for a few frames, which is what to blank); None where none jumps back (a
-    marker frozen and caught up)."""
+    """The frames a jump of ``x`` at step ``f`` (into row ``f + 1``) took off its path, what to blank: where a step
+    within ``reach`` frames jumps back (within half its size), the rows between the two jumps (a spike, or labels
+    swapped for a few frames); where the rows before the jump repeat one value (a marker frozen, then caught up),
+    those rows: ``"frame N"`` or ``"frames N-M"``; None otherwise."""
     jump = x[f + 1] - x[f]
     for g in sorted(range(max(0, f - reach), min(x.shape[0] - 1, f + reach + 1)), key=lambda g: abs(g - f)):
         if g != f and np.linalg.norm(x[g + 1] - x[g] + jump) < 0.5 * np.linalg.norm(jump):
             a, b = first_frame + min(f, g) + 2, first_frame + max(f, g) + 1
             return f"frame {a}" if a == b else f"frames {a}-{b}"
+    held = 0
+    while f - held >= 1 and np.array_equal(x[f - held], x[f - held - 1]):
+        held += 1
+    # rows f - held + 1 … f repeat row f - held: a freeze of a few frames (a longer run is the hand at rest, as
+    # before a last row cut short)
+    if 0 < held <= 2 * reach and f + 2 < x.shape[0]:
+        a, b = first_frame + f - held + 2, first_frame + f + 1
+        return f"frame {a}" if a == b else f"frames {a}-{b}"
     return None
 
 
