@@ -247,11 +247,20 @@ def refuse_foreign_export_files(folder: object, names, option: str, inputs=()) -
     does not list, is the user's own: refused (:class:`InputError` naming it); so is one of ``inputs`` among the
     earlier export's files that this one does not write, which it would remove. Without an index (none yet, or an
     export interrupted after removing it) the files cannot be told apart and are replaced as before."""
-    from ..data.exports import EARLIER_INDEX_COLUMNS, INDEX_COLUMNS, is_export, listed_names
+    from ..data.exports import EARLIER_INDEX_COLUMNS, INDEX_COLUMNS, earlier_names, is_export, listed_names
 
     if folder is None or not Path(folder).is_dir():
         return
     folder = Path(folder)
+    ins = [Path(p) for p in inputs if p is not None and str(p) != ""]
+    for stem in sorted(earlier_names(folder) - {Path(n).stem for n in names}):  # what the export removes
+        for gone in (folder / f"{stem}.csv", folder / f"{stem}.mot"):
+            if any(same_file(gone, inp) for inp in ins):
+                raise InputError(
+                    f"{option}: is an input file, which an earlier export in {folder} listed and this one would "
+                    "remove (choose another folder for the export)",
+                    gone,
+                )
     index = folder / "index.csv"
     if not index.exists():
         return
@@ -263,15 +272,6 @@ def refuse_foreign_export_files(folder: object, names, option: str, inputs=()) -
             index,
         )
     earlier = listed_names(folder)
-    ins = [Path(p) for p in inputs if p is not None and str(p) != ""]
-    for stem in sorted(earlier - {Path(n).stem for n in names}):  # what the export removes
-        for gone in (folder / f"{stem}.csv", folder / f"{stem}.mot"):
-            if any(same_file(gone, inp) for inp in ins):
-                raise InputError(
-                    f"{option}: is an input file, which an earlier export in {folder} listed and this one would "
-                    "remove (choose another folder for the export)",
-                    gone,
-                )
     for n in names:
         if n != "index.csv" and (folder / n).exists() and Path(n).stem not in earlier:
             raise InputError(

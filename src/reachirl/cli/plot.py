@@ -269,17 +269,6 @@ def _figure_files(figs, pdf: bool) -> list[str]:
     return [f"{Path(n).stem}.{ext}" for n in figs for ext in (("png", "pdf") if pdf else ("png",))]
 
 
-def _earlier_run_figures(out: Path, names) -> list[Path]:
-    """The figures of a run's set (``fig2_prediction``, ``methods``, ``iscv_pairs_*`` ..., PNG or PDF) in ``out``
-    that reachirl drew (:func:`~reachirl.experiments.figures.is_marked_figure`) and ``names`` does not hold: an
-    earlier plot's, of another run or with PDFs where this one has none."""
-    from ..experiments.figures import is_marked_figure
-    from ..experiments.report import is_run_figure
-
-    keep = set(names)
-    return [p for p in sorted(out.iterdir()) if p.name not in keep and is_run_figure(p.name) and is_marked_figure(p)]
-
-
 PARTIAL_PREFIX = ".plot-partial-"
 """The folder a run's figures are drawn in before they replace those in --out."""
 
@@ -305,7 +294,9 @@ def _drawn_whole(out: Path, draw, pdf: bool) -> list[Path]:
                 names = _figure_files(draw(tmp), pdf)
                 for n in names:
                     os.replace(tmp / n, out / n)  # each synced to the disk when drawn (atomic_path)
-                for earlier in _earlier_run_figures(out, names):  # an earlier set's not drawn now: no mix of runs
+                from ..experiments.report import marked_run_figures
+
+                for earlier in marked_run_figures(out, names):  # an earlier set's not drawn now: no mix of runs
                     earlier.unlink(missing_ok=True)
                 sync_folder(out)  # and the renames
             finally:

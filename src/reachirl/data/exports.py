@@ -37,6 +37,7 @@ __all__ = [
     "CSV_COLUMNS",
     "MOT_COLUMNS",
     "TrajectoryExport",
+    "earlier_names",
     "export_trajectories",
     "listed_names",
     "opensim_coordinates",
@@ -182,7 +183,7 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    earlier = listed_names(out) | _pending_names(out)  # with an interrupted export's
+    earlier = earlier_names(out)
     pending = out / PENDING
     atomic_write_text(pending, "".join(f"{n}\n" for n in sorted(earlier)), durable=False)  # before the index goes
     (out / "index.csv").unlink(missing_ok=True)
@@ -222,6 +223,12 @@ an export interrupted after removing the earlier index leaves it, and the next e
 does not write again (as it removes an earlier index's files)."""
 
 
+def earlier_names(out: str | Path) -> set[str]:
+    """The files (no suffix) an earlier export in ``out`` wrote: those its ``index.csv`` lists, and those an
+    interrupted export's :data:`PENDING` list names; what a new export removes where it does not write them."""
+    return listed_names(out) | _pending_names(Path(out))
+
+
 def _pending_names(out: Path) -> set[str]:
     """The names an interrupted export's :data:`PENDING` list holds (names this module made, never a path)."""
     try:
@@ -235,7 +242,7 @@ def remove_export(out_dir: str | Path) -> None:
     """Remove what :func:`export_trajectories` wrote into ``out_dir``: the files its ``index.csv`` lists, the
     index, the temporaries of a killed export, and the folder once empty; a user's other files stay."""
     out = Path(out_dir)
-    _remove(out, listed_names(out) | _pending_names(out))
+    _remove(out, earlier_names(out))
     (out / "index.csv").unlink(missing_ok=True)
     (out / PENDING).unlink(missing_ok=True)
     remove_temporaries(out)

@@ -139,7 +139,7 @@ class MarkerData:
         if n >= 2 and (not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0)):
             k = int(np.flatnonzero(~(np.diff(t) > 0))[0]) + 1 if np.any(~(np.diff(t) > 0)) else 0
             raise InputError("time is not strictly increasing", where, f"frame {k + 1}")
-        check_even_steps(t, where, "frame")
+        _check_even_steps(t, where)
         t = t.copy()
         t.setflags(write=False)
         object.__setattr__(self, "t", t)
@@ -161,13 +161,13 @@ MAX_MARKER_COORDINATE = 1000.0  # m: no motion-capture volume is larger
 UNEVEN_STEP = 0.25  # a time step this far from the recording's median one (as a fraction) is not a sampling of it
 
 
-def check_even_steps(t: np.ndarray, where, unit: str = "frame") -> None:
+def _check_even_steps(t: np.ndarray, where) -> None:
     """Refuse marker times ``t`` (increasing) whose steps are not even: one more than :data:`UNEVEN_STEP` away from
     their median is a frame missing (a row deleted, the frames numbered again) or a Time column that jitters, which
     the filters and derivatives, made for even sampling, would turn into wrong speeds and torques (a row left out
     at the peak speed gave 62 N·m for 10). Time written with few decimals (3 at 120 Hz: steps of 8 and 9 ms) passes.
     (Joint angles are resampled at their own times instead: :func:`reachirl.data.preprocess.angles_to_trial`.)
-    The :class:`~reachirl.errors.InputError` names the ``unit`` (frame, sample) after the step."""
+    The :class:`~reachirl.errors.InputError` names the frame after the step."""
     if t.shape[0] < 3:
         return
     steps = np.diff(t)
@@ -178,10 +178,10 @@ def check_even_steps(t: np.ndarray, where, unit: str = "frame") -> None:
         ratio = steps[k] / step
         why = "frames missing" if ratio > 1.5 and abs(ratio - round(ratio)) <= UNEVEN_STEP else "an uneven Time column"
         raise InputError(
-            f"the time steps {steps[k]:.4g} s from {unit} {k + 1} to {k + 2}, where the recording's steps are "
+            f"the time steps {steps[k]:.4g} s from frame {k + 1} to {k + 2}, where the recording's steps are "
             f"{step:.4g} s ({why}?): the filters need even sampling",
             where,
-            f"{unit} {k + 2}",
+            f"frame {k + 2}",
         )
 
 

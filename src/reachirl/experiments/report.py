@@ -45,6 +45,7 @@ __all__ = [
     "UnitOutputs",
     "figure_jobs",
     "is_run_figure",
+    "marked_run_figures",
     "prediction_note",
     "weights_caption",
     "write_figures",
@@ -687,6 +688,20 @@ def is_run_figure(name: str) -> bool:
     return re.fullmatch(rf"(?:{stems}|iscv_pairs_.+|iscv_vs_cv_.+)\.(?:png|pdf)", name) is not None
 
 
+def marked_run_figures(folder: Path, keep=()) -> list[Path]:
+    """The files of a run's figures (:func:`is_run_figure`) in ``folder`` that reachirl drew
+    (:func:`~reachirl.experiments.figures.is_marked_figure`; never a file of the user's own), but those named in
+    ``keep``."""
+    from .figures import is_marked_figure
+
+    keep = set(keep)
+    return [
+        f
+        for f in sorted(Path(folder).iterdir())
+        if f.name not in keep and is_run_figure(f.name) and is_marked_figure(f)
+    ]
+
+
 def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str] = frozenset()) -> list[Path]:
     """What an earlier run into ``out_dir`` wrote and a run of units ``keys`` will not write again: its tables,
     report and results.json (``iscv_pairs.csv`` and ``posture_transfer.csv`` too), its figures (redrawn; a figure
@@ -696,15 +711,13 @@ def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str]
     (``units/``) stay, to be reused. ``reachirl reproduce`` calls it with no keys before its first unit, so that
     an interrupted rerun never leaves an earlier run's results looking finished beside the new run's
     ``run.toml``. Returns what was removed."""
-    from .figures import is_marked_figure
-
     out = Path(out_dir)
     removed = [out / n for n in RUN_OUTPUT_FILES if (out / n).is_file()]
     if (out / "figures").is_dir():
         removed += [f for f in (out / "figures").iterdir() if f.is_file() and is_run_figure(f.name)]
     if (out / "run.toml").is_file() or (out / "results.json").is_file():  # an earlier run's folder: the figures
         # that `plot RUN --out RUN` drew of it beside its results (reachirl's only)
-        removed += [f for f in out.iterdir() if is_run_figure(f.name) and f.is_file() and is_marked_figure(f)]
+        removed += marked_run_figures(out)
     if (out / "models").is_dir():
         removed += [f for f in (out / "models").glob("*.json") if f.stem not in keys and _unit_model(f)]
     for f in removed:
