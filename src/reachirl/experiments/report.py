@@ -692,14 +692,13 @@ def marked_run_figures(folder: Path, keep=()) -> list[Path]:
     """The files of a run's figures (:func:`is_run_figure`) in ``folder`` that reachirl drew
     (:func:`~reachirl.experiments.figures.is_marked_figure`; never a file of the user's own), but those named in
     ``keep``."""
+    keep = set(keep)
+    named = [f for f in sorted(Path(folder).iterdir()) if f.name not in keep and is_run_figure(f.name)]
+    if not named:  # nothing to read: matplotlib (the figures module's) is not imported
+        return []
     from .figures import is_marked_figure
 
-    keep = set(keep)
-    return [
-        f
-        for f in sorted(Path(folder).iterdir())
-        if f.name not in keep and is_run_figure(f.name) and is_marked_figure(f)
-    ]
+    return [f for f in named if is_marked_figure(f)]
 
 
 def remove_previous_outputs(out_dir: str | Path, keys: frozenset[str] | set[str] = frozenset()) -> list[Path]:
