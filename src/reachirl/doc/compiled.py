@@ -62,6 +62,7 @@ __all__ = [
     "compile_or_wait",
     "compile_solver",
     "compiled_function",
+    "compiled_library",
     "load",
     "mode",
     "on_setting",
@@ -89,6 +90,9 @@ JIT_FLAGS = ("-O1", *SAME_BITS)
 # the small functions of compiled_function: Newton's step function at N = 100 ran in 125 µs at -O3 against 155 µs at
 # -O2, with the same bits
 FUNCTION_FLAGS = ("-O3", *SAME_BITS)
+# the C files of compiled_library, whose operations are a BLAS's: fused multiply-adds where the processor has them
+# (the source's target_clones pick them at load time), as OpenBLAS's kernels fuse them (the same bits as LAPACK's)
+LIBRARY_FLAGS = ("-O3", "-ffp-contract=fast")
 POLL_EVERY = 50  # past its threshold, a slot looks for the background compilation's file every this many solves
 STALE_LOCK_S = 900.0  # a compilation lock older than this is abandoned (its process died)
 STALE_TMP_S = 86400.0  # an empty temporary file of a load older than this was left by a process that died
@@ -434,9 +438,6 @@ def compiled_function(f):
     loaded with ``casadi.external``; None when :func:`mode` is ``off`` or there is no working C compiler (the
     caller then evaluates ``f`` in CasADi's virtual machine). Compiling takes a fraction of a second, in a
     temporary folder (never the working directory); the library is moved into the cache atomically."""
-    import shutil
-    import tempfile
-
     import casadi as ca
 
     if mode() == "off":
@@ -446,28 +447,63 @@ def compiled_function(f):
     h.update(f.serialize().encode())
     h.update(" ".join(FUNCTION_FLAGS).encode())
     path = _folder() / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
+
+    def generate(folder: Path) -> Path:
+        gen = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
+        gen.add(f)
+        gen.generate(os.path.join(str(folder), ""))
+        return folder / f"{f.name()}.c"
+
     try:
-        if not path.is_file():
-            cc = shutil.which("gcc") or shutil.which("cc")
-            if cc is None:
-                return None
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory() as tmp:
-                gen = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
-                gen.add(f)
-                gen.generate(os.path.join(tmp, ""))
-                lib = Path(tmp) / "lib.so"
-                subprocess.run(
-                    [cc, *FUNCTION_FLAGS, "-shared", "-fPIC", "-o", str(lib), str(Path(tmp) / f"{f.name()}.c")],
-                    check=True,
-                    capture_output=True,
-                    timeout=120,
-                )
-                with atomic_path(path) as out:
-                    shutil.copyfile(lib, out)
-            prune()
+        if not _library(path, generate, FUNCTION_FLAGS):
+            return None
         loaded = ca.external(f.name(), str(path))
         _used(path)
         return loaded
     except (OSError, subprocess.SubprocessError, RuntimeError):
         return None
+
+
+def compiled_library(source: Path) -> Path | None:
+    """The C file ``source`` (plain C, no Python) compiled to a shared library with :data:`LIBRARY_FLAGS` and cached
+    (``<cache>/casadi-<version>/fn-<stem>-<hash>.so``, the hash covering the source and the flags), for ``ctypes``;
+    None when :func:`mode` is ``off`` or it cannot be compiled."""
+    if mode() == "off":
+        return None
+    source = Path(source)
+    h = hashlib.sha256()
+    h.update(source.read_bytes())
+    h.update(" ".join(LIBRARY_FLAGS).encode())
+    path = _folder() / f"fn-{source.stem}-{h.hexdigest()[:24]}.so"
+    try:
+        if not _library(path, lambda folder: source, LIBRARY_FLAGS):
+            return None
+        _used(path)
+        return path
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def _library(path: Path, source: Callable[[Path], Path], flags: tuple[str, ...]) -> bool:
+    """Whether the shared library ``path`` is in the cache, compiled first if it is not: from the C file
+    ``source(folder)`` (written into the temporary ``folder`` where it is generated), moved in atomically. False
+    without a C compiler."""
+    import shutil
+    import tempfile
+
+    if path.is_file():
+        return True
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if cc is None:
+        return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        c_file = source(Path(tmp))
+        lib = Path(tmp) / "lib.so"
+        subprocess.run(
+            [cc, *flags, "-shared", "-fPIC", "-o", str(lib), str(c_file)], check=True, capture_output=True, timeout=120
+        )
+        with atomic_path(path) as out:
+            shutil.copyfile(lib, out)
+    prune()
+    return True

@@ -16,9 +16,9 @@ as an interior point does (fatrop's and IPOPT's method, on the same problem):
 Each Newton step of the primal-dual equations is condensed stage by stage: the slacks and duals of stage ``k``
 depend on its own power only, so they add ``D_k ∇e_k ∇e_kᵀ`` (``D_k`` from ``z±/s±``) to the stage's 8 × 8
 Hessian, and the bounds add ``Aᵀ diag(z_b/s_b) A`` on neighbouring knots. The system is the knots' banded one
-(half-bandwidth 7, with the bar's multiplier last), solved by one banded LU (LAPACK's ``dgbsv``). That system
-and its residual are one CasADi function (:func:`_kkt_function`), and the stages' derivatives (the Lagrangian
-``f + Σ y_k e_k``, by :mod:`reachirl.doc.newton`'s stage function) with the barrier function below another
+(half-bandwidth 7, with the bar's multiplier last), solved by one banded LU (LAPACK's ``dgbsv``, :mod:`.banded`).
+That system and its residual are one CasADi function (:func:`_kkt_function`), and the stages' derivatives (the
+Lagrangian ``f + Σ y_k e_k``, by :mod:`reachirl.doc.newton`'s stage function) with the barrier function below another
 (:func:`_barrier_function`), both compiled to C when :mod:`reachirl.doc.compiled` can: Python does little more
 per step than call them, the factorisations and the line search.
 
@@ -45,10 +45,10 @@ from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy.linalg.lapack import dgbsv as _gbsv
 from scipy.linalg.lapack import dpbtrf as _pbtrf
 
 from ..features import N_FEATURES
+from . import banded
 from .newton import (
     _ROWS,
     NewtonResult,
@@ -479,7 +479,8 @@ def _step(reach: _Reach, x: _Iterate, system: _System, last: float):
     if delta is None:
         return None
     ab[2 * _BW, :m] += delta
-    _, _, step, info = _gbsv(_BW, _BW, ab, system.rhs, overwrite_ab=True)
+    step = np.array(system.rhs, dtype=float)
+    info = banded.solve(_BW, _BW, np.asfortranarray(ab), step)
     if info != 0 or not np.all(np.isfinite(step)):
         return None
     dpath = np.zeros(2 * (n + 3))

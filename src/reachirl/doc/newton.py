@@ -18,8 +18,8 @@ released on the side its multiplier points to.
 
 The KKT system is banded: with one multiplier per knot (zero and decoupled where the knot is not a kink) and
 the unknowns ordered knot by knot, ``(q_k, λ_k)``, its half-bandwidth is 10, and one step is one banded LU
-(LAPACK's ``dgbsv``) of about ``3N`` unknowns. The rest of a step (the stages' derivatives, the active set's
-update, the residual and the banded matrix in LAPACK's storage) is one call of a CasADi function
+(LAPACK's ``dgbsv``, :mod:`.banded`) of about ``3N`` unknowns. The rest of a step (the stages' derivatives, the
+active set's update, the residual and the banded matrix in LAPACK's storage) is one call of a CasADi function
 (:func:`_step_function`, compiled to C when :mod:`.compiled` can), through CasADi's buffers, so that Python
 does little more per step than call it and the LU.
 
@@ -41,11 +41,10 @@ from typing import NamedTuple
 import casadi as ca
 import numpy as np
 from scipy import sparse
-from scipy.linalg.lapack import dgbsv as _gbsv
 from scipy.linalg.lapack import dpbtrf as _pbtrf
 
 from ..features import N_FEATURES, window_index
-from . import compiled
+from . import banded, compiled
 from .symbolic import ARM_FIELDS, fingertip_jacobian, inverse_dynamics, mass_matrix
 from .task import ReachingTask, fingertip_x
 
@@ -442,9 +441,8 @@ def newton_solve(
         if it == max_iter:
             return None
         # the banded LU (``_BW`` rows of fill-in on top of the band, in place)
-        _, _, step, info = _gbsv(
-            _BW, _BW, lu_out.reshape(3 * _BW + 1, size, order="F"), -r, overwrite_ab=True, overwrite_b=False
-        )
+        step = -r
+        info = banded.solve(_BW, _BW, lu_out.reshape(3 * _BW + 1, size, order="F"), step)
         size_of = np.abs(step)
         if info != 0 or not math.isfinite(size_of.max()):  # the largest entry is NaN or infinite if any is
             return None
