@@ -378,3 +378,30 @@ def test_entries_unused_for_months_are_removed_when_a_new_one_is_written(cache):
     ), left
     assert sorted(p.name for p in (here / "paths").iterdir()) == ["b.txt"]
     assert compiled.prune() == []  # nothing more to remove; the new library and the used solver are recent
+
+
+def test_a_c_file_is_compiled_once_and_none_where_it_cannot_be(cache, monkeypatch, tmp_path):
+    """compiled_library: a C file compiled into the cache once (the next call finds it), under a key of its source
+    and flags; None when off, without a compiler, or for a file that does not compile (never an error)."""
+    import ctypes
+
+    src = tmp_path / "reachirl_test_add.c"
+    src.write_text("double reachirl_test_add(double a, double b) { return a + b; }\n")
+    with compiled.setting("on"):
+        path = compiled.compiled_library(src)
+        assert path is not None and path.parent == cache / f"casadi-{ca.__version__}"
+        made = path.stat().st_ino  # a library written again (atomically) would be another file
+        assert compiled.compiled_library(src) == path and path.stat().st_ino == made
+        add = ctypes.CDLL(str(path)).reachirl_test_add
+        add.argtypes, add.restype = [ctypes.c_double, ctypes.c_double], ctypes.c_double
+        assert add(0.25, 2.0) == 2.25
+        src.write_text("double reachirl_test_add(double a, double b) { return a - b; }\n")
+        assert compiled.compiled_library(src) not in (None, path)  # another source, another library
+        bad = tmp_path / "reachirl_test_bad.c"
+        bad.write_text("this is not C\n")
+        assert compiled.compiled_library(bad) is None
+        monkeypatch.setenv("PATH", "")  # no gcc to be found
+        src.write_text("double reachirl_test_add(double a, double b) { return a * b; }\n")
+        assert compiled.compiled_library(src) is None
+    with compiled.setting("off"):
+        assert compiled.compiled_library(tmp_path / "reachirl_test_add.c") is None

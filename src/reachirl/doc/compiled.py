@@ -27,8 +27,10 @@ The cache holds CasADi's own serialisation of the solver (no pickle) beside the 
 options, so a change of formulation or options never loads a stale solver. That hash needs the NLP's symbolic
 graph; a note in ``paths/`` remembers it under a hash of the code that builds the NLP (:func:`remembered_path`), so
 that a process whose solvers are cached never builds the graph; the uncertainty's KKT functions are likewise
-saved once, under such a hash, in ``fn-<hash>/`` (:func:`cached_functions`). A file that does not load is ignored
-(the virtual machine solves instead, or the functions are built), and so is a missing compiler.
+saved once, under such a hash, in ``fn-<hash>/`` (:func:`cached_functions`); small functions and C files are
+compiled into libraries beside them (``fn-<name>-<hash>.so``: :func:`compiled_function`, :func:`compiled_library`).
+A file that does not load is ignored (the virtual machine solves instead, or the functions are built), and so is a
+missing compiler.
 
 Each version of that code keeps its own entries (about 20 MB a solver). Loading an entry marks it used (its
 modification time); whenever a process writes a new one, the entries of every CasADi version's folder that no
