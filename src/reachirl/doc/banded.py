@@ -69,4 +69,7 @@ def solve(kl: int, ku: int, ab: np.ndarray, b: np.ndarray) -> int:
         if x is not b:
             b[:] = x
         return int(info)
-    return int(f(n, kl, ku, ab.ctypes.data, b.ctypes.data))
+    info = int(f(n, kl, ku, ab.ctypes.data, b.ctypes.data))
+    if info < 0:
+        raise MemoryError(f"no memory for the pivots of a banded LU of {n} unknowns")
+    return info

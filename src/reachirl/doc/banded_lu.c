@@ -5,6 +5,7 @@
  * The operations are LAPACK's, in LAPACK's order, so that with the same fused multiply-adds as the BLAS it gives
  * the same bits (target_clones: fused where the processor has them, as OpenBLAS's kernels are). */
 #include <math.h>
+#include <stdlib.h>
 
 #define AB(i, j) ab[(i) + (long)(j) * ldab] /* row i, column j of the band storage, 0-based */
 
@@ -14,7 +15,8 @@ __attribute__((target_clones("fma", "default")))
 int reachirl_band_solve(int n, int kl, int ku, double *ab, double *b) {
     const int ldab = 2 * kl + ku + 1, kv = ku + kl;
     int info = 0, ju = 0;
-    int pivot[n > 0 ? n : 1];
+    int *pivot = malloc(sizeof(int) * (size_t)(n > 0 ? n : 1));
+    if (pivot == NULL) return -1; /* out of memory: no LAPACK info is negative but an argument's */
     /* the fill-in of the first columns starts at zero */
     for (int j = ku + 1; j < (kv < n ? kv : n); ++j)
         for (int i = kv - j + 1; i < kl; ++i) AB(i, j) = 0.0;
@@ -52,7 +54,10 @@ int reachirl_band_solve(int n, int kl, int ku, double *ab, double *b) {
             }
         }
     }
-    if (info != 0) return info;
+    if (info != 0) {
+        free(pivot);
+        return info;
+    }
     for (int j = 0; j < n - 1; ++j) { /* L: the row interchanges and the unit lower triangle */
         const int lm = kl < n - 1 - j ? kl : n - 1 - j, l = pivot[j];
         if (l != j) {
@@ -71,5 +76,6 @@ int reachirl_band_solve(int n, int kl, int ku, double *ab, double *b) {
         const int lo = j - kv < 0 ? 0 : j - kv;
         for (int i = j - 1; i >= lo; --i) b[i] -= t * AB(kv - (j - i), j);
     }
+    free(pivot);
     return 0;
 }
