@@ -1,5 +1,6 @@
 """Predictions as ``reproduce`` makes them: exact Newton on the knots from the fit's own reach moved to each trial
-(:mod:`reachirl.doc.newton`, the default), against fatrop from the same start (the path before it), in one run.
+(:mod:`reachirl.doc.newton`, the default), against fatrop from the same start (the path before it), in one run;
+and Newton's banded LU compiled (:mod:`reachirl.doc.banded`, the default) against LAPACK's ``dgbsv``.
 
 On the built-in virtual subjects, each posture's protocol fit (MO-IRL, training split of
 :func:`reachirl.experiments.protocol.split_trials`) predicts every trial of that posture (every ``stride``-th)
@@ -9,6 +10,8 @@ and their ratio, how often Newton answered and how often it gave way to fatrop, 
 prediction's convergence, and the largest joint-angle difference between the two answers (degrees). Where they
 differ, which one is the optimum: Newton is run again from fatrop's own answer (not timed), and both answers are
 compared with that point (``max_from_optimum_deg``): fatrop stops at its tolerance, Newton at the optimum.
+The default path with LAPACK's LU instead is timed likewise, interleaved (``ratio_lu_cpu_median``), and
+``lu_same_answers`` counts its predictions that are the default's bit for bit.
 """
 
 from __future__ import annotations
@@ -19,8 +22,8 @@ import numpy as np
 
 
 def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int = 1, seed: int = 0) -> dict:
+    from reachirl.doc import banded, solve_doc
     from reachirl.doc import newton as local
-    from reachirl.doc import solve_doc
     from reachirl.doc.observation import observed_solution, observed_task
     from reachirl.doc.task import moved_path
     from reachirl.experiments import datasets
@@ -45,7 +48,13 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int 
                 sol = solve_doc(task, w, guess=guess, newton=newton)
                 seen = observed_solution(sol, task, threshold)
                 out[newton] = (time.process_time() - t0, sol, seen)
+            with banded.lapack_only():
+                t0 = time.process_time()
+                sol = solve_doc(task, w, guess=guess, newton=True)
+                seen = observed_solution(sol, task, threshold)
+                out["lapack"] = (time.process_time() - t0, sol, seen)
             (t_new, s_new, v_new), (t_old, s_old, v_old) = out[True], out[False]
+            v_lu = out["lapack"][2]
             exact = local.newton_solve(task, w / np.max(w), s_old.q)
             if exact is not None:
                 v_exact = observed_solution(solve_doc(task, w, guess=exact.q, newton=True), task, threshold)
@@ -56,6 +65,8 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int 
                 {
                     "cpu_newton": t_new,
                     "cpu_fatrop": t_old,
+                    "cpu_lapack_lu": out["lapack"][0],
+                    "lu_same": bool(np.array_equal(v_new.q, v_lu.q) and v_new.cost == v_lu.cost),
                     "answered": s_new.status.startswith("newton"),
                     "iterations": s_new.iterations,
                     "converged": (s_new.converged, s_old.converged),
@@ -65,6 +76,7 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int 
             )
     t_new = np.array([r["cpu_newton"] for r in rows]) * 1e3
     t_old = np.array([r["cpu_fatrop"] for r in rows]) * 1e3
+    t_lapack = np.array([r["cpu_lapack_lu"] for r in rows]) * 1e3
     answered = [r for r in rows if r["answered"]]
 
     def stats(t):
@@ -78,6 +90,10 @@ def run(postures=("P1", "P2", "P3", "P4", "P5"), sections: int = 8, stride: int 
         "cpu_ms_fatrop": stats(t_old),
         "ratio_cpu_median": float(np.median(t_new) / np.median(t_old)),
         "ratio_cpu_total": float(t_new.sum() / t_old.sum()),
+        "compiled_lu": banded.native(),
+        "cpu_ms_lapack_lu": stats(t_lapack),
+        "ratio_lu_cpu_median": float(np.median(t_new) / np.median(t_lapack)),
+        "lu_same_answers": int(sum(r["lu_same"] for r in rows)),
         "newton_answered": len(answered),
         "newton_gave_way": len(rows) - len(answered),
         "newton_iterations_median": float(np.median([r["iterations"] for r in answered])) if answered else None,

@@ -112,3 +112,17 @@ def test_storage_that_does_not_fit_is_refused():
         banded.solve(2, 2, np.zeros((7, 10)), np.zeros(10))
     with pytest.raises(ValueError, match="must be Fortran-ordered float64"):
         banded.solve(2, 2, ab, np.zeros(10, dtype=np.float32))
+
+
+def test_lapack_only_switches_to_lapack_within_its_block(native):
+    """What `reachirl bench predict` times against the compiled loop: LAPACK's dgbsv, and back after the block."""
+    with banded.lapack_only():
+        assert not banded.native()
+        rng = np.random.default_rng(5)
+        a = _random_banded(rng, 30, 3, 3)
+        x = rng.normal(size=30)
+        ab = _band(a, 3, 3)
+        x_ref, _ = _lapack(ab, x, 3, 3)
+        assert banded.solve(3, 3, ab, x) == 0
+        assert np.array_equal(x, x_ref)
+    assert banded.native()

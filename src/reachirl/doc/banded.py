@@ -11,6 +11,7 @@ SciPy's ``dgbsv`` solves.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import threading
@@ -21,16 +22,29 @@ from scipy.linalg.lapack import dgbsv
 
 from . import compiled
 
-__all__ = ["SOURCE", "native", "solve"]
+__all__ = ["SOURCE", "lapack_only", "native", "solve"]
 
 SOURCE = Path(__file__).with_name("banded_lu.c")
 
 _lock = threading.Lock()
+_lapack_only = False  # lapack_only()'s switch
 
 
 def _library():
     """The compiled solve (a ``ctypes`` function), or None where it is not to be used or cannot be made."""
-    return None if compiled.mode() == "off" else _loaded()
+    return None if _lapack_only or compiled.mode() == "off" else _loaded()
+
+
+@contextlib.contextmanager
+def lapack_only():
+    """Within the block, SciPy's ``dgbsv`` solves even where the compiled loop is available (``reachirl bench
+    predict`` times the two in one run)."""
+    global _lapack_only
+    before, _lapack_only = _lapack_only, True
+    try:
+        yield
+    finally:
+        _lapack_only = before
 
 
 @functools.lru_cache(maxsize=1)
