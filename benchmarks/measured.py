@@ -123,6 +123,12 @@ def bench_numbers(bench: dict) -> dict:
             "newton_from_optimum_deg": float(f"{pr['max_from_optimum_deg']['newton']:.2g}"),
             "fatrop_from_optimum_deg": round(pr["max_from_optimum_deg"]["fatrop"], 4),
         }
+        if pr.get("compiled_lu"):  # Newton's compiled banded LU against LAPACK's, in the same run
+            out["predict"] |= {
+                "lapack_lu_cpu_ms_median": round(pr["cpu_ms_lapack_lu"]["median"], 2),
+                "ratio_lu_cpu_median": round(pr["ratio_lu_cpu_median"], 2),
+                "lu_same_answers": pr["lu_same_answers"],
+            }
     ck = bench.get("checks")
     if ck:
         cost = ck["cost_vs_fatrop"]
@@ -258,7 +264,14 @@ def render(snap: dict) -> str:
             f"answered {pr['newton_answered']}/{pr['n_predictions']} ({pr['iterations_median']:g} steps median), "
             f"every prediction converged; the two answers differ by at most {pr['max_diff_deg']}°, fatrop's "
             f"tolerance: from the optimum (Newton rerun from fatrop's answer) fatrop lies up to "
-            f"{pr['fatrop_from_optimum_deg']}° away, Newton {pr['newton_from_optimum_deg']}°.",
+            f"{pr['fatrop_from_optimum_deg']}° away, Newton {pr['newton_from_optimum_deg']}°."
+            + (
+                f" With LAPACK's `dgbsv` for Newton's banded LU instead of its compiled twin (`reachirl.doc.banded`), "
+                f"interleaved: {pr['lapack_lu_cpu_ms_median']} ms (compiled / LAPACK {pr['ratio_lu_cpu_median']:.2f}); "
+                f"{pr['lu_same_answers']} of the {pr['n_predictions']} predictions the same to the last bit."
+                if "ratio_lu_cpu_median" in pr
+                else ""
+            ),
             "",
         ]
     ck = (snap.get("bench") or {}).get("checks")
