@@ -126,3 +126,17 @@ def test_lapack_only_switches_to_lapack_within_its_block(native):
         assert banded.solve(3, 3, ab, x) == 0
         assert np.array_equal(x, x_ref)
     assert banded.native()
+
+
+def test_a_workers_preload_compiles_the_banded_lu(tmp_path, monkeypatch):
+    """A unit worker readies the LU with Newton's functions, before its first unit (not in its first solve)."""
+    monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path))
+    banded._loaded.cache_clear()
+    try:
+        with compiled.setting("on"):
+            assert not list(tmp_path.rglob("fn-banded_lu-*.so"))
+            newton.preload(12)
+            assert len(list(tmp_path.rglob("fn-banded_lu-*.so"))) == 1
+            assert banded._loaded.cache_info().currsize == 1  # loaded in this process
+    finally:
+        banded._loaded.cache_clear()

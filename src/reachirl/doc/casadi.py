@@ -360,8 +360,8 @@ compiled.on_setting(build_nlp.cache_clear)  # each NLP holds its solvers: a chan
 
 def preload(n: int) -> None:
     """Load (or build) in this process what a solve on ``n`` knots uses: the cold and warm fatrop solvers (the
-    compiled ones when cached) and the functions of Newton's and the interior point's steps. A worker does it
-    before its first unit, while its coordinator is still starting."""
+    compiled ones when cached) and the functions of Newton's and the interior point's steps (the banded LU's
+    library among them). A worker does it before its first unit, while its coordinator is still starting."""
     nlp = build_nlp(n)
     for kind in _FATROP_SLOT:
         nlp.fatrop(kind)

@@ -396,9 +396,10 @@ def _workspace(build, n: int):
 
 def preload(n: int) -> None:
     """Build (or load, compiled) this thread's functions of ``n`` intervals: Newton's step and its check of the
-    minimum."""
+    minimum; and the compiled banded LU (:mod:`.banded`)."""
     for build in (_step_function, _minimum_band):
         _workspace(build, n)
+    banded.native()
 
 
 def newton_solve(
