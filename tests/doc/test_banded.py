@@ -140,3 +140,18 @@ def test_a_workers_preload_compiles_the_banded_lu(tmp_path, monkeypatch):
             assert banded._loaded.cache_info().currsize == 1  # loaded in this process
     finally:
         banded._loaded.cache_clear()
+
+
+def test_a_damaged_library_in_the_cache_is_compiled_again(tmp_path, monkeypatch):
+    """A cached library that does not load (a truncated copy, another file under its name) is replaced, once, by
+    a new compilation: the compiled loop is used, not LAPACK's for ever after."""
+    monkeypatch.setenv("REACHIRL_CACHE", str(tmp_path))
+    banded._loaded.cache_clear()
+    try:
+        with compiled.setting("on"):
+            path = compiled.compiled_library(banded.SOURCE)  # compiled, not loaded by this process
+            path.write_bytes(b"not a shared library")
+            assert banded.native()
+            assert path.read_bytes() != b"not a shared library"
+    finally:
+        banded._loaded.cache_clear()
