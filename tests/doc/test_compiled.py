@@ -405,3 +405,18 @@ def test_a_c_file_is_compiled_once_and_none_where_it_cannot_be(cache, monkeypatc
         assert compiled.compiled_library(src) is None
     with compiled.setting("off"):
         assert compiled.compiled_library(tmp_path / "reachirl_test_add.c") is None
+
+
+def test_a_damaged_small_function_library_is_compiled_again(cache):
+    """A cached library of compiled_function that does not load (another file under its name) is replaced, once,
+    by a new compilation, which gives the virtual machine's bits: Newton's step is not left on the VM for ever."""
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("reachirl_test_damaged", [x], [ca.sin(x) * ca.exp(x[1])])
+    with compiled.setting("on"):
+        path = compiled.function_path(f)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"not a shared library")
+        fc = compiled.compiled_function(f)
+    assert fc is not None and path.read_bytes() != b"not a shared library"
+    arg = np.array([0.4, -0.7])
+    assert np.array_equal(np.asarray(fc(arg)), np.asarray(f(arg)))

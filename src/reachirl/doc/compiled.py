@@ -29,8 +29,8 @@ graph; a note in ``paths/`` remembers it under a hash of the code that builds th
 that a process whose solvers are cached never builds the graph; the uncertainty's KKT functions are likewise
 saved once, under such a hash, in ``fn-<hash>/`` (:func:`cached_functions`); small functions and C files are
 compiled into libraries beside them (``fn-<name>-<hash>.so``: :func:`compiled_function`, :func:`compiled_library`).
-A file that does not load is ignored (the virtual machine solves instead, or the functions are built), and so is a
-missing compiler.
+A file that does not load is ignored (the virtual machine solves instead, or the functions are built; a small
+library is compiled again, once), and so is a missing compiler.
 
 Each version of that code keeps its own entries (about 20 MB a solver). Loading an entry marks it used (its
 modification time); whenever a process writes a new one, the entries of every CasADi version's folder that no
@@ -65,6 +65,7 @@ __all__ = [
     "compile_solver",
     "compiled_function",
     "compiled_library",
+    "function_path",
     "load",
     "mode",
     "on_setting",
@@ -444,11 +445,7 @@ def compiled_function(f):
 
     if mode() == "off":
         return None
-    h = hashlib.sha256()
-    h.update(ca.__version__.encode())
-    h.update(f.serialize().encode())
-    h.update(" ".join(FUNCTION_FLAGS).encode())
-    path = _folder() / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
+    path = function_path(f)
 
     def generate(folder: Path) -> Path:
         gen = ca.CodeGenerator(f"{f.name()}.c", {"with_header": False})
@@ -456,14 +453,33 @@ def compiled_function(f):
         gen.generate(os.path.join(str(folder), ""))
         return folder / f"{f.name()}.c"
 
-    try:
-        if not _library(path, generate, FUNCTION_FLAGS):
+    for again in (False, True):  # a cached library that does not load (damaged) is compiled again, once
+        try:
+            if not _library(path, generate, FUNCTION_FLAGS):
+                return None
+            loaded = ca.external(f.name(), str(path))
+            _used(path)
+            return loaded
+        except RuntimeError:
+            if again:
+                return None
+            with contextlib.suppress(OSError):
+                path.unlink()
+        except (OSError, subprocess.SubprocessError):
             return None
-        loaded = ca.external(f.name(), str(path))
-        _used(path)
-        return loaded
-    except (OSError, subprocess.SubprocessError, RuntimeError):
-        return None
+    return None
+
+
+def function_path(f) -> Path:
+    """Where :func:`compiled_function` caches the library of ``f``: the hash covers CasADi's version, ``f``'s
+    serialisation and :data:`FUNCTION_FLAGS`."""
+    import casadi as ca
+
+    h = hashlib.sha256()
+    h.update(ca.__version__.encode())
+    h.update(f.serialize().encode())
+    h.update(" ".join(FUNCTION_FLAGS).encode())
+    return _folder() / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
 
 
 def compiled_library(source: Path) -> Path | None:
