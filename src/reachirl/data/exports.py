@@ -190,25 +190,27 @@ def export_trajectories(out_dir: str | Path, items: Iterable[TrajectoryExport], 
     remove_temporaries(out)  # what the atomic writes of a killed export left
     used: set[str] = set()
     index = [INDEX_COLUMNS]
-    for it in items:
-        if it.converged is False:  # a failed DOC is no prediction: listed, not written (nor its name taken)
-            index.append((it.id, "", it.set, "false"))
-            continue
-        base = safe_name(it.id)
-        name, k = base, 1
-        while name in used:
-            k += 1
-            name = f"{base}-{k}"
-        used.add(name)
-        with open(pending, "a", encoding="utf-8") as fh:  # an interrupt from here on: the next export removes it
-            fh.write(f"{name}\n")
-        # not synced one by one (a millisecond each, over a second for a run's ~1,200): see the docstring
-        atomic_write_text(out / f"{name}.csv", trajectory_csv(it.t, it.demo, it.pred), durable=False)
-        if mot:
-            src = it.pred if it.pred is not None else it.demo
-            cols, deg = opensim_coordinates(src["q"], it.side)
-            write_mot(out / f"{name}.mot", it.t, deg, columns=cols, durable=False)
-        index.append((it.id, name, it.set, "" if it.converged is None else "true"))
+    with open(pending, "a", encoding="utf-8") as listed:  # each name before its files: an interrupt from then on
+        # leaves it to the next export to remove
+        for it in items:
+            if it.converged is False:  # a failed DOC is no prediction: listed, not written (nor its name taken)
+                index.append((it.id, "", it.set, "false"))
+                continue
+            base = safe_name(it.id)
+            name, k = base, 1
+            while name in used:
+                k += 1
+                name = f"{base}-{k}"
+            used.add(name)
+            listed.write(f"{name}\n")
+            listed.flush()
+            # not synced one by one (a millisecond each, over a second for a run's ~1,200): see the docstring
+            atomic_write_text(out / f"{name}.csv", trajectory_csv(it.t, it.demo, it.pred), durable=False)
+            if mot:
+                src = it.pred if it.pred is not None else it.demo
+                cols, deg = opensim_coordinates(src["q"], it.side)
+                write_mot(out / f"{name}.mot", it.t, deg, columns=cols, durable=False)
+            index.append((it.id, name, it.set, "" if it.converged is None else "true"))
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerows(index)
     atomic_write_text(out / "index.csv", buf.getvalue())

@@ -49,24 +49,17 @@ def lapack_only():
 
 @functools.lru_cache(maxsize=1)
 def _loaded():
-    """The compiled library's function, loaded once per process; a cached file that does not load (damaged) is
-    compiled again, once."""
+    """The compiled library's function, loaded once per process (compiled again, once, where the cached file is
+    damaged: :func:`reachirl.doc.compiled.compiled_library`)."""
     with _lock:
-        for again in (False, True):
-            path = compiled.compiled_library(SOURCE)
-            if path is None:
-                return None
-            try:
-                f = ctypes.CDLL(str(path)).reachirl_band_solve
-                break
-            except (OSError, AttributeError):
-                if again:
-                    return None
-                with contextlib.suppress(OSError):
-                    path.unlink()
-        f.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
-        f.restype = ctypes.c_int
-        return f
+        return compiled.compiled_library(SOURCE, _bind)
+
+
+def _bind(path: Path):
+    f = ctypes.CDLL(str(path)).reachirl_band_solve
+    f.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p]
+    f.restype = ctypes.c_int
+    return f
 
 
 def native() -> bool:

@@ -453,21 +453,10 @@ def compiled_function(f):
         gen.generate(os.path.join(str(folder), ""))
         return folder / f"{f.name()}.c"
 
-    for again in (False, True):  # a cached library that does not load (damaged) is compiled again, once
-        try:
-            if not _library(path, generate, FUNCTION_FLAGS):
-                return None
-            loaded = ca.external(f.name(), str(path))
-            _used(path)
-            return loaded
-        except RuntimeError:
-            if again:
-                return None
-            with contextlib.suppress(OSError):
-                path.unlink()
-        except (OSError, subprocess.SubprocessError):
-            return None
-    return None
+    try:
+        return _loaded_library(path, generate, FUNCTION_FLAGS, lambda p: ca.external(f.name(), str(p)))
+    except (OSError, subprocess.SubprocessError, RuntimeError):  # RuntimeError: CasADi's code generation
+        return None
 
 
 def function_path(f) -> Path:
@@ -482,10 +471,11 @@ def function_path(f) -> Path:
     return _folder() / f"fn-{f.name()}-{h.hexdigest()[:24]}.so"
 
 
-def compiled_library(source: Path) -> Path | None:
+def compiled_library(source: Path, load: Callable[[Path], object] | None = None):
     """The C file ``source`` (plain C, no Python) compiled to a shared library with :data:`LIBRARY_FLAGS` and cached
-    (``<cache>/casadi-<version>/fn-<stem>-<hash>.so``, the hash covering the source and the flags), for ``ctypes``;
-    None when :func:`mode` is ``off`` or it cannot be compiled."""
+    (``<cache>/casadi-<version>/fn-<stem>-<hash>.so``, the hash covering the source and the flags): its path, or
+    ``load(path)`` (e.g. a ``ctypes`` function of it; a cached file that ``load`` cannot load is compiled again,
+    once); None when :func:`mode` is ``off`` or it cannot be compiled or loaded."""
     if mode() == "off":
         return None
     source = Path(source)
@@ -494,12 +484,29 @@ def compiled_library(source: Path) -> Path | None:
     h.update(" ".join(LIBRARY_FLAGS).encode())
     path = _folder() / f"fn-{source.stem}-{h.hexdigest()[:24]}.so"
     try:
-        if not _library(path, lambda folder: source, LIBRARY_FLAGS):
-            return None
-        _used(path)
-        return path
+        return _loaded_library(path, lambda folder: source, LIBRARY_FLAGS, load or (lambda p: p))
     except (OSError, subprocess.SubprocessError):
         return None
+
+
+def _loaded_library(path: Path, source: Callable[[Path], Path], flags: tuple[str, ...], load: Callable[[Path], object]):
+    """``load(path)`` of the library :func:`_library` compiles into ``path`` (marked used); a cached file that does
+    not load (damaged) is removed and compiled again, once. None without a C compiler or when it still does not
+    load."""
+    for again in (False, True):
+        if not _library(path, source, flags):
+            return None
+        try:
+            loaded = load(path)
+        except (OSError, RuntimeError, AttributeError):
+            if again:
+                return None
+            with contextlib.suppress(OSError):
+                path.unlink()
+            continue
+        _used(path)
+        return loaded
+    return None
 
 
 def _library(path: Path, source: Callable[[Path], Path], flags: tuple[str, ...]) -> bool:

@@ -479,8 +479,8 @@ def _step(reach: _Reach, x: _Iterate, system: _System, last: float):
     if delta is None:
         return None
     ab[2 * _BW, :m] += delta
-    step = np.array(system.rhs, dtype=float)
-    info = banded.solve(_BW, _BW, np.asfortranarray(ab), step)
+    step = system.rhs  # the system's own copy (_Reach.kkt), solved in place
+    info = banded.solve(_BW, _BW, ab, step)
     if info != 0 or not np.all(np.isfinite(step)):
         return None
     dpath = np.zeros(2 * (n + 3))
